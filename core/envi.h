@@ -1,0 +1,4 @@
+/* placeholder: being written */
+#ifndef KG_ENVI_H
+#define KG_ENVI_H
+#endif

@@ -1,0 +1,156 @@
+#include <errno.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "fsutil.h"
+
+int kg_outfile_open(kg_outfile *o, const char *path, int allow_stdout, kg_err *err)
+{
+	memset(o, 0, sizeof(*o));
+	if (!path || !*path)
+		return kg_fail(err, KG_EINVAL, "no output file given");
+	if (strcmp(path, "-") == 0) {
+		if (!allow_stdout)
+			return kg_fail(err, KG_EINVAL,
+			               "output '-': this output is binary and cannot go to standard output");
+		o->fp = stdout;
+		o->path = strdup(path);
+		return o->path ? 0 : KG_ENOMEM;
+	}
+	o->path = strdup(path);
+	size_t n = strlen(path) + 32;
+	o->tmp_path = malloc(n);
+	if (!o->path || !o->tmp_path) {
+		kg_outfile_abort(o);
+		return kg_fail(err, KG_ENOMEM, "%s: out of memory", path);
+	}
+	snprintf(o->tmp_path, n, "%s.tmp.XXXXXX", path);
+	int fd = mkstemp(o->tmp_path);
+	if (fd < 0) {
+		int e = errno;
+		free(o->tmp_path);
+		o->tmp_path = NULL;
+		kg_outfile_abort(o);
+		return kg_fail(err, KG_EIO, "%s: cannot create: %s", path, strerror(e));
+	}
+	fchmod(fd, 0644);
+	o->fp = fdopen(fd, "wb");
+	if (!o->fp) {
+		close(fd);
+		kg_outfile_abort(o);
+		return kg_fail(err, KG_EIO, "%s: cannot open: %s", path, strerror(errno));
+	}
+	return 0;
+}
+
+int kg_outfile_commit(kg_outfile *o, kg_err *err)
+{
+	int ret = 0;
+	if (!o->fp)
+		return kg_fail(err, KG_EINVAL, "output file not open");
+	if (o->fp == stdout) {
+		if (fflush(stdout) != 0)
+			ret = kg_fail(err, KG_EIO, "standard output: write failed: %s", strerror(errno));
+		o->fp = NULL;
+		kg_outfile_abort(o);
+		return ret;
+	}
+	if (fflush(o->fp) != 0 || ferror(o->fp) || fsync(fileno(o->fp)) != 0)
+		ret = kg_fail(err, KG_EIO, "%s: write failed: %s", o->path, strerror(errno));
+	if (fclose(o->fp) != 0 && ret == 0)
+		ret = kg_fail(err, KG_EIO, "%s: write failed: %s", o->path, strerror(errno));
+	o->fp = NULL;
+	if (ret == 0 && rename(o->tmp_path, o->path) != 0)
+		ret = kg_fail(err, KG_EIO, "%s: cannot rename into place: %s", o->path,
+		              strerror(errno));
+	if (ret == 0) {
+		free(o->tmp_path);
+		o->tmp_path = NULL;
+	}
+	kg_outfile_abort(o);
+	return ret;
+}
+
+void kg_outfile_abort(kg_outfile *o)
+{
+	if (o->fp && o->fp != stdout)
+		fclose(o->fp);
+	o->fp = NULL;
+	if (o->tmp_path)
+		unlink(o->tmp_path);
+	free(o->tmp_path);
+	free(o->path);
+	o->tmp_path = NULL;
+	o->path = NULL;
+}
+
+int kg_read_file(const char *path, char **buf, size_t *len, kg_err *err)
+{
+	FILE *fp = fopen(path, "rb");
+	if (!fp)
+		return kg_fail(err, errno == ENOENT ? KG_ENOENT : KG_EIO, "%s: cannot open: %s",
+		               path, strerror(errno));
+	size_t cap = 1 << 16, n = 0;
+	char *b = malloc(cap + 1);
+	while (b) {
+		size_t got = fread(b + n, 1, cap - n, fp);
+		n += got;
+		if (n < cap)
+			break;
+		cap *= 2;
+		char *nb = realloc(b, cap + 1);
+		if (!nb) {
+			free(b);
+			b = NULL;
+		} else
+			b = nb;
+	}
+	int bad = ferror(fp);
+	fclose(fp);
+	if (!b)
+		return kg_fail(err, KG_ENOMEM, "%s: out of memory reading file", path);
+	if (bad) {
+		free(b);
+		return kg_fail(err, KG_EIO, "%s: read error", path);
+	}
+	b[n] = '\0';
+	*buf = b;
+	if (len)
+		*len = n;
+	return 0;
+}
+
+int kg_mkdir_p(const char *path, kg_err *err)
+{
+	char *p = strdup(path);
+	if (!p)
+		return KG_ENOMEM;
+	for (char *s = p + 1;; s++) {
+		if (*s == '/' || *s == '\0') {
+			char c = *s;
+			*s = '\0';
+			if (mkdir(p, 0755) != 0 && errno != EEXIST) {
+				int e = errno;
+				int r = kg_fail(err, KG_EIO, "%s: cannot create directory: %s", p, strerror(e));
+				free(p);
+				return r;
+			}
+			*s = c;
+			if (c == '\0')
+				break;
+		}
+	}
+	free(p);
+	return 0;
+}
+
+char *kg_path_join(const char *dir, const char *name)
+{
+	size_t n = strlen(dir) + strlen(name) + 2;
+	char *s = malloc(n);
+	if (s)
+		snprintf(s, n, "%s%s%s", dir, (*dir && dir[strlen(dir) - 1] != '/') ? "/" : "", name);
+	return s;
+}

@@ -1,0 +1,4 @@
+/* placeholder: being written */
+#ifndef KG_IMAGE_H
+#define KG_IMAGE_H
+#endif

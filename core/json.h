@@ -1,0 +1,4 @@
+/* placeholder: being written */
+#ifndef KG_JSON_H
+#define KG_JSON_H
+#endif

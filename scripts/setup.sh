@@ -1,0 +1,32 @@
+#!/bin/sh
+# Install the Debian 12 packages kogei builds and tests with. Idempotent: asks apt
+# only for what is missing, so a second run does nothing and needs no network.
+set -eu
+
+PACKAGES="
+build-essential meson ninja-build pkg-config
+liblapacke-dev libtiff-dev libpng-dev libjansson-dev zlib1g-dev libcairo2-dev
+colord-data argyll argyll-ref
+python3 python3-numpy python3-spectral
+"
+
+missing=""
+for p in $PACKAGES; do
+	if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
+		missing="$missing $p"
+	fi
+done
+
+if [ -n "$missing" ]; then
+	echo "setup: installing:$missing"
+	if [ "$(id -u)" != 0 ]; then
+		echo "setup: need root to install packages (run as root or with sudo)" >&2
+		exit 1
+	fi
+	export DEBIAN_FRONTEND=noninteractive
+	apt-get update -qq
+	# shellcheck disable=SC2086
+	apt-get install -y -qq --no-install-recommends $missing
+else
+	echo "setup: all packages present"
+fi
