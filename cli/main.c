@@ -1,15 +1,97 @@
+#include <stdarg.h>
 #include <stdio.h>
 #include <string.h>
 
+#include "cli.h"
 #include "kg_config.h"
-#include "kg_optics.h"
+
+static const kg_command commands[] = {
+	{"spectra xyz", kg_cmd_spectra_xyz, "CIE XYZ and CIELAB of the spectra in a CGATS file"},
+	{"model", kg_cmd_model, "reflectance of a material over wavelength and incidence angle"},
+	{"demo", kg_cmd_demo, "run the whole pipeline on the bundled default"},
+};
+
+int kg_cli_error(const kg_err *err, int code)
+{
+	fprintf(stderr, "kogei: %s\n", err && err->msg[0] ? err->msg : "failed");
+	if (code == KG_ENODEV || code == KG_ETIMEDOUT)
+		return KG_EXIT_DEVICE;
+	return KG_EXIT_INPUT;
+}
+
+int kg_cli_usage_error(const char *usage, const char *fmt, ...)
+{
+	va_list ap;
+	fputs("kogei: ", stderr);
+	va_start(ap, fmt);
+	vfprintf(stderr, fmt, ap);
+	va_end(ap);
+	fprintf(stderr, "\nusage: %s\n", usage);
+	return KG_EXIT_USAGE;
+}
+
+int kg_cli_wants_help(int argc, char **argv)
+{
+	for (int i = 1; i < argc; i++) {
+		if (strcmp(argv[i], "--") == 0)
+			break;
+		if (strcmp(argv[i], "-h") == 0 || strcmp(argv[i], "--help") == 0)
+			return 1;
+	}
+	return 0;
+}
+
+static void usage(FILE *fp)
+{
+	fprintf(fp, "usage: kogei [--help] [--version] COMMAND [ARGS...]\n\n"
+	            "kogei measures spectral reflectance and materials of craft objects.\n\n"
+	            "Commands:\n");
+	for (size_t i = 0; i < sizeof(commands) / sizeof(commands[0]); i++)
+		fprintf(fp, "  %-22s %s\n", commands[i].name, commands[i].summary);
+	fprintf(fp, "\n'kogei COMMAND --help' describes a command.\n"
+	            "Exit status: 0 success, 1 bad input, 2 bad usage, 3 device failure.\n");
+}
 
 int main(int argc, char **argv)
 {
-	if (argc > 1 && strcmp(argv[1], "--version") == 0) {
-		printf("kogei %s\n", KG_VERSION);
-		return 0;
+	if (argc < 2) {
+		usage(stderr);
+		return KG_EXIT_USAGE;
 	}
-	fprintf(stderr, "usage: kogei COMMAND ...\n");
-	return 2;
+	if (strcmp(argv[1], "--version") == 0) {
+		printf("kogei %s\n", KG_VERSION);
+		return KG_EXIT_OK;
+	}
+	if (strcmp(argv[1], "--help") == 0 || strcmp(argv[1], "-h") == 0 ||
+	    strcmp(argv[1], "help") == 0) {
+		usage(stdout);
+		return KG_EXIT_OK;
+	}
+	/* Match the longest command name made of one or two words. */
+	for (int words = 2; words >= 1; words--) {
+		if (argc < 1 + words)
+			continue;
+		char name[128];
+		if (words == 2)
+			snprintf(name, sizeof(name), "%s %s", argv[1], argv[2]);
+		else
+			snprintf(name, sizeof(name), "%s", argv[1]);
+		for (size_t i = 0; i < sizeof(commands) / sizeof(commands[0]); i++)
+			if (strcmp(commands[i].name, name) == 0)
+				return commands[i].run(argc - words, argv + words);
+	}
+	/* A group name alone ("kogei spectra") lists its subcommands. */
+	int shown = 0;
+	for (size_t i = 0; i < sizeof(commands) / sizeof(commands[0]); i++) {
+		size_t n = strlen(argv[1]);
+		if (strncmp(commands[i].name, argv[1], n) == 0 && commands[i].name[n] == ' ') {
+			if (!shown)
+				fprintf(stderr, "kogei %s: expected a subcommand:\n", argv[1]);
+			fprintf(stderr, "  kogei %-20s %s\n", commands[i].name, commands[i].summary);
+			shown = 1;
+		}
+	}
+	if (!shown)
+		fprintf(stderr, "kogei: unknown command '%s' (see 'kogei --help')\n", argv[1]);
+	return KG_EXIT_USAGE;
 }

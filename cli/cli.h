@@ -1,0 +1,28 @@
+/* The kogei command line: argument parsing and dispatch only. Each command is a
+ * function taking its own argv (argv[0] is the command name). Exit codes follow
+ * DESIGN.md §4: 0 success, 1 bad input, 2 bad usage, 3 device failure. */
+#ifndef KG_CLI_H
+#define KG_CLI_H
+
+#include "kg_core.h"
+
+enum { KG_EXIT_OK = 0, KG_EXIT_INPUT = 1, KG_EXIT_USAGE = 2, KG_EXIT_DEVICE = 3 };
+
+typedef struct kg_command {
+	const char *name;    /* e.g. "spectra xyz" */
+	int (*run)(int argc, char **argv);
+	const char *summary;
+} kg_command;
+
+/* Print "kogei: <message>" to stderr and return the exit code for an error code. */
+int kg_cli_error(const kg_err *err, int code);
+/* Print a usage error and return KG_EXIT_USAGE. */
+int kg_cli_usage_error(const char *usage, const char *fmt, ...) KG_PRINTF(2, 3);
+/* 1 if argv holds -h or --help. */
+int kg_cli_wants_help(int argc, char **argv);
+
+int kg_cmd_spectra_xyz(int argc, char **argv);
+int kg_cmd_model(int argc, char **argv);
+int kg_cmd_demo(int argc, char **argv);
+
+#endif
