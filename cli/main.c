@@ -8,6 +8,10 @@
 static const kg_command commands[] = {
 	{"spectra xyz", kg_cmd_spectra_xyz, "CIE XYZ and CIELAB of the spectra in a CGATS file"},
 	{"model", kg_cmd_model, "reflectance of a material over wavelength and incidence angle"},
+	{"sim patches", kg_cmd_sim_patches, "simulated camera readings of reflectance spectra"},
+	{"sim image", kg_cmd_sim_image, "simulated camera image of a chart and material samples"},
+	{"calib reference", kg_cmd_calib_reference, "fit B, M and the other methods on a measured chart"},
+	{"calib camera", kg_cmd_calib_camera, "fit M2 for a site camera from its chart photograph"},
 	{"demo", kg_cmd_demo, "run the whole pipeline on the bundled default"},
 };
 

@@ -1,4 +1,172 @@
-/* placeholder: being written */
+/* CGATS.17 text files (ArgyllCMS .ti1/.ti2/.ti3/.cie/.sp, colord .sp/.cmf, X-Rite
+ * exports) and the patch sets built from them.
+ *
+ * A file holds one or more tables. Each table starts with a file-type identifier line
+ * ("CGATS.17", "CTI3", "SPECT", ...), has keywords with values, a list of field names
+ * (BEGIN_DATA_FORMAT ... END_DATA_FORMAT) and data sets (BEGIN_DATA ... END_DATA), one
+ * set per line. Cells are kept as text; kg_cgats_number() converts one with an error
+ * that names the file, the line, the field and what was expected. */
 #ifndef KG_CGATS_H
 #define KG_CGATS_H
+
+#include <stddef.h>
+
+#include "error.h"
+#include "spectrum.h"
+
+/* Longest line the reader accepts; longer lines are refused with the line number. */
+#define KG_CGATS_MAX_LINE (1 << 20)
+
+typedef struct kg_cgats_kw {
+	char *name;
+	char *value; /* without its quotes */
+	int line;    /* source line, 0 when built in memory */
+} kg_cgats_kw;
+
+typedef struct kg_cgats_table {
+	const char *path; /* the owning kg_cgats' path, for messages */
+	char *type;       /* file-type identifier, e.g. "CGATS.17", "CTI3", "SPECT" */
+	int line;         /* line of the identifier, 0 when built in memory */
+	int nkeywords;
+	kg_cgats_kw *keywords; /* in file order; NUMBER_OF_FIELDS/SETS and KEYWORD
+	                             * declarations are structure, not stored here */
+	int nfields;
+	char **fields;
+	int nsets;
+	char **cells;   /* nsets x nfields, row-major, text without quotes */
+	int *set_lines; /* source line of each set, 0 when built in memory */
+	int cap_sets;   /* allocated rows (private) */
+} kg_cgats_table;
+
+typedef struct kg_cgats {
+	char *path; /* file name used in messages ("<memory>" or a caller's name) */
+	int ntables;
+	kg_cgats_table **tables;
+} kg_cgats;
+
+/* --- reading --- */
+
+/* Read and parse a file. */
+int kg_cgats_read(const char *path, kg_cgats **out, kg_err *err);
+/* Parse a buffer (need not be NUL-terminated; NUL bytes are an error). `name` is used
+ * in messages and as the path; NULL means "<memory>". */
+int kg_cgats_parse(const char *buf, size_t len, const char *name, kg_cgats **out,
+                   kg_err *err);
+void kg_cgats_free(kg_cgats **cg);
+
+/* --- access --- */
+
+/* Index of a field by exact name, or -1. */
+int kg_cgats_field(const kg_cgats_table *t, const char *name);
+/* Value of the first keyword with this name, or NULL. */
+const char *kg_cgats_keyword(const kg_cgats_table *t, const char *name);
+/* Keyword as a finite number. KG_ENOENT if absent, KG_EINVAL if not a number. */
+int kg_cgats_keyword_number(const kg_cgats_table *t, const char *name, double *out,
+                            kg_err *err);
+/* Text of a cell (never NULL for valid indices). */
+const char *kg_cgats_cell(const kg_cgats_table *t, int set, int field);
+/* A cell as a finite number; the message names file, line, field and the text found.
+ * NaN and infinity are refused. */
+int kg_cgats_number(const kg_cgats_table *t, int set, int field, double *out,
+                    kg_err *err);
+/* Parse text as a finite decimal number (the rule kg_cgats_number uses). 0 or
+ * KG_EINVAL, no message. */
+int kg_cgats_parse_number(const char *text, double *out);
+/* The spectral fields of a table: indices of the SPEC_<nm> fields (in field order)
+ * and their wavelengths in nm. Names written in picometres by colord (SPEC_300000)
+ * are understood; when SPECTRAL_START_NM/END_NM/BANDS agree with the field names
+ * (within 1 nm) the exact keyword grid is used (Argyll rounds 3.33 nm steps in the
+ * names). *n = 0 and NULL arrays when there are none. Caller frees both arrays. */
+int kg_cgats_spectral_fields(const kg_cgats_table *t, int **fields, double **wl, int *n,
+                             kg_err *err);
+
+/* --- building and writing --- */
+
+/* A new file with one empty table of the given type (NULL means "CGATS.17"). */
+int kg_cgats_new(const char *type, kg_cgats **out, kg_err *err);
+/* Append another table; *out stays valid until the kg_cgats is freed. */
+int kg_cgats_add_table(kg_cgats *cg, const char *type, kg_cgats_table **out,
+                       kg_err *err);
+/* Set a keyword (replaces the first one of that name, else appends). The value may
+ * not contain a double quote or a line break. */
+int kg_cgats_set_keyword(kg_cgats_table *t, const char *name, const char *value,
+                         kg_err *err);
+int kg_cgats_set_keyword_number(kg_cgats_table *t, const char *name, double value,
+                                kg_err *err);
+/* Set the field names; only allowed while the table has no sets. */
+int kg_cgats_set_fields(kg_cgats_table *t, const char *const *names, int n,
+                        kg_err *err);
+/* Append a set of nfields texts. */
+int kg_cgats_add_row(kg_cgats_table *t, const char *const *cells, kg_err *err);
+/* Append a set: `first` (if not NULL) fills field 0 and vals fill the remaining
+ * fields (nvals must make up nfields). Numbers are written with %.10g; NaN/Inf are
+ * refused. */
+int kg_cgats_add_row_numbers(kg_cgats_table *t, const char *first, const double *vals,
+                             int nvals, kg_err *err);
+/* Append an empty set (all cells "") and return its index in *set. */
+int kg_cgats_append_set(kg_cgats_table *t, int *set, kg_err *err);
+int kg_cgats_set_cell(kg_cgats_table *t, int set, int field, const char *text,
+                      kg_err *err);
+int kg_cgats_set_cell_number(kg_cgats_table *t, int set, int field, double v,
+                             kg_err *err);
+/* Write atomically (kg_outfile); "-" writes to standard output. */
+int kg_cgats_write(const kg_cgats *cg, const char *path, kg_err *err);
+
+/* --- patch sets --- */
+
+/* Which columns a patch set carries (kg_patchset_new, kg_patchset_write). */
+enum {
+	KG_PATCH_SPECTRA = 1 << 0, /* SPEC_400 .. SPEC_700 */
+	KG_PATCH_RGB = 1 << 1,     /* RGB_R RGB_G RGB_B */
+	KG_PATCH_XYZ = 1 << 2,     /* XYZ_X XYZ_Y XYZ_Z */
+	KG_PATCH_LAB = 1 << 3,     /* LAB_L LAB_A LAB_B */
+	KG_PATCH_EXTRA = 1 << 4,   /* the extra numeric columns */
+};
+
+/* Extra flag for kg_patchset_from_cgats/read, combinable with KG_RESAMPLE_*:
+ * take spectral values as stored (no SPECTRAL_NORM or percent scaling). */
+#define KG_PATCH_KEEP_SCALE (1u << 8)
+
+typedef struct kg_patchset {
+	int n;
+	char **ids;            /* n ids: SAMPLE_ID, else SAMPLE_NAME, else SAMPLE_LOC,
+	                        * else the 1-based row number */
+	kg_spectrum *spectra;  /* n spectra on the grid, or NULL */
+	double (*rgb)[3];      /* or NULL; values as in the file */
+	double (*xyz)[3];      /* or NULL */
+	double (*lab)[3];      /* or NULL */
+	int nextra;            /* other numeric columns */
+	char **extra_names;
+	double *extra;         /* n x nextra, row-major */
+	double spectral_scale; /* factor applied to the file's spectral values */
+	char *source;          /* file it came from, or NULL */
+} kg_patchset;
+
+/* An empty patch set of n patches with the arrays named by `fields` (KG_PATCH_*)
+ * zeroed and ids "1".."n". */
+int kg_patchset_new(int n, unsigned fields, kg_patchset **out, kg_err *err);
+int kg_patchset_set_id(kg_patchset *ps, int i, const char *id, kg_err *err);
+/* Append an extra numeric column (zeroed); its index is ps->nextra - 1. */
+int kg_patchset_add_extra(kg_patchset *ps, const char *name, kg_err *err);
+/* Build from the first table of a file (flags: KG_RESAMPLE_*, KG_PATCH_KEEP_SCALE). */
+int kg_patchset_from_cgats(const kg_cgats *cg, unsigned flags, kg_patchset **out,
+                           kg_err *err);
+int kg_patchset_from_table(const kg_cgats_table *t, unsigned flags, kg_patchset **out,
+                           kg_err *err);
+/* kg_cgats_read + kg_patchset_from_cgats. */
+int kg_patchset_read(const char *path, unsigned flags, kg_patchset **out, kg_err *err);
+/* A CGATS.17 table with SAMPLE_ID and the columns named by `fields` (each must be
+ * present). Spectra carry SPECTRAL_START_NM/END_NM/BANDS and SPECTRAL_NORM 1.
+ * `keywords` is NULL or a NULL-terminated list of name, value pairs. */
+int kg_patchset_to_cgats(const kg_patchset *ps, unsigned fields,
+                         const char *const *keywords, kg_cgats **out, kg_err *err);
+/* kg_patchset_to_cgats + kg_cgats_write ("-" = standard output). */
+int kg_patchset_write(const char *path, const kg_patchset *ps, unsigned fields,
+                      const char *const *keywords, kg_err *err);
+/* Index of the patch with this id, or -1. */
+int kg_patchset_find(const kg_patchset *ps, const char *id);
+/* Index of an extra column by name, or -1. */
+int kg_patchset_extra_index(const kg_patchset *ps, const char *name);
+void kg_patchset_free(kg_patchset **ps);
+
 #endif

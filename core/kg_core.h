@@ -8,6 +8,7 @@
 #include "fsutil.h"
 #include "spectrum.h"
 #include "cgats.h"
+#include "csv.h"
 #include "colorimetry.h"
 #include "linalg.h"
 #include "envi.h"

@@ -1,0 +1,658 @@
+/* Reference calibration: the chart's moments, the PCA basis, the regressions of
+ * every method and their leave-one-out validation. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "calib_private.h"
+
+#define NB KG_NBANDS
+#define TMAX KG_CALIB_MAX_TERMS
+#define KMAX KG_CALIB_MAX_BASIS
+
+/* A normal matrix X^T X + lambda I above this condition number is refused: the
+ * solution would carry less than about 4 correct digits. */
+#define MAX_NORMAL_COND 1e12
+/* "Within tolerance of the best" for the choice of K and of the method. */
+#define CHOICE_ABS_TOL 1e-6
+
+/* Sums over the patches of a chart, for every method's terms x: all a fit needs.
+ * Subtracting one patch's contribution gives the sums without it, so a
+ * leave-one-out refit costs a few small solves, not a pass over the chart. */
+typedef struct moments {
+	double n;
+	double ss[NB * NB];                      /* sum s s^T */
+	double s[NB];                            /* sum s */
+	double xx[KG_METHOD_COUNT][TMAX * TMAX]; /* sum x x^T, T x T */
+	double xs[KG_METHOD_COUNT][TMAX * NB];   /* sum x s^T, T x 61 */
+	double x[KG_METHOD_COUNT][TMAX];         /* sum x */
+} moments;
+
+static void moments_add(moments *mo, const kg_spectrum *s, const double rgb[3],
+                        double sign)
+{
+	mo->n += sign;
+	for (int l = 0; l < NB; l++) {
+		mo->s[l] += sign * s->v[l];
+		for (int j = 0; j < NB; j++)
+			mo->ss[l * NB + j] += sign * s->v[l] * s->v[j];
+	}
+	for (int m = 0; m < KG_METHOD_COUNT; m++) {
+		double x[TMAX];
+		int T = kg_method_nterms((kg_method)m);
+		kg_method_terms((kg_method)m, rgb, x);
+		for (int t = 0; t < T; t++) {
+			mo->x[m][t] += sign * x[t];
+			for (int u = 0; u < T; u++)
+				mo->xx[m][t * T + u] += sign * x[t] * x[u];
+			for (int l = 0; l < NB; l++)
+				mo->xs[m][t * NB + l] += sign * x[t] * s->v[l];
+		}
+	}
+}
+
+/* The least-squares map from T terms to spectra with a ridge:
+ * A (61 x T) = ((xx + lambda I)^-1 xs)^T, i.e. A = S^T X (X^T X + lambda I)^-1. */
+static int regress(const double *xx, const double *xs, int T, double lambda, double *A,
+                   double *cond, kg_err *err)
+{
+	kg_mat *G = NULL, *Gi = NULL;
+	double c = INFINITY;
+	int ret = kg_mat_new(T, T, &G, err);
+	if (ret)
+		return ret;
+	for (int t = 0; t < T; t++)
+		for (int u = 0; u < T; u++)
+			G->a[t * T + u] = xx[t * T + u] + (t == u ? lambda : 0.0);
+	ret = kg_cond(G, 0, &c, err);
+	if (ret == 0 && !(c <= MAX_NORMAL_COND))
+		ret = kg_fail(err, KG_ERANGE,
+		              "the normal matrix of its %d terms is singular or nearly so "
+		              "(condition number %.3g > %.0e); a ridge (--ridge) would regularise it",
+		              T, c, MAX_NORMAL_COND);
+	if (ret == 0)
+		ret = kg_pinv(G, 0, &Gi, NULL, NULL, err);
+	if (ret == 0) {
+		for (int l = 0; l < NB; l++)
+			for (int t = 0; t < T; t++) {
+				double v = 0;
+				for (int u = 0; u < T; u++)
+					v += Gi->a[t * T + u] * xs[u * NB + l];
+				A[l * T + t] = v;
+			}
+	}
+	if (cond)
+		*cond = c;
+	kg_mat_free(&G);
+	kg_mat_free(&Gi);
+	return ret;
+}
+
+/* The PCA basis: the nk leading eigenvectors of the scatter matrix S^T S (centred:
+ * of the covariance about the mean spectrum), i.e. the leading right singular
+ * vectors of S, into B (61 x nk, stride nk). Signs are fixed so each vector sums to
+ * a positive value. sv: singular values; energy: cumulative fraction of the trace. */
+static int pca_basis(const moments *mo, int centred, int nk, double *B, double *sv,
+                     double *energy, kg_err *err)
+{
+	kg_mat *Q = NULL, *val = NULL, *vec = NULL;
+	int ret = kg_mat_from(NB, NB, mo->ss, &Q, err);
+	if (ret)
+		return ret;
+	if (centred)
+		for (int l = 0; l < NB; l++)
+			for (int j = 0; j < NB; j++)
+				Q->a[l * NB + j] -= mo->s[l] * mo->s[j] / mo->n;
+	double trace = 0;
+	for (int l = 0; l < NB; l++)
+		trace += Q->a[l * NB + l];
+	ret = kg_eigsym(Q, &val, &vec, err);
+	if (ret == 0) {
+		double cum = 0;
+		for (int k = 0; k < nk; k++) {
+			double sum = 0, big = 0;
+			for (int l = 0; l < NB; l++) {
+				double v = vec->a[l * NB + k];
+				sum += v;
+				if (fabs(v) > fabs(big))
+					big = v;
+			}
+			/* A vector with no clear sum takes the sign of its largest element. */
+			double sign = fabs(sum) > 1e-9 ? (sum > 0 ? 1 : -1) : (big >= 0 ? 1 : -1);
+			for (int l = 0; l < NB; l++)
+				B[l * nk + k] = sign * vec->a[l * NB + k];
+			double ev = fmax(val->a[k], 0.0);
+			cum += ev;
+			if (sv)
+				sv[k] = sqrt(ev);
+			if (energy)
+				energy[k] = trace > 0 ? cum / trace : 0;
+		}
+	}
+	kg_mat_free(&Q);
+	kg_mat_free(&val);
+	kg_mat_free(&vec);
+	return ret;
+}
+
+/* The linear map from RGB to spectra that the PCA model projects onto its basis:
+ * uncentred, Alin = S^T rho (rho^T rho + lambda I)^-1; centred, the same on the
+ * centred spectra and RGB (rbar, mu: the means). Then M = B^T Alin, since
+ * W^T rho = B^T S^T rho. */
+static int pca_linear(const moments *mo, int centred, double lambda, double *Alin,
+                      double rbar[3], double *mu, double *cond, kg_err *err)
+{
+	const double *xx = mo->xx[KG_METHOD_PCA], *xs = mo->xs[KG_METHOD_PCA];
+	if (!centred) {
+		memset(rbar, 0, 3 * sizeof(double));
+		memset(mu, 0, NB * sizeof(double));
+		return regress(xx, xs, 3, lambda, Alin, cond, err);
+	}
+	double G[9], C[3 * NB];
+	for (int c = 0; c < 3; c++)
+		rbar[c] = mo->x[KG_METHOD_PCA][c] / mo->n;
+	for (int l = 0; l < NB; l++)
+		mu[l] = mo->s[l] / mo->n;
+	for (int c = 0; c < 3; c++) {
+		for (int d = 0; d < 3; d++)
+			G[c * 3 + d] = xx[c * 3 + d] - mo->n * rbar[c] * rbar[d];
+		for (int l = 0; l < NB; l++)
+			C[c * NB + l] = xs[c * NB + l] - mo->n * rbar[c] * mu[l];
+	}
+	return regress(G, C, 3, lambda, Alin, cond, err);
+}
+
+/* The PCA model with the first K vectors of B (stride nk): M = B_K^T Alin (K x 3),
+ * A = B_K M, offset = mu - A rbar. M may be NULL. */
+static void pca_map(const double *B, int nk, int K, const double *Alin,
+                    const double rbar[3], const double *mu, kg_spectral_map *map,
+                    double *M)
+{
+	double Mk[KMAX * 3];
+	for (int k = 0; k < K; k++)
+		for (int c = 0; c < 3; c++) {
+			double v = 0;
+			for (int l = 0; l < NB; l++)
+				v += B[l * nk + k] * Alin[l * 3 + c];
+			Mk[k * 3 + c] = v;
+		}
+	map->nterms = 3;
+	for (int l = 0; l < NB; l++) {
+		double off = mu[l];
+		for (int c = 0; c < 3; c++) {
+			double v = 0;
+			for (int k = 0; k < K; k++)
+				v += B[l * nk + k] * Mk[k * 3 + c];
+			map->A[l * 3 + c] = v;
+			off -= v * rbar[c];
+		}
+		map->offset[l] = off;
+	}
+	if (M)
+		memcpy(M, Mk, (size_t)K * 3 * sizeof(double));
+}
+
+/* The ridge of a method: wiener's E[rho rho^T] + sigma^2 I is rho^T rho + m sigma^2 I
+ * on sums. */
+static double method_lambda(kg_method m, const kg_reference_options *opt, double n)
+{
+	return m == KG_METHOD_WIENER ? n * opt->noise_sigma * opt->noise_sigma : opt->ridge;
+}
+
+/* A regression method (not pca) on the moments. */
+static int fit_regression(const moments *mo, kg_method m, const kg_reference_options *opt,
+                          kg_spectral_map *map, kg_err *err)
+{
+	int T = kg_method_nterms(m);
+	map->method = m;
+	map->nterms = T;
+	map->lambda = method_lambda(m, opt, mo->n);
+	memset(map->offset, 0, sizeof(map->offset));
+	return regress(mo->xx[m], mo->xs[m], T, map->lambda, map->A, &map->cond, err);
+}
+
+/* Whether a chart of n patches determines a method's T coefficients. */
+static int enough_patches(kg_method m, const kg_reference_options *opt, double n)
+{
+	return n >= kg_method_nterms(m) || method_lambda(m, opt, n) > 0;
+}
+
+typedef struct loo_table {
+	double rmse[KG_METHOD_COUNT], de[KG_METHOD_COUNT]; /* pca: filled for the K used */
+	double rmse_K[KMAX], de_K[KMAX];
+	int nK;
+} loo_table;
+
+/* Leave-one-out: for each patch, refit every method on the others and predict it.
+ * A method whose refit fails for some patch (too few patches, a singular normal
+ * matrix) gets NAN. PCA is evaluated for K = 1..nK from one basis per patch. */
+static int leave_one_out(const moments *all, const kg_patchset *train,
+                         const kg_reference_options *opt, const calib_d65 *d65,
+                         loo_table *out, kg_err *err)
+{
+	int m = train->n;
+	int ok[KG_METHOD_COUNT];
+	double sum_r[KG_METHOD_COUNT] = {0}, sum_d[KG_METHOD_COUNT] = {0};
+	double sum_rK[KMAX] = {0}, sum_dK[KMAX] = {0};
+	int nK = m - 1 < KMAX ? m - 1 : KMAX;
+	moments *mo = malloc(sizeof(*mo));
+	kg_spectral_map *map = malloc(sizeof(*map));
+	if (!mo || !map) {
+		free(mo);
+		free(map);
+		return kg_fail(err, KG_ENOMEM, "leave-one-out validation: out of memory");
+	}
+	for (int j = 0; j < KG_METHOD_COUNT; j++)
+		ok[j] = enough_patches((kg_method)j, opt, m - 1);
+	int pca_ok = ok[KG_METHOD_PCA] && nK >= 1;
+	for (int i = 0; i < m; i++) {
+		const kg_spectrum *s = &train->spectra[i];
+		kg_spectrum est;
+		*mo = *all;
+		moments_add(mo, s, train->rgb[i], -1.0);
+		for (int j = KG_METHOD_LINEAR; j < KG_METHOD_COUNT; j++) {
+			if (!ok[j])
+				continue;
+			if (fit_regression(mo, (kg_method)j, opt, map, NULL) != 0) {
+				ok[j] = 0;
+				continue;
+			}
+			kg_spectral_map_apply(map, train->rgb[i], &est);
+			sum_r[j] += kg_spectrum_rmse(&est, s);
+			sum_d[j] += calib_de00(d65, &est, s);
+		}
+		if (!pca_ok)
+			continue;
+		double B[NB * KMAX], Alin[NB * 3], rbar[3], mu[NB];
+		if (pca_basis(mo, opt->centred, nK, B, NULL, NULL, NULL) != 0 ||
+		    pca_linear(mo, opt->centred, opt->ridge, Alin, rbar, mu, NULL, NULL) != 0) {
+			pca_ok = 0;
+			continue;
+		}
+		map->method = KG_METHOD_PCA;
+		for (int K = 1; K <= nK; K++) {
+			pca_map(B, nK, K, Alin, rbar, mu, map, NULL);
+			kg_spectral_map_apply(map, train->rgb[i], &est);
+			sum_rK[K - 1] += kg_spectrum_rmse(&est, s);
+			sum_dK[K - 1] += calib_de00(d65, &est, s);
+		}
+	}
+	for (int j = 0; j < KG_METHOD_COUNT; j++) {
+		out->rmse[j] = ok[j] ? sum_r[j] / m : NAN;
+		out->de[j] = ok[j] ? sum_d[j] / m : NAN;
+	}
+	out->nK = pca_ok ? nK : 0;
+	for (int K = 0; K < KMAX; K++) {
+		out->rmse_K[K] = K < out->nK ? sum_rK[K] / m : NAN;
+		out->de_K[K] = K < out->nK ? sum_dK[K] / m : NAN;
+	}
+	free(mo);
+	free(map);
+	return 0;
+}
+
+/* The first candidate whose error is within tolerance of the best: the simplest
+ * model that validates as well (candidates are ordered simplest first). -1 if
+ * none has a finite error. */
+static int choose_simplest(const double *errs, int n, double rel_tol)
+{
+	double best = INFINITY;
+	for (int i = 0; i < n; i++)
+		if (isfinite(errs[i]) && errs[i] < best)
+			best = errs[i];
+	if (!isfinite(best))
+		return -1;
+	for (int i = 0; i < n; i++)
+		if (isfinite(errs[i]) && errs[i] <= best * (1 + rel_tol) + CHOICE_ABS_TOL)
+			return i;
+	return -1;
+}
+
+void kg_reference_options_default(kg_reference_options *o)
+{
+	memset(o, 0, sizeof(*o));
+	o->basis = 3;
+	o->centred = 0;
+	o->ridge = 0;
+	o->noise_sigma = 0.01;
+	o->method = KG_METHOD_PCA;
+}
+
+void kg_reference_free(kg_reference **pref)
+{
+	if (!pref || !*pref)
+		return;
+	kg_reference *ref = *pref;
+	calib_strv_free(ref->ids, ref->m);
+	free(ref->train_rgb);
+	free(ref->rmse);
+	free(ref->gfc);
+	free(ref->de00);
+	free(ref->projection_rmse);
+	free(ref->weight_residual);
+	calib_strv_free(ref->field_ids, ref->k);
+	free(ref->rho0);
+	calib_sources_free(&ref->sources, &ref->nsources);
+	free(ref);
+	*pref = NULL;
+}
+
+static int check_options(const kg_reference_options *opt, kg_err *err)
+{
+	if (opt->basis < 0 || opt->basis > KMAX)
+		return kg_fail(err, KG_EINVAL, "basis size K = %d: expected 1 to %d, or auto",
+		               opt->basis, KMAX);
+	if (!(opt->ridge >= 0) || !isfinite(opt->ridge))
+		return kg_fail(err, KG_EINVAL, "ridge %g: expected a finite number >= 0",
+		               opt->ridge);
+	if (!(opt->noise_sigma > 0) || !isfinite(opt->noise_sigma))
+		return kg_fail(err, KG_EINVAL, "noise sigma %g: expected a finite number > 0",
+		               opt->noise_sigma);
+	if (opt->method < KG_METHOD_AUTO || opt->method >= KG_METHOD_COUNT)
+		return kg_fail(err, KG_EINVAL, "method %d: unknown", (int)opt->method);
+	return 0;
+}
+
+/* The name of a patch set in messages. */
+static const char *set_name(const kg_patchset *ps, const char *fallback)
+{
+	return ps->source ? ps->source : fallback;
+}
+
+static int check_training(const kg_patchset *train, const kg_patchset *field,
+                          const kg_reference_options *opt, kg_reference *ref,
+                          kg_err *err)
+{
+	const char *tname = set_name(train, "training chart");
+	const char *fname = set_name(field, "field chart");
+	if (!train->spectra || !train->rgb)
+		return kg_fail(err, KG_EINVAL,
+		               "%s: expected both spectra and RGB_R RGB_G RGB_B for every patch",
+		               tname);
+	if (!field->rgb)
+		return kg_fail(err, KG_EINVAL, "%s: expected fields RGB_R RGB_G RGB_B", fname);
+	int need = (opt->basis == 0 || opt->method == KG_METHOD_AUTO) ? 4 : 3;
+	if (train->n < need)
+		return kg_fail(err, KG_EINVAL,
+		               "%s: %d patch%s with both a spectrum and RGB; expected at least %d%s",
+		               tname, train->n, train->n == 1 ? "" : "es", need,
+		               need == 4 ? " (leave-one-out validation refits on all but one)" : "");
+	if (opt->basis > train->n)
+		return kg_fail(err, KG_EINVAL,
+		               "basis size K = %d: the chart has only %d patches (expected K <= %d)",
+		               opt->basis, train->n, train->n);
+	for (int i = 0; i < train->n; i++)
+		if (!kg_spectrum_isfinite(&train->spectra[i]))
+			return kg_fail(err, KG_EINVAL, "%s: patch %s: spectrum holds NaN or infinity",
+			               tname, train->ids[i]);
+	int ret = calib_check_patch_values(tname, train->ids, (const double (*)[3])train->rgb,
+	                                   NULL, train->n, KG_CALIB_CLIP_LEVEL, 0, err);
+	if (ret)
+		return ret;
+	double cond_eq, sv[3];
+	ret = calib_check_collinear(tname, train->ids, (const double (*)[3])train->rgb,
+	                            train->n, KG_CALIB_MAX_COND, &ref->cond_rho, &cond_eq, sv, err);
+	if (ret)
+		return ret;
+	if (field->n < 3)
+		return kg_fail(err, KG_EINVAL, "%s: %d patch%s with RGB; expected at least 3", fname,
+		               field->n, field->n == 1 ? "" : "es");
+	for (int i = 0; i < field->n; i++)
+		for (int j = 0; j < i; j++)
+			if (strcmp(field->ids[i], field->ids[j]) == 0)
+				return kg_fail(err, KG_EINVAL, "%s: SAMPLE_ID %s appears twice", fname,
+				               field->ids[i]);
+	int stride = 0;
+	const double *clip = calib_clipped_column(field, &stride);
+	double *clipped = NULL;
+	if (clip) {
+		clipped = malloc((size_t)field->n * sizeof(double));
+		if (!clipped)
+			return kg_fail(err, KG_ENOMEM, "out of memory");
+		for (int i = 0; i < field->n; i++)
+			clipped[i] = clip[(size_t)i * stride];
+	}
+	ret = calib_check_patch_values(fname, field->ids, (const double (*)[3])field->rgb,
+	                               clipped, field->n, KG_CALIB_CLIP_LEVEL,
+	                               KG_CALIB_BLACK_LEVEL, err);
+	free(clipped);
+	if (ret)
+		return ret;
+	return calib_check_collinear(fname, field->ids, (const double (*)[3])field->rgb,
+	                             field->n, KG_CALIB_MAX_COND, &ref->cond_rho0, &cond_eq, sv,
+	                             err);
+}
+
+/* Per-patch diagnostics of the default method, in sample. */
+static void patch_diagnostics(kg_reference *ref, const kg_patchset *train,
+                              const calib_d65 *d65)
+{
+	const kg_spectral_map *map = &ref->maps[ref->method];
+	for (int i = 0; i < ref->m; i++) {
+		const kg_spectrum *s = &train->spectra[i];
+		kg_spectrum est;
+		kg_spectral_map_apply(map, train->rgb[i], &est);
+		ref->rmse[i] = kg_spectrum_rmse(&est, s);
+		ref->gfc[i] = kg_spectrum_gfc(&est, s);
+		ref->de00[i] = calib_de00(d65, &est, s);
+		/* Weights of the patch, w = B^T (s - mean), against the regression. */
+		double w[KMAX], proj2 = 0, res2 = 0;
+		for (int k = 0; k < ref->K; k++) {
+			w[k] = 0;
+			for (int l = 0; l < NB; l++)
+				w[k] += ref->B[l * ref->K + k] * (s->v[l] - ref->mean[l]);
+			double pred = 0;
+			for (int c = 0; c < 3; c++)
+				pred += ref->M[k * 3 + c] * (train->rgb[i][c] - ref->rgb_mean[c]);
+			res2 += (w[k] - pred) * (w[k] - pred);
+		}
+		for (int l = 0; l < NB; l++) {
+			double p = ref->mean[l];
+			for (int k = 0; k < ref->K; k++)
+				p += ref->B[l * ref->K + k] * w[k];
+			proj2 += (s->v[l] - p) * (s->v[l] - p);
+		}
+		ref->projection_rmse[i] = sqrt(proj2 / NB);
+		ref->weight_residual[i] = sqrt(res2);
+	}
+}
+
+static int fit_all(kg_reference *ref, const moments *mo, const kg_patchset *train,
+                   const kg_reference_options *opt, const loo_table *loo, kg_err *err)
+{
+	int m = train->n;
+	/* The basis, with up to 8 singular values for the record. */
+	int nrec = m < KMAX ? m : KMAX;
+	if (nrec < ref->K)
+		nrec = ref->K;
+	double Ball[NB * KMAX];
+	int ret = pca_basis(mo, opt->centred, nrec, Ball, ref->singular_values, ref->energy, err);
+	if (ret)
+		return ret;
+	for (int l = 0; l < NB; l++)
+		for (int k = 0; k < ref->K; k++)
+			ref->B[l * ref->K + k] = Ball[l * nrec + k];
+
+	for (int j = 0; j < KG_METHOD_COUNT; j++) {
+		kg_spectral_map *map = &ref->maps[j];
+		kg_err e = {{0}};
+		memset(map, 0, sizeof(*map));
+		map->method = (kg_method)j;
+		map->nterms = kg_method_nterms((kg_method)j);
+		map->loo_rmse = loo->rmse[j];
+		map->loo_de00 = loo->de[j];
+		if (!enough_patches((kg_method)j, opt, m)) {
+			snprintf(map->note, sizeof(map->note),
+			         "needs at least %d patches without a ridge (the chart has %d)",
+			         map->nterms, m);
+			continue;
+		}
+		if (j == KG_METHOD_PCA) {
+			double Alin[NB * 3];
+			map->lambda = opt->ridge;
+			ret = pca_linear(mo, opt->centred, opt->ridge, Alin, ref->rgb_mean, ref->mean,
+			                 &map->cond, &e);
+			if (ret == 0)
+				pca_map(ref->B, ref->K, ref->K, Alin, ref->rgb_mean, ref->mean, map, ref->M);
+		} else {
+			ret = fit_regression(mo, (kg_method)j, opt, map, &e);
+		}
+		if (ret) {
+			/* pca and linear carry the paper's model: a failure there is the chart's. */
+			if (j == KG_METHOD_PCA || j == KG_METHOD_LINEAR)
+				return kg_fail(err, ret, "%s: method %s: %s",
+				               set_name(train, "training chart"), kg_method_name((kg_method)j),
+				               e.msg);
+			size_t n = strnlen(e.msg, sizeof(map->note) - 1);
+			memcpy(map->note, e.msg, n);
+			map->note[n] = '\0';
+			continue;
+		}
+		map->available = 1;
+		double sum = 0;
+		for (int i = 0; i < m; i++) {
+			kg_spectrum est;
+			kg_spectral_map_apply(map, train->rgb[i], &est);
+			sum += kg_spectrum_rmse(&est, &train->spectra[i]);
+		}
+		map->fit_rmse = sum / m;
+	}
+	return 0;
+}
+
+static int fit_reference(const kg_patchset *train, const kg_patchset *field,
+                         const kg_reference_options *opt, kg_reference **out, kg_err *err)
+{
+	int ret;
+	kg_reference *ref = calloc(1, sizeof(*ref));
+	moments *mo = calloc(1, sizeof(*mo));
+	calib_d65 *d65 = malloc(sizeof(*d65));
+	loo_table loo;
+	if (!ref || !mo || !d65) {
+		ret = kg_fail(err, KG_ENOMEM, "reference calibration: out of memory");
+		goto error;
+	}
+	ret = check_training(train, field, opt, ref, err);
+	if (ret)
+		goto error;
+	ret = calib_d65_init(d65, err);
+	if (ret)
+		goto error;
+	int m = train->n;
+	for (int i = 0; i < m; i++)
+		moments_add(mo, &train->spectra[i], train->rgb[i], 1.0);
+
+	/* Leave-one-out, then K. */
+	ret = leave_one_out(mo, train, opt, d65, &loo, err);
+	if (ret)
+		goto error;
+	ref->centred = opt->centred;
+	ref->ridge = opt->ridge;
+	ref->noise_sigma = opt->noise_sigma;
+	ref->nK = loo.nK;
+	for (int K = 0; K < KMAX; K++)
+		ref->loo_by_K[K] = loo.rmse_K[K];
+	if (opt->basis == 0) {
+		int best = choose_simplest(loo.rmse_K, loo.nK, KG_CALIB_K_TOLERANCE);
+		if (best < 0) {
+			ret = kg_fail(err, KG_EINVAL,
+			              "%s: --basis auto: leave-one-out validation failed for every K "
+			              "(the chart's RGB is singular without one patch)",
+			              set_name(train, "training chart"));
+			goto error;
+		}
+		ref->K = best + 1;
+		ref->basis_auto = 1;
+	} else {
+		ref->K = opt->basis;
+	}
+	loo.rmse[KG_METHOD_PCA] = ref->K <= loo.nK ? loo.rmse_K[ref->K - 1] : NAN;
+	loo.de[KG_METHOD_PCA] = ref->K <= loo.nK ? loo.de_K[ref->K - 1] : NAN;
+
+	ret = fit_all(ref, mo, train, opt, &loo, err);
+	if (ret)
+		goto error;
+	calib_reference_derive(ref);
+
+	if (opt->method == KG_METHOD_AUTO) {
+		double errs[KG_METHOD_COUNT];
+		for (int j = 0; j < KG_METHOD_COUNT; j++)
+			errs[j] = ref->maps[j].available ? ref->maps[j].loo_rmse : NAN;
+		int best = choose_simplest(errs, KG_METHOD_COUNT, KG_CALIB_K_TOLERANCE);
+		if (best < 0) {
+			ret = kg_fail(err, KG_EINVAL,
+			              "%s: --method auto: no method could be validated by leave-one-out",
+			              set_name(train, "training chart"));
+			goto error;
+		}
+		ref->method = (kg_method)best;
+		ref->method_auto = 1;
+	} else {
+		ref->method = opt->method;
+		if (!ref->maps[ref->method].available) {
+			ret = kg_fail(err, KG_EINVAL, "%s: method %s: %s",
+			              set_name(train, "training chart"), kg_method_name(ref->method),
+			              ref->maps[ref->method].note);
+			goto error;
+		}
+	}
+
+	/* Training and field records. */
+	ref->m = m;
+	ref->ids = calib_strv_dup(train->ids, m);
+	ref->train_rgb = malloc((size_t)m * sizeof(*ref->train_rgb));
+	ref->rmse = malloc((size_t)m * sizeof(double));
+	ref->gfc = malloc((size_t)m * sizeof(double));
+	ref->de00 = malloc((size_t)m * sizeof(double));
+	ref->projection_rmse = malloc((size_t)m * sizeof(double));
+	ref->weight_residual = malloc((size_t)m * sizeof(double));
+	ref->k = field->n;
+	ref->field_ids = calib_strv_dup(field->ids, field->n);
+	ref->rho0 = malloc((size_t)field->n * sizeof(*ref->rho0));
+	if (!ref->ids || !ref->train_rgb || !ref->rmse || !ref->gfc || !ref->de00 ||
+	    !ref->projection_rmse || !ref->weight_residual || !ref->field_ids || !ref->rho0) {
+		ret = kg_fail(err, KG_ENOMEM, "reference calibration: out of memory");
+		goto error;
+	}
+	memcpy(ref->train_rgb, train->rgb, (size_t)m * sizeof(*ref->train_rgb));
+	memcpy(ref->rho0, field->rgb, (size_t)field->n * sizeof(*ref->rho0));
+	patch_diagnostics(ref, train, d65);
+
+	free(mo);
+	free(d65);
+	*out = ref;
+	return 0;
+
+error:
+	free(mo);
+	free(d65);
+	kg_reference_free(&ref);
+	return ret;
+}
+
+int kg_reference_fit(const kg_patchset *train, const kg_patchset *field,
+                     const kg_reference_options *opt, kg_reference **out, kg_err *err)
+{
+	kg_check_arg(train && field && opt && out, err);
+	kg_check_arg(opt->nexclude == 0 || opt->exclude, err);
+	*out = NULL;
+	int ret = check_options(opt, err);
+	if (ret || opt->nexclude == 0)
+		return ret ? ret : fit_reference(train, field, opt, out, err);
+	for (int e = 0; e < opt->nexclude; e++)
+		if (kg_patchset_find(train, opt->exclude[e]) < 0 &&
+		    kg_patchset_find(field, opt->exclude[e]) < 0)
+			return kg_fail(err, KG_EINVAL,
+			               "--exclude %s: no patch of that SAMPLE_ID in %s or in %s",
+			               opt->exclude[e], set_name(train, "the training chart"),
+			               set_name(field, "the field chart"));
+	kg_patchset *t = NULL, *f = NULL;
+	ret = calib_patchset_without(train, opt->exclude, opt->nexclude, &t, err);
+	if (ret == 0)
+		ret = calib_patchset_without(field, opt->exclude, opt->nexclude, &f, err);
+	if (ret == 0)
+		ret = fit_reference(t, f, opt, out, err);
+	kg_patchset_free(&t);
+	kg_patchset_free(&f);
+	return ret;
+}

@@ -1,0 +1,294 @@
+/* Reading a calibration's inputs: patch files, pairing spectra with RGB by
+ * SAMPLE_ID, and the record of where each input came from. */
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+
+#include <openssl/evp.h>
+
+#include "calib_private.h"
+
+int kg_calib_sha256_file(const char *path, char hex[65], kg_err *err)
+{
+	char *buf = NULL;
+	size_t len = 0;
+	unsigned char md[EVP_MAX_MD_SIZE];
+	unsigned int mdlen = 0;
+	int ret = kg_read_file(path, &buf, &len, err);
+	if (ret)
+		return ret;
+	if (!EVP_Digest(buf, len, md, &mdlen, EVP_sha256(), NULL) || mdlen != 32)
+		ret = kg_fail(err, KG_EIO, "%s: sha256 failed", path);
+	free(buf);
+	if (ret)
+		return ret;
+	for (unsigned int i = 0; i < mdlen; i++)
+		snprintf(hex + 2 * i, 3, "%02x", md[i]);
+	return 0;
+}
+
+static int has_suffix(const char *s, const char *suffix)
+{
+	size_t n = strlen(s), m = strlen(suffix);
+	return n >= m && strcasecmp(s + n - m, suffix) == 0;
+}
+
+static void source_clear(kg_calib_source *s)
+{
+	free(s->role);
+	free(s->path);
+	calib_strv_free(s->keyword_names, s->nkeywords);
+	calib_strv_free(s->keyword_values, s->nkeywords);
+	memset(s, 0, sizeof(*s));
+}
+
+void calib_sources_free(kg_calib_source **sources, int *n)
+{
+	if (!*sources)
+		return;
+	for (int i = 0; i < *n; i++)
+		source_clear(&(*sources)[i]);
+	free(*sources);
+	*sources = NULL;
+	*n = 0;
+}
+
+int calib_sources_copy(const kg_calib_source *src, int n, kg_calib_source **out,
+                       kg_err *err)
+{
+	*out = NULL;
+	if (n == 0)
+		return 0;
+	kg_calib_source *d = calloc((size_t)n, sizeof(*d));
+	if (!d)
+		return kg_fail(err, KG_ENOMEM, "out of memory");
+	for (int i = 0; i < n; i++) {
+		d[i].role = strdup(src[i].role);
+		d[i].path = strdup(src[i].path);
+		memcpy(d[i].sha256, src[i].sha256, sizeof(d[i].sha256));
+		d[i].nkeywords = src[i].nkeywords;
+		d[i].keyword_names = calib_strv_dup(src[i].keyword_names, src[i].nkeywords);
+		d[i].keyword_values = calib_strv_dup(src[i].keyword_values, src[i].nkeywords);
+		if (!d[i].role || !d[i].path || !d[i].keyword_names || !d[i].keyword_values) {
+			int nn = i + 1;
+			calib_sources_free(&d, &nn);
+			return kg_fail(err, KG_ENOMEM, "out of memory");
+		}
+	}
+	*out = d;
+	return 0;
+}
+
+/* Append a source: its sha256 and, for a CGATS file, its keywords (devices,
+ * illuminant, dates as the instrument wrote them). */
+int calib_source_add(kg_calib_source **sources, int *n, const char *role,
+                     const char *path, kg_err *err)
+{
+	kg_calib_source *grown = realloc(*sources, (size_t)(*n + 1) * sizeof(*grown));
+	if (!grown)
+		return kg_fail(err, KG_ENOMEM, "out of memory");
+	*sources = grown;
+	kg_calib_source *s = &grown[*n];
+	memset(s, 0, sizeof(*s));
+	(*n)++;
+	s->role = strdup(role);
+	s->path = strdup(path);
+	if (!s->role || !s->path)
+		return kg_fail(err, KG_ENOMEM, "out of memory");
+	int ret = kg_calib_sha256_file(path, s->sha256, err);
+	if (ret)
+		return ret;
+	if (has_suffix(path, ".csv") || has_suffix(path, ".json"))
+		return 0;
+	kg_cgats *cg = NULL;
+	ret = kg_cgats_read(path, &cg, err);
+	if (ret)
+		return ret;
+	const kg_cgats_table *t = cg->ntables > 0 ? cg->tables[0] : NULL;
+	int nk = t ? t->nkeywords : 0;
+	s->keyword_names = calloc(nk > 0 ? (size_t)nk : 1, sizeof(char *));
+	s->keyword_values = calloc(nk > 0 ? (size_t)nk : 1, sizeof(char *));
+	if (!s->keyword_names || !s->keyword_values) {
+		kg_cgats_free(&cg);
+		return kg_fail(err, KG_ENOMEM, "out of memory");
+	}
+	for (int i = 0; i < nk; i++) {
+		s->keyword_names[i] = strdup(t->keywords[i].name);
+		s->keyword_values[i] = strdup(t->keywords[i].value ? t->keywords[i].value : "");
+		s->nkeywords = i + 1;
+		if (!s->keyword_names[i] || !s->keyword_values[i]) {
+			kg_cgats_free(&cg);
+			return kg_fail(err, KG_ENOMEM, "out of memory");
+		}
+	}
+	kg_cgats_free(&cg);
+	return 0;
+}
+
+/* Refuse a patch set whose ids repeat. */
+static int check_unique(const kg_patchset *ps, const char *what, kg_err *err)
+{
+	for (int i = 0; i < ps->n; i++)
+		for (int j = 0; j < i; j++)
+			if (strcmp(ps->ids[i], ps->ids[j]) == 0)
+				return kg_fail(err, KG_EINVAL, "%s: SAMPLE_ID %s appears twice (rows %d and %d)",
+				               what, ps->ids[i], j + 1, i + 1);
+	return 0;
+}
+
+int kg_calib_pair(const kg_patchset *spectra, const kg_patchset *rgb, kg_patchset **out,
+                  kg_err *err)
+{
+	kg_check_arg(spectra && rgb && out, err);
+	*out = NULL;
+	const char *sname = spectra->source ? spectra->source : "spectra";
+	const char *rname = rgb->source ? rgb->source : "RGB patch file";
+	if (!spectra->spectra)
+		return kg_fail(err, KG_EINVAL, "%s: expected spectral fields (SPEC_400 .. SPEC_700)",
+		               sname);
+	if (!rgb->rgb)
+		return kg_fail(err, KG_EINVAL, "%s: expected fields RGB_R RGB_G RGB_B", rname);
+	int ret = check_unique(spectra, sname, err);
+	if (!ret)
+		ret = check_unique(rgb, rname, err);
+	if (ret)
+		return ret;
+	int *match = malloc((spectra->n > 0 ? (size_t)spectra->n : 1) * sizeof(int));
+	if (!match)
+		return kg_fail(err, KG_ENOMEM, "out of memory");
+	int n = 0;
+	for (int i = 0; i < spectra->n; i++) {
+		match[i] = kg_patchset_find(rgb, spectra->ids[i]);
+		n += match[i] >= 0;
+	}
+	if (n == 0) {
+		char a[256] = "", b[256] = "";
+		calib_list_ids(a, sizeof(a), spectra->ids, NULL, spectra->n, 6);
+		calib_list_ids(b, sizeof(b), rgb->ids, NULL, rgb->n, 6);
+		free(match);
+		return kg_fail(err, KG_EINVAL,
+		               "%s and %s: no SAMPLE_ID in common (spectra: %s; RGB: %s); expected the "
+		               "same chart's patch names in both",
+		               sname, rname, a, b);
+	}
+	kg_patchset *ps = NULL;
+	ret = kg_patchset_new(n, KG_PATCH_SPECTRA | KG_PATCH_RGB, &ps, err);
+	for (int i = 0, j = 0; ret == 0 && i < spectra->n; i++) {
+		if (match[i] < 0)
+			continue;
+		ret = kg_patchset_set_id(ps, j, spectra->ids[i], err);
+		ps->spectra[j] = spectra->spectra[i];
+		memcpy(ps->rgb[j], rgb->rgb[match[i]], sizeof(ps->rgb[j]));
+		j++;
+	}
+	free(match);
+	if (ret == 0 && !(ps->source = strdup(rname)))
+		ret = kg_fail(err, KG_ENOMEM, "out of memory");
+	if (ret) {
+		kg_patchset_free(&ps);
+		return ret;
+	}
+	*out = ps;
+	return 0;
+}
+
+static int listed(const char *const *ids, int n, const char *id)
+{
+	for (int i = 0; i < n; i++)
+		if (strcmp(ids[i], id) == 0)
+			return 1;
+	return 0;
+}
+
+int calib_patchset_without(const kg_patchset *ps, const char *const *ids, int nids,
+                           kg_patchset **out, kg_err *err)
+{
+	*out = NULL;
+	int n = 0;
+	for (int i = 0; i < ps->n; i++)
+		n += !listed(ids, nids, ps->ids[i]);
+	unsigned fields = (ps->spectra ? KG_PATCH_SPECTRA : 0) | (ps->rgb ? KG_PATCH_RGB : 0) |
+	                  (ps->xyz ? KG_PATCH_XYZ : 0) | (ps->lab ? KG_PATCH_LAB : 0);
+	kg_patchset *c = NULL;
+	int ret = kg_patchset_new(n, fields, &c, err);
+	for (int j = 0; ret == 0 && j < ps->nextra; j++)
+		ret = kg_patchset_add_extra(c, ps->extra_names[j], err);
+	for (int i = 0, k = 0; ret == 0 && i < ps->n; i++) {
+		if (listed(ids, nids, ps->ids[i]))
+			continue;
+		ret = kg_patchset_set_id(c, k, ps->ids[i], err);
+		if (ps->spectra)
+			c->spectra[k] = ps->spectra[i];
+		if (ps->rgb)
+			memcpy(c->rgb[k], ps->rgb[i], sizeof(c->rgb[k]));
+		if (ps->xyz)
+			memcpy(c->xyz[k], ps->xyz[i], sizeof(c->xyz[k]));
+		if (ps->lab)
+			memcpy(c->lab[k], ps->lab[i], sizeof(c->lab[k]));
+		for (int j = 0; j < ps->nextra; j++)
+			c->extra[(size_t)k * ps->nextra + j] = ps->extra[(size_t)i * ps->nextra + j];
+		k++;
+	}
+	if (ret == 0 && ps->source && !(c->source = strdup(ps->source)))
+		ret = kg_fail(err, KG_ENOMEM, "out of memory");
+	if (ret == 0)
+		c->spectral_scale = ps->spectral_scale;
+	if (ret) {
+		kg_patchset_free(&c);
+		return ret;
+	}
+	*out = c;
+	return 0;
+}
+
+/* Spectra from CGATS (SPEC_*) or from a `patch,name,<nm>...` CSV table. */
+static int read_spectra(const char *path, kg_patchset **out, kg_err *err)
+{
+	if (has_suffix(path, ".csv"))
+		return kg_csv_read_spectra_rows(path, 0, out, err);
+	return kg_patchset_read(path, 0, out, err);
+}
+
+int kg_reference_fit_files(const char *spectra_path, const char *rgb_path,
+                           const char *field_rgb_path, const kg_reference_options *opt,
+                           kg_reference **out, kg_err *err)
+{
+	kg_check_arg(spectra_path && rgb_path && opt && out, err);
+	*out = NULL;
+	kg_patchset *spectra = NULL, *rgb = NULL, *field = NULL, *train = NULL;
+	kg_reference *ref = NULL;
+	int ret = read_spectra(spectra_path, &spectra, err);
+	if (ret == 0)
+		ret = kg_patchset_read(rgb_path, 0, &rgb, err);
+	if (ret == 0 && field_rgb_path)
+		ret = kg_patchset_read(field_rgb_path, 0, &field, err);
+	if (ret == 0 && !spectra->source && !(spectra->source = strdup(spectra_path)))
+		ret = KG_ENOMEM;
+	if (ret == 0 && !rgb->source && !(rgb->source = strdup(rgb_path)))
+		ret = KG_ENOMEM;
+	if (ret == 0 && field && !field->source && !(field->source = strdup(field_rgb_path)))
+		ret = KG_ENOMEM;
+	if (ret == KG_ENOMEM)
+		kg_fail(err, ret, "out of memory");
+	if (ret == 0)
+		ret = kg_calib_pair(spectra, rgb, &train, err);
+	if (ret == 0)
+		ret = kg_reference_fit(train, field ? field : rgb, opt, &ref, err);
+	if (ret == 0)
+		ret = calib_source_add(&ref->sources, &ref->nsources, "spectra", spectra_path, err);
+	if (ret == 0)
+		ret = calib_source_add(&ref->sources, &ref->nsources, "rgb", rgb_path, err);
+	if (ret == 0 && field_rgb_path)
+		ret = calib_source_add(&ref->sources, &ref->nsources, "field_rgb", field_rgb_path,
+		                       err);
+	kg_patchset_free(&spectra);
+	kg_patchset_free(&rgb);
+	kg_patchset_free(&field);
+	kg_patchset_free(&train);
+	if (ret) {
+		kg_reference_free(&ref);
+		return ret;
+	}
+	*out = ref;
+	return 0;
+}

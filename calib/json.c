@@ -1,0 +1,795 @@
+/* The calibration files: "kogei-reference/1" and "kogei-camera/1" (JSON).
+ *
+ * Matrices are arrays of rows. Spectral matrices have one row per band (61 rows:
+ * B is 61 x K, A is 61 x T); M is K x 3, M2 3 x 3; RGB of the field and site charts
+ * is 3 x k as in the paper (rho0, rho_r: one row per channel, one column per patch),
+ * the training RGB m x 3 (one row per patch). Numbers that are not finite (a
+ * validation that could not run) are written as null. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "calib_private.h"
+#include "kg_config.h"
+
+#define NB KG_NBANDS
+#define REFERENCE_FORMAT "kogei-reference/1"
+#define CAMERA_FORMAT "kogei-camera/1"
+
+/* ---- writing ------------------------------------------------------------------ */
+
+/* A builder that remembers the first failure, so a document is assembled without
+ * checking every call. */
+typedef struct jw {
+	int bad;
+} jw;
+
+static json_t *jnum(double v)
+{
+	return isfinite(v) ? json_real(v) : json_null();
+}
+
+static void put(jw *w, json_t *obj, const char *key, json_t *v)
+{
+	if (!v || json_object_set_new(obj, key, v) != 0)
+		w->bad = 1;
+}
+
+static json_t *jrow(jw *w, const double *v, int n, int stride)
+{
+	json_t *a = json_array();
+	if (!a) {
+		w->bad = 1;
+		return NULL;
+	}
+	for (int i = 0; i < n; i++)
+		if (json_array_append_new(a, jnum(v[(size_t)i * stride])) != 0)
+			w->bad = 1;
+	return a;
+}
+
+/* rows x cols, element (r, c) at v[r * rs + c * cs]. */
+static json_t *jmat(jw *w, const double *v, int rows, int cols, int rs, int cs)
+{
+	json_t *a = json_array();
+	if (!a) {
+		w->bad = 1;
+		return NULL;
+	}
+	for (int r = 0; r < rows; r++)
+		if (json_array_append_new(a, jrow(w, v + (size_t)r * rs, cols, cs)) != 0)
+			w->bad = 1;
+	return a;
+}
+
+static json_t *jstrv(jw *w, char *const *v, int n)
+{
+	json_t *a = json_array();
+	if (!a) {
+		w->bad = 1;
+		return NULL;
+	}
+	for (int i = 0; i < n; i++)
+		if (json_array_append_new(a, json_string(v[i])) != 0)
+			w->bad = 1;
+	return a;
+}
+
+static json_t *jgrid(jw *w)
+{
+	json_t *g = json_object();
+	put(w, g, "start_nm", json_real(KG_LAMBDA_MIN));
+	put(w, g, "step_nm", json_real(KG_LAMBDA_STEP));
+	put(w, g, "bands", json_integer(KG_NBANDS));
+	return g;
+}
+
+static json_t *jterms(jw *w, kg_method m)
+{
+	json_t *a = json_array();
+	for (int t = 0; a && t < kg_method_nterms(m); t++)
+		if (json_array_append_new(a, json_string(kg_method_term_name(m, t))) != 0)
+			w->bad = 1;
+	if (!a)
+		w->bad = 1;
+	return a;
+}
+
+static json_t *jsources(jw *w, const kg_calib_source *s, int n)
+{
+	json_t *a = json_array();
+	for (int i = 0; a && i < n; i++) {
+		json_t *o = json_object(), *kw = json_object();
+		put(w, o, "role", json_string(s[i].role));
+		put(w, o, "path", json_string(s[i].path));
+		put(w, o, "sha256", s[i].sha256[0] ? json_string(s[i].sha256) : json_null());
+		for (int k = 0; kw && k < s[i].nkeywords; k++)
+			put(w, kw, s[i].keyword_names[k], json_string(s[i].keyword_values[k]));
+		put(w, o, "keywords", kw);
+		if (json_array_append_new(a, o) != 0)
+			w->bad = 1;
+	}
+	if (!a)
+		w->bad = 1;
+	return a;
+}
+
+/* The first value of any of the keyword names among the sources, or NULL. */
+static const char *source_keyword(const kg_calib_source *s, int n, const char *role,
+                                  const char *const *names)
+{
+	for (int i = 0; i < n; i++) {
+		if (role && strcmp(s[i].role, role) != 0)
+			continue;
+		for (int j = 0; names[j]; j++)
+			for (int k = 0; k < s[i].nkeywords; k++)
+				if (strcmp(s[i].keyword_names[k], names[j]) == 0)
+					return s[i].keyword_values[k];
+	}
+	return NULL;
+}
+
+static const char *const device_keywords[] = {"INSTRUMENTATION", "DEVICE", "CAMERA",
+                                              "MANUFACTURER", "MODEL", NULL};
+static const char *const illuminant_keywords[] = {"ILLUMINANT", "ILLUMINATION_NAME",
+                                                  "LIGHT_SOURCE", NULL};
+
+static json_t *jdevices(jw *w, const kg_calib_source *s, int n)
+{
+	json_t *o = json_object();
+	for (int i = 0; o && i < n; i++) {
+		const char *v = source_keyword(s, n, s[i].role, device_keywords);
+		if (v)
+			put(w, o, s[i].role, json_string(v));
+	}
+	if (!o)
+		w->bad = 1;
+	return o;
+}
+
+static int finish(jw *w, json_t *root, const char *path, kg_err *err)
+{
+	int ret = w->bad || !root ? kg_fail(err, KG_ENOMEM, "%s: out of memory building JSON", path)
+	                          : kg_json_write(root, path, err);
+	json_decref(root);
+	return ret;
+}
+
+/* The methods object: per method its map and validation. `pre` is NULL for a
+ * reference (the maps take reference-camera RGB). */
+static json_t *jmap(jw *w, kg_method m, int available, const char *note, int T,
+                    const double *A, const double *offset, const double *pre, double lambda,
+                    double cond, double fit_rmse, double loo_rmse, double loo_de00)
+{
+	json_t *o = json_object();
+	put(w, o, "available", json_boolean(available));
+	if (!available) {
+		put(w, o, "note", json_string(note ? note : ""));
+		return o;
+	}
+	put(w, o, "terms", jterms(w, m));
+	put(w, o, m == KG_METHOD_WIENER ? "lambda_m_sigma2" : "ridge", jnum(lambda));
+	if (pre)
+		put(w, o, "pre", jmat(w, pre, 3, 3, 3, 1));
+	put(w, o, "A", jmat(w, A, NB, T, T, 1));
+	put(w, o, "offset", jrow(w, offset, NB, 1));
+	if (!isnan(cond))
+		put(w, o, "condition_number", jnum(cond));
+	if (!isnan(fit_rmse))
+		put(w, o, "fit_rmse", jnum(fit_rmse));
+	put(w, o, "loo_rmse", jnum(loo_rmse));
+	if (!isnan(loo_de00))
+		put(w, o, "loo_de00", jnum(loo_de00));
+	return o;
+}
+
+static double mean_of(const double *v, int n)
+{
+	double s = 0;
+	for (int i = 0; i < n; i++)
+		s += v[i];
+	return n ? s / n : NAN;
+}
+
+static double max_of(const double *v, int n)
+{
+	double s = n ? v[0] : NAN;
+	for (int i = 1; i < n; i++)
+		s = fmax(s, v[i]);
+	return s;
+}
+
+/* The PCA model shared by both formats. */
+static void put_pca(jw *w, json_t *root, int K, int centred, const double *B,
+                    const double *mean, const double *M, const double *rgb_mean)
+{
+	put(w, root, "K", json_integer(K));
+	put(w, root, "centred", json_boolean(centred));
+	put(w, root, "B", jmat(w, B, NB, K, K, 1));
+	if (centred) {
+		put(w, root, "mean", jrow(w, mean, NB, 1));
+		put(w, root, "rgb_mean", jrow(w, rgb_mean, 3, 1));
+	}
+	put(w, root, "M", jmat(w, M, K, 3, 3, 1));
+}
+
+int kg_reference_save(const kg_reference *ref, const char *path, kg_err *err)
+{
+	kg_check_arg(ref && path, err);
+	jw w = {0};
+	json_t *root = json_object();
+	put(&w, root, "format", json_string(REFERENCE_FORMAT));
+	put(&w, root, "software", json_string("kogei " KG_VERSION));
+	put(&w, root, "grid", jgrid(&w));
+	put(&w, root, "method", json_string(kg_method_name(ref->method)));
+	put(&w, root, "method_chosen_by",
+	    json_string(ref->method_auto ? "leave-one-out" : "option"));
+	put(&w, root, "K_chosen_by", json_string(ref->basis_auto ? "leave-one-out" : "option"));
+	put_pca(&w, root, ref->K, ref->centred, ref->B, ref->mean, ref->M, ref->rgb_mean);
+	put(&w, root, "ridge", jnum(ref->ridge));
+	put(&w, root, "noise_sigma", jnum(ref->noise_sigma));
+	int nsv = ref->m < KG_CALIB_MAX_BASIS ? ref->m : KG_CALIB_MAX_BASIS;
+	if (nsv < ref->K)
+		nsv = ref->K;
+	put(&w, root, "singular_values", jrow(&w, ref->singular_values, nsv, 1));
+	put(&w, root, "energy", jrow(&w, ref->energy, nsv, 1));
+
+	json_t *methods = json_object();
+	for (int j = 0; j < KG_METHOD_COUNT; j++) {
+		const kg_spectral_map *mp = &ref->maps[j];
+		put(&w, methods, kg_method_name((kg_method)j),
+		    jmap(&w, (kg_method)j, mp->available, mp->note, mp->nterms, mp->A, mp->offset,
+		         NULL, mp->lambda, mp->cond, mp->fit_rmse, mp->loo_rmse, mp->loo_de00));
+	}
+	put(&w, root, "methods", methods);
+
+	json_t *val = json_object(), *bym = json_object();
+	put(&w, val, "loo_rmse_by_K", jrow(&w, ref->loo_by_K, ref->nK, 1));
+	for (int j = 0; j < KG_METHOD_COUNT; j++)
+		put(&w, bym, kg_method_name((kg_method)j),
+		    jnum(ref->maps[j].available ? ref->maps[j].loo_rmse : NAN));
+	put(&w, val, "loo_rmse_by_method", bym);
+	put(&w, root, "validation", val);
+
+	json_t *tr = json_object();
+	put(&w, tr, "patches", json_integer(ref->m));
+	put(&w, tr, "ids", jstrv(&w, ref->ids, ref->m));
+	put(&w, tr, "rho", jmat(&w, &ref->train_rgb[0][0], ref->m, 3, 3, 1));
+	put(&w, tr, "rmse", jrow(&w, ref->rmse, ref->m, 1));
+	put(&w, tr, "gfc", jrow(&w, ref->gfc, ref->m, 1));
+	put(&w, tr, "de00_d65", jrow(&w, ref->de00, ref->m, 1));
+	put(&w, tr, "projection_rmse", jrow(&w, ref->projection_rmse, ref->m, 1));
+	put(&w, tr, "weight_residual", jrow(&w, ref->weight_residual, ref->m, 1));
+	put(&w, tr, "mean_rmse", jnum(mean_of(ref->rmse, ref->m)));
+	put(&w, tr, "mean_de00_d65", jnum(mean_of(ref->de00, ref->m)));
+	put(&w, tr, "max_de00_d65", jnum(max_of(ref->de00, ref->m)));
+	put(&w, tr, "condition_number_rho", jnum(ref->cond_rho));
+	put(&w, root, "training", tr);
+
+	json_t *field = json_object();
+	put(&w, field, "ids", jstrv(&w, ref->field_ids, ref->k));
+	put(&w, field, "rho0", jmat(&w, &ref->rho0[0][0], 3, ref->k, 1, 3));
+	put(&w, field, "condition_number", jnum(ref->cond_rho0));
+	put(&w, root, "field", field);
+
+	put(&w, root, "devices", jdevices(&w, ref->sources, ref->nsources));
+	const char *ill = source_keyword(ref->sources, ref->nsources, NULL, illuminant_keywords);
+	put(&w, root, "illuminant", ill ? json_string(ill) : json_null());
+	put(&w, root, "sources", jsources(&w, ref->sources, ref->nsources));
+	return finish(&w, root, path, err);
+}
+
+int kg_camera_save(const kg_camera *cam, const char *path, kg_err *err)
+{
+	kg_check_arg(cam && path, err);
+	jw w = {0};
+	json_t *root = json_object();
+	put(&w, root, "format", json_string(CAMERA_FORMAT));
+	put(&w, root, "software", json_string("kogei " KG_VERSION));
+	put(&w, root, "grid", jgrid(&w));
+	json_t *refo = json_object();
+	for (int i = 0; i < cam->nsources; i++)
+		if (strcmp(cam->sources[i].role, "reference") == 0) {
+			put(&w, refo, "path", json_string(cam->sources[i].path));
+			put(&w, refo, "sha256", json_string(cam->sources[i].sha256));
+		}
+	put(&w, root, "reference", refo);
+	put(&w, root, "method", json_string(kg_method_name(cam->method)));
+	put_pca(&w, root, cam->K, cam->centred, cam->B, cam->mean, cam->M, cam->rgb_mean);
+	put(&w, root, "M2", jmat(&w, cam->M2, 3, 3, 3, 1));
+	const kg_site_map *pca = &cam->maps[KG_METHOD_PCA];
+	put(&w, root, "A", jmat(&w, pca->A, NB, 3, 3, 1));
+	put(&w, root, "offset", jrow(&w, pca->offset, NB, 1));
+
+	json_t *methods = json_object();
+	for (int j = 0; j < KG_METHOD_COUNT; j++) {
+		const kg_site_map *mp = &cam->maps[j];
+		put(&w, methods, kg_method_name((kg_method)j),
+		    jmap(&w, (kg_method)j, mp->available, "not available on the reference chart",
+		         mp->nterms, mp->A, mp->offset, mp->pre, mp->lambda, NAN, NAN, mp->loo_rmse,
+		         NAN));
+	}
+	put(&w, root, "methods", methods);
+
+	json_t *fit = json_object();
+	put(&w, fit, "patches", json_integer(cam->k));
+	put(&w, fit, "ids", jstrv(&w, cam->ids, cam->k));
+	put(&w, fit, "rho_r", jmat(&w, &cam->rho_r[0][0], 3, cam->k, 1, 3));
+	put(&w, fit, "rho0", jmat(&w, &cam->rho0[0][0], 3, cam->k, 1, 3));
+	put(&w, fit, "residual", jmat(&w, &cam->residual[0][0], 3, cam->k, 1, 3));
+	put(&w, fit, "residual_rms", jnum(cam->residual_rms));
+	put(&w, fit, "residual_relative", jnum(cam->residual_relative));
+	put(&w, fit, "condition_number", jnum(cam->cond));
+	put(&w, fit, "condition_number_equilibrated", jnum(cam->cond_equilibrated));
+	put(&w, fit, "singular_values", jrow(&w, cam->singular_values, 3, 1));
+	put(&w, fit, "rank", json_integer(cam->rank));
+	put(&w, root, "site", fit);
+	put(&w, root, "devices", jdevices(&w, cam->sources, cam->nsources));
+	put(&w, root, "sources", jsources(&w, cam->sources, cam->nsources));
+	return finish(&w, root, path, err);
+}
+
+/* ---- reading ------------------------------------------------------------------ */
+
+/* A number or null (NAN). */
+static int get_num_or_null(const char *file, const json_t *root, const char *path,
+                           double *out, kg_err *err)
+{
+	json_t *v = kg_json_find(root, path);
+	if (v && json_is_null(v)) {
+		*out = NAN;
+		return 0;
+	}
+	return kg_json_get_number(file, root, path, out, err);
+}
+
+/* An array of numbers or nulls of exactly n entries. */
+static int get_row(const char *file, const json_t *root, const char *path, int n,
+                   double *out, kg_err *err)
+{
+	json_t *a = NULL;
+	int ret = kg_json_get(file, root, path, &a, err);
+	if (ret)
+		return ret;
+	if (!json_is_array(a) || (int)json_array_size(a) != n)
+		return kg_fail(err, KG_EINVAL, "%s: %s: expected an array of %d numbers", file, path, n);
+	for (int i = 0; i < n; i++) {
+		json_t *v = json_array_get(a, (size_t)i);
+		if (json_is_null(v))
+			out[i] = NAN;
+		else if (json_is_number(v))
+			out[i] = json_number_value(v);
+		else
+			return kg_fail(err, KG_EINVAL, "%s: %s[%d]: expected a number", file, path, i);
+	}
+	return 0;
+}
+
+/* A rows x cols matrix into v with element (r, c) at v[r * rs + c * cs]. */
+static int get_mat(const char *file, const json_t *root, const char *path, int rows, int cols,
+                   double *v, int rs, int cs, kg_err *err)
+{
+	kg_mat *m = NULL;
+	int ret = kg_json_get_matrix(file, root, path, rows, cols, &m, err);
+	if (ret)
+		return ret;
+	for (int r = 0; r < rows; r++)
+		for (int c = 0; c < cols; c++)
+			v[(size_t)r * rs + (size_t)c * cs] = m->a[r * cols + c];
+	kg_mat_free(&m);
+	return 0;
+}
+
+static int get_strv(const char *file, const json_t *root, const char *path, int n,
+                    char ***out, kg_err *err)
+{
+	json_t *a = NULL;
+	int ret = kg_json_get(file, root, path, &a, err);
+	if (ret)
+		return ret;
+	if (!json_is_array(a) || (int)json_array_size(a) != n)
+		return kg_fail(err, KG_EINVAL, "%s: %s: expected an array of %d strings", file, path, n);
+	char **v = calloc(n > 0 ? (size_t)n : 1, sizeof(char *));
+	if (!v)
+		return kg_fail(err, KG_ENOMEM, "out of memory");
+	for (int i = 0; i < n; i++) {
+		json_t *s = json_array_get(a, (size_t)i);
+		if (!json_is_string(s)) {
+			calib_strv_free(v, n);
+			return kg_fail(err, KG_EINVAL, "%s: %s[%d]: expected a string", file, path, i);
+		}
+		if (!(v[i] = strdup(json_string_value(s)))) {
+			calib_strv_free(v, n);
+			return kg_fail(err, KG_ENOMEM, "out of memory");
+		}
+	}
+	*out = v;
+	return 0;
+}
+
+static int get_bool(const char *file, const json_t *root, const char *path, int *out,
+                    kg_err *err)
+{
+	json_t *v = NULL;
+	int ret = kg_json_get(file, root, path, &v, err);
+	if (ret)
+		return ret;
+	if (!json_is_boolean(v))
+		return kg_fail(err, KG_EINVAL, "%s: %s: expected true or false", file, path);
+	*out = json_is_true(v);
+	return 0;
+}
+
+/* The length of an array at path (KG_EINVAL when it is not one). */
+static int get_len(const char *file, const json_t *root, const char *path, int *n,
+                   kg_err *err)
+{
+	json_t *a = NULL;
+	int ret = kg_json_get(file, root, path, &a, err);
+	if (ret)
+		return ret;
+	if (!json_is_array(a))
+		return kg_fail(err, KG_EINVAL, "%s: %s: expected an array", file, path);
+	*n = (int)json_array_size(a);
+	return 0;
+}
+
+static int check_header(const char *file, const json_t *root, const char *format,
+                        kg_err *err)
+{
+	const char *f = NULL;
+	int ret = kg_json_get_string(file, root, "format", &f, err);
+	if (ret)
+		return ret;
+	if (strcmp(f, format) != 0)
+		return kg_fail(err, KG_EINVAL, "%s: format: \"%s\"; expected \"%s\"", file, f, format);
+	double start, step;
+	long bands;
+	ret = kg_json_get_number(file, root, "grid.start_nm", &start, err);
+	if (!ret)
+		ret = kg_json_get_number(file, root, "grid.step_nm", &step, err);
+	if (!ret)
+		ret = kg_json_get_int(file, root, "grid.bands", 1, 100000, &bands, err);
+	if (ret)
+		return ret;
+	if (start != KG_LAMBDA_MIN || step != KG_LAMBDA_STEP || bands != KG_NBANDS)
+		return kg_fail(err, KG_EINVAL,
+		               "%s: grid: %g nm + %g nm x %ld bands; expected 400 nm + 5 nm x 61 bands",
+		               file, start, step, bands);
+	return 0;
+}
+
+static int get_method(const char *file, const json_t *root, kg_method *m, kg_err *err)
+{
+	const char *name = NULL;
+	int ret = kg_json_get_string(file, root, "method", &name, err);
+	if (!ret)
+		ret = kg_method_parse(name, m, err);
+	if (!ret && *m == KG_METHOD_AUTO)
+		ret = kg_fail(err, KG_EINVAL, "%s: method: expected a fitted method, not auto", file);
+	if (ret)
+		kg_err_prefix(err, "%s", file);
+	return ret;
+}
+
+static int get_pca(const char *file, const json_t *root, int *K, int *centred, double *B,
+                   double *mean, double *M, double *rgb_mean, kg_err *err)
+{
+	long k = 0;
+	int ret = kg_json_get_int(file, root, "K", 1, KG_CALIB_MAX_BASIS, &k, err);
+	if (!ret)
+		ret = get_bool(file, root, "centred", centred, err);
+	if (!ret)
+		ret = get_mat(file, root, "B", NB, (int)k, B, (int)k, 1, err);
+	if (!ret)
+		ret = get_mat(file, root, "M", (int)k, 3, M, 3, 1, err);
+	if (!ret && *centred)
+		ret = kg_json_get_numbers(file, root, "mean", NB, mean, err);
+	if (!ret && *centred)
+		ret = kg_json_get_numbers(file, root, "rgb_mean", 3, rgb_mean, err);
+	*K = (int)k;
+	return ret;
+}
+
+/* One entry of "methods": availability, A, offset and (site) pre. */
+static int get_map(const char *file, const json_t *root, kg_method m, int *available,
+                   char *note, size_t notelen, double *A, double *offset, double *pre,
+                   double *lambda, double *loo, kg_err *err)
+{
+	char key[128];
+	const char *name = kg_method_name(m);
+	int T = kg_method_nterms(m);
+	snprintf(key, sizeof(key), "methods.%s.available", name);
+	int ret = get_bool(file, root, key, available, err);
+	if (ret || !*available) {
+		snprintf(key, sizeof(key), "methods.%s.note", name);
+		json_t *n = kg_json_find(root, key);
+		if (note && n && json_is_string(n))
+			snprintf(note, notelen, "%s", json_string_value(n));
+		return ret;
+	}
+	snprintf(key, sizeof(key), "methods.%s.A", name);
+	ret = get_mat(file, root, key, NB, T, A, T, 1, err);
+	if (!ret) {
+		snprintf(key, sizeof(key), "methods.%s.offset", name);
+		ret = kg_json_get_numbers(file, root, key, NB, offset, err);
+	}
+	if (!ret && pre) {
+		snprintf(key, sizeof(key), "methods.%s.pre", name);
+		ret = get_mat(file, root, key, 3, 3, pre, 3, 1, err);
+	}
+	if (!ret) {
+		snprintf(key, sizeof(key), "methods.%s.%s", name,
+		         m == KG_METHOD_WIENER ? "lambda_m_sigma2" : "ridge");
+		ret = get_num_or_null(file, root, key, lambda, err);
+	}
+	if (!ret) {
+		snprintf(key, sizeof(key), "methods.%s.loo_rmse", name);
+		ret = get_num_or_null(file, root, key, loo, err);
+	}
+	return ret;
+}
+
+static int get_sources(const char *file, const json_t *root, kg_calib_source **out,
+                       int *nout, kg_err *err)
+{
+	json_t *a = kg_json_find(root, "sources");
+	if (!a)
+		return 0;
+	if (!json_is_array(a))
+		return kg_fail(err, KG_EINVAL, "%s: sources: expected an array", file);
+	int n = (int)json_array_size(a);
+	kg_calib_source *s = calloc(n > 0 ? (size_t)n : 1, sizeof(*s));
+	if (!s)
+		return kg_fail(err, KG_ENOMEM, "out of memory");
+	*out = s;
+	*nout = n;
+	for (int i = 0; i < n; i++) {
+		json_t *o = json_array_get(a, (size_t)i);
+		json_t *role = json_object_get(o, "role"), *path = json_object_get(o, "path");
+		json_t *sha = json_object_get(o, "sha256"), *kw = json_object_get(o, "keywords");
+		if (!json_is_string(role) || !json_is_string(path))
+			return kg_fail(err, KG_EINVAL, "%s: sources[%d]: expected role and path strings",
+			               file, i);
+		s[i].role = strdup(json_string_value(role));
+		s[i].path = strdup(json_string_value(path));
+		if (json_is_string(sha))
+			snprintf(s[i].sha256, sizeof(s[i].sha256), "%s", json_string_value(sha));
+		int nk = json_is_object(kw) ? (int)json_object_size(kw) : 0;
+		s[i].keyword_names = calloc(nk > 0 ? (size_t)nk : 1, sizeof(char *));
+		s[i].keyword_values = calloc(nk > 0 ? (size_t)nk : 1, sizeof(char *));
+		if (!s[i].role || !s[i].path || !s[i].keyword_names || !s[i].keyword_values)
+			return kg_fail(err, KG_ENOMEM, "out of memory");
+		const char *key;
+		json_t *val;
+		int k = 0;
+		if (nk)
+			json_object_foreach(kw, key, val)
+			{
+				if (!json_is_string(val))
+					return kg_fail(err, KG_EINVAL, "%s: sources[%d].keywords.%s: expected a string",
+					               file, i, key);
+				s[i].keyword_names[k] = strdup(key);
+				s[i].keyword_values[k] = strdup(json_string_value(val));
+				s[i].nkeywords = ++k;
+				if (!s[i].keyword_names[k - 1] || !s[i].keyword_values[k - 1])
+					return kg_fail(err, KG_ENOMEM, "out of memory");
+			}
+	}
+	return 0;
+}
+
+static int load_reference(const char *file, const json_t *root, kg_reference *ref,
+                          kg_err *err)
+{
+	int ret = check_header(file, root, REFERENCE_FORMAT, err);
+	if (!ret)
+		ret = get_method(file, root, &ref->method, err);
+	if (!ret)
+		ret = get_pca(file, root, &ref->K, &ref->centred, ref->B, ref->mean, ref->M,
+		              ref->rgb_mean, err);
+	if (ret)
+		return ret;
+	const char *by = NULL;
+	if (kg_json_get_string(file, root, "method_chosen_by", &by, NULL) == 0)
+		ref->method_auto = strcmp(by, "leave-one-out") == 0;
+	if (kg_json_get_string(file, root, "K_chosen_by", &by, NULL) == 0)
+		ref->basis_auto = strcmp(by, "leave-one-out") == 0;
+	ret = get_num_or_null(file, root, "ridge", &ref->ridge, err);
+	if (!ret)
+		ret = get_num_or_null(file, root, "noise_sigma", &ref->noise_sigma, err);
+	int nsv = 0;
+	if (!ret)
+		ret = get_len(file, root, "singular_values", &nsv, err);
+	if (!ret && (nsv > KG_CALIB_MAX_BASIS))
+		ret = kg_fail(err, KG_EINVAL, "%s: singular_values: expected at most %d", file,
+		              KG_CALIB_MAX_BASIS);
+	if (!ret)
+		ret = get_row(file, root, "singular_values", nsv, ref->singular_values, err);
+	if (!ret)
+		ret = get_row(file, root, "energy", nsv, ref->energy, err);
+	for (int j = 0; !ret && j < KG_METHOD_COUNT; j++) {
+		kg_spectral_map *mp = &ref->maps[j];
+		char key[128];
+		mp->method = (kg_method)j;
+		mp->nterms = kg_method_nterms((kg_method)j);
+		mp->cond = mp->fit_rmse = mp->loo_rmse = mp->loo_de00 = NAN;
+		ret = get_map(file, root, (kg_method)j, &mp->available, mp->note, sizeof(mp->note),
+		              mp->A, mp->offset, NULL, &mp->lambda, &mp->loo_rmse, err);
+		if (ret || !mp->available)
+			continue;
+		snprintf(key, sizeof(key), "methods.%s.condition_number", kg_method_name(mp->method));
+		if (kg_json_find(root, key))
+			ret = get_num_or_null(file, root, key, &mp->cond, err);
+		snprintf(key, sizeof(key), "methods.%s.fit_rmse", kg_method_name(mp->method));
+		if (!ret && kg_json_find(root, key))
+			ret = get_num_or_null(file, root, key, &mp->fit_rmse, err);
+		snprintf(key, sizeof(key), "methods.%s.loo_de00", kg_method_name(mp->method));
+		if (!ret && kg_json_find(root, key))
+			ret = get_num_or_null(file, root, key, &mp->loo_de00, err);
+	}
+	if (!ret && !ref->maps[ref->method].available)
+		ret = kg_fail(err, KG_EINVAL, "%s: method: %s is marked unavailable in methods", file,
+		              kg_method_name(ref->method));
+	if (!ret)
+		ret = get_len(file, root, "validation.loo_rmse_by_K", &ref->nK, err);
+	if (!ret && ref->nK > KG_CALIB_MAX_BASIS)
+		ret = kg_fail(err, KG_EINVAL, "%s: validation.loo_rmse_by_K: expected at most %d", file,
+		              KG_CALIB_MAX_BASIS);
+	for (int K = 0; K < KG_CALIB_MAX_BASIS; K++)
+		ref->loo_by_K[K] = NAN;
+	if (!ret)
+		ret = get_row(file, root, "validation.loo_rmse_by_K", ref->nK, ref->loo_by_K, err);
+
+	long m = 0, k = 0;
+	if (!ret)
+		ret = kg_json_get_int(file, root, "training.patches", 0, 1 << 24, &m, err);
+	if (ret)
+		return ret;
+	ref->m = (int)m;
+	ret = get_strv(file, root, "training.ids", ref->m, &ref->ids, err);
+	if (ret)
+		return ret;
+	size_t sz = (m > 0 ? (size_t)m : 1);
+	ref->train_rgb = malloc(sz * sizeof(*ref->train_rgb));
+	ref->rmse = malloc(sz * sizeof(double));
+	ref->gfc = malloc(sz * sizeof(double));
+	ref->de00 = malloc(sz * sizeof(double));
+	ref->projection_rmse = malloc(sz * sizeof(double));
+	ref->weight_residual = malloc(sz * sizeof(double));
+	if (!ref->train_rgb || !ref->rmse || !ref->gfc || !ref->de00 || !ref->projection_rmse ||
+	    !ref->weight_residual)
+		return kg_fail(err, KG_ENOMEM, "out of memory");
+	ret = get_mat(file, root, "training.rho", ref->m, 3, &ref->train_rgb[0][0], 3, 1, err);
+	if (!ret)
+		ret = get_row(file, root, "training.rmse", ref->m, ref->rmse, err);
+	if (!ret)
+		ret = get_row(file, root, "training.gfc", ref->m, ref->gfc, err);
+	if (!ret)
+		ret = get_row(file, root, "training.de00_d65", ref->m, ref->de00, err);
+	if (!ret)
+		ret = get_row(file, root, "training.projection_rmse", ref->m, ref->projection_rmse, err);
+	if (!ret)
+		ret = get_row(file, root, "training.weight_residual", ref->m, ref->weight_residual, err);
+	if (!ret)
+		ret = get_num_or_null(file, root, "training.condition_number_rho", &ref->cond_rho, err);
+
+	if (!ret)
+		ret = get_len(file, root, "field.ids", &ref->k, err);
+	if (ret)
+		return ret;
+	k = ref->k;
+	if (k < 3)
+		return kg_fail(err, KG_EINVAL, "%s: field.ids: %ld patches; expected at least 3", file, k);
+	ret = get_strv(file, root, "field.ids", ref->k, &ref->field_ids, err);
+	if (ret)
+		return ret;
+	ref->rho0 = malloc((size_t)k * sizeof(*ref->rho0));
+	if (!ref->rho0)
+		return kg_fail(err, KG_ENOMEM, "out of memory");
+	ret = get_mat(file, root, "field.rho0", 3, ref->k, &ref->rho0[0][0], 1, 3, err);
+	if (!ret)
+		ret = get_num_or_null(file, root, "field.condition_number", &ref->cond_rho0, err);
+	if (!ret)
+		ret = get_sources(file, root, &ref->sources, &ref->nsources, err);
+	calib_reference_derive(ref);
+	return ret;
+}
+
+int kg_reference_load(const char *path, kg_reference **out, kg_err *err)
+{
+	kg_check_arg(path && out, err);
+	*out = NULL;
+	json_t *root = NULL;
+	int ret = kg_json_load(path, &root, err);
+	if (ret)
+		return ret;
+	kg_reference *ref = calloc(1, sizeof(*ref));
+	ret = ref ? load_reference(path, root, ref, err) : kg_fail(err, KG_ENOMEM, "out of memory");
+	json_decref(root);
+	if (ret) {
+		kg_reference_free(&ref);
+		return ret;
+	}
+	*out = ref;
+	return 0;
+}
+
+static int load_camera(const char *file, const json_t *root, kg_camera *cam, kg_err *err)
+{
+	int ret = check_header(file, root, CAMERA_FORMAT, err);
+	if (!ret)
+		ret = get_method(file, root, &cam->method, err);
+	if (!ret)
+		ret = get_pca(file, root, &cam->K, &cam->centred, cam->B, cam->mean, cam->M,
+		              cam->rgb_mean, err);
+	if (!ret)
+		ret = get_mat(file, root, "M2", 3, 3, cam->M2, 3, 1, err);
+	for (int j = 0; !ret && j < KG_METHOD_COUNT; j++) {
+		kg_site_map *mp = &cam->maps[j];
+		mp->method = (kg_method)j;
+		mp->nterms = kg_method_nterms((kg_method)j);
+		ret = get_map(file, root, (kg_method)j, &mp->available, NULL, 0, mp->A, mp->offset,
+		              mp->pre, &mp->lambda, &mp->loo_rmse, err);
+	}
+	if (!ret && !cam->maps[cam->method].available)
+		ret = kg_fail(err, KG_EINVAL, "%s: method: %s is marked unavailable in methods", file,
+		              kg_method_name(cam->method));
+	long k = 0, rank = 0;
+	if (!ret)
+		ret = kg_json_get_int(file, root, "site.patches", 3, 1 << 24, &k, err);
+	if (ret)
+		return ret;
+	cam->k = (int)k;
+	ret = get_strv(file, root, "site.ids", cam->k, &cam->ids, err);
+	if (ret)
+		return ret;
+	cam->rho_r = malloc((size_t)k * sizeof(*cam->rho_r));
+	cam->rho0 = malloc((size_t)k * sizeof(*cam->rho0));
+	cam->residual = malloc((size_t)k * sizeof(*cam->residual));
+	if (!cam->rho_r || !cam->rho0 || !cam->residual)
+		return kg_fail(err, KG_ENOMEM, "out of memory");
+	ret = get_mat(file, root, "site.rho_r", 3, cam->k, &cam->rho_r[0][0], 1, 3, err);
+	if (!ret)
+		ret = get_mat(file, root, "site.rho0", 3, cam->k, &cam->rho0[0][0], 1, 3, err);
+	if (!ret)
+		ret = get_mat(file, root, "site.residual", 3, cam->k, &cam->residual[0][0], 1, 3, err);
+	if (!ret)
+		ret = get_num_or_null(file, root, "site.residual_rms", &cam->residual_rms, err);
+	if (!ret)
+		ret = get_num_or_null(file, root, "site.residual_relative", &cam->residual_relative,
+		                      err);
+	if (!ret)
+		ret = get_num_or_null(file, root, "site.condition_number", &cam->cond, err);
+	if (!ret)
+		ret = get_num_or_null(file, root, "site.condition_number_equilibrated",
+		                      &cam->cond_equilibrated, err);
+	if (!ret)
+		ret = get_row(file, root, "site.singular_values", 3, cam->singular_values, err);
+	if (!ret)
+		ret = kg_json_get_int(file, root, "site.rank", 0, 3, &rank, err);
+	cam->rank = (int)rank;
+	if (!ret)
+		ret = get_sources(file, root, &cam->sources, &cam->nsources, err);
+	calib_camera_derive(cam);
+	return ret;
+}
+
+int kg_camera_load(const char *path, kg_camera **out, kg_err *err)
+{
+	kg_check_arg(path && out, err);
+	*out = NULL;
+	json_t *root = NULL;
+	int ret = kg_json_load(path, &root, err);
+	if (ret)
+		return ret;
+	kg_camera *cam = calloc(1, sizeof(*cam));
+	ret = cam ? load_camera(path, root, cam, err) : kg_fail(err, KG_ENOMEM, "out of memory");
+	json_decref(root);
+	if (ret) {
+		kg_camera_free(&cam);
+		return ret;
+	}
+	*out = cam;
+	return 0;
+}

@@ -1,0 +1,355 @@
+/* Site calibration: M2 = rho0 pinv(rho_r), the 3 x 3 map from a site camera's RGB
+ * into the reference camera's, and the per-pixel maps that fold it in. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "calib_private.h"
+
+#define NB KG_NBANDS
+
+void kg_camera_options_default(kg_camera_options *o)
+{
+	memset(o, 0, sizeof(*o));
+	o->max_cond = KG_CALIB_MAX_COND;
+	o->clip_level = KG_CALIB_CLIP_LEVEL;
+	o->black_level = KG_CALIB_BLACK_LEVEL;
+	o->pinv_rtol = KG_CALIB_PINV_RTOL;
+}
+
+void kg_camera_free(kg_camera **pcam)
+{
+	if (!pcam || !*pcam)
+		return;
+	kg_camera *cam = *pcam;
+	calib_strv_free(cam->ids, cam->k);
+	free(cam->rho_r);
+	free(cam->rho0);
+	free(cam->residual);
+	calib_sources_free(&cam->sources, &cam->nsources);
+	free(cam);
+	*pcam = NULL;
+}
+
+static int find_id(char *const *ids, int n, const char *id)
+{
+	for (int i = 0; i < n; i++)
+		if (strcmp(ids[i], id) == 0)
+			return i;
+	return -1;
+}
+
+static int is_excluded(const kg_camera_options *opt, const char *id)
+{
+	for (int i = 0; i < opt->nexclude; i++)
+		if (strcmp(opt->exclude[i], id) == 0)
+			return 1;
+	return 0;
+}
+
+/* Fold M2 into a reference map: linear methods get A M2, root-polynomial ones keep
+ * A and apply M2 first. */
+static void site_map_from(const kg_spectral_map *ref, const double M2[9], kg_site_map *out)
+{
+	memset(out, 0, sizeof(*out));
+	out->method = ref->method;
+	out->available = ref->available;
+	out->nterms = ref->nterms;
+	out->lambda = ref->lambda;
+	out->loo_rmse = ref->loo_rmse;
+	memcpy(out->offset, ref->offset, sizeof(out->offset));
+	if (ref->nterms == 3) {
+		for (int l = 0; l < NB; l++)
+			for (int c = 0; c < 3; c++)
+				out->A[l * 3 + c] = ref->A[l * 3 + 0] * M2[0 * 3 + c] +
+				                    ref->A[l * 3 + 1] * M2[1 * 3 + c] +
+				                    ref->A[l * 3 + 2] * M2[2 * 3 + c];
+		out->pre[0] = out->pre[4] = out->pre[8] = 1;
+	} else {
+		memcpy(out->A, ref->A, (size_t)NB * ref->nterms * sizeof(double));
+		memcpy(out->pre, M2, sizeof(out->pre));
+	}
+}
+
+static int check_options(const kg_camera_options *opt, kg_err *err)
+{
+	if (!(opt->max_cond >= 1))
+		return kg_fail(err, KG_EINVAL, "condition-number limit %g: expected >= 1",
+		               opt->max_cond);
+	if (!(opt->clip_level > 0) || !isfinite(opt->clip_level))
+		return kg_fail(err, KG_EINVAL, "clip level %g: expected a finite value > 0",
+		               opt->clip_level);
+	if (!(opt->black_level >= 0) || !(opt->black_level < opt->clip_level))
+		return kg_fail(err, KG_EINVAL, "black level %g: expected 0 <= level < clip level",
+		               opt->black_level);
+	if (!(opt->pinv_rtol >= 0 && opt->pinv_rtol < 1))
+		return kg_fail(err, KG_EINVAL, "pinv tolerance %g: expected 0 <= rtol < 1",
+		               opt->pinv_rtol);
+	return 0;
+}
+
+/* Which site patches take part: every non-excluded site id must be on the
+ * reference's field chart, and at least 3 must be in common. idx_ref/idx_site
+ * receive the pairs in the reference's order. */
+static int match_patches(const kg_reference *ref, const kg_patchset *site,
+                         const kg_camera_options *opt, const char *what, int *idx_ref,
+                         int *idx_site, int *k, kg_err *err)
+{
+	int n = site->n, nunknown = 0, nmissing = 0;
+	int *unknown = malloc((n > 0 ? (size_t)n : 1) * sizeof(int));
+	int *missing = malloc((ref->k > 0 ? (size_t)ref->k : 1) * sizeof(int));
+	int ret = 0;
+	if (!unknown || !missing) {
+		ret = kg_fail(err, KG_ENOMEM, "out of memory");
+		goto done;
+	}
+	for (int i = 0; i < n; i++)
+		for (int j = 0; j < i; j++)
+			if (strcmp(site->ids[i], site->ids[j]) == 0) {
+				ret = kg_fail(err, KG_EINVAL, "%s: SAMPLE_ID %s appears twice", what,
+				              site->ids[i]);
+				goto done;
+			}
+	for (int e = 0; e < opt->nexclude; e++)
+		if (find_id(site->ids, n, opt->exclude[e]) < 0 &&
+		    find_id(ref->field_ids, ref->k, opt->exclude[e]) < 0) {
+			ret = kg_fail(err, KG_EINVAL,
+			              "--exclude %s: no patch of that SAMPLE_ID in %s or in the reference",
+			              opt->exclude[e], what);
+			goto done;
+		}
+	for (int i = 0; i < n; i++)
+		if (!is_excluded(opt, site->ids[i]) && find_id(ref->field_ids, ref->k, site->ids[i]) < 0)
+			unknown[nunknown++] = i;
+	if (nunknown) {
+		char a[400] = "", b[300] = "";
+		calib_list_ids(a, sizeof(a), site->ids, unknown, nunknown, 12);
+		calib_list_ids(b, sizeof(b), ref->field_ids, NULL, ref->k, 12);
+		ret = kg_fail(err, KG_EINVAL,
+		              "%s: patch ids do not match the reference: %d of its %d SAMPLE_IDs are "
+		              "not on the reference's field chart (%s); the reference's ids are %s. "
+		              "Was the site chart detected with the same layout?",
+		              what, nunknown, n, a, b);
+		goto done;
+	}
+	*k = 0;
+	for (int j = 0; j < ref->k; j++) {
+		if (is_excluded(opt, ref->field_ids[j]))
+			continue;
+		int i = find_id(site->ids, n, ref->field_ids[j]);
+		if (i < 0) {
+			missing[nmissing++] = j;
+			continue;
+		}
+		idx_ref[*k] = j;
+		idx_site[*k] = i;
+		(*k)++;
+	}
+	if (*k < 3) {
+		char a[300] = "", b[400] = "";
+		int *common = malloc(((size_t)*k + 1) * sizeof(int));
+		if (!common) {
+			ret = kg_fail(err, KG_ENOMEM, "out of memory");
+			goto done;
+		}
+		for (int i = 0; i < *k; i++)
+			common[i] = idx_ref[i];
+		calib_list_ids(a, sizeof(a), ref->field_ids, common, *k, 12);
+		calib_list_ids(b, sizeof(b), ref->field_ids, missing, nmissing, 24);
+		free(common);
+		ret = kg_fail(err, KG_EINVAL,
+		              "%s: only %d patch%s in common with the reference's field chart (%s); "
+		              "M2 needs at least 3. Missing from %s: %s",
+		              what, *k, *k == 1 ? "" : "es", *k ? a : "none", what,
+		              nmissing ? b : "none (the rest were excluded)");
+	}
+done:
+	free(unknown);
+	free(missing);
+	return ret;
+}
+
+/* M2 = R0 pinv(R) with R, R0 the 3 x k site and reference values. */
+static int solve_m2(kg_camera *cam, double rtol, kg_err *err)
+{
+	int k = cam->k;
+	kg_mat *R = NULL, *P = NULL;
+	int ret = kg_mat_new(3, k, &R, err);
+	if (ret)
+		return ret;
+	for (int c = 0; c < 3; c++)
+		for (int i = 0; i < k; i++)
+			R->a[c * k + i] = cam->rho_r[i][c];
+	ret = kg_pinv(R, rtol, &P, &cam->rank, NULL, err);
+	if (ret == 0 && cam->rank < 3)
+		ret = kg_fail(err, KG_EINVAL, "site chart: RGB has rank %d; expected 3", cam->rank);
+	if (ret == 0) {
+		for (int r = 0; r < 3; r++)
+			for (int c = 0; c < 3; c++) {
+				double v = 0;
+				for (int i = 0; i < k; i++)
+					v += cam->rho0[i][r] * P->a[i * 3 + c];
+				cam->M2[r * 3 + c] = v;
+			}
+		double res2 = 0, ref2 = 0;
+		for (int i = 0; i < k; i++)
+			for (int r = 0; r < 3; r++) {
+				double p = cam->M2[r * 3 + 0] * cam->rho_r[i][0] +
+				           cam->M2[r * 3 + 1] * cam->rho_r[i][1] +
+				           cam->M2[r * 3 + 2] * cam->rho_r[i][2];
+				cam->residual[i][r] = cam->rho0[i][r] - p;
+				res2 += cam->residual[i][r] * cam->residual[i][r];
+				ref2 += cam->rho0[i][r] * cam->rho0[i][r];
+			}
+		cam->residual_rms = sqrt(res2 / (3.0 * k));
+		cam->residual_relative = ref2 > 0 ? sqrt(res2 / ref2) : 0;
+	}
+	kg_mat_free(&R);
+	kg_mat_free(&P);
+	return ret;
+}
+
+int kg_camera_fit(const kg_reference *ref, const kg_patchset *site,
+                  const kg_camera_options *opt, kg_camera **out, kg_err *err)
+{
+	kg_check_arg(ref && site && out, err);
+	*out = NULL;
+	kg_camera_options defaults;
+	if (!opt) {
+		kg_camera_options_default(&defaults);
+		opt = &defaults;
+	}
+	const char *what = site->source ? site->source : "site chart";
+	int ret = check_options(opt, err);
+	if (ret)
+		return ret;
+	if (!site->rgb)
+		return kg_fail(err, KG_EINVAL, "%s: expected fields RGB_R RGB_G RGB_B", what);
+
+	int *idx_ref = malloc((ref->k > 0 ? (size_t)ref->k : 1) * sizeof(int));
+	int *idx_site = malloc((ref->k > 0 ? (size_t)ref->k : 1) * sizeof(int));
+	double *clipped = NULL;
+	kg_camera *cam = calloc(1, sizeof(*cam));
+	int k = 0;
+	if (!idx_ref || !idx_site || !cam) {
+		ret = kg_fail(err, KG_ENOMEM, "out of memory");
+		goto error;
+	}
+	ret = match_patches(ref, site, opt, what, idx_ref, idx_site, &k, err);
+	if (ret)
+		goto error;
+
+	cam->k = k;
+	cam->ids = calloc((size_t)k, sizeof(char *));
+	cam->rho_r = malloc((size_t)k * sizeof(*cam->rho_r));
+	cam->rho0 = malloc((size_t)k * sizeof(*cam->rho0));
+	cam->residual = malloc((size_t)k * sizeof(*cam->residual));
+	if (!cam->ids || !cam->rho_r || !cam->rho0 || !cam->residual) {
+		ret = kg_fail(err, KG_ENOMEM, "out of memory");
+		goto error;
+	}
+	int stride = 0;
+	const double *clip = calib_clipped_column(site, &stride);
+	if (clip && !(clipped = malloc((size_t)k * sizeof(double)))) {
+		ret = kg_fail(err, KG_ENOMEM, "out of memory");
+		goto error;
+	}
+	for (int i = 0; i < k; i++) {
+		if (!(cam->ids[i] = strdup(ref->field_ids[idx_ref[i]]))) {
+			ret = kg_fail(err, KG_ENOMEM, "out of memory");
+			goto error;
+		}
+		memcpy(cam->rho_r[i], site->rgb[idx_site[i]], sizeof(cam->rho_r[i]));
+		memcpy(cam->rho0[i], ref->rho0[idx_ref[i]], sizeof(cam->rho0[i]));
+		if (clipped)
+			clipped[i] = clip[(size_t)idx_site[i] * stride];
+	}
+	ret = calib_check_patch_values(what, cam->ids, (const double (*)[3])cam->rho_r, clipped,
+	                               k, opt->clip_level, opt->black_level, err);
+	if (ret)
+		goto error;
+	ret = calib_check_collinear(what, cam->ids, (const double (*)[3])cam->rho_r, k,
+	                            opt->max_cond, &cam->cond, &cam->cond_equilibrated,
+	                            cam->singular_values, err);
+	if (ret)
+		goto error;
+	ret = solve_m2(cam, opt->pinv_rtol, err);
+	if (ret)
+		goto error;
+
+	cam->K = ref->K;
+	cam->centred = ref->centred;
+	memcpy(cam->B, ref->B, sizeof(cam->B));
+	memcpy(cam->mean, ref->mean, sizeof(cam->mean));
+	memcpy(cam->M, ref->M, sizeof(cam->M));
+	memcpy(cam->rgb_mean, ref->rgb_mean, sizeof(cam->rgb_mean));
+	cam->method = ref->method;
+	for (int j = 0; j < KG_METHOD_COUNT; j++)
+		site_map_from(&ref->maps[j], cam->M2, &cam->maps[j]);
+	calib_camera_derive(cam);
+	free(idx_ref);
+	free(idx_site);
+	free(clipped);
+	*out = cam;
+	return 0;
+
+error:
+	free(idx_ref);
+	free(idx_site);
+	free(clipped);
+	kg_camera_free(&cam);
+	return ret;
+}
+
+int kg_camera_fit_files(const char *reference_path, const char *site_rgb_path,
+                        const kg_camera_options *opt, kg_camera **out, kg_err *err)
+{
+	kg_check_arg(reference_path && site_rgb_path && out, err);
+	*out = NULL;
+	kg_reference *ref = NULL;
+	kg_patchset *site = NULL;
+	kg_camera *cam = NULL;
+	int ret = kg_reference_load(reference_path, &ref, err);
+	if (ret == 0)
+		ret = kg_patchset_read(site_rgb_path, 0, &site, err);
+	if (ret == 0 && !site->source && !(site->source = strdup(site_rgb_path)))
+		ret = kg_fail(err, KG_ENOMEM, "out of memory");
+	if (ret == 0)
+		ret = kg_camera_fit(ref, site, opt, &cam, err);
+	if (ret == 0)
+		ret = calib_source_add(&cam->sources, &cam->nsources, "reference", reference_path,
+		                       err);
+	if (ret == 0)
+		ret = calib_source_add(&cam->sources, &cam->nsources, "site_rgb", site_rgb_path, err);
+	kg_reference_free(&ref);
+	kg_patchset_free(&site);
+	if (ret) {
+		kg_camera_free(&cam);
+		return ret;
+	}
+	*out = cam;
+	return 0;
+}
+
+int kg_camera_set_method(kg_camera *cam, kg_method m, kg_err *err)
+{
+	kg_check_arg(cam && m >= 0 && m < KG_METHOD_COUNT, err);
+	if (!cam->maps[m].available)
+		return kg_fail(err, KG_EINVAL,
+		               "method %s was not available on the reference chart", kg_method_name(m));
+	cam->method = m;
+	return 0;
+}
+
+int kg_camera_site_map(const kg_camera *cam, kg_method m, const kg_site_map **out,
+                       kg_err *err)
+{
+	kg_check_arg(cam && out && m >= KG_METHOD_AUTO && m < KG_METHOD_COUNT, err);
+	if (m == KG_METHOD_AUTO)
+		m = cam->method;
+	if (!cam->maps[m].available)
+		return kg_fail(err, KG_EINVAL,
+		               "method %s was not available on the reference chart", kg_method_name(m));
+	*out = &cam->maps[m];
+	return 0;
+}

@@ -1,0 +1,316 @@
+#include <getopt.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cli.h"
+#include "kg_calib.h"
+
+static const char usage_reference[] =
+	"kogei calib reference --spectra S.cgats|S.csv --rgb P.cgats -o REF.json\n"
+	"                      [--field-rgb F.cgats] [--basis K|auto] [--centred]\n"
+	"                      [--ridge L] [--noise SIGMA] [--method NAME|auto]\n"
+	"                      [--exclude ID[,ID...]]\n"
+	"  Reference calibration (DESIGN.md section 1, step 1). The chart's spectra S\n"
+	"  (CGATS SPEC_* fields, or a patch,name,<nm>... CSV table) and the reference\n"
+	"  camera's linear RGB rho (RGB_R RGB_G RGB_B) are matched by SAMPLE_ID. Fitted:\n"
+	"    pca        B = the K leading right singular vectors of S (--centred: about\n"
+	"               the mean spectrum, with an affine M), M = W^T rho (rho^T rho + L I)^-1\n"
+	"    linear     A = S^T rho (rho^T rho + L I)^-1 (61 x 3)\n"
+	"    wiener     A = E[s rho^T] (E[rho rho^T] + SIGMA^2 I)^-1 over the chart\n"
+	"    rootpoly2, rootpoly3  root-polynomial regression (Finlayson et al. 2015)\n"
+	"  --basis K (1-8, default 3) or auto: the K with the lowest leave-one-out\n"
+	"  spectral RMSE (the smallest within 1 %). --method (default pca) sets the\n"
+	"  method estimate uses by default; auto takes the lowest leave-one-out error.\n"
+	"  --ridge L >= 0 (default 0), --noise SIGMA > 0 (camera noise, 0..1 scale,\n"
+	"  default 0.01). rho0, the reference camera's values of the field chart, come\n"
+	"  from --field-rgb, else from --rgb. --exclude leaves patches out of both.\n"
+	"  Refused: clipped (a channel >= 0.98) or non-finite patches, near-black field\n"
+	"  patches (< 0.01), nearly collinear RGB. Writes kogei-reference/1 JSON and\n"
+	"  prints the leave-one-out table.";
+
+static const char usage_camera[] =
+	"kogei calib camera --reference REF.json --rgb P.cgats -o CAM.json\n"
+	"                   [--method NAME] [--max-cond C] [--clip-level V]\n"
+	"                   [--black-level V] [--exclude ID[,ID...]]\n"
+	"  Site calibration (DESIGN.md section 1, step 2): the site camera's values\n"
+	"  rho_r of the field chart, matched to the reference's rho0 by SAMPLE_ID, give\n"
+	"  M2 = rho0 pinv(rho_r) (SVD). Refused, naming the patches: site ids not on the\n"
+	"  reference's chart, fewer than 3 patches in common, clipped patches (a channel\n"
+	"  >= V, default 0.98; a clipped-fraction column > 0 when the file has one),\n"
+	"  near-black patches (brightest channel < V, default 0.01), and nearly collinear\n"
+	"  charts (condition number of rho_r with each channel scaled to unit RMS above\n"
+	"  C, default 100: e.g. neutral patches only). --exclude leaves patches out.\n"
+	"  --method sets the default method of CAM.json (default: the reference's).\n"
+	"  Writes kogei-camera/1 JSON (B, M, M2, A = B M M2, every method's map) and\n"
+	"  prints the condition number and residuals.";
+
+/* Split "a,b,c" into a NULL-terminated list (one allocation for the pointers, one
+ * for the text). */
+static int split_ids(const char *text, char ***out, int *n)
+{
+	char *copy = strdup(text);
+	int count = 1;
+	for (const char *p = text; *p; p++)
+		count += *p == ',';
+	char **v = calloc((size_t)count + 1, sizeof(char *));
+	if (!copy || !v) {
+		free(copy);
+		free(v);
+		return KG_ENOMEM;
+	}
+	int k = 0;
+	for (char *save = NULL, *tok = strtok_r(copy, ",", &save); tok;
+	     tok = strtok_r(NULL, ",", &save))
+		v[k++] = tok;
+	if (k == 0)
+		free(copy);
+	*out = v;
+	*n = k;
+	return 0;
+}
+
+static void free_ids(char ***v)
+{
+	if (*v && (*v)[0])
+		free((*v)[0]);
+	free(*v);
+	*v = NULL;
+}
+
+static int parse_double(const char *text, double *out)
+{
+	char *end = NULL;
+	double v = strtod(text, &end);
+	if (!end || end == text || *end || !isfinite(v))
+		return -1;
+	*out = v;
+	return 0;
+}
+
+/* The report goes to standard output, or to standard error when the calibration
+ * itself is written there. */
+static FILE *report_stream(const char *out)
+{
+	return strcmp(out, "-") == 0 ? stderr : stdout;
+}
+
+static void print_reference(FILE *fp, const kg_reference *ref, const char *out)
+{
+	fprintf(fp, "reference calibration: %d training patches, %d field patches\n", ref->m,
+	        ref->k);
+	fprintf(fp, "PCA: K = %d (%s), %s; energy %.4f; cond(rho) %.3g, cond(rho0) %.3g\n", ref->K,
+	        ref->basis_auto ? "leave-one-out" : "--basis", ref->centred ? "centred" : "uncentred",
+	        ref->energy[ref->K - 1], ref->cond_rho, ref->cond_rho0);
+	if (ref->nK) {
+		fprintf(fp, "leave-one-out spectral RMSE by K:");
+		for (int K = 0; K < ref->nK; K++)
+			fprintf(fp, " %d:%.5f", K + 1, ref->loo_by_K[K]);
+		fputc('\n', fp);
+	}
+	fprintf(fp, "%-10s %10s %10s %10s %12s\n", "method", "fit RMSE", "LOO RMSE", "LOO dE00",
+	        "cond");
+	for (int j = 0; j < KG_METHOD_COUNT; j++) {
+		const kg_spectral_map *m = &ref->maps[j];
+		if (!m->available) {
+			fprintf(fp, "%-10s unavailable: %s\n", kg_method_name((kg_method)j), m->note);
+			continue;
+		}
+		fprintf(fp, "%-10s %10.5f %10.5f %10.3f %12.4g%s\n", kg_method_name((kg_method)j),
+		        m->fit_rmse, m->loo_rmse, m->loo_de00, m->cond,
+		        (kg_method)j == ref->method ? "  <- default" : "");
+	}
+	double rm = 0, de = 0, demax = 0;
+	for (int i = 0; i < ref->m; i++) {
+		rm += ref->rmse[i];
+		de += ref->de00[i];
+		demax = fmax(demax, ref->de00[i]);
+	}
+	fprintf(fp, "%s on the chart: mean RMSE %.5f, mean dE00 %.3f (max %.3f) under D65\n",
+	        kg_method_name(ref->method), rm / ref->m, de / ref->m, demax);
+	if (strcmp(out, "-") != 0)
+		fprintf(fp, "wrote %s\n", out);
+}
+
+int kg_cmd_calib_reference(int argc, char **argv)
+{
+	const char *spectra = NULL, *rgb = NULL, *field = NULL, *out = NULL, *exclude = NULL;
+	kg_reference_options opt;
+	kg_reference_options_default(&opt);
+	static const struct option opts[] = {
+		{"spectra", required_argument, NULL, 's'},
+		{"rgb", required_argument, NULL, 'r'},
+		{"field-rgb", required_argument, NULL, 'f'},
+		{"basis", required_argument, NULL, 'K'},
+		{"centred", no_argument, NULL, 'c'},
+		{"ridge", required_argument, NULL, 'l'},
+		{"noise", required_argument, NULL, 'n'},
+		{"method", required_argument, NULL, 'm'},
+		{"exclude", required_argument, NULL, 'x'},
+		{"output", required_argument, NULL, 'o'},
+		{"help", no_argument, NULL, 'h'},
+		{0, 0, 0, 0},
+	};
+	kg_err err = {{0}};
+	int c;
+	optind = 1;
+	while ((c = getopt_long(argc, argv, "o:h", opts, NULL)) != -1) {
+		double v;
+		switch (c) {
+		case 's': spectra = optarg; break;
+		case 'r': rgb = optarg; break;
+		case 'f': field = optarg; break;
+		case 'c': opt.centred = 1; break;
+		case 'x': exclude = optarg; break;
+		case 'o': out = optarg; break;
+		case 'K':
+			if (strcmp(optarg, "auto") == 0)
+				opt.basis = 0;
+			else if (parse_double(optarg, &v) || v != floor(v) || v < 1 ||
+			         v > KG_CALIB_MAX_BASIS)
+				return kg_cli_usage_error(usage_reference,
+				                          "--basis %s: expected an integer 1-%d or auto", optarg,
+				                          KG_CALIB_MAX_BASIS);
+			else
+				opt.basis = (int)v;
+			break;
+		case 'l':
+			if (parse_double(optarg, &opt.ridge) || opt.ridge < 0)
+				return kg_cli_usage_error(usage_reference,
+				                          "--ridge %s: expected a number >= 0", optarg);
+			break;
+		case 'n':
+			if (parse_double(optarg, &opt.noise_sigma) || opt.noise_sigma <= 0)
+				return kg_cli_usage_error(usage_reference,
+				                          "--noise %s: expected a number > 0", optarg);
+			break;
+		case 'm':
+			if (kg_method_parse(optarg, &opt.method, &err))
+				return kg_cli_usage_error(usage_reference, "--%s", err.msg);
+			break;
+		case 'h': puts(usage_reference); return KG_EXIT_OK;
+		default: return kg_cli_usage_error(usage_reference, "bad option");
+		}
+	}
+	if (optind != argc)
+		return kg_cli_usage_error(usage_reference, "unexpected argument '%s'", argv[optind]);
+	if (!spectra || !rgb || !out)
+		return kg_cli_usage_error(usage_reference, "--spectra, --rgb and -o are required");
+
+	char **ids = NULL;
+	int nids = 0;
+	if (exclude && split_ids(exclude, &ids, &nids))
+		return kg_cli_error(&err, kg_fail(&err, KG_ENOMEM, "out of memory"));
+	opt.exclude = (const char *const *)ids;
+	opt.nexclude = nids;
+	kg_reference *ref = NULL;
+	int ret = kg_reference_fit_files(spectra, rgb, field, &opt, &ref, &err);
+	if (!ret)
+		ret = kg_reference_save(ref, out, &err);
+	if (!ret)
+		print_reference(report_stream(out), ref, out);
+	kg_reference_free(&ref);
+	free_ids(&ids);
+	return ret ? kg_cli_error(&err, ret) : KG_EXIT_OK;
+}
+
+static void print_camera(FILE *fp, const kg_camera *cam, const char *out)
+{
+	fprintf(fp, "site calibration: %d patches; condition number %.4g (unit-RMS channels %.4g), "
+	            "rank %d\n",
+	        cam->k, cam->cond, cam->cond_equilibrated, cam->rank);
+	fprintf(fp, "M2 = [%.6f %.6f %.6f; %.6f %.6f %.6f; %.6f %.6f %.6f]\n", cam->M2[0], cam->M2[1],
+	        cam->M2[2], cam->M2[3], cam->M2[4], cam->M2[5], cam->M2[6], cam->M2[7], cam->M2[8]);
+	fprintf(fp, "residual rho0 - M2 rho_r: RMS %.5f, relative %.4f\n", cam->residual_rms,
+	        cam->residual_relative);
+	int worst = 0;
+	double wv = -1;
+	for (int i = 0; i < cam->k; i++) {
+		double v = sqrt(cam->residual[i][0] * cam->residual[i][0] +
+		                cam->residual[i][1] * cam->residual[i][1] +
+		                cam->residual[i][2] * cam->residual[i][2]);
+		if (v > wv) {
+			wv = v;
+			worst = i;
+		}
+	}
+	fprintf(fp, "largest residual: patch %s (%.5f)\n", cam->ids[worst], wv);
+	fprintf(fp, "default method: %s\n", kg_method_name(cam->method));
+	if (strcmp(out, "-") != 0)
+		fprintf(fp, "wrote %s\n", out);
+}
+
+int kg_cmd_calib_camera(int argc, char **argv)
+{
+	const char *refpath = NULL, *rgb = NULL, *out = NULL, *exclude = NULL;
+	kg_method method = KG_METHOD_AUTO;
+	kg_camera_options opt;
+	kg_camera_options_default(&opt);
+	static const struct option opts[] = {
+		{"reference", required_argument, NULL, 'R'},
+		{"rgb", required_argument, NULL, 'r'},
+		{"method", required_argument, NULL, 'm'},
+		{"max-cond", required_argument, NULL, 'C'},
+		{"clip-level", required_argument, NULL, 'L'},
+		{"black-level", required_argument, NULL, 'B'},
+		{"exclude", required_argument, NULL, 'x'},
+		{"output", required_argument, NULL, 'o'},
+		{"help", no_argument, NULL, 'h'},
+		{0, 0, 0, 0},
+	};
+	kg_err err = {{0}};
+	int c;
+	optind = 1;
+	while ((c = getopt_long(argc, argv, "o:h", opts, NULL)) != -1) {
+		switch (c) {
+		case 'R': refpath = optarg; break;
+		case 'r': rgb = optarg; break;
+		case 'x': exclude = optarg; break;
+		case 'o': out = optarg; break;
+		case 'm':
+			if (kg_method_parse(optarg, &method, &err))
+				return kg_cli_usage_error(usage_camera, "--%s", err.msg);
+			break;
+		case 'C':
+			if (parse_double(optarg, &opt.max_cond) || opt.max_cond < 1)
+				return kg_cli_usage_error(usage_camera, "--max-cond %s: expected a number >= 1",
+				                          optarg);
+			break;
+		case 'L':
+			if (parse_double(optarg, &opt.clip_level) || opt.clip_level <= 0)
+				return kg_cli_usage_error(usage_camera, "--clip-level %s: expected a number > 0",
+				                          optarg);
+			break;
+		case 'B':
+			if (parse_double(optarg, &opt.black_level) || opt.black_level < 0)
+				return kg_cli_usage_error(usage_camera,
+				                          "--black-level %s: expected a number >= 0", optarg);
+			break;
+		case 'h': puts(usage_camera); return KG_EXIT_OK;
+		default: return kg_cli_usage_error(usage_camera, "bad option");
+		}
+	}
+	if (optind != argc)
+		return kg_cli_usage_error(usage_camera, "unexpected argument '%s'", argv[optind]);
+	if (!refpath || !rgb || !out)
+		return kg_cli_usage_error(usage_camera, "--reference, --rgb and -o are required");
+
+	char **ids = NULL;
+	int nids = 0;
+	if (exclude && split_ids(exclude, &ids, &nids))
+		return kg_cli_error(&err, kg_fail(&err, KG_ENOMEM, "out of memory"));
+	opt.exclude = (const char *const *)ids;
+	opt.nexclude = nids;
+	kg_camera *cam = NULL;
+	int ret = kg_camera_fit_files(refpath, rgb, &opt, &cam, &err);
+	if (!ret && method != KG_METHOD_AUTO)
+		ret = kg_camera_set_method(cam, method, &err);
+	if (!ret)
+		ret = kg_camera_save(cam, out, &err);
+	if (!ret)
+		print_camera(report_stream(out), cam, out);
+	kg_camera_free(&cam);
+	free_ids(&ids);
+	return ret ? kg_cli_error(&err, ret) : KG_EXIT_OK;
+}

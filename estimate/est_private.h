@@ -1,0 +1,282 @@
+/* Inside estimate/: kernel data, the per-pixel steps shared by the reference and the
+ * optimised kernels, and the table of block functions. Not included from outside. */
+#ifndef KG_EST_PRIVATE_H
+#define KG_EST_PRIVATE_H
+
+#include <math.h>
+#include <string.h>
+
+#include "kg_estimate.h"
+
+/* Pixels per chunk in the optimised kernels: their scratch (terms, values) stays in
+ * L1/L2. A multiple of 16. */
+#define EST_CHUNK 256
+#define EST_PAD(n) (((n) + 7) & ~7)
+
+/* One output of a kernel: the spectrum (nb = 61) or the weights (nb = K). */
+typedef struct est_map {
+	int nb;
+	int clamp;   /* negative values are set to 0 (spectra) */
+	float *a;    /* nb x T, row-major (matrix kernels) */
+	float *off;  /* nb */
+	/* Tables for writing 8 pixels of BIP output at once: output vector v covers
+	 * elements 8v..8v+7 of the 8*nb values, element j being band j % nb of pixel
+	 * j / nb. */
+	float *bip_coef;  /* nb x T x 8 */
+	float *bip_off;   /* nb x 8 */
+	int32_t *bip_pix; /* nb x 8 */
+	float *lut;       /* LUT kernels: n^3 nodes of `stride` values */
+	int stride;
+} est_map;
+
+struct kg_est_kernel {
+	kg_est_method method; /* KG_EST_LUT for LUTs */
+	int nterms;           /* matrix kernels */
+	int k;
+	double *basis; /* 61 x k */
+	double *mean;  /* 61, NULL when none */
+	est_map spec, wts;
+	int lut_n;
+	float lut_lo, lut_hi, lut_scale;
+};
+
+struct kg_est_classifier {
+	int k, n;
+	kg_est_distance distance;
+	double *basis; /* copy, to check it matches the kernel at run time */
+	double *mean;
+	double mpar[KG_EST_MAX_K]; /* B^T mean */
+	double h;                  /* ||(I - B B^T) mean||^2 */
+	double *c;                 /* n x k: B^T C_j */
+	double *e;                 /* plain: ||r_j - m_perp||^2 */
+	double *g;                 /* r_j . m_perp */
+	double *q;                 /* ||r_j||^2 */
+	double *inv_norm;          /* 1 / ||C_j||^2, 0 for a black material */
+	char **names;
+};
+
+typedef struct est_counts {
+	uint64_t nonfinite, clipped, clamped_pixels, clamped_values;
+} est_counts;
+
+/* What a run computes, resolved once. */
+typedef struct est_plan {
+	const kg_est_kernel *k;
+	const est_map *map; /* spec or wts */
+	kg_est_format format;
+	const kg_est_classifier *cls;
+	float clip;
+	int stream; /* non-temporal stores */
+} est_plan;
+
+/* Where one run of n consecutive pixels goes. BSQ: plane p starts at
+ * data + p * plane_stride elements. */
+typedef struct est_dst {
+	void *data;
+	size_t plane_stride;
+	float *conf;
+	uint8_t *mask;
+} est_dst;
+
+/* Per-thread scratch of the optimised kernels. */
+typedef struct est_scratch {
+	float *terms;      /* KG_EST_MAX_TERMS x (EST_CHUNK + 16) */
+	float *vals;       /* 64 x EST_CHUNK, band-major */
+	float *rows;       /* EST_CHUNK x 64, pixel-major (LUT) */
+	int32_t *cell;     /* EST_CHUNK: LUT node offsets */
+	float *cw;         /* EST_CHUNK x 8: LUT corner weights */
+	uint8_t *flags;    /* EST_CHUNK */
+	uint8_t *clampbits; /* EST_CHUNK / 8: bit i % 8 of byte i / 8 set when pixel i
+	                       had a band clamped */
+} est_scratch;
+
+typedef void (*est_block_fn)(const est_plan *p, est_scratch *s, const float *rgb, size_t n,
+                             const est_dst *d, est_counts *c);
+
+enum { EST_KIND_MATRIX, EST_KIND_LUT, EST_NKINDS };
+
+typedef struct est_dsp {
+	est_block_fn block[EST_NKINDS][KG_EST_NFORMATS];
+} est_dsp;
+
+/* Fill the table for isa: the reference everywhere, then the optimised kernels the
+ * CPU supports. KG_ENOTSUP when isa names an extension the CPU lacks. */
+int est_dsp_init(est_dsp *dsp, kg_est_isa isa);
+void est_dsp_init_c(est_dsp *dsp);
+int est_have_avx2(void);
+void est_dsp_init_avx2(est_dsp *dsp);
+
+int est_scratch_init(est_scratch *s);
+void est_scratch_fini(est_scratch *s);
+
+/* Stage one of the optimised kernels: flags and terms of m pixels into s->terms
+ * (term t of pixel i at t * (EST_CHUNK + 16) + i; lanes m..m+15 zeroed) and
+ * s->flags; counts the flagged pixels. */
+void est_stage_terms(const est_plan *p, est_scratch *s, const float *rgb, size_t m,
+                     est_counts *c);
+/* The same for a LUT: node offsets and corner weights. */
+void est_stage_lut(const est_plan *p, est_scratch *s, const float *rgb, size_t m,
+                   est_counts *c);
+/* Final per-pixel step of the optimised kernels: mask bits and clamped-pixel count. */
+void est_finish_mask(const est_scratch *s, size_t m, uint8_t *mask, est_counts *c);
+
+#define EST_TSTRIDE (EST_CHUNK + 16)
+
+static inline int est_kind(const kg_est_kernel *k)
+{
+	return k->method == KG_EST_LUT ? EST_KIND_LUT : EST_KIND_MATRIX;
+}
+
+/* Mask bits of a pixel before estimation. */
+static inline unsigned est_pixel_flags(const float *rgb, float clip)
+{
+	if (!isfinite(rgb[0]) || !isfinite(rgb[1]) || !isfinite(rgb[2]))
+		return KG_EST_MASK_NONFINITE;
+	if (rgb[0] >= clip || rgb[1] >= clip || rgb[2] >= clip)
+		return KG_EST_MASK_CLIPPED;
+	return 0;
+}
+
+/* Terms of a matrix method; a flagged pixel gets NaN terms so that every output
+ * computed from them is NaN. Root terms use max(0, channel); the cube roots are
+ * formed from the channels' cube roots (3 cbrtf calls instead of 7). */
+static inline void est_pixel_terms(kg_est_method m, const float *rgb, unsigned flags,
+                                   float *t)
+{
+	if (flags) {
+		for (int i = 0; i < KG_EST_MAX_TERMS; i++)
+			t[i] = NAN;
+		return;
+	}
+	float r = rgb[0], g = rgb[1], b = rgb[2];
+	t[0] = r;
+	t[1] = g;
+	t[2] = b;
+	if (m == KG_EST_LINEAR)
+		return;
+	float rp = r > 0.0f ? r : 0.0f, gp = g > 0.0f ? g : 0.0f, bp = b > 0.0f ? b : 0.0f;
+	t[3] = sqrtf(rp * gp);
+	t[4] = sqrtf(gp * bp);
+	t[5] = sqrtf(rp * bp);
+	if (m == KG_EST_ROOTPOLY2)
+		return;
+	float cr = cbrtf(rp), cg = cbrtf(gp), cb = cbrtf(bp);
+	t[6] = cr * (cg * cg);
+	t[7] = cg * (cb * cb);
+	t[8] = cr * (cb * cb);
+	t[9] = cg * (cr * cr);
+	t[10] = cb * (cg * cg);
+	t[11] = cb * (cr * cr);
+	t[12] = cr * (cg * cb);
+}
+
+/* Value of band o of a matrix kernel: offset first, then the terms in order. */
+static inline float est_matrix_band(const est_map *m, int nterms, int o, const float *t)
+{
+	const float *a = m->a + (size_t)o * nterms;
+	float acc = m->off[o];
+	for (int i = 0; i < nterms; i++)
+		acc = acc + a[i] * t[i];
+	return acc;
+}
+
+/* LUT cell of a pixel: offset of its lower corner (in nodes) and the 8 corner
+ * weights, corner c = dx + 2 dy + 4 dz. A flagged pixel gets cell 0 and NaN weights. */
+static inline int32_t est_lut_cell(const kg_est_kernel *k, const float *rgb, unsigned flags,
+                                   float *w)
+{
+	if (flags) {
+		for (int c = 0; c < 8; c++)
+			w[c] = NAN;
+		return 0;
+	}
+	int n = k->lut_n, idx[3];
+	float f[3];
+	for (int a = 0; a < 3; a++) {
+		float x = (rgb[a] - k->lut_lo) * k->lut_scale;
+		if (!(x > 0.0f))
+			x = 0.0f;
+		if (x > (float)(n - 1))
+			x = (float)(n - 1);
+		int i = (int)x;
+		if (i > n - 2)
+			i = n - 2;
+		idx[a] = i;
+		f[a] = x - (float)i;
+	}
+	float gx[2] = {1.0f - f[0], f[0]}, gy[2] = {1.0f - f[1], f[1]},
+	      gz[2] = {1.0f - f[2], f[2]};
+	for (int c = 0; c < 8; c++)
+		w[c] = (gz[c >> 2] * gy[(c >> 1) & 1]) * gx[c & 1];
+	return (idx[2] * n + idx[1]) * n + idx[0];
+}
+
+/* Node offsets (in nodes) of the 8 corners relative to the lower one. */
+static inline int32_t est_lut_corner(int n, int c)
+{
+	return ((c >> 2) * n + ((c >> 1) & 1)) * n + (c & 1);
+}
+
+/* Band o of a LUT output: corners summed in order, starting from corner 0. */
+static inline float est_lut_band(const est_map *m, int n, int32_t cell, const float *w,
+                                 int o)
+{
+	float acc = w[0] * m->lut[(size_t)cell * m->stride + o];
+	for (int c = 1; c < 8; c++)
+		acc = acc + w[c] * m->lut[(size_t)(cell + est_lut_corner(n, c)) * m->stride + o];
+	return acc;
+}
+
+/* Distances of weights v (K, already offset by the mean's projection) to material
+ * j, in double. Shared by the reference and by kg_est_classifier_distances; the
+ * optimised kernel repeats the same operations lane by lane. */
+static inline double est_material_distance(const kg_est_classifier *c, int j, const double *v)
+{
+	const double *cj = c->c + (size_t)j * c->k;
+	if (c->distance == KG_EST_DIST_PLAIN) {
+		double d = c->e[j];
+		for (int i = 0; i < c->k; i++) {
+			double t = cj[i] - v[i];
+			d = d + t * t;
+		}
+		return d;
+	}
+	double p = c->g[j];
+	for (int i = 0; i < c->k; i++)
+		p = p + cj[i] * v[i];
+	double a = p > 0.0 ? p * c->inv_norm[j] : 0.0;
+	double d = c->h + a * (a * c->q[j] - 2.0 * c->g[j]);
+	for (int i = 0; i < c->k; i++) {
+		double t = v[i] - a * cj[i];
+		d = d + t * t;
+	}
+	return d;
+}
+
+static inline void est_weights_to_v(const kg_est_classifier *c, const float *w, double *v)
+{
+	for (int i = 0; i < c->k; i++)
+		v[i] = (double)w[i] + c->mpar[i];
+}
+
+/* Label and margin of one pixel. */
+static inline void est_classify_pixel(const kg_est_classifier *c, const double *v,
+                                      uint8_t *label, float *margin)
+{
+	double best = INFINITY, second = INFINITY;
+	int lab = 0;
+	for (int j = 0; j < c->n; j++) {
+		double d = est_material_distance(c, j, v);
+		if (d < best) {
+			second = best;
+			best = d;
+			lab = j;
+		} else if (d < second) {
+			second = d;
+		}
+	}
+	*label = (uint8_t)(lab + 1);
+	*margin = (float)(second - best);
+}
+
+#endif

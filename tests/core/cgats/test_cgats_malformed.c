@@ -1,0 +1,205 @@
+/* Malformed CGATS is refused with a message naming the file, the line, the field and
+ * what was expected; nothing crashes or leaks. */
+#include <string.h>
+
+#include "kg_core.h"
+#include "kg_test.h"
+
+#define HEAD "CGATS.17\nORIGINATOR \"test\"\nNUMBER_OF_FIELDS 3\nBEGIN_DATA_FORMAT\n" \
+             "SAMPLE_ID RGB_R RGB_G\nEND_DATA_FORMAT\n"
+/* Line numbers: 1 CGATS.17, 2 ORIGINATOR, 3 NUMBER_OF_FIELDS, 4 BEGIN_DATA_FORMAT,
+ * 5 fields, 6 END_DATA_FORMAT, 7 NUMBER_OF_SETS, 8 BEGIN_DATA, 9 first set. */
+
+/* Parse text expecting failure `code` and a message containing every string given. */
+static void expect_parse_error(const char *what, const char *text, size_t len, int code,
+                               const char *const *needles)
+{
+	kg_err err = { { 0 } };
+	kg_cgats *cg = NULL;
+	int r = kg_cgats_parse(text, len, "bad.cgats", &cg, &err);
+	CHECK(r == code, "%s: expected code %d, got %d (%s)", what, code, r, err.msg);
+	CHECK(cg == NULL, "%s: no result on failure", what);
+	CHECK(strncmp(err.msg, "bad.cgats", 9) == 0, "%s: message names the file: %s", what,
+	      err.msg);
+	for (int i = 0; needles[i]; i++)
+		CHECK(strstr(err.msg, needles[i]), "%s: message lacks '%s': %s", what, needles[i],
+		      err.msg);
+	kg_cgats_free(&cg);
+}
+
+#define PARSE_FAILS(what, text, code, ...)                                              \
+	expect_parse_error(what, text, strlen(text), code, (const char *const[]){ __VA_ARGS__, \
+	                                                                          NULL })
+
+/* Parse text that is valid, then expect the patch set (or a number) to fail. */
+static void expect_patchset_error(const char *what, const char *text, unsigned flags,
+                                  int code, const char *const *needles)
+{
+	kg_err err = { { 0 } };
+	kg_cgats *cg = NULL;
+	kg_patchset *ps = NULL;
+	int r = kg_cgats_parse(text, strlen(text), "bad.cgats", &cg, &err);
+	CHECK(r == 0, "%s: parses: %s", what, err.msg);
+	if (r != 0)
+		return;
+	r = kg_patchset_from_cgats(cg, flags, &ps, &err);
+	CHECK(r == code, "%s: expected code %d, got %d (%s)", what, code, r, err.msg);
+	CHECK(ps == NULL, "%s: no patch set on failure", what);
+	for (int i = 0; needles[i]; i++)
+		CHECK(strstr(err.msg, needles[i]), "%s: message lacks '%s': %s", what, needles[i],
+		      err.msg);
+	kg_patchset_free(&ps);
+	kg_cgats_free(&cg);
+}
+
+#define PATCHSET_FAILS(what, text, flags, code, ...)                                     \
+	expect_patchset_error(what, text, flags, code, (const char *const[]){ __VA_ARGS__, NULL })
+
+static void test_structure(void)
+{
+	PARSE_FAILS("empty", "", KG_EINVAL, "empty");
+	PARSE_FAILS("only comments", "# nothing here\n\n   \n", KG_EINVAL, "empty");
+	PARSE_FAILS("no identifier", "NUMBER_OF_FIELDS 2\n", KG_EINVAL, "line 1",
+	            "file-type identifier");
+	PARSE_FAILS("truncated in the data",
+	            HEAD "NUMBER_OF_SETS 2\nBEGIN_DATA\nA1 0.1 0.2\n", KG_EINVAL, "line 9",
+	            "END_DATA", "truncated");
+	PARSE_FAILS("truncated mid-set", HEAD "BEGIN_DATA\nA1 0.1 0.2\nA2 0.", KG_EINVAL,
+	            "line 9", "set 2 has 2 values, expected 3");
+	PARSE_FAILS("truncated in the header", "CGATS.17\nORIGINATOR \"x\"\n", KG_EINVAL,
+	            "line 2", "BEGIN_DATA_FORMAT");
+	PARSE_FAILS("truncated in the field list",
+	            "CGATS.17\nBEGIN_DATA_FORMAT\nSAMPLE_ID RGB_R\n", KG_EINVAL, "line 3",
+	            "END_DATA_FORMAT");
+	PARSE_FAILS("wrong field count", HEAD "BEGIN_DATA\nA1 0.1 0.2\nA2 0.1 0.2 0.3\nEND_DATA\n",
+	            KG_EINVAL, "line 9", "set 2 has 4 values, expected 3", "SAMPLE_ID");
+	PARSE_FAILS("missing BEGIN_DATA", HEAD "NUMBER_OF_SETS 1\n", KG_EINVAL, "line 7",
+	            "expected BEGIN_DATA");
+	PARSE_FAILS("data without BEGIN_DATA", HEAD "A1 0.1 0.2\nEND_DATA\n", KG_EINVAL,
+	            "line 8", "END_DATA without its BEGIN");
+	PARSE_FAILS("missing BEGIN_DATA_FORMAT",
+	            "CGATS.17\nNUMBER_OF_FIELDS 2\nBEGIN_DATA\n1 2\nEND_DATA\n", KG_EINVAL,
+	            "line 3", "BEGIN_DATA_FORMAT");
+	PARSE_FAILS("empty field list",
+	            "CGATS.17\nBEGIN_DATA_FORMAT END_DATA_FORMAT\nBEGIN_DATA\nEND_DATA\n",
+	            KG_EINVAL, "line 2", "no fields");
+	/* NUMBER_OF_FIELDS disagreeing with the field list is tolerated (real Argyll files
+	 * do it) as long as the sets match the list; when they do not, it is mentioned. */
+	PARSE_FAILS("NUMBER_OF_FIELDS and sets disagree with the field list",
+	            "CGATS.17\nNUMBER_OF_FIELDS 3\nBEGIN_DATA_FORMAT\nSAMPLE_ID RGB_R\n"
+	            "END_DATA_FORMAT\nBEGIN_DATA\nA 1 2\nEND_DATA\n",
+	            KG_EINVAL, "line 7", "set 1 has 3 values, expected 2",
+	            "NUMBER_OF_FIELDS (line 2) says 3");
+	PARSE_FAILS("NUMBER_OF_SETS mismatch",
+	            HEAD "NUMBER_OF_SETS 3\nBEGIN_DATA\nA1 0.1 0.2\nA2 0.1 0.2\nEND_DATA\n",
+	            KG_EINVAL, "line 11", "NUMBER_OF_SETS is 3", "2 sets");
+	PARSE_FAILS("NUMBER_OF_SETS not a number", HEAD "NUMBER_OF_SETS many\n", KG_EINVAL,
+	            "line 7", "NUMBER_OF_SETS", "integer", "many");
+	PARSE_FAILS("unterminated quote", HEAD "BEGIN_DATA\n\"A1 0.1 0.2\nEND_DATA\n", KG_EINVAL,
+	            "line 8", "unterminated");
+	static const char nul[] = "CGATS.17\nORIG\0INATOR \"x\"\n";
+	expect_parse_error("NUL byte", nul, sizeof(nul) - 1, KG_EINVAL,
+	                   (const char *const[]){ "line 2", "NUL", NULL });
+
+	/* A line over the 1 MiB cap: refused by number, not read into memory twice. */
+	size_t big = (size_t)KG_CGATS_MAX_LINE + 100;
+	char *text = malloc(big + 64);
+	if (text) {
+		size_t n = (size_t)sprintf(text, "CGATS.17\nDESCRIPTOR \"");
+		memset(text + n, 'x', big);
+		n += big;
+		n += (size_t)sprintf(text + n, "\"\n");
+		expect_parse_error("long line", text, n, KG_EINVAL,
+		                   (const char *const[]){ "line 2", "longer than", NULL });
+		free(text);
+	}
+
+	kg_err err = { { 0 } };
+	kg_cgats *cg = NULL;
+	CHECK(kg_cgats_read("/nonexistent/x.cgats", &cg, &err) == KG_ENOENT &&
+	          strstr(err.msg, "/nonexistent/x.cgats"), "missing file: %s", err.msg);
+}
+
+static void test_numbers(void)
+{
+	const char *text = HEAD "NUMBER_OF_SETS 5\nBEGIN_DATA\nA1 0.1 0.2\nA2 abc 0.2\n"
+	                        "A3 nan 0.1\nA4 0.1 inf\nA5 1e999 0\nEND_DATA\n";
+	kg_err err = { { 0 } };
+	kg_cgats *cg = NULL;
+	CHECK(kg_cgats_parse(text, strlen(text), "bad.cgats", &cg, &err) == 0, "%s", err.msg);
+	if (!cg)
+		return;
+	const kg_cgats_table *t = cg->tables[0];
+	double v = -1;
+	CHECK(kg_cgats_number(t, 0, 1, &v, &err) == 0 && v == 0.1, "good number");
+	CHECK(kg_cgats_number(t, 1, 1, &v, &err) == KG_EINVAL && strstr(err.msg, "bad.cgats") &&
+	          strstr(err.msg, "line 10") && strstr(err.msg, "field RGB_R") &&
+	          strstr(err.msg, "expected a number") && strstr(err.msg, "'abc'"),
+	      "non-numeric: %s", err.msg);
+	CHECK(kg_cgats_number(t, 2, 1, &v, &err) == KG_EINVAL && strstr(err.msg, "line 11") &&
+	          strstr(err.msg, "NaN"), "NaN: %s", err.msg);
+	CHECK(kg_cgats_number(t, 3, 2, &v, &err) == KG_EINVAL && strstr(err.msg, "line 12") &&
+	          strstr(err.msg, "field RGB_G"), "inf: %s", err.msg);
+	CHECK(kg_cgats_number(t, 4, 1, &v, &err) == KG_EINVAL && strstr(err.msg, "line 13"),
+	      "overflow to infinity: %s", err.msg);
+	CHECK(kg_cgats_parse_number("0x1p3", &v) == KG_EINVAL, "hex floats refused");
+	CHECK(kg_cgats_parse_number("-1.5e-3", &v) == 0 && v == -1.5e-3, "exponent");
+	kg_cgats_free(&cg);
+
+	PATCHSET_FAILS("RGB not a number",
+	               "CGATS.17\nBEGIN_DATA_FORMAT\nSAMPLE_ID RGB_R RGB_G RGB_B\n"
+	               "END_DATA_FORMAT\nBEGIN_DATA\nA1 0.1 0.2 0.3\nA2 abc 0.2 0.3\nEND_DATA\n",
+	               0, KG_EINVAL, "line 7", "field RGB_R", "'abc'");
+}
+
+static void test_patchsets(void)
+{
+	PATCHSET_FAILS("partial RGB", HEAD "BEGIN_DATA\nA1 0.1 0.2\nEND_DATA\n", 0, KG_EINVAL,
+	               "RGB_B missing");
+	PATCHSET_FAILS("no sets", HEAD "BEGIN_DATA\nEND_DATA\n", 0, KG_EINVAL, "no data sets");
+
+	const char *narrow = "CGATS.17\nBEGIN_DATA_FORMAT\nSAMPLE_ID SPEC_420 SPEC_560 SPEC_700\n"
+	                     "END_DATA_FORMAT\nBEGIN_DATA\nP1 0.1 0.2 0.3\nP2 0.1 0.2 0.4\n"
+	                     "END_DATA\n";
+	PATCHSET_FAILS("spectrum not covering 400-700", narrow, 0, KG_ERANGE, "line 6", "P1",
+	               "420-700");
+	const char *with_nan = "CGATS.17\nBEGIN_DATA_FORMAT\nSAMPLE_ID SPEC_400 SPEC_700\n"
+	                       "END_DATA_FORMAT\nBEGIN_DATA\nP1 0.1 0.3\nP2 0.1 NaN\n"
+	                       "END_DATA\n";
+	PATCHSET_FAILS("NaN in a spectrum", with_nan, 0, KG_EINVAL, "line 7", "field SPEC_700",
+	               "NaN");
+
+	const char *spec_order = "CGATS.17\nBEGIN_DATA_FORMAT\nSPEC_500 SPEC_400\n"
+	                         "END_DATA_FORMAT\nBEGIN_DATA\n0.1 0.2\nEND_DATA\n";
+	PATCHSET_FAILS("spectral fields out of order", spec_order, 0, KG_EINVAL, "SPEC_400",
+	               "increase");
+
+	/* Argyll .ti3 style: no SPECTRAL_NORM, percent values -> fractions. */
+	const char *ti3 = "CTI3\nBEGIN_DATA_FORMAT\nSAMPLE_ID SPEC_400 SPEC_550 SPEC_700\n"
+	                  "END_DATA_FORMAT\nBEGIN_DATA\n1 10 50 91.5\n2 1 2 3\nEND_DATA\n";
+	kg_err err = { { 0 } };
+	kg_cgats *cg = NULL;
+	kg_patchset *ps = NULL;
+	CHECK(kg_cgats_parse(ti3, strlen(ti3), "pct.ti3", &cg, &err) == 0, "%s", err.msg);
+	CHECK(cg && kg_patchset_from_cgats(cg, 0, &ps, &err) == 0, "%s", err.msg);
+	if (ps) {
+		CHECK(ps->spectral_scale == 0.01, "percent detected");
+		CHECK_NEAR(ps->spectra[0].v[60], 0.915, 1e-12, "700 nm as a fraction");
+		CHECK_NEAR(ps->spectra[0].v[2], 0.1 + 0.4 * 10 / 150.0, 1e-12, "410 nm interpolated");
+	}
+	kg_patchset_free(&ps);
+	CHECK(cg && kg_patchset_from_cgats(cg, KG_PATCH_KEEP_SCALE, &ps, &err) == 0, "%s",
+	      err.msg);
+	if (ps)
+		CHECK(ps->spectral_scale == 1.0 && ps->spectra[0].v[60] == 91.5, "scale kept");
+	kg_patchset_free(&ps);
+	kg_cgats_free(&cg);
+}
+
+int main(void)
+{
+	test_structure();
+	test_numbers();
+	test_patchsets();
+	return kg_test_done("cgats-malformed");
+}

@@ -1,0 +1,472 @@
+/* Images: TIFF and PNG round trips at 8/16/32 bits with 1 and 3 channels (clamping
+ * and rounding checked code by code), TIFF layouts written here with libtiff
+ * (separate planes, tiles, short strips, alpha, min-is-white, deflate), CFA tags,
+ * PNG transfer curves and alpha, and malformed or truncated files that must give
+ * errors, not crashes. */
+#include <png.h>
+#include <stdint.h>
+#include <string.h>
+#include <tiffio.h>
+
+#include "io_util.h"
+#include "kg_core.h"
+#include "kg_test.h"
+
+enum { W = 9, H = 5 };
+
+/* Test values: a ramp plus out-of-range values and NaN to exercise clamping. */
+static float sample(int x, int y, int c)
+{
+	if (x == 0 && y == 0)
+		return -0.25f;
+	if (x == 1 && y == 0)
+		return 1.5f;
+	if (x == 2 && y == 0)
+		return NAN;
+	return (float)(x * 37 + y * 101 + c * 13) / 500.0f;
+}
+
+static kg_image *make_image(int channels)
+{
+	kg_image *img;
+	if (kg_image_new(W, H, channels, &img, NULL))
+		abort();
+	for (int y = 0; y < H; y++)
+		for (int x = 0; x < W; x++)
+			for (int c = 0; c < channels; c++)
+				img->data[(y * W + x) * channels + c] = sample(x, y, c);
+	return img;
+}
+
+/* What a bits-deep integer file should give back for v. */
+static float quantised(float v, int bits)
+{
+	float full = bits == 8 ? 255.0f : 65535.0f;
+	if (!(v > 0))
+		return 0;
+	if (v >= 1)
+		return 1;
+	return floorf(v * full + 0.5f) / full;
+}
+
+static void round_trip(const char *ext, int channels, int bits)
+{
+	char name[64];
+	snprintf(name, sizeof(name), "rt_%d_%d.%s", channels, bits, ext);
+	const char *p = io_path(name);
+	kg_image *img = make_image(channels), *back = NULL;
+	kg_err err = {{0}};
+	CHECK(kg_image_write(img, p, bits, &err) == 0, "%s: write: %s", name, err.msg);
+	CHECK(kg_image_read(p, &back, &err) == 0, "%s: read: %s", name, err.msg);
+	if (back) {
+		CHECK(back->width == W && back->height == H && back->channels == channels, "%s: dims",
+		      name);
+		CHECK(back->bits == bits && back->is_float == (bits == 32), "%s: depth %d", name,
+		      back->bits);
+		CHECK(back->cfa == NULL && back->note[0] == '\0', "%s: no CFA, no note ('%s')", name,
+		      back->note);
+		int bad = 0;
+		for (int i = 0; i < W * H * channels; i++) {
+			float v = img->data[i], r = back->data[i];
+			if (bits == 32)
+				bad += isnan(v) ? !isnan(r) : r != v;
+			else
+				bad += fabsf(r - quantised(v, bits)) > 1e-7f;
+		}
+		CHECK(bad == 0, "%s: %d samples differ", name, bad);
+	}
+	kg_image_free(&back);
+	kg_image_free(&img);
+	CHECK(img == NULL, "free nulls");
+}
+
+/* ---- TIFF layouts written directly with libtiff ---------------------------------- */
+
+struct tiff_spec {
+	const char *name;
+	int spp, bits, fmt, photo, planar, tile, rps, compression;
+};
+
+/* The expected decoded value of sample s at (x, y) for a spec. */
+static float tiff_expected(const struct tiff_spec *t, int x, int y, int s)
+{
+	unsigned code = (unsigned)(x * 3 + y * 7 + s * 50);
+	if (t->fmt == SAMPLEFORMAT_IEEEFP)
+		return (float)code / 64.0f;
+	float v = t->bits == 8 ? (float)(code % 256) / 255.0f : (float)(code * 200 % 65536) / 65535.0f;
+	return t->photo == PHOTOMETRIC_MINISWHITE ? 1.0f - v : v;
+}
+
+static void store(const struct tiff_spec *t, unsigned char *dst, size_t i, int x, int y, int s)
+{
+	unsigned code = (unsigned)(x * 3 + y * 7 + s * 50);
+	if (t->fmt == SAMPLEFORMAT_IEEEFP) {
+		float f = (float)code / 64.0f;
+		memcpy(dst + i * 4, &f, 4);
+	} else if (t->bits == 8)
+		dst[i] = (unsigned char)(code % 256);
+	else {
+		uint16_t u = (uint16_t)(code * 200 % 65536);
+		memcpy(dst + i * 2, &u, 2);
+	}
+}
+
+static int write_tiff(const struct tiff_spec *t, int w, int h)
+{
+	TIFF *tif = TIFFOpen(io_path(t->name), "w");
+	if (!tif)
+		return -1;
+	TIFFSetField(tif, TIFFTAG_IMAGEWIDTH, (uint32_t)w);
+	TIFFSetField(tif, TIFFTAG_IMAGELENGTH, (uint32_t)h);
+	TIFFSetField(tif, TIFFTAG_SAMPLESPERPIXEL, (uint16_t)t->spp);
+	TIFFSetField(tif, TIFFTAG_BITSPERSAMPLE, (uint16_t)t->bits);
+	TIFFSetField(tif, TIFFTAG_SAMPLEFORMAT, (uint16_t)t->fmt);
+	TIFFSetField(tif, TIFFTAG_PHOTOMETRIC, (uint16_t)t->photo);
+	TIFFSetField(tif, TIFFTAG_PLANARCONFIG, (uint16_t)t->planar);
+	TIFFSetField(tif, TIFFTAG_COMPRESSION, (uint16_t)t->compression);
+	if (t->spp == 4 || t->spp == 2) {
+		uint16_t extra = EXTRASAMPLE_UNASSALPHA;
+		TIFFSetField(tif, TIFFTAG_EXTRASAMPLES, 1, &extra);
+	}
+	int separate = t->planar == PLANARCONFIG_SEPARATE, spc = separate ? 1 : t->spp;
+	size_t bps = (size_t)t->bits / 8;
+	int ok = 1;
+	if (t->tile) {
+		TIFFSetField(tif, TIFFTAG_TILEWIDTH, (uint32_t)t->tile);
+		TIFFSetField(tif, TIFFTAG_TILELENGTH, (uint32_t)t->tile);
+		size_t n = (size_t)t->tile * t->tile * spc * bps;
+		unsigned char *buf = calloc(1, n);
+		for (int p = 0; p < (separate ? t->spp : 1); p++)
+			for (int ty = 0; ty < h; ty += t->tile)
+				for (int tx = 0; tx < w; tx += t->tile) {
+					for (int r = 0; r < t->tile; r++)
+						for (int c = 0; c < t->tile; c++)
+							for (int s = 0; s < spc; s++)
+								store(t, buf, ((size_t)r * t->tile + c) * spc + s, tx + c, ty + r,
+								      separate ? p : s);
+					ok &= TIFFWriteTile(tif, buf, (uint32_t)tx, (uint32_t)ty, 0, (uint16_t)p) > 0;
+				}
+		free(buf);
+	} else {
+		TIFFSetField(tif, TIFFTAG_ROWSPERSTRIP, (uint32_t)t->rps);
+		unsigned char *row = calloc(1, (size_t)w * spc * bps);
+		for (int p = 0; p < (separate ? t->spp : 1); p++)
+			for (int y = 0; y < h; y++) {
+				for (int x = 0; x < w; x++)
+					for (int s = 0; s < spc; s++)
+						store(t, row, (size_t)x * spc + s, x, y, separate ? p : s);
+				ok &= TIFFWriteScanline(tif, row, (uint32_t)y, (uint16_t)p) == 1;
+			}
+		free(row);
+	}
+	TIFFClose(tif);
+	return ok ? 0 : -1;
+}
+
+static void test_tiff_layouts(void)
+{
+	const struct tiff_spec specs[] = {
+		{"sep16.tif", 3, 16, SAMPLEFORMAT_UINT, PHOTOMETRIC_RGB, PLANARCONFIG_SEPARATE, 0, 3, COMPRESSION_NONE},
+		{"tile8.tif", 3, 8, SAMPLEFORMAT_UINT, PHOTOMETRIC_RGB, PLANARCONFIG_CONTIG, 16, 0, COMPRESSION_NONE},
+		{"tilesepf.tif", 3, 32, SAMPLEFORMAT_IEEEFP, PHOTOMETRIC_RGB, PLANARCONFIG_SEPARATE, 16, 0, COMPRESSION_NONE},
+		{"strips16.tif", 1, 16, SAMPLEFORMAT_UINT, PHOTOMETRIC_MINISBLACK, PLANARCONFIG_CONTIG, 0, 3, COMPRESSION_NONE},
+		{"rgba8.tif", 4, 8, SAMPLEFORMAT_UINT, PHOTOMETRIC_RGB, PLANARCONFIG_CONTIG, 0, 7, COMPRESSION_NONE},
+		{"greya16sep.tif", 2, 16, SAMPLEFORMAT_UINT, PHOTOMETRIC_MINISBLACK, PLANARCONFIG_SEPARATE, 0, 5, COMPRESSION_NONE},
+		{"white8.tif", 1, 8, SAMPLEFORMAT_UINT, PHOTOMETRIC_MINISWHITE, PLANARCONFIG_CONTIG, 0, 4, COMPRESSION_NONE},
+		{"deflate16.tif", 3, 16, SAMPLEFORMAT_UINT, PHOTOMETRIC_RGB, PLANARCONFIG_CONTIG, 0, 8, COMPRESSION_ADOBE_DEFLATE},
+		{"lzwtilef.tif", 1, 32, SAMPLEFORMAT_IEEEFP, PHOTOMETRIC_MINISBLACK, PLANARCONFIG_CONTIG, 16, 0, COMPRESSION_LZW},
+	};
+	const int w = 40, h = 21; /* partial tiles and strips on both edges */
+	for (size_t k = 0; k < sizeof(specs) / sizeof(specs[0]); k++) {
+		const struct tiff_spec *t = &specs[k];
+		if (!TIFFIsCODECConfigured((uint16_t)t->compression)) {
+			printf("note: %s skipped, codec not built into libtiff\n", t->name);
+			continue;
+		}
+		CHECK(write_tiff(t, w, h) == 0, "%s: libtiff write", t->name);
+		kg_image *img = NULL;
+		kg_err err = {{0}};
+		CHECK(kg_image_read_tiff(io_path(t->name), &img, &err) == 0, "%s: %s", t->name, err.msg);
+		if (!img)
+			continue;
+		int C = t->photo == PHOTOMETRIC_RGB ? 3 : 1;
+		CHECK(img->channels == C && img->width == w && img->height == h, "%s: shape", t->name);
+		CHECK((t->spp > C) == (strstr(img->note, "dropped") != NULL), "%s: note '%s'", t->name,
+		      img->note);
+		int bad = 0;
+		for (int y = 0; y < h; y++)
+			for (int x = 0; x < w; x++)
+				for (int s = 0; s < C; s++)
+					bad += fabsf(img->data[(y * w + x) * C + s] - tiff_expected(t, x, y, s)) > 1e-7f;
+		CHECK(bad == 0, "%s: %d samples differ", t->name, bad);
+		kg_image_free(&img);
+	}
+}
+
+static void expect_read_error(const char *name, const char *want1, const char *want2)
+{
+	kg_image *img = NULL;
+	kg_err err = {{0}};
+	CHECK(kg_image_read(io_path(name), &img, &err) < 0 && !img, "%s: expected an error", name);
+	CHECK(strstr(err.msg, name) && strstr(err.msg, want1) && (!want2 || strstr(err.msg, want2)),
+	      "%s: message '%s' should name the file and say '%s'", name, err.msg, want1);
+	kg_image_free(&img);
+}
+
+static void test_tiff_refused(void)
+{
+	const struct tiff_spec t12 = {"twelve.tif", 1, 12, SAMPLEFORMAT_UINT, PHOTOMETRIC_MINISBLACK,
+	                              PLANARCONFIG_CONTIG, 0, 4, COMPRESSION_NONE};
+	TIFF *tif = TIFFOpen(io_path(t12.name), "w");
+	TIFFSetField(tif, TIFFTAG_IMAGEWIDTH, 4u);
+	TIFFSetField(tif, TIFFTAG_IMAGELENGTH, 2u);
+	TIFFSetField(tif, TIFFTAG_BITSPERSAMPLE, 12);
+	TIFFSetField(tif, TIFFTAG_SAMPLESPERPIXEL, 1);
+	TIFFSetField(tif, TIFFTAG_PHOTOMETRIC, PHOTOMETRIC_MINISBLACK);
+	unsigned char row[6] = {0};
+	TIFFWriteScanline(tif, row, 0, 0);
+	TIFFWriteScanline(tif, row, 1, 0);
+	TIFFClose(tif);
+	expect_read_error("twelve.tif", "12-bit", "expected 8, 16 or 32-bit float");
+
+	tif = TIFFOpen(io_path("signed.tif"), "w");
+	TIFFSetField(tif, TIFFTAG_IMAGEWIDTH, 2u);
+	TIFFSetField(tif, TIFFTAG_IMAGELENGTH, 1u);
+	TIFFSetField(tif, TIFFTAG_BITSPERSAMPLE, 16);
+	TIFFSetField(tif, TIFFTAG_SAMPLEFORMAT, SAMPLEFORMAT_INT);
+	TIFFSetField(tif, TIFFTAG_PHOTOMETRIC, PHOTOMETRIC_MINISBLACK);
+	int16_t srow[2] = {-1, 1};
+	TIFFWriteScanline(tif, srow, 0, 0);
+	TIFFClose(tif);
+	expect_read_error("signed.tif", "signed integer", NULL);
+
+	tif = TIFFOpen(io_path("palette.tif"), "w");
+	TIFFSetField(tif, TIFFTAG_IMAGEWIDTH, 2u);
+	TIFFSetField(tif, TIFFTAG_IMAGELENGTH, 1u);
+	TIFFSetField(tif, TIFFTAG_BITSPERSAMPLE, 8);
+	TIFFSetField(tif, TIFFTAG_PHOTOMETRIC, PHOTOMETRIC_PALETTE);
+	uint16_t map[256] = {0};
+	TIFFSetField(tif, TIFFTAG_COLORMAP, map, map, map);
+	unsigned char prow[2] = {0, 1};
+	TIFFWriteScanline(tif, prow, 0, 0);
+	TIFFClose(tif);
+	expect_read_error("palette.tif", "expected grey, RGB or CFA", NULL);
+}
+
+static void test_cfa(void)
+{
+	kg_image *img = make_image(1), *back = NULL;
+	kg_err err;
+	CHECK(kg_image_set_cfa(img, "RGGX", 2, 2, &err) == KG_EINVAL, "bad CFA letter refused");
+	CHECK(kg_image_set_cfa(img, "GRBG", 2, 2, &err) == 0, "set CFA");
+	CHECK(kg_image_write_tiff(img, io_path("raw.tif"), 16, &err) == 0, "write raw: %s", err.msg);
+	CHECK(kg_image_read(io_path("raw.tif"), &back, &err) == 0, "read raw: %s", err.msg);
+	if (back)
+		CHECK(back->cfa && strcmp(back->cfa, "GRBG") == 0 && back->cfa_rows == 2 &&
+		      back->cfa_cols == 2, "CFA pattern read back: %s", back->cfa ? back->cfa : "(none)");
+	kg_image_free(&back);
+	kg_image_free(&img);
+}
+
+/* ---- PNG ------------------------------------------------------------------------- */
+
+static int write_png_raw(const char *name, int w, int h, int color_type, int depth,
+                         const unsigned char *pixels, size_t rowbytes, int srgb)
+{
+	FILE *f = fopen(io_path(name), "wb");
+	png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, NULL, NULL, NULL);
+	png_infop info = png_create_info_struct(png);
+	if (setjmp(png_jmpbuf(png))) {
+		png_destroy_write_struct(&png, &info);
+		fclose(f);
+		return -1;
+	}
+	png_init_io(png, f);
+	png_set_IHDR(png, info, (png_uint_32)w, (png_uint_32)h, depth, color_type, PNG_INTERLACE_NONE,
+	             PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
+	if (srgb)
+		png_set_sRGB(png, info, PNG_sRGB_INTENT_PERCEPTUAL);
+	png_write_info(png, info);
+	for (int y = 0; y < h; y++)
+		png_write_row(png, pixels + (size_t)y * rowbytes);
+	png_write_end(png, NULL);
+	png_destroy_write_struct(&png, &info);
+	fclose(f);
+	return 0;
+}
+
+static void test_png_kinds(void)
+{
+	/* RGBA 8-bit: alpha dropped with a note. */
+	unsigned char rgba[2 * 2 * 4] = {10, 20, 30, 255, 40, 50, 60, 0, 70, 80, 90, 128, 255, 0, 1, 2};
+	CHECK(write_png_raw("rgba.png", 2, 2, PNG_COLOR_TYPE_RGBA, 8, rgba, 8, 0) == 0, "rgba");
+	kg_image *img = NULL;
+	kg_err err;
+	CHECK(kg_image_read(io_path("rgba.png"), &img, &err) == 0, "read rgba: %s", err.msg);
+	if (img) {
+		CHECK(img->channels == 3 && strstr(img->note, "alpha"), "alpha dropped: '%s'", img->note);
+		CHECK_NEAR(img->data[3], 40 / 255.0, 1e-7, "second pixel red");
+		CHECK_NEAR(img->data[11], 1 / 255.0, 1e-7, "last pixel blue");
+	}
+	kg_image_free(&img);
+	/* Grey 2-bit: expanded to 8 bits by replication, so 3 reads as 1.0. */
+	unsigned char g2[1] = {0x1B}; /* 0 1 2 3 */
+	CHECK(write_png_raw("grey2.png", 4, 1, PNG_COLOR_TYPE_GRAY, 2, g2, 1, 0) == 0, "grey2");
+	CHECK(kg_image_read(io_path("grey2.png"), &img, &err) == 0, "read grey2: %s", err.msg);
+	if (img) {
+		CHECK(img->channels == 1 && img->bits == 2, "2-bit grey");
+		CHECK_NEAR(img->data[1], 85 / 255.0, 1e-7, "code 1 of 3");
+		CHECK_NEAR(img->data[3], 1.0, 1e-7, "code 3 of 3");
+	}
+	kg_image_free(&img);
+	/* sRGB-tagged: linearised. The preview helper writes sRGB too. */
+	unsigned char rgb[2 * 3] = {0, 128, 255, 10, 200, 30};
+	CHECK(kg_png_write_rgb8(io_path("preview.png"), rgb, 2, 1, &err) == 0, "preview: %s", err.msg);
+	CHECK(kg_image_read(io_path("preview.png"), &img, &err) == 0, "read preview: %s", err.msg);
+	if (img) {
+		CHECK(strstr(img->note, "sRGB") != NULL, "note says sRGB: '%s'", img->note);
+		CHECK_NEAR(img->data[1], 0.2158605, 1e-6, "sRGB 128 -> 0.21586 linear");
+		CHECK_NEAR(img->data[2], 1.0, 1e-6, "sRGB 255 -> 1");
+	}
+	kg_image_free(&img);
+	CHECK(kg_png_write_rgb8(io_path("no.png"), rgb, 0, 1, &err) == KG_EINVAL, "zero width refused");
+	kg_image *one = make_image(1);
+	CHECK(kg_image_write_png(one, io_path("f.png"), 32, &err) == KG_EINVAL &&
+	      strstr(err.msg, "expected 8 or 16"), "32-bit PNG refused: %s", err.msg);
+	CHECK(kg_image_write(one, io_path("f.jpg"), 8, &err) == KG_EINVAL &&
+	      strstr(err.msg, "f.jpg"), "unknown extension refused: %s", err.msg);
+	CHECK(kg_image_write(one, io_path("nodir/f.png"), 8, &err) < 0, "missing directory fails");
+	kg_image_free(&one);
+}
+
+/* ---- malformed files ---------------------------------------------------------------- */
+
+static unsigned char *slurp(const char *p, size_t *n)
+{
+	char *b;
+	if (kg_read_file(p, &b, n, NULL))
+		return NULL;
+	return (unsigned char *)b;
+}
+
+/* Every truncation and a sweep of corrupted bytes: each read must return cleanly. */
+static void torture(const char *src_name, const char *ext)
+{
+	size_t n;
+	unsigned char *orig = slurp(io_path(src_name), &n);
+	CHECK(orig != NULL, "read %s", src_name);
+	if (!orig)
+		return;
+	char name[64];
+	snprintf(name, sizeof(name), "bad.%s", ext);
+	int errors = 0, total = 0;
+	for (size_t cut = 0; cut < n; cut += 1 + cut / 16) {
+		io_write_bytes(io_path(name), orig, cut);
+		kg_image *img = NULL;
+		kg_err err = {{0}};
+		int ret = kg_image_read(io_path(name), &img, &err);
+		CHECK((ret == 0) == (img != NULL), "%s cut at %zu: result and image agree", ext, cut);
+		if (ret) {
+			errors++;
+			CHECK(strstr(err.msg, name) != NULL, "%s cut at %zu: message names file: %s", ext,
+			      cut, err.msg);
+		}
+		total++;
+		kg_image_free(&img);
+	}
+	CHECK(errors > total / 2, "%s: truncations mostly give errors (%d of %d)", ext, errors, total);
+	unsigned char *bad = malloc(n);
+	unsigned long long r = 12345;
+	for (int k = 0; k < 300; k++) {
+		memcpy(bad, orig, n);
+		for (int j = 0; j < 4; j++) {
+			r = r * 6364136223846793005ull + 1442695040888963407ull;
+			/* The first and last bytes: headers, TIFF directories (libtiff writes
+			 * them last), PNG chunks. */
+			size_t span = n < 768 ? n : 768, at = (size_t)(r >> 33) % span;
+			if (at >= 256 && n > 768)
+				at = n - (at - 256) - 1;
+			bad[at] = (unsigned char)(r >> 20);
+		}
+		io_write_bytes(io_path(name), bad, n);
+		kg_image *img = NULL;
+		int ret = kg_image_read(io_path(name), &img, NULL);
+		CHECK((ret == 0) == (img != NULL), "%s corrupted: result and image agree", ext);
+		kg_image_free(&img);
+	}
+	free(bad);
+	free(orig);
+}
+
+/* A 4 x 2 8-bit grey TIFF with its directory first and the strip after it, so the
+ * pixel data can be cut short. */
+static size_t tiny_tiff(unsigned char *b)
+{
+	static const uint16_t tags[9][2] = {{256, 4}, {257, 2}, {258, 8}, {259, 1}, {262, 1},
+	                                    {273, 122}, {277, 1}, {278, 2}, {279, 8}};
+	size_t k = 0;
+	memcpy(b, "II*\0\x08\0\0\0\x09\0", 10);
+	k = 10;
+	for (int i = 0; i < 9; i++) {
+		uint16_t type = (tags[i][0] == 273 || tags[i][0] == 279) ? 4 : 3;
+		uint32_t count = 1, value = tags[i][1];
+		memcpy(b + k, &tags[i][0], 2);
+		memcpy(b + k + 2, &type, 2);
+		memcpy(b + k + 4, &count, 4);
+		memcpy(b + k + 8, &value, 4);
+		k += 12;
+	}
+	memset(b + k, 0, 4); /* no next directory */
+	k += 4;
+	for (int i = 0; i < 8; i++)
+		b[k++] = (unsigned char)(i * 30);
+	return k;
+}
+
+static void test_malformed(void)
+{
+	unsigned char tiny[160];
+	size_t n = tiny_tiff(tiny);
+	CHECK(n == 130, "tiny TIFF is %zu bytes", n);
+	io_write_bytes(io_path("tiny.tif"), tiny, n);
+	kg_image *t = NULL;
+	kg_err e;
+	CHECK(kg_image_read(io_path("tiny.tif"), &t, &e) == 0, "tiny TIFF: %s", e.msg);
+	if (t)
+		CHECK_NEAR(t->data[7], 210 / 255.0, 1e-7, "tiny TIFF last pixel");
+	kg_image_free(&t);
+	io_write_bytes(io_path("cut.tif"), tiny, n - 3);
+	expect_read_error("cut.tif", "strip at row 0", NULL);
+
+	torture("rt_3_16.tif", "tif");
+	torture("tile8.tif", "tif");
+	torture("rt_3_16.png", "png");
+	io_write_bytes(io_path("text.tif"), "hello, world\n", 13);
+	expect_read_error("text.tif", "expected a TIFF or PNG", NULL);
+	kg_image *img = NULL;
+	kg_err err;
+	CHECK(kg_image_read(io_path("missing.png"), &img, &err) == KG_ENOENT && !img, "missing file");
+	/* A PNG signature with nothing after it, and a TIFF header pointing nowhere. */
+	io_write_bytes(io_path("sig.png"), "\x89PNG\r\n\x1a\n", 8);
+	expect_read_error("sig.png", "PNG", NULL);
+	io_write_bytes(io_path("hdr.tif"), "II*\0\xff\xff\xff\x7f", 8);
+	expect_read_error("hdr.tif", "TIFF", NULL);
+}
+
+int main(void)
+{
+	io_tmpdir("image");
+	int bits[] = {8, 16, 32};
+	for (int c = 1; c <= 3; c += 2)
+		for (int b = 0; b < 3; b++) {
+			round_trip("tif", c, bits[b]);
+			if (bits[b] != 32)
+				round_trip("png", c, bits[b]);
+		}
+	test_tiff_layouts();
+	test_tiff_refused();
+	test_cfa();
+	test_png_kinds();
+	test_malformed();
+	return kg_test_done("image");
+}
