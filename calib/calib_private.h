@@ -14,9 +14,10 @@ void calib_list_ids(char *buf, size_t len, char *const *ids, const int *which, i
                     int max);
 
 /* Condition numbers of rgb (n x 3 taken as 3 x n), raw and with each channel scaled
- * to unit RMS, and the raw singular values. */
+ * to unit RMS (+inf when rank deficient), and the singular values of both. */
 int calib_rgb_conditioning(const double (*rgb)[3], int n, double *cond,
-                           double *cond_equilibrated, double sv[3], kg_err *err);
+                           double *cond_equilibrated, double sv[3], double sv_eq[3],
+                           kg_err *err);
 
 /* Value checks on the patches of a chart (what: e.g. "site.cgats"): non-finite,
  * clipped (any channel >= clip_level, or clipped_fraction[i] > 0 when that array is

@@ -1,5 +1,6 @@
 /* Checks a chart must pass before it is fitted, with messages that name the
  * patches: values, clipping, near-black patches, collinearity. */
+#include <float.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -45,7 +46,8 @@ void calib_list_ids(char *buf, size_t len, char *const *ids, const int *which, i
 }
 
 int calib_rgb_conditioning(const double (*rgb)[3], int n, double *cond,
-                           double *cond_equilibrated, double sv[3], kg_err *err)
+                           double *cond_equilibrated, double sv[3], double sv_eq[3],
+                           kg_err *err)
 {
 	kg_mat *a = NULL, *s = NULL;
 	int ret = kg_mat_new(3, n, &a, err);
@@ -65,14 +67,18 @@ int calib_rgb_conditioning(const double (*rgb)[3], int n, double *cond,
 		ret = kg_svd(a, NULL, &s, NULL, err);
 		if (ret)
 			break;
-		double c = s->a[2] > 0 ? s->a[0] / s->a[2] : INFINITY;
-		if (pass == 0) {
+		/* Singular values at the rounding level of the largest count as zero. */
+		int rows = s->rows;
+		double smin = rows < 3 ? 0.0 : s->a[2];
+		double tol = (n > 3 ? n : 3) * DBL_EPSILON * s->a[0];
+		double c = smin > tol ? s->a[0] / smin : INFINITY;
+		double *out = pass == 0 ? sv : sv_eq;
+		for (int i = 0; i < 3; i++)
+			out[i] = i < rows ? s->a[i] : 0.0;
+		if (pass == 0)
 			*cond = c;
-			for (int i = 0; i < 3; i++)
-				sv[i] = s->a[i];
-		} else {
+		else
 			*cond_equilibrated = c;
-		}
 		kg_mat_free(&s);
 	}
 	kg_mat_free(&a);
@@ -164,13 +170,17 @@ int calib_check_collinear(const char *what, char *const *ids, const double (*rgb
                           int n, double max_cond, double *cond, double *cond_eq,
                           double sv[3], kg_err *err)
 {
-	int ret = calib_rgb_conditioning(rgb, n, cond, cond_eq, sv, err);
+	double sv_eq[3];
+	int ret = calib_rgb_conditioning(rgb, n, cond, cond_eq, sv, sv_eq, err);
 	if (ret)
 		return ret;
 	if (*cond_eq <= max_cond)
 		return 0;
-	/* How alike the patches' colours are: the largest distance of a chromaticity
-	 * (r, g) / (r + g + b) from their mean. Grey patches give almost 0. */
+	/* How many colour directions the patches do fix (equilibrated singular values
+	 * within max_cond of the largest), and how alike their colours are: the largest
+	 * distance of a chromaticity (r, g) / (r + g + b) from their mean (grey patches
+	 * of one camera give almost 0). */
+	int directions = 1 + (sv_eq[1] * max_cond > sv_eq[0]);
 	double mr = 0, mg = 0, spread = 0;
 	int nc = 0;
 	for (int i = 0; i < n; i++) {
@@ -190,17 +200,23 @@ int calib_check_collinear(const char *what, char *const *ids, const double (*rgb
 		if (t > 0)
 			spread = fmax(spread, hypot(rgb[i][0] / t - mr, rgb[i][1] / t - mg));
 	}
-	char list[512] = "";
+	char list[512] = "", why[256];
 	calib_list_ids(list, sizeof(list), ids, NULL, n, 24);
+	if (directions == 1)
+		snprintf(why, sizeof(why),
+		         "they differ in level, not in colour: their chromaticities r/(r+g+b), "
+		         "g/(r+g+b) all lie within %.2g of (%.3f, %.3f), as neutral (grey) patches "
+		         "do",
+		         spread, mr, mg);
+	else
+		snprintf(why, sizeof(why), "they vary in only two colour directions");
 	return kg_fail(err, KG_EINVAL,
 	               "%s: the chart is %s: condition number %.3g of its RGB with each channel "
 	               "scaled to unit RMS (limit %g; singular values %.3g %.3g %.3g); its %d "
-	               "patches (%s) do not span three independent colours: their chromaticities "
-	               "r/(r+g+b), g/(r+g+b) all lie within %.3f of (%.3f, %.3f)%s; use a chart "
-	               "with clearly red, green and blue patches",
+	               "patches (%s) do not span three independent colours: %s; use a chart with "
+	               "clearly red, green and blue patches",
 	               what, isfinite(*cond_eq) ? "nearly collinear" : "rank deficient", *cond_eq,
-	               max_cond, sv[0], sv[1], sv[2], n, list, spread, mr, mg,
-	               spread < 0.02 ? " (neutral patches only: they fix a single direction)" : "");
+	               max_cond, sv_eq[0], sv_eq[1], sv_eq[2], n, list, why);
 }
 
 const double *calib_clipped_column(const kg_patchset *ps, int *stride)

@@ -10,22 +10,22 @@
 #define TMAX KG_CALIB_MAX_TERMS
 #define KMAX KG_CALIB_MAX_BASIS
 
-/* A normal matrix X^T X + lambda I above this condition number is refused: the
- * solution would carry less than about 4 correct digits. */
-#define MAX_NORMAL_COND 1e12
 /* "Within tolerance of the best" for the choice of K and of the method. */
 #define CHOICE_ABS_TOL 1e-6
+/* A held-out patch whose leverage is this close to 1 determines a coefficient on its
+ * own: leave-one-out cannot predict it. */
+#define MIN_LOO_DENOM 1e-9
 
-/* Sums over the patches of a chart, for every method's terms x: all a fit needs.
+/* Sums over the patches of a chart for the PCA model: all its fit needs.
  * Subtracting one patch's contribution gives the sums without it, so a
- * leave-one-out refit costs a few small solves, not a pass over the chart. */
+ * leave-one-out refit costs one 61 x 61 eigen-decomposition and a 3 x 3 solve. */
 typedef struct moments {
 	double n;
-	double ss[NB * NB];                      /* sum s s^T */
-	double s[NB];                            /* sum s */
-	double xx[KG_METHOD_COUNT][TMAX * TMAX]; /* sum x x^T, T x T */
-	double xs[KG_METHOD_COUNT][TMAX * NB];   /* sum x s^T, T x 61 */
-	double x[KG_METHOD_COUNT][TMAX];         /* sum x */
+	double ss[NB * NB]; /* sum s s^T */
+	double s[NB];       /* sum s */
+	double xx[9];       /* sum rho rho^T */
+	double xs[3 * NB];  /* sum rho s^T */
+	double x[3];        /* sum rho */
 } moments;
 
 static void moments_add(moments *mo, const kg_spectrum *s, const double rgb[3],
@@ -37,54 +37,115 @@ static void moments_add(moments *mo, const kg_spectrum *s, const double rgb[3],
 		for (int j = 0; j < NB; j++)
 			mo->ss[l * NB + j] += sign * s->v[l] * s->v[j];
 	}
-	for (int m = 0; m < KG_METHOD_COUNT; m++) {
-		double x[TMAX];
-		int T = kg_method_nterms((kg_method)m);
-		kg_method_terms((kg_method)m, rgb, x);
-		for (int t = 0; t < T; t++) {
-			mo->x[m][t] += sign * x[t];
-			for (int u = 0; u < T; u++)
-				mo->xx[m][t * T + u] += sign * x[t] * x[u];
-			for (int l = 0; l < NB; l++)
-				mo->xs[m][t * NB + l] += sign * x[t] * s->v[l];
-		}
+	for (int c = 0; c < 3; c++) {
+		mo->x[c] += sign * rgb[c];
+		for (int d = 0; d < 3; d++)
+			mo->xx[c * 3 + d] += sign * rgb[c] * rgb[d];
+		for (int l = 0; l < NB; l++)
+			mo->xs[c * NB + l] += sign * rgb[c] * s->v[l];
 	}
 }
 
-/* The least-squares map from T terms to spectra with a ridge:
- * A (61 x T) = ((xx + lambda I)^-1 xs)^T, i.e. A = S^T X (X^T X + lambda I)^-1. */
-static int regress(const double *xx, const double *xs, int T, double lambda, double *A,
-                   double *cond, kg_err *err)
+/* The least-squares map from RGB to spectra on moments, with a ridge:
+ * A (61 x 3) = ((G + lambda I)^-1 C)^T, i.e. A = S^T rho (rho^T rho + lambda I)^-1.
+ * The charts reaching here passed the collinearity check, so G is well
+ * conditioned. cond: that of rho, sqrt(cond(G + lambda I)). */
+static int regress_rgb(const double *G, const double *C, double lambda, double *A,
+                       double *cond, kg_err *err)
 {
-	kg_mat *G = NULL, *Gi = NULL;
+	kg_mat *g = NULL, *gi = NULL;
 	double c = INFINITY;
-	int ret = kg_mat_new(T, T, &G, err);
+	int rank = 0;
+	int ret = kg_mat_new(3, 3, &g, err);
 	if (ret)
 		return ret;
-	for (int t = 0; t < T; t++)
-		for (int u = 0; u < T; u++)
-			G->a[t * T + u] = xx[t * T + u] + (t == u ? lambda : 0.0);
-	ret = kg_cond(G, 0, &c, err);
-	if (ret == 0 && !(c <= MAX_NORMAL_COND))
-		ret = kg_fail(err, KG_ERANGE,
-		              "the normal matrix of its %d terms is singular or nearly so "
-		              "(condition number %.3g > %.0e); a ridge (--ridge) would regularise it",
-		              T, c, MAX_NORMAL_COND);
+	for (int t = 0; t < 3; t++)
+		for (int u = 0; u < 3; u++)
+			g->a[t * 3 + u] = G[t * 3 + u] + (t == u ? lambda : 0.0);
+	ret = kg_cond(g, 0, &c, err);
 	if (ret == 0)
-		ret = kg_pinv(G, 0, &Gi, NULL, NULL, err);
+		ret = kg_pinv(g, 0, &gi, &rank, NULL, err);
+	if (ret == 0 && rank < 3)
+		ret = kg_fail(err, KG_ERANGE, "rho^T rho is singular (rank %d of 3)", rank);
 	if (ret == 0) {
 		for (int l = 0; l < NB; l++)
-			for (int t = 0; t < T; t++) {
-				double v = 0;
-				for (int u = 0; u < T; u++)
-					v += Gi->a[t * T + u] * xs[u * NB + l];
-				A[l * T + t] = v;
-			}
+			for (int t = 0; t < 3; t++)
+				A[l * 3 + t] = gi->a[t * 3] * C[l] + gi->a[t * 3 + 1] * C[NB + l] +
+				               gi->a[t * 3 + 2] * C[2 * NB + l];
 	}
 	if (cond)
-		*cond = c;
-	kg_mat_free(&G);
-	kg_mat_free(&Gi);
+		*cond = sqrt(c);
+	kg_mat_free(&g);
+	kg_mat_free(&gi);
+	return ret;
+}
+
+/* A regression method from the SVD of its m x T design matrix X = U diag(sv) V^T:
+ * A = S^T X (X^T X + lambda I)^-1 = S^T U diag(sv / (sv^2 + lambda)) V^T, computed
+ * without forming X^T X (whose condition number is the square of X's; the degree-3
+ * root-polynomial terms are nearly collinear). Also the leverages
+ * h_i = [X (X^T X + lambda I)^-1 X^T]_ii, which give leave-one-out predictions in
+ * closed form. Without a ridge, a rank-deficient X makes the method unavailable. */
+static int fit_design(const kg_patchset *train, kg_method m, double lambda,
+                      kg_spectral_map *map, double *h, kg_err *err)
+{
+	int n = train->n, T = kg_method_nterms(m);
+	kg_mat *X = NULL, *U = NULL, *sv = NULL, *Vt = NULL;
+	double P[KG_CALIB_MAX_TERMS * NB], f[KG_CALIB_MAX_TERMS], g[KG_CALIB_MAX_TERMS];
+	map->method = m;
+	map->nterms = T;
+	map->lambda = lambda;
+	memset(map->offset, 0, sizeof(map->offset));
+	int ret = kg_mat_new(n, T, &X, err);
+	for (int i = 0; ret == 0 && i < n; i++)
+		kg_method_terms(m, train->rgb[i], X->a + (size_t)i * T);
+	if (ret == 0)
+		ret = kg_svd(X, &U, &sv, &Vt, err);
+	if (ret)
+		goto done;
+	/* kg_svd is thin: r = min(n, T) singular values, U n x r, Vt r x T. */
+	int r = sv->rows;
+	double smax = sv->a[0], smin = r < T ? 0.0 : sv->a[r - 1];
+	double tol = (n > T ? n : T) * 2.220446049250313e-16 * smax;
+	map->cond = smin > tol ? smax / smin : INFINITY;
+	if (lambda == 0 && !(smin > tol)) {
+		ret = kg_fail(err, KG_ERANGE,
+		              "its %d terms are linearly dependent on this chart (%d patches; "
+		              "condition number %.3g); a ridge (--ridge) would regularise it",
+		              T, n, map->cond);
+		goto done;
+	}
+	for (int k = 0; k < r; k++) {
+		double s = sv->a[k];
+		f[k] = s / (s * s + lambda);
+		g[k] = s * s / (s * s + lambda);
+	}
+	/* P = diag(f) U^T S (r x 61), then A = (V P)^T. */
+	for (int k = 0; k < r; k++)
+		for (int l = 0; l < NB; l++) {
+			double v = 0;
+			for (int i = 0; i < n; i++)
+				v += U->a[(size_t)i * r + k] * train->spectra[i].v[l];
+			P[k * NB + l] = f[k] * v;
+		}
+	for (int l = 0; l < NB; l++)
+		for (int t = 0; t < T; t++) {
+			double v = 0;
+			for (int k = 0; k < r; k++)
+				v += Vt->a[k * T + t] * P[k * NB + l];
+			map->A[l * T + t] = v;
+		}
+	for (int i = 0; h && i < n; i++) {
+		double v = 0;
+		for (int k = 0; k < r; k++)
+			v += U->a[(size_t)i * r + k] * U->a[(size_t)i * r + k] * g[k];
+		h[i] = v;
+	}
+done:
+	kg_mat_free(&X);
+	kg_mat_free(&U);
+	kg_mat_free(&sv);
+	kg_mat_free(&Vt);
 	return ret;
 }
 
@@ -142,24 +203,23 @@ static int pca_basis(const moments *mo, int centred, int nk, double *B, double *
 static int pca_linear(const moments *mo, int centred, double lambda, double *Alin,
                       double rbar[3], double *mu, double *cond, kg_err *err)
 {
-	const double *xx = mo->xx[KG_METHOD_PCA], *xs = mo->xs[KG_METHOD_PCA];
 	if (!centred) {
 		memset(rbar, 0, 3 * sizeof(double));
 		memset(mu, 0, NB * sizeof(double));
-		return regress(xx, xs, 3, lambda, Alin, cond, err);
+		return regress_rgb(mo->xx, mo->xs, lambda, Alin, cond, err);
 	}
 	double G[9], C[3 * NB];
 	for (int c = 0; c < 3; c++)
-		rbar[c] = mo->x[KG_METHOD_PCA][c] / mo->n;
+		rbar[c] = mo->x[c] / mo->n;
 	for (int l = 0; l < NB; l++)
 		mu[l] = mo->s[l] / mo->n;
 	for (int c = 0; c < 3; c++) {
 		for (int d = 0; d < 3; d++)
-			G[c * 3 + d] = xx[c * 3 + d] - mo->n * rbar[c] * rbar[d];
+			G[c * 3 + d] = mo->xx[c * 3 + d] - mo->n * rbar[c] * rbar[d];
 		for (int l = 0; l < NB; l++)
-			C[c * NB + l] = xs[c * NB + l] - mo->n * rbar[c] * mu[l];
+			C[c * NB + l] = mo->xs[c * NB + l] - mo->n * rbar[c] * mu[l];
 	}
-	return regress(G, C, 3, lambda, Alin, cond, err);
+	return regress_rgb(G, C, lambda, Alin, cond, err);
 }
 
 /* The PCA model with the first K vectors of B (stride nk): M = B_K^T Alin (K x 3),
@@ -176,6 +236,7 @@ static void pca_map(const double *B, int nk, int K, const double *Alin,
 				v += B[l * nk + k] * Alin[l * 3 + c];
 			Mk[k * 3 + c] = v;
 		}
+	map->method = KG_METHOD_PCA;
 	map->nterms = 3;
 	for (int l = 0; l < NB; l++) {
 		double off = mu[l];
@@ -192,102 +253,113 @@ static void pca_map(const double *B, int nk, int K, const double *Alin,
 		memcpy(M, Mk, (size_t)K * 3 * sizeof(double));
 }
 
-/* The ridge of a method: wiener's E[rho rho^T] + sigma^2 I is rho^T rho + m sigma^2 I
- * on sums. */
-static double method_lambda(kg_method m, const kg_reference_options *opt, double n)
+/* The ridge of a method: wiener's E[rho rho^T] + sigma^2 I over the chart is
+ * rho^T rho + m sigma^2 I on sums. */
+static double method_lambda(kg_method m, const kg_reference_options *opt, int n)
 {
 	return m == KG_METHOD_WIENER ? n * opt->noise_sigma * opt->noise_sigma : opt->ridge;
 }
 
-/* A regression method (not pca) on the moments. */
-static int fit_regression(const moments *mo, kg_method m, const kg_reference_options *opt,
-                          kg_spectral_map *map, kg_err *err)
-{
-	int T = kg_method_nterms(m);
-	map->method = m;
-	map->nterms = T;
-	map->lambda = method_lambda(m, opt, mo->n);
-	memset(map->offset, 0, sizeof(map->offset));
-	return regress(mo->xx[m], mo->xs[m], T, map->lambda, map->A, &map->cond, err);
-}
-
-/* Whether a chart of n patches determines a method's T coefficients. */
-static int enough_patches(kg_method m, const kg_reference_options *opt, double n)
-{
-	return n >= kg_method_nterms(m) || method_lambda(m, opt, n) > 0;
-}
-
-typedef struct loo_table {
-	double rmse[KG_METHOD_COUNT], de[KG_METHOD_COUNT]; /* pca: filled for the K used */
-	double rmse_K[KMAX], de_K[KMAX];
-	int nK;
-} loo_table;
-
-/* Leave-one-out: for each patch, refit every method on the others and predict it.
- * A method whose refit fails for some patch (too few patches, a singular normal
- * matrix) gets NAN. PCA is evaluated for K = 1..nK from one basis per patch. */
-static int leave_one_out(const moments *all, const kg_patchset *train,
-                         const kg_reference_options *opt, const calib_d65 *d65,
-                         loo_table *out, kg_err *err)
+/* Mean leave-one-out errors of the PCA model for K = 1..nK: for each patch, the
+ * basis and M are refitted on the others (moments without it) and it is predicted. */
+static int pca_leave_one_out(const moments *all, const kg_patchset *train,
+                             const kg_reference_options *opt, const calib_d65 *d65,
+                             double *rmse_K, double *de_K, int *nK_out, kg_err *err)
 {
 	int m = train->n;
-	int ok[KG_METHOD_COUNT];
-	double sum_r[KG_METHOD_COUNT] = {0}, sum_d[KG_METHOD_COUNT] = {0};
-	double sum_rK[KMAX] = {0}, sum_dK[KMAX] = {0};
 	int nK = m - 1 < KMAX ? m - 1 : KMAX;
+	double sum_r[KMAX] = {0}, sum_d[KMAX] = {0};
 	moments *mo = malloc(sizeof(*mo));
 	kg_spectral_map *map = malloc(sizeof(*map));
+	int ok = mo && map && nK >= 1;
 	if (!mo || !map) {
 		free(mo);
 		free(map);
 		return kg_fail(err, KG_ENOMEM, "leave-one-out validation: out of memory");
 	}
-	for (int j = 0; j < KG_METHOD_COUNT; j++)
-		ok[j] = enough_patches((kg_method)j, opt, m - 1);
-	int pca_ok = ok[KG_METHOD_PCA] && nK >= 1;
-	for (int i = 0; i < m; i++) {
+	for (int i = 0; ok && i < m; i++) {
 		const kg_spectrum *s = &train->spectra[i];
-		kg_spectrum est;
+		double B[NB * KMAX], Alin[NB * 3], rbar[3], mu[NB];
 		*mo = *all;
 		moments_add(mo, s, train->rgb[i], -1.0);
-		for (int j = KG_METHOD_LINEAR; j < KG_METHOD_COUNT; j++) {
-			if (!ok[j])
-				continue;
-			if (fit_regression(mo, (kg_method)j, opt, map, NULL) != 0) {
-				ok[j] = 0;
-				continue;
-			}
-			kg_spectral_map_apply(map, train->rgb[i], &est);
-			sum_r[j] += kg_spectrum_rmse(&est, s);
-			sum_d[j] += calib_de00(d65, &est, s);
-		}
-		if (!pca_ok)
-			continue;
-		double B[NB * KMAX], Alin[NB * 3], rbar[3], mu[NB];
 		if (pca_basis(mo, opt->centred, nK, B, NULL, NULL, NULL) != 0 ||
 		    pca_linear(mo, opt->centred, opt->ridge, Alin, rbar, mu, NULL, NULL) != 0) {
-			pca_ok = 0;
-			continue;
+			ok = 0;
+			break;
 		}
-		map->method = KG_METHOD_PCA;
 		for (int K = 1; K <= nK; K++) {
+			kg_spectrum est;
 			pca_map(B, nK, K, Alin, rbar, mu, map, NULL);
 			kg_spectral_map_apply(map, train->rgb[i], &est);
-			sum_rK[K - 1] += kg_spectrum_rmse(&est, s);
-			sum_dK[K - 1] += calib_de00(d65, &est, s);
+			sum_r[K - 1] += kg_spectrum_rmse(&est, s);
+			sum_d[K - 1] += calib_de00(d65, &est, s);
 		}
 	}
-	for (int j = 0; j < KG_METHOD_COUNT; j++) {
-		out->rmse[j] = ok[j] ? sum_r[j] / m : NAN;
-		out->de[j] = ok[j] ? sum_d[j] / m : NAN;
-	}
-	out->nK = pca_ok ? nK : 0;
+	*nK_out = ok ? nK : 0;
 	for (int K = 0; K < KMAX; K++) {
-		out->rmse_K[K] = K < out->nK ? sum_rK[K] / m : NAN;
-		out->de_K[K] = K < out->nK ? sum_dK[K] / m : NAN;
+		rmse_K[K] = K < *nK_out ? sum_r[K] / m : NAN;
+		de_K[K] = K < *nK_out ? sum_d[K] / m : NAN;
 	}
 	free(mo);
 	free(map);
+	return 0;
+}
+
+/* Fit a regression method and validate it: in-sample RMSE, and leave-one-out in
+ * closed form, s_i - (s_i - est_i) / (1 - h_i), which is the refit without patch i
+ * for a fixed ridge. A method the chart cannot support is marked unavailable. */
+static int fit_regression(const kg_patchset *train, kg_method j,
+                          const kg_reference_options *opt, const calib_d65 *d65,
+                          kg_spectral_map *map, kg_err *err)
+{
+	int m = train->n;
+	map->method = j;
+	map->nterms = kg_method_nterms(j);
+	map->lambda = method_lambda(j, opt, m);
+	map->loo_rmse = map->loo_de00 = NAN;
+	if (m < map->nterms && map->lambda == 0) {
+		snprintf(map->note, sizeof(map->note),
+		         "needs at least %d patches without a ridge (the chart has %d)", map->nterms, m);
+		return 0;
+	}
+	double *h = malloc((size_t)m * sizeof(double));
+	if (!h)
+		return kg_fail(err, KG_ENOMEM, "out of memory");
+	kg_err e = {{0}};
+	int ret = fit_design(train, j, map->lambda, map, h, &e);
+	if (ret) {
+		free(h);
+		if (ret != KG_ERANGE)
+			return kg_fail(err, ret, "method %s: %s", kg_method_name(j), e.msg);
+		size_t n = strnlen(e.msg, sizeof(map->note) - 1);
+		memcpy(map->note, e.msg, n);
+		map->note[n] = '\0';
+		return 0;
+	}
+	map->available = 1;
+	double fit = 0, loo = 0, de = 0;
+	int loo_ok = 1;
+	for (int i = 0; i < m; i++) {
+		const kg_spectrum *s = &train->spectra[i];
+		kg_spectrum est, held;
+		kg_spectral_map_apply(map, train->rgb[i], &est);
+		fit += kg_spectrum_rmse(&est, s);
+		double d = 1 - h[i];
+		if (!(d > MIN_LOO_DENOM)) {
+			loo_ok = 0;
+			continue;
+		}
+		for (int l = 0; l < NB; l++)
+			held.v[l] = s->v[l] - (s->v[l] - est.v[l]) / d;
+		loo += kg_spectrum_rmse(&held, s);
+		de += calib_de00(d65, &held, s);
+	}
+	map->fit_rmse = fit / m;
+	if (loo_ok) {
+		map->loo_rmse = loo / m;
+		map->loo_de00 = de / m;
+	}
+	free(h);
 	return 0;
 }
 
@@ -423,7 +495,44 @@ static int check_training(const kg_patchset *train, const kg_patchset *field,
 	                             err);
 }
 
-/* Per-patch diagnostics of the default method, in sample. */
+/* The PCA model with the chosen K: basis (and up to 8 singular values for the
+ * record), M, its map and in-sample error. */
+static int fit_pca(kg_reference *ref, const moments *mo, const kg_patchset *train,
+                   const kg_reference_options *opt, kg_err *err)
+{
+	int m = train->n;
+	int nrec = m < KMAX ? m : KMAX;
+	if (nrec < ref->K)
+		nrec = ref->K;
+	double Ball[NB * KMAX], Alin[NB * 3];
+	kg_spectral_map *map = &ref->maps[KG_METHOD_PCA];
+	int ret = pca_basis(mo, opt->centred, nrec, Ball, ref->singular_values, ref->energy, err);
+	if (ret)
+		return ret;
+	for (int l = 0; l < NB; l++)
+		for (int k = 0; k < ref->K; k++)
+			ref->B[l * ref->K + k] = Ball[l * nrec + k];
+	map->lambda = opt->ridge;
+	ret = pca_linear(mo, opt->centred, opt->ridge, Alin, ref->rgb_mean, ref->mean, &map->cond,
+	                 err);
+	if (ret) {
+		kg_err_prefix(err, "%s: method pca", set_name(train, "training chart"));
+		return ret;
+	}
+	pca_map(ref->B, ref->K, ref->K, Alin, ref->rgb_mean, ref->mean, map, ref->M);
+	map->available = 1;
+	double sum = 0;
+	for (int i = 0; i < m; i++) {
+		kg_spectrum est;
+		kg_spectral_map_apply(map, train->rgb[i], &est);
+		sum += kg_spectrum_rmse(&est, &train->spectra[i]);
+	}
+	map->fit_rmse = sum / m;
+	return 0;
+}
+
+/* Per-patch diagnostics: the default method's errors, and the PCA model's
+ * projection error and weight residual, all in sample. */
 static void patch_diagnostics(kg_reference *ref, const kg_patchset *train,
                               const calib_d65 *d65)
 {
@@ -457,147 +566,10 @@ static void patch_diagnostics(kg_reference *ref, const kg_patchset *train,
 	}
 }
 
-static int fit_all(kg_reference *ref, const moments *mo, const kg_patchset *train,
-                   const kg_reference_options *opt, const loo_table *loo, kg_err *err)
+static int record_charts(kg_reference *ref, const kg_patchset *train,
+                         const kg_patchset *field, kg_err *err)
 {
 	int m = train->n;
-	/* The basis, with up to 8 singular values for the record. */
-	int nrec = m < KMAX ? m : KMAX;
-	if (nrec < ref->K)
-		nrec = ref->K;
-	double Ball[NB * KMAX];
-	int ret = pca_basis(mo, opt->centred, nrec, Ball, ref->singular_values, ref->energy, err);
-	if (ret)
-		return ret;
-	for (int l = 0; l < NB; l++)
-		for (int k = 0; k < ref->K; k++)
-			ref->B[l * ref->K + k] = Ball[l * nrec + k];
-
-	for (int j = 0; j < KG_METHOD_COUNT; j++) {
-		kg_spectral_map *map = &ref->maps[j];
-		kg_err e = {{0}};
-		memset(map, 0, sizeof(*map));
-		map->method = (kg_method)j;
-		map->nterms = kg_method_nterms((kg_method)j);
-		map->loo_rmse = loo->rmse[j];
-		map->loo_de00 = loo->de[j];
-		if (!enough_patches((kg_method)j, opt, m)) {
-			snprintf(map->note, sizeof(map->note),
-			         "needs at least %d patches without a ridge (the chart has %d)",
-			         map->nterms, m);
-			continue;
-		}
-		if (j == KG_METHOD_PCA) {
-			double Alin[NB * 3];
-			map->lambda = opt->ridge;
-			ret = pca_linear(mo, opt->centred, opt->ridge, Alin, ref->rgb_mean, ref->mean,
-			                 &map->cond, &e);
-			if (ret == 0)
-				pca_map(ref->B, ref->K, ref->K, Alin, ref->rgb_mean, ref->mean, map, ref->M);
-		} else {
-			ret = fit_regression(mo, (kg_method)j, opt, map, &e);
-		}
-		if (ret) {
-			/* pca and linear carry the paper's model: a failure there is the chart's. */
-			if (j == KG_METHOD_PCA || j == KG_METHOD_LINEAR)
-				return kg_fail(err, ret, "%s: method %s: %s",
-				               set_name(train, "training chart"), kg_method_name((kg_method)j),
-				               e.msg);
-			size_t n = strnlen(e.msg, sizeof(map->note) - 1);
-			memcpy(map->note, e.msg, n);
-			map->note[n] = '\0';
-			continue;
-		}
-		map->available = 1;
-		double sum = 0;
-		for (int i = 0; i < m; i++) {
-			kg_spectrum est;
-			kg_spectral_map_apply(map, train->rgb[i], &est);
-			sum += kg_spectrum_rmse(&est, &train->spectra[i]);
-		}
-		map->fit_rmse = sum / m;
-	}
-	return 0;
-}
-
-static int fit_reference(const kg_patchset *train, const kg_patchset *field,
-                         const kg_reference_options *opt, kg_reference **out, kg_err *err)
-{
-	int ret;
-	kg_reference *ref = calloc(1, sizeof(*ref));
-	moments *mo = calloc(1, sizeof(*mo));
-	calib_d65 *d65 = malloc(sizeof(*d65));
-	loo_table loo;
-	if (!ref || !mo || !d65) {
-		ret = kg_fail(err, KG_ENOMEM, "reference calibration: out of memory");
-		goto error;
-	}
-	ret = check_training(train, field, opt, ref, err);
-	if (ret)
-		goto error;
-	ret = calib_d65_init(d65, err);
-	if (ret)
-		goto error;
-	int m = train->n;
-	for (int i = 0; i < m; i++)
-		moments_add(mo, &train->spectra[i], train->rgb[i], 1.0);
-
-	/* Leave-one-out, then K. */
-	ret = leave_one_out(mo, train, opt, d65, &loo, err);
-	if (ret)
-		goto error;
-	ref->centred = opt->centred;
-	ref->ridge = opt->ridge;
-	ref->noise_sigma = opt->noise_sigma;
-	ref->nK = loo.nK;
-	for (int K = 0; K < KMAX; K++)
-		ref->loo_by_K[K] = loo.rmse_K[K];
-	if (opt->basis == 0) {
-		int best = choose_simplest(loo.rmse_K, loo.nK, KG_CALIB_K_TOLERANCE);
-		if (best < 0) {
-			ret = kg_fail(err, KG_EINVAL,
-			              "%s: --basis auto: leave-one-out validation failed for every K "
-			              "(the chart's RGB is singular without one patch)",
-			              set_name(train, "training chart"));
-			goto error;
-		}
-		ref->K = best + 1;
-		ref->basis_auto = 1;
-	} else {
-		ref->K = opt->basis;
-	}
-	loo.rmse[KG_METHOD_PCA] = ref->K <= loo.nK ? loo.rmse_K[ref->K - 1] : NAN;
-	loo.de[KG_METHOD_PCA] = ref->K <= loo.nK ? loo.de_K[ref->K - 1] : NAN;
-
-	ret = fit_all(ref, mo, train, opt, &loo, err);
-	if (ret)
-		goto error;
-	calib_reference_derive(ref);
-
-	if (opt->method == KG_METHOD_AUTO) {
-		double errs[KG_METHOD_COUNT];
-		for (int j = 0; j < KG_METHOD_COUNT; j++)
-			errs[j] = ref->maps[j].available ? ref->maps[j].loo_rmse : NAN;
-		int best = choose_simplest(errs, KG_METHOD_COUNT, KG_CALIB_K_TOLERANCE);
-		if (best < 0) {
-			ret = kg_fail(err, KG_EINVAL,
-			              "%s: --method auto: no method could be validated by leave-one-out",
-			              set_name(train, "training chart"));
-			goto error;
-		}
-		ref->method = (kg_method)best;
-		ref->method_auto = 1;
-	} else {
-		ref->method = opt->method;
-		if (!ref->maps[ref->method].available) {
-			ret = kg_fail(err, KG_EINVAL, "%s: method %s: %s",
-			              set_name(train, "training chart"), kg_method_name(ref->method),
-			              ref->maps[ref->method].note);
-			goto error;
-		}
-	}
-
-	/* Training and field records. */
 	ref->m = m;
 	ref->ids = calib_strv_dup(train->ids, m);
 	ref->train_rgb = malloc((size_t)m * sizeof(*ref->train_rgb));
@@ -611,13 +583,99 @@ static int fit_reference(const kg_patchset *train, const kg_patchset *field,
 	ref->rho0 = malloc((size_t)field->n * sizeof(*ref->rho0));
 	if (!ref->ids || !ref->train_rgb || !ref->rmse || !ref->gfc || !ref->de00 ||
 	    !ref->projection_rmse || !ref->weight_residual || !ref->field_ids || !ref->rho0) {
-		ret = kg_fail(err, KG_ENOMEM, "reference calibration: out of memory");
-		goto error;
+		if (!ref->ids)
+			ref->m = 0;
+		if (!ref->field_ids)
+			ref->k = 0;
+		return kg_fail(err, KG_ENOMEM, "reference calibration: out of memory");
 	}
 	memcpy(ref->train_rgb, train->rgb, (size_t)m * sizeof(*ref->train_rgb));
 	memcpy(ref->rho0, field->rgb, (size_t)field->n * sizeof(*ref->rho0));
-	patch_diagnostics(ref, train, d65);
+	return 0;
+}
 
+static int fit_reference(const kg_patchset *train, const kg_patchset *field,
+                         const kg_reference_options *opt, kg_reference **out, kg_err *err)
+{
+	int ret;
+	kg_reference *ref = calloc(1, sizeof(*ref));
+	moments *mo = calloc(1, sizeof(*mo));
+	calib_d65 *d65 = malloc(sizeof(*d65));
+	double de_K[KMAX];
+	if (!ref || !mo || !d65) {
+		ret = kg_fail(err, KG_ENOMEM, "reference calibration: out of memory");
+		goto error;
+	}
+	const char *tname = set_name(train, "training chart");
+	ret = check_training(train, field, opt, ref, err);
+	if (!ret)
+		ret = calib_d65_init(d65, err);
+	if (ret)
+		goto error;
+	ref->centred = opt->centred;
+	ref->ridge = opt->ridge;
+	ref->noise_sigma = opt->noise_sigma;
+
+	/* The regression methods, validated in closed form. */
+	for (int j = KG_METHOD_LINEAR; j < KG_METHOD_COUNT; j++) {
+		ret = fit_regression(train, (kg_method)j, opt, d65, &ref->maps[j], err);
+		if (ret)
+			goto error;
+	}
+
+	/* PCA: leave-one-out for every K, then the K and the model. */
+	for (int i = 0; i < train->n; i++)
+		moments_add(mo, &train->spectra[i], train->rgb[i], 1.0);
+	ret = pca_leave_one_out(mo, train, opt, d65, ref->loo_by_K, de_K, &ref->nK, err);
+	if (ret)
+		goto error;
+	if (opt->basis == 0) {
+		int best = choose_simplest(ref->loo_by_K, ref->nK, KG_CALIB_K_TOLERANCE);
+		if (best < 0) {
+			ret = kg_fail(err, KG_EINVAL,
+			              "%s: --basis auto: leave-one-out validation failed for every K "
+			              "(the chart's RGB is singular without one of its patches)",
+			              tname);
+			goto error;
+		}
+		ref->K = best + 1;
+		ref->basis_auto = 1;
+	} else {
+		ref->K = opt->basis;
+	}
+	ret = fit_pca(ref, mo, train, opt, err);
+	if (ret)
+		goto error;
+	ref->maps[KG_METHOD_PCA].loo_rmse = ref->K <= ref->nK ? ref->loo_by_K[ref->K - 1] : NAN;
+	ref->maps[KG_METHOD_PCA].loo_de00 = ref->K <= ref->nK ? de_K[ref->K - 1] : NAN;
+	calib_reference_derive(ref);
+
+	if (opt->method == KG_METHOD_AUTO) {
+		double errs[KG_METHOD_COUNT];
+		for (int j = 0; j < KG_METHOD_COUNT; j++)
+			errs[j] = ref->maps[j].available ? ref->maps[j].loo_rmse : NAN;
+		int best = choose_simplest(errs, KG_METHOD_COUNT, KG_CALIB_K_TOLERANCE);
+		if (best < 0) {
+			ret = kg_fail(err, KG_EINVAL,
+			              "%s: --method auto: no method could be validated by leave-one-out",
+			              tname);
+			goto error;
+		}
+		ref->method = (kg_method)best;
+		ref->method_auto = 1;
+	} else {
+		ref->method = opt->method;
+		if (!ref->maps[ref->method].available) {
+			ret = kg_fail(err, KG_EINVAL, "%s: method %s: %s", tname,
+			              kg_method_name(ref->method), ref->maps[ref->method].note);
+			goto error;
+		}
+	}
+
+	ret = record_charts(ref, train, field, err);
+	if (ret)
+		goto error;
+	patch_diagnostics(ref, train, d65);
 	free(mo);
 	free(d65);
 	*out = ref;

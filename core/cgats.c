@@ -197,6 +197,7 @@ typedef struct tokens {
 	size_t cap;
 	char **tok;
 	int n, cap_tok;
+	int first_quoted; /* the first token was "quoted" (a cell, never END_DATA) */
 } tokens;
 
 static void tokens_free(tokens *tk)
@@ -220,6 +221,7 @@ static int tokenize(tokens *tk, const char *line, size_t len, const char *path, 
 	memcpy(tk->buf, line, len);
 	tk->buf[len] = '\0';
 	tk->n = 0;
+	tk->first_quoted = 0;
 	char *p = tk->buf, *end = tk->buf + len;
 	while (p < end) {
 		while (p < end && isspace((unsigned char)*p))
@@ -228,6 +230,7 @@ static int tokenize(tokens *tk, const char *line, size_t len, const char *path, 
 			break;
 		char *start;
 		if (*p == '"') {
+			tk->first_quoted |= tk->n == 0;
 			start = ++p;
 			char *q = memchr(p, '"', (size_t)(end - p));
 			if (!q)
@@ -399,7 +402,7 @@ static int header_line(parser *ps, tokens *tk, int lineno, kg_err *err)
 static int data_line(parser *ps, tokens *tk, int lineno, kg_err *err)
 {
 	kg_cgats_table *t = ps->t;
-	if (strcmp(tk->tok[0], "END_DATA") == 0 && tk->n == 1) {
+	if (strcmp(tk->tok[0], "END_DATA") == 0 && tk->n == 1 && !tk->first_quoted) {
 		if (ps->declared_sets >= 0 && ps->declared_sets != t->nsets)
 			return kg_fail(err, KG_EINVAL, "%s: line %d: NUMBER_OF_SETS is %d (line %d) but "
 			               "the data have %d sets", ps->path, lineno, ps->declared_sets,
@@ -920,7 +923,7 @@ static int standard_field(const char *name)
 /* A cell goes unquoted when it is one plain word, else between quotes. */
 static void write_cell(FILE *fp, const char *s)
 {
-	int plain = *s && !strpbrk(s, " \t\v\f#");
+	int plain = *s && !strpbrk(s, " \t\v\f#") && !is_structure_word(s);
 	fprintf(fp, plain ? "%s" : "\"%s\"", s);
 }
 

@@ -414,41 +414,37 @@ static void layout_strides(enum kg_envi_layout l, long rows, long w, long bands,
 		*sr = w, *sx = 1, *sb = rows * w;
 }
 
-/* Copy a rows x w x bands block between two stride sets, scaling; the loop order
- * follows the destination so writes are sequential. */
+/* Copy a rows x w x bands block between two stride sets, scaling. The destination's
+ * fastest dimension (x, or the band for BIP) has stride 1 and runs innermost; x is
+ * taken in tiles so that a transpose between BIP and planar orders stays in L1. */
 static void restride(float *dst, const long ds[3], const float *src, const long ss[3],
                      long rows, long w, long bands, enum kg_envi_interleave dst_order,
                      float scale)
 {
-	if (dst_order == KG_ENVI_BIP) {
-		for (long r = 0; r < rows; r++)
-			for (long x = 0; x < w; x++)
+	enum { XT = 64 };
+	for (long r = 0; r < rows; r++) {
+		float *d = dst + r * ds[0];
+		const float *s = src + r * ss[0];
+		for (long x0 = 0; x0 < w; x0 += XT) {
+			long x1 = x0 + XT < w ? x0 + XT : w;
+			if (dst_order == KG_ENVI_BIP) /* ds[2] == 1 */
+				for (long x = x0; x < x1; x++)
+					for (long b = 0; b < bands; b++)
+						d[x * ds[1] + b] = s[x * ss[1] + b * ss[2]] * scale;
+			else /* ds[1] == 1 */
 				for (long b = 0; b < bands; b++)
-					dst[r * ds[0] + x * ds[1] + b * ds[2]] =
-						src[r * ss[0] + x * ss[1] + b * ss[2]] * scale;
-	} else if (dst_order == KG_ENVI_BSQ) {
-		for (long b = 0; b < bands; b++)
-			for (long r = 0; r < rows; r++)
-				for (long x = 0; x < w; x++)
-					dst[r * ds[0] + x * ds[1] + b * ds[2]] =
-						src[r * ss[0] + x * ss[1] + b * ss[2]] * scale;
-	} else {
-		for (long r = 0; r < rows; r++)
-			for (long b = 0; b < bands; b++)
-				for (long x = 0; x < w; x++)
-					dst[r * ds[0] + x * ds[1] + b * ds[2]] =
-						src[r * ss[0] + x * ss[1] + b * ss[2]] * scale;
+					for (long x = x0; x < x1; x++)
+						d[x + b * ds[2]] = s[x * ss[1] + b * ss[2]] * scale;
+		}
 	}
 }
 
-/* Round to nearest (halves away from zero) and clamp; NaN becomes 0. */
-static float round_clamp(float v, float lo, float hi)
+/* Round to nearest (halves away from zero) and clamp; NaN becomes 0. Written with
+ * truncating conversions so it vectorises without SSE4.1's round instruction. */
+static inline float round_clamp(float v, float lo, float hi)
 {
-	if (!(v >= lo))
-		return v != v ? 0.0f : lo;
-	if (v > hi)
-		return hi;
-	return roundf(v);
+	v = v != v ? 0.0f : v < lo ? lo : v > hi ? hi : v;
+	return (float)(int32_t)(v + (v < 0 ? -0.5f : 0.5f));
 }
 
 static void to_type(void *dst, const float *src, size_t n, enum kg_envi_type t)
@@ -471,6 +467,21 @@ static void to_type(void *dst, const float *src, size_t n, enum kg_envi_type t)
 	}
 }
 
+/* Write lines y0 .. y0+rows-1 from src, already in file order and type. */
+static int write_file_order(kg_envi_writer *w, long y0, long rows, const void *src)
+{
+	size_t line = (size_t)w->samples * w->tsize;
+	if (w->interleave != KG_ENVI_BSQ)
+		return pwrite_all(w->fd, src, (size_t)rows * line * (size_t)w->bands,
+		                  (off_t)((size_t)y0 * line * (size_t)w->bands));
+	size_t plane = (size_t)rows * line;
+	for (long b = 0; b < w->bands; b++)
+		if (pwrite_all(w->fd, (const char *)src + (size_t)b * plane, plane,
+		               (off_t)(((size_t)b * (size_t)w->lines + (size_t)y0) * line)))
+			return -1;
+	return 0;
+}
+
 int kg_envi_writer_put(kg_envi_writer *w, int y0, int y1, enum kg_envi_layout layout,
                        const float *data, kg_err *err)
 {
@@ -481,43 +492,38 @@ int kg_envi_writer_put(kg_envi_writer *w, int y0, int y1, enum kg_envi_layout la
 	if (layout != KG_LAYOUT_BIP && layout != KG_LAYOUT_PLANAR)
 		return kg_fail(err, KG_EINVAL, "%s: layout %d: expected BIP or planar", w->data_path,
 		               (int)layout);
-	long rows = y1 - y0, npix = rows * w->samples;
-	size_t count = (size_t)npix * (size_t)w->bands;
-	const void *src = data;
-	int direct = w->type == KG_ENVI_F32 && w->scale == 1.0f &&
-	             ((layout == KG_LAYOUT_PLANAR && w->interleave == KG_ENVI_BSQ) ||
-	              (layout == KG_LAYOUT_BIP && w->interleave == KG_ENVI_BIP));
-	if (!direct) {
-		if (count > w->cap) {
+	long rows = y1 - y0, S = w->samples, B = w->bands;
+	int bad;
+	if (w->type == KG_ENVI_F32 && w->scale == 1.0f &&
+	    ((layout == KG_LAYOUT_PLANAR && w->interleave == KG_ENVI_BSQ) ||
+	     (layout == KG_LAYOUT_BIP && w->interleave == KG_ENVI_BIP))) {
+		bad = write_file_order(w, y0, rows, data); /* already in file order */
+	} else {
+		/* Convert in bounded chunks of lines so a whole cube needs no second copy. */
+		long chunk = (long)(CHUNK_BYTES / sizeof(float) / (size_t)(S * B));
+		chunk = chunk < 1 ? 1 : chunk > rows ? rows : chunk;
+		size_t need = (size_t)chunk * (size_t)(S * B);
+		if (need > w->cap) {
 			free(w->fbuf);
 			free(w->bbuf);
-			w->fbuf = malloc(count * sizeof(float));
-			w->bbuf = w->type == KG_ENVI_F32 ? NULL : malloc(count * w->tsize);
-			w->cap = w->fbuf && (w->bbuf || w->type == KG_ENVI_F32) ? count : 0;
+			w->fbuf = malloc(need * sizeof(float));
+			w->bbuf = w->type == KG_ENVI_F32 ? NULL : malloc(need * w->tsize);
+			w->cap = w->fbuf && (w->bbuf || w->type == KG_ENVI_F32) ? need : 0;
 			if (!w->cap)
-				return kg_fail(err, KG_ENOMEM, "%s: out of memory for a block of %ld lines",
-				               w->data_path, rows);
+				return kg_fail(err, KG_ENOMEM, "%s: out of memory for %ld lines", w->data_path,
+				               chunk);
 		}
-		long ds[3], ss[3];
-		file_strides(w->interleave, rows, w->samples, w->bands, &ds[0], &ds[1], &ds[2]);
-		layout_strides(layout, rows, w->samples, w->bands, &ss[0], &ss[1], &ss[2]);
-		restride(w->fbuf, ds, data, ss, rows, w->samples, w->bands, w->interleave, w->scale);
-		src = w->fbuf;
-		if (w->type != KG_ENVI_F32) {
-			to_type(w->bbuf, w->fbuf, count, w->type);
-			src = w->bbuf;
+		long ss[3], ds[3];
+		layout_strides(layout, rows, S, B, &ss[0], &ss[1], &ss[2]);
+		bad = 0;
+		for (long r0 = 0; r0 < rows && !bad; r0 += chunk) {
+			long n = rows - r0 < chunk ? rows - r0 : chunk;
+			file_strides(w->interleave, n, S, B, &ds[0], &ds[1], &ds[2]);
+			restride(w->fbuf, ds, data + r0 * ss[0], ss, n, S, B, w->interleave, w->scale);
+			if (w->type != KG_ENVI_F32)
+				to_type(w->bbuf, w->fbuf, (size_t)(n * S * B), w->type);
+			bad = write_file_order(w, y0 + r0, n, w->type == KG_ENVI_F32 ? (void *)w->fbuf : w->bbuf);
 		}
-	}
-	int bad = 0;
-	if (w->interleave == KG_ENVI_BSQ) {
-		size_t plane = (size_t)npix * w->tsize;
-		for (int b = 0; b < w->bands && !bad; b++) {
-			off_t off = (off_t)(((long long)b * w->lines + y0) * w->samples * (long long)w->tsize);
-			bad = pwrite_all(w->fd, (const char *)src + b * plane, plane, off);
-		}
-	} else {
-		off_t off = (off_t)((long long)y0 * w->samples * w->bands * (long long)w->tsize);
-		bad = pwrite_all(w->fd, src, count * w->tsize, off);
 	}
 	if (bad)
 		return kg_fail(err, KG_EIO, "%s: write failed: %s", w->data_path, strerror(errno));

@@ -69,7 +69,9 @@ typedef struct kg_envi_writer kg_envi_writer;
 int kg_envi_writer_open(const char *path, const kg_envi_meta *meta, kg_envi_writer **out,
                         kg_err *err);
 /* Write lines y0 .. y1-1, all bands, from float data in the given layout (rows count
- * y1 - y0). Blocks may come in any order. Calls must not overlap in time. */
+ * y1 - y0). Blocks may come in any order. Calls must not overlap in time. Float32
+ * without a scale factor, given planar for BSQ or BIP for BIP, is written straight
+ * from the caller's buffer; anything else is converted in chunks of about 4 MB. */
 int kg_envi_writer_put(kg_envi_writer *w, int y0, int y1, enum kg_envi_layout layout,
                        const float *data, kg_err *err);
 /* Check every line was written, then rename the data file into place and the header
@@ -101,7 +103,8 @@ int kg_envi_open(const char *path, kg_envi **out, kg_err *err);
 void kg_envi_close(kg_envi **e);
 
 /* Read the window x0 .. x0+w-1, y0 .. y0+h-1, all bands, converted to float (and
- * divided by the scale factor) into out (w * h * bands floats). */
+ * divided by the scale factor) into out (w * h * bands floats). Several threads may
+ * read one cube at once. */
 int kg_envi_read(const kg_envi *e, int x0, int y0, int w, int h, enum kg_envi_layout layout,
                  float *out, kg_err *err);
 

@@ -443,9 +443,10 @@ static int png_read_body(struct png_job *j, const char *path, kg_image **out, kg
 		png_set_palette_to_rgb(j->png);
 	if (ct == PNG_COLOR_TYPE_GRAY && depth < 8)
 		png_set_expand_gray_1_2_4_to_8(j->png);
-	if (ct & PNG_COLOR_MASK_ALPHA) {
+	/* Expansion turns a tRNS chunk into alpha; libpng strips alpha after expanding. */
+	if ((ct & PNG_COLOR_MASK_ALPHA) || png_get_valid(j->png, j->info, PNG_INFO_tRNS)) {
 		png_set_strip_alpha(j->png);
-		note = "alpha channel dropped";
+		note = ct & PNG_COLOR_MASK_ALPHA ? "alpha channel dropped" : "transparency dropped";
 	}
 	png_set_interlace_handling(j->png);
 	png_read_update_info(j->png, j->info);

@@ -13,30 +13,33 @@
 
 #include <immintrin.h>
 
-#define AVX2 __attribute__((target("avx2,f16c")))
+#define AVX2 __attribute__((target("avx2,f16c,popcnt")))
+#define INLINE_AVX2 __attribute__((target("avx2,f16c,popcnt"), always_inline)) static inline
 
 int est_have_avx2(void)
 {
 	__builtin_cpu_init();
-	return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("f16c");
+	return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("f16c") &&
+	       __builtin_cpu_supports("popcnt");
 }
 
 static inline int lane_mask(size_t valid) { return valid >= 8 ? 0xff : (1 << valid) - 1; }
 
 /* Clamp negative lanes of acc to 0 (keeping -0.0, as the reference does); *lt gets
  * the clamped lanes. */
-AVX2 static inline __m256 clamp_negative(__m256 acc, __m256 *lt)
+INLINE_AVX2 __m256 clamp_negative(__m256 acc, __m256 *lt)
 {
 	*lt = _mm256_cmp_ps(acc, _mm256_setzero_ps(), _CMP_LT_OQ);
 	return _mm256_andnot_ps(*lt, acc);
 }
 
 /* Matrix kernel, 8 pixels per vector, values band-major into s->vals
- * (band o of pixel i at o * EST_CHUNK + i), for BSQ stores and classification. */
-AVX2 static void matrix_soa(const est_plan *p, est_scratch *s, size_t m, est_counts *c)
+ * (band o of pixel i at o * EST_CHUNK + i), for BSQ stores and classification.
+ * Inlined once per number of terms so that the term loop unrolls. */
+INLINE_AVX2 void matrix_soa_nt(const est_map *mp, const int nt, est_scratch *s, size_t m,
+                               est_counts *c)
 {
-	const est_map *mp = p->map;
-	int nt = p->k->nterms;
+	uint64_t clamped = 0;
 	for (int o = 0; o < mp->nb; o++) {
 		__m256 a[KG_EST_MAX_TERMS];
 		for (int t = 0; t < nt; t++)
@@ -52,11 +55,27 @@ AVX2 static void matrix_soa(const est_plan *p, est_scratch *s, size_t m, est_cou
 				__m256 lt;
 				acc = clamp_negative(acc, &lt);
 				int bits = _mm256_movemask_ps(lt) & lane_mask(m - i);
-				c->clamped_values += (uint64_t)__builtin_popcount(bits);
+				clamped += (uint64_t)__builtin_popcount(bits);
 				s->clampbits[i / 8] |= (uint8_t)bits;
 			}
 			_mm256_store_ps(dst + i, acc);
 		}
+	}
+	c->clamped_values += clamped;
+}
+
+AVX2 static void matrix_soa(const est_plan *p, est_scratch *s, size_t m, est_counts *c)
+{
+	switch (p->k->nterms) {
+	case 3:
+		matrix_soa_nt(p->map, 3, s, m, c);
+		break;
+	case 6:
+		matrix_soa_nt(p->map, 6, s, m, c);
+		break;
+	default:
+		matrix_soa_nt(p->map, KG_EST_MAX_TERMS, s, m, c);
+		break;
 	}
 }
 
@@ -107,11 +126,12 @@ AVX2 static void store_bsq(const est_plan *p, const est_scratch *s, size_t m,
 /* Matrix kernel straight into BIP (f32, f16 or weights): for 8 pixels the output is
  * 8 * nb consecutive values, i.e. nb vectors; lane l of vector v is band (8v+l) % nb
  * of pixel (8v+l) / nb, whose terms are brought into the lane by a permute. */
-AVX2 static void matrix_bip(const est_plan *p, est_scratch *s, size_t m, const est_dst *d,
-                            size_t at, est_counts *c)
+INLINE_AVX2 void matrix_bip_nt(const est_plan *p, const int nt, est_scratch *s, size_t m,
+                               const est_dst *d, size_t at, est_counts *c)
 {
 	const est_map *mp = p->map;
-	int nt = p->k->nterms, nb = mp->nb;
+	int nb = mp->nb;
+	uint64_t clamped = 0;
 	int half = p->format == KG_EST_F16_BIP;
 	size_t es = half ? 2 : 4;
 	char *base = (char *)d->data + at * nb * es;
@@ -140,7 +160,7 @@ AVX2 static void matrix_bip(const est_plan *p, est_scratch *s, size_t m, const e
 				__m256i hit = _mm256_castps_si256(lt);
 				if (rem < 8)
 					hit = _mm256_and_si256(hit, _mm256_cmpgt_epi32(remv, pix));
-				c->clamped_values +=
+				clamped +=
 				    (uint64_t)__builtin_popcount(_mm256_movemask_ps(_mm256_castsi256_ps(hit)));
 				clamped_pixels = _mm256_or_si256(
 				    clamped_pixels, _mm256_and_si256(hit, _mm256_sllv_epi32(one, pix)));
@@ -169,6 +189,23 @@ AVX2 static void matrix_bip(const est_plan *p, est_scratch *s, size_t m, const e
 			x = _mm_or_si128(x, _mm_shuffle_epi32(x, _MM_SHUFFLE(2, 3, 0, 1)));
 			s->clampbits[i / 8] |= (uint8_t)_mm_cvtsi128_si32(x);
 		}
+	}
+	c->clamped_values += clamped;
+}
+
+AVX2 static void matrix_bip(const est_plan *p, est_scratch *s, size_t m, const est_dst *d,
+                            size_t at, est_counts *c)
+{
+	switch (p->k->nterms) {
+	case 3:
+		matrix_bip_nt(p, 3, s, m, d, at, c);
+		break;
+	case 6:
+		matrix_bip_nt(p, 6, s, m, d, at, c);
+		break;
+	default:
+		matrix_bip_nt(p, KG_EST_MAX_TERMS, s, m, d, at, c);
+		break;
 	}
 }
 

@@ -117,7 +117,7 @@ int kg_swatch_sheet(const char *path, const kg_material_library *lib,
 	int n = kg_material_library_count(lib);
 	if (n <= 0)
 		return kg_fail(err, KG_EINVAL, "swatch sheet: the material library is empty");
-	const int cols = 4, cell_w = 260, cell_h = 250;
+	const int cols = 4, cell_w = 330, cell_h = 250;
 	int rows = (n + cols - 1) / cols;
 	kg_plot *p;
 	int ret = kg_plot_new(cols * cell_w + 20, rows * cell_h + 60, &p, err);

@@ -50,10 +50,12 @@ static double eta2_minus_sin2_scaled(double n, double k, double n0, double c)
 	return s + comp;
 }
 
-/* Principal square root of x + iy (y >= 0) into a + ib without cancellation. */
+/* Principal square root of x + iy (y >= 0) into a + ib without cancellation. The
+ * modulus skips hypot's scaling (a third of the time of a reflectance) unless the
+ * squares could overflow. */
 static void sqrt_complex(double x, double y, double *a, double *b)
 {
-	double r = hypot(x, y);
+	double r = fabs(x) < 1e150 && y < 1e150 ? sqrt(x * x + y * y) : hypot(x, y);
 	if (x >= 0.0) {
 		*a = sqrt(0.5 * (r + x));
 		*b = *a > 0.0 ? y / (2.0 * *a) : 0.0;

@@ -450,6 +450,15 @@ int kg_material_library_load(const char *path, kg_material_library **out, kg_err
 		            path, format);
 		goto done;
 	}
+	const char *key;
+	json_t *value;
+	json_object_foreach(root, key, value) {
+		if (strcmp(key, "format") && strcmp(key, "materials") && strcmp(key, "note")) {
+			r = kg_fail(err, KG_EINVAL, "%s: field '%s' is not known: expected format, "
+			            "materials, note", path, key);
+			goto done;
+		}
+	}
 	if ((r = kg_json_get(path, root, "materials", &list, err)) != 0)
 		goto done;
 	if (!json_is_array(list) || json_array_size(list) == 0 ||

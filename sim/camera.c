@@ -22,8 +22,7 @@ int kg_sim_camera_load(const char *path, unsigned flags, kg_sim_camera *cam, kg_
 	memset(cam, 0, sizeof(*cam));
 	int ret = kg_csv_read_column_spectra(path, channels, 3, flags, cam->sens, err);
 	if (ret) {
-		if (err && !strstr(err->msg, path))
-			kg_err_prefix(err, "camera sensitivities %s", path);
+		kg_err_prefix(err, "camera sensitivities");
 		return ret;
 	}
 	for (int ch = 0; ch < 3; ch++)

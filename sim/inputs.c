@@ -1,8 +1,10 @@
 /* Inputs of the simulator named on the command line: spectra files (CGATS or the
  * reference CSV layout), illuminants (name, CGATS or CSV) and material samples. */
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
+#include <sys/stat.h>
 
 #include "kg_sim.h"
 
@@ -19,8 +21,10 @@ int kg_sim_read_spectra(const char *path, unsigned flags, kg_patchset **out, kg_
 	kg_patchset *ps = NULL;
 	int ret = has_suffix(path, ".csv") ? kg_csv_read_spectra_rows(path, flags, &ps, err)
 	                                   : kg_patchset_read(path, flags, &ps, err);
-	if (ret)
+	if (ret) {
+		kg_err_prefix(err, "spectra");
 		return ret;
+	}
 	if (!ps->spectra || ps->n < 1) {
 		kg_patchset_free(&ps);
 		return kg_fail(err, KG_EINVAL,
@@ -85,9 +89,22 @@ int kg_sim_illuminant(const char *spec, kg_illuminant **out, kg_err *err)
 {
 	kg_check_arg(spec && out, err);
 	*out = NULL;
-	if (has_suffix(spec, ".csv"))
-		return illuminant_from_csv(spec, out, err);
-	return kg_illuminant_lookup(spec, out, err);
+	struct stat st;
+	if (stat(spec, &st) != 0) {
+		int ret = kg_illuminant_by_name(spec, out, err);
+		if (ret == KG_EINVAL && err) {
+			size_t n = strlen(err->msg);
+			snprintf(err->msg + n, sizeof(err->msg) - n,
+			         ", or an illuminant file (CGATS, or CSV wavelength_nm,power): "
+			         "no file of that name");
+		}
+		return ret;
+	}
+	int ret = has_suffix(spec, ".csv") ? illuminant_from_csv(spec, out, err)
+	                                   : kg_illuminant_from_file(spec, out, err);
+	if (ret)
+		kg_err_prefix(err, "illuminant");
+	return ret;
 }
 
 int kg_sim_capture_load(kg_sim_capture *c, const char *camera_path,

@@ -76,14 +76,14 @@ typedef struct lobe_ctx {
 	int mirror;
 } lobe_ctx;
 
-static double lobe_times_cos(const double V[3], void *p)
+static void lobe_times_cos(const double V[3], double w, double *acc, void *p)
 {
 	lobe_ctx *c = p;
 	if (V[2] <= 0)
-		return 0.0;
+		return;
 	double f = c->mirror ? kg_lobe_mirror(N, V, c->L, c->param, NULL)
 	                     : kg_lobe_gloss(N, V, c->L, c->param, NULL);
-	return f * V[2];
+	acc[0] += w * f * V[2];
 }
 
 static void albedo(void)
@@ -100,7 +100,8 @@ static void albedo(void)
 		R[2] = L[2];
 		for (size_t j = 0; j < sizeof(ms) / sizeof(ms[0]); j++) {
 			lobe_ctx c = {L, ms[j], 0};
-			double a = integrate_around(R, 600, 360, lobe_times_cos, &c);
+			double a;
+			integrate_around(R, 600, 360, 1, lobe_times_cos, &c, &a);
 			worst_gloss = fmax(worst_gloss, a);
 			CHECK(a <= 1.0 + 1e-3, "gloss lobe m %g at %g deg: albedo %.6f > 1", ms[j],
 			      incid[i], a);
@@ -111,7 +112,8 @@ static void albedo(void)
 		}
 		for (size_t j = 0; j < sizeof(ws) / sizeof(ws[0]); j++) {
 			lobe_ctx c = {L, ws[j], 1};
-			double a = integrate_around(R, 600, 360, lobe_times_cos, &c);
+			double a;
+			integrate_around(R, 600, 360, 1, lobe_times_cos, &c, &a);
 			worst_mirror = fmax(worst_mirror, a);
 			CHECK(a <= 1.0 + 1e-3, "mirror lobe w %g at %g deg: albedo %.6f > 1", ws[j],
 			      incid[i], a);

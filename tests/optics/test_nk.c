@@ -9,22 +9,7 @@
 
 #include "kg_optics.h"
 #include "kg_test.h"
-
-static char tmpdir[256];
-
-static const char *write_tmp(const char *name, const char *text)
-{
-	static char path[512];
-	snprintf(path, sizeof(path), "%s/%s", tmpdir, name);
-	FILE *f = fopen(path, "w");
-	if (!f) {
-		perror(path);
-		exit(1);
-	}
-	fputs(text, f);
-	fclose(f);
-	return path;
-}
+#include "tmpfiles.h"
 
 /* The model evaluated by refractiveindex.info from the paper's parameters
  * (database/data/main/{Ag,Au,Cu}/nk/Rakic-LD.yml, CC0; wavelengths in um rounded
@@ -228,7 +213,7 @@ static void yaml_roundtrip(const char *ref)
 	         "DATA:\n  - type: tabulated nk\n    data: |\n%s"
 	         "SPECS:\n    thin_film: true\n", nkbuf);
 	e.msg[0] = 0;
-	CHECK(kg_nk_load(write_tmp("au.yml", doc), 0, &yml, &e) == 0, "%s", e.msg);
+	CHECK(kg_nk_load(kg_tmpfile("au.yml", doc), 0, &yml, &e) == 0, "%s", e.msg);
 	double d = fmax(kg_spectrum_rmse(&csv.n, &yml.n), kg_spectrum_rmse(&csv.k, &yml.k));
 	CHECK(d < 1e-12, "tabulated nk YAML vs CSV: rms %g", d);
 
@@ -248,7 +233,7 @@ static void yaml_roundtrip(const char *ref)
 	         "  -\n    type: 'tabulated k'\n    wavelength_range: 0.2 1.0\n    data: |\n"
 	         "      # comment\n%s", nbuf, khalf);
 	e.msg[0] = 0;
-	CHECK(kg_nk_load(write_tmp("au_n_k.yaml", doc), 0, &yml, &e) == 0, "%s", e.msg);
+	CHECK(kg_nk_load(kg_tmpfile("au_n_k.yaml", doc), 0, &yml, &e) == 0, "%s", e.msg);
 	CHECK(kg_spectrum_rmse(&csv.n, &yml.n) < 1e-12, "tabulated n vs CSV");
 	CHECK(kg_spectrum_rmse(&csv.k, &yml.k) < 0.05, "tabulated k (half the points) vs CSV");
 
@@ -343,21 +328,14 @@ static void malformed(void)
 
 int main(void)
 {
-	const char *base = getenv("TMPDIR") && *getenv("TMPDIR") ? getenv("TMPDIR") : "/tmp";
-	snprintf(tmpdir, sizeof(tmpdir), "%s/kg_test_nk_XXXXXX", base);
-	if (!mkdtemp(tmpdir)) {
-		perror("mkdtemp");
-		return 1;
-	}
+	kg_tmpdir_create("kg_test_nk");
 	rakic_transcription();
 	malformed();
+	if (kg_test_failures) /* report them even when the reference data are absent */
+		return kg_test_done("test_nk");
 	const char *ref = kg_test_reference_dir();
 	against_johnson_christy(ref);
 	real_csv(ref);
 	yaml_roundtrip(ref);
-	char cmd[512];
-	snprintf(cmd, sizeof(cmd), "rm -rf '%s'", tmpdir);
-	if (system(cmd) != 0)
-		fprintf(stderr, "could not remove %s\n", tmpdir);
 	return kg_test_done("test_nk");
 }

@@ -330,6 +330,46 @@ static void test_image_seed(void)
 		kg_image_free(&img[k]);
 }
 
+/* The bundled library: every material of DESIGN.md §3 becomes its own class, in
+ * library order, and a grazing angle still gives reflectances in [0, 1]. */
+static void test_default_library(void)
+{
+	char lib[4200], errbuf[4096];
+	snprintf(lib, sizeof(lib), "%s/fixtures/materials/default.json", KG_SOURCE_ROOT);
+	if (!kg_test_file_exists(lib)) {
+		printf("no %s: default library not checked\n", lib);
+		return;
+	}
+	char *labels = (char *)sim_path("default_labels.hdr");
+	int rc = RUN("sim", "image", "--materials", lib, "--camera", (char *)sim_path("cam.csv"),
+	             "--illuminant", "D65", "--angle", "80", "--patch-size", "4", "-o",
+	             (char *)sim_path("default.tif"), "--truth-labels", labels);
+	CHECK(rc == 0, "default library: exit %d: %s", rc, errbuf);
+	static const char *const names[] = {
+	    "gold", "silver", "copper", "shakudo", "shibuichi-nami", "shibuichi-shiro",
+	    "shibuichi-jo", "shibuichi-nami-uchisanbu", "shibuichi-nami-sotosanbu", "urushi"};
+	kg_envi *e = NULL;
+	kg_err err = {{0}};
+	CHECK(rc != 0 || kg_envi_open(labels, &e, &err) == 0, "%s", err.msg);
+	if (e) {
+		for (size_t k = 0; k < sizeof(names) / sizeof(names[0]); k++) {
+			int found = 0;
+			for (int c = 1; c < e->meta.classes && e->meta.class_names; c++)
+				found |= strcmp(e->meta.class_names[c], names[k]) == 0;
+			CHECK(found, "default library: no class %s", names[k]);
+		}
+		kg_envi_close(&e);
+	}
+	kg_sim_material_set *ms = NULL;
+	CHECK(kg_sim_material_set_load(lib, NULL, 89.0, &ms, &err) == 0, "%s", err.msg);
+	for (int m = 0; ms && m < ms->n; m++)
+		for (int i = 0; i < KG_NBANDS; i++)
+			CHECK(ms->reflectance[m].v[i] >= 0.0 && ms->reflectance[m].v[i] <= 1.0,
+			      "%s at 89 degrees, %g nm: %g", ms->names[m], kg_band_nm(i),
+			      ms->reflectance[m].v[i]);
+	kg_sim_material_set_free(&ms);
+}
+
 int main(int argc, char **argv)
 {
 	if (argc < 2) {
@@ -347,6 +387,7 @@ int main(int argc, char **argv)
 	test_usage();
 	test_image();
 	test_image_seed();
+	test_default_library();
 	sim_scratch_remove();
 	return kg_test_done("sim/cli");
 }

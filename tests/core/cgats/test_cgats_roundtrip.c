@@ -27,8 +27,10 @@ static void test_table_roundtrip(void)
 	CHECK(kg_cgats_set_fields(t, fields, 6, &err) == 0, "%s", err.msg);
 	const char *row1[] = { "A1", "dark skin", "0.1", "0.2", "0.3", "0.01" };
 	CHECK(kg_cgats_add_row(t, row1, &err) == 0, "%s", err.msg);
+	const char *row0[] = { "END_DATA", "#1", "0.1", "0.2", "0.3", "0" };
+	CHECK(kg_cgats_add_row(t, row0, &err) == 0, "%s", err.msg);
 	int set;
-	CHECK(kg_cgats_append_set(t, &set, &err) == 0 && set == 1, "%s", err.msg);
+	CHECK(kg_cgats_append_set(t, &set, &err) == 0 && set == 2, "%s", err.msg);
 	CHECK(kg_cgats_set_cell(t, set, 0, "A2", &err) == 0, "%s", err.msg);
 	CHECK(kg_cgats_set_cell(t, set, 1, "", &err) == 0, "%s", err.msg);
 	double third = 1.0 / 3.0;
@@ -43,6 +45,8 @@ static void test_table_roundtrip(void)
 	CHECK(kg_cgats_add_row_numbers(t2, "0", v, 3, &err) == 0, "%s", err.msg);
 	CHECK(kg_cgats_add_row_numbers(t2, "1", v, 2, &err) == KG_EINVAL, "short row refused");
 
+	CHECK(kg_cgats_write(cg, "/nonexistent/dir/t.cgats", &err) == KG_EIO &&
+	          strstr(err.msg, "/nonexistent/dir/t.cgats"), "unwritable path: %s", err.msg);
 	char *path = kg_path_join(tmpdir, "table.cgats");
 	CHECK(kg_cgats_write(cg, path, &err) == 0, "%s", err.msg);
 	CHECK(kg_cgats_read(path, &back, &err) == 0, "%s", err.msg);
@@ -68,7 +72,7 @@ static void test_table_roundtrip(void)
 			CHECK(b->set_lines[0] > 0, "source lines recorded");
 		}
 		double x;
-		CHECK(kg_cgats_number(back->tables[0], 1, 3, &x, &err) == 0 && x == third * 3,
+		CHECK(kg_cgats_number(back->tables[0], 2, 3, &x, &err) == 0 && x == third * 3,
 		      "numbers read back exactly: %.17g", x);
 		CHECK(kg_cgats_keyword_number(back->tables[0], "EXPOSURE_S", &x, &err) == 0 &&
 		          x == 0.125, "keyword number");

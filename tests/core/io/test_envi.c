@@ -287,6 +287,39 @@ static void test_paths(void)
 	free(s);
 }
 
+/* A cube large enough that writing and reading go through several internal chunks
+ * of lines (about 16 MB of floats per conversion, 4 MB per read). */
+static void test_large(void)
+{
+	enum { LS = 2000, LL = 40, LB = 61 };
+	size_t n = (size_t)LS * LL * LB;
+	float *cube = malloc(n * sizeof(float)), *back = malloc(n * sizeof(float));
+	for (int y = 0; y < LL; y++)
+		for (int x = 0; x < LS; x++)
+			for (int b = 0; b < LB; b++)
+				cube[((size_t)y * LS + x) * LB + b] = (float)((x * 3 + y * 5 + b) % 1000) / 1000.0f;
+	enum kg_envi_interleave ils[] = {KG_ENVI_BSQ, KG_ENVI_BIL};
+	for (int i = 0; i < 2; i++) {
+		kg_envi_meta m = {.samples = LS, .lines = LL, .bands = LB, .data_type = KG_ENVI_U16,
+		                  .interleave = ils[i], .scale = 1000};
+		kg_err err;
+		CHECK(kg_envi_write(io_path("large.hdr"), &m, KG_LAYOUT_BIP, cube, &err) == 0,
+		      "large: %s", err.msg);
+		kg_envi *e;
+		CHECK(kg_envi_open(io_path("large.hdr"), &e, &err) == 0, "large open: %s", err.msg);
+		if (!e)
+			break;
+		CHECK(kg_envi_read(e, 0, 0, LS, LL, KG_LAYOUT_BIP, back, &err) == 0, "large read");
+		size_t bad = 0;
+		for (size_t k = 0; k < n; k++)
+			bad += fabsf(back[k] - cube[k]) > 1e-6f;
+		CHECK(bad == 0, "large cube, interleave %d: %zu values differ", (int)ils[i], bad);
+		kg_envi_close(&e);
+	}
+	free(cube);
+	free(back);
+}
+
 int main(void)
 {
 	io_tmpdir("envi");
@@ -300,5 +333,6 @@ int main(void)
 	test_foreign_header();
 	test_errors();
 	test_paths();
+	test_large();
 	return kg_test_done("envi");
 }

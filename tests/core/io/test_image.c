@@ -319,6 +319,35 @@ static void test_png_kinds(void)
 		CHECK_NEAR(img->data[3], 1.0, 1e-7, "code 3 of 3");
 	}
 	kg_image_free(&img);
+	/* Palette with transparency: expanded to RGB, transparency dropped. */
+	{
+		FILE *pf = fopen(io_path("pal.png"), "wb");
+		png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, NULL, NULL, NULL);
+		png_infop info = png_create_info_struct(png);
+		if (setjmp(png_jmpbuf(png)) == 0) {
+			png_init_io(png, pf);
+			png_set_IHDR(png, info, 3, 1, 8, PNG_COLOR_TYPE_PALETTE, PNG_INTERLACE_NONE,
+			             PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
+			png_color pal[2] = {{255, 0, 0}, {0, 51, 255}};
+			png_byte trans[1] = {0};
+			png_set_PLTE(png, info, pal, 2);
+			png_set_tRNS(png, info, trans, 1, NULL);
+			png_set_gAMA(png, info, 1.0);
+			png_write_info(png, info);
+			png_byte row[3] = {0, 1, 1};
+			png_write_row(png, row);
+			png_write_end(png, NULL);
+		}
+		png_destroy_write_struct(&png, &info);
+		fclose(pf);
+	}
+	CHECK(kg_image_read(io_path("pal.png"), &img, &err) == 0, "read palette: %s", err.msg);
+	if (img) {
+		CHECK(img->channels == 3 && strstr(img->note, "transparency"), "palette: '%s'", img->note);
+		CHECK_NEAR(img->data[0], 1.0, 1e-7, "palette entry 0 red");
+		CHECK_NEAR(img->data[4], 0.2, 1e-7, "palette entry 1 green");
+	}
+	kg_image_free(&img);
 	/* sRGB-tagged: linearised. The preview helper writes sRGB too. */
 	unsigned char rgb[2 * 3] = {0, 128, 255, 10, 200, 30};
 	CHECK(kg_png_write_rgb8(io_path("preview.png"), rgb, 2, 1, &err) == 0, "preview: %s", err.msg);
