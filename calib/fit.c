@@ -388,6 +388,7 @@ void kg_reference_options_default(kg_reference_options *o)
 	o->ridge = 0;
 	o->noise_sigma = 0.01;
 	o->method = KG_METHOD_PCA;
+	o->max_cond = KG_CALIB_MAX_COND;
 }
 
 void kg_reference_free(kg_reference **pref)
@@ -422,6 +423,9 @@ static int check_options(const kg_reference_options *opt, kg_err *err)
 		               opt->noise_sigma);
 	if (opt->method < KG_METHOD_AUTO || opt->method >= KG_METHOD_COUNT)
 		return kg_fail(err, KG_EINVAL, "method %d: unknown", (int)opt->method);
+	if (!(opt->max_cond >= 1))
+		return kg_fail(err, KG_EINVAL, "condition-number limit %g: expected >= 1",
+		               opt->max_cond);
 	return 0;
 }
 
@@ -463,7 +467,7 @@ static int check_training(const kg_patchset *train, const kg_patchset *field,
 		return ret;
 	double cond_eq, sv[3];
 	ret = calib_check_collinear(tname, train->ids, (const double (*)[3])train->rgb,
-	                            train->n, KG_CALIB_MAX_COND, &ref->cond_rho, &cond_eq, sv, err);
+	                            train->n, opt->max_cond, &ref->cond_rho, &cond_eq, sv, err);
 	if (ret)
 		return ret;
 	if (field->n < 3)
@@ -491,7 +495,7 @@ static int check_training(const kg_patchset *train, const kg_patchset *field,
 	if (ret)
 		return ret;
 	return calib_check_collinear(fname, field->ids, (const double (*)[3])field->rgb,
-	                             field->n, KG_CALIB_MAX_COND, &ref->cond_rho0, &cond_eq, sv,
+	                             field->n, opt->max_cond, &ref->cond_rho0, &cond_eq, sv,
 	                             err);
 }
 

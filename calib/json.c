@@ -4,7 +4,32 @@
  * B is 61 x K, A is 61 x T); M is K x 3, M2 3 x 3; RGB of the field and site charts
  * is 3 x k as in the paper (rho0, rho_r: one row per channel, one column per patch),
  * the training RGB m x 3 (one row per patch). Numbers that are not finite (a
- * validation that could not run) are written as null. */
+ * validation that could not run) are written as null.
+ *
+ * kogei-reference/1:
+ *   format, software, grid {start_nm, step_nm, bands},
+ *   method (the default for estimate), method_chosen_by ("option"|"leave-one-out"),
+ *   K_chosen_by, K, centred, B, mean and rgb_mean (centred only), M, ridge,
+ *   noise_sigma, singular_values, energy (cumulative),
+ *   methods {pca|linear|wiener|rootpoly2|rootpoly3: {available, note (if not),
+ *     terms, ridge (wiener: lambda_m_sigma2), A, offset, condition_number,
+ *     fit_rmse, loo_rmse, loo_de00}},
+ *   validation {loo_rmse_by_K, loo_rmse_by_method},
+ *   training {patches, ids, rho (m x 3), rmse, gfc, de00_d65, projection_rmse,
+ *     weight_residual, mean_rmse, mean_de00_d65, max_de00_d65, condition_number_rho},
+ *   field {ids, rho0 (3 x k), condition_number},
+ *   devices {role: INSTRUMENTATION|DEVICE|CAMERA|... keyword}, illuminant,
+ *   sources [{role, path, sha256, keywords {...}}].
+ *
+ * kogei-camera/1:
+ *   format, software, grid, reference {path, sha256}, method, K, centred, B, mean and
+ *   rgb_mean (centred only), M, M2, A (= B M M2, 61 x 3) and offset (the pca map),
+ *   methods {name: {available, terms, ridge|lambda_m_sigma2, pre (3 x 3), A (61 x T),
+ *     offset, loo_rmse}}: s = offset + A x(pre rho_site),
+ *   site {patches, ids, rho_r, rho0, residual (3 x k each), residual_rms,
+ *     residual_relative, condition_number, condition_number_equilibrated,
+ *     singular_values, rank},
+ *   devices, sources. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>

@@ -23,10 +23,14 @@
  *   rootpoly3  the same with the degree-3 terms as well (13 terms, see
  *              kg_method_terms). Both scale with exposure like the linear methods.
  *
- * All fits solve the normal equations on the moments X^T X and X^T S, which makes
- * leave-one-out validation (remove one patch, refit, predict it) cheap: K for
- * `--basis auto` and the method for `--method auto` are chosen by the mean
- * leave-one-out spectral RMSE on the chart.
+ * Validation is leave-one-out (remove one patch, refit, predict it), by the mean
+ * spectral RMSE on the chart: K for `--basis auto` and the method for `--method
+ * auto` are the simplest within 1 % (+1e-6) of the best. The regression methods
+ * are solved through the SVD of their m x T design matrix X (the degree-3 root
+ * terms are nearly collinear, and X^T X would square that), and their leave-one-out
+ * predictions follow in closed form from the leverages, s_i - r_i / (1 - h_ii),
+ * with lambda held fixed. PCA refits on the chart's moments without the patch (a
+ * 61 x 61 eigen-decomposition and a 3 x 3 solve per patch and every K).
  *
  * Site calibration. Another camera photographs the field chart (k patches): rho_r.
  * M2 = rho0 pinv(rho_r) (3 x 3) maps its RGB into the reference camera's, so a site
@@ -77,7 +81,8 @@ typedef struct kg_spectral_map {
 	double A[KG_NBANDS * KG_CALIB_MAX_TERMS]; /* 61 x T, row-major */
 	double offset[KG_NBANDS];                 /* zero except centred pca */
 	double lambda;      /* ridge added to X^T X (wiener: m sigma^2) */
-	double cond;        /* condition number of X^T X + lambda I */
+	double cond;        /* condition number of X (m x T; pca: of rho, centred
+	                     * when centred) */
 	double fit_rmse;    /* mean spectral RMSE over the chart, in sample */
 	double loo_rmse;    /* mean leave-one-out spectral RMSE (NAN if not run) */
 	double loo_de00;    /* mean leave-one-out CIEDE2000 under D65 (NAN if not run) */
@@ -95,11 +100,13 @@ typedef struct kg_reference_options {
 	double ridge;       /* lambda >= 0 for pca, linear and root-polynomial */
 	double noise_sigma; /* wiener's camera noise (0..1 scale), > 0 */
 	kg_method method;   /* the default method of the file; AUTO: lowest LOO error */
+	double max_cond;    /* collinearity limit for both charts (see kg_camera_fit) */
 	const char *const *exclude; /* ids left out of both charts, or NULL */
 	int nexclude;
 } kg_reference_options;
 
-/* K = 3, uncentred, ridge 0, noise_sigma 0.01, method pca. */
+/* K = 3, uncentred, ridge 0, noise_sigma 0.01, method pca, max_cond
+ * KG_CALIB_MAX_COND. */
 void kg_reference_options_default(kg_reference_options *o);
 
 /* Where an input came from: path, sha256 and the CGATS keywords (devices,
@@ -113,8 +120,9 @@ typedef struct kg_calib_source {
 	char **keyword_values;
 } kg_calib_source;
 
-/* Mean LOO spectral RMSE when K leaves the choice of --basis auto. */
-#define KG_CALIB_K_TOLERANCE 0.01 /* smallest K within 1 % (+1e-6) of the best */
+/* --basis auto and --method auto take the simplest candidate whose mean LOO RMSE is
+ * within this fraction (+1e-6) of the best. */
+#define KG_CALIB_K_TOLERANCE 0.01
 
 typedef struct kg_reference {
 	/* the PCA model */
@@ -161,14 +169,15 @@ typedef struct kg_reference {
 } kg_reference;
 
 /* Pair spectra and RGB by SAMPLE_ID into one patch set (spectra + rgb), in the order
- * of `spectra`. Patches without RGB are left out; none in common, duplicate ids or
- * non-finite values are errors naming the files and ids. */
+ * of `spectra`. Patches missing from either are left out; no id in common and
+ * duplicate ids are errors naming the files and ids. */
 int kg_calib_pair(const kg_patchset *spectra, const kg_patchset *rgb, kg_patchset **out,
                   kg_err *err);
 
 /* Fit everything on a training chart (spectra + rgb) for a field chart (rgb; may be
- * the training set itself). Refuses a chart whose rho is rank deficient, clipped or
- * non-finite values, K out of range. */
+ * the training set itself). Refused (KG_EINVAL, naming the patches): non-finite or
+ * clipped values, near-black field patches, nearly collinear RGB (the site test of
+ * kg_camera_fit, on both charts), too few patches, options out of range. */
 int kg_reference_fit(const kg_patchset *train, const kg_patchset *field,
                      const kg_reference_options *opt, kg_reference **out, kg_err *err);
 /* Read the inputs and fit: spectra from CGATS (SPEC_*) or a `patch,name,<nm>...` CSV,
@@ -179,7 +188,7 @@ int kg_reference_fit_files(const char *spectra_path, const char *rgb_path,
                            kg_reference **out, kg_err *err);
 void kg_reference_free(kg_reference **ref);
 
-/* "format": "kogei-reference/1" (see docs/formats or calib/json.c). */
+/* "format": "kogei-reference/1"; the keys are listed at the top of calib/json.c. */
 int kg_reference_save(const kg_reference *ref, const char *path, kg_err *err);
 int kg_reference_load(const char *path, kg_reference **out, kg_err *err);
 
@@ -187,8 +196,9 @@ int kg_reference_load(const char *path, kg_reference **out, kg_err *err);
 
 /* Defaults of kg_camera_options. The condition number tested is that of rho_r
  * with each channel (row) scaled to unit RMS, so a channel's gain (white balance,
- * exposure) does not count as collinearity: a ColorChecker 24 gives about 5-10,
- * only its six neutral patches give > 1000. */
+ * exposure) does not count as collinearity. Measured (noise-free simulation): the
+ * ColorChecker 24 gives 10 (Nikon D5100 under D65, Canon 5D Mark II under A), its
+ * six neutral patches alone 1900. */
 #define KG_CALIB_MAX_COND 100.0
 #define KG_CALIB_CLIP_LEVEL 0.98  /* a channel at or above this is clipped */
 #define KG_CALIB_BLACK_LEVEL 0.01 /* a patch whose brightest channel is below is black */
@@ -289,7 +299,7 @@ int kg_reference_kernel_desc(const kg_reference *ref, kg_method m, kg_est_desc *
 int kg_camera_kernel_desc(const kg_camera *cam, kg_method m, kg_est_desc *desc,
                           double pre[9], kg_err *err);
 
-/* "format": "kogei-camera/1". */
+/* "format": "kogei-camera/1"; the keys are listed at the top of calib/json.c. */
 int kg_camera_save(const kg_camera *cam, const char *path, kg_err *err);
 int kg_camera_load(const char *path, kg_camera **out, kg_err *err);
 

@@ -11,7 +11,7 @@ static const char usage_reference[] =
 	"kogei calib reference --spectra S.cgats|S.csv --rgb P.cgats -o REF.json\n"
 	"                      [--field-rgb F.cgats] [--basis K|auto] [--centred]\n"
 	"                      [--ridge L] [--noise SIGMA] [--method NAME|auto]\n"
-	"                      [--exclude ID[,ID...]]\n"
+	"                      [--max-cond C] [--exclude ID[,ID...]]\n"
 	"  Reference calibration (DESIGN.md section 1, step 1). The chart's spectra S\n"
 	"  (CGATS SPEC_* fields, or a patch,name,<nm>... CSV table) and the reference\n"
 	"  camera's linear RGB rho (RGB_R RGB_G RGB_B) are matched by SAMPLE_ID. Fitted:\n"
@@ -27,8 +27,8 @@ static const char usage_reference[] =
 	"  default 0.01). rho0, the reference camera's values of the field chart, come\n"
 	"  from --field-rgb, else from --rgb. --exclude leaves patches out of both.\n"
 	"  Refused: clipped (a channel >= 0.98) or non-finite patches, near-black field\n"
-	"  patches (< 0.01), nearly collinear RGB. Writes kogei-reference/1 JSON and\n"
-	"  prints the leave-one-out table.";
+	"  patches (< 0.01), nearly collinear RGB (as in calib camera; limit C, default\n"
+	"  100). Writes kogei-reference/1 JSON and prints the leave-one-out table.";
 
 static const char usage_camera[] =
 	"kogei calib camera --reference REF.json --rgb P.cgats -o CAM.json\n"
@@ -147,6 +147,7 @@ int kg_cmd_calib_reference(int argc, char **argv)
 		{"ridge", required_argument, NULL, 'l'},
 		{"noise", required_argument, NULL, 'n'},
 		{"method", required_argument, NULL, 'm'},
+		{"max-cond", required_argument, NULL, 'C'},
 		{"exclude", required_argument, NULL, 'x'},
 		{"output", required_argument, NULL, 'o'},
 		{"help", no_argument, NULL, 'h'},
@@ -179,6 +180,11 @@ int kg_cmd_calib_reference(int argc, char **argv)
 			if (parse_double(optarg, &opt.ridge) || opt.ridge < 0)
 				return kg_cli_usage_error(usage_reference,
 				                          "--ridge %s: expected a number >= 0", optarg);
+			break;
+		case 'C':
+			if (parse_double(optarg, &opt.max_cond) || opt.max_cond < 1)
+				return kg_cli_usage_error(usage_reference,
+				                          "--max-cond %s: expected a number >= 1", optarg);
 			break;
 		case 'n':
 			if (parse_double(optarg, &opt.noise_sigma) || opt.noise_sigma <= 0)

@@ -416,7 +416,7 @@ static int data_line(parser *ps, tokens *tk, int lineno, kg_err *err)
 			snprintf(note, sizeof(note), "; NUMBER_OF_FIELDS (line %d) says %d",
 			         ps->fields_line, ps->declared_fields);
 		return kg_fail(err, KG_EINVAL, "%s: line %d: set %d has %d values, expected %d "
-		               "(one per field, %s ... %s%s)", ps->path, lineno, t->nsets + 1, tk->n,
+		               "(one per field, %.60s ... %.60s%s)", ps->path, lineno, t->nsets + 1, tk->n,
 		               t->nfields, t->fields[0], t->fields[t->nfields - 1], note);
 	}
 	char **cells = malloc(sizeof(*cells) * (size_t)t->nfields);
@@ -580,10 +580,10 @@ int kg_cgats_keyword_number(const kg_cgats_table *t, const char *name, double *o
 		if (kg_cgats_parse_number(kw->value, out) == 0)
 			return 0;
 		if (kw->line > 0)
-			return kg_fail(err, KG_EINVAL, "%s: line %d: keyword %s: expected a number, "
+			return kg_fail(err, KG_EINVAL, "%s: line %d: keyword %.60s: expected a number, "
 			               "found '%.40s'%s", t->path, kw->line, name, kw->value,
 			               not_a_number_hint(kw->value));
-		return kg_fail(err, KG_EINVAL, "%s: keyword %s: expected a number, found '%.40s'%s",
+		return kg_fail(err, KG_EINVAL, "%s: keyword %.60s: expected a number, found '%.40s'%s",
 		               t->path, name, kw->value, not_a_number_hint(kw->value));
 	}
 	return kg_fail(err, KG_ENOENT, "%s: keyword %s: missing", t->path, name);
@@ -607,10 +607,10 @@ int kg_cgats_number(const kg_cgats_table *t, int set, int field, double *out,
 	if (kg_cgats_parse_number(c, out) == 0)
 		return 0;
 	if (t->set_lines[set] > 0)
-		return kg_fail(err, KG_EINVAL, "%s: line %d: field %s: expected a number, found "
+		return kg_fail(err, KG_EINVAL, "%s: line %d: field %.60s: expected a number, found "
 		               "'%.40s'%s", t->path, t->set_lines[set], t->fields[field], c,
 		               not_a_number_hint(c));
-	return kg_fail(err, KG_EINVAL, "%s: set %d: field %s: expected a number, found "
+	return kg_fail(err, KG_EINVAL, "%s: set %d: field %.60s: expected a number, found "
 	               "'%.40s'%s", t->path, set + 1, t->fields[field], c, not_a_number_hint(c));
 }
 
@@ -654,12 +654,12 @@ int kg_cgats_spectral_fields(const kg_cgats_table *t, int **fields, double **wl,
 			idx[k++] = i;
 	for (int i = 1; i < count; i++)
 		if (!(w[i] > w[i - 1])) {
-			int f = idx[i];
+			int f = idx[i], prev = idx[i - 1];
 			free(idx);
 			free(w);
-			return kg_fail(err, KG_EINVAL, "%s: field %s: spectral fields must increase in "
-			               "wavelength, found it after %s", t->path, t->fields[f],
-			               t->fields[f - 1]);
+			return kg_fail(err, KG_EINVAL, "%s: field %.60s: spectral fields must increase in "
+			               "wavelength, found it after %.60s", t->path, t->fields[f],
+			               t->fields[prev]);
 		}
 	/* The keyword grid is exact where names are rounded (Argyll's 3.33 nm steps), but
 	 * some files' keywords disagree with their fields: trust it only when it matches. */
@@ -1104,8 +1104,8 @@ int kg_patchset_extra_index(const kg_patchset *ps, const char *name)
 	return -1;
 }
 
-/* Fill dst[n][3] from three fields named prefix+suffix. Returns 0 when none of the
- * three exist (*present = 0), an error when only some do. */
+/* Fill *dst (nsets x 3) from the three named fields and mark them used. Leaves *dst
+ * NULL when none of the three exist; an error when only some do. */
 static int read_triplet(const kg_cgats_table *t, const char *const names[3],
                         double (**dst)[3], int *used, kg_err *err)
 {

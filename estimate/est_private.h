@@ -19,6 +19,8 @@ typedef struct est_map {
 	int clamp;   /* negative values are set to 0 (spectra) */
 	float *a;    /* nb x T, row-major (matrix kernels) */
 	float *off;  /* nb */
+	float *a8;   /* nb x T x 8: each coefficient repeated for 8 lanes */
+	float *off8; /* nb x 8 */
 	/* Tables for writing 8 pixels of BIP output at once: output vector v covers
 	 * elements 8v..8v+7 of the 8*nb values, element j being band j % nb of pixel
 	 * j / nb. */
@@ -109,17 +111,6 @@ void est_dsp_init_avx2(est_dsp *dsp);
 int est_scratch_init(est_scratch *s);
 void est_scratch_fini(est_scratch *s);
 
-/* Stage one of the optimised kernels: flags and terms of m pixels into s->terms
- * (term t of pixel i at t * (EST_CHUNK + 16) + i; lanes m..m+15 zeroed) and
- * s->flags; counts the flagged pixels. */
-void est_stage_terms(const est_plan *p, est_scratch *s, const float *rgb, size_t m,
-                     est_counts *c);
-/* The same for a LUT: node offsets and corner weights. */
-void est_stage_lut(const est_plan *p, est_scratch *s, const float *rgb, size_t m,
-                   est_counts *c);
-/* Final per-pixel step of the optimised kernels: mask bits and clamped-pixel count. */
-void est_finish_mask(const est_scratch *s, size_t m, uint8_t *mask, est_counts *c);
-
 #define EST_TSTRIDE (EST_CHUNK + 16)
 
 static inline int est_kind(const kg_est_kernel *k)
@@ -137,9 +128,34 @@ static inline unsigned est_pixel_flags(const float *rgb, float clip)
 	return 0;
 }
 
+/* Cube root of x >= 0 (0 below 2^-120), within about 1 ulp: a first guess from the
+ * bits of x, then three Newton steps in double. Written out step by step because
+ * the optimised kernels repeat exactly these operations on 8 lanes, which keeps the
+ * two bit-identical (libm's cbrtf has no vector twin and is slower). */
+#define EST_CBRT_MAGIC 709958130 /* (127 - 127/3 - 0.0330624) * 2^23 */
+static inline float est_cbrtf(float x)
+{
+	if (!(x >= 0x1p-120f))
+		return 0.0f;
+	int32_t i;
+	memcpy(&i, &x, sizeof(i));
+	float third = (float)i * (1.0f / 3.0f);
+	int32_t j = (int32_t)third + EST_CBRT_MAGIC;
+	float guess;
+	memcpy(&guess, &j, sizeof(guess));
+	double y = guess, xd = x;
+	for (int k = 0; k < 3; k++) {
+		double y2 = y * y;
+		double num = y2 * y - xd;
+		double den = 3.0 * y2;
+		y = y - num / den;
+	}
+	return (float)y;
+}
+
 /* Terms of a matrix method; a flagged pixel gets NaN terms so that every output
  * computed from them is NaN. Root terms use max(0, channel); the cube roots are
- * formed from the channels' cube roots (3 cbrtf calls instead of 7). */
+ * formed from the channels' cube roots. */
 static inline void est_pixel_terms(kg_est_method m, const float *rgb, unsigned flags,
                                    float *t)
 {
@@ -160,7 +176,7 @@ static inline void est_pixel_terms(kg_est_method m, const float *rgb, unsigned f
 	t[5] = sqrtf(rp * bp);
 	if (m == KG_EST_ROOTPOLY2)
 		return;
-	float cr = cbrtf(rp), cg = cbrtf(gp), cb = cbrtf(bp);
+	float cr = est_cbrtf(rp), cg = est_cbrtf(gp), cb = est_cbrtf(bp);
 	t[6] = cr * (cg * cg);
 	t[7] = cg * (cb * cb);
 	t[8] = cr * (cb * cb);

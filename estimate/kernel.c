@@ -59,6 +59,8 @@ static void map_fini(est_map *m)
 {
 	free(m->a);
 	free(m->off);
+	free(m->a8);
+	free(m->off8);
 	free(m->bip_coef);
 	free(m->bip_off);
 	free(m->bip_pix);
@@ -87,15 +89,23 @@ static int map_init_matrix(est_map *m, int nb, int nt, int clamp, const double *
 	m->clamp = clamp;
 	m->a = alloc_aligned(sizeof(float) * nb * nt);
 	m->off = alloc_aligned(sizeof(float) * nb);
+	m->a8 = alloc_aligned(sizeof(float) * nb * nt * 8);
+	m->off8 = alloc_aligned(sizeof(float) * nb * 8);
 	m->bip_coef = alloc_aligned(sizeof(float) * nb * nt * 8);
 	m->bip_off = alloc_aligned(sizeof(float) * nb * 8);
 	m->bip_pix = alloc_aligned(sizeof(int32_t) * nb * 8);
-	if (!m->a || !m->off || !m->bip_coef || !m->bip_off || !m->bip_pix)
+	if (!m->a || !m->off || !m->a8 || !m->off8 || !m->bip_coef || !m->bip_off || !m->bip_pix)
 		return KG_ENOMEM;
 	for (int i = 0; i < nb * nt; i++)
 		m->a[i] = (float)a[i];
 	for (int o = 0; o < nb; o++)
 		m->off[o] = off ? (float)off[o] : 0.0f;
+	for (int o = 0; o < nb; o++)
+		for (int l = 0; l < 8; l++) {
+			m->off8[o * 8 + l] = m->off[o];
+			for (int t = 0; t < nt; t++)
+				m->a8[(o * nt + t) * 8 + l] = m->a[o * nt + t];
+		}
 	for (int v = 0; v < nb; v++) {
 		for (int l = 0; l < 8; l++) {
 			int j = 8 * v + l, p = j / nb, o = j % nb;

@@ -84,46 +84,6 @@ static void ref_block(const est_plan *p, est_scratch *s, const float *rgb, size_
 	}
 }
 
-void est_stage_terms(const est_plan *p, est_scratch *s, const float *rgb, size_t m,
-                     est_counts *c)
-{
-	int nt = p->k->nterms;
-	for (size_t i = 0; i < m; i++) {
-		float t[KG_EST_MAX_TERMS];
-		unsigned flags = est_pixel_flags(rgb + 3 * i, p->clip);
-		count_flags(flags, c);
-		s->flags[i] = (uint8_t)flags;
-		est_pixel_terms(p->k->method, rgb + 3 * i, flags, t);
-		for (int j = 0; j < nt; j++)
-			s->terms[j * EST_TSTRIDE + i] = t[j];
-	}
-	for (int j = 0; j < nt; j++)
-		memset(s->terms + j * EST_TSTRIDE + m, 0, 16 * sizeof(float));
-	memset(s->clampbits, 0, EST_CHUNK / 8);
-}
-
-void est_stage_lut(const est_plan *p, est_scratch *s, const float *rgb, size_t m,
-                   est_counts *c)
-{
-	for (size_t i = 0; i < m; i++) {
-		unsigned flags = est_pixel_flags(rgb + 3 * i, p->clip);
-		count_flags(flags, c);
-		s->flags[i] = (uint8_t)flags;
-		s->cell[i] = est_lut_cell(p->k, rgb + 3 * i, flags, s->cw + 8 * i);
-	}
-	memset(s->clampbits, 0, EST_CHUNK / 8);
-}
-
-void est_finish_mask(const est_scratch *s, size_t m, uint8_t *mask, est_counts *c)
-{
-	for (size_t i = 0; i < m; i++) {
-		unsigned clamped = (s->clampbits[i / 8] >> (i % 8)) & 1;
-		c->clamped_pixels += clamped;
-		if (mask)
-			mask[i] = (uint8_t)(s->flags[i] | (clamped ? KG_EST_MASK_CLAMPED : 0));
-	}
-}
-
 int est_scratch_init(est_scratch *s)
 {
 	memset(s, 0, sizeof(*s));
@@ -138,6 +98,8 @@ int est_scratch_init(est_scratch *s)
 		est_scratch_fini(s);
 		return KG_ENOMEM;
 	}
+	/* transposes read whole groups of 8 rows, past the last pixel of a chunk */
+	memset(s->rows, 0, sizeof(float) * 64 * EST_CHUNK);
 	return 0;
 }
 

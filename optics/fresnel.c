@@ -4,10 +4,10 @@
  * w = a + ib = sqrt(eta^2 - s^2) (principal root: a, b >= 0 for k >= 0):
  *   r_s = (c - w) / (c + w),  r_p = (eta^2 c - w) / (eta^2 c + w).
  * Three things keep this accurate from normal incidence to grazing and for large k:
- *   - eta^2 - s^2 = (n^2 - k^2 - n0^2 + (n0 c)^2) / n0^2 is summed from exact products
- *     (fma) with compensated addition, so it is right to about one rounding even when its terms
- *     nearly cancel (small |eta| at normal incidence, eta near 1 at grazing, the
- *     critical angle of total internal reflection);
+ *   - eta^2 - s^2 = (n^2 - k^2 - n0^2 + (n0 c)^2) / n0^2 is summed from exact
+ *     products (fma) with compensated addition, so it is right to about one rounding
+ *     even when its terms nearly cancel (small |eta| at normal incidence, eta near 1
+ *     at grazing, the critical angle of total internal reflection);
  *   - each reflectance is |p - q|^2 / |p + q|^2 with the denominator written as the
  *     numerator plus 4 Re(p conj(q)), a sum of non-negative terms: for s,
  *     4 c a; for p, 4 c a (|w|^2 + s^2) (because eta^2 = w^2 + s^2). So 0 <= R <= 1
@@ -107,7 +107,7 @@ double kg_fresnel_conductor(double n, double k, double n0, double cos_i)
 }
 
 /* With k = 0 the conductor formula is the dielectric one: below the critical angle w
- * is real; beyond it w is imaginary and both ratios are exactly 1. */
+ * is real; beyond it w is imaginary (a = 0) and both reflectances are exactly 1. */
 void kg_fresnel_dielectric_sp(double n, double n0, double cos_i, double *rs, double *rp)
 {
 	kg_fresnel_conductor_sp(n, 0.0, n0, cos_i, rs, rp);

@@ -19,11 +19,13 @@
  * n0 (1 for air) and a medium of complex index n + ik (k >= 0 absorbs), for light
  * arriving at incidence angle theta given as cos_i = cos(theta) in [0, 1] (0 is
  * grazing). rs and rp are the s- and p-polarised reflectances; the unpolarised
- * reflectance is their mean. Exact (no approximation), accurate to a few 1e-16 from
- * normal incidence to grazing and for large k (no tan(theta), no subtraction of
- * nearly equal terms). Total internal reflection (n0 > n, k = 0) gives 1. An interface
+ * reflectance is their mean. Exact equations (no approximation), evaluated to within
+ * about 1e-15 from normal incidence to grazing, for k up to 50 and more, and at the
+ * critical angle (how: fresnel.c); 0 <= R <= 1 holds in floating point, and R = 1
+ * at cos_i = 0. Total internal reflection (n0 > n, k = 0) gives 1. An interface
  * between identical media (n = n0, k = 0) reflects nothing, at every angle.
- * Invalid arguments (n < 0, k < 0, n0 <= 0, cos_i outside [0, 1], NaN) give NaN. */
+ * Invalid arguments (n < 0, k < 0, n = k = 0, n0 <= 0, cos_i outside [0, 1], NaN)
+ * give NaN. */
 void kg_fresnel_conductor_sp(double n, double k, double n0, double cos_i, double *rs,
                              double *rp);
 double kg_fresnel_conductor(double n, double k, double n0, double cos_i);
@@ -43,9 +45,12 @@ void kg_nk_reflectance(const kg_nk *nk, double cos_i, kg_spectrum *out);
 
 /* The Lorentz-Drude model of A. D. Rakic, A. B. Djurisic, J. M. Elazar and
  * M. L. Majewski, "Optical properties of metallic films for vertical-cavity
- * optoelectronic devices", Applied Optics 37(22), 5271-5283 (1998), Table 1, for
- * element "Ag", "Au" or "Cu": n + ik at one wavelength, or sampled at the band
- * centres. Unknown elements are refused (KG_ENOTSUP). */
+ * optoelectronic devices", Applied Optics 37(22), 5271-5283 (1998) (its table of LD
+ * parameters), for element "Ag", "Au" or "Cu" (any case): n + ik at one wavelength,
+ * or sampled at the band centres. Unknown elements are refused (KG_ENOTSUP).
+ * In the visible the model departs from Johnson & Christy's (1972) measurements:
+ * normal-incidence reflectance 0.02-0.06 low for Ag and 0.04-0.06 low for Au
+ * (450-700 nm), up to 0.16 high for Cu at 520-590 nm (tests/optics/test_nk.c). */
 int kg_nk_rakic1998_ld_at(const char *element, double lambda_nm, double *n, double *k,
                           kg_err *err);
 int kg_nk_rakic1998_ld(const char *element, kg_nk *out, kg_err *err);
@@ -91,16 +96,20 @@ double kg_ts_geometry(const double N[3], const double V[3], const double L[3]);
 
 /* The gloss lobe: the Torrance-Sparrow BRDF without its Fresnel factor,
  * D(N.H; m) G / (4 (N.L)(N.V)), in 1/sr. Multiply by F(lambda) at the facet angle
- * *cos_vh = V.H (may be NULL). Its directional albedo, int f (N.V) dw_V over the
- * viewing hemisphere, is at most 1 for every L and m (shadowing only removes
- * energy), so F times the lobe never reflects more than F. 0 below the horizon. */
+ * *cos_vh = V.H (may be NULL). Times (N.L) it is the paper's D G F / cos(theta_r)
+ * term; the 1/4 comes with D normalised as above. Its directional albedo,
+ * int f (N.V) dw_V over the viewing hemisphere, is at most 1 for every L and m (the
+ * V-groove term G never exceeds a masking function that conserves projected area;
+ * checked numerically in tests/optics/test_lobes.c), so F times the lobe never
+ * reflects more than F. 0 below the horizon (*cos_vh = 1 there). */
 double kg_lobe_gloss(const double N[3], const double V[3], const double L[3], double m,
                      double *cos_vh);
 
 /* The mirror lobe: a narrow cone of angular width w (radians, > 0) around the mirror
  * direction of L, exp(-(delta/w)^2) / (pi w^2 (N.V)), delta being the angle between V
  * and the mirror direction; in 1/sr, multiply by F at *cos_vh = V.H. It tends to the
- * BRDF of a perfect mirror as w -> 0, and its directional albedo is at most 1. */
+ * BRDF of a perfect mirror as w -> 0, and its directional albedo is at most 1
+ * (the Gaussian's integral over the sphere is below pi w^2). */
 double kg_lobe_mirror(const double N[3], const double V[3], const double L[3], double w,
                       double *cos_vh);
 
@@ -145,7 +154,8 @@ int kg_material_validate(const kg_material *mat, kg_err *err);
 /* Reflectance spectrum at incidence theta (radians, 0 = normal, up to pi/2) from
  * air, each band in [0, 1]:
  *   metal:      F(theta), the unpolarised Fresnel reflectance of n + ik;
- *   alloy:      sum_i c_i F_i(theta) (the paper's eq. 3/4, fractions c_i);
+ *   alloy:      sum_i c_i F_i(theta) (the paper's eq. 3/4, fractions c_i; divided
+ *               by sum_i c_i, which validation keeps within 1e-6 of 1);
  *   dielectric: F(theta) + (1 - F(theta)) body, the surface reflection plus the part
  *               of the transmitted light the body returns (internal reflections at
  *               the surface on the way out are neglected).

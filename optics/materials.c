@@ -110,14 +110,21 @@ static void surface_fresnel(const kg_material *mat, double cos_i, kg_spectrum *o
 	case KG_MATERIAL_METAL:
 		kg_nk_reflectance(&mat->nk, cos_i, out);
 		return;
-	case KG_MATERIAL_ALLOY:
+	case KG_MATERIAL_ALLOY: {
+		/* weights divided by their sum (within 1e-6 of 1), so that a sum slightly
+		 * above 1 cannot lift the reflectance above 1 */
+		double total = 0.0;
 		*out = kg_spectrum_const(0.0);
 		for (int c = 0; c < mat->ncomponents; c++) {
 			kg_spectrum r;
 			kg_nk_reflectance(&mat->component[c].nk, cos_i, &r);
 			*out = kg_spectrum_axpy(out, mat->component[c].fraction, &r);
+			total += mat->component[c].fraction;
 		}
+		for (int i = 0; i < KG_NBANDS; i++)
+			out->v[i] /= total;
 		return;
+	}
 	case KG_MATERIAL_DIELECTRIC:
 		for (int i = 0; i < KG_NBANDS; i++)
 			out->v[i] = kg_fresnel_dielectric(mat->nk.n.v[i], 1.0, cos_i);

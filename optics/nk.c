@@ -291,6 +291,26 @@ static int split_key(const char *s, size_t len, char *key, size_t keysz, char *v
 
 enum { ITEM_NK, ITEM_N, ITEM_K };
 
+/* The DATA list item being read. */
+typedef struct yaml_item {
+	int kind;   /* ITEM_*, -1 before its type */
+	int indent; /* of its '-' (-1 before the first item) */
+	int line;   /* where it starts (0: none open) */
+	int has_data;
+	char type[128];
+} yaml_item;
+
+/* An item is complete when the next one starts or DATA ends: it must have had data. */
+static int finish_item(const char *name, yaml_item *it, kg_err *err)
+{
+	int line = it->line;
+	it->line = 0;
+	if (line && !it->has_data)
+		return kg_fail(err, KG_EINVAL, "%s: line %d: DATA item of type '%s' has no "
+		               "'data: |' block", name, line, it->type);
+	return 0;
+}
+
 /* Parse the lines of one `data: |` block (indented deeper than key_indent) into c,
  * or skip them when c is NULL; leaves *pos at the first line after the block. */
 static int read_block(const char *name, const char **pos, int *no, int key_indent,
@@ -358,19 +378,9 @@ int kg_nk_parse_yaml(const char *text, const char *name, unsigned flags, kg_nk *
 	column col[3] = {{0}};
 	int seen[3] = {0}, seen_line[3] = {0};
 	int r = 0, no = 0, in_data = 0, have_data_key = 0;
-	int item = -1, item_indent = -1, item_line = 0, item_has_data = 0;
-	char type[128] = "";
+	yaml_item it = {.kind = -1, .indent = -1};
 	const char *pos = text;
 	yaml_line l;
-
-	/* An item is complete when the next one starts or DATA ends. */
-#define FINISH_ITEM()                                                                  \
-	do {                                                                               \
-		if (item_line && !item_has_data && r == 0)                                     \
-			r = kg_fail(err, KG_EINVAL, "%s: line %d: DATA item of type '%s' has no "  \
-			            "'data: |' block", name, item_line, type);                     \
-		item_line = 0;                                                                 \
-	} while (0)
 
 	while (r == 0 && next_line(&pos, &no, &l)) {
 		if (is_blank(&l))
@@ -382,7 +392,8 @@ int kg_nk_parse_yaml(const char *text, const char *name, unsigned flags, kg_nk *
 		}
 		char key[64], val[128];
 		if (l.indent == 0) {
-			FINISH_ITEM();
+			if ((r = finish_item(name, &it, err)) != 0)
+				break;
 			if (l.len >= 3 && l.s[0] == '-' && l.s[1] == '-' && l.s[2] == '-')
 				continue; /* document marker */
 			if (!split_key(l.s, l.len, key, sizeof(key), val, sizeof(val))) {
@@ -405,12 +416,9 @@ int kg_nk_parse_yaml(const char *text, const char *name, unsigned flags, kg_nk *
 		size_t len = l.len;
 		int indent = l.indent;
 		if (s[0] == '-' && (len == 1 || s[1] == ' ')) {
-			FINISH_ITEM();
-			item = -1;
-			item_indent = indent;
-			item_line = l.no;
-			item_has_data = 0;
-			type[0] = '\0';
+			if ((r = finish_item(name, &it, err)) != 0)
+				break;
+			it = (yaml_item){.kind = -1, .indent = indent, .line = l.no};
 			s += len > 1 ? 2 : 1;
 			len -= len > 1 ? 2 : 1;
 			indent += 2;
@@ -421,7 +429,7 @@ int kg_nk_parse_yaml(const char *text, const char *name, unsigned flags, kg_nk *
 			}
 			if (len == 0)
 				continue;
-		} else if (item_indent < 0 || indent <= item_indent) {
+		} else if (it.indent < 0 || indent <= it.indent) {
 			r = kg_fail(err, KG_EINVAL, "%s: line %d: expected a DATA list item "
 			            "('- type: ...')", name, l.no);
 			break;
@@ -432,27 +440,27 @@ int kg_nk_parse_yaml(const char *text, const char *name, unsigned flags, kg_nk *
 			break;
 		}
 		if (strcmp(key, "type") == 0) {
-			snprintf(type, sizeof(type), "%s", val);
-			item = strcmp(val, "tabulated nk") == 0  ? ITEM_NK
-			       : strcmp(val, "tabulated n") == 0 ? ITEM_N
-			       : strcmp(val, "tabulated k") == 0 ? ITEM_K
-			                                         : -1;
-			if (item < 0) {
+			snprintf(it.type, sizeof(it.type), "%s", val);
+			it.kind = strcmp(val, "tabulated nk") == 0  ? ITEM_NK
+			          : strcmp(val, "tabulated n") == 0 ? ITEM_N
+			          : strcmp(val, "tabulated k") == 0 ? ITEM_K
+			                                            : -1;
+			if (it.kind < 0) {
 				r = kg_fail(err, KG_ENOTSUP, "%s: line %d: DATA type '%s' is not "
 				            "supported: expected 'tabulated nk', or 'tabulated n' with "
 				            "'tabulated k'", name, l.no, val);
 				break;
 			}
-			if (seen[item]) {
+			if (seen[it.kind]) {
 				r = kg_fail(err, KG_EINVAL, "%s: line %d: a second '%s' item (the first "
 				            "is at line %d): expected one", name, l.no, val,
-				            seen_line[item]);
+				            seen_line[it.kind]);
 				break;
 			}
-			seen[item] = 1;
-			seen_line[item] = l.no;
+			seen[it.kind] = 1;
+			seen_line[it.kind] = l.no;
 		} else if (strcmp(key, "data") == 0) {
-			if (item < 0) {
+			if (it.kind < 0) {
 				r = kg_fail(err, KG_EINVAL, "%s: line %d: 'data' before 'type' in a DATA "
 				            "item: expected '- type: tabulated ...' first", name, l.no);
 				break;
@@ -462,16 +470,16 @@ int kg_nk_parse_yaml(const char *text, const char *name, unsigned flags, kg_nk *
 				            "('data: |') of numbers on the following lines", name, l.no);
 				break;
 			}
-			r = read_block(name, &pos, &no, indent, item == ITEM_NK ? 3 : 2, &col[item],
-			               err);
-			item_has_data = 1;
+			r = read_block(name, &pos, &no, indent, it.kind == ITEM_NK ? 3 : 2,
+			               &col[it.kind], err);
+			it.has_data = 1;
 		} else if (val[0] == '|' || val[0] == '>') {
 			r = read_block(name, &pos, &no, indent, 0, NULL, err);
 		}
 		/* other keys (wavelength_range, ...) carry nothing tabulated data need */
 	}
-	FINISH_ITEM();
-#undef FINISH_ITEM
+	if (r == 0)
+		r = finish_item(name, &it, err);
 
 	if (r == 0 && !have_data_key)
 		r = kg_fail(err, KG_EINVAL, "%s: no top-level DATA key: expected a "

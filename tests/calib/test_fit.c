@@ -320,6 +320,7 @@ static void test_round_trip(const kg_patchset *chart, const char *dir)
 		      "reference sha256 recorded");
 	}
 	/* A wrong format is refused with the key and the expectation. */
+	kg_reference_free(&back);
 	ret = kg_reference_load(c1, &back, &err);
 	CHECK(ret == KG_EINVAL && strstr(err.msg, "expected \"kogei-reference/1\""), "%s", err.msg);
 	kg_camera_free(&cam);

@@ -223,6 +223,11 @@ static void validation(void)
 	CHECK(kg_material_reflectance(&m, 0, &r, &e) == KG_EINVAL, "reflectance validates");
 	m.component[0].fraction = 0.96 + 5e-7; /* within 1e-6 */
 	CHECK(kg_material_validate(&m, &e) == 0, "%s", e.msg);
+	/* and still no reflectance above 1 at grazing incidence */
+	CHECK(kg_material_reflectance(&m, M_PI_2, &r, &e) == 0 && in_unit_interval(&r),
+	      "fractions summing to 1 + 5e-7: R(90 deg) = %.17g", r.v[0]);
+	m.component[0].fraction = 0.96 - 5e-7;
+	reflectance_sweep(&m);
 	m.component[0].fraction = 0.96 + 2e-6;
 	CHECK(kg_material_validate(&m, &e) == KG_EINVAL, "1 + 2e-6 refused");
 	m.component[0].fraction = 1.01;
