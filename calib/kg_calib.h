@@ -306,4 +306,18 @@ int kg_camera_load(const char *path, kg_camera **out, kg_err *err);
 /* sha256 of a file as 64 hex digits. */
 int kg_calib_sha256_file(const char *path, char hex[65], kg_err *err);
 
+/* ==== A camera's kernel, ready to apply (apply_kernel.c) ========================== */
+
+/* Build the estimate/ kernel of a site camera for method m (KG_METHOD_AUTO: the
+ * camera file's default), and, when lut_size > 0, a lookup table of lut_size^3 nodes
+ * (2..KG_EST_LUT_MAX_N; 17, 33 or 65 reproduce the kernel at the nodes) over the
+ * values the kernel can receive from pixels in [0, 1]. pre receives the 3 x 3 matrix
+ * to apply to each pixel first (M2 for rootpoly2/3, else the identity); *pre_needed
+ * (may be NULL) is set to 0 when it is the identity. The kernel is independent of cam
+ * once built. Free with kg_est_kernel_free. */
+int kg_camera_kernel(const kg_camera *cam, kg_method m, int lut_size, kg_est_kernel **out,
+                     double pre[9], int *pre_needed, kg_err *err);
+
+/* ==== end of apply_kernel.c ======================================================= */
+
 #endif

@@ -34,5 +34,8 @@ int kg_cmd_sim_patches(int argc, char **argv);
 int kg_cmd_sim_image(int argc, char **argv);
 int kg_cmd_calib_reference(int argc, char **argv);
 int kg_cmd_calib_camera(int argc, char **argv);
+int kg_cmd_estimate(int argc, char **argv);
+int kg_cmd_classify(int argc, char **argv);
+int kg_cmd_bench(int argc, char **argv);
 
 #endif

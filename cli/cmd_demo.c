@@ -1,30 +1,35 @@
-/* `kogei demo`: the whole pipeline on the bundled default, writing everything a
- * person would look at into one folder. */
+/* `kogei demo`: the whole pipeline on a simulated session, writing everything a
+ * person would look at into one folder.
+ *
+ * The session is simulated from data a fresh machine has: the CIE 13.3 test colour
+ * samples of colord-data as the chart, two model cameras (fixtures/demo/), CIE D65
+ * and A, and the default material library. The steps call the same C APIs the
+ * commands use (calib/, estimate/), never the command line. */
 #include <getopt.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <unistd.h>
 
-#include "cli.h"
-#include "kg_optics.h"
+#include "demo.h"
 
 static const char usage_demo[] =
 	"kogei demo [-o DIR]\n"
-	"  Runs the bundled demonstration and writes its outputs to DIR (default out/demo):\n"
-	"  the paper's Fig. 7 for nami-shibuichi (table and heat map) and a swatch sheet of\n"
-	"  the default material library under D65.";
+	"  Runs a simulated session through the whole pipeline and writes its outputs to\n"
+	"  DIR (default out/demo): reference chart -> calib reference -> site chart under\n"
+	"  another camera and illuminant -> calib camera -> object image of the library's\n"
+	"  metals, alloys and lacquer -> estimate (61-band ENVI cube) -> classify (label\n"
+	"  map), then plots of estimated against true spectra per material, the confusion\n"
+	"  matrix and summary.md. Also the paper's Fig. 7 for nami-shibuichi (table and\n"
+	"  heat map) and a swatch sheet of the material library under D65.\n"
+	"  Needs " DEMO_CHART " (package colord-data).";
 
-typedef struct demo_ctx {
-	const char *dir;
-	kg_err err;
-	int nwritten;
-} demo_ctx;
-
-static char *demo_path(demo_ctx *d, const char *name)
+char *demo_path(demo_ctx *d, const char *name)
 {
 	return kg_path_join(d->dir, name);
 }
 
-static void wrote(demo_ctx *d, const char *path, const char *what)
+void demo_wrote(demo_ctx *d, const char *path, const char *what)
 {
 	printf("  wrote %-40s %s\n", path, what);
 	d->nwritten++;
@@ -33,7 +38,6 @@ static void wrote(demo_ctx *d, const char *path, const char *what)
 /* The paper's Fig. 7 and the swatch sheet of the library. */
 static int demo_materials(demo_ctx *d)
 {
-	char *lib_path = kg_cli_data_path("materials/default.json");
 	char *csv = demo_path(d, "fig7_shibuichi-nami.csv");
 	char *png = demo_path(d, "fig7_shibuichi-nami.png");
 	char *swatch = demo_path(d, "materials_d65.png");
@@ -42,28 +46,267 @@ static int demo_materials(demo_ctx *d)
 	double angles[18], table[KG_NBANDS * 18];
 	for (int j = 0; j < 18; j++)
 		angles[j] = 5.0 * j;
-	int ret = kg_material_library_load(lib_path, &lib, &d->err);
+	int ret = kg_material_library_load(d->library_path, &lib, &d->err);
 	if (!ret)
 		ret = kg_illuminant_by_name("D65", &d65, &d->err);
 	const kg_material *m = NULL;
 	if (!ret && !(m = kg_material_library_find(lib, "shibuichi-nami")))
-		ret = kg_fail(&d->err, KG_EINVAL, "%s: no material 'shibuichi-nami'", lib_path);
+		ret = kg_fail(&d->err, KG_EINVAL, "%s: no material 'shibuichi-nami'",
+		              d->library_path);
 	if (!ret)
 		ret = kg_model_table(m, angles, 18, table, &d->err);
 	if (!ret && !(ret = kg_model_table_write_csv(csv, angles, 18, table, &d->err)))
-		wrote(d, csv, "Fig. 7 table: reflectance by wavelength x incidence");
+		demo_wrote(d, csv, "Fig. 7 table: reflectance by wavelength x incidence");
 	if (!ret && !(ret = kg_model_figure(png, "shibuichi-nami (Ag 25.0 / Cu 74.9 / Au 0.1)",
 	                                    angles, 18, table, d65, &d->err)))
-		wrote(d, png, "Fig. 7 heat map with the reflected D65 colour");
+		demo_wrote(d, png, "Fig. 7 heat map with the reflected D65 colour");
 	if (!ret && !(ret = kg_swatch_sheet(swatch, lib, d65, &d->err)))
-		wrote(d, swatch, "swatches of every library material, normal incidence, D65");
+		demo_wrote(d, swatch, "swatches of every library material, normal incidence, D65");
 	kg_material_library_free(&lib);
 	kg_illuminant_free(&d65);
-	free(lib_path);
 	free(csv);
 	free(png);
 	free(swatch);
 	return ret;
+}
+
+/* One camera photographing the chart: a patch file as `kogei sim patches` writes. */
+static int shoot_chart(demo_ctx *d, const kg_patchset *chart, const char *camera,
+                       const char *illuminant, const char *noise_text, uint64_t seed,
+                       const char *out, const char *what)
+{
+	kg_sim_noise noise;
+	kg_sim_capture cap;
+	char seed_text[32];
+	snprintf(seed_text, sizeof(seed_text), "%llu", (unsigned long long)seed);
+	const char *keywords[] = {
+		"ORIGINATOR", "kogei demo",
+		"DESCRIPTOR", "simulated camera readings of the chart (linear, 0..1)",
+		"CAMERA", camera,
+		"ILLUMINANT", illuminant,
+		"NOISE", noise_text,
+		"SEED", seed_text,
+		"SPECTRA", DEMO_CHART,
+		NULL,
+	};
+	int ret = kg_sim_noise_parse(noise_text, &noise, &d->err);
+	if (!ret)
+		ret = kg_sim_capture_load(&cap, camera, illuminant, DEMO_WHITE_LEVEL, &noise, 0,
+		                          &d->err);
+	if (!ret)
+		ret = kg_sim_write_patches(out, chart, &cap, seed, keywords, &d->err);
+	if (!ret)
+		demo_wrote(d, out, what);
+	return ret;
+}
+
+/* Steps 1 and 2: the reference chart through the reference camera, calib reference;
+ * the same chart through the site camera, calib camera. */
+static int demo_calibrate(demo_ctx *d)
+{
+	char *ref_rgb = demo_path(d, "reference_chart.cgats");
+	char *site_rgb = demo_path(d, "site_chart.cgats");
+	char *ref_json = demo_path(d, "reference.json");
+	char *cam_json = demo_path(d, "camera.json");
+	kg_patchset *chart = NULL;
+	kg_camera *fitted = NULL;
+	kg_mat *m2 = NULL;
+	int ret = access(DEMO_CHART, R_OK) == 0
+	              ? kg_sim_read_spectra(DEMO_CHART, 0, &chart, &d->err)
+	              : kg_fail(&d->err, KG_ENOENT,
+	                        "%s: cannot read it: the demo's chart comes from the Debian "
+	                        "package colord-data",
+	                        DEMO_CHART);
+	if (ret)
+		goto done;
+	d->npatches = chart->n;
+
+	printf("[1/6] reference calibration: %d patches of %s, model camera under %s\n",
+	       chart->n, DEMO_CHART, DEMO_REFERENCE_ILLUMINANT);
+	ret = shoot_chart(d, chart, d->reference_camera, DEMO_REFERENCE_ILLUMINANT,
+	                  DEMO_REFERENCE_NOISE, DEMO_SEED_REFERENCE, ref_rgb,
+	                  "the reference camera's chart readings (rho, rho0)");
+	kg_reference_options ropt;
+	kg_reference_options_default(&ropt);
+	if (!ret)
+		ret = kg_reference_fit_files(DEMO_CHART, ref_rgb, NULL, &ropt, &d->ref, &d->err);
+	if (!ret && !(ret = kg_reference_save(d->ref, ref_json, &d->err))) {
+		const kg_spectral_map *pca = &d->ref->maps[KG_METHOD_PCA];
+		printf("  PCA K = %d (energy %.4f), M by least squares; leave-one-out RMSE %.4f, "
+		       "dE00 %.2f\n",
+		       d->ref->K, d->ref->energy[d->ref->K - 1], pca->loo_rmse, pca->loo_de00);
+		demo_wrote(d, ref_json, "B, M, rho0 and the chart's residuals");
+	}
+	if (ret)
+		goto done;
+
+	printf("[2/6] site calibration: the same chart, another model camera under CIE %s, "
+	       "noise %s\n",
+	       DEMO_SITE_ILLUMINANT, DEMO_SITE_NOISE);
+	ret = shoot_chart(d, chart, d->site_camera, DEMO_SITE_ILLUMINANT, DEMO_SITE_NOISE,
+	                  DEMO_SEED_SITE, site_rgb, "the site camera's chart readings (rho_r)");
+	kg_camera_options copt;
+	kg_camera_options_default(&copt);
+	if (!ret)
+		ret = kg_camera_fit_files(ref_json, site_rgb, &copt, &fitted, &d->err);
+	if (!ret)
+		ret = kg_camera_save(fitted, cam_json, &d->err);
+	/* Go on from the file, as a later session would. */
+	if (!ret)
+		ret = kg_camera_load(cam_json, &d->cam, &d->err);
+	if (!ret)
+		ret = kg_mat_from(3, 3, d->cam->M2, &m2, &d->err);
+	if (!ret)
+		ret = kg_cond(m2, 0, &d->cond_m2, &d->err);
+	if (!ret) {
+		printf("  M2 = rho0 pinv(rho_r): condition number %.3g (site chart %.3g); "
+		       "residual %.2f %%\n",
+		       d->cond_m2, d->cam->cond, 100.0 * d->cam->residual_relative);
+		demo_wrote(d, cam_json, "M2 and the site fit");
+	}
+done:
+	kg_mat_free(&m2);
+	kg_camera_free(&fitted);
+	kg_patchset_free(&chart);
+	free(ref_rgb);
+	free(site_rgb);
+	free(ref_json);
+	free(cam_json);
+	return ret;
+}
+
+/* Step 3: the object, every sample of the library in the specular view of the site
+ * camera. Pixels outside the samples are set to NaN (no data), as a segmentation
+ * mask would leave them: estimate and classify flag them instead of labelling the
+ * background. */
+static int demo_object(demo_ctx *d)
+{
+	char *image = demo_path(d, "object.tif");
+	char *truth = demo_path(d, "object_truth.hdr");
+	char *labels = demo_path(d, "object_truth_labels.hdr");
+	kg_sim_material_set *set = NULL;
+	kg_sim_noise noise;
+	kg_sim_capture cap;
+	printf("[3/6] object: the library's samples at %g deg incidence, site camera under "
+	       "CIE %s\n",
+	       DEMO_ANGLE_DEG, DEMO_SITE_ILLUMINANT);
+	int ret = kg_sim_noise_parse(DEMO_SITE_NOISE, &noise, &d->err);
+	if (!ret)
+		ret = kg_sim_capture_load(&cap, d->site_camera, DEMO_SITE_ILLUMINANT,
+		                          DEMO_WHITE_LEVEL, &noise, 0, &d->err);
+	if (!ret)
+		ret = kg_sim_material_set_load(d->library_path, NULL, DEMO_ANGLE_DEG, &set, &d->err);
+	if (!ret) {
+		kg_sim_scene_desc desc = {
+			.materials = set->reflectance,
+			.material_names = (const char *const *)set->names,
+			.nmaterials = set->n,
+			.tile = DEMO_TILE,
+			.gap = DEMO_TILE / 4,
+			.columns = 5,
+			.background = 0.0,
+		};
+		ret = kg_sim_scene_new(&desc, &cap, DEMO_SEED_OBJECT, &d->scene, &d->err);
+	}
+	if (!ret) {
+		kg_sim_scene *s = d->scene;
+		for (long i = 0; i < (long)s->width * s->height; i++)
+			if (s->sample[i] < 0)
+				s->rgb[3 * i] = s->rgb[3 * i + 1] = s->rgb[3 * i + 2] = NAN;
+		ret = kg_sim_scene_write(s, image, KG_SIM_DEPTH_F32, truth, labels, &d->err);
+	}
+	if (!ret) {
+		printf("  %d materials, %dx%d pixels, noise %s\n", d->scene->nclasses - 1,
+		       d->scene->width, d->scene->height, DEMO_SITE_NOISE);
+		demo_wrote(d, image, "the site camera's image (float TIFF, NaN off the samples)");
+		demo_wrote(d, truth, "ground truth: true reflectance cube");
+		demo_wrote(d, labels, "ground truth: label map");
+	}
+	kg_sim_material_set_free(&set);
+	free(image);
+	free(truth);
+	free(labels);
+	return ret;
+}
+
+/* Step 4: the object image read back, estimated into a cube and classified, with
+ * the camera's default method (the paper's PCA, K = 3). */
+static int demo_estimate(demo_ctx *d)
+{
+	char *image = demo_path(d, "object.tif");
+	char *cube = demo_path(d, "cube.hdr");
+	char *labels = demo_path(d, "labels.hdr");
+	char *labels_json = demo_path(d, "labels.json");
+	char *labels_png = demo_path(d, "labels.png");
+	kg_image *img = NULL;
+	kg_est_kernel *kern = NULL;
+	kg_material_library *lib = NULL;
+	kg_est_material_set *set = NULL;
+	double pre[9];
+	int pre_needed = 0;
+	char stats[256];
+	kg_apply_options opt;
+	kg_apply_options_init(&opt);
+	opt.description = "kogei demo: the object's reflectance, estimated";
+
+	printf("[4/6] estimate and classify (method %s)\n", kg_method_name(d->cam->method));
+	int ret = kg_image_read(image, &img, &d->err);
+	if (!ret)
+		ret = kg_camera_kernel(d->cam, KG_METHOD_AUTO, 0, &kern, pre, &pre_needed, &d->err);
+	if (!ret) {
+		opt.pre = pre_needed ? pre : NULL;
+		ret = kg_estimate_image(kern, img, KG_EST_F32_BSQ, &opt, cube, &d->est_stats,
+		                        &d->err);
+	}
+	if (!ret) {
+		kg_est_stats_format(&d->est_stats, stats, sizeof(stats));
+		printf("  %s\n", stats);
+		demo_wrote(d, cube, "61-band reflectance cube (ENVI float32, BSQ) + cube_mask");
+	}
+	if (!ret)
+		ret = kg_material_library_load(d->library_path, &lib, &d->err);
+	if (!ret)
+		ret = kg_est_material_set_new(lib, d->library_path, NULL, 0, DEMO_ANGLE_DEG, &set,
+		                              &d->err);
+	if (!ret) {
+		kg_classify_info info = {
+			.calib = "camera.json",
+			.materials = d->library_path,
+			.method = kg_method_name(d->cam->method),
+			.image = "object.tif",
+		};
+		opt.description = NULL;
+		ret = kg_classify_image(kern, set, KG_EST_DIST_PLAIN, img, &opt, &info, labels,
+		                        &d->classes, &d->err);
+	}
+	if (!ret) {
+		printf("  %d materials at %g deg incidence, plain distance (eq. 11)\n", set->n,
+		       DEMO_ANGLE_DEG);
+		demo_wrote(d, labels, "label map (ENVI classification) + confidence, mask");
+		demo_wrote(d, labels_json, "classes, pixel counts, mean spectra, confidence");
+		demo_wrote(d, labels_png, "label map preview");
+	}
+	kg_est_material_set_free(&set);
+	kg_material_library_free(&lib);
+	kg_est_kernel_free(&kern);
+	kg_image_free(&img);
+	free(image);
+	free(cube);
+	free(labels);
+	free(labels_json);
+	free(labels_png);
+	return ret;
+}
+
+static void demo_free(demo_ctx *d)
+{
+	free(d->library_path);
+	free(d->reference_camera);
+	free(d->site_camera);
+	kg_reference_free(&d->ref);
+	kg_camera_free(&d->cam);
+	kg_sim_scene_free(&d->scene);
+	kg_classify_result_free(&d->classes);
 }
 
 int kg_cmd_demo(int argc, char **argv)
@@ -85,14 +328,31 @@ int kg_cmd_demo(int argc, char **argv)
 	}
 	if (optind != argc)
 		return kg_cli_usage_error(usage_demo, "unexpected argument '%s'", argv[optind]);
-	int ret = kg_mkdir_p(d.dir, &d.err);
+	d.library_path = kg_cli_data_path("materials/default.json");
+	d.reference_camera = kg_cli_data_path(DEMO_REFERENCE_CAMERA);
+	d.site_camera = kg_cli_data_path(DEMO_SITE_CAMERA);
+	int ret = d.library_path && d.reference_camera && d.site_camera
+	              ? kg_mkdir_p(d.dir, &d.err)
+	              : kg_fail(&d.err, KG_ENOMEM, "out of memory");
 	if (!ret) {
 		printf("kogei demo: writing to %s/\n", d.dir);
-		printf("[1/1] reflection models of the material library\n");
+		ret = demo_calibrate(&d);
+	}
+	if (!ret)
+		ret = demo_object(&d);
+	if (!ret)
+		ret = demo_estimate(&d);
+	if (!ret) {
+		printf("[5/6] reflection models of the material library\n");
 		ret = demo_materials(&d);
 	}
+	if (!ret) {
+		printf("[6/6] report: estimated against true spectra, confusion, summary\n");
+		ret = demo_report(&d);
+	}
+	demo_free(&d);
 	if (ret)
 		return kg_cli_error(&d.err, ret);
-	printf("kogei demo: done, %d files in %s/\n", d.nwritten, d.dir);
+	printf("kogei demo: done, %d outputs in %s/\n", d.nwritten, d.dir);
 	return KG_EXIT_OK;
 }

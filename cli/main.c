@@ -12,6 +12,9 @@ static const kg_command commands[] = {
 	{"sim image", kg_cmd_sim_image, "simulated camera image of a chart and material samples"},
 	{"calib reference", kg_cmd_calib_reference, "fit B, M and the other methods on a measured chart"},
 	{"calib camera", kg_cmd_calib_camera, "fit M2 for a site camera from its chart photograph"},
+	{"estimate", kg_cmd_estimate, "per-pixel 61-band reflectance cube of an image"},
+	{"classify", kg_cmd_classify, "per-pixel material labels among the declared materials"},
+	{"bench", kg_cmd_bench, "speed against error of every estimation method"},
 	{"demo", kg_cmd_demo, "run the whole pipeline on the bundled default"},
 };
 

@@ -15,16 +15,20 @@
 
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
 
+#include <cpuid.h>
 #include <immintrin.h>
 
 #define AVX2 __attribute__((target("avx2,f16c,popcnt")))
 #define INLINE_AVX2 __attribute__((target("avx2,f16c,popcnt"), always_inline)) static inline
 
+/* F16C through CPUID: not every compiler's __builtin_cpu_supports knows it. AVX2's
+ * check covers the OS saving the YMM registers, which F16C needs too. */
 int est_have_avx2(void)
 {
+	unsigned a, b, c, d;
 	__builtin_cpu_init();
-	return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("f16c") &&
-	       __builtin_cpu_supports("popcnt");
+	return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("popcnt") &&
+	       __get_cpuid(1, &a, &b, &c, &d) && (c & bit_F16C);
 }
 
 /* Lanes l with i + l < m, as a mask. */

@@ -39,7 +39,7 @@ struct kg_est_kernel {
 	double *mean;  /* 61, NULL when none */
 	est_map spec, wts;
 	int lut_n;
-	float lut_lo, lut_hi, lut_scale;
+	float lut_lo, lut_scale;
 };
 
 struct kg_est_classifier {
@@ -107,6 +107,9 @@ int est_dsp_init(est_dsp *dsp, kg_est_isa isa);
 void est_dsp_init_c(est_dsp *dsp);
 int est_have_avx2(void);
 void est_dsp_init_avx2(est_dsp *dsp);
+
+/* Zeroed memory aligned to 64 bytes (free with free()). */
+void *est_alloc_zeroed(size_t bytes);
 
 int est_scratch_init(est_scratch *s);
 void est_scratch_fini(est_scratch *s);

@@ -5,15 +5,6 @@
 
 #include "est_private.h"
 
-static void *alloc_aligned(size_t bytes)
-{
-	size_t n = (bytes + 63) & ~(size_t)63;
-	void *p = aligned_alloc(64, n ? n : 64);
-	if (p)
-		memset(p, 0, n ? n : 64);
-	return p;
-}
-
 int kg_est_method_terms(kg_est_method m)
 {
 	switch (m) {
@@ -87,13 +78,13 @@ static int map_init_matrix(est_map *m, int nb, int nt, int clamp, const double *
 {
 	m->nb = nb;
 	m->clamp = clamp;
-	m->a = alloc_aligned(sizeof(float) * nb * nt);
-	m->off = alloc_aligned(sizeof(float) * nb);
-	m->a8 = alloc_aligned(sizeof(float) * nb * nt * 8);
-	m->off8 = alloc_aligned(sizeof(float) * nb * 8);
-	m->bip_coef = alloc_aligned(sizeof(float) * nb * nt * 8);
-	m->bip_off = alloc_aligned(sizeof(float) * nb * 8);
-	m->bip_pix = alloc_aligned(sizeof(int32_t) * nb * 8);
+	m->a = est_alloc_zeroed(sizeof(float) * nb * nt);
+	m->off = est_alloc_zeroed(sizeof(float) * nb);
+	m->a8 = est_alloc_zeroed(sizeof(float) * nb * nt * 8);
+	m->off8 = est_alloc_zeroed(sizeof(float) * nb * 8);
+	m->bip_coef = est_alloc_zeroed(sizeof(float) * nb * nt * 8);
+	m->bip_off = est_alloc_zeroed(sizeof(float) * nb * 8);
+	m->bip_pix = est_alloc_zeroed(sizeof(int32_t) * nb * 8);
 	if (!m->a || !m->off || !m->a8 || !m->off8 || !m->bip_coef || !m->bip_off || !m->bip_pix)
 		return KG_ENOMEM;
 	for (int i = 0; i < nb * nt; i++)
@@ -228,7 +219,7 @@ static int map_init_lut(const kg_est_kernel *src, const est_map *sm, est_map *m,
 	m->nb = sm->nb;
 	m->clamp = sm->clamp;
 	m->stride = EST_PAD(sm->nb);
-	m->lut = alloc_aligned(sizeof(float) * m->stride * n * n * n);
+	m->lut = est_alloc_zeroed(sizeof(float) * m->stride * n * n * n);
 	if (!m->lut)
 		return KG_ENOMEM;
 	for (int z = 0; z < n; z++)
@@ -261,7 +252,6 @@ int kg_est_kernel_new_lut(const kg_est_kernel *src, int n, float lo, float hi,
 	k->method = KG_EST_LUT;
 	k->lut_n = n;
 	k->lut_lo = lo;
-	k->lut_hi = hi;
 	k->lut_scale = (float)(n - 1) / (hi - lo);
 	if ((rc = copy_basis(k, src->k, src->basis, src->mean)) < 0 ||
 	    (rc = map_init_lut(src, &src->spec, &k->spec, n, k)) < 0 ||

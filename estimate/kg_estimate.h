@@ -8,7 +8,9 @@
  *       KG_EST_ROOTPOLY2  r, g, b, sqrt(rg), sqrt(gb), sqrt(rb)       (T = 6)
  *       KG_EST_ROOTPOLY3  the above, then cbrt(r g^2), cbrt(g b^2), cbrt(r b^2),
  *                         cbrt(g r^2), cbrt(b g^2), cbrt(b r^2), cbrt(rgb)   (T = 13)
- *     (Finlayson, Mackiewicz & Hurlbert 2015, IEEE TIP 24(5)). The paper's
+ *     (Finlayson, Mackiewicz & Hurlbert 2015, IEEE TIP 24(5)); negative channels
+ *     count as 0 inside the roots, and in float the cube-root terms are products of
+ *     the channels' own cube roots (within 2 ulp of the double terms). The paper's
  *     A = B M M2, direct linear regression and Wiener estimation are all KG_EST_LINEAR;
  *     the fitting is done in calib/, which hands the matrices over.
  *   - LUT kernels: a grid of N^3 nodes over [lo, hi]^3 holding the output of any
@@ -219,5 +221,143 @@ int kg_est_run_stream(const kg_est_job *job, const float *rgb, int width, int he
  * upper payload bits kept, overflow gives Inf, subnormals are exact. */
 uint16_t kg_f16_from_f32(float f);
 float kg_f32_from_f16(uint16_t h);
+
+/* ==== Images to files: cubes, masks and label maps (apply.c) =====================
+ *
+ * The glue between a kernel and the files of DESIGN.md section 3. It knows nothing
+ * of calibrations: the caller builds the kernel (calib/: kg_camera_kernel) and, for
+ * site maps of the root-polynomial methods, passes the 3 x 3 matrix applied to each
+ * pixel before the kernel. Rows go through kg_est_run_stream into the streaming ENVI
+ * writer, so the output cube is never held in memory; nothing appears under the
+ * output names unless every file of the call is complete.
+ *
+ * Files written for an output name OUT (e.g. "cube.hdr", data "cube.img"; side files
+ * are named from OUT without its extension, kg_apply_side_path):
+ *   estimate:  OUT                 the cube (f32: data type 4; f16: data type 12 with
+ *                                  "kogei sample format = ieee-half": the samples are
+ *                                  IEEE binary16 bit patterns, which only kogei reads
+ *                                  as such; weights: K bands plus "kogei basis" (61 x K,
+ *                                  row-major), "kogei mean" (61) and "kogei basis
+ *                                  wavelength" (61), so s = mean + basis w)
+ *              <stem>_mask.hdr     uint8, one band, the KG_EST_MASK_* bits per pixel
+ *   classify:  OUT                 ENVI Classification, uint8: 0 "unclassified"
+ *                                  (flagged pixels), j + 1 the j-th material
+ *              <stem>_confidence.hdr  float32, the margin to the runner-up (NaN when
+ *                                  flagged, +Inf with a single material)
+ *              <stem>_mask.hdr     as for estimate
+ *              <stem>.json         classes, counts, mean spectra, confidence
+ *              <stem>.png          preview: class colours, flagged pixels grey, legend */
+
+#include <stdio.h>
+
+#include "kg_core.h"
+
+/* Images with at least this many pixels report progress (when asked to). */
+#define KG_APPLY_PROGRESS_PIXELS 4000000L
+
+typedef struct kg_apply_options {
+	/* 3 x 3 row-major matrix applied to every pixel's RGB before the kernel (the M2
+	 * of a root-polynomial site map), or NULL for none. */
+	const double *pre;
+	/* A pixel with a channel >= clip_level, tested on the image's values before pre,
+	 * is flagged KG_EST_MASK_CLIPPED; INFINITY disables the test. */
+	float clip_level;
+	int threads;    /* 0: online CPUs */
+	int block_rows; /* 0: automatic (kg_est_job) */
+	kg_est_isa isa;
+	/* Rows done / total and throughput for images of KG_APPLY_PROGRESS_PIXELS or
+	 * more; NULL: silent. */
+	FILE *progress;
+	/* Written as the cube's ENVI "description" (no braces), or NULL. */
+	const char *description;
+} kg_apply_options;
+
+/* pre NULL, clip_level 0.999, threads 0, block_rows 0, isa AUTO, progress NULL,
+ * description NULL. */
+void kg_apply_options_init(kg_apply_options *o);
+
+/* A side file of an output: the output name without its extension (".hdr", ".img"
+ * or whatever follows the last '.' of the last path component) followed by suffix,
+ * e.g. ("labels.hdr", ".json") -> "labels.json". Caller frees *out. */
+int kg_apply_side_path(const char *out_path, const char *suffix, char **out, kg_err *err);
+
+/* Estimate a 3-channel image (kg_image_read, 0..1 scale) into the cube out_hdr in
+ * format (F32_BSQ, F32_BIP, F16_BSQ, F16_BIP or WEIGHTS; weights need a kernel with
+ * a basis) plus its mask file. Refused (KG_EINVAL): an image that is not 3-channel
+ * (a raw Bayer frame needs demosaicing first; the message says so). stats may be
+ * NULL. */
+int kg_estimate_image(const kg_est_kernel *k, const kg_image *img, kg_est_format format,
+                      const kg_apply_options *opt, const char *out_hdr,
+                      kg_est_stats *stats, kg_err *err);
+
+/* The basis of a kernel (61 x K, row-major) and its mean (61 values, zeros when it
+ * has none), i.e. what a consumer of a weights cube needs for s = mean + B w.
+ * KG_EINVAL when the kernel has no basis. */
+int kg_est_kernel_basis(const kg_est_kernel *k, double *basis, double *mean, kg_err *err);
+
+/* "pixels N, clipped N (p %), non-finite N (p %), clamped N (p %)" into buf. */
+void kg_est_stats_format(const kg_est_stats *s, char *buf, size_t size);
+
+/* The materials a scene declares, with their spectra. */
+typedef struct kg_est_material_set {
+	int n;
+	kg_est_material *materials; /* n entries; name and spectrum point into the set */
+	kg_spectrum *spectra;       /* reflectance at the set's angle */
+	char (*names)[KG_MATERIAL_NAME_MAX];
+	double angle_deg;
+} kg_est_material_set;
+
+/* The reflectance of library materials at incidence angle_deg (0..90, 0 = normal)
+ * (kg_material_reflectance): all of the library in file order when nonly == 0, else
+ * exactly the ones named in only, in that order. Unknown or repeated names, and more
+ * than KG_EST_MAX_MATERIALS, are refused naming them and the library's materials.
+ * `library` names the library in messages (may be NULL). */
+int kg_est_material_set_new(const kg_material_library *lib, const char *library,
+                            const char *const *only, int nonly, double angle_deg,
+                            kg_est_material_set **out, kg_err *err);
+void kg_est_material_set_free(kg_est_material_set **set);
+
+/* Per class of a label map. */
+typedef struct kg_class_summary {
+	char name[KG_MATERIAL_NAME_MAX];
+	uint64_t pixels;
+	double fraction; /* of all pixels of the image */
+	/* The spectrum of the class's mean RGB: for the (linear) pca kernel the mean of
+	 * the pixels' unclamped spectra, then negative bands set to 0. NaN if empty. */
+	double mean_spectrum[KG_NBANDS];
+	/* The margin to the runner-up (confidence band) over the class's pixels: mean,
+	 * median and 5th percentile (nearest rank). NaN if empty; +Inf with one material. */
+	double margin_mean, margin_median, margin_p5;
+} kg_class_summary;
+
+typedef struct kg_classify_result {
+	int nclasses;              /* materials; class j + 1 of the label map */
+	kg_class_summary *classes; /* nclasses entries */
+	uint64_t unclassified;     /* flagged pixels, label 0 */
+	kg_est_stats stats;
+} kg_classify_result;
+
+void kg_classify_result_free(kg_classify_result *r);
+
+/* What LABELS.json records about where the labels came from (each may be NULL). */
+typedef struct kg_classify_info {
+	const char *calib;     /* the camera file */
+	const char *materials; /* the material library */
+	const char *method;    /* e.g. "pca" */
+	const char *image;     /* the input image */
+} kg_classify_info;
+
+/* Classify every pixel of a 3-channel image among the materials of set (eq. 11 in
+ * the K-dim subspace of kernel k, which must have a basis; distance plain or
+ * scale-free) and write the label map out_hdr with its side files (see above).
+ * res (may be NULL) receives the summary; free it with kg_classify_result_free.
+ * Needs memory for 5 bytes per pixel beside the image (labels and margins, for the
+ * exact median and percentile). */
+int kg_classify_image(const kg_est_kernel *k, const kg_est_material_set *set,
+                      kg_est_distance distance, const kg_image *img,
+                      const kg_apply_options *opt, const kg_classify_info *info,
+                      const char *out_hdr, kg_classify_result *res, kg_err *err);
+
+/* ==== end of apply.c ============================================================ */
 
 #endif

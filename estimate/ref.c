@@ -84,22 +84,29 @@ static void ref_block(const est_plan *p, est_scratch *s, const float *rgb, size_
 	}
 }
 
+void *est_alloc_zeroed(size_t bytes)
+{
+	size_t n = bytes ? (bytes + 63) & ~(size_t)63 : 64; /* a multiple of the alignment */
+	void *p = aligned_alloc(64, n);
+	if (p)
+		memset(p, 0, n);
+	return p;
+}
+
 int est_scratch_init(est_scratch *s)
 {
 	memset(s, 0, sizeof(*s));
-	s->terms = aligned_alloc(64, sizeof(float) * KG_EST_MAX_TERMS * EST_TSTRIDE);
-	s->vals = aligned_alloc(64, sizeof(float) * 64 * EST_CHUNK);
-	s->rows = aligned_alloc(64, sizeof(float) * 64 * EST_CHUNK);
-	s->cell = aligned_alloc(64, sizeof(int32_t) * EST_CHUNK);
-	s->cw = aligned_alloc(64, sizeof(float) * 8 * EST_CHUNK);
-	s->flags = aligned_alloc(64, EST_CHUNK);
-	s->clampbits = aligned_alloc(64, EST_CHUNK / 8);
+	s->terms = est_alloc_zeroed(sizeof(float) * KG_EST_MAX_TERMS * EST_TSTRIDE);
+	s->vals = est_alloc_zeroed(sizeof(float) * 64 * EST_CHUNK);
+	s->rows = est_alloc_zeroed(sizeof(float) * 64 * EST_CHUNK);
+	s->cell = est_alloc_zeroed(sizeof(int32_t) * EST_CHUNK);
+	s->cw = est_alloc_zeroed(sizeof(float) * 8 * EST_CHUNK);
+	s->flags = est_alloc_zeroed(EST_CHUNK);
+	s->clampbits = est_alloc_zeroed(EST_CHUNK / 8);
 	if (!s->terms || !s->vals || !s->rows || !s->cell || !s->cw || !s->flags || !s->clampbits) {
 		est_scratch_fini(s);
 		return KG_ENOMEM;
 	}
-	/* transposes read whole groups of 8 rows, past the last pixel of a chunk */
-	memset(s->rows, 0, sizeof(float) * 64 * EST_CHUNK);
 	return 0;
 }
 

@@ -166,7 +166,10 @@ static int prepare(const kg_est_job *job, const float *rgb, int width, int heigh
 
 	int nt = job->threads ? (job->threads > MAX_THREADS ? MAX_THREADS : job->threads)
 	                      : default_threads();
-	size_t row_bytes = (size_t)width * (size_t)r->bands * r->elem;
+	/* a block's buffers: output, plus mask and confidence in stream mode */
+	size_t px_bytes = (size_t)r->bands * r->elem +
+	                  (stream ? 1 + (job->format == KG_EST_LABELS ? sizeof(float) : 0) : 0);
+	size_t row_bytes = (size_t)width * px_bytes;
 	size_t rows = job->block_rows ? (size_t)job->block_rows
 	                              : (OUTPUT_BYTES_PER_BLOCK + row_bytes - 1) / row_bytes;
 	if (!job->block_rows && !stream) {
@@ -277,10 +280,10 @@ static slot *slots_new(const run_state *r, int n)
 	if (!s)
 		return NULL;
 	size_t px = (size_t)r->block_rows * r->width;
-	size_t bytes = (px * r->bands * r->elem + 63) & ~(size_t)63;
+	size_t bytes = px * r->bands * r->elem;
 	for (int i = 0; i < n; i++) {
 		s[i].block = -1;
-		s[i].data = aligned_alloc(64, bytes);
+		s[i].data = est_alloc_zeroed(bytes);
 		s[i].mask = malloc(px);
 		if (r->plan.format == KG_EST_LABELS)
 			s[i].conf = malloc(px * sizeof(float));

@@ -55,6 +55,35 @@ int kg_nk_rakic1998_ld_at(const char *element, double lambda_nm, double *n, doub
                           kg_err *err);
 int kg_nk_rakic1998_ld(const char *element, kg_nk *out, kg_err *err);
 
+/* Published analytic dispersion models by name (parameters and full citations in
+ * nk.c), for an element (any case): n + ik at one wavelength, or sampled at the band
+ * centres. The material library's {"model": ..., "element": ...} takes the same names.
+ *   "rakic1998-ld"          Ag, Au, Cu  Lorentz-Drude, Rakic et al., Appl. Opt. 37,
+ *                                       5271 (1998) (= kg_nk_rakic1998_ld)
+ *   "vial-laroche2008-dcp"  Ag, Au      Drude + 2 critical points fitted to Johnson &
+ *                                       Christy, A. Vial and T. Laroche, Appl. Phys. B
+ *                                       93, 139 (2008)
+ *   "vial2008ch-dcp"        Ag, Au, Cu  Drude + 2 critical points fitted over
+ *                                       400-1000 nm (Au to Johnson & Christy, Ag and Cu
+ *                                       to Palik), A. Vial, book chapter, Transworld
+ *                                       Research Network (2008), pp. 23-46
+ *   "leru-etchegoin2009"    Au          Drude + 2 critical points in wavelength form,
+ *                                       E. C. Le Ru and P. G. Etchegoin, Principles of
+ *                                       SERS, Elsevier (2009), eq. (E.1)
+ * Largest normal-incidence |R - R(Johnson & Christy 1972)| over 450-700 nm, measured
+ * by tests/optics/test_nk.c: Au 0.016 (vial-laroche2008-dcp), 0.028 (vial2008ch-dcp),
+ * 0.044 (leru-etchegoin2009), 0.067 (rakic1998-ld); Ag 0.014 (vial-laroche2008-dcp;
+ * 0.034 at 400-405 nm), 0.060 (vial2008ch-dcp), 0.061 (rakic1998-ld); Cu 0.030
+ * (vial2008ch-dcp), 0.158 (rakic1998-ld). n + ik = sqrt(eps) with n, k >= 0; where a
+ * fit's Im eps < 0 (vial-laroche2008-dcp Ag, 410-595 nm, down to -0.12: not physical,
+ * a property of the published fit) k is |Im sqrt(eps)|, which leaves the reflectance at
+ * every angle unchanged (the Fresnel amplitudes are conjugated). Unknown models or
+ * elements are refused (KG_ENOTSUP), the message naming what is available;
+ * wavelengths must be > 0. */
+int kg_nk_model_at(const char *model, const char *element, double lambda_nm, double *n,
+                   double *k, kg_err *err);
+int kg_nk_model(const char *model, const char *element, kg_nk *out, kg_err *err);
+
 /* Tables of n and k, resampled to the grid by interpolating n and k separately
  * (kg_spectrum_resample). Data that do not cover 400-700 nm are refused (KG_ERANGE)
  * unless flags holds KG_RESAMPLE_EXTRAPOLATE. n must be >= 0 and k >= 0.

@@ -306,13 +306,10 @@ static int parse_metal(const char *label, const char *dir, const json_t *entry,
 	const char *model, *element;
 	if ((r = kg_json_get_string(label, entry, "nk.model", &model, err)) != 0)
 		return r;
-	if (strcmp(model, "rakic1998-ld") != 0)
-		return kg_fail(err, KG_ENOTSUP, "%s: field nk.model: '%s' is not known: expected "
-		               "rakic1998-ld", label, model);
 	if ((r = kg_json_get_string(label, entry, "nk.element", &element, err)) != 0)
 		return r;
-	if ((r = kg_nk_rakic1998_ld(element, &m->nk, err)) != 0)
-		kg_err_prefix(err, "%s: field nk.element", label);
+	if ((r = kg_nk_model(model, element, &m->nk, err)) != 0)
+		kg_err_prefix(err, "%s: field nk", label);
 	return r;
 }
 

@@ -23,6 +23,7 @@ static uint32_t to_bits(float f)
 }
 
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#include <cpuid.h>
 #include <immintrin.h>
 
 __attribute__((target("f16c"))) static uint16_t hw_f16(float f)
@@ -32,8 +33,8 @@ __attribute__((target("f16c"))) static uint16_t hw_f16(float f)
 
 static int compare_with_f16c(void)
 {
-	__builtin_cpu_init();
-	if (!__builtin_cpu_supports("f16c")) {
+	unsigned a, b, c, d;
+	if (!__get_cpuid(1, &a, &b, &c, &d) || !(c & bit_F16C)) {
 		printf("no F16C on this CPU: hardware comparison skipped\n");
 		return 0;
 	}
@@ -101,7 +102,8 @@ int main(void)
 	    {0x1.8p-25f, 0x0001, "above the tie"},
 	    {3 * 0x1p-25f, 0x0002, "1.5 subnormal units: tie to even 2"},
 	    {5 * 0x1p-25f, 0x0002, "2.5 subnormal units: tie to even 2"},
-	    {0x1.ff8p-15f, 0x0400, "rounds up from subnormal to normal"},
+	    {0x1.ff8p-15f, 0x03ff, "largest subnormal, as a float"},
+	    {0x1.ffcp-15f, 0x0400, "tie above the largest subnormal: even = smallest normal"},
 	    {1.0f + 0x1p-11f, 0x3c00, "tie to even mantissa 0"},
 	    {1.0f + 3 * 0x1p-11f, 0x3c02, "tie to even mantissa 2"},
 	    {1.0f + 0x1p-11f + 0x1p-20f, 0x3c01, "just above a tie"},

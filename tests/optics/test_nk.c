@@ -1,6 +1,8 @@
-/* Optical constants: the Rakic 1998 Lorentz-Drude model (transcription and its
- * distance from Johnson & Christy's measurements), and the CSV / refractiveindex.info
- * YAML readers on real files and on malformed input. */
+/* Optical constants: the published dispersion models (the Rakic 1998 Lorentz-Drude
+ * model, Vial & Laroche's and Vial's Drude-critical-points fits, Le Ru & Etchegoin's gold
+ * model: transcription, and distance from Johnson & Christy's measurements), the
+ * models the default library uses, and the CSV / refractiveindex.info YAML readers on
+ * real files and on malformed input. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -50,78 +52,190 @@ static void rakic_transcription(void)
 	CHECK(kg_nk_rakic1998_ld("au", &nk, NULL) == 0, "element names ignore case");
 }
 
-/* Normal-incidence reflectance of the model against Johnson & Christy (1972), whose
- * n, k are interpolated linearly to the band centres, over 450-700 nm.
+/* The published models by name: the evaluation against an independent evaluation of
+ * the same formulas and parameters (a Python script written separately from nk.c, complex
+ * arithmetic in double precision; printed to 10 digits), the element/model checks, and
+ * n, k >= 0 on the grid. */
+static void models_by_name(void)
+{
+	static const struct {
+		const char *model, *el;
+		double nm, n, k; /* k of the principal root of eps (may be < 0, see below) */
+	} pts[] = {
+		{"vial-laroche2008-dcp", "Au", 450, 1.415665357, 1.950640882},
+		{"vial-laroche2008-dcp", "Au", 650, 0.1846719218, 3.585421436},
+		{"vial-laroche2008-dcp", "Ag", 450, 0.02047256519, -2.628404116},
+		{"vial-laroche2008-dcp", "Ag", 650, 0.01073680698, 4.41187001},
+		{"vial2008ch-dcp", "Au", 550, 0.394688651, 2.453152711},
+		{"vial2008ch-dcp", "Ag", 550, 0.1255494797, 3.332784316},
+		{"vial2008ch-dcp", "Cu", 450, 1.241704932, 2.400338179},
+		{"vial2008ch-dcp", "Cu", 600, 0.4106521178, 2.935121806},
+		{"leru-etchegoin2009", "Au", 500, 0.9252943446, 1.961734851},
+		{"leru-etchegoin2009", "Au", 700, 0.1365227852, 4.046903691},
+	};
+	double worst = 0;
+	for (size_t i = 0; i < sizeof(pts) / sizeof(pts[0]); i++) {
+		double n, k;
+		kg_err e = {""};
+		CHECK(kg_nk_model_at(pts[i].model, pts[i].el, pts[i].nm, &n, &k, &e) == 0, "%s",
+		      e.msg);
+		/* Im eps < 0 (here Vial & Laroche's silver at 450 nm) is returned as |k| */
+		CHECK_NEAR(n, pts[i].n, 1e-8, pts[i].model);
+		CHECK_NEAR(k, fabs(pts[i].k), 1e-8, pts[i].model);
+		worst = fmax(worst, fmax(fabs(n - pts[i].n), fabs(k - fabs(pts[i].k))));
+	}
+	printf("published models vs an independent evaluation: max |d(n,k)| = %.2g\n", worst);
+
+	/* rakic1998-ld by name is kg_nk_rakic1998_ld */
+	static const char *const els[] = {"Ag", "Au", "Cu"};
+	for (int i = 0; i < 3; i++) {
+		kg_nk a, b;
+		CHECK(kg_nk_model("rakic1998-ld", els[i], &a, NULL) == 0 &&
+		      kg_nk_rakic1998_ld(els[i], &b, NULL) == 0 &&
+		      memcmp(&a, &b, sizeof(a)) == 0, "rakic1998-ld by name, %s", els[i]);
+	}
+
+	/* every model and element: n, k finite and >= 0 on the grid; where Im eps < 0 the
+	 * reflectance from (n, |k|) equals that of the principal root (it depends on k^2) */
+	static const struct {
+		const char *model, *el;
+	} all[] = {
+		{"rakic1998-ld", "Ag"}, {"rakic1998-ld", "Au"}, {"rakic1998-ld", "Cu"},
+		{"vial-laroche2008-dcp", "Ag"}, {"vial-laroche2008-dcp", "Au"},
+		{"vial2008ch-dcp", "Ag"}, {"vial2008ch-dcp", "Au"}, {"vial2008ch-dcp", "Cu"},
+		{"leru-etchegoin2009", "Au"},
+	};
+	for (size_t i = 0; i < sizeof(all) / sizeof(all[0]); i++) {
+		kg_nk nk;
+		kg_err e = {""};
+		CHECK(kg_nk_model(all[i].model, all[i].el, &nk, &e) == 0, "%s", e.msg);
+		for (int b = 0; b < KG_NBANDS; b++)
+			CHECK(isfinite(nk.n.v[b]) && isfinite(nk.k.v[b]) && nk.n.v[b] >= 0 &&
+			      nk.k.v[b] >= 0, "%s %s at %g nm: n %g, k %g", all[i].model, all[i].el,
+			      kg_band_nm(b), nk.n.v[b], nk.k.v[b]);
+	}
+
+	kg_err e = {""};
+	kg_nk nk;
+	double n, k;
+	CHECK(kg_nk_model("vial-laroche2008-dcp", "Cu", &nk, &e) == KG_ENOTSUP &&
+	      strstr(e.msg, "Cu") && strstr(e.msg, "Ag or Au"), "element not in model: %s",
+	      e.msg);
+	CHECK(kg_nk_model("drude", "Au", &nk, &e) == KG_ENOTSUP && strstr(e.msg, "drude") &&
+	      strstr(e.msg, "vial-laroche2008-dcp"), "unknown model: %s", e.msg);
+	CHECK(kg_nk_model(NULL, "Au", &nk, &e) == KG_ENOTSUP, "no model");
+	CHECK(kg_nk_model_at("leru-etchegoin2009", "Au", 0, &n, &k, &e) == KG_EINVAL,
+	      "zero wavelength");
+	CHECK(kg_nk_model("vial2008ch-dcp", "cu", &nk, NULL) == 0, "element names ignore case");
+}
+
+/* Max |R(model) - R(ref)| at normal incidence over the bands from `from` nm to 700 nm;
+ * the reference's n, k are interpolated linearly to the band centres. */
+static double max_dev(const kg_spectrum *rm, const kg_spectrum *rref, double from,
+                      double *at)
+{
+	double worst = 0;
+	for (int b = 0; b < KG_NBANDS; b++) {
+		double nm = kg_band_nm(b), d = fabs(rm->v[b] - rref->v[b]);
+		if (nm >= from && d > worst) {
+			worst = d;
+			if (at)
+				*at = nm;
+		}
+	}
+	return worst;
+}
+
+/* Normal-incidence reflectance of every model against Johnson & Christy (1972) (and,
+ * for context only, McPeak et al. 2015), over 450-700 and 400-700 nm.
  *
- * The model does NOT meet 0.03 everywhere (measured, see the printout): Rakic et al.
- * fitted their oscillators to a compilation of several data sets over a wide energy
- * range, and the visible part comes out differently from J&C --
- *   Ag: R is 0.02-0.06 low (too much damping in the visible; worst at 450 nm);
- *   Au: R is 0.04-0.06 low in the red and the interband edge sits ~10 nm off;
- *   Cu: the interband edge is smeared: R is up to 0.16 high at 520-590 nm.
- * The parameters are transcribed correctly (rakic_transcription above agrees with
- * refractiveindex.info's evaluation to 1e-4), so these are properties of the model.
- * The test pins the measured deviations (bounds a little above them) so that a
- * change in the model or the resampling shows up, and checks the 0.03 agreement where
- * the model has it. */
+ * The bounds are the measured deviations plus a small margin (printed): they pin each
+ * model, so that a change in a model or in the resampling shows up. For the model the
+ * default library uses for each metal (checked below against fixtures/materials/
+ * default.json) the 450-700 nm bound is the issue's 0.03:
+ *   Au: vial-laroche2008-dcp 0.016; Ag: vial-laroche2008-dcp 0.014 (0.034 at 400-405
+ *   nm, so 400-700 nm is NOT within 0.03 for silver); Cu: vial2008ch-dcp 0.0298 (also
+ *   over 400-700 nm; a fit to Palik's data published in a book chapter -- no journal
+ *   fit of copper to J&C with verifiable parameters was found).
+ * The Rakic LD model does NOT meet 0.03 (Rakic et al. fitted a compilation of data sets
+ * over a wide energy range): Ag 0.02-0.06 low (worst at 450 nm), Au 0.04-0.06 low in
+ * the red with the interband edge ~10 nm off, Cu up to 0.16 high at 520-590 nm (smeared
+ * edge). Its parameters are transcribed correctly (rakic_transcription above), so these
+ * are properties of the model; the 0.03 agreement is checked where it has it. */
 static void against_johnson_christy(const char *ref)
 {
 	static const struct {
-		const char *el, *file;
-		double bound;                  /* max |dR| over 450-700 nm, measured + margin */
-		double good_from, good_to;     /* a range where |dR| <= 0.03 holds (0: none) */
-	} metals[] = {
-		{"Ag", "Ag_JohnsonChristy1972.csv", 0.065, 585, 700},
-		/* Au: the curves only cross (near 470 and 520 nm); no range of agreement */
-		{"Au", "Au_JohnsonChristy1972.csv", 0.070, 0, 0},
-		{"Cu", "Cu_JohnsonChristy1972.csv", 0.165, 610, 700},
+		const char *model, *el;
+		double bound450, bound400; /* max |dR| vs J&C, measured + margin */
+		double good_from;          /* |dR| <= 0.03 from there to 700 nm (0: nowhere) */
+	} cases[] = {
+		{"vial-laroche2008-dcp", "Au", 0.03, 0.03, 400},
+		{"vial2008ch-dcp", "Au", 0.03, 0.03, 400},
+		{"leru-etchegoin2009", "Au", 0.046, 0.046, 0},
+		{"rakic1998-ld", "Au", 0.070, 0.070, 0}, /* curves only cross (~470, 520 nm) */
+		{"vial-laroche2008-dcp", "Ag", 0.03, 0.036, 410},
+		{"vial2008ch-dcp", "Ag", 0.062, 0.101, 0},
+		{"rakic1998-ld", "Ag", 0.065, 0.101, 585},
+		{"vial2008ch-dcp", "Cu", 0.03, 0.03, 400},
+		{"rakic1998-ld", "Cu", 0.165, 0.165, 610},
 	};
-	for (int m = 0; m < 3; m++) {
+	printf("max |R(model) - R(ref)| at normal incidence:\n"
+	       "  %-22s %-2s  J&C 450-700  J&C 400-700  McPeak 450-700  McPeak 400-700\n",
+	       "model", "");
+	for (size_t i = 0; i < sizeof(cases) / sizeof(cases[0]); i++) {
 		char path[4096];
-		snprintf(path, sizeof(path), "%s/nk/%s", ref, metals[m].file);
-		kg_nk jc, ld;
+		kg_nk jc, mp, md;
 		kg_err e = {""};
-		int r = kg_nk_load(path, 0, &jc, &e);
-		CHECK(r == 0, "%s", e.msg);
-		r = kg_nk_rakic1998_ld(metals[m].el, &ld, &e);
-		CHECK(r == 0, "%s", e.msg);
-		kg_spectrum rjc, rld;
+		snprintf(path, sizeof(path), "%s/nk/%s_JohnsonChristy1972.csv", ref, cases[i].el);
+		CHECK(kg_nk_load(path, 0, &jc, &e) == 0, "%s", e.msg);
+		snprintf(path, sizeof(path), "%s/nk/%s_McPeak2015.csv", ref, cases[i].el);
+		CHECK(kg_nk_load(path, 0, &mp, &e) == 0, "%s", e.msg);
+		CHECK(kg_nk_model(cases[i].model, cases[i].el, &md, &e) == 0, "%s", e.msg);
+		if (e.msg[0])
+			continue;
+		kg_spectrum rjc, rmp, rmd;
 		kg_nk_reflectance(&jc, 1.0, &rjc);
-		kg_nk_reflectance(&ld, 1.0, &rld);
-		double worst = 0, at = 0, worst_good = 0;
-		char over[256] = ""; /* the ranges where |dR| > 0.03 */
-		double run_from = 0, prev = 0;
-		printf("%s  R(LD) - R(J&C):", metals[m].el);
-		for (int b = 0; b < KG_NBANDS; b++) {
-			double nm = kg_band_nm(b), d = rld.v[b] - rjc.v[b];
-			if (nm < 450)
-				continue;
-			if ((int)nm % 50 == 0)
-				printf(" %g:%+.3f", nm, d);
-			if (fabs(d) > worst) {
-				worst = fabs(d);
-				at = nm;
-			}
-			if (fabs(d) > 0.03 && !run_from)
-				run_from = nm;
-			if (run_from && (fabs(d) <= 0.03 || nm == KG_LAMBDA_MAX)) {
-				snprintf(over + strlen(over), sizeof(over) - strlen(over), " %g-%g",
-				         run_from, fabs(d) > 0.03 ? nm : prev);
-				run_from = 0;
-			}
-			prev = nm;
-			if (metals[m].good_from && nm >= metals[m].good_from && nm <= metals[m].good_to)
-				worst_good = fmax(worst_good, fabs(d));
+		kg_nk_reflectance(&mp, 1.0, &rmp);
+		kg_nk_reflectance(&md, 1.0, &rmd);
+		double at450 = 0, at400 = 0;
+		double d450 = max_dev(&rmd, &rjc, 450, &at450), d400 = max_dev(&rmd, &rjc, 400, &at400);
+		printf("  %-22s %-2s  %.3f (%3g)  %.3f (%3g)  %.3f           %.3f\n", cases[i].model,
+		       cases[i].el, d450, at450, d400, at400, max_dev(&rmd, &rmp, 450, NULL),
+		       max_dev(&rmd, &rmp, 400, NULL));
+		CHECK(d450 <= cases[i].bound450, "%s %s: max |dR| over 450-700 nm %.4f at %g nm "
+		      "exceeds %.3f", cases[i].model, cases[i].el, d450, at450, cases[i].bound450);
+		CHECK(d400 <= cases[i].bound400, "%s %s: max |dR| over 400-700 nm %.4f at %g nm "
+		      "exceeds %.3f", cases[i].model, cases[i].el, d400, at400, cases[i].bound400);
+		if (cases[i].good_from) {
+			double good = max_dev(&rmd, &rjc, cases[i].good_from, NULL);
+			CHECK(good <= 0.03, "%s %s: |dR| %.4f > 0.03 in %g-700 nm", cases[i].model,
+			      cases[i].el, good, cases[i].good_from);
 		}
-		printf("\n%s  max |dR| over 450-700 nm = %.3f at %g nm; target 0.03 %s "
-		       "(|dR| > 0.03 in nm:%s)\n", metals[m].el, worst, at,
-		       worst <= 0.03 ? "met" : "NOT met", over[0] ? over : " none");
-		CHECK(worst <= metals[m].bound, "%s: max |dR| %.3f at %g nm exceeds the measured "
-		      "deviation of the model (%.3f)", metals[m].el, worst, at, metals[m].bound);
-		CHECK(worst_good <= 0.03, "%s: |dR| %.3f > 0.03 in %g-%g nm", metals[m].el,
-		      worst_good, metals[m].good_from, metals[m].good_to);
 	}
-	/* the brief's sanity points, with the model's own values */
+
+	/* the default library uses the models asserted to 0.03 above */
+	static const struct {
+		const char *name, *model, *el;
+	} lib_metals[] = {
+		{"gold", "vial-laroche2008-dcp", "Au"},
+		{"silver", "vial-laroche2008-dcp", "Ag"},
+		{"copper", "vial2008ch-dcp", "Cu"},
+	};
+	char path[4096];
+	snprintf(path, sizeof(path), "%s/fixtures/materials/default.json", KG_SOURCE_ROOT);
+	kg_material_library *lib = NULL;
+	kg_err e = {""};
+	CHECK(kg_material_library_load(path, &lib, &e) == 0, "%s", e.msg);
+	for (int i = 0; lib && i < 3; i++) {
+		const kg_material *m = kg_material_library_find(lib, lib_metals[i].name);
+		kg_nk nk;
+		kg_nk_model(lib_metals[i].model, lib_metals[i].el, &nk, NULL);
+		CHECK(m && memcmp(&m->nk, &nk, sizeof(nk)) == 0, "default library: %s is not %s",
+		      lib_metals[i].name, lib_metals[i].model);
+	}
+	kg_material_library_free(&lib);
+
+	/* the brief's sanity points, with the Rakic model's own values */
 	kg_nk ld;
 	kg_spectrum r;
 	kg_nk_rakic1998_ld("Au", &ld, NULL);
@@ -330,6 +444,7 @@ int main(void)
 {
 	kg_tmpdir_create("kg_test_nk");
 	rakic_transcription();
+	models_by_name();
 	malformed();
 	if (kg_test_failures) /* report them even when the reference data are absent */
 		return kg_test_done("test_nk");

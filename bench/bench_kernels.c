@@ -1,0 +1,354 @@
+/* kogei-bench-kernels: throughput of the per-pixel estimation kernels against the
+ * machine's limit for writing the same bytes.
+ *
+ * A synthetic image (default 12 Mpix, 4000 pixels wide, smooth gradients with noise)
+ * goes through every method
+ * and output format at 1 and 2 threads into one reused, pre-faulted buffer (a fresh
+ * 3 GB buffer would cost more in page faults than the kernels do). In the same run
+ * the limit is measured: the same number of output bytes written with non-temporal
+ * stores by 1 and 2 threads. Each figure is the median of several repetitions
+ * (CLOCK_MONOTONIC). Markdown goes to stdout, JSON to --json.
+ *
+ *   kogei-bench-kernels [--mpix N] [--reps N] [--quick] [--isa auto|c] [--json PATH] */
+#include <math.h>
+#include <pthread.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "kg_estimate.h"
+
+#define WIDTH 4000
+#define MAX_REPS 31
+
+static double now(void)
+{
+	struct timespec t;
+	clock_gettime(CLOCK_MONOTONIC, &t);
+	return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
+}
+
+static int cmp_double(const void *a, const void *b)
+{
+	double x = *(const double *)a, y = *(const double *)b;
+	return (x > y) - (x < y);
+}
+
+static double median(double *v, int n)
+{
+	qsort(v, (size_t)n, sizeof(double), cmp_double);
+	return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+/* ---- the limit: non-temporal stores of the same bytes ---------------------- */
+
+typedef struct fill_part {
+	char *p;
+	size_t n;
+	pthread_t thread;
+} fill_part;
+
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#include <immintrin.h>
+__attribute__((target("avx2"))) static void *stream_fill(void *arg)
+{
+	fill_part *f = arg;
+	char *p = f->p, *end = f->p + f->n;
+	while (p < end && ((uintptr_t)p & 31))
+		*p++ = 1;
+	const __m256i v = _mm256_set1_epi8(1);
+	for (; p + 128 <= end; p += 128) {
+		_mm256_stream_si256((__m256i *)p, v);
+		_mm256_stream_si256((__m256i *)(p + 32), v);
+		_mm256_stream_si256((__m256i *)(p + 64), v);
+		_mm256_stream_si256((__m256i *)(p + 96), v);
+	}
+	while (p < end)
+		*p++ = 1;
+	_mm_sfence();
+	return NULL;
+}
+static int have_stream_fill(void)
+{
+	__builtin_cpu_init();
+	return __builtin_cpu_supports("avx2");
+}
+#else
+static void *stream_fill(void *arg)
+{
+	fill_part *f = arg;
+	memset(f->p, 1, f->n);
+	return NULL;
+}
+static int have_stream_fill(void) { return 0; }
+#endif
+
+static double limit_seconds(char *buf, size_t bytes, int threads, int reps)
+{
+	double t[MAX_REPS];
+	for (int r = 0; r < reps; r++) {
+		fill_part part[2];
+		size_t half = (bytes / threads + 63) & ~(size_t)63;
+		double t0 = now();
+		for (int i = 0; i < threads; i++) {
+			part[i].p = buf + i * half;
+			part[i].n = i == threads - 1 ? bytes - i * half : half;
+			if (i > 0)
+				pthread_create(&part[i].thread, NULL, stream_fill, &part[i]);
+		}
+		stream_fill(&part[0]);
+		for (int i = 1; i < threads; i++)
+			pthread_join(part[i].thread, NULL);
+		t[r] = now() - t0;
+	}
+	return median(t, reps);
+}
+
+/* ---- the model ------------------------------------------------------------- */
+
+static uint64_t rng_state = 0x2545f4914f6cdd1dull;
+static double uniform(double lo, double hi)
+{
+	rng_state ^= rng_state << 13;
+	rng_state ^= rng_state >> 7;
+	rng_state ^= rng_state << 17;
+	return lo + (hi - lo) * (double)(rng_state >> 11) * 0x1p-53;
+}
+
+/* Three smooth orthonormal spectra (Gram-Schmidt on slow cosines). */
+static void make_basis(double *b)
+{
+	for (int i = 0; i < 3; i++)
+		for (int o = 0; o < KG_NBANDS; o++)
+			b[o * 3 + i] = cos(3.14159265358979 * i * (o + 0.5) / KG_NBANDS);
+	for (int i = 0; i < 3; i++) {
+		for (int j = 0; j < i; j++) {
+			double d = 0;
+			for (int o = 0; o < KG_NBANDS; o++)
+				d += b[o * 3 + i] * b[o * 3 + j];
+			for (int o = 0; o < KG_NBANDS; o++)
+				b[o * 3 + i] -= d * b[o * 3 + j];
+		}
+		double n = 0;
+		for (int o = 0; o < KG_NBANDS; o++)
+			n += b[o * 3 + i] * b[o * 3 + i];
+		for (int o = 0; o < KG_NBANDS; o++)
+			b[o * 3 + i] /= sqrt(n);
+	}
+}
+
+typedef struct method {
+	const char *name;
+	kg_est_kernel *k;
+} method;
+
+typedef struct output {
+	const char *name;
+	kg_est_format format;
+	size_t bytes_per_pixel; /* what is written, confidence included */
+} output;
+
+static void usage(FILE *f)
+{
+	fprintf(f, "usage: kogei-bench-kernels [--mpix N] [--reps N] [--quick] [--isa auto|c] "
+	           "[--json PATH]\n");
+}
+
+int main(int argc, char **argv)
+{
+	double mpix = 12;
+	int reps = 5;
+	const char *json_path = NULL;
+	kg_est_isa isa = KG_EST_ISA_AUTO;
+	kg_outfile json = {0};
+	for (int i = 1; i < argc; i++) {
+		if (!strcmp(argv[i], "--mpix") && i + 1 < argc)
+			mpix = atof(argv[++i]);
+		else if (!strcmp(argv[i], "--reps") && i + 1 < argc)
+			reps = atoi(argv[++i]);
+		else if (!strcmp(argv[i], "--quick")) {
+			mpix = 2;
+			reps = 3;
+		} else if (!strcmp(argv[i], "--isa") && i + 1 < argc) {
+			i++;
+			isa = !strcmp(argv[i], "c") ? KG_EST_ISA_C : KG_EST_ISA_AUTO;
+		} else if (!strcmp(argv[i], "--json") && i + 1 < argc)
+			json_path = argv[++i];
+		else if (!strcmp(argv[i], "--help")) {
+			usage(stdout);
+			return 0;
+		} else {
+			usage(stderr);
+			return 2;
+		}
+	}
+	if (!(mpix > 0 && mpix <= 100) || reps < 1 || reps > MAX_REPS) {
+		fprintf(stderr, "kogei-bench-kernels: --mpix 0..100 and --reps 1..%d\n", MAX_REPS);
+		return 2;
+	}
+	int height = (int)(mpix * 1e6 / WIDTH + 0.5);
+	if (height < 1)
+		height = 1;
+	size_t npix = (size_t)WIDTH * height;
+
+	/* the paper's model: w = M M2 rho (K = 3), s = B w; root-polynomial fits map their
+	 * terms to the same K weights; LUTs sample the degree-3 fit */
+	double basis[KG_NBANDS * 3], m[3 * 13];
+	make_basis(basis);
+	for (int i = 0; i < 3 * 13; i++)
+		m[i] = uniform(-0.6, 0.6);
+	for (int i = 0; i < 3; i++)
+		m[i * 3 + i] += 1.5;
+	kg_err err = {{0}};
+	method methods[5] = {{"linear (PCA-3, regression, Wiener)", NULL},
+	                     {"root-polynomial 2", NULL},
+	                     {"root-polynomial 3", NULL},
+	                     {"LUT 17^3 (root-poly 3)", NULL},
+	                     {"LUT 33^3 (root-poly 3)", NULL}};
+	const kg_est_method kinds[3] = {KG_EST_LINEAR, KG_EST_ROOTPOLY2, KG_EST_ROOTPOLY3};
+	for (int i = 0; i < 3; i++)
+		if (kg_est_kernel_new(&(kg_est_desc){kinds[i], 3, m, NULL, basis, NULL}, &methods[i].k,
+		                      &err) < 0)
+			goto fail;
+	if (kg_est_kernel_new_lut(methods[2].k, 17, 0, 1, &methods[3].k, &err) < 0 ||
+	    kg_est_kernel_new_lut(methods[2].k, 33, 0, 1, &methods[4].k, &err) < 0)
+		goto fail;
+
+	/* 16 materials for the label output */
+	enum { NMAT = 16 };
+	double spectra[NMAT * KG_NBANDS];
+	kg_est_material mats[NMAT];
+	char names[NMAT][16];
+	for (int j = 0; j < NMAT; j++) {
+		double a = uniform(0.1, 0.8), b = uniform(-0.3, 0.3), ph = uniform(0, 6.28);
+		for (int o = 0; o < KG_NBANDS; o++)
+			spectra[j * KG_NBANDS + o] = a + b * o / 60.0 + 0.1 * sin(o / 8.0 + ph);
+		snprintf(names[j], sizeof(names[j]), "material-%d", j + 1);
+		mats[j] = (kg_est_material){names[j], spectra + j * KG_NBANDS};
+	}
+	kg_est_classifier *cls[5] = {NULL};
+	for (int i = 0; i < 5; i++)
+		if (kg_est_classifier_new(methods[i].k, mats, NMAT, KG_EST_DIST_SCALE_FREE, &cls[i], &err) <
+		    0)
+			goto fail;
+
+	const output outputs[] = {
+	    {"f32 BSQ", KG_EST_F32_BSQ, 4 * KG_NBANDS},  {"f32 BIP", KG_EST_F32_BIP, 4 * KG_NBANDS},
+	    {"f16 BSQ", KG_EST_F16_BSQ, 2 * KG_NBANDS},  {"f16 BIP", KG_EST_F16_BIP, 2 * KG_NBANDS},
+	    {"weights (K=3)", KG_EST_WEIGHTS, 4 * 3},     {"labels (16 materials)", KG_EST_LABELS, 5},
+	};
+	const int nout = sizeof(outputs) / sizeof(outputs[0]);
+
+	float *rgb = malloc(sizeof(float) * 3 * npix);
+	size_t max_bytes = npix * 4 * KG_NBANDS;
+	char *buf = aligned_alloc(64, (max_bytes + 63) & ~(size_t)63);
+	float *conf = malloc(sizeof(float) * npix);
+	if (!rgb || !buf || !conf) {
+		fprintf(stderr, "kogei-bench-kernels: out of memory for %.1f Mpix\n", mpix);
+		return 1;
+	}
+	/* smooth colour gradients plus noise: a photograph's spatial coherence matters to
+	 * the LUTs, whose nodes then stay in cache */
+	for (int y = 0; y < height; y++)
+		for (int x = 0; x < WIDTH; x++)
+			for (int c = 0; c < 3; c++)
+				rgb[3 * ((size_t)y * WIDTH + x) + c] =
+				    (float)(0.48 + 0.4 * sin(x / (150.0 + 40 * c) + y / (90.0 + 30 * c) + c) +
+				            uniform(-0.02, 0.02));
+	memset(buf, 0, max_bytes); /* fault the pages in once */
+	memset(conf, 0, sizeof(float) * npix);
+
+	fprintf(stderr, "kogei-bench-kernels: %d x %d = %.2f Mpix, %d repetitions, %s kernels%s\n",
+	        WIDTH, height, npix / 1e6, reps, isa == KG_EST_ISA_C ? "reference" : "best",
+	        have_stream_fill() ? "" : " (no AVX2: the limit uses memset)");
+
+	/* limits, by bytes per pixel */
+	size_t limit_bpp[8];
+	double limit_mpix[8][2];
+	int nlimit = 0;
+	for (int o = 0; o < nout; o++) {
+		int seen = 0;
+		for (int l = 0; l < nlimit; l++)
+			seen |= limit_bpp[l] == outputs[o].bytes_per_pixel;
+		if (seen)
+			continue;
+		limit_bpp[nlimit] = outputs[o].bytes_per_pixel;
+		for (int t = 1; t <= 2; t++)
+			limit_mpix[nlimit][t - 1] =
+			    npix / 1e6 / limit_seconds(buf, npix * limit_bpp[nlimit], t, reps);
+		nlimit++;
+	}
+
+	if (json_path) {
+		if (kg_outfile_open(&json, json_path, 1, &err) < 0)
+			goto fail;
+		fprintf(json.fp,
+		        "{\n  \"format\": \"kogei-bench-kernels/1\",\n  \"width\": %d,\n  \"height\": %d,\n"
+		        "  \"repetitions\": %d,\n  \"kernels\": \"%s\",\n  \"results\": [",
+		        WIDTH, height, reps, isa == KG_EST_ISA_C ? "reference" : "best");
+	}
+	printf("| method | output | bytes/px | Mpix/s 1 thr | Mpix/s 2 thr | limit 1 thr | limit 2 "
+	       "thr | of limit 1 thr | of limit 2 thr |\n");
+	printf("|---|---|---:|---:|---:|---:|---:|---:|---:|\n");
+	int first = 1;
+	for (int mi = 0; mi < 5; mi++)
+		for (int o = 0; o < nout; o++) {
+			double speed[2], limit[2] = {0, 0};
+			for (int l = 0; l < nlimit; l++)
+				if (limit_bpp[l] == outputs[o].bytes_per_pixel) {
+					limit[0] = limit_mpix[l][0];
+					limit[1] = limit_mpix[l][1];
+				}
+			for (int t = 1; t <= 2; t++) {
+				kg_est_job job;
+				kg_est_job_init(&job, methods[mi].k, outputs[o].format);
+				job.classifier = cls[mi];
+				job.threads = t;
+				job.isa = isa;
+				job.clip_level = 1.0f;
+				double times[MAX_REPS];
+				kg_est_dest dest = {buf, outputs[o].format == KG_EST_LABELS ? conf : NULL, NULL};
+				for (int r = 0; r < reps; r++) {
+					double t0 = now();
+					if (kg_est_run(&job, rgb, WIDTH, height, &dest, NULL, &err) < 0)
+						goto fail;
+					times[r] = now() - t0;
+				}
+				speed[t - 1] = npix / 1e6 / median(times, reps);
+			}
+			printf("| %s | %s | %zu | %.1f | %.1f | %.1f | %.1f | %.2f | %.2f |\n", methods[mi].name,
+			       outputs[o].name, outputs[o].bytes_per_pixel, speed[0], speed[1], limit[0], limit[1],
+			       speed[0] / limit[0], speed[1] / limit[1]);
+			fflush(stdout);
+			if (json_path)
+				fprintf(json.fp,
+				        "%s\n    {\"method\": \"%s\", \"output\": \"%s\", \"bytes_per_pixel\": %zu, "
+				        "\"mpix_s\": [%.3f, %.3f], \"limit_mpix_s\": [%.3f, %.3f], "
+				        "\"fraction_of_limit\": [%.4f, %.4f]}",
+				        first ? "" : ",", methods[mi].name, outputs[o].name,
+				        outputs[o].bytes_per_pixel, speed[0], speed[1], limit[0], limit[1],
+				        speed[0] / limit[0], speed[1] / limit[1]);
+			first = 0;
+		}
+	if (json_path) {
+		fprintf(json.fp, "\n  ]\n}\n");
+		if (kg_outfile_commit(&json, &err) < 0)
+			goto fail;
+	}
+	printf("\nThreads: 1 and 2. Limit: the same bytes written with non-temporal stores. "
+	       "Labels write 1 byte of label and 4 of confidence per pixel.\n");
+	for (int i = 0; i < 5; i++) {
+		kg_est_classifier_free(&cls[i]);
+		kg_est_kernel_free(&methods[i].k);
+	}
+	free(rgb);
+	free(buf);
+	free(conf);
+	return 0;
+fail:
+	fprintf(stderr, "kogei-bench-kernels: %s\n", err.msg);
+	if (json.fp)
+		kg_outfile_abort(&json);
+	return 1;
+}

@@ -1,0 +1,21 @@
+/* Inside bench/: the speed loop the whole benchmark calls. Not included from outside. */
+#ifndef KG_BENCH_PRIVATE_H
+#define KG_BENCH_PRIVATE_H
+
+#include "kg_bench.h"
+
+/* Seconds on CLOCK_MONOTONIC. */
+double bench_now(void);
+
+/* Time every kernel in k (NULL entries skipped) over the image rgb (width x height)
+ * for each format it supports and each thread count of cfg, appending speed rows
+ * and the matching non-temporal write limits to r. out: one buffer large enough for
+ * the largest output (61 float bands), conf: width x height floats. */
+int bench_speed_all(const kg_bench_config *cfg, kg_est_kernel *const *k,
+                    const kg_est_classifier *cls, const float *rgb, int width, int height,
+                    void *out, float *conf, kg_bench_results *r, kg_err *err);
+
+/* Append a formatted progress line through cfg->progress. */
+void bench_progress(const kg_bench_config *cfg, const char *fmt, ...) KG_PRINTF(2, 3);
+
+#endif

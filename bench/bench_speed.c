@@ -1,0 +1,246 @@
+/* The speed part: kernels through kg_est_run, and the non-temporal write limit for
+ * the same bytes. Every measurement is the median of repeated runs into the same,
+ * already faulted-in buffer (page faults of a fresh buffer are not a kernel's cost). */
+#include <pthread.h>
+#include <stdarg.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
+#include "bench_private.h"
+
+double bench_now(void)
+{
+	struct timespec ts;
+	clock_gettime(CLOCK_MONOTONIC, &ts);
+	return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+void bench_progress(const kg_bench_config *cfg, const char *fmt, ...)
+{
+	if (!cfg->progress)
+		return;
+	char line[512];
+	va_list ap;
+	va_start(ap, fmt);
+	vsnprintf(line, sizeof(line), fmt, ap);
+	va_end(ap);
+	cfg->progress(cfg->progress_user, line);
+}
+
+static int cmp_double(const void *a, const void *b)
+{
+	double x = *(const double *)a, y = *(const double *)b;
+	return (x > y) - (x < y);
+}
+
+static double median(double *v, int n)
+{
+	qsort(v, (size_t)n, sizeof(*v), cmp_double);
+	return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+const char *kg_bench_stream_kind(void)
+{
+#if defined(__SSE2__)
+	return "SSE2 non-temporal stores (movntdq)";
+#else
+	return "memset (no non-temporal stores built in)";
+#endif
+}
+
+/* Fill [p, p + n) with non-temporal 16-byte stores (ordinary stores for the unaligned
+ * ends). The bytes are those of float 0.5, not zeros, like real output. */
+static void stream_fill(char *p, size_t n)
+{
+#if defined(__SSE2__)
+	size_t head = (16 - ((uintptr_t)p & 15)) & 15;
+	if (head > n)
+		head = n;
+	memset(p, 0x3f, head);
+	p += head;
+	n -= head;
+	const __m128i v = _mm_set1_epi32(0x3f000000);
+	size_t blocks = n / 64;
+	for (size_t i = 0; i < blocks; i++, p += 64) {
+		_mm_stream_si128((__m128i *)p, v);
+		_mm_stream_si128((__m128i *)(p + 16), v);
+		_mm_stream_si128((__m128i *)(p + 32), v);
+		_mm_stream_si128((__m128i *)(p + 48), v);
+	}
+	_mm_sfence();
+	memset(p, 0x3f, n % 64);
+#else
+	memset(p, 0x3f, n);
+#endif
+}
+
+typedef struct share {
+	char *p;
+	size_t n;
+	pthread_t thread;
+} share;
+
+static void *share_main(void *arg)
+{
+	share *s = arg;
+	stream_fill(s->p, s->n);
+	return NULL;
+}
+
+/* Threads are created for every run, as kg_est_run creates its pool per run. */
+static double stream_once(char *buf, size_t bytes, int threads)
+{
+	share sh[64];
+	int created[64] = {0};
+	if (threads > 64)
+		threads = 64;
+	size_t per = (bytes / (size_t)threads + 63) & ~(size_t)63;
+	for (int i = 0; i < threads; i++) {
+		size_t off = per * (size_t)i;
+		sh[i].p = buf + off;
+		sh[i].n = off >= bytes ? 0 : (bytes - off < per ? bytes - off : per);
+	}
+	double t0 = bench_now();
+	for (int i = 1; i < threads; i++) {
+		created[i] = pthread_create(&sh[i].thread, NULL, share_main, &sh[i]) == 0;
+		if (!created[i])
+			stream_fill(sh[i].p, sh[i].n); /* no thread: do its share here */
+	}
+	stream_fill(sh[0].p, sh[0].n);
+	for (int i = 1; i < threads; i++)
+		if (created[i])
+			pthread_join(sh[i].thread, NULL);
+	return bench_now() - t0;
+}
+
+const char *kg_bench_format_name(kg_est_format f)
+{
+	static const char *const names[KG_EST_NFORMATS] = {
+		"f32-bsq", "f32-bip", "f16-bsq", "f16-bip", "weights", "labels",
+	};
+	return f >= 0 && f < KG_EST_NFORMATS ? names[f] : "unknown";
+}
+
+/* The write limit of each (bytes per pixel, threads) pair: the median of the limits
+ * measured beside its speed rows. */
+static int collect_limits(kg_bench_results *r, kg_err *err)
+{
+	double *v = malloc(sizeof(double) * (size_t)(r->nspeed > 0 ? r->nspeed : 1));
+	if (!v)
+		return kg_fail(err, KG_ENOMEM, "bench: out of memory");
+	for (int i = 0; i < r->nspeed; i++) {
+		const kg_bench_speed_row *a = &r->speed[i];
+		int seen = 0;
+		for (int j = 0; j < r->nlimit; j++)
+			seen |= r->limit[j].bytes_per_pixel == a->bytes_per_pixel &&
+			        r->limit[j].threads == a->threads;
+		if (seen)
+			continue;
+		int n = 0;
+		for (int j = i; j < r->nspeed; j++)
+			if (r->speed[j].bytes_per_pixel == a->bytes_per_pixel &&
+			    r->speed[j].threads == a->threads)
+				v[n++] = r->speed[j].limit_gb_s;
+		kg_bench_limit_row *l = realloc(r->limit, sizeof(*l) * (size_t)(r->nlimit + 1));
+		if (!l) {
+			free(v);
+			return kg_fail(err, KG_ENOMEM, "bench: out of memory");
+		}
+		r->limit = l;
+		l = &r->limit[r->nlimit++];
+		l->bytes_per_pixel = a->bytes_per_pixel;
+		l->threads = a->threads;
+		l->measurements = n;
+		l->gb_s = median(v, n);
+	}
+	free(v);
+	return 0;
+}
+
+int bench_speed_all(const kg_bench_config *cfg, kg_est_kernel *const *k,
+                    const kg_est_classifier *cls, const float *rgb, int width, int height,
+                    void *out, float *conf, kg_bench_results *r, kg_err *err)
+{
+	static const kg_est_format formats[] = {KG_EST_F32_BSQ, KG_EST_F16_BSQ, KG_EST_WEIGHTS,
+	                                        KG_EST_LABELS};
+	const int nformats = (int)(sizeof(formats) / sizeof(formats[0]));
+	size_t npix = (size_t)width * (size_t)height;
+	int reps = cfg->reps < 1 ? 1 : (cfg->reps > 64 ? 64 : cfg->reps);
+	/* Count the measurements first, for the progress lines. */
+	int total = 0, done = 0;
+	for (int m = 0; m < KG_BENCH_NMETHODS; m++)
+		for (int f = 0; f < nformats; f++)
+			if (k[m] && (formats[f] == KG_EST_F32_BSQ || formats[f] == KG_EST_F16_BSQ ||
+			             (formats[f] == KG_EST_WEIGHTS && kg_est_kernel_k(k[m]) > 0) ||
+			             (formats[f] == KG_EST_LABELS && m == KG_BENCH_PCA3 && cls)))
+				total += cfg->nthreads;
+	int ret = 0;
+	for (int m = 0; m < KG_BENCH_NMETHODS && !ret; m++) {
+		if (!k[m])
+			continue;
+		for (int f = 0; f < nformats && !ret; f++) {
+			kg_est_format fmt = formats[f];
+			if ((fmt == KG_EST_WEIGHTS && kg_est_kernel_k(k[m]) == 0) ||
+			    (fmt == KG_EST_LABELS && (m != KG_BENCH_PCA3 || !cls)))
+				continue;
+			double bpp = (double)kg_est_format_bands(k[m], fmt) *
+			             (double)kg_est_format_elem_size(fmt);
+			if (fmt == KG_EST_LABELS)
+				bpp += sizeof(float); /* the confidence beside the label */
+			for (int ti = 0; ti < cfg->nthreads && !ret; ti++) {
+				int threads = cfg->threads[ti];
+				kg_est_job job;
+				kg_est_job_init(&job, k[m], fmt);
+				job.threads = threads;
+				job.classifier = fmt == KG_EST_LABELS ? cls : NULL;
+				kg_est_dest dest = {out, fmt == KG_EST_LABELS ? conf : NULL, NULL};
+				/* Kernel runs and limit runs alternate, so both see the same
+				 * state of the machine (it drifts, and other work may share it). */
+				size_t bytes = (size_t)(bpp * (double)npix);
+				double t[64], tl[64];
+				ret = kg_est_run(&job, rgb, width, height, &dest, NULL, err); /* warm-up */
+				stream_once(out, bytes, threads);
+				for (int i = 0; i < reps && !ret; i++) {
+					double t0 = bench_now();
+					ret = kg_est_run(&job, rgb, width, height, &dest, NULL, err);
+					t[i] = bench_now() - t0;
+					tl[i] = stream_once(out, bytes, threads);
+				}
+				if (ret)
+					break;
+				double limit = (double)bytes / median(tl, reps) * 1e-9;
+				kg_bench_speed_row *row =
+				    realloc(r->speed, sizeof(*row) * (size_t)(r->nspeed + 1));
+				if (!row) {
+					ret = kg_fail(err, KG_ENOMEM, "bench: out of memory");
+					break;
+				}
+				r->speed = row;
+				row = &r->speed[r->nspeed++];
+				row->method = (kg_bench_method)m;
+				row->format = fmt;
+				row->threads = threads;
+				row->bytes_per_pixel = bpp;
+				row->seconds = median(t, reps);
+				row->mpix_s = (double)npix / row->seconds * 1e-6;
+				row->gb_s = (double)npix * bpp / row->seconds * 1e-9;
+				row->limit_gb_s = limit;
+				row->fraction = row->gb_s / limit;
+				bench_progress(cfg,
+				               "[speed %d/%d] %-10s %-8s %d thread%s: %7.1f Mpix/s, %6.2f "
+				               "GB/s = %.2f of the write limit (%.1f GB/s)",
+				               ++done, total, kg_bench_method_name(row->method),
+				               kg_bench_format_name(fmt), threads, threads == 1 ? " " : "s",
+				               row->mpix_s, row->gb_s, row->fraction, limit);
+			}
+		}
+	}
+	return ret ? ret : collect_limits(r, err);
+}

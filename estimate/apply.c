@@ -1,0 +1,985 @@
+/* Images to files: a kernel's output streamed into ENVI cubes, masks and label maps
+ * (the declarations and the list of files are at the end of kg_estimate.h).
+ *
+ * The cube never exists in memory: kg_est_run_stream hands finished row blocks, in
+ * row order, to a sink that passes them to the ENVI writers. Every file goes to a
+ * temporary name first; the final names appear only once all of a call's files are
+ * complete, and a failure after that point removes the ones already renamed. */
+#include <float.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "est_private.h"
+
+void kg_apply_options_init(kg_apply_options *o)
+{
+	memset(o, 0, sizeof(*o));
+	o->clip_level = 0.999f;
+	o->isa = KG_EST_ISA_AUTO;
+}
+
+int kg_apply_side_path(const char *out_path, const char *suffix, char **out, kg_err *err)
+{
+	kg_check_arg(out_path && suffix && out, err);
+	const char *base = strrchr(out_path, '/');
+	base = base ? base + 1 : out_path;
+	const char *dot = strrchr(base, '.');
+	size_t stem = dot && dot != base ? (size_t)(dot - out_path) : strlen(out_path);
+	char *p = malloc(stem + strlen(suffix) + 1);
+	if (!p)
+		return kg_fail(err, KG_ENOMEM, "out of memory");
+	memcpy(p, out_path, stem);
+	strcpy(p + stem, suffix);
+	*out = p;
+	return 0;
+}
+
+void kg_est_stats_format(const kg_est_stats *s, char *buf, size_t size)
+{
+	double n = s->pixels ? (double)s->pixels : 1.0;
+	snprintf(buf, size,
+	         "pixels %llu, clipped %llu (%.3f %%), non-finite %llu (%.3f %%), "
+	         "clamped %llu (%.3f %%)",
+	         (unsigned long long)s->pixels, (unsigned long long)s->clipped,
+	         100.0 * (double)s->clipped / n, (unsigned long long)s->nonfinite,
+	         100.0 * (double)s->nonfinite / n, (unsigned long long)s->clamped_pixels,
+	         100.0 * (double)s->clamped_pixels / n);
+}
+
+/* ---- input ----------------------------------------------------------------------- */
+
+/* The pixels the kernel sees, and the clip level that makes the framework flag the
+ * right ones. Without pre these are the image's own. With pre, a transformed copy:
+ * the clip test belongs to the camera's values, so a pixel clipped before the
+ * transform is marked with FLT_MAX (finite, and at the job's clip level FLT_MAX)
+ * and NaN/Inf inputs stay non-finite. */
+typedef struct apply_input {
+	const float *rgb;
+	float *owned;
+	float clip;
+} apply_input;
+
+static int is_identity(const double *m)
+{
+	for (int i = 0; i < 9; i++)
+		if (m[i] != (i % 4 == 0 ? 1.0 : 0.0))
+			return 0;
+	return 1;
+}
+
+static int input_prepare(const kg_image *img, const kg_apply_options *opt, const char *what,
+                         apply_input *in, kg_err *err)
+{
+	memset(in, 0, sizeof(*in));
+	if (!img || !img->data || img->width < 1 || img->height < 1)
+		return kg_fail(err, KG_EINVAL, "%s: no image data", what);
+	if (img->channels != 3)
+		return kg_fail(err, KG_EINVAL,
+		               "%s: the image has %d channel%s%s: expected 3 (linear RGB)%s", what,
+		               img->channels, img->channels == 1 ? "" : "s",
+		               img->cfa ? " (a raw CFA frame)" : "",
+		               img->channels == 1 ? "; a raw Bayer frame must be demosaiced first" : "");
+	if (isnan(opt->clip_level))
+		return kg_fail(err, KG_EINVAL, "%s: clip level: expected a number, not NaN", what);
+	in->rgb = img->data;
+	in->clip = opt->clip_level;
+	if (!opt->pre || is_identity(opt->pre))
+		return 0;
+	for (int i = 0; i < 9; i++)
+		if (!isfinite(opt->pre[i]))
+			return kg_fail(err, KG_EINVAL, "%s: pre-transform: expected finite values", what);
+	size_t n = (size_t)img->width * (size_t)img->height;
+	float *t = malloc(n * 3 * sizeof(float));
+	if (!t)
+		return kg_fail(err, KG_ENOMEM, "%s: out of memory for %zu pixels", what, n);
+	const double *P = opt->pre;
+	const float clip = opt->clip_level;
+	for (size_t i = 0; i < n; i++) {
+		const float *p = img->data + 3 * i;
+		float *q = t + 3 * i;
+		int finite = isfinite(p[0]) && isfinite(p[1]) && isfinite(p[2]);
+		if (finite && (p[0] >= clip || p[1] >= clip || p[2] >= clip)) {
+			q[0] = q[1] = q[2] = FLT_MAX;
+			continue;
+		}
+		for (int r = 0; r < 3; r++)
+			q[r] = (float)(P[3 * r] * p[0] + P[3 * r + 1] * p[1] + P[3 * r + 2] * p[2]);
+	}
+	in->rgb = t;
+	in->owned = t;
+	in->clip = isinf(opt->clip_level) ? INFINITY : FLT_MAX;
+	return 0;
+}
+
+/* ---- progress -------------------------------------------------------------------- */
+
+typedef struct progress {
+	FILE *fp;
+	const char *what;
+	int height, width;
+	double start, last;
+} progress;
+
+static double now_seconds(void)
+{
+	struct timespec ts;
+	clock_gettime(CLOCK_MONOTONIC, &ts);
+	return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+static void progress_init(progress *p, const kg_apply_options *opt, const char *what,
+                          const kg_image *img)
+{
+	memset(p, 0, sizeof(*p));
+	if (opt->progress && (long)img->width * img->height >= KG_APPLY_PROGRESS_PIXELS)
+		p->fp = opt->progress;
+	p->what = what;
+	p->width = img->width;
+	p->height = img->height;
+	p->start = p->last = now_seconds();
+}
+
+static void progress_rows(progress *p, int rows_done)
+{
+	if (!p->fp)
+		return;
+	double t = now_seconds();
+	if (rows_done < p->height && t - p->last < 1.0)
+		return;
+	p->last = t;
+	double el = t - p->start;
+	double mpix = (double)rows_done * p->width / 1e6;
+	fprintf(p->fp, "%s: rows %d / %d (%.0f %%), %.1f Mpix/s\n", p->what, rows_done, p->height,
+	        100.0 * rows_done / p->height, el > 0 ? mpix / el : 0.0);
+	fflush(p->fp);
+}
+
+/* ---- files written by a call ----------------------------------------------------- */
+
+/* Final names of files already in place, removed again if a later step fails. */
+typedef struct written {
+	char *paths[16];
+	int n;
+} written;
+
+static void written_add(written *w, const char *path)
+{
+	if (w->n < 16)
+		w->paths[w->n++] = strdup(path);
+}
+
+static void written_add_envi(written *w, const char *path)
+{
+	char *hdr = NULL, *data = NULL;
+	if (kg_envi_paths(path, &hdr, &data, NULL) == 0) {
+		written_add(w, data);
+		written_add(w, hdr);
+	}
+	free(hdr);
+	free(data);
+}
+
+static void written_clear(written *w, int remove)
+{
+	for (int i = 0; i < w->n; i++) {
+		if (remove && w->paths[i])
+			unlink(w->paths[i]);
+		free(w->paths[i]);
+	}
+	w->n = 0;
+}
+
+/* Finish the writers in order; any failure removes what was finished before. */
+static int finish_all(kg_envi_writer **ws, const char *const *paths, int n, written *done,
+                      kg_err *err)
+{
+	int rc = 0;
+	for (int i = 0; i < n; i++) {
+		if (rc) {
+			kg_envi_writer_abort(&ws[i]);
+			continue;
+		}
+		rc = kg_envi_writer_finish(&ws[i], err);
+		if (rc)
+			kg_err_prefix(err, "%s: ", paths[i]);
+		else
+			written_add_envi(done, paths[i]);
+	}
+	return rc;
+}
+
+/* A float staging buffer for blocks that are not float32 (f16 bits, masks, labels);
+ * the ENVI writer converts the values (exact integers) to the file's type. */
+typedef struct staging {
+	float *v;
+	size_t cap;
+} staging;
+
+static float *staging_get(staging *s, size_t n, kg_err *err)
+{
+	if (n > s->cap) {
+		float *v = realloc(s->v, n * sizeof(float));
+		if (!v) {
+			kg_fail(err, KG_ENOMEM, "out of memory for a block of %zu values", n);
+			return NULL;
+		}
+		s->v = v;
+		s->cap = n;
+	}
+	return s->v;
+}
+
+static int put_bytes(kg_envi_writer *w, staging *s, const kg_est_block *b, const uint8_t *src,
+                     kg_err *err)
+{
+	size_t n = (size_t)b->rows * b->width;
+	float *v = staging_get(s, n, err);
+	if (!v)
+		return KG_ENOMEM;
+	for (size_t i = 0; i < n; i++)
+		v[i] = src[i];
+	return kg_envi_writer_put(w, b->y0, b->y0 + b->rows, KG_LAYOUT_BIP, v, err);
+}
+
+static const char mask_description[] =
+	"kogei pixel flags (bits): 1 = an input channel is NaN or Inf; 2 = clipped: a "
+	"channel >= the clip level; 4 = negative reflectance clamped to 0. A pixel with "
+	"bit 1 or 2 set was not estimated (NaN in the cube; unclassified in a label map)";
+
+static int open_mask(const char *out_hdr, const kg_image *img, char **mask_path,
+                     kg_envi_writer **w, kg_err *err)
+{
+	int rc = kg_apply_side_path(out_hdr, "_mask.hdr", mask_path, err);
+	if (rc)
+		return rc;
+	kg_envi_meta m = {0};
+	m.samples = img->width;
+	m.lines = img->height;
+	m.bands = 1;
+	m.data_type = KG_ENVI_U8;
+	m.interleave = KG_ENVI_BSQ;
+	m.description = mask_description;
+	rc = kg_envi_writer_open(*mask_path, &m, w, err);
+	if (rc)
+		kg_err_prefix(err, "%s: ", *mask_path);
+	return rc;
+}
+
+/* ---- estimate ---------------------------------------------------------------------- */
+
+typedef struct est_sink {
+	kg_envi_writer *cube, *mask;
+	staging stage;
+	progress prog;
+} est_sink;
+
+static int est_sink_fn(void *user, const kg_est_block *b, kg_err *err)
+{
+	est_sink *s = user;
+	size_t n = (size_t)b->rows * b->width * b->bands;
+	int rc;
+	switch (b->format) {
+	case KG_EST_F32_BSQ:
+		rc = kg_envi_writer_put(s->cube, b->y0, b->y0 + b->rows, KG_LAYOUT_PLANAR, b->data, err);
+		break;
+	case KG_EST_F32_BIP:
+	case KG_EST_WEIGHTS:
+		rc = kg_envi_writer_put(s->cube, b->y0, b->y0 + b->rows, KG_LAYOUT_BIP, b->data, err);
+		break;
+	default: { /* f16: the bit patterns, as exact integers */
+		float *v = staging_get(&s->stage, n, err);
+		if (!v)
+			return KG_ENOMEM;
+		const uint16_t *h = b->data;
+		for (size_t i = 0; i < n; i++)
+			v[i] = h[i];
+		rc = kg_envi_writer_put(s->cube, b->y0, b->y0 + b->rows,
+		                        b->format == KG_EST_F16_BSQ ? KG_LAYOUT_PLANAR : KG_LAYOUT_BIP,
+		                        v, err);
+	}
+	}
+	if (!rc)
+		rc = put_bytes(s->mask, &s->stage, b, b->mask, err);
+	progress_rows(&s->prog, b->y0 + b->rows);
+	return rc;
+}
+
+int kg_est_kernel_basis(const kg_est_kernel *k, double *basis, double *mean, kg_err *err)
+{
+	kg_check_arg(k && basis && mean, err);
+	if (!k->k || !k->basis)
+		return kg_fail(err, KG_EINVAL, "kernel: it has no basis (a pca kernel has one)");
+	memcpy(basis, k->basis, sizeof(double) * KG_NBANDS * k->k);
+	for (int l = 0; l < KG_NBANDS; l++)
+		mean[l] = k->mean ? k->mean[l] : 0.0;
+	return 0;
+}
+
+static int basis_keys(const kg_est_kernel *k, kg_envi_pair *extra, char **owned, kg_err *err)
+{
+	int K = kg_est_kernel_k(k);
+	double *basis = malloc(sizeof(double) * KG_NBANDS * K);
+	double mean[KG_NBANDS], wl[KG_NBANDS];
+	if (!basis)
+		return kg_fail(err, KG_ENOMEM, "out of memory");
+	int rc = kg_est_kernel_basis(k, basis, mean, err);
+	for (int l = 0; l < KG_NBANDS; l++)
+		wl[l] = kg_band_nm(l);
+	if (!rc)
+		rc = kg_envi_format_list(basis, KG_NBANDS * K, &owned[0], err);
+	if (!rc)
+		rc = kg_envi_format_list(mean, KG_NBANDS, &owned[1], err);
+	if (!rc)
+		rc = kg_envi_format_list(wl, KG_NBANDS, &owned[2], err);
+	free(basis);
+	if (rc)
+		return rc;
+	extra[0] = (kg_envi_pair){"kogei basis", owned[0]};
+	extra[1] = (kg_envi_pair){"kogei mean", owned[1]};
+	extra[2] = (kg_envi_pair){"kogei basis wavelength", owned[2]};
+	return 0;
+}
+
+static const char *format_name(kg_est_format f)
+{
+	switch (f) {
+	case KG_EST_F32_BSQ:
+	case KG_EST_F32_BIP: return "f32";
+	case KG_EST_F16_BSQ:
+	case KG_EST_F16_BIP: return "f16";
+	case KG_EST_WEIGHTS: return "weights";
+	default: return "labels";
+	}
+}
+
+int kg_estimate_image(const kg_est_kernel *k, const kg_image *img, kg_est_format format,
+                      const kg_apply_options *opt, const char *out_hdr, kg_est_stats *stats,
+                      kg_err *err)
+{
+	kg_check_arg(k && img && out_hdr, err);
+	kg_apply_options dflt;
+	if (!opt) {
+		kg_apply_options_init(&dflt);
+		opt = &dflt;
+	}
+	if (format != KG_EST_F32_BSQ && format != KG_EST_F32_BIP && format != KG_EST_F16_BSQ &&
+	    format != KG_EST_F16_BIP && format != KG_EST_WEIGHTS)
+		return kg_fail(err, KG_EINVAL, "%s: output format %d: expected f32, f16 or weights",
+		               out_hdr, (int)format);
+	int K = kg_est_kernel_k(k);
+	if (format == KG_EST_WEIGHTS && K == 0)
+		return kg_fail(err, KG_EINVAL,
+		               "%s: weights output needs a method with a K-dimensional basis (pca); "
+		               "this kernel gives spectra only",
+		               out_hdr);
+
+	apply_input in;
+	int rc = input_prepare(img, opt, "estimate", &in, err);
+	if (rc)
+		return rc;
+
+	char *owned[3] = {NULL, NULL, NULL};
+	char *mask_path = NULL;
+	kg_envi_writer *ws[2] = {NULL, NULL};
+	const char *paths[2] = {out_hdr, NULL};
+	est_sink sink = {0};
+	written done = {0};
+	double wl[KG_NBANDS];
+	const char *band_names[KG_EST_MAX_K];
+	char band_text[KG_EST_MAX_K][16];
+	kg_envi_pair extra[4];
+	kg_envi_meta m = {0};
+	m.samples = img->width;
+	m.lines = img->height;
+	m.bands = kg_est_format_bands(k, format);
+	m.interleave = (format == KG_EST_F32_BSQ || format == KG_EST_F16_BSQ) ? KG_ENVI_BSQ
+	                                                                      : KG_ENVI_BIP;
+	m.data_type = (format == KG_EST_F16_BSQ || format == KG_EST_F16_BIP) ? KG_ENVI_U16
+	                                                                     : KG_ENVI_F32;
+	m.description = opt->description;
+	m.extra = extra;
+	if (format == KG_EST_WEIGHTS) {
+		if ((rc = basis_keys(k, extra, owned, err)))
+			goto out;
+		m.n_extra = 3;
+		for (int i = 0; i < K; i++) {
+			snprintf(band_text[i], sizeof(band_text[i]), "w%d", i + 1);
+			band_names[i] = band_text[i];
+		}
+		m.band_names = band_names;
+	} else {
+		for (int l = 0; l < KG_NBANDS; l++)
+			wl[l] = kg_band_nm(l);
+		m.wavelength = wl;
+	}
+	if (m.data_type == KG_ENVI_U16)
+		extra[m.n_extra++] = (kg_envi_pair){"kogei sample format", "ieee-half"};
+
+	if ((rc = kg_envi_writer_open(out_hdr, &m, &ws[0], err))) {
+		kg_err_prefix(err, "%s: ", out_hdr);
+		goto out;
+	}
+	if ((rc = open_mask(out_hdr, img, &mask_path, &ws[1], err)))
+		goto out;
+	paths[1] = mask_path;
+
+	kg_est_job job;
+	kg_est_job_init(&job, k, format);
+	job.clip_level = in.clip;
+	job.threads = opt->threads;
+	job.block_rows = opt->block_rows;
+	job.isa = opt->isa;
+	sink.cube = ws[0];
+	sink.mask = ws[1];
+	progress_init(&sink.prog, opt, "estimate", img);
+	rc = kg_est_run_stream(&job, in.rgb, img->width, img->height, est_sink_fn, &sink, stats, err);
+	if (rc) {
+		kg_err_prefix(err, "%s (%s): ", out_hdr, format_name(format));
+		goto out;
+	}
+	rc = finish_all(ws, paths, 2, &done, err);
+
+out:
+	for (int i = 0; i < 2; i++)
+		if (ws[i])
+			kg_envi_writer_abort(&ws[i]);
+	written_clear(&done, rc != 0);
+	free(sink.stage.v);
+	free(mask_path);
+	for (int i = 0; i < 3; i++)
+		free(owned[i]);
+	free(in.owned);
+	return rc;
+}
+
+/* ---- the declared materials ------------------------------------------------------ */
+
+void kg_est_material_set_free(kg_est_material_set **pset)
+{
+	if (!pset || !*pset)
+		return;
+	kg_est_material_set *s = *pset;
+	free(s->materials);
+	free(s->spectra);
+	free(s->names);
+	free(s);
+	*pset = NULL;
+}
+
+static void list_library(const kg_material_library *lib, char *buf, size_t size)
+{
+	size_t used = 0;
+	buf[0] = '\0';
+	for (int i = 0; i < kg_material_library_count(lib) && used + 1 < size; i++) {
+		int w = snprintf(buf + used, size - used, "%s%s", i ? ", " : "",
+		                 kg_material_library_get(lib, i)->name);
+		if (w < 0)
+			break;
+		used += (size_t)w;
+	}
+}
+
+int kg_est_material_set_new(const kg_material_library *lib, const char *library,
+                            const char *const *only, int nonly, double angle_deg,
+                            kg_est_material_set **out, kg_err *err)
+{
+	kg_check_arg(lib && out && nonly >= 0 && (nonly == 0 || only), err);
+	if (!library)
+		library = "material library";
+	if (!(angle_deg >= 0 && angle_deg <= 90))
+		return kg_fail(err, KG_EINVAL, "%s: incidence angle %g: expected 0 to 90 degrees",
+		               library, angle_deg);
+	int n = nonly ? nonly : kg_material_library_count(lib);
+	char known[1024];
+	list_library(lib, known, sizeof(known));
+	if (n < 1)
+		return kg_fail(err, KG_EINVAL, "%s: no materials to classify among", library);
+	if (n > KG_EST_MAX_MATERIALS)
+		return kg_fail(err, KG_EINVAL, "%s: %d materials: at most %d fit a label map", library,
+		               n, KG_EST_MAX_MATERIALS);
+	for (int i = 0; i < nonly; i++) {
+		if (!kg_material_library_find(lib, only[i]))
+			return kg_fail(err, KG_EINVAL, "%s: no material named '%s'; it has: %s", library,
+			               only[i], known);
+		for (int j = 0; j < i; j++)
+			if (strcmp(only[i], only[j]) == 0)
+				return kg_fail(err, KG_EINVAL, "%s: material '%s' is named twice", library,
+				               only[i]);
+	}
+	kg_est_material_set *s = calloc(1, sizeof(*s));
+	if (!s)
+		return kg_fail(err, KG_ENOMEM, "out of memory");
+	s->n = n;
+	s->angle_deg = angle_deg;
+	s->materials = calloc((size_t)n, sizeof(*s->materials));
+	s->spectra = calloc((size_t)n, sizeof(*s->spectra));
+	s->names = calloc((size_t)n, sizeof(*s->names));
+	if (!s->materials || !s->spectra || !s->names) {
+		kg_est_material_set_free(&s);
+		return kg_fail(err, KG_ENOMEM, "out of memory");
+	}
+	double theta = angle_deg * M_PI / 180.0;
+	for (int i = 0; i < n; i++) {
+		const kg_material *mat =
+			nonly ? kg_material_library_find(lib, only[i]) : kg_material_library_get(lib, i);
+		int rc = kg_material_reflectance(mat, theta, &s->spectra[i], err);
+		if (rc) {
+			kg_err_prefix(err, "%s: material '%s': ", library, mat->name);
+			kg_est_material_set_free(&s);
+			return rc;
+		}
+		snprintf(s->names[i], sizeof(s->names[i]), "%s", mat->name);
+		s->materials[i].name = s->names[i];
+		s->materials[i].spectrum = s->spectra[i].v;
+	}
+	*out = s;
+	return 0;
+}
+
+/* ---- classify -------------------------------------------------------------------- */
+
+void kg_classify_result_free(kg_classify_result *r)
+{
+	if (!r)
+		return;
+	free(r->classes);
+	memset(r, 0, sizeof(*r));
+}
+
+/* Distinct colours for the classes: K. L. Kelly's (1965) colours of maximum
+ * contrast without white, black and grey (grey marks flagged pixels), then hues
+ * spaced by the golden angle. */
+static void class_colour(int j, unsigned char rgb[3])
+{
+	static const unsigned char kelly[19][3] = {
+		{0xF3, 0xC3, 0x00}, {0x87, 0x56, 0x92}, {0xF3, 0x84, 0x00}, {0xA1, 0xCA, 0xF1},
+		{0xBE, 0x00, 0x32}, {0xC2, 0xB2, 0x80}, {0x00, 0x88, 0x56}, {0xE6, 0x8F, 0xAC},
+		{0x00, 0x67, 0xA5}, {0xF9, 0x93, 0x79}, {0x60, 0x4E, 0x97}, {0xF6, 0xA6, 0x00},
+		{0xB3, 0x44, 0x6C}, {0xDC, 0xD3, 0x00}, {0x88, 0x2D, 0x17}, {0x8D, 0xB6, 0x00},
+		{0x65, 0x45, 0x22}, {0xE2, 0x58, 0x22}, {0x2B, 0x3D, 0x26},
+	};
+	if (j < 19) {
+		memcpy(rgb, kelly[j], 3);
+		return;
+	}
+	double h = fmod(j * 0.618033988749895, 1.0) * 6.0, v = j % 2 ? 0.75 : 0.95, s = 0.8;
+	int i = (int)h;
+	double f = h - i, p = v * (1 - s), q = v * (1 - s * f), t = v * (1 - s * (1 - f));
+	double c[6][3] = {{v, t, p}, {q, v, p}, {p, v, t}, {p, q, v}, {t, p, v}, {v, p, q}};
+	for (int k = 0; k < 3; k++)
+		rgb[k] = (unsigned char)lround(255.0 * c[i % 6][k]);
+}
+
+static const unsigned char flagged_grey[3] = {128, 128, 128};
+
+typedef struct cls_sink {
+	kg_envi_writer *labels, *conf, *mask;
+	staging stage;
+	progress prog;
+	uint8_t *label_map; /* whole image */
+	float *margin;      /* whole image */
+	double (*rgb_sum)[3];
+	const float *rgb;
+} cls_sink;
+
+static int cls_sink_fn(void *user, const kg_est_block *b, kg_err *err)
+{
+	cls_sink *s = user;
+	size_t n = (size_t)b->rows * b->width, at = (size_t)b->y0 * b->width;
+	const uint8_t *lab = b->data;
+	memcpy(s->label_map + at, lab, n);
+	memcpy(s->margin + at, b->confidence, n * sizeof(float));
+	const float *p = s->rgb + 3 * at;
+	for (size_t i = 0; i < n; i++)
+		if (lab[i] != KG_EST_LABEL_NONE)
+			for (int c = 0; c < 3; c++)
+				s->rgb_sum[lab[i]][c] += p[3 * i + c];
+	int rc = put_bytes(s->labels, &s->stage, b, lab, err);
+	if (!rc)
+		rc = kg_envi_writer_put(s->conf, b->y0, b->y0 + b->rows, KG_LAYOUT_BIP, b->confidence,
+		                        err);
+	if (!rc)
+		rc = put_bytes(s->mask, &s->stage, b, b->mask, err);
+	progress_rows(&s->prog, b->y0 + b->rows);
+	return rc;
+}
+
+static int cmp_float(const void *a, const void *b)
+{
+	float x = *(const float *)a, y = *(const float *)b;
+	return (x > y) - (x < y);
+}
+
+/* Counts, mean spectra and margin statistics per class. */
+static int summarise(const kg_est_kernel *k, const kg_est_material_set *set, const cls_sink *s,
+                     size_t npix, kg_classify_result *res, kg_err *err)
+{
+	int n = set->n;
+	res->nclasses = n;
+	res->classes = calloc((size_t)n, sizeof(*res->classes));
+	uint64_t *count = calloc((size_t)n + 1, sizeof(uint64_t));
+	if (!res->classes || !count) {
+		free(count);
+		return kg_fail(err, KG_ENOMEM, "out of memory");
+	}
+	for (size_t i = 0; i < npix; i++)
+		count[s->label_map[i]]++;
+	res->unclassified = count[0];
+	uint64_t largest = 0;
+	for (int j = 1; j <= n; j++)
+		largest = count[j] > largest ? count[j] : largest;
+	float *buf = malloc(sizeof(float) * (largest ? largest : 1));
+	if (!buf) {
+		free(count);
+		return kg_fail(err, KG_ENOMEM, "out of memory for %llu margins",
+		               (unsigned long long)largest);
+	}
+	for (int j = 0; j < n; j++) {
+		kg_class_summary *c = &res->classes[j];
+		snprintf(c->name, sizeof(c->name), "%s", set->names[j]);
+		c->pixels = count[j + 1];
+		c->fraction = npix ? (double)c->pixels / (double)npix : 0.0;
+		if (!c->pixels) {
+			for (int l = 0; l < KG_NBANDS; l++)
+				c->mean_spectrum[l] = NAN;
+			c->margin_mean = c->margin_median = c->margin_p5 = NAN;
+			continue;
+		}
+		float mean_rgb[3], spec[KG_NBANDS];
+		for (int ch = 0; ch < 3; ch++)
+			mean_rgb[ch] = (float)(s->rgb_sum[j + 1][ch] / (double)c->pixels);
+		kg_est_kernel_eval(k, mean_rgb, INFINITY, 0, spec);
+		for (int l = 0; l < KG_NBANDS; l++)
+			c->mean_spectrum[l] = spec[l];
+		size_t m = 0;
+		double sum = 0;
+		for (size_t i = 0; i < npix; i++)
+			if (s->label_map[i] == j + 1) {
+				buf[m++] = s->margin[i];
+				sum += s->margin[i];
+			}
+		qsort(buf, m, sizeof(float), cmp_float);
+		c->margin_mean = sum / (double)m;
+		c->margin_median = m % 2 ? buf[m / 2] : 0.5 * ((double)buf[m / 2 - 1] + buf[m / 2]);
+		size_t rank = (size_t)ceil(0.05 * (double)m);
+		c->margin_p5 = buf[rank ? rank - 1 : 0];
+	}
+	free(buf);
+	free(count);
+	return 0;
+}
+
+/* A number, or null where JSON has none (NaN, +-Inf). */
+static json_t *json_num(double v)
+{
+	return isfinite(v) ? json_real(v) : json_null();
+}
+
+static const char *distance_name(kg_est_distance d)
+{
+	return d == KG_EST_DIST_SCALE_FREE ? "scale-free" : "plain";
+}
+
+static int write_json(const char *path, const kg_est_material_set *set, kg_est_distance dist,
+                      const kg_image *img, const kg_apply_options *opt,
+                      const kg_classify_info *info, const char *const files[4],
+                      const kg_classify_result *res, kg_err *err)
+{
+	json_t *root = json_object();
+	json_t *classes = json_array();
+	json_t *wl = json_array();
+	if (!root || !classes || !wl) {
+		json_decref(root);
+		json_decref(classes);
+		json_decref(wl);
+		return kg_fail(err, KG_ENOMEM, "out of memory");
+	}
+	json_object_set_new(root, "format", json_string("kogei-labels/1"));
+	const char *keys[4] = {"image", "calib", "materials", "method"};
+	const char *vals[4] = {info ? info->image : NULL, info ? info->calib : NULL,
+	                       info ? info->materials : NULL, info ? info->method : NULL};
+	for (int i = 0; i < 4; i++)
+		json_object_set_new(root, keys[i], vals[i] ? json_string(vals[i]) : json_null());
+	json_object_set_new(root, "distance", json_string(distance_name(dist)));
+	json_object_set_new(root, "angle_deg", json_real(set->angle_deg));
+	json_object_set_new(root, "clip_level", json_num(opt->clip_level));
+	json_object_set_new(root, "width", json_integer(img->width));
+	json_object_set_new(root, "height", json_integer(img->height));
+	json_object_set_new(root, "pixels", json_integer((json_int_t)res->stats.pixels));
+	json_t *fl = json_object();
+	json_object_set_new(fl, "unclassified", json_integer((json_int_t)res->unclassified));
+	json_object_set_new(fl, "nonfinite", json_integer((json_int_t)res->stats.nonfinite));
+	json_object_set_new(fl, "clipped", json_integer((json_int_t)res->stats.clipped));
+	json_object_set_new(root, "flagged", fl);
+	json_t *fs = json_object();
+	const char *fkeys[4] = {"labels", "confidence", "mask", "preview"};
+	for (int i = 0; i < 4; i++)
+		json_object_set_new(fs, fkeys[i], json_string(files[i]));
+	json_object_set_new(root, "files", fs);
+	json_object_set_new(root, "confidence",
+	                    json_string("margin: distance to the runner-up minus distance to the "
+	                                "chosen material (squared reflectance over 61 bands)"));
+	for (int l = 0; l < KG_NBANDS; l++)
+		json_array_append_new(wl, json_real(kg_band_nm(l)));
+	json_object_set_new(root, "wavelength_nm", wl);
+	json_t *c0 = json_object();
+	json_object_set_new(c0, "label", json_integer(0));
+	json_object_set_new(c0, "name", json_string("unclassified"));
+	json_object_set_new(c0, "pixels", json_integer((json_int_t)res->unclassified));
+	json_object_set_new(c0, "fraction",
+	                    json_real(res->stats.pixels
+	                                  ? (double)res->unclassified / (double)res->stats.pixels
+	                                  : 0.0));
+	json_array_append_new(classes, c0);
+	for (int j = 0; j < res->nclasses; j++) {
+		const kg_class_summary *c = &res->classes[j];
+		json_t *o = json_object();
+		unsigned char col[3];
+		class_colour(j, col);
+		json_object_set_new(o, "label", json_integer(j + 1));
+		json_object_set_new(o, "name", json_string(c->name));
+		json_object_set_new(o, "pixels", json_integer((json_int_t)c->pixels));
+		json_object_set_new(o, "fraction", json_real(c->fraction));
+		json_object_set_new(o, "colour", json_pack("[iii]", col[0], col[1], col[2]));
+		json_t *ms = json_null();
+		if (c->pixels) {
+			ms = json_array();
+			for (int l = 0; l < KG_NBANDS; l++)
+				json_array_append_new(ms, json_num(c->mean_spectrum[l]));
+		}
+		json_object_set_new(o, "mean_spectrum", ms);
+		json_t *conf = json_object();
+		json_object_set_new(conf, "mean", json_num(c->margin_mean));
+		json_object_set_new(conf, "median", json_num(c->margin_median));
+		json_object_set_new(conf, "p5", json_num(c->margin_p5));
+		json_object_set_new(o, "confidence", conf);
+		json_array_append_new(classes, o);
+	}
+	json_object_set_new(root, "classes", classes);
+	int rc = kg_json_write(root, path, err);
+	json_decref(root);
+	if (rc)
+		kg_err_prefix(err, "%s: ", path);
+	return rc;
+}
+
+/* The label map with class colours (flagged pixels grey), at most 720 pixels on its
+ * longer side (nearest sample), and a legend with each class's share. */
+static int write_preview(const char *path, const kg_est_material_set *set,
+                         const uint8_t *labels, int width, int height,
+                         const kg_classify_result *res, kg_err *err)
+{
+	double scale = 720.0 / (width > height ? width : height);
+	int pw = (int)lround(width * scale), ph = (int)lround(height * scale);
+	pw = pw < 1 ? 1 : pw;
+	ph = ph < 1 ? 1 : ph;
+	const int margin = 10, legend_w = 260, entry_h = 20;
+	int legend_h = entry_h * (set->n + 1) + 2 * margin;
+	int fig_h = (ph + 2 * margin > legend_h ? ph + 2 * margin : legend_h);
+	kg_plot *p = NULL;
+	int rc = kg_plot_new(pw + legend_w + 2 * margin, fig_h, &p, err);
+	if (rc)
+		return rc;
+	unsigned char (*pal)[3] = malloc(sizeof(*pal) * 256);
+	int *src_x = malloc(sizeof(int) * pw);
+	if (!pal || !src_x) {
+		free(pal);
+		free(src_x);
+		kg_plot_free(&p);
+		return kg_fail(err, KG_ENOMEM, "out of memory");
+	}
+	memcpy(pal[0], flagged_grey, 3);
+	for (int j = 0; j < set->n; j++)
+		class_colour(j, pal[j + 1]);
+	for (int x = 0; x < pw; x++) {
+		int sx = (int)((long)x * width / pw);
+		src_x[x] = sx < width ? sx : width - 1;
+	}
+	for (int y = 0; y < ph; y++) {
+		int sy = (int)((long)y * height / ph);
+		const uint8_t *row = labels + (size_t)(sy < height ? sy : height - 1) * width;
+		for (int x0 = 0; x0 < pw;) {
+			uint8_t l = row[src_x[x0]];
+			int x1 = x0 + 1;
+			while (x1 < pw && row[src_x[x1]] == l)
+				x1++;
+			double c[3] = {pal[l][0] / 255.0, pal[l][1] / 255.0, pal[l][2] / 255.0};
+			kg_plot_fill_rect(p, margin + x0, margin + y, x1 - x0, 1, c);
+			x0 = x1;
+		}
+	}
+	const double black[3] = {0, 0, 0};
+	double lx = pw + 2 * margin;
+	for (int j = 0; j <= set->n; j++) {
+		double y = margin + entry_h * j;
+		double c[3] = {pal[j][0] / 255.0, pal[j][1] / 255.0, pal[j][2] / 255.0};
+		kg_plot_fill_rect(p, lx, y + 3, 14, 14, c);
+		double frac = res->stats.pixels
+		                  ? 100.0 *
+		                        (double)(j ? res->classes[j - 1].pixels : res->unclassified) /
+		                        (double)res->stats.pixels
+		                  : 0.0;
+		kg_plot_text(p, lx + 20, y + 15, 12, KG_ALIGN_LEFT, black, "%s  %.1f %%",
+		             j ? set->names[j - 1] : "flagged (unclassified)", frac);
+	}
+	free(pal);
+	free(src_x);
+	rc = kg_plot_save_png(p, path, err);
+	kg_plot_free(&p);
+	if (rc)
+		kg_err_prefix(err, "%s: ", path);
+	return rc;
+}
+
+int kg_classify_image(const kg_est_kernel *k, const kg_est_material_set *set,
+                      kg_est_distance distance, const kg_image *img,
+                      const kg_apply_options *opt, const kg_classify_info *info,
+                      const char *out_hdr, kg_classify_result *res, kg_err *err)
+{
+	kg_check_arg(k && set && img && out_hdr, err);
+	kg_apply_options dflt;
+	if (!opt) {
+		kg_apply_options_init(&dflt);
+		opt = &dflt;
+	}
+	kg_classify_result local = {0};
+	if (res)
+		memset(res, 0, sizeof(*res));
+	if (kg_est_kernel_k(k) == 0)
+		return kg_fail(err, KG_EINVAL,
+		               "%s: classification works in the K-dimensional subspace of a basis "
+		               "(DESIGN.md section 1, step 4): it needs a method with one (pca)",
+		               out_hdr);
+	if (set->n < 1 || set->n > KG_EST_MAX_MATERIALS)
+		return kg_fail(err, KG_EINVAL, "%s: %d materials: expected 1 to %d", out_hdr, set->n,
+		               KG_EST_MAX_MATERIALS);
+
+	apply_input in;
+	int rc = input_prepare(img, opt, "classify", &in, err);
+	if (rc)
+		return rc;
+	kg_est_classifier *cls = NULL;
+	kg_envi_writer *ws[3] = {NULL, NULL, NULL};
+	char *conf_path = NULL, *mask_path = NULL, *json_path = NULL, *png_path = NULL;
+	const char *paths[3] = {out_hdr, NULL, NULL};
+	char **names = NULL;
+	unsigned char *lookup = NULL;
+	cls_sink sink = {0};
+	written done = {0};
+	size_t npix = (size_t)img->width * (size_t)img->height;
+
+	if ((rc = kg_est_classifier_new(k, set->materials, set->n, distance, &cls, err)))
+		goto out;
+	if ((rc = kg_apply_side_path(out_hdr, "_confidence.hdr", &conf_path, err)) ||
+	    (rc = kg_apply_side_path(out_hdr, ".json", &json_path, err)) ||
+	    (rc = kg_apply_side_path(out_hdr, ".png", &png_path, err)))
+		goto out;
+	names = calloc((size_t)set->n + 1, sizeof(char *));
+	lookup = malloc(3 * ((size_t)set->n + 1));
+	sink.label_map = malloc(npix);
+	sink.margin = malloc(npix * sizeof(float));
+	sink.rgb_sum = calloc((size_t)set->n + 1, sizeof(*sink.rgb_sum));
+	if (!names || !lookup || !sink.label_map || !sink.margin || !sink.rgb_sum) {
+		rc = kg_fail(err, KG_ENOMEM, "classify: out of memory for %zu pixels", npix);
+		goto out;
+	}
+	names[0] = "unclassified";
+	memcpy(lookup, flagged_grey, 3);
+	for (int j = 0; j < set->n; j++) {
+		names[j + 1] = set->names[j];
+		class_colour(j, lookup + 3 * (j + 1));
+	}
+
+	kg_envi_meta m = {0};
+	m.samples = img->width;
+	m.lines = img->height;
+	m.bands = 1;
+	m.data_type = KG_ENVI_U8;
+	m.interleave = KG_ENVI_BSQ;
+	char desc[160];
+	snprintf(desc, sizeof(desc), "kogei classify: %d materials, %s distance, %g degrees",
+	         set->n, distance_name(distance), set->angle_deg);
+	m.description = opt->description ? opt->description : desc;
+	m.classes = set->n + 1;
+	m.class_names = (const char *const *)names;
+	m.class_lookup = lookup;
+	if ((rc = kg_envi_writer_open(out_hdr, &m, &ws[0], err))) {
+		kg_err_prefix(err, "%s: ", out_hdr);
+		goto out;
+	}
+	kg_envi_meta mc = {0};
+	mc.samples = img->width;
+	mc.lines = img->height;
+	mc.bands = 1;
+	mc.data_type = KG_ENVI_F32;
+	mc.interleave = KG_ENVI_BSQ;
+	mc.description = "kogei classify confidence: distance to the runner-up minus distance "
+	                 "to the chosen material; NaN for flagged pixels, Inf with one material";
+	const char *band[1] = {"margin"};
+	mc.band_names = band;
+	if ((rc = kg_envi_writer_open(conf_path, &mc, &ws[1], err))) {
+		kg_err_prefix(err, "%s: ", conf_path);
+		goto out;
+	}
+	paths[1] = conf_path;
+	if ((rc = open_mask(out_hdr, img, &mask_path, &ws[2], err)))
+		goto out;
+	paths[2] = mask_path;
+
+	kg_est_job job;
+	kg_est_job_init(&job, k, KG_EST_LABELS);
+	job.classifier = cls;
+	job.clip_level = in.clip;
+	job.threads = opt->threads;
+	job.block_rows = opt->block_rows;
+	job.isa = opt->isa;
+	sink.labels = ws[0];
+	sink.conf = ws[1];
+	sink.mask = ws[2];
+	sink.rgb = in.rgb;
+	progress_init(&sink.prog, opt, "classify", img);
+	rc = kg_est_run_stream(&job, in.rgb, img->width, img->height, cls_sink_fn, &sink,
+	                       &local.stats, err);
+	if (rc) {
+		kg_err_prefix(err, "%s: ", out_hdr);
+		goto out;
+	}
+	if ((rc = summarise(k, set, &sink, npix, &local, err)))
+		goto out;
+	if ((rc = finish_all(ws, paths, 3, &done, err)))
+		goto out;
+	const char *files[4] = {out_hdr, conf_path, mask_path, png_path};
+	if ((rc = write_json(json_path, set, distance, img, opt, info, files, &local, err)))
+		goto out;
+	written_add(&done, json_path);
+	if ((rc = write_preview(png_path, set, sink.label_map, img->width, img->height, &local,
+	                        err)))
+		goto out;
+	written_add(&done, png_path);
+
+out:
+	for (int i = 0; i < 3; i++)
+		if (ws[i])
+			kg_envi_writer_abort(&ws[i]);
+	written_clear(&done, rc != 0);
+	if (rc == 0 && res)
+		*res = local;
+	else
+		kg_classify_result_free(&local);
+	kg_est_classifier_free(&cls);
+	free(sink.stage.v);
+	free(sink.label_map);
+	free(sink.margin);
+	free(sink.rgb_sum);
+	free(names);
+	free(lookup);
+	free(conf_path);
+	free(mask_path);
+	free(json_path);
+	free(png_path);
+	free(in.owned);
+	return rc;
+}
