@@ -361,7 +361,7 @@ int kg_illuminant_lookup(const char *spec, kg_illuminant **out, kg_err *err)
 		return kg_illuminant_from_file(spec, out, err);
 	int ret = kg_illuminant_by_name(spec, out, err);
 	if (ret == KG_EINVAL && err)
-		kg_err_prefix(err, "'%s' is not a file; ", spec);
+		kg_err_prefix(err, "'%s' is neither a known illuminant nor a file", spec);
 	return ret;
 }
 
