@@ -11,98 +11,23 @@
  *
  *   kogei-bench-kernels [--mpix N] [--reps N] [--quick] [--isa auto|c] [--json PATH] */
 #include <math.h>
-#include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
+#include "kg_bench.h"
 #include "kg_estimate.h"
 
 #define WIDTH 4000
 #define MAX_REPS 31
 
-static double now(void)
-{
-	struct timespec t;
-	clock_gettime(CLOCK_MONOTONIC, &t);
-	return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
-}
-
-static int cmp_double(const void *a, const void *b)
-{
-	double x = *(const double *)a, y = *(const double *)b;
-	return (x > y) - (x < y);
-}
-
-static double median(double *v, int n)
-{
-	qsort(v, (size_t)n, sizeof(double), cmp_double);
-	return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
-/* ---- the limit: non-temporal stores of the same bytes ---------------------- */
-
-typedef struct fill_part {
-	char *p;
-	size_t n;
-	pthread_t thread;
-} fill_part;
-
-#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
-#include <immintrin.h>
-__attribute__((target("avx2"))) static void *stream_fill(void *arg)
-{
-	fill_part *f = arg;
-	char *p = f->p, *end = f->p + f->n;
-	while (p < end && ((uintptr_t)p & 31))
-		*p++ = 1;
-	const __m256i v = _mm256_set1_epi8(1);
-	for (; p + 128 <= end; p += 128) {
-		_mm256_stream_si256((__m256i *)p, v);
-		_mm256_stream_si256((__m256i *)(p + 32), v);
-		_mm256_stream_si256((__m256i *)(p + 64), v);
-		_mm256_stream_si256((__m256i *)(p + 96), v);
-	}
-	while (p < end)
-		*p++ = 1;
-	_mm_sfence();
-	return NULL;
-}
-static int have_stream_fill(void)
-{
-	__builtin_cpu_init();
-	return __builtin_cpu_supports("avx2");
-}
-#else
-static void *stream_fill(void *arg)
-{
-	fill_part *f = arg;
-	memset(f->p, 1, f->n);
-	return NULL;
-}
-static int have_stream_fill(void) { return 0; }
-#endif
-
+/* The limit: the same bytes written with non-temporal stores (bench/kg_bench.h). */
 static double limit_seconds(char *buf, size_t bytes, int threads, int reps)
 {
 	double t[MAX_REPS];
-	for (int r = 0; r < reps; r++) {
-		fill_part part[2];
-		size_t half = (bytes / threads + 63) & ~(size_t)63;
-		double t0 = now();
-		for (int i = 0; i < threads; i++) {
-			part[i].p = buf + i * half;
-			part[i].n = i == threads - 1 ? bytes - i * half : half;
-			if (i > 0)
-				pthread_create(&part[i].thread, NULL, stream_fill, &part[i]);
-		}
-		stream_fill(&part[0]);
-		for (int i = 1; i < threads; i++)
-			pthread_join(part[i].thread, NULL);
-		t[r] = now() - t0;
-	}
-	return median(t, reps);
+	for (int r = 0; r < reps; r++)
+		t[r] = kg_bench_stream_seconds(buf, bytes, threads);
+	return kg_bench_percentile(t, reps, 0.5);
 }
 
 /* ---- the model ------------------------------------------------------------- */
@@ -259,9 +184,10 @@ int main(int argc, char **argv)
 	memset(buf, 0, max_bytes); /* fault the pages in once */
 	memset(conf, 0, sizeof(float) * npix);
 
-	fprintf(stderr, "kogei-bench-kernels: %d x %d = %.2f Mpix, %d repetitions, %s kernels%s\n",
+	fprintf(stderr, "kogei-bench-kernels: %d x %d = %.2f Mpix, %d repetitions, %s kernels, "
+	        "limit by %s\n",
 	        WIDTH, height, npix / 1e6, reps, isa == KG_EST_ISA_C ? "reference" : "best",
-	        have_stream_fill() ? "" : " (no AVX2: the limit uses memset)");
+	        kg_bench_stream_kind());
 
 	/* limits, by bytes per pixel */
 	size_t limit_bpp[8];
@@ -310,12 +236,12 @@ int main(int argc, char **argv)
 				double times[MAX_REPS];
 				kg_est_dest dest = {buf, outputs[o].format == KG_EST_LABELS ? conf : NULL, NULL};
 				for (int r = 0; r < reps; r++) {
-					double t0 = now();
+					double t0 = kg_bench_now();
 					if (kg_est_run(&job, rgb, WIDTH, height, &dest, NULL, &err) < 0)
 						goto fail;
-					times[r] = now() - t0;
+					times[r] = kg_bench_now() - t0;
 				}
-				speed[t - 1] = npix / 1e6 / median(times, reps);
+				speed[t - 1] = npix / 1e6 / kg_bench_percentile(times, reps, 0.5);
 			}
 			printf("| %s | %s | %zu | %.1f | %.1f | %.1f | %.1f | %.2f | %.2f |\n", methods[mi].name,
 			       outputs[o].name, outputs[o].bytes_per_pixel, speed[0], speed[1], limit[0], limit[1],

@@ -4,9 +4,6 @@
 
 #include "kg_bench.h"
 
-/* Seconds on CLOCK_MONOTONIC. */
-double bench_now(void);
-
 /* Time every kernel in k (NULL entries skipped) over the image rgb (width x height)
  * for each format it supports and each thread count of cfg, appending speed rows
  * and the matching non-temporal write limits to r. out: one buffer large enough for

@@ -15,7 +15,7 @@
 
 #include "bench_private.h"
 
-double bench_now(void)
+double kg_bench_now(void)
 {
 	struct timespec ts;
 	clock_gettime(CLOCK_MONOTONIC, &ts);
@@ -32,18 +32,6 @@ void bench_progress(const kg_bench_config *cfg, const char *fmt, ...)
 	vsnprintf(line, sizeof(line), fmt, ap);
 	va_end(ap);
 	cfg->progress(cfg->progress_user, line);
-}
-
-static int cmp_double(const void *a, const void *b)
-{
-	double x = *(const double *)a, y = *(const double *)b;
-	return (x > y) - (x < y);
-}
-
-static double median(double *v, int n)
-{
-	qsort(v, (size_t)n, sizeof(*v), cmp_double);
-	return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
 const char *kg_bench_stream_kind(void)
@@ -94,8 +82,7 @@ static void *share_main(void *arg)
 	return NULL;
 }
 
-/* Threads are created for every run, as kg_est_run creates its pool per run. */
-static double stream_once(char *buf, size_t bytes, int threads)
+double kg_bench_stream_seconds(void *buf, size_t bytes, int threads)
 {
 	share sh[64];
 	int created[64] = {0};
@@ -104,10 +91,10 @@ static double stream_once(char *buf, size_t bytes, int threads)
 	size_t per = (bytes / (size_t)threads + 63) & ~(size_t)63;
 	for (int i = 0; i < threads; i++) {
 		size_t off = per * (size_t)i;
-		sh[i].p = buf + off;
+		sh[i].p = (char *)buf + off;
 		sh[i].n = off >= bytes ? 0 : (bytes - off < per ? bytes - off : per);
 	}
-	double t0 = bench_now();
+	double t0 = kg_bench_now();
 	for (int i = 1; i < threads; i++) {
 		created[i] = pthread_create(&sh[i].thread, NULL, share_main, &sh[i]) == 0;
 		if (!created[i])
@@ -117,7 +104,7 @@ static double stream_once(char *buf, size_t bytes, int threads)
 	for (int i = 1; i < threads; i++)
 		if (created[i])
 			pthread_join(sh[i].thread, NULL);
-	return bench_now() - t0;
+	return kg_bench_now() - t0;
 }
 
 const char *kg_bench_format_name(kg_est_format f)
@@ -158,7 +145,7 @@ static int collect_limits(kg_bench_results *r, kg_err *err)
 		l->bytes_per_pixel = a->bytes_per_pixel;
 		l->threads = a->threads;
 		l->measurements = n;
-		l->gb_s = median(v, n);
+		l->gb_s = kg_bench_percentile(v, n, 0.5);
 	}
 	free(v);
 	return 0;
@@ -206,16 +193,16 @@ int bench_speed_all(const kg_bench_config *cfg, kg_est_kernel *const *k,
 				size_t bytes = (size_t)(bpp * (double)npix);
 				double t[64], tl[64];
 				ret = kg_est_run(&job, rgb, width, height, &dest, NULL, err); /* warm-up */
-				stream_once(out, bytes, threads);
+				kg_bench_stream_seconds(out, bytes, threads);
 				for (int i = 0; i < reps && !ret; i++) {
-					double t0 = bench_now();
+					double t0 = kg_bench_now();
 					ret = kg_est_run(&job, rgb, width, height, &dest, NULL, err);
-					t[i] = bench_now() - t0;
-					tl[i] = stream_once(out, bytes, threads);
+					t[i] = kg_bench_now() - t0;
+					tl[i] = kg_bench_stream_seconds(out, bytes, threads);
 				}
 				if (ret)
 					break;
-				double limit = (double)bytes / median(tl, reps) * 1e-9;
+				double limit = (double)bytes / kg_bench_percentile(tl, reps, 0.5) * 1e-9;
 				kg_bench_speed_row *row =
 				    realloc(r->speed, sizeof(*row) * (size_t)(r->nspeed + 1));
 				if (!row) {
@@ -228,7 +215,7 @@ int bench_speed_all(const kg_bench_config *cfg, kg_est_kernel *const *k,
 				row->format = fmt;
 				row->threads = threads;
 				row->bytes_per_pixel = bpp;
-				row->seconds = median(t, reps);
+				row->seconds = kg_bench_percentile(t, reps, 0.5);
 				row->mpix_s = (double)npix / row->seconds * 1e-6;
 				row->gb_s = (double)npix * bpp / row->seconds * 1e-9;
 				row->limit_gb_s = limit;

@@ -20,6 +20,7 @@
 #ifndef KG_BENCH_H
 #define KG_BENCH_H
 
+#include <stddef.h>
 #include <stdint.h>
 
 #include "kg_calib.h"
@@ -62,7 +63,7 @@ typedef struct kg_bench_metrics {
 } kg_bench_metrics;
 
 /* The 95th (or any) percentile of v[0..n-1] by linear interpolation between order
- * statistics (position p (n - 1)); v is sorted in place. */
+ * statistics (position p (n - 1)); v is sorted in place. p = 0.5 is the median. */
 double kg_bench_percentile(double *v, int n, double p);
 
 /* Metrics of est against truth over n samples. */
@@ -139,8 +140,15 @@ typedef struct kg_bench_limit_row {
 	double gb_s;      /* median of their limits */
 } kg_bench_limit_row;
 
-/* How the write limit is measured: SSE2 non-temporal stores, or memset where they
- * are not built in. */
+/* ---- timing (also used by kogei-bench-kernels) ----------------------------------- */
+
+/* Seconds on CLOCK_MONOTONIC. */
+double kg_bench_now(void);
+/* Seconds to write `bytes` into buf with non-temporal stores on `threads` threads
+ * (at most 64), one contiguous share each; the threads are created for the call, as
+ * kg_est_run creates its pool for each run. The bytes are those of float 0.5. */
+double kg_bench_stream_seconds(void *buf, size_t bytes, int threads);
+/* How: SSE2 non-temporal stores, or memset where they are not built in. */
 const char *kg_bench_stream_kind(void);
 
 /* "f32-bsq", "f32-bip", "f16-bsq", "f16-bip", "weights", "labels". */

@@ -381,7 +381,7 @@ int kg_bench_run(const kg_bench_config *cfg, kg_bench_results **out, kg_err *err
 
 	kg_bench_colour col;
 	int ret = kg_bench_colour_init(&col, err);
-	double t0 = bench_now();
+	double t0 = kg_bench_now();
 	if (!ret && cfg->run_error) {
 		if (!reference_present(cfg->reference_dir, r->error_note, sizeof(r->error_note))) {
 			r->error_skipped = 1;
@@ -393,11 +393,11 @@ int kg_bench_run(const kg_bench_config *cfg, kg_bench_results **out, kg_err *err
 		r->error_skipped = 1;
 		snprintf(r->error_note, sizeof(r->error_note), "not run (--no-error)");
 	}
-	r->seconds_error = bench_now() - t0;
-	t0 = bench_now();
+	r->seconds_error = kg_bench_now() - t0;
+	t0 = kg_bench_now();
 	if (!ret && cfg->run_speed)
 		ret = speed_part(cfg, r, err);
-	r->seconds_speed = bench_now() - t0;
+	r->seconds_speed = kg_bench_now() - t0;
 	if (ret) {
 		kg_bench_results_free(&r);
 		return ret;

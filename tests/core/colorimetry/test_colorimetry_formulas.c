@@ -294,7 +294,7 @@ static void test_illuminants(void)
 	kg_illuminant_free(&ill);
 	CHECK(kg_illuminant_lookup("no-such-illuminant", &ill, &err) == KG_EINVAL,
 	      "lookup of an unknown name");
-	CHECK(strstr(err.msg, "not a file") && strstr(err.msg, "D<nn>"), "message: %s",
+	CHECK(strstr(err.msg, "nor a file") && strstr(err.msg, "D<nn>"), "message: %s",
 	      err.msg);
 	CHECK(kg_illuminant_lookup("d50", &ill, &err) == 0 && ill && strcmp(ill->name, "D50") == 0,
 	      "lookup of a name: %s", err.msg);
