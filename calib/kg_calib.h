@@ -320,4 +320,219 @@ int kg_camera_kernel(const kg_camera *cam, kg_method m, int lut_size, kg_est_ker
 
 /* ==== end of apply_kernel.c ======================================================= */
 
+/* ==== Chart layouts (chart_layout.c, chart_print.c) ============================== */
+
+/* A chart layout says where a colour chart's patches are and where the fiducial tags
+ * around it are, in millimetres on the printed frame: origin at the frame's top-left
+ * corner, x to the right, y down. Files: JSON with "format": "kogei-chart/1" (see
+ * docs/charts.md and fixtures/charts/), or an ArgyllCMS .cht recognition template
+ * (patch geometry only, no tags; see kg_chart_layout_load_cht). */
+#define KG_CHART_FORMAT "kogei-chart/1"
+
+/* One AprilTag of the frame. The tag is printed upright: its bit grid's rows run
+ * along +x and its columns along +y (down the page), as apriltag_to_image() draws it.
+ * size_mm is the edge of the square apriltag detects: width_at_border cells (8 of the
+ * 10 of tag36h11, i.e. the outer edge of the black border; 5 of the 9 of
+ * tagStandard41h12, the outer edge of its white ring). The printed pattern is
+ * total_width / width_at_border times larger (kg_chart_tag_footprint).
+ * corners_mm are that square's corners in apriltag_detection_t.p order, which wraps
+ * counter-clockwise as seen on the page: p[0] bottom-left, p[1] bottom-right,
+ * p[2] top-right, p[3] top-left (tag coordinates (-1,+1), (+1,+1), (+1,-1), (-1,-1)
+ * with y down). */
+typedef struct kg_chart_tag {
+	int id;
+	double center_mm[2];
+	double size_mm;
+	double corners_mm[4][2];
+} kg_chart_tag;
+
+typedef struct kg_chart_patch {
+	char id[32];        /* SAMPLE_ID in the measurement files (Argyll style, "A01") */
+	char alias[32];     /* another id of the same patch ("1".."24" for the ColorChecker
+	                     * in ../shared/reference/charts), "" if none */
+	char name[48];      /* human name ("dark skin"), "" if none */
+	double center_mm[2];
+	double size_mm[2];  /* full patch, w x h */
+} kg_chart_patch;
+
+typedef struct kg_chart_layout {
+	char name[64];
+	char family[32];          /* "tag36h11" or "tagStandard41h12"; "" without tags */
+	int template_units;       /* 1: coordinates are a .cht template's scan pixels, not
+	                           * mm (a .cht read without a physical width) */
+	double width_mm, height_mm;  /* the printed frame (page) */
+	double chart_area_mm[4];  /* x, y, w, h: where the physical chart goes */
+	double sample_fraction;   /* inner fraction of each patch's w and h to sample */
+	int ntags;
+	kg_chart_tag *tags;
+	int npatches;
+	kg_chart_patch *patches;
+} kg_chart_layout;
+
+/* Load a layout: "kogei-chart/1" JSON, or (by the .cht extension, any case) an
+ * ArgyllCMS template in its own units. The geometry is checked (kg_chart_layout_check).
+ * Errors name the file, the key or line, and what was expected. */
+int kg_chart_layout_load(const char *path, kg_chart_layout **out, kg_err *err);
+/* Read an ArgyllCMS .cht recognition template as patch geometry: every sample box
+ * of its X/Y BOXES lines at full size (ids as the template writes them, e.g. "A1");
+ * BOX_SHRINK (template units off each side) becomes sample_fraction = 1 - 2 shrink /
+ * the smallest box side. The chart area is the bounding box of the fiducial (F)
+ * marks and the boxes; width_mm > 0 scales the template so the chart area is that
+ * wide, 0 keeps template units (template_units = 1). The frame runs from the
+ * template's origin to the chart area's far corner. No tags. */
+int kg_chart_layout_load_cht(const char *path, double width_mm, kg_chart_layout **out,
+                             kg_err *err);
+/* Geometry checks: sizes positive and finite, ids unique, patches inside the chart
+ * area and not overlapping, tags (their printed footprint) inside the frame, outside
+ * the chart area and not overlapping; a known tag family and ids within it. */
+int kg_chart_layout_check(const kg_chart_layout *l, kg_err *err);
+void kg_chart_layout_free(kg_chart_layout **l);
+/* Index of the patch whose id is id, else whose alias is id, else whose id differs
+ * only in the zeros padding its trailing number ("A1" finds "A01"); -1 if none. */
+int kg_chart_layout_find_patch(const kg_chart_layout *l, const char *id);
+/* Index of the tag with this id; -1 if none. */
+int kg_chart_layout_find_tag(const kg_chart_layout *l, int id);
+/* The region to sample of patch i: the centred sample_fraction of its w and h, as
+ * four corners in mm (top-left, top-right, bottom-right, bottom-left). */
+void kg_chart_patch_sample_corners(const kg_chart_layout *l, int i, double corners[4][2]);
+/* The printed square of tag i (total_width cells, with its own white/data ring)
+ * as x, y, w, h in mm. */
+void kg_chart_tag_footprint(const kg_chart_layout *l, int i, double rect[4]);
+
+/* A tag's cells from libapriltag's code table: *cells (caller frees) holds
+ * total_width^2 bytes, row-major from the top-left, y down, 1 = white, 0 = black;
+ * the detected square is the centred border_width x border_width block. KG_ENOTSUP
+ * without libapriltag, KG_EINVAL for an unknown family or an id out of range. */
+int kg_chart_tag_cells(const char *family, int id, unsigned char **cells,
+                       int *total_width, int *border_width, kg_err *err);
+
+/* The printed page is the frame plus this margin on every side, which carries the cut
+ * marks: frame point (x, y) mm is at (x + margin, y + margin) mm on the page. */
+#define KG_CHART_PRINT_MARGIN_MM 10.0
+
+/* Draw the printable frame at true size: tags, cut marks at the frame corners, the
+ * outline of the chart area, patch outlines and ids (light grey), a 50 mm scale bar
+ * and the layout's name. The format comes from the extension: .svg, .pdf or .png
+ * (dpi applies to PNG only, 10..2400; a PNG pixel (i, j) covers [i, i+1) x [j, j+1)
+ * in units of 25.4 / dpi mm). Written atomically. KG_ENOTSUP without libapriltag;
+ * layouts in template units are refused. */
+int kg_chart_print(const kg_chart_layout *l, const char *path, double dpi, kg_err *err);
+
+/* ==== end of chart layouts ======================================================== */
+
+/* ==== Chart detection (chart_detect.c) ============================================ */
+
+/* Homographies are 3 x 3, row-major, mapping (x, y, 1) to (u w, v w, w). */
+void kg_homography_map(const double H[9], double x, double y, double out[2]);
+/* 0, or KG_EINVAL when H is singular. */
+int kg_homography_invert(const double H[9], double inv[9]);
+/* The homography taking src[i] to dst[i] (n >= 4 pairs): normalised DLT (Hartley),
+ * then, when refine is set and n > 4, Levenberg-Marquardt on the reprojection error
+ * in dst. H[8] = 1. rms (may be NULL): RMS distance |H src - dst| over the points. */
+int kg_homography_fit(const double (*src)[2], const double (*dst)[2], int n, int refine,
+                      double H[9], double *rms, kg_err *err);
+
+typedef enum kg_chart_statistic {
+	KG_CHART_MEDIAN = 0,      /* per-channel median */
+	KG_CHART_TRIMMED_MEAN,    /* mean after dropping `trim` of the pixels at each end */
+} kg_chart_statistic;
+
+const char *kg_chart_statistic_name(kg_chart_statistic s);
+int kg_chart_statistic_parse(const char *name, kg_chart_statistic *out, kg_err *err);
+
+typedef struct kg_chart_detect_options {
+	int decimate;            /* apriltag quad_decimate; 0: 2 below 4 Mpix, else 4 */
+	int threads;             /* apriltag worker threads (default 2) */
+	double sample_fraction;  /* inner fraction of each patch side to sample; 0: the
+	                          * layout's (default 0) */
+	kg_chart_statistic statistic;
+	double trim;             /* trimmed mean: fraction cut at each end (0.1) */
+	const char *family;      /* tag family; NULL: the layout's */
+	int tagless;             /* 1: OpenCV mcc only (ColorChecker 24 / SG layouts) */
+	int min_tags;            /* fewest tags that place the chart (2) */
+	int min_pixels;          /* fewer sampled pixels flag a patch (30) */
+	double clip_level;       /* a channel at or above is clipped; 0: the source's full
+	                          * scale (1 - 0.5 / (2^bits - 1) for integer images, 1.0
+	                          * for float) */
+	double nonuniformity_limit; /* quadrant spread above this flags a patch (0.05) */
+	double glare_fraction;   /* more bright outliers than this flag glare (0.01) */
+} kg_chart_detect_options;
+
+void kg_chart_detect_options_default(kg_chart_detect_options *o);
+
+/* A tag found in the image. */
+typedef struct kg_chart_tag_found {
+	int id;
+	double corners[4][2]; /* px, apriltag order (as kg_chart_tag.corners_mm) */
+	double margin;        /* apriltag decision margin */
+	int hamming;          /* bits corrected */
+	int used;             /* 1: its corners determined the homography */
+	double error;         /* largest corner distance from the fitted chart, px
+	                       * (tags of the layout only) */
+} kg_chart_tag_found;
+
+/* Flags of a sampled patch. Rejected patches have no value (NaN) and are left out
+ * of the patch file; the others are kept with their flags. */
+enum {
+	KG_CHART_FLAG_CLIPPED = 1 << 0,      /* some pixel has a channel >= clip level */
+	KG_CHART_FLAG_GLARE = 1 << 1,        /* more than glare_fraction bright outliers */
+	KG_CHART_FLAG_FEW_PIXELS = 1 << 2,   /* fewer than min_pixels */
+	KG_CHART_FLAG_OUT_OF_FRAME = 1 << 3, /* some of the region is outside the image */
+	KG_CHART_FLAG_NONUNIFORM = 1 << 4,   /* quadrants differ (occlusion, shadow, glare) */
+	KG_CHART_FLAG_REJECTED = 1 << 5,     /* no usable pixel */
+};
+
+/* One sampled patch, in the layout's order. */
+typedef struct kg_chart_sample {
+	char *id;
+	double rgb[3];           /* linear 0..1 as the image; grey images give r = g = b */
+	double sd[3];            /* pixel spread: 1.4826 x MAD per channel */
+	double clipped_fraction; /* of the sampled pixels */
+	double nonuniformity;    /* (max - min) / mean of the four quadrant means of r+g+b */
+	long pixels;
+	unsigned flags;          /* KG_CHART_FLAG_* */
+	char warning[256];       /* the reasons, "" when not flagged */
+	double quad[4][2];       /* the sampled region in px (tl, tr, br, bl of the layout) */
+} kg_chart_sample;
+
+typedef struct kg_chart_result {
+	char layout[64];
+	int tagless;              /* found by OpenCV mcc, not by tags */
+	int ntags;                /* every tag found, of the layout or not */
+	kg_chart_tag_found *tags;
+	int ntags_used;
+	double H[9];              /* mm -> px */
+	double rms_px;            /* RMS reprojection error of the points used */
+	double outline[4][2];     /* the layout's chart area in px (tl, tr, br, bl) */
+	int decimate;             /* the quad_decimate used */
+	int npatches;
+	kg_chart_sample *patches;
+	int nwarnings;            /* what an operator should know, one sentence each */
+	char **warnings;
+	double tag_seconds;       /* grey conversion and tag detection */
+	double total_seconds;
+} kg_chart_result;
+
+/* Find the chart of layout l in img and sample its patches. img: 1 channel (grey,
+ * or raw with a CFA pattern, demosaiced first) or 3 (RGB), linear 0..1. Errors:
+ * KG_ENOENT when the chart is not found (the message says what was seen: no tags,
+ * tags of other ids, too few tags); KG_ENOTSUP when a needed library is missing.
+ * Warnings (tags ignored, missing, few tags, flagged patches) are in the result. */
+int kg_chart_detect(const kg_chart_layout *l, const kg_image *img,
+                    const kg_chart_detect_options *opt, kg_chart_result **out, kg_err *err);
+void kg_chart_result_free(kg_chart_result **r);
+
+/* The patch values as a patch set: ids, rgb and the extra columns RGB_R_SD RGB_G_SD
+ * RGB_B_SD CLIPPED_FRACTION NONUNIFORMITY PIXELS FLAGS; rejected patches left out. */
+int kg_chart_result_patchset(const kg_chart_result *r, kg_patchset **out, kg_err *err);
+
+/* The overlay an operator checks: the image (gamma-encoded, scaled so its longer
+ * side is at most max_side px; 0: 1600), tags outlined with their ids (green: used,
+ * orange: ignored), the chart outline, each sampled region with its id, flagged
+ * patches in red with a cross when rejected. PNG, written atomically. */
+int kg_chart_overlay_write(const kg_chart_result *r, const kg_image *img, const char *path,
+                           int max_side, kg_err *err);
+
+/* ==== end of chart detection ====================================================== */
+
 #endif

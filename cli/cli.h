@@ -32,10 +32,14 @@ int kg_cmd_model(int argc, char **argv);
 int kg_cmd_demo(int argc, char **argv);
 int kg_cmd_sim_patches(int argc, char **argv);
 int kg_cmd_sim_image(int argc, char **argv);
+int kg_cmd_sim_chart(int argc, char **argv);
+int kg_cmd_chart_print(int argc, char **argv);
+int kg_cmd_chart_detect(int argc, char **argv);
 int kg_cmd_calib_reference(int argc, char **argv);
 int kg_cmd_calib_camera(int argc, char **argv);
 int kg_cmd_estimate(int argc, char **argv);
 int kg_cmd_classify(int argc, char **argv);
 int kg_cmd_bench(int argc, char **argv);
+int kg_cmd_measure(int argc, char **argv);
 
 #endif

@@ -6,10 +6,14 @@
 #include "kg_config.h"
 
 static const kg_command commands[] = {
+	{"measure", kg_cmd_measure, "reflectance readings with a USB spectrometer (single spot or chart)"},
 	{"spectra xyz", kg_cmd_spectra_xyz, "CIE XYZ and CIELAB of the spectra in a CGATS file"},
 	{"model", kg_cmd_model, "reflectance of a material over wavelength and incidence angle"},
 	{"sim patches", kg_cmd_sim_patches, "simulated camera readings of reflectance spectra"},
 	{"sim image", kg_cmd_sim_image, "simulated camera image of a chart and material samples"},
+	{"sim chart", kg_cmd_sim_chart, "simulated photograph of a chart layout with its truth"},
+	{"chart print", kg_cmd_chart_print, "printable AprilTag frame of a chart layout at true size"},
+	{"chart detect", kg_cmd_chart_detect, "find a chart in a photograph and measure its patches"},
 	{"calib reference", kg_cmd_calib_reference, "fit B, M and the other methods on a measured chart"},
 	{"calib camera", kg_cmd_calib_camera, "fit M2 for a site camera from its chart photograph"},
 	{"estimate", kg_cmd_estimate, "per-pixel 61-band reflectance cube of an image"},

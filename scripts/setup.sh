@@ -9,6 +9,7 @@ liblapacke-dev libtiff-dev libpng-dev libjansson-dev zlib1g-dev libcairo2-dev fo
 colord-data argyll argyll-ref
 python3 python3-numpy python3-spectral
 libapriltag-dev libopencv-contrib-dev
+libusb-1.0-0-dev umockdev libumockdev-dev
 "
 
 missing=""

@@ -218,4 +218,163 @@ int kg_sim_scene_write(const kg_sim_scene *s, const char *image_path,
                        enum kg_sim_depth depth, const char *truth_cube_path,
                        const char *labels_path, kg_err *err);
 
+/* ==== Chart scenes (chart_scene.c) ================================================ */
+
+/* A photograph of printed chart cards: each card is a flat rectangle of paper in
+ * millimetres (x right, y down, origin at its top-left corner) carrying black-and-
+ * white tag bit grids, colour patches and, optionally, occluders and specular glare,
+ * seen through a pinhole camera at a pose. The renderer is plain geometry: it knows
+ * nothing of chart layout files (calib/ turns those into this description).
+ *
+ * Pixel coordinates are continuous: pixel (x, y) covers [x, x+1) x [y, y+1), so its
+ * centre is (x + 0.5, y + 0.5); the principal point is the image centre
+ * (width/2, height/2). The camera looks along +z with image x right and y down.
+ *
+ * Rendering, in order: (1) each output pixel is inverse-mapped through the card
+ * homographies; a pixel whose four corners fall in the same uniform region (the
+ * same patch, tag cell, occluder, paper or background) takes that region's colour,
+ * any other pixel is the mean of supersample x supersample samples (anti-aliased
+ * edges); (2) glare is added (smooth, evaluated at the pixel centre); (3) the
+ * pixel is multiplied by the vignetting v(r) = (1 + a (r / r_corner)^2)^-2, the cos^4
+ * law of a lens whose corners lose the fraction `vignetting` of the light
+ * (a = (1 - vignetting)^-1/2 - 1); (4) a Gaussian lens blur of blur_sigma pixels
+ * (separable, edges clamped); (5) optionally a Bayer mosaic (one sample per pixel);
+ * (6) sensor noise through the capture's noise model (kg_sim_noise_apply), every
+ * image row drawing from its own kg_rng seeded from (seed, row), so the image is
+ * the same bit for bit for a seed whatever the number of threads.
+ *
+ * Truth. The value a perfect sampler of a patch's inner region finds in the noise-
+ * free image: the patch colour (capture response to its reflectance, or its given
+ * RGB) times the vignetting at the image position of the patch centre. Blur does
+ * not reach an inner region away from the edges; vignetting varies across a patch
+ * only to second order about its centre: the mean over a square of half-side h
+ * (in units of the centre-to-corner distance) differs from the centre value by at
+ * most about 8 a h^2 / 6 relative, 6e-4 for h = 0.034 (a 24-patch chart filling a
+ * frame, half of each side sampled) at vignetting 0.5. Glare and occluders are not
+ * in the truth: the patches they touch are flagged instead. */
+
+/* A tag's bit grid printed on a card. */
+typedef struct kg_sim_chart_tag {
+	/* Card positions (mm) of the grid's outer corners: grid (0,0), (cells,0),
+	 * (cells,cells), (0,cells), i.e. top-left, top-right, bottom-right, bottom-left
+	 * of the bit array as stored. */
+	double corner_mm[4][2];
+	int cells;                 /* cells per side */
+	const unsigned char *bits; /* cells * cells, row-major: 1 white (paper), 0 black */
+} kg_sim_chart_tag;
+
+/* A colour patch: an axis-aligned rectangle on the card. */
+typedef struct kg_sim_chart_patch {
+	const char *id;                 /* SAMPLE_ID (may be NULL) */
+	double centre_mm[2], size_mm[2];
+	const kg_spectrum *reflectance; /* seen through the capture; NULL: rgb */
+	double rgb[3];                  /* camera values (0..1) when reflectance is NULL */
+} kg_sim_chart_patch;
+
+/* A dark (or any colour) rectangle in front of the card, in card mm: a hand, a
+ * clip, a cable. */
+typedef struct kg_sim_chart_occluder {
+	double x0_mm, y0_mm, x1_mm, y1_mm;
+	double reflectance; /* flat */
+} kg_sim_chart_occluder;
+
+/* Specular glare: light added over an ellipse on the card,
+ * amplitude * exp(-((u/ru)^2 + (v/rv)^2) / 2) within 3 radii, (u, v) the card
+ * position relative to the centre, rotated by angle_deg. */
+typedef struct kg_sim_chart_glare {
+	double centre_mm[2], radius_mm[2], angle_deg;
+	double amplitude;   /* 0..1 scale */
+} kg_sim_chart_glare;
+
+/* Where a card is: rotated by rotate_deg in its plane (about its centre, clockwise
+ * in the image), then tilted by tilt_deg about an axis in the card plane at
+ * tilt_axis_deg from the image x axis, its centre at (offset_mm[0], offset_mm[1],
+ * distance_mm) in camera coordinates. */
+typedef struct kg_sim_chart_pose {
+	double rotate_deg, tilt_deg, tilt_axis_deg;
+	double distance_mm, offset_mm[2];
+} kg_sim_chart_pose;
+
+typedef struct kg_sim_chart_card {
+	double size_mm[2];
+	double paper, ink;   /* flat reflectances of the card and of black tag cells */
+	const kg_sim_chart_tag *tags;
+	int ntags;
+	const kg_sim_chart_patch *patches;
+	int npatches;
+	const kg_sim_chart_occluder *occluders;
+	int noccluders;
+	const kg_sim_chart_glare *glare;
+	int nglare;
+	kg_sim_chart_pose pose;
+} kg_sim_chart_card;
+
+typedef struct kg_sim_chart_desc {
+	int width, height;
+	double focal_px;       /* focal length in pixels (> 0; kg_sim_chart_focal_px) */
+	const kg_sim_chart_card *cards; /* drawn in order: later cards cover earlier */
+	int ncards;            /* 0 is allowed: an image without a chart */
+	double background;     /* flat reflectance outside the cards */
+	int supersample;       /* samples per side at edges, 1..16 (4 is usual) */
+	double blur_sigma;     /* Gaussian lens blur in pixels, >= 0 */
+	double vignetting;     /* light lost at the image corners, 0 <= v < 1 */
+	const char *cfa;       /* NULL: RGB image; "RGGB", "BGGR", "GRBG" or "GBRG": a
+	                        * one-sample Bayer mosaic carrying that CFA pattern */
+	int threads;           /* 0: one per online CPU (at most 64) */
+	uint64_t seed;
+} kg_sim_chart_desc;
+
+/* The truth about one patch. */
+typedef struct kg_sim_chart_truth {
+	int card, patch;      /* indices into the description */
+	double rgb[3];        /* truth (see above) */
+	double flat_rgb[3];   /* the patch colour without vignetting */
+	double vignetting;    /* at the centre */
+	double centre_px[2];  /* image position of the patch centre */
+	int occluded;         /* an occluder overlaps the patch */
+	int glare;            /* glare within 3 radii overlaps the patch */
+	int visible;          /* the centre is inside the image */
+} kg_sim_chart_truth;
+
+typedef struct kg_sim_chart_result {
+	kg_image *image;      /* linear, 0..1: 3 samples, or 1 with the CFA attached */
+	int ncards;
+	double (*homography)[9]; /* per card, card mm -> pixel, row-major, H[8] = 1 */
+	int ntruth;
+	kg_sim_chart_truth *truth; /* every patch of every card, card by card */
+	double seconds;       /* wall time of the rendering */
+} kg_sim_chart_result;
+
+/* A focal length in pixels for a horizontal field of view (degrees, 1..170). */
+double kg_sim_chart_focal_px(int width, double hfov_deg);
+/* The homography (card mm -> pixel) of a card of size_mm at a pose. */
+void kg_sim_chart_homography(const kg_sim_chart_pose *pose, const double size_mm[2],
+                             double focal_px, int width, int height, double H[9]);
+/* Apply a homography to a point. */
+void kg_sim_chart_project(const double H[9], const double in[2], double out[2]);
+/* Choose pose->distance_mm and offset_mm (keeping its angles) so the projected card
+ * fills `fill` (0..1] of the box (x0, y0, x1, y1 in pixels) in its tighter
+ * direction, centred in it. Fails when the tilt makes that impossible (the card
+ * would reach behind the camera). */
+int kg_sim_chart_pose_fit(kg_sim_chart_pose *pose, const double size_mm[2],
+                          double focal_px, int width, int height, const double box[4],
+                          double fill, kg_err *err);
+
+/* Render a chart scene through a capture (exposure and noise; spectra of the
+ * patches, paper, ink, occluders and background are read through it). */
+int kg_sim_chart_render(const kg_sim_chart_desc *d, const kg_sim_capture *c,
+                        kg_sim_chart_result **out, kg_err *err);
+void kg_sim_chart_result_free(kg_sim_chart_result **r);
+
+/* The truth of one card as CGATS (atomically): SAMPLE_ID RGB_R RGB_G RGB_B
+ * FLAT_R FLAT_G FLAT_B VIGNETTING PIXEL_X PIXEL_Y OCCLUDED GLARE, keyword HOMOGRAPHY
+ * (nine numbers, row-major), then the caller's keywords (NULL or a NULL-terminated
+ * list of name, value pairs). Patches without an id are named by their 1-based
+ * index. */
+int kg_sim_chart_write_truth(const kg_sim_chart_result *r, const kg_sim_chart_desc *d,
+                             int card, const char *path, const char *const *keywords,
+                             kg_err *err);
+
+/* ==== end of chart_scene.c ======================================================== */
+
 #endif

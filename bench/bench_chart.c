@@ -1,0 +1,307 @@
+/* kogei-bench-chart: chart detection and patch sampling time on 12 Mpix simulated
+ * photographs, beside the patch-value error (issue 4, item 7).
+ *
+ * `kogei sim chart` renders the ColorChecker 24 in its AprilTag frame
+ * (fixtures/charts/colorchecker24-frame.json; spectra from ../shared/reference when
+ * present, else built-in colours) frontally and tilted, with blur, vignetting and
+ * sensor noise, as 16-bit TIFF, with its truth. Each image is read once; then
+ * kg_chart_detect runs for every tag decimation (1, 2, 4) and thread count (1, 2),
+ * and in tagless mode (OpenCV mcc) when it is built in. Times are the median of
+ * --reps runs (CLOCK_MONOTONIC); the error is the largest and the mean
+ * |measured - truth| over all patches and channels, in % of full scale. Markdown
+ * goes to stdout, JSON to --json.
+ *
+ *   kogei-bench-chart [--kogei PATH] [--layout L] [--width W --height H] [--reps N]
+ *                     [--keep DIR] [--json PATH] */
+#include <libgen.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include "kg_bench.h"
+#include "kg_config.h"
+
+#define MAX_REPS 31
+#define MAX_ROWS 64
+
+typedef struct row {
+	const char *image;
+	const char *method; /* "apriltag" or "mcc" */
+	int decimate, threads;
+	int ok;
+	char note[1024];
+	double tag_s, total_s;
+	double max_err, mean_err; /* % of full scale */
+	int patches;
+} row;
+
+static int run_program(char *const *argv)
+{
+	pid_t pid = fork();
+	if (pid == 0) {
+		execv(argv[0], argv);
+		_exit(127);
+	}
+	int st = 0;
+	if (pid < 0 || waitpid(pid, &st, 0) < 0)
+		return -1;
+	return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+}
+
+/* Errors of a result against a truth file. */
+static void errors(const kg_chart_result *r, const kg_patchset *truth, row *out)
+{
+	double worst = 0.0, sum = 0.0;
+	int n = 0;
+	for (int i = 0; i < truth->n; i++)
+		for (int k = 0; k < r->npatches; k++) {
+			const kg_chart_sample *s = &r->patches[k];
+			if (strcmp(s->id, truth->ids[i]) || (s->flags & KG_CHART_FLAG_REJECTED))
+				continue;
+			for (int c = 0; c < 3; c++) {
+				double d = fabs(s->rgb[c] - truth->rgb[i][c]);
+				worst = fmax(worst, d);
+				sum += d;
+			}
+			n++;
+		}
+	out->patches = n;
+	out->max_err = 100.0 * worst;
+	out->mean_err = n ? 100.0 * sum / (3.0 * n) : NAN;
+}
+
+static void measure(const kg_chart_layout *l, const kg_image *img, const kg_patchset *truth,
+                    int tagless, int decimate, int threads, int reps, row *out)
+{
+	double tag[MAX_REPS], total[MAX_REPS];
+	kg_chart_detect_options o;
+	kg_chart_detect_options_default(&o);
+	o.tagless = tagless;
+	o.decimate = decimate;
+	o.threads = threads;
+	out->method = tagless ? "mcc" : "apriltag";
+	out->decimate = decimate;
+	out->threads = threads;
+	for (int k = 0; k < reps; k++) {
+		kg_chart_result *r = NULL;
+		kg_err err = {{0}};
+		double t0 = kg_bench_now();
+		int ret = kg_chart_detect(l, img, &o, &r, &err);
+		total[k] = kg_bench_now() - t0;
+		if (ret) {
+			out->ok = 0;
+			snprintf(out->note, sizeof(out->note), "%s", err.msg);
+			return;
+		}
+		tag[k] = r->tag_seconds;
+		if (k == 0)
+			errors(r, truth, out);
+		kg_chart_result_free(&r);
+	}
+	out->ok = 1;
+	out->tag_s = kg_bench_percentile(tag, reps, 0.5);
+	out->total_s = kg_bench_percentile(total, reps, 0.5);
+}
+
+static void write_camera(const char *path)
+{
+	kg_sim_camera cam;
+	kg_bench_synthetic_camera(&cam);
+	FILE *fp = fopen(path, "w");
+	if (!fp)
+		return;
+	fprintf(fp, "wavelength_nm,r,g,b\n");
+	for (int b = 0; b < KG_NBANDS; b++)
+		fprintf(fp, "%g,%.9g,%.9g,%.9g\n", kg_band_nm(b), cam.sens[0].v[b], cam.sens[1].v[b],
+		        cam.sens[2].v[b]);
+	fclose(fp);
+}
+
+int main(int argc, char **argv)
+{
+	char kogei[4096], layout_path[4096], dir[4096] = "";
+	const char *json_path = NULL, *keep = NULL;
+	int width = 4000, height = 3000, reps = 3;
+	{
+		char self[4096];
+		ssize_t n = readlink("/proc/self/exe", self, sizeof(self) - 1);
+		self[n > 0 ? n : 0] = '\0';
+		snprintf(kogei, sizeof(kogei), "%s/../cli/kogei", dirname(self));
+	}
+	snprintf(layout_path, sizeof(layout_path), "%s/fixtures/charts/colorchecker24-frame.json",
+	         KG_SOURCE_ROOT);
+	for (int i = 1; i < argc; i++) {
+		const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
+		if (!strcmp(a, "--kogei") && v)
+			snprintf(kogei, sizeof(kogei), "%s", argv[++i]);
+		else if (!strcmp(a, "--layout") && v)
+			snprintf(layout_path, sizeof(layout_path), "%s", argv[++i]);
+		else if (!strcmp(a, "--json") && v)
+			json_path = argv[++i];
+		else if (!strcmp(a, "--keep") && v)
+			keep = argv[++i];
+		else if (!strcmp(a, "--width") && v)
+			width = atoi(argv[++i]);
+		else if (!strcmp(a, "--height") && v)
+			height = atoi(argv[++i]);
+		else if (!strcmp(a, "--reps") && v)
+			reps = atoi(argv[++i]);
+		else {
+			fprintf(stderr,
+			        "usage: %s [--kogei PATH] [--layout L] [--width W --height H] "
+			        "[--reps N] [--keep DIR] [--json PATH]\n",
+			        argv[0]);
+			return 2;
+		}
+	}
+	if (reps < 1 || reps > MAX_REPS || width < 64 || height < 64) {
+		fprintf(stderr, "kogei-bench-chart: --reps 1..%d, --width/--height >= 64\n", MAX_REPS);
+		return 2;
+	}
+	if (keep)
+		snprintf(dir, sizeof(dir), "%s", keep);
+	else {
+		const char *tmp = getenv("TMPDIR");
+		snprintf(dir, sizeof(dir), "%s/kogei-bench-chart-XXXXXX", tmp && *tmp ? tmp : "/tmp");
+		if (!mkdtemp(dir)) {
+			perror("mkdtemp");
+			return 1;
+		}
+	}
+	char camera[4200], spectra[4200], wtext[16], htext[16];
+	snprintf(camera, sizeof(camera), "%s/camera.csv", dir);
+	write_camera(camera);
+	snprintf(spectra, sizeof(spectra), "%s/../shared/reference/charts/colorchecker24_babelcolor_avg.csv",
+	         KG_SOURCE_ROOT);
+	int have_spectra = access(spectra, R_OK) == 0;
+	snprintf(wtext, sizeof(wtext), "%d", width);
+	snprintf(htext, sizeof(htext), "%d", height);
+
+	kg_err err = {{0}};
+	kg_chart_layout *layout = NULL;
+	if (kg_chart_layout_load(layout_path, &layout, &err)) {
+		fprintf(stderr, "kogei-bench-chart: %s\n", err.msg);
+		return 1;
+	}
+	static const struct {
+		const char *name, *tilt, *rotate;
+	} images[] = {
+	    {"frontal", "0", "0"},
+	    {"tilt 35, rotate 15", "35", "15"},
+	};
+	row rows[MAX_ROWS];
+	int nrows = 0;
+	double render_s[2] = {0, 0};
+	for (size_t im = 0; im < sizeof(images) / sizeof(images[0]); im++) {
+		char img[4300], truth_path[4300];
+		snprintf(img, sizeof(img), "%s/chart%zu.tif", dir, im);
+		snprintf(truth_path, sizeof(truth_path), "%s/chart%zu.cgats", dir, im);
+		char *sim[40] = {kogei, "sim", "chart", "--layout", layout_path, "--camera", camera,
+		                 "--illuminant", "D65", "--width", wtext, "--height", htext,
+		                 "--tilt", (char *)images[im].tilt, "--rotate", (char *)images[im].rotate,
+		                 "--blur", "1.0", "--vignetting", "0.2", "--noise", "20000:5:12",
+		                 "--depth", "16", "--seed", "11", "-o", img, "--truth", truth_path};
+		int n = 31;
+		if (have_spectra) {
+			sim[n++] = "--spectra";
+			sim[n++] = spectra;
+		}
+		sim[n] = NULL;
+		double t0 = kg_bench_now();
+		if (run_program(sim) != 0) {
+			fprintf(stderr, "kogei-bench-chart: %s sim chart failed\n", kogei);
+			return 1;
+		}
+		render_s[im] = kg_bench_now() - t0;
+		kg_image *image = NULL;
+		kg_patchset *truth = NULL;
+		if (kg_image_read(img, &image, &err) || kg_patchset_read(truth_path, 0, &truth, &err)) {
+			fprintf(stderr, "kogei-bench-chart: %s\n", err.msg);
+			return 1;
+		}
+		static const int decimations[] = {1, 2, 4}, threads[] = {1, 2};
+		for (int d = 0; d < 3; d++)
+			for (int t = 0; t < 2; t++) {
+				row *r = &rows[nrows++];
+				memset(r, 0, sizeof(*r));
+				r->image = images[im].name;
+				measure(layout, image, truth, 0, decimations[d], threads[t], reps, r);
+				fprintf(stderr, "%s: apriltag decimate %d, %d thread(s): %.3f s\n", r->image,
+				        r->decimate, r->threads, r->total_s);
+			}
+		for (int t = 0; t < 2; t++) {
+			row *r = &rows[nrows++];
+			memset(r, 0, sizeof(*r));
+			r->image = images[im].name;
+			measure(layout, image, truth, 1, 0, threads[t], reps, r);
+			fprintf(stderr, "%s: mcc, %d thread(s): %s\n", r->image, r->threads,
+			        r->ok ? "done" : r->note);
+		}
+		kg_image_free(&image);
+		kg_patchset_free(&truth);
+	}
+
+	printf("Chart detection + sampling, %d x %d (%.1f Mpix) 16-bit RGB, %s, layout %s, "
+	       "median of %d runs. Error: |measured - truth| per channel, %% of full scale.\n\n",
+	       width, height, width * (double)height / 1e6,
+	       have_spectra ? "ColorChecker spectra (BabelColor)" : "built-in colours",
+	       layout->name, reps);
+	printf("| image | method | decimate | threads | tags (s) | total (s) | max err (%%) | "
+	       "mean err (%%) |\n|---|---|---|---|---|---|---|---|\n");
+	for (int i = 0; i < nrows; i++) {
+		const row *r = &rows[i];
+		char dec[16];
+		snprintf(dec, sizeof(dec), r->decimate ? "%d" : "-", r->decimate);
+		if (r->ok)
+			printf("| %s | %s | %s | %d | %.3f | %.3f | %.3f | %.4f |\n", r->image, r->method,
+			       dec, r->threads, r->tag_s, r->total_s, r->max_err, r->mean_err);
+		else
+			printf("| %s | %s | %s | %d | - | - | - | - (%s) |\n", r->image, r->method, dec,
+			       r->threads, r->note);
+	}
+	printf("\nRendering (kogei sim chart, all CPUs, incl. TIFF write): %.2f s and %.2f s.\n",
+	       render_s[0], render_s[1]);
+
+	if (json_path) {
+		FILE *fp = strcmp(json_path, "-") ? fopen(json_path, "w") : stdout;
+		if (!fp) {
+			perror(json_path);
+			return 1;
+		}
+		fprintf(fp, "{\"format\": \"kogei-bench-chart/1\", \"width\": %d, \"height\": %d, "
+		            "\"reps\": %d, \"layout\": \"%s\", \"spectra\": %s, \"rows\": [\n",
+		        width, height, reps, layout->name, have_spectra ? "true" : "false");
+		for (int i = 0; i < nrows; i++) {
+			const row *r = &rows[i];
+			fprintf(fp, "  {\"image\": \"%s\", \"method\": \"%s\", \"decimate\": %d, "
+			            "\"threads\": %d, \"ok\": %s",
+			        r->image, r->method, r->decimate, r->threads, r->ok ? "true" : "false");
+			if (r->ok)
+				fprintf(fp, ", \"tag_seconds\": %.6f, \"total_seconds\": %.6f, "
+				            "\"max_error_percent\": %.6f, \"mean_error_percent\": %.6f, "
+				            "\"patches\": %d",
+				        r->tag_s, r->total_s, r->max_err, r->mean_err, r->patches);
+			else {
+				fprintf(fp, ", \"note\": \"");
+				for (const char *c = r->note; *c; c++)
+					fprintf(fp, (*c == '"' || *c == '\\') ? "\\%c" : "%c", *c);
+				fprintf(fp, "\"");
+			}
+			fprintf(fp, "}%s\n", i + 1 < nrows ? "," : "");
+		}
+		fprintf(fp, "]}\n");
+		if (fp != stdout)
+			fclose(fp);
+	}
+	kg_chart_layout_free(&layout);
+	if (!keep) {
+		char cmd[4300];
+		snprintf(cmd, sizeof(cmd), "rm -rf '%s'", dir);
+		if (system(cmd) != 0)
+			fprintf(stderr, "could not remove %s\n", dir);
+	}
+	return 0;
+}

@@ -1,0 +1,476 @@
+/* kogei sim chart: a photograph of a chart layout (calib/) rendered by sim/'s chart
+ * scene renderer. This file is the glue: it turns a kg_chart_layout into the plain
+ * geometry sim/ draws (tag bit grids from kg_chart_tag_cells, patch rectangles with
+ * their spectra or colours) and writes the image and the truth. */
+#include <errno.h>
+#include <inttypes.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cli.h"
+#include "kg_calib.h"
+#include "kg_sim.h"
+
+static const char usage[] =
+    "kogei sim chart --layout L [--spectra S.cgats|S.csv] --camera CSS.csv\n"
+    "                --illuminant NAME|FILE [--tilt DEG] [--tilt-axis DEG] [--rotate DEG]\n"
+    "                [--width W --height H] [--fov DEG] [--fill F] [--blur SIGMA]\n"
+    "                [--vignetting V] [--glare] [--occlude tags|patches] [--decoy]\n"
+    "                [--paper R] [--ink R] [--background R] [--supersample N]\n"
+    "                [--cfa RGGB|BGGR|GRBG|GBRG] [--noise none|FULLWELL:READ:BITS]\n"
+    "                [--white-level 0.9] [--depth 8|16|float] [--seed N] [--threads N]\n"
+    "                [--extrapolate] -o IMAGE.tif [--truth TRUTH.cgats]";
+
+static void help(void)
+{
+	printf("usage: %s\n\n"
+	       "Render a camera photograph of a printed chart frame: white card, black AprilTags,\n"
+	       "the chart's patches, seen through a pinhole camera at a pose, with anti-aliased\n"
+	       "edges, lens blur, vignetting, optional glare and occlusion, and sensor noise.\n"
+	       "The truth is each patch's noise-free value times the vignetting at its centre:\n"
+	       "what a perfect sampler of the patch's inner region reads.\n\n"
+	       "  --layout L            chart layout (kogei-chart/1 JSON or ArgyllCMS .cht)\n"
+	       "  --spectra FILE        patch reflectances (CGATS SPEC_<nm> or CSV patch,name,<nm>)\n"
+	       "                        matched by SAMPLE_ID to the layout's patch ids (or\n"
+	       "                        aliases); without it, built-in test colours\n"
+	       "  --camera CSS.csv      camera sensitivities, CSV wavelength_nm,r,g,b\n"
+	       "  --illuminant SPEC     D65, D50, A, E, Dnn, <T>K, or a CGATS or CSV spectrum\n"
+	       "  --tilt DEG            angle between the card's normal and the optical axis,\n"
+	       "                        0-75 (default 0)\n"
+	       "  --tilt-axis DEG       direction of the tilt axis from the image x axis (30)\n"
+	       "  --rotate DEG          in-plane rotation, clockwise (default 0)\n"
+	       "  --width W --height H  image size (default 4000 x 3000, 12 Mpix)\n"
+	       "  --fov DEG             horizontal field of view (default 40)\n"
+	       "  --fill F              the card fills F of the image (tighter side; 0.85)\n"
+	       "  --blur SIGMA          Gaussian lens blur in pixels (default 0.7)\n"
+	       "  --vignetting V        light lost at the image corners, cos^4 law (0)\n"
+	       "  --glare               a specular highlight over part of one patch\n"
+	       "  --occlude WHAT        'tags': dark rectangles over two tags; 'patches': one\n"
+	       "                        over the first two patches\n"
+	       "  --decoy               a second frame with other tag ids beside the chart\n"
+	       "  --paper R --ink R     flat reflectances of card and tag black (0.85, 0.03)\n"
+	       "  --background R        flat reflectance around the card (0.2)\n"
+	       "  --supersample N       samples per side on edge pixels (default 4)\n"
+	       "  --cfa PATTERN         write a one-sample raw Bayer mosaic with this pattern\n"
+	       "  --noise SPEC          'none' (default) or FULLWELL:READ:BITS (see sim patches)\n"
+	       "  --white-level W       the perfect diffuser's brightest channel (0.9)\n"
+	       "  --depth D             TIFF samples: 8, 16 (default) or float\n"
+	       "  --seed N              noise seed (default 1); same seed, same image\n"
+	       "  --threads N           rendering threads (default: all CPUs)\n"
+	       "  -o IMAGE.tif          the image (linear, 0..1 scale; .png for 8/16 bit)\n"
+	       "  --truth T.cgats       SAMPLE_ID RGB_R RGB_G RGB_B (truth), FLAT_R/G/B (without\n"
+	       "                        vignetting), VIGNETTING, PIXEL_X/Y (patch centre),\n"
+	       "                        OCCLUDED, GLARE; keyword HOMOGRAPHY (mm -> pixel)\n",
+	       usage);
+}
+
+typedef struct args {
+	const char *layout, *spectra, *camera, *illuminant, *noise, *out, *truth;
+	const char *depth, *occlude, *cfa, *white_text;
+	double tilt, tilt_axis, rotate, fov, fill, blur, vignetting;
+	double paper, ink, background, white_level;
+	int width, height, supersample, threads, glare, decoy;
+	uint64_t seed;
+	unsigned flags;
+} args;
+
+static int parse_double(const char *opt, const char *text, double lo, double hi, double *out)
+{
+	char *end;
+	errno = 0;
+	double v = strtod(text, &end);
+	if (end == text || *end || errno || !(v >= lo && v <= hi))
+		return kg_cli_usage_error(usage, "%s '%s': expected a number from %g to %g", opt, text,
+		                          lo, hi);
+	*out = v;
+	return 0;
+}
+
+static int parse_int(const char *opt, const char *text, int lo, int hi, int *out)
+{
+	char *end;
+	errno = 0;
+	long v = strtol(text, &end, 10);
+	if (end == text || *end || errno || v < lo || v > hi)
+		return kg_cli_usage_error(usage, "%s '%s': expected a whole number from %d to %d", opt,
+		                          text, lo, hi);
+	*out = (int)v;
+	return 0;
+}
+
+static int parse_args(int argc, char **argv, args *a)
+{
+	memset(a, 0, sizeof(*a));
+	a->noise = "none";
+	a->depth = "16";
+	a->white_text = "0.9";
+	a->tilt_axis = 30;
+	a->fov = 40;
+	a->fill = 0.85;
+	a->blur = 0.7;
+	a->paper = 0.85;
+	a->ink = 0.03;
+	a->background = 0.2;
+	a->width = 4000;
+	a->height = 3000;
+	a->supersample = 4;
+	a->seed = 1;
+	for (int i = 1; i < argc; i++) {
+		const char *o = argv[i];
+		if (strcmp(o, "--glare") == 0) {
+			a->glare = 1;
+			continue;
+		}
+		if (strcmp(o, "--decoy") == 0) {
+			a->decoy = 1;
+			continue;
+		}
+		if (strcmp(o, "--extrapolate") == 0) {
+			a->flags |= KG_RESAMPLE_EXTRAPOLATE;
+			continue;
+		}
+		if (o[0] != '-' || i + 1 >= argc)
+			return kg_cli_usage_error(usage, o[0] == '-' ? "%s: expected a value"
+			                                             : "unexpected argument '%s'", o);
+		const char *v = argv[++i];
+		int st = 0;
+		if (!strcmp(o, "--layout"))
+			a->layout = v;
+		else if (!strcmp(o, "--spectra"))
+			a->spectra = v;
+		else if (!strcmp(o, "--camera"))
+			a->camera = v;
+		else if (!strcmp(o, "--illuminant"))
+			a->illuminant = v;
+		else if (!strcmp(o, "--noise"))
+			a->noise = v;
+		else if (!strcmp(o, "-o") || !strcmp(o, "--output"))
+			a->out = v;
+		else if (!strcmp(o, "--truth"))
+			a->truth = v;
+		else if (!strcmp(o, "--depth"))
+			a->depth = v;
+		else if (!strcmp(o, "--cfa"))
+			a->cfa = v;
+		else if (!strcmp(o, "--white-level"))
+			st = parse_double(o, a->white_text = v, 1e-6, 1e6, &a->white_level);
+		else if (!strcmp(o, "--occlude")) {
+			a->occlude = v;
+			if (strcmp(v, "tags") && strcmp(v, "patches"))
+				return kg_cli_usage_error(usage, "--occlude '%s': expected tags or patches", v);
+		} else if (!strcmp(o, "--tilt"))
+			st = parse_double(o, v, 0, 75, &a->tilt);
+		else if (!strcmp(o, "--tilt-axis"))
+			st = parse_double(o, v, -360, 360, &a->tilt_axis);
+		else if (!strcmp(o, "--rotate"))
+			st = parse_double(o, v, -360, 360, &a->rotate);
+		else if (!strcmp(o, "--fov"))
+			st = parse_double(o, v, 1, 150, &a->fov);
+		else if (!strcmp(o, "--fill"))
+			st = parse_double(o, v, 0.05, 1, &a->fill);
+		else if (!strcmp(o, "--blur"))
+			st = parse_double(o, v, 0, 50, &a->blur);
+		else if (!strcmp(o, "--vignetting"))
+			st = parse_double(o, v, 0, 0.95, &a->vignetting);
+		else if (!strcmp(o, "--paper"))
+			st = parse_double(o, v, 0, 1, &a->paper);
+		else if (!strcmp(o, "--ink"))
+			st = parse_double(o, v, 0, 1, &a->ink);
+		else if (!strcmp(o, "--background"))
+			st = parse_double(o, v, 0, 1, &a->background);
+		else if (!strcmp(o, "--width"))
+			st = parse_int(o, v, 16, 32768, &a->width);
+		else if (!strcmp(o, "--height"))
+			st = parse_int(o, v, 16, 32768, &a->height);
+		else if (!strcmp(o, "--supersample"))
+			st = parse_int(o, v, 1, 16, &a->supersample);
+		else if (!strcmp(o, "--threads"))
+			st = parse_int(o, v, 0, 64, &a->threads);
+		else if (!strcmp(o, "--seed")) {
+			char *end;
+			errno = 0;
+			unsigned long long s = strtoull(v, &end, 10);
+			if (!*v || *v == '-' || *end || errno)
+				return kg_cli_usage_error(usage, "--seed '%s': expected a whole number >= 0",
+				                          v);
+			a->seed = (uint64_t)s;
+		} else
+			return kg_cli_usage_error(usage, "unexpected argument '%s'", o);
+		if (st)
+			return st;
+	}
+	if (!a->white_level)
+		a->white_level = 0.9;
+	if (!a->layout)
+		return kg_cli_usage_error(usage, "--layout is required");
+	if (!a->camera)
+		return kg_cli_usage_error(usage, "--camera is required");
+	if (!a->illuminant)
+		return kg_cli_usage_error(usage, "--illuminant is required");
+	if (!a->out)
+		return kg_cli_usage_error(usage, "-o is required");
+	return 0;
+}
+
+/* Built-in test colours: hues on a golden-angle wheel at varied lightness and
+ * saturation, and every sixth patch a neutral, as camera values. */
+static void test_colour(int i, double white, double rgb[3])
+{
+	double level = 0.06 + 0.8 * fmod(0.37 + 0.618033988749895 * i * 0.5, 1.0);
+	if (i % 6 == 5) {
+		rgb[0] = rgb[1] = rgb[2] = white * level;
+		return;
+	}
+	double hue = fmod(0.618033988749895 * i, 1.0) * 6.0, sat = 0.35 + 0.5 * ((i * 7) % 5) / 4.0;
+	double f = hue - floor(hue), v = white * level;
+	double p = v * (1 - sat), q = v * (1 - sat * f), t = v * (1 - sat * (1 - f));
+	double tab[6][3] = {{v, t, p}, {q, v, p}, {p, v, t}, {p, q, v}, {t, p, v}, {v, p, q}};
+	memcpy(rgb, tab[(int)hue % 6], sizeof(double) * 3);
+}
+
+/* Everything a card needs, owned here. */
+typedef struct card_parts {
+	kg_sim_chart_tag *tags;
+	unsigned char **bits;
+	int ntags;
+	kg_sim_chart_patch *patches;
+	kg_sim_chart_occluder occ[2];
+	kg_sim_chart_glare glare;
+} card_parts;
+
+static void card_parts_free(card_parts *p)
+{
+	for (int i = 0; i < p->ntags; i++)
+		free(p->bits[i]);
+	free(p->bits);
+	free(p->tags);
+	free(p->patches);
+}
+
+/* A tag id of the family that the layout does not use, for the decoy frame. */
+static int decoy_id(const kg_chart_layout *l, int id, int *taken, int ntaken)
+{
+	for (int cand = id + 100;; cand++) {
+		int used = kg_chart_layout_find_tag(l, cand) >= 0;
+		for (int k = 0; k < ntaken && !used; k++)
+			used = taken[k] == cand;
+		if (!used)
+			return cand;
+	}
+}
+
+/* The card of a layout: tags (upright, their printed footprint carrying the full
+ * bit grid), patches (spectra matched by id, else built-in colours). The decoy has
+ * other tag ids and the colours in reverse order. */
+static int build_card(const kg_chart_layout *l, const kg_patchset *spectra, const args *a,
+                      int decoy, kg_sim_chart_card *card, card_parts *parts, kg_err *err)
+{
+	memset(card, 0, sizeof(*card));
+	memset(parts, 0, sizeof(*parts));
+	card->size_mm[0] = l->width_mm;
+	card->size_mm[1] = l->height_mm;
+	card->paper = a->paper;
+	card->ink = a->ink;
+	parts->tags = calloc((size_t)l->ntags + 1, sizeof(*parts->tags));
+	parts->bits = calloc((size_t)l->ntags + 1, sizeof(*parts->bits));
+	parts->patches = calloc((size_t)l->npatches + 1, sizeof(*parts->patches));
+	int *ids = calloc((size_t)l->ntags + 1, sizeof(int));
+	if (!parts->tags || !parts->bits || !parts->patches || !ids) {
+		free(ids);
+		return kg_fail(err, KG_ENOMEM, "out of memory");
+	}
+	int ret = 0;
+	for (int i = 0; i < l->ntags && !ret; i++) {
+		int id = l->tags[i].id, total, border;
+		if (decoy)
+			id = decoy_id(l, id, ids, i);
+		ids[i] = id;
+		ret = kg_chart_tag_cells(l->family, id, &parts->bits[i], &total, &border, err);
+		if (ret)
+			break;
+		parts->ntags = i + 1;
+		double r[4];
+		kg_chart_tag_footprint(l, i, r);
+		kg_sim_chart_tag *t = &parts->tags[i];
+		double c[4][2] = {{r[0], r[1]}, {r[0] + r[2], r[1]}, {r[0] + r[2], r[1] + r[3]},
+		                  {r[0], r[1] + r[3]}};
+		memcpy(t->corner_mm, c, sizeof(c));
+		t->cells = total;
+		t->bits = parts->bits[i];
+	}
+	free(ids);
+	if (ret)
+		return ret;
+	int missing = 0;
+	char missing_ids[256] = "";
+	for (int i = 0; i < l->npatches; i++) {
+		const kg_chart_patch *lp = &l->patches[i];
+		kg_sim_chart_patch *p = &parts->patches[i];
+		p->id = lp->id;
+		memcpy(p->centre_mm, lp->center_mm, sizeof(p->centre_mm));
+		memcpy(p->size_mm, lp->size_mm, sizeof(p->size_mm));
+		int src = decoy ? l->npatches - 1 - i : i;
+		if (spectra) {
+			int k = kg_patchset_find(spectra, l->patches[src].id);
+			if (k < 0 && l->patches[src].alias[0])
+				k = kg_patchset_find(spectra, l->patches[src].alias);
+			if (k < 0) {
+				if (missing++ < 8)
+					snprintf(missing_ids + strlen(missing_ids),
+					         sizeof(missing_ids) - strlen(missing_ids), "%s%s",
+					         missing > 1 ? ", " : "", l->patches[src].id);
+				continue;
+			}
+			p->reflectance = &spectra->spectra[k];
+		} else {
+			test_colour(src, a->white_level, p->rgb);
+		}
+	}
+	if (missing)
+		return kg_fail(err, KG_EINVAL,
+		               "%s: %d patch(es) of layout %s have no spectrum (matched by "
+		               "SAMPLE_ID to the layout's ids or aliases): %s%s",
+		               a->spectra, missing, l->name, missing_ids, missing > 8 ? ", ..." : "");
+	card->tags = parts->tags;
+	card->ntags = parts->ntags;
+	card->patches = parts->patches;
+	card->npatches = l->npatches;
+	if (decoy)
+		return 0;
+	if (a->occlude && !strcmp(a->occlude, "tags")) {
+		if (l->ntags < 2)
+			return kg_fail(err, KG_EINVAL, "--occlude tags: layout %s has %d tag(s)", l->name,
+			               l->ntags);
+		for (int k = 0; k < 2; k++) {
+			double r[4];
+			kg_chart_tag_footprint(l, k, r);
+			double m = 0.05 * r[2];
+			parts->occ[k] = (kg_sim_chart_occluder){r[0] - m, r[1] - m, r[0] + r[2] + m,
+			                                        r[1] + r[3] + m, 0.04};
+		}
+		card->occluders = parts->occ;
+		card->noccluders = 2;
+	} else if (a->occlude && !strcmp(a->occlude, "patches")) {
+		int n = l->npatches < 2 ? l->npatches : 2;
+		double x0 = INFINITY, y0 = INFINITY, x1 = -INFINITY, y1 = -INFINITY;
+		for (int i = 0; i < n; i++) {
+			const kg_chart_patch *p = &l->patches[i];
+			x0 = fmin(x0, p->center_mm[0] - 0.5 * p->size_mm[0]);
+			x1 = fmax(x1, p->center_mm[0] + 0.5 * p->size_mm[0]);
+			y0 = fmin(y0, p->center_mm[1] - 0.5 * p->size_mm[1]);
+			y1 = fmax(y1, p->center_mm[1] + 0.5 * p->size_mm[1]);
+		}
+		if (n) {
+			parts->occ[0] = (kg_sim_chart_occluder){x0, y0, x1, y1, 0.04};
+			card->occluders = parts->occ;
+			card->noccluders = 1;
+		}
+	}
+	if (a->glare && l->npatches) {
+		/* An elongated highlight on the upper left part of a middle patch. */
+		const kg_chart_patch *p = &l->patches[l->npatches / 2];
+		parts->glare = (kg_sim_chart_glare){
+		    {p->center_mm[0] - 0.2 * p->size_mm[0], p->center_mm[1] - 0.2 * p->size_mm[1]},
+		    {0.15 * p->size_mm[0], 0.08 * p->size_mm[1]},
+		    30.0,
+		    0.6};
+		card->glare = &parts->glare;
+		card->nglare = 1;
+	}
+	return 0;
+}
+
+int kg_cmd_sim_chart(int argc, char **argv)
+{
+	if (kg_cli_wants_help(argc, argv)) {
+		help();
+		return KG_EXIT_OK;
+	}
+	args a;
+	int status = parse_args(argc, argv, &a);
+	if (status)
+		return status;
+	kg_err err = {{0}};
+	kg_sim_noise noise;
+	enum kg_sim_depth depth;
+	if (kg_sim_noise_parse(a.noise, &noise, &err) || kg_sim_depth_parse(a.depth, &depth, &err))
+		return kg_cli_usage_error(usage, "%s", err.msg);
+
+	kg_chart_layout *layout = NULL;
+	kg_patchset *spectra = NULL;
+	kg_sim_chart_result *res = NULL;
+	kg_sim_chart_card cards[2];
+	card_parts parts[2];
+	memset(parts, 0, sizeof(parts));
+	int ncards = 1 + a.decoy;
+	kg_sim_capture capture;
+	int ret = kg_sim_capture_load(&capture, a.camera, a.illuminant, a.white_level, &noise,
+	                              a.flags, &err);
+	if (!ret)
+		ret = kg_chart_layout_load(a.layout, &layout, &err);
+	if (!ret && a.spectra)
+		ret = kg_sim_read_spectra(a.spectra, a.flags, &spectra, &err);
+	for (int c = 0; !ret && c < ncards; c++)
+		ret = build_card(layout, spectra, &a, c == 1, &cards[c], &parts[c], &err);
+	kg_sim_chart_desc d = {
+	    .width = a.width,
+	    .height = a.height,
+	    .focal_px = kg_sim_chart_focal_px(a.width, a.fov),
+	    .cards = cards,
+	    .ncards = ncards,
+	    .background = a.background,
+	    .supersample = a.supersample,
+	    .blur_sigma = a.blur,
+	    .vignetting = a.vignetting,
+	    .cfa = a.cfa,
+	    .threads = a.threads,
+	    .seed = a.seed,
+	};
+	for (int c = 0; !ret && c < ncards; c++) {
+		/* Alone: the whole image. With the decoy: the chart on the right half, the
+		 * decoy on the left. */
+		double box[4] = {0, 0, a.width, a.height};
+		if (ncards == 2) {
+			box[0] = c == 0 ? 0.5 * a.width : 0;
+			box[2] = c == 0 ? a.width : 0.5 * a.width;
+		}
+		cards[c].pose = (kg_sim_chart_pose){.rotate_deg = a.rotate, .tilt_deg = a.tilt,
+		                                    .tilt_axis_deg = a.tilt_axis};
+		ret = kg_sim_chart_pose_fit(&cards[c].pose, cards[c].size_mm, d.focal_px, a.width,
+		                            a.height, box, ncards == 2 ? 0.9 * a.fill : a.fill, &err);
+	}
+	if (!ret)
+		ret = kg_sim_chart_render(&d, &capture, &res, &err);
+	if (!ret)
+		ret = kg_image_write(res->image, a.out, (int)depth, &err);
+	if (!ret && a.truth) {
+		char noise_text[128], seed_text[32], pose_text[128];
+		kg_sim_noise_format(&noise, noise_text, sizeof(noise_text));
+		snprintf(seed_text, sizeof(seed_text), "%" PRIu64, a.seed);
+		snprintf(pose_text, sizeof(pose_text), "tilt %g axis %g rotate %g distance %.6g mm",
+		         a.tilt, a.tilt_axis, a.rotate, cards[0].pose.distance_mm);
+		const char *keywords[] = {
+		    "ORIGINATOR", "kogei sim chart",
+		    "LAYOUT", layout->name,
+		    "CAMERA", a.camera,
+		    "ILLUMINANT", a.illuminant,
+		    "NOISE", noise_text,
+		    "SEED", seed_text,
+		    "POSE", pose_text,
+		    NULL,
+		};
+		ret = kg_sim_chart_write_truth(res, &d, 0, a.truth, keywords, &err);
+		if (ret)
+			remove(a.out);
+	}
+	for (int c = 0; c < 2; c++)
+		card_parts_free(&parts[c]);
+	kg_sim_chart_result_free(&res);
+	kg_patchset_free(&spectra);
+	kg_chart_layout_free(&layout);
+	if (ret)
+		return kg_cli_error(&err, ret);
+	return KG_EXIT_OK;
+}

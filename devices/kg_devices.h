@@ -1,0 +1,116 @@
+/* The public header of devices/: spectrometers behind one driver table, and the
+ * reflectance computed from their readings.
+ *
+ * A spectrometer is opened by URI:
+ *   usbspec:<vid>:<pid>[:<serial>]   Ocean Optics FPGA-family over libusb (hex ids)
+ *   sim:<spectra.cgats>              simulated instrument measuring known spectra
+ * Applications use this header only; drivers implement devices/spectro_driver.h. */
+#ifndef KG_DEVICES_H
+#define KG_DEVICES_H
+
+#include <stdint.h>
+
+#include "kg_core.h"
+
+/* Most nonlinearity coefficients a driver may report (order 7). */
+#define KG_SPECTRO_MAX_NL 8
+
+/* What an instrument says about itself, filled once at open. */
+typedef struct kg_spectro_info {
+	char backend[16];  /* URI scheme of the driver: "usbspec", "sim" */
+	char model[32];    /* "USB2000+/Flame-S", "USB4000", ... */
+	char serial[32];
+	int npixels;
+	double wl_coeffs[4]; /* wavelength of pixel p (nm): c0 + c1 p + c2 p^2 + c3 p^3 */
+	int dark_first, dark_last; /* electrical-dark (masked) pixels, inclusive; -1 if none */
+	int nl_order;        /* nonlinearity polynomial order; -1 when the device has none */
+	double nl_coeffs[KG_SPECTRO_MAX_NL];
+	double saturation;   /* raw count at which the converter saturates */
+	uint32_t min_integration_us, max_integration_us;
+	uint32_t integration_us; /* current setting, 0 before the first set */
+	int high_speed;      /* 1 on a USB 2.0 high-speed link */
+} kg_spectro_info;
+
+typedef struct kg_spectro kg_spectro;
+
+/* Open by URI. Errors: KG_EINVAL for a malformed URI or unknown scheme, KG_ENODEV
+ * when no such device is attached, KG_ENOTSUP when the backend is not built in,
+ * KG_EIO / KG_ETIMEDOUT for a device that does not answer as documented. */
+int kg_spectro_open(const char *uri, kg_spectro **out, kg_err *err);
+/* Close and free; *s becomes NULL. Safe on NULL. */
+void kg_spectro_free(kg_spectro **s);
+const kg_spectro_info *kg_spectro_get_info(const kg_spectro *s);
+/* Integration time in microseconds, checked against the model's range. */
+int kg_spectro_set_integration(kg_spectro *s, uint32_t us, kg_err *err);
+/* One spectrum of info->npixels raw counts, as the device sent them. */
+int kg_spectro_read_raw(kg_spectro *s, double *counts, kg_err *err);
+/* Tell a simulated instrument what the operator was asked to put under the probe
+ * ("dark", "white" or a sample id). Real instruments ignore it; the simulated one
+ * refuses a sample it does not have. */
+int kg_spectro_set_target(kg_spectro *s, const char *what, kg_err *err);
+
+/* Wavelength of a pixel from the calibration polynomial. */
+double kg_spectro_wavelength(const kg_spectro_info *info, int pixel);
+
+/* Corrections of raw counts (kg_spectro_correct, kg_spectro_acquire). */
+enum {
+	KG_CORRECT_ELECTRICAL_DARK = 1 << 0, /* subtract the mean of the masked pixels */
+	KG_CORRECT_NONLINEARITY = 1 << 1,    /* divide by the device's polynomial in counts */
+};
+/* out[p] = corrected raw[p]: electrical dark first, then nonlinearity
+ * c / (k0 + k1 c + ... + kn c^n) on the dark-subtracted count c. A correction the
+ * device cannot give (no dark pixels, order < 0) is skipped. In-place is allowed. */
+void kg_spectro_correct(const kg_spectro_info *info, unsigned flags, const double *raw,
+                        double *out);
+
+/* Backends built into this binary, for `kogei devices`. */
+int kg_spectro_backend_count(void);
+const char *kg_spectro_backend_scheme(int i);
+const char *kg_spectro_backend_description(int i);
+
+/* ---- readings and reflectance (reflectance.c) ---- */
+
+/* One averaged reading on the device's own pixel grid. */
+typedef struct kg_spectro_reading {
+	int n;
+	double *wl;        /* nm, per pixel */
+	double *counts;    /* corrected, averaged and smoothed counts */
+	int scans;
+	uint32_t integration_us;
+	int saturated;     /* pixels within 400-700 nm that saturated in any scan */
+	double peak;       /* highest raw count seen within 400-700 nm */
+	double when;       /* seconds since the epoch when the reading finished */
+} kg_spectro_reading;
+
+typedef struct kg_acquire_options {
+	int scans;           /* averaged, >= 1 */
+	int boxcar;          /* boxcar half-width in pixels (window 2 b + 1), 0 = none */
+	unsigned corrections; /* KG_CORRECT_* */
+} kg_acquire_options;
+
+/* scans 1, no smoothing, both corrections. */
+void kg_acquire_options_default(kg_acquire_options *o);
+/* Read o->scans spectra, correct, average and smooth them into *out (cleared first). */
+int kg_spectro_acquire(kg_spectro *s, const kg_acquire_options *o, kg_spectro_reading *out,
+                       kg_err *err);
+void kg_spectro_reading_clear(kg_spectro_reading *r);
+/* Boxcar mean over 2 half + 1 pixels, shrinking at the ends. in != out. */
+void kg_boxcar(const double *in, double *out, int n, int half);
+
+/* The white standard's certified reflectance: the first spectrum of a CGATS file
+ * (ArgyllCMS .sp/.ti3, X-Rite exports), or flat 0.99 when path is NULL. */
+int kg_white_reference_load(const char *path, kg_spectrum *out, kg_err *err);
+
+/* R = (S - D) / (W - D) x R_white per pixel, resampled to the 61-band grid. Pixels
+ * where the white is within 1 count of the dark carry no information and are left
+ * out (their number in *dropped if not NULL); the readings must share a pixel grid
+ * and integration time. */
+int kg_reflectance(const kg_spectro_reading *dark, const kg_spectro_reading *white,
+                   const kg_spectrum *white_reflectance, const kg_spectro_reading *sample,
+                   kg_spectrum *out, int *dropped, kg_err *err);
+/* Relative change of the white's signal (W - D) summed over 400-700 nm between two
+ * white readings: (later - earlier) / earlier. */
+double kg_white_drift(const kg_spectro_reading *dark, const kg_spectro_reading *earlier,
+                      const kg_spectro_reading *later);
+
+#endif

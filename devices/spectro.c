@@ -1,0 +1,161 @@
+/* Spectrometer registry and the application API over the driver table. */
+#include <stdlib.h>
+#include <string.h>
+
+#include "kg_config.h"
+#include "spectro_driver.h"
+
+/* Drivers built into this binary, by URI scheme. */
+static const kg_spectro_driver *const drivers[] = {
+#if HAVE_LIBUSB
+	&kg_spectro_ocean_fpga_driver,
+#endif
+	&kg_spectro_sim_driver,
+};
+#define NDRIVERS ((int)(sizeof(drivers) / sizeof(drivers[0])))
+
+/* Schemes the design names whose backend may be missing from this build. */
+static const char *const known_schemes[] = {"usbspec", "sim", "replay"};
+
+struct kg_spectro {
+	const kg_spectro_driver *drv;
+	void *state;
+	kg_spectro_info info;
+};
+
+int kg_spectro_backend_count(void) { return NDRIVERS; }
+const char *kg_spectro_backend_scheme(int i)
+{
+	return i >= 0 && i < NDRIVERS ? drivers[i]->scheme : NULL;
+}
+const char *kg_spectro_backend_description(int i)
+{
+	return i >= 0 && i < NDRIVERS ? drivers[i]->description : NULL;
+}
+
+int kg_spectro_open(const char *uri, kg_spectro **out, kg_err *err)
+{
+	kg_check_arg(uri && out, err);
+	*out = NULL;
+	const char *colon = strchr(uri, ':');
+	if (!colon || colon == uri)
+		return kg_fail(err, KG_EINVAL,
+		               "spectrometer '%s': expected a URI usbspec:<vid>:<pid>[:<serial>] "
+		               "or sim:<spectra file>", uri);
+	size_t slen = (size_t)(colon - uri);
+	const kg_spectro_driver *drv = NULL;
+	for (int i = 0; i < NDRIVERS; i++)
+		if (strlen(drivers[i]->scheme) == slen && !strncmp(drivers[i]->scheme, uri, slen))
+			drv = drivers[i];
+	if (!drv) {
+		for (size_t i = 0; i < sizeof(known_schemes) / sizeof(known_schemes[0]); i++)
+			if (strlen(known_schemes[i]) == slen && !strncmp(known_schemes[i], uri, slen))
+				return kg_fail(err, KG_ENOTSUP,
+				               "spectrometer '%s': the %s backend is not built into this "
+				               "kogei (see 'kogei devices')", uri, known_schemes[i]);
+		return kg_fail(err, KG_EINVAL,
+		               "spectrometer '%s': unknown scheme '%.*s' (expected usbspec or sim)",
+		               uri, (int)slen, uri);
+	}
+	kg_spectro *s = calloc(1, sizeof(*s));
+	if (!s)
+		return KG_ENOMEM;
+	s->drv = drv;
+	snprintf(s->info.backend, sizeof(s->info.backend), "%s", drv->scheme);
+	s->info.dark_first = s->info.dark_last = -1;
+	s->info.nl_order = -1;
+	int r = drv->open(colon + 1, &s->state, err);
+	if (r) {
+		free(s);
+		return r;
+	}
+	if (!(r = drv->identify(s->state, &s->info, err)) &&
+	    !(r = drv->wavelength_calibration(s->state, s->info.wl_coeffs, err))) {
+		drv->dark_pixels(s->state, &s->info.dark_first, &s->info.dark_last);
+		r = drv->nonlinearity(s->state, s->info.nl_coeffs, &s->info.nl_order, err);
+	}
+	if (!r && (s->info.npixels < 2 || s->info.dark_last >= s->info.npixels))
+		r = kg_fail(err, KG_EIO, "%s: driver reported %d pixels, dark pixels %d-%d",
+		            uri, s->info.npixels, s->info.dark_first, s->info.dark_last);
+	if (r) {
+		kg_spectro_free(&s);
+		return r;
+	}
+	*out = s;
+	return 0;
+}
+
+void kg_spectro_free(kg_spectro **s)
+{
+	if (!s || !*s)
+		return;
+	if ((*s)->state)
+		(*s)->drv->close((*s)->state);
+	free(*s);
+	*s = NULL;
+}
+
+const kg_spectro_info *kg_spectro_get_info(const kg_spectro *s) { return &s->info; }
+
+int kg_spectro_set_integration(kg_spectro *s, uint32_t us, kg_err *err)
+{
+	kg_check_arg(s, err);
+	if (us < s->info.min_integration_us || us > s->info.max_integration_us)
+		return kg_fail(err, KG_EINVAL,
+		               "%s %s: integration time %u us: expected %u to %u us", s->info.model,
+		               s->info.serial, us, s->info.min_integration_us,
+		               s->info.max_integration_us);
+	int r = s->drv->set_integration(s->state, us, err);
+	if (!r)
+		s->info.integration_us = us;
+	return r;
+}
+
+int kg_spectro_read_raw(kg_spectro *s, double *counts, kg_err *err)
+{
+	kg_check_arg(s && counts, err);
+	if (!s->info.integration_us)
+		return kg_fail(err, KG_EINVAL, "%s %s: set the integration time before reading",
+		               s->info.model, s->info.serial);
+	return s->drv->read_raw(s->state, counts, err);
+}
+
+int kg_spectro_set_target(kg_spectro *s, const char *what, kg_err *err)
+{
+	kg_check_arg(s && what, err);
+	return s->drv->set_target ? s->drv->set_target(s->state, what, err) : 0;
+}
+
+double kg_spectro_wavelength(const kg_spectro_info *info, int pixel)
+{
+	const double *c = info->wl_coeffs;
+	double p = pixel;
+	return c[0] + p * (c[1] + p * (c[2] + p * c[3]));
+}
+
+void kg_spectro_correct(const kg_spectro_info *info, unsigned flags, const double *raw,
+                        double *out)
+{
+	int n = info->npixels;
+	double dark = 0;
+	if ((flags & KG_CORRECT_ELECTRICAL_DARK) && info->dark_first >= 0 &&
+	    info->dark_last >= info->dark_first) {
+		for (int p = info->dark_first; p <= info->dark_last; p++)
+			dark += raw[p];
+		dark /= info->dark_last - info->dark_first + 1;
+	}
+	int nl = (flags & KG_CORRECT_NONLINEARITY) ? info->nl_order : -1;
+	for (int p = 0; p < n; p++) {
+		double c = raw[p] - dark;
+		if (nl >= 0) {
+			/* Horner on k0..kn; a factor that is not positive (a count far outside
+			 * the calibrated range) leaves the count uncorrected. */
+			double f = info->nl_coeffs[nl];
+			for (int k = nl - 1; k >= 0; k--)
+				f = f * c + info->nl_coeffs[k];
+			if (f > 0)
+				c /= f;
+		}
+		out[p] = c;
+	}
+}
