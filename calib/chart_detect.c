@@ -22,6 +22,9 @@
 #include "kg_calib.h"
 #include "kg_config.h"
 
+#if KG_HAVE_MCC
+#include "chart_mcc.h"
+#endif
 #if HAVE_APRILTAG
 #include <apriltag/apriltag.h>
 #include <apriltag/tag16h5.h>
@@ -432,16 +435,15 @@ static double luminance(const work_image *wi, size_t i)
 	return 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
 }
 
-/* An 8-bit grey picture for tag detection and the overlay: luminance scaled so its
- * 99.5th percentile is white, then sRGB-encoded (a lookup table of 4096 steps). */
-static unsigned char *grey8(const work_image *wi, double *scale_out)
+enum { GREY_BINS = 4096 };
+
+/* The exposure shown as white to the detectors: the 99.5th percentile of the
+ * luminance (a histogram over 0..4 of full scale, every 7th pixel); 1 if that is 0. */
+static double white_level(const work_image *wi)
 {
+	enum { BINS = GREY_BINS };
+	static const double top = 4.0;
 	size_t n = (size_t)wi->width * wi->height;
-	unsigned char *g = malloc(n ? n : 1);
-	if (!g)
-		return NULL;
-	enum { BINS = 4096 };
-	static const double top = 4.0; /* histogram covers 0..4 of full scale */
 	long hist[BINS] = {0};
 	for (size_t i = 0; i < n; i += 7) {
 		double y = luminance(wi, i);
@@ -459,8 +461,19 @@ static unsigned char *grey8(const work_image *wi, double *scale_out)
 			break;
 		}
 	}
-	if (!(white > 1e-6))
-		white = 1.0;
+	return white > 1e-6 ? white : 1.0;
+}
+
+/* An 8-bit grey picture for tag detection and the overlay: luminance scaled so its
+ * 99.5th percentile is white, then sRGB-encoded (a lookup table of 4096 steps). */
+static unsigned char *grey8(const work_image *wi, double *scale_out)
+{
+	enum { BINS = GREY_BINS };
+	size_t n = (size_t)wi->width * wi->height;
+	unsigned char *g = malloc(n ? n : 1);
+	if (!g)
+		return NULL;
+	double white = white_level(wi);
 	unsigned char lut[BINS];
 	for (int b = 0; b < BINS; b++) {
 		double v = (b + 0.5) / BINS;
@@ -1193,6 +1206,194 @@ static int make_view(const kg_chart_layout *l, layout_view *v, layout_arrays *a,
 	return 0;
 }
 
+/* ---- tagless: OpenCV mcc ------------------------------------------------------ */
+
+#if KG_HAVE_MCC
+/* The patches of a ColorChecker 24 layout by chart position, row-major from A01
+ * (dark skin) to D06 (black 2): 1 when the layout has exactly these 24 ids. */
+static int colorchecker24_patches(const kg_chart_layout *l, int idx[24])
+{
+	if (l->npatches != 24)
+		return 0;
+	for (int i = 0; i < 24; i++) {
+		char id[8];
+		snprintf(id, sizeof(id), "%c%02d", 'A' + i / 6, i % 6 + 1);
+		if ((idx[i] = kg_chart_layout_find_patch(l, id)) < 0)
+			return 0;
+	}
+	return 1;
+}
+
+/* mcc's box in layout mm (tl, tr, br, bl as the chart is read, A01 top left): the
+ * centres of A01, A06 and D01 give one pitch along a row and down a column, and the
+ * box lies KG_MCC24_BOX_MARGIN_PITCH pitches beyond the outer patch centres. */
+static void mcc24_box_mm(const layout_view *L, const int idx[24], double box[4][2])
+{
+	const double *a1 = L->patch_center[idx[0]], *a6 = L->patch_center[idx[5]],
+	             *d1 = L->patch_center[idx[18]];
+	double m = KG_MCC24_BOX_MARGIN_PITCH;
+	double uv[4][2] = {{-m, -m}, {5 + m, -m}, {5 + m, 3 + m}, {-m, 3 + m}};
+	for (int k = 0; k < 4; k++)
+		for (int c = 0; c < 2; c++)
+			box[k][c] = a1[c] + uv[k][0] * (a6[c] - a1[c]) / 5 + uv[k][1] * (d1[c] - a1[c]) / 3;
+}
+
+static double quad_signed_area(const double q[4][2])
+{
+	double a = 0;
+	for (int k = 0; k < 4; k++)
+		a += q[k][0] * q[(k + 1) % 4][1] - q[(k + 1) % 4][0] * q[k][1];
+	return a / 2;
+}
+
+static void patches_free(kg_chart_result *r)
+{
+	for (int i = 0; i < r->npatches; i++)
+		free(r->patches[i].id);
+	free(r->patches);
+	r->patches = NULL;
+	r->npatches = 0;
+}
+
+static double patch_level(const kg_chart_sample *p)
+{
+	return p->rgb[0] + p->rgb[1] + p->rgb[2];
+}
+
+/* How far the sampled patches are from a ColorChecker read the right way up; lower
+ * is better. One point for each step of the neutral row D01..D06 that does not
+ * darken and for each patch brighter than the white D01 (a missing value counts as
+ * wrong); plus the spread of log(r/g) and log(b/g) over D01..D05, which share one
+ * chromaticity whatever the white balance; plus the mean non-uniformity, high when
+ * the sampled regions straddle patches. */
+static double orientation_score(const kg_chart_result *r, const int idx[24])
+{
+	const kg_chart_sample *p = r->patches;
+	double score = 0;
+	for (int k = 18; k < 23; k++)
+		score += !(patch_level(&p[idx[k]]) >= patch_level(&p[idx[k + 1]]));
+	for (int i = 0; i < 18; i++)
+		score += !(patch_level(&p[idx[18]]) >= patch_level(&p[idx[i]]));
+	double sum[2] = {0, 0}, sq[2] = {0, 0};
+	for (int k = 18; k < 23; k++) {
+		const double *c = p[idx[k]].rgb;
+		if (!(c[0] > 0 && c[1] > 0 && c[2] > 0))
+			return score + 10;
+		double v[2] = {log(c[0] / c[1]), log(c[2] / c[1])};
+		for (int j = 0; j < 2; j++) {
+			sum[j] += v[j];
+			sq[j] += v[j] * v[j];
+		}
+	}
+	for (int j = 0; j < 2; j++)
+		score += sqrt(fmax(sq[j] / 5 - (sum[j] / 5) * (sum[j] / 5), 0));
+	double nonuniformity = 0;
+	for (int i = 0; i < 24; i++)
+		nonuniformity += isfinite(p[idx[i]].nonuniformity) ? p[idx[i]].nonuniformity : 1.0;
+	return score + nonuniformity / 24;
+}
+
+/* Find a ColorChecker 24 without tags: mcc gives the box around its patches; the
+ * homography from the box in layout mm to the box in the image places the patches,
+ * which sample_all measures as on the tag path. Of the four ways the box's corners
+ * can meet the chart's, the one whose patches look most like a ColorChecker read
+ * the right way up (orientation_score) wins: mcc's own choice is not trusted. */
+static int detect_tagless(const kg_chart_layout *l, const layout_view *L, const work_image *wi,
+                          const kg_chart_detect_options *opt, kg_chart_result *r, kg_err *err)
+{
+	int idx[24];
+	if (!colorchecker24_patches(l, idx))
+		return kg_fail(err, KG_ENOTSUP, "layout %s is not a ColorChecker 24 (24 patches "
+		               "A01..D06): the tagless detector (OpenCV mcc) finds only that chart",
+		               l->name);
+	double t0 = now_seconds(), box_px[4][2], box_mm[4][2], cost = 0;
+	int ret = kg_mcc_find_colorchecker(wi->data, wi->width, wi->height, wi->channels,
+	                                   white_level(wi), opt->threads, box_px, &cost, err);
+	r->tag_seconds += now_seconds() - t0;
+	if (ret)
+		return ret;
+	r->tagless = 1;
+	r->decimate = 0;
+	r->rms_px = 0;
+	mcc24_box_mm(L, idx, box_mm);
+	/* A photograph does not mirror the chart: give mcc's corners the layout's winding. */
+	if ((quad_signed_area(box_mm) > 0) != (quad_signed_area((const double (*)[2])box_px) > 0)) {
+		double t[2] = {box_px[1][0], box_px[1][1]};
+		memcpy(box_px[1], box_px[3], sizeof(t));
+		memcpy(box_px[3], t, sizeof(t));
+	}
+	double score[4], H[4][9], angle[4];
+	int best = 0, upright = 0;
+	for (int turn = 0; turn < 4; turn++) {
+		double dst[4][2];
+		for (int k = 0; k < 4; k++)
+			memcpy(dst[k], box_px[(k + turn) % 4], sizeof(dst[k]));
+		if ((ret = kg_homography_fit((const double (*)[2])box_mm, (const double (*)[2])dst, 4,
+		                             0, H[turn], NULL, err)))
+			return ret;
+		memcpy(r->H, H[turn], sizeof(r->H));
+		patches_free(r);
+		if ((ret = sample_all(L, wi, opt, r, err)))
+			return ret;
+		score[turn] = orientation_score(r, idx);
+		if (score[turn] < score[best])
+			best = turn;
+		double a1[2], a6[2];
+		kg_homography_map(H[turn], L->patch_center[idx[0]][0], L->patch_center[idx[0]][1], a1);
+		kg_homography_map(H[turn], L->patch_center[idx[5]][0], L->patch_center[idx[5]][1], a6);
+		angle[turn] = atan2(a6[1] - a1[1], a6[0] - a1[0]) * 180 / M_PI;
+		if (fabs(angle[turn]) < fabs(angle[upright]))
+			upright = turn;
+	}
+	double next = INFINITY;
+	for (int turn = 0; turn < 4; turn++)
+		if (turn != best)
+			next = fmin(next, score[turn]);
+	/* One step out of order or a patch brighter than the white: no turn reads as a
+	 * ColorChecker (other colours on its geometry, or bad light); neither the patches
+	 * nor mcc, whose choice also rests on the ColorChecker's colours, can tell, so
+	 * the chart is taken as photographed upright. */
+	int uncertain = score[best] >= 1;
+	int chosen = uncertain ? upright : best;
+	memcpy(r->H, H[chosen], sizeof(r->H));
+	patches_free(r);
+	if ((ret = sample_all(L, wi, opt, r, err)))
+		return ret;
+	if (uncertain)
+		ret = add_warning(r, "chart placed by the tagless detector (OpenCV mcc, fit cost "
+		                  "%.3g) from the 4 corners of its box, not by tags; orientation "
+		                  "uncertain: in no turn does the neutral row D01-D06 darken from "
+		                  "D01, the brightest patch (best score %.3f; is this a ColorChecker "
+		                  "24, evenly lit and not clipped?), so the chart is taken as upright: "
+		                  "row A01-A06 runs at %.0f degrees clockwise from the image's x axis",
+		                  cost, score[best], angle[chosen]);
+	else
+		ret = add_warning(r, "chart placed by the tagless detector (OpenCV mcc, fit cost "
+		                  "%.3g) from the 4 corners of its box, not by tags; orientation "
+		                  "chosen from the patches (neutral row D01-D06 darkening from D01, "
+		                  "the brightest patch): score %.3f, next best of the 4 turns %.3f, "
+		                  "%s mcc's own; row A01-A06 runs at %.0f degrees clockwise from the "
+		                  "image's x axis", cost, score[best], next,
+		                  best == 0 ? "agreeing with" : "overruling", angle[chosen]);
+	return ret ? kg_fail(err, ret, "out of memory") : 0;
+}
+#endif
+
+/* No tags seen at all: a ColorChecker may still be in view without its frame. */
+static int tagless_fallback(const kg_chart_layout *l, const kg_chart_result *r, int ret)
+{
+#if KG_HAVE_MCC
+	int idx[24];
+	return (ret == KG_ENOENT || ret == KG_ENOTSUP) && r->ntags == 0 &&
+	       colorchecker24_patches(l, idx);
+#else
+	(void)l;
+	(void)r;
+	(void)ret;
+	return 0;
+#endif
+}
+
 int kg_chart_detect(const kg_chart_layout *l, const kg_image *img,
                     const kg_chart_detect_options *options, kg_chart_result **out,
                     kg_err *err)
@@ -1229,20 +1430,38 @@ int kg_chart_detect(const kg_chart_layout *l, const kg_image *img,
 	snprintf(r->layout, sizeof(r->layout), "%s", l->name);
 	if ((ret = prepare_image(img, &opt, &wi, err)))
 		goto fail;
-	if (opt.tagless) {
-		ret = kg_fail(err, KG_ENOTSUP, "tagless detection (OpenCV mcc) is not available in "
-		              "this build");
+	int tagless = opt.tagless || l->ntags == 0;
+	if (!tagless) {
+		kg_err tag_err = {{0}};
+		ret = detect_with_tags(&L, &wi, &opt, r, &tag_err);
+		if (ret && tagless_fallback(l, r, ret)) {
+			kg_err mcc_err = {{0}};
+			ret = detect_tagless(l, &L, &wi, &opt, r, &mcc_err);
+			if (ret)
+				kg_fail(err, ret, "%s; %s", tag_err.msg, mcc_err.msg);
+			else if (add_warning(r, "%s: fell back to the tagless detector", tag_err.msg))
+				ret = kg_fail(err, KG_ENOMEM, "out of memory");
+		} else if (ret) {
+			kg_fail(err, ret, "%s", tag_err.msg);
+		} else {
+			ret = sample_all(&L, &wi, &opt, r, err);
+		}
+		if (ret)
+			goto fail;
+	} else {
+#if KG_HAVE_MCC
+		if ((ret = detect_tagless(l, &L, &wi, &opt, r, err)))
+			goto fail;
+#else
+		ret = l->ntags == 0
+		          ? kg_fail(err, KG_ENOTSUP, "layout %s has no tags: it can only be found by "
+		                    "the tagless detector (OpenCV mcc), not available in this build",
+		                    l->name)
+		          : kg_fail(err, KG_ENOTSUP, "tagless detection (OpenCV mcc) is not available "
+		                    "in this build");
 		goto fail;
+#endif
 	}
-	if (l->ntags == 0) {
-		ret = kg_fail(err, KG_ENOTSUP, "layout %s has no tags: it can only be found by the "
-		              "tagless detector (OpenCV mcc), not available in this build", l->name);
-		goto fail;
-	}
-	if ((ret = detect_with_tags(&L, &wi, &opt, r, err)))
-		goto fail;
-	if ((ret = sample_all(&L, &wi, &opt, r, err)))
-		goto fail;
 	if ((ret = patch_summary_warnings(r))) {
 		ret = kg_fail(err, ret, "out of memory");
 		goto fail;

@@ -2,26 +2,32 @@
  * person would look at into one folder.
  *
  * The session is simulated from data a fresh machine has: the CIE 13.3 test colour
- * samples of colord-data as the chart, two model cameras (fixtures/demo/), CIE D65
- * and A, and the default material library. The steps call the same C APIs the
- * commands use (calib/, estimate/), never the command line. */
+ * samples of colord-data as the chart (in the AprilTag frame of
+ * fixtures/demo/cie-tcs-frame.json), two model cameras (fixtures/demo/), CIE D65
+ * and A, and the default material library. The chart is photographed (sim/'s chart
+ * scenes) and found in the photographs by its tags (calib/'s chart detection); the
+ * steps call the same C APIs the commands use (sim/, calib/, estimate/), never the
+ * command line. */
 #include <getopt.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <unistd.h>
 
+#include "chart_scene_glue.h"
 #include "demo.h"
 
 static const char usage_demo[] =
 	"kogei demo [-o DIR]\n"
 	"  Runs a simulated session through the whole pipeline and writes its outputs to\n"
-	"  DIR (default out/demo): reference chart -> calib reference -> site chart under\n"
-	"  another camera and illuminant -> calib camera -> object image of the library's\n"
-	"  metals, alloys and lacquer -> estimate (61-band ENVI cube) -> classify (label\n"
-	"  map), then plots of estimated against true spectra per material, the confusion\n"
-	"  matrix and summary.md. Also the paper's Fig. 7 for nami-shibuichi (table and\n"
-	"  heat map) and a swatch sheet of the material library under D65.\n"
+	"  DIR (default out/demo): a photograph of the chart in its AprilTag frame, the\n"
+	"  chart found by its tags (overlay, patch file) -> calib reference -> another\n"
+	"  photograph by the site camera under another illuminant, found the same way ->\n"
+	"  calib camera -> object image of the library's metals, alloys and lacquer ->\n"
+	"  estimate (61-band ENVI cube) -> classify (label map), then plots of estimated\n"
+	"  against true spectra per material, the confusion matrix and summary.md. Also\n"
+	"  the paper's Fig. 7 for nami-shibuichi (table and heat map) and a swatch sheet\n"
+	"  of the material library under D65.\n"
 	"  Needs " DEMO_CHART " (package colord-data).";
 
 char *demo_path(demo_ctx *d, const char *name)
@@ -70,33 +76,179 @@ static int demo_materials(demo_ctx *d)
 	return ret;
 }
 
-/* One camera photographing the chart: a patch file as `kogei sim patches` writes. */
-static int shoot_chart(demo_ctx *d, const kg_patchset *chart, const char *camera,
-                       const char *illuminant, const char *noise_text, uint64_t seed,
-                       const char *out, const char *what)
+/* The detection summary of a shot, from the result and the patch set it gave. */
+static void shot_summarise(demo_chart_shot *sh, const kg_chart_result *res,
+                           const kg_patchset *ps, const kg_sim_chart_result *rendered)
 {
+	static const char channel[3] = {'R', 'G', 'B'};
+	size_t at = 0;
+	sh->tags_used[0] = '\0';
+	for (int i = 0; i < res->ntags && at < sizeof(sh->tags_used) - 1; i++)
+		if (res->tags[i].used)
+			at += (size_t)snprintf(sh->tags_used + at, sizeof(sh->tags_used) - at, "%s%d",
+			                       at ? "," : "", res->tags[i].id);
+	sh->ntags_used = res->ntags_used;
+	sh->rms_px = res->rms_px;
+	sh->npatches = res->npatches;
+	sh->nsampled = ps->n;
+	sh->nwarnings = res->nwarnings;
+	sh->detect_ms = 1e3 * res->total_seconds;
+	sh->tag_ms = 1e3 * res->tag_seconds;
+	sh->decimate = res->decimate;
+	sh->nflagged = 0;
+	sh->worst_sd = -1;
+	sh->max_error = 0;
+	for (int i = 0; i < res->npatches; i++) {
+		const kg_chart_sample *p = &res->patches[i];
+		if (p->flags)
+			sh->nflagged++;
+		if (p->flags & KG_CHART_FLAG_REJECTED)
+			continue;
+		/* The card is the only one, so the truth is in the layout's order. */
+		const kg_sim_chart_truth *t = i < rendered->ntruth ? &rendered->truth[i] : NULL;
+		for (int c = 0; c < 3; c++) {
+			if (p->sd[c] > sh->worst_sd) {
+				sh->worst_sd = p->sd[c];
+				snprintf(sh->worst_id, sizeof(sh->worst_id), "%s", p->id);
+				sh->worst_channel = channel[c];
+			}
+			if (t)
+				sh->max_error = fmax(sh->max_error, 100.0 * fabs(p->rgb[c] - t->rgb[c]));
+		}
+	}
+}
+
+/* One camera photographing the chart in its frame: the scene rendered (sim/), the
+ * image written and read back, the chart found by its tags and sampled (calib/), the
+ * overlay and the patch file written. The patch file is what the calibration reads. */
+static int shoot_chart(demo_ctx *d, const kg_chart_layout *layout, const kg_patchset *chart,
+                       demo_chart_shot *sh)
+{
+	char image_name[64], name[64];
+	snprintf(image_name, sizeof(image_name), "%s_chart.tif", sh->role);
+	char *image_path = demo_path(d, image_name);
+	snprintf(name, sizeof(name), "%s_chart_overlay.png", sh->role);
+	char *overlay_path = demo_path(d, name);
+	snprintf(name, sizeof(name), "%s_chart.cgats", sh->role);
+	char *patch_path = demo_path(d, name);
+	char *camera_path = kg_cli_data_path(sh->camera);
 	kg_sim_noise noise;
 	kg_sim_capture cap;
-	char seed_text[32];
-	snprintf(seed_text, sizeof(seed_text), "%llu", (unsigned long long)seed);
-	const char *keywords[] = {
-		"ORIGINATOR", "kogei demo",
-		"DESCRIPTOR", "simulated camera readings of the chart (linear, 0..1)",
-		"CAMERA", camera,
-		"ILLUMINANT", illuminant,
-		"NOISE", noise_text,
-		"SEED", seed_text,
-		"SPECTRA", DEMO_CHART,
-		NULL,
+	kg_sim_chart_card card;
+	kg_cli_card_parts parts = {0};
+	kg_sim_chart_result *rendered = NULL;
+	kg_image *img = NULL;
+	kg_chart_result *res = NULL;
+	kg_patchset *ps = NULL;
+	int ret = camera_path ? kg_sim_noise_parse(sh->noise, &noise, &d->err)
+	                      : kg_fail(&d->err, KG_ENOMEM, "out of memory");
+	if (!ret)
+		ret = kg_sim_capture_load(&cap, camera_path, sh->illuminant, DEMO_WHITE_LEVEL,
+		                          &noise, 0, &d->err);
+	if (!ret) {
+		kg_cli_card_options co = {
+			.paper = DEMO_CHART_PAPER,
+			.ink = DEMO_CHART_INK,
+			.white_level = DEMO_WHITE_LEVEL,
+			.spectra_name = DEMO_CHART,
+		};
+		ret = kg_cli_chart_card(layout, chart, &co, &card, &parts, &d->err);
+	}
+	kg_sim_chart_desc desc = {
+		.width = DEMO_CHART_WIDTH,
+		.height = DEMO_CHART_HEIGHT,
+		.focal_px = kg_sim_chart_focal_px(DEMO_CHART_WIDTH, DEMO_CHART_FOV),
+		.cards = &card,
+		.ncards = 1,
+		.background = DEMO_CHART_BACKGROUND,
+		.supersample = 4,
+		.blur_sigma = sh->blur_px,
+		.vignetting = sh->vignetting,
+		.seed = sh->seed,
 	};
-	int ret = kg_sim_noise_parse(noise_text, &noise, &d->err);
+	if (!ret) {
+		double box[4] = {0, 0, DEMO_CHART_WIDTH, DEMO_CHART_HEIGHT};
+		card.pose = (kg_sim_chart_pose){.rotate_deg = sh->rotate_deg,
+		                                .tilt_deg = sh->tilt_deg,
+		                                .tilt_axis_deg = sh->tilt_axis_deg};
+		ret = kg_sim_chart_pose_fit(&card.pose, card.size_mm, desc.focal_px, desc.width,
+		                            desc.height, box, DEMO_CHART_FILL, &d->err);
+	}
 	if (!ret)
-		ret = kg_sim_capture_load(&cap, camera, illuminant, DEMO_WHITE_LEVEL, &noise, 0,
-		                          &d->err);
+		ret = kg_sim_chart_render(&desc, &cap, &rendered, &d->err);
 	if (!ret)
-		ret = kg_sim_write_patches(out, chart, &cap, seed, keywords, &d->err);
+		ret = kg_image_write(rendered->image, image_path, KG_SIM_DEPTH_U16, &d->err);
+	if (!ret) {
+		printf("  rendered %dx%d: tilt %g deg (axis %g), rotated %g deg, blur %g px, "
+		       "vignetting %g, noise %s\n",
+		       desc.width, desc.height, sh->tilt_deg, sh->tilt_axis_deg, sh->rotate_deg,
+		       sh->blur_px, sh->vignetting, sh->noise);
+		demo_wrote(d, image_path, "the chart photograph (16-bit linear TIFF)");
+	}
+	/* Found in the file, as a later session would find it. */
 	if (!ret)
-		demo_wrote(d, out, what);
+		ret = kg_image_read(image_path, &img, &d->err);
+	kg_chart_detect_options opt;
+	kg_chart_detect_options_default(&opt);
+	if (!ret && (ret = kg_chart_detect(layout, img, &opt, &res, &d->err)))
+		kg_err_prefix(&d->err, "%s: chart %s not found: ", image_path, layout->name);
+	if (!ret)
+		ret = kg_chart_result_patchset(res, &ps, &d->err);
+	if (!ret) {
+		shot_summarise(sh, res, ps, rendered);
+		printf("  chart found: %d tags used (%s), homography RMS %.3f px, %d of %d patches "
+		       "sampled, worst patch spread %.4f (%s %c), %.0f ms (decimate %d)\n",
+		       sh->ntags_used, sh->tags_used, sh->rms_px, sh->nsampled, sh->npatches,
+		       sh->worst_sd, sh->worst_id, sh->worst_channel, sh->detect_ms, sh->decimate);
+		printf("  patch values within %.3f %% of full scale of the rendered truth\n",
+		       sh->max_error);
+		for (int i = 0; i < res->nwarnings; i++)
+			printf("  warning: %s\n", res->warnings[i]);
+	}
+	if (!ret && !(ret = kg_chart_overlay_write(res, img, overlay_path, 0, &d->err)))
+		demo_wrote(d, overlay_path, "what detection found: tags, outline, sampled regions");
+	if (!ret) {
+		char seed_text[32], rms[32], decimate[16], pose[128];
+		snprintf(seed_text, sizeof(seed_text), "%llu", (unsigned long long)sh->seed);
+		snprintf(rms, sizeof(rms), "%.4f", res->rms_px);
+		snprintf(decimate, sizeof(decimate), "%d", res->decimate);
+		snprintf(pose, sizeof(pose), "tilt %g axis %g rotate %g distance %.6g mm",
+		         sh->tilt_deg, sh->tilt_axis_deg, sh->rotate_deg, card.pose.distance_mm);
+		const char *keywords[] = {
+			"ORIGINATOR", "kogei demo",
+			"DESCRIPTOR", "chart readings found in a simulated photograph (linear, 0..1)",
+			"CHART_LAYOUT", layout->name,
+			"IMAGE", image_name, /* beside the patch file */
+			"DETECTOR", "apriltag",
+			"TAG_FAMILY", layout->family,
+			"TAG_DECIMATE", decimate,
+			"TAGS_USED", sh->tags_used[0] ? sh->tags_used : "none",
+			"HOMOGRAPHY_RMS_PX", rms,
+			"PATCH_STATISTIC", kg_chart_statistic_name(opt.statistic),
+			"CAMERA", sh->camera,
+			"ILLUMINANT", sh->illuminant,
+			"NOISE", sh->noise,
+			"POSE", pose,
+			"SEED", seed_text,
+			"SPECTRA", DEMO_CHART,
+			NULL,
+		};
+		ret = kg_patchset_write(patch_path, ps, KG_PATCH_RGB | KG_PATCH_EXTRA, keywords,
+		                        &d->err);
+	}
+	if (!ret)
+		demo_wrote(d, patch_path, sh == &d->shots[0]
+		                              ? "the reference camera's chart readings (rho, rho0)"
+		                              : "the site camera's chart readings (rho_r)");
+	kg_patchset_free(&ps);
+	kg_chart_result_free(&res);
+	kg_image_free(&img);
+	kg_sim_chart_result_free(&rendered);
+	kg_cli_card_parts_free(&parts);
+	free(camera_path);
+	free(image_path);
+	free(overlay_path);
+	free(patch_path);
 	return ret;
 }
 
@@ -109,6 +261,7 @@ static int demo_calibrate(demo_ctx *d)
 	char *ref_json = demo_path(d, "reference.json");
 	char *cam_json = demo_path(d, "camera.json");
 	kg_patchset *chart = NULL;
+	kg_chart_layout *layout = NULL;
 	kg_camera *fitted = NULL;
 	kg_mat *m2 = NULL;
 	int ret = access(DEMO_CHART, R_OK) == 0
@@ -117,15 +270,19 @@ static int demo_calibrate(demo_ctx *d)
 	                        "%s: cannot read it: the demo's chart comes from the Debian "
 	                        "package colord-data",
 	                        DEMO_CHART);
+	if (!ret)
+		ret = kg_chart_layout_load(d->layout_path, &layout, &d->err);
 	if (ret)
 		goto done;
-	d->npatches = chart->n;
+	d->npatches = layout->npatches;
+	snprintf(d->layout_name, sizeof(d->layout_name), "%s", layout->name);
+	snprintf(d->layout_family, sizeof(d->layout_family), "%s", layout->family);
+	d->sample_fraction = layout->sample_fraction;
 
-	printf("[1/6] reference calibration: %d patches of %s, model camera under %s\n",
-	       chart->n, DEMO_CHART, DEMO_REFERENCE_ILLUMINANT);
-	ret = shoot_chart(d, chart, d->reference_camera, DEMO_REFERENCE_ILLUMINANT,
-	                  DEMO_REFERENCE_NOISE, DEMO_SEED_REFERENCE, ref_rgb,
-	                  "the reference camera's chart readings (rho, rho0)");
+	printf("[1/6] reference calibration: chart %s (%d patches of %s in an AprilTag frame), "
+	       "reference camera under %s\n",
+	       layout->name, layout->npatches, DEMO_CHART, DEMO_REFERENCE_ILLUMINANT);
+	ret = shoot_chart(d, layout, chart, &d->shots[0]);
 	kg_reference_options ropt;
 	kg_reference_options_default(&ropt);
 	if (!ret)
@@ -143,8 +300,7 @@ static int demo_calibrate(demo_ctx *d)
 	printf("[2/6] site calibration: the same chart, another model camera under CIE %s, "
 	       "noise %s\n",
 	       DEMO_SITE_ILLUMINANT, DEMO_SITE_NOISE);
-	ret = shoot_chart(d, chart, d->site_camera, DEMO_SITE_ILLUMINANT, DEMO_SITE_NOISE,
-	                  DEMO_SEED_SITE, site_rgb, "the site camera's chart readings (rho_r)");
+	ret = shoot_chart(d, layout, chart, &d->shots[1]);
 	kg_camera_options copt;
 	kg_camera_options_default(&copt);
 	if (!ret)
@@ -167,6 +323,7 @@ static int demo_calibrate(demo_ctx *d)
 done:
 	kg_mat_free(&m2);
 	kg_camera_free(&fitted);
+	kg_chart_layout_free(&layout);
 	kg_patchset_free(&chart);
 	free(ref_rgb);
 	free(site_rgb);
@@ -303,6 +460,7 @@ static void demo_free(demo_ctx *d)
 	free(d->library_path);
 	free(d->reference_camera);
 	free(d->site_camera);
+	free(d->layout_path);
 	kg_reference_free(&d->ref);
 	kg_camera_free(&d->cam);
 	kg_sim_scene_free(&d->scene);
@@ -311,7 +469,21 @@ static void demo_free(demo_ctx *d)
 
 int kg_cmd_demo(int argc, char **argv)
 {
-	demo_ctx d = {.dir = "out/demo"};
+	demo_ctx d = {
+		.dir = "out/demo",
+		.shots = {
+			{.role = "reference", .camera = DEMO_REFERENCE_CAMERA,
+			 .illuminant = DEMO_REFERENCE_ILLUMINANT, .noise = DEMO_REFERENCE_NOISE,
+			 .tilt_deg = DEMO_REFERENCE_TILT, .tilt_axis_deg = DEMO_REFERENCE_TILT_AXIS,
+			 .rotate_deg = DEMO_REFERENCE_ROTATE, .blur_px = DEMO_REFERENCE_BLUR,
+			 .vignetting = DEMO_REFERENCE_VIGNETTING, .seed = DEMO_SEED_REFERENCE},
+			{.role = "site", .camera = DEMO_SITE_CAMERA,
+			 .illuminant = DEMO_SITE_ILLUMINANT, .noise = DEMO_SITE_NOISE,
+			 .tilt_deg = DEMO_SITE_TILT, .tilt_axis_deg = DEMO_SITE_TILT_AXIS,
+			 .rotate_deg = DEMO_SITE_ROTATE, .blur_px = DEMO_SITE_BLUR,
+			 .vignetting = DEMO_SITE_VIGNETTING, .seed = DEMO_SEED_SITE},
+		},
+	};
 	static const struct option opts[] = {
 		{"output", required_argument, NULL, 'o'},
 		{"help", no_argument, NULL, 'h'},
@@ -331,7 +503,8 @@ int kg_cmd_demo(int argc, char **argv)
 	d.library_path = kg_cli_data_path("materials/default.json");
 	d.reference_camera = kg_cli_data_path(DEMO_REFERENCE_CAMERA);
 	d.site_camera = kg_cli_data_path(DEMO_SITE_CAMERA);
-	int ret = d.library_path && d.reference_camera && d.site_camera
+	d.layout_path = kg_cli_data_path(DEMO_CHART_LAYOUT);
+	int ret = d.library_path && d.reference_camera && d.site_camera && d.layout_path
 	              ? kg_mkdir_p(d.dir, &d.err)
 	              : kg_fail(&d.err, KG_ENOMEM, "out of memory");
 	if (!ret) {

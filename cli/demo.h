@@ -18,9 +18,51 @@
 #define DEMO_WHITE_LEVEL 0.9
 #define DEMO_ANGLE_DEG 30.0 /* incidence of the object's samples (specular view) */
 #define DEMO_TILE 40         /* pixels per sample side in the object image */
+/* The chart: the 15 samples in a printed AprilTag frame (fixtures/demo/README.md),
+ * photographed, found by its tags and sampled (kg_chart_detect). */
+#define DEMO_CHART_LAYOUT "demo/cie-tcs-frame.json"
+#define DEMO_CHART_WIDTH 1600  /* px, both chart photographs */
+#define DEMO_CHART_HEIGHT 1200
+#define DEMO_CHART_FOV 40.0    /* horizontal field of view, degrees */
+#define DEMO_CHART_FILL 0.85   /* of the image the card fills (tighter side) */
+#define DEMO_CHART_PAPER 0.85  /* flat reflectances: frame paper, tag black, table */
+#define DEMO_CHART_INK 0.03
+#define DEMO_CHART_BACKGROUND 0.2
+#define DEMO_REFERENCE_TILT 20.0     /* deg; the lab: a modest tilt, a sharp lens */
+#define DEMO_REFERENCE_TILT_AXIS 30.0
+#define DEMO_REFERENCE_ROTATE 0.0
+#define DEMO_REFERENCE_BLUR 0.8      /* Gaussian sigma, px */
+#define DEMO_REFERENCE_VIGNETTING 0.1 /* light lost at the image corners */
+#define DEMO_SITE_TILT 30.0          /* the site: handheld, steeper and turned */
+#define DEMO_SITE_TILT_AXIS 120.0
+#define DEMO_SITE_ROTATE 10.0
+#define DEMO_SITE_BLUR 1.2
+#define DEMO_SITE_VIGNETTING 0.2
 #define DEMO_SEED_REFERENCE 1
 #define DEMO_SEED_SITE 2
 #define DEMO_SEED_OBJECT 3
+
+/* One photograph of the chart: how it was taken and what detection found. */
+typedef struct demo_chart_shot {
+	const char *role;        /* "reference", "site" */
+	const char *camera;      /* fixture name (DEMO_*_CAMERA) */
+	const char *illuminant, *noise;
+	double tilt_deg, tilt_axis_deg, rotate_deg, blur_px, vignetting;
+	uint64_t seed;
+	/* detection */
+	int ntags_used;
+	char tags_used[64];      /* "0,1,2,3" */
+	double rms_px;           /* homography reprojection RMS */
+	int npatches, nsampled;  /* of the layout; in the patch file */
+	int nflagged;            /* patches with a warning */
+	int nwarnings;
+	double worst_sd;         /* largest per-channel pixel spread of a patch */
+	char worst_id[32];
+	char worst_channel;      /* 'R', 'G' or 'B' */
+	double max_error;        /* largest |detected - rendered truth|, % of full scale */
+	double detect_ms, tag_ms;
+	int decimate;
+} demo_chart_shot;
 
 typedef struct demo_ctx {
 	const char *dir;
@@ -30,7 +72,12 @@ typedef struct demo_ctx {
 	char *library_path;     /* the default material library */
 	char *reference_camera; /* fixture paths */
 	char *site_camera;
+	char *layout_path;      /* the chart's frame (DEMO_CHART_LAYOUT) */
+	char layout_name[64];
+	char layout_family[32];
+	double sample_fraction; /* of each patch side, sampled */
 	int npatches;           /* of the chart */
+	demo_chart_shot shots[2]; /* reference, site */
 
 	kg_reference *ref;      /* as fitted and saved */
 	kg_camera *cam;         /* as read back from camera.json */

@@ -396,15 +396,24 @@ static void write_summary(demo_ctx *d, const report *r, FILE *fp)
 	fprintf(fp, "Written by `kogei demo` (kogei %s). Everything below was simulated with "
 	            "fixed seeds, so every run gives the same numbers.\n\n", KG_VERSION);
 	fprintf(fp, "## What was run\n\n");
+	const demo_chart_shot *rs = &d->shots[0], *ss = &d->shots[1];
 	fprintf(fp, "1. **Reference calibration** (calib reference -> `reference.json`): the %d "
-	            "CIE 13.3 test colour samples of `%s` (colord-data) photographed by the model "
-	            "camera `%s` under %s, noise %s (full well:read noise:bits), seed %d.\n",
-	        d->npatches, DEMO_CHART, DEMO_REFERENCE_CAMERA, DEMO_REFERENCE_ILLUMINANT,
-	        DEMO_REFERENCE_NOISE, DEMO_SEED_REFERENCE);
+	            "CIE 13.3 test colour samples of `%s` (colord-data), mounted in the AprilTag "
+	            "frame `%s` (`fixtures/%s`), photographed by the model camera `%s` under %s "
+	            "(`reference_chart.tif`, %dx%d, tilt %g deg, blur %g px, vignetting %g, noise "
+	            "%s (full well:read noise:bits), seed %llu); the chart found by its tags and "
+	            "sampled (`reference_chart_overlay.png`, `reference_chart.cgats`).\n",
+	        d->npatches, DEMO_CHART, d->layout_name, DEMO_CHART_LAYOUT,
+	        DEMO_REFERENCE_CAMERA, DEMO_REFERENCE_ILLUMINANT, DEMO_CHART_WIDTH,
+	        DEMO_CHART_HEIGHT, rs->tilt_deg, rs->blur_px, rs->vignetting, rs->noise,
+	        (unsigned long long)rs->seed);
 	fprintf(fp, "2. **Site calibration** (calib camera -> `camera.json`): the same chart "
-	            "photographed by another model camera, `%s`, under CIE %s, noise %s, seed "
-	            "%d.\n",
-	        DEMO_SITE_CAMERA, DEMO_SITE_ILLUMINANT, DEMO_SITE_NOISE, DEMO_SEED_SITE);
+	            "photographed by another model camera, `%s`, under CIE %s "
+	            "(`site_chart.tif`, tilt %g deg, rotated %g deg, blur %g px, vignetting %g, "
+	            "noise %s, seed %llu), found and sampled the same way "
+	            "(`site_chart_overlay.png`, `site_chart.cgats`).\n",
+	        DEMO_SITE_CAMERA, DEMO_SITE_ILLUMINANT, ss->tilt_deg, ss->rotate_deg, ss->blur_px,
+	        ss->vignetting, ss->noise, (unsigned long long)ss->seed);
 	fprintf(fp, "3. **Object** (`object.tif`, truth in `object_truth.hdr` and "
 	            "`object_truth_labels.hdr`): one %dx%d px sample of each of the %d materials "
 	            "of the default library, seen in the specular direction at %g deg incidence "
@@ -416,6 +425,26 @@ static void write_summary(demo_ctx *d, const report *r, FILE *fp)
 	            "and **classify** (`labels.hdr`, `labels.json`, `labels.png`) with the C APIs "
 	            "of calib/ and estimate/.\n\n");
 
+	fprintf(fp, "## Chart detection\n\n");
+	fprintf(fp, "`kg_chart_detect` with its defaults on each photograph as written: AprilTag "
+	            "%s frame, homography from every tag corner found, each patch's median over "
+	            "its centred %g x %g. Spread: 1.4826 x MAD of a patch's pixels, the largest "
+	            "of any patch and channel. Error: the largest |detected - rendered truth| of "
+	            "any patch and channel, %% of full scale (the truth includes the vignetting "
+	            "at the patch).\n\n",
+	        d->layout_family, d->sample_fraction, d->sample_fraction);
+	fprintf(fp, "| image | tags used | homography RMS (px) | patches | worst patch spread "
+	            "| error vs truth | time |\n");
+	fprintf(fp, "|---|---|---:|---:|---|---:|---:|\n");
+	for (int k = 0; k < 2; k++) {
+		const demo_chart_shot *sh = &d->shots[k];
+		fprintf(fp, "| `%s_chart.tif` | %d (%s) | %.3f | %d of %d%s | %.4f (%s %c) | %.3f %% "
+		            "| %.0f ms (decimate %d) |\n",
+		        sh->role, sh->ntags_used, sh->tags_used, sh->rms_px, sh->nsampled,
+		        sh->npatches, sh->nflagged ? " (some flagged)" : "", sh->worst_sd,
+		        sh->worst_id, sh->worst_channel, sh->max_error, sh->detect_ms, sh->decimate);
+	}
+	fprintf(fp, "\n");
 	fprintf(fp, "## Calibration\n\n");
 	fprintf(fp, "- Method: **%s**, K = **%d** (uncentred PCA, %.4f of the chart's energy), "
 	            "s = B M M2 rho.\n",
@@ -468,7 +497,9 @@ static void write_summary(demo_ctx *d, const report *r, FILE *fp)
 	            "`spectra_by_material.png` (estimated against true spectra), `confusion.png`, "
 	            "`object_d65.png` (camera image, true and estimated colour), `cube.hdr`, "
 	            "`labels.hdr`/`.json`/`.png`, `reference.json`, `camera.json`, the chart "
-	            "readings `reference_chart.cgats` and `site_chart.cgats`, and the library's "
+	            "photographs `reference_chart.tif` and `site_chart.tif`, what detection found "
+	            "in them (`reference_chart_overlay.png`, `site_chart_overlay.png`) and the "
+	            "chart readings `reference_chart.cgats` and `site_chart.cgats`, and the library's "
 	            "`fig7_shibuichi-nami.csv`/`.png` and `materials_d65.png`. See docs/demo.md.\n");
 }
 

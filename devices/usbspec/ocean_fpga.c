@@ -271,7 +271,7 @@ static int ocean_open(const char *target, void **state, kg_err *err)
 			o->h = NULL;
 		}
 	}
-	if (n > 0)
+	if (list) /* allocated even when empty */
 		libusb_free_device_list(list, 1);
 	if (r == KG_ENODEV) {
 		if (want_serial && seen)

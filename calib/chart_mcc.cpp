@@ -1,0 +1,82 @@
+/* OpenCV's mcc ColorChecker detector behind chart_mcc.h. Only the chart's box is
+ * taken from mcc: chart_detect.c places and samples the patches itself. */
+#include <math.h>
+
+#include <exception>
+#include <new>
+#include <vector>
+
+#include <opencv2/core.hpp>
+#include <opencv2/mcc.hpp>
+
+#include "chart_mcc.h"
+
+/* The 8-bit BGR copy mcc sees: value / white through the sRGB curve (a lookup
+ * table of 4096 steps over 0..1). */
+static void encode_bgr8(const float *data, int width, int height, int channels, double white,
+                        cv::Mat &out)
+{
+	enum { STEPS = 4096 };
+	unsigned char lut[STEPS];
+	for (int b = 0; b < STEPS; b++) {
+		double v = (b + 0.5) / STEPS;
+		double e = v <= 0.0031308 ? 12.92 * v : 1.055 * pow(v, 1 / 2.4) - 0.055;
+		lut[b] = (unsigned char)lrint(fmin(fmax(e, 0), 1) * 255);
+	}
+	double k = STEPS / (white > 0 ? white : 1.0);
+	out.create(height, width, CV_8UC3);
+	for (int y = 0; y < height; y++) {
+		const float *src = data + (size_t)y * width * channels;
+		unsigned char *dst = out.ptr<unsigned char>(y);
+		for (int x = 0; x < width; x++) {
+			for (int c = 0; c < 3; c++) {
+				double v = src[(size_t)x * channels + (channels == 3 ? c : 0)] * k;
+				int b = !(v > 0) ? 0 : v >= STEPS - 1 ? STEPS - 1 : (int)v;
+				dst[3 * x + 2 - c] = lut[b];
+			}
+		}
+	}
+}
+
+extern "C" int kg_mcc_find_colorchecker(const float *data, int width, int height, int channels,
+                                        double white, int threads, double box[4][2],
+                                        double *cost, kg_err *err)
+{
+	if (!data || width <= 0 || height <= 0 || (channels != 1 && channels != 3))
+		return kg_fail(err, KG_EINVAL, "mcc: invalid image (%d x %d x %d)", width, height,
+		               channels);
+	int previous_threads = cv::getNumThreads();
+	int ret = 0;
+	try {
+		cv::Mat bgr;
+		encode_bgr8(data, width, height, channels, white, bgr);
+		if (threads > 0)
+			cv::setNumThreads(threads);
+		cv::Ptr<cv::mcc::CCheckerDetector> detector = cv::mcc::CCheckerDetector::create();
+		bool found = detector->process(bgr, cv::mcc::MCC24, 1);
+		cv::Ptr<cv::mcc::CChecker> checker = found ? detector->getBestColorChecker()
+		                                           : cv::Ptr<cv::mcc::CChecker>();
+		std::vector<cv::Point2f> corners;
+		if (checker)
+			corners = checker->getBox();
+		if (corners.size() != 4) {
+			ret = kg_fail(err, KG_ENOENT, "OpenCV mcc found no ColorChecker 24 in the image "
+			              "(%d x %d): is the whole chart in view, lit and in focus?", width,
+			              height);
+		} else {
+			for (int k = 0; k < 4; k++) {
+				box[k][0] = corners[k].x + 0.5;
+				box[k][1] = corners[k].y + 0.5;
+			}
+			if (cost)
+				*cost = checker->getCost();
+		}
+	} catch (const std::bad_alloc &) {
+		ret = kg_fail(err, KG_ENOMEM, "mcc: out of memory");
+	} catch (const std::exception &e) {
+		ret = kg_fail(err, KG_EIO, "mcc: OpenCV failed: %s", e.what());
+	}
+	if (threads > 0)
+		cv::setNumThreads(previous_threads);
+	return ret;
+}
