@@ -325,6 +325,7 @@ static int add_warning(kg_chart_result *r, const char *fmt, ...)
 	return 0;
 }
 
+#if HAVE_APRILTAG
 /* Append "a, b, c" (ints) to buf. */
 static void list_ints(char *buf, size_t len, const int *v, int n)
 {
@@ -332,6 +333,7 @@ static void list_ints(char *buf, size_t len, const int *v, int n)
 	for (int i = 0; i < n && at < len; i++)
 		at += (size_t)snprintf(buf + at, len - at, "%s%d", i ? ", " : "", v[i]);
 }
+#endif
 
 static double now_seconds(void)
 {
@@ -505,6 +507,7 @@ typedef struct layout_view {
 	double outline[4][2]; /* mm, the bounding box of tags and patches */
 } layout_view;
 
+#if HAVE_APRILTAG
 static int layout_tag_index(const layout_view *L, int id)
 {
 	for (int i = 0; i < L->ntags; i++)
@@ -513,7 +516,6 @@ static int layout_tag_index(const layout_view *L, int id)
 	return -1;
 }
 
-#if HAVE_APRILTAG
 static apriltag_family_t *family_create(const char *name)
 {
 	if (!strcmp(name, "tag36h11"))
@@ -591,7 +593,6 @@ static int run_apriltag(const unsigned char *grey, int width, int height, const 
 	family_destroy(tf);
 	return ret;
 }
-#endif
 
 /* Largest corner distance of tag t under H (mm -> px), in pixels. */
 static double tag_error(const double H[9], const kg_chart_tag_found *t, const double (*mm)[2])
@@ -747,6 +748,7 @@ done:
 	free(cand);
 	return ret;
 }
+#endif
 
 /* ---- patch sampling ---------------------------------------------------------- */
 
@@ -1246,13 +1248,11 @@ static double quad_signed_area(const double q[4][2])
 	return a / 2;
 }
 
-static void patches_free(kg_chart_result *r)
+static void samples_free(kg_chart_sample *p, int n)
 {
-	for (int i = 0; i < r->npatches; i++)
-		free(r->patches[i].id);
-	free(r->patches);
-	r->patches = NULL;
-	r->npatches = 0;
+	for (int i = 0; p && i < n; i++)
+		free(p[i].id);
+	free(p);
 }
 
 static double patch_level(const kg_chart_sample *p)
@@ -1266,9 +1266,8 @@ static double patch_level(const kg_chart_sample *p)
  * wrong); plus the spread of log(r/g) and log(b/g) over D01..D05, which share one
  * chromaticity whatever the white balance; plus the mean non-uniformity, high when
  * the sampled regions straddle patches. */
-static double orientation_score(const kg_chart_result *r, const int idx[24])
+static double orientation_score(const kg_chart_sample *p, const int idx[24])
 {
-	const kg_chart_sample *p = r->patches;
 	double score = 0;
 	for (int k = 18; k < 23; k++)
 		score += !(patch_level(&p[idx[k]]) >= patch_level(&p[idx[k + 1]]));
@@ -1323,6 +1322,7 @@ static int detect_tagless(const kg_chart_layout *l, const layout_view *L, const 
 		memcpy(box_px[3], t, sizeof(t));
 	}
 	double score[4], H[4][9], angle[4];
+	kg_chart_sample *sampled[4] = {NULL, NULL, NULL, NULL}; /* each turn's patches */
 	int best = 0, upright = 0;
 	for (int turn = 0; turn < 4; turn++) {
 		double dst[4][2];
@@ -1330,12 +1330,15 @@ static int detect_tagless(const kg_chart_layout *l, const layout_view *L, const 
 			memcpy(dst[k], box_px[(k + turn) % 4], sizeof(dst[k]));
 		if ((ret = kg_homography_fit((const double (*)[2])box_mm, (const double (*)[2])dst, 4,
 		                             0, H[turn], NULL, err)))
-			return ret;
+			break;
 		memcpy(r->H, H[turn], sizeof(r->H));
-		patches_free(r);
-		if ((ret = sample_all(L, wi, opt, r, err)))
-			return ret;
-		score[turn] = orientation_score(r, idx);
+		ret = sample_all(L, wi, opt, r, err);
+		sampled[turn] = r->patches;
+		r->patches = NULL;
+		r->npatches = 0;
+		if (ret)
+			break;
+		score[turn] = orientation_score(sampled[turn], idx);
 		if (score[turn] < score[best])
 			best = turn;
 		double a1[2], a6[2];
@@ -1345,20 +1348,26 @@ static int detect_tagless(const kg_chart_layout *l, const layout_view *L, const 
 		if (fabs(angle[turn]) < fabs(angle[upright]))
 			upright = turn;
 	}
-	double next = INFINITY;
-	for (int turn = 0; turn < 4; turn++)
-		if (turn != best)
-			next = fmin(next, score[turn]);
 	/* One step out of order or a patch brighter than the white: no turn reads as a
 	 * ColorChecker (other colours on its geometry, or bad light); neither the patches
 	 * nor mcc, whose choice also rests on the ColorChecker's colours, can tell, so
 	 * the chart is taken as photographed upright. */
-	int uncertain = score[best] >= 1;
+	int uncertain = !ret && score[best] >= 1;
 	int chosen = uncertain ? upright : best;
-	memcpy(r->H, H[chosen], sizeof(r->H));
-	patches_free(r);
-	if ((ret = sample_all(L, wi, opt, r, err)))
+	for (int turn = 0; turn < 4; turn++)
+		if (ret || turn != chosen)
+			samples_free(sampled[turn], L->npatches);
+	if (ret)
 		return ret;
+	r->patches = sampled[chosen];
+	r->npatches = L->npatches;
+	memcpy(r->H, H[chosen], sizeof(r->H));
+	for (int k = 0; k < 4; k++)
+		kg_homography_map(r->H, L->outline[k][0], L->outline[k][1], r->outline[k]);
+	double next = INFINITY;
+	for (int turn = 0; turn < 4; turn++)
+		if (turn != best)
+			next = fmin(next, score[turn]);
 	if (uncertain)
 		ret = add_warning(r, "chart placed by the tagless detector (OpenCV mcc, fit cost "
 		                  "%.3g) from the 4 corners of its box, not by tags; orientation "
@@ -1376,6 +1385,20 @@ static int detect_tagless(const kg_chart_layout *l, const layout_view *L, const 
 		                  "image's x axis", cost, score[best], next,
 		                  best == 0 ? "agreeing with" : "overruling", angle[chosen]);
 	return ret ? kg_fail(err, ret, "out of memory") : 0;
+}
+#else
+static int detect_tagless(const kg_chart_layout *l, const layout_view *L, const work_image *wi,
+                          const kg_chart_detect_options *opt, kg_chart_result *r, kg_err *err)
+{
+	(void)L;
+	(void)wi;
+	(void)opt;
+	(void)r;
+	if (l->ntags == 0)
+		return kg_fail(err, KG_ENOTSUP, "layout %s has no tags: it can only be found by the "
+		               "tagless detector (OpenCV mcc), not available in this build", l->name);
+	return kg_fail(err, KG_ENOTSUP, "tagless detection (OpenCV mcc) is not available in "
+	               "this build");
 }
 #endif
 
@@ -1448,19 +1471,8 @@ int kg_chart_detect(const kg_chart_layout *l, const kg_image *img,
 		}
 		if (ret)
 			goto fail;
-	} else {
-#if KG_HAVE_MCC
-		if ((ret = detect_tagless(l, &L, &wi, &opt, r, err)))
-			goto fail;
-#else
-		ret = l->ntags == 0
-		          ? kg_fail(err, KG_ENOTSUP, "layout %s has no tags: it can only be found by "
-		                    "the tagless detector (OpenCV mcc), not available in this build",
-		                    l->name)
-		          : kg_fail(err, KG_ENOTSUP, "tagless detection (OpenCV mcc) is not available "
-		                    "in this build");
+	} else if ((ret = detect_tagless(l, &L, &wi, &opt, r, err))) {
 		goto fail;
-#endif
 	}
 	if ((ret = patch_summary_warnings(r))) {
 		ret = kg_fail(err, ret, "out of memory");

@@ -157,7 +157,7 @@ int kg_cmd_chart_detect(int argc, char **argv)
 	if ((code = kg_image_read(image_path, &img, &err)))
 		goto fail;
 	if ((code = kg_chart_detect(layout, img, &opt, &res, &err))) {
-		kg_err_prefix(&err, "%s: chart %s not found: ", image_path, layout->name);
+		kg_err_prefix(&err, "%s: chart %s not found", image_path, layout->name);
 		goto fail;
 	}
 	for (int i = 0; i < res->nwarnings; i++)
