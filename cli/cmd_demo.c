@@ -4,23 +4,29 @@
  * The session is simulated from data a fresh machine has: the CIE 13.3 test colour
  * samples of colord-data as the chart (in the AprilTag frame of
  * fixtures/demo/cie-tcs-frame.json), two model cameras (fixtures/demo/), CIE D65
- * and A, and the default material library. The chart is photographed (sim/'s chart
- * scenes) and found in the photographs by its tags (calib/'s chart detection); the
- * steps call the same C APIs the commands use (sim/, calib/, estimate/), never the
- * command line. */
+ * and A, and the default material library. The chart's spectra are measured patch by
+ * patch with the simulated spectrophotometer (devices/, as `kogei measure`), the chart
+ * is photographed (sim/'s chart scenes) and found in the photographs by its tags
+ * (calib/'s chart detection); the steps call the same C APIs the commands use
+ * (devices/, sim/, calib/, estimate/), never the command line. */
 #include <getopt.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
+#include <time.h>
 #include <unistd.h>
 
 #include "chart_scene_glue.h"
 #include "demo.h"
+#include "kg_devices.h"
 
 static const char usage_demo[] =
 	"kogei demo [-o DIR]\n"
 	"  Runs a simulated session through the whole pipeline and writes its outputs to\n"
-	"  DIR (default out/demo): a photograph of the chart in its AprilTag frame, the\n"
+	"  DIR (default out/demo): the chart's spectra measured patch by patch with the\n"
+	"  simulated spectrophotometer (" DEMO_SPECTRO "),\n"
+	"  a photograph of the chart in its AprilTag frame, the\n"
 	"  chart found by its tags (overlay, patch file) -> calib reference -> another\n"
 	"  photograph by the site camera under another illuminant, found the same way ->\n"
 	"  calib camera -> object image of the library's metals, alloys and lacquer ->\n"
@@ -252,10 +258,131 @@ static int shoot_chart(demo_ctx *d, const kg_chart_layout *layout, const kg_patc
 	return ret;
 }
 
-/* Steps 1 and 2: the reference chart through the reference camera, calib reference;
- * the same chart through the site camera, calib camera. */
+/* Per patch of the unattended chart measurement: a compact progress line. */
+typedef struct measure_progress {
+	demo_ctx *d;
+	const kg_patchset *file; /* the spectra the instrument measures */
+} measure_progress;
+
+static void measure_patch_done(void *user, int i, int n, const char *id,
+                               const kg_spectrum *s)
+{
+	measure_progress *mp = user;
+	demo_spectro_run *sr = &mp->d->spectro;
+	int k = kg_patchset_find(mp->file, id);
+	double rmse = NAN, worst = 0, worst_nm = 0;
+	if (k >= 0) {
+		rmse = kg_spectrum_rmse(s, &mp->file->spectra[k]);
+		for (int b = 0; b < KG_NBANDS; b++) {
+			double e = fabs(s->v[b] - mp->file->spectra[k].v[b]);
+			if (e > worst) {
+				worst = e;
+				worst_nm = kg_band_nm(b);
+			}
+		}
+	}
+	if (i < DEMO_MAX_PATCHES) {
+		sr->rmse[i] = rmse;
+		sr->max_diff[i] = worst;
+		if (rmse > sr->rmse_max) {
+			sr->rmse_max = rmse;
+			sr->rmse_max_at = i;
+		}
+		if (worst > sr->diff_max) {
+			sr->diff_max = worst;
+			sr->diff_max_at = i;
+			sr->diff_max_nm = worst_nm;
+		}
+		sr->rmse_mean += rmse / n;
+	}
+	printf("  [%2d/%d] %-6s %-28s RMSE vs file %.4f, max |diff| %.4f\n", i + 1, n, id,
+	       i < DEMO_MAX_PATCHES ? mp->d->patch_names[i] : "", rmse, worst);
+}
+
+static void measure_warning(void *user, const char *message)
+{
+	demo_ctx *d = user;
+	d->spectro.nwarnings++;
+	printf("  warning: %s\n", message);
+}
+
+/* Step 1: the chart's spectra measured with the spectrophotometer, unattended, as
+ * `kogei measure --chart LAYOUT --yes` measures them: dark, white (flat 0.99
+ * standard), every patch of the layout in order, averaged scans, reflectance on the
+ * 61-band grid; written as `kogei measure` writes and compared with the file whose
+ * spectra the simulated instrument measures. */
+static int demo_measure_chart(demo_ctx *d, const kg_patchset *file)
+{
+	char *path = demo_path(d, DEMO_CHART_SPECTRA);
+	demo_spectro_run *sr = &d->spectro;
+	kg_measure_session m = {
+		.uri = DEMO_SPECTRO,
+		.warn = measure_warning,
+		.warn_user = d,
+	};
+	kg_acquire_options_default(&m.acq);
+	m.acq.scans = DEMO_SPECTRO_SCANS;
+	kg_patchset *measured = NULL;
+	const char *ids[DEMO_MAX_PATCHES];
+	for (int i = 0; i < d->npatches; i++)
+		ids[i] = d->patch_ids[i];
+	struct timespec t0, t1;
+	clock_gettime(CLOCK_MONOTONIC, &t0);
+	int ret = path ? kg_white_reference_load(NULL, &m.white_refl, &d->err)
+	               : kg_fail(&d->err, KG_ENOMEM, "out of memory");
+	if (!ret)
+		ret = kg_spectro_open(DEMO_SPECTRO, &m.spectro, &d->err);
+	if (!ret)
+		ret = kg_spectro_set_integration(m.spectro, DEMO_SPECTRO_INTEGRATION_US, &d->err);
+	if (!ret) {
+		const kg_spectro_info *info = kg_spectro_get_info(m.spectro);
+		snprintf(sr->model, sizeof(sr->model), "%s", info->model);
+		snprintf(sr->serial, sizeof(sr->serial), "%s", info->serial);
+		sr->integration_us = info->integration_us;
+		sr->scans = m.acq.scans;
+		sr->boxcar = m.acq.boxcar;
+		sr->npatches = d->npatches;
+		printf("  %s %s (%d pixels, %.0f-%.0f nm), integration %.0f ms, %d scans averaged; "
+		       "dark, white (flat 0.99), then each patch\n",
+		       info->model, info->serial, info->npixels, kg_spectro_wavelength(info, 0),
+		       kg_spectro_wavelength(info, info->npixels - 1), sr->integration_us / 1e3,
+		       sr->scans);
+		measure_progress mp = {.d = d, .file = file};
+		ret = kg_spectro_measure_patches(&m, d->npatches, ids, measure_patch_done, &mp,
+		                                 &measured, &d->err);
+		if (ret)
+			kg_err_prefix(&d->err, "%s: ", DEMO_SPECTRO);
+	}
+	if (!ret) {
+		const char *extra[] = {"DESCRIPTOR", "the demo chart measured with the simulated "
+		                                     "spectrophotometer (kogei demo, step 1)",
+		                       "CHART_LAYOUT", d->layout_name, NULL};
+		ret = kg_measure_write(&m, path, measured, "kogei demo", extra, &d->err);
+	}
+	clock_gettime(CLOCK_MONOTONIC, &t1);
+	sr->ms = 1e3 * (t1.tv_sec - t0.tv_sec) + 1e-6 * (t1.tv_nsec - t0.tv_nsec);
+	if (!ret) {
+		printf("  measured against the file: RMSE mean %.4f, worst %.4f (%s); largest "
+		       "|diff| %.4f (%s at %.0f nm); %.0f ms\n",
+		       sr->rmse_mean, sr->rmse_max, d->patch_ids[sr->rmse_max_at], sr->diff_max,
+		       d->patch_ids[sr->diff_max_at], sr->diff_max_nm, sr->ms);
+		demo_wrote(d, path, "the chart's spectra S as measured (kogei measure's format)");
+	}
+	kg_patchset_free(&measured);
+	kg_measure_session_clear(&m);
+	kg_spectro_free(&m.spectro);
+	free(path);
+	return ret;
+}
+
+/* Step 1: the chart measured with the spectrophotometer. Steps 2 and 3: the chart
+ * through the reference camera, calib reference with the measured spectra; the same
+ * chart through the site camera, calib camera. The photographs render the chart as it
+ * is (the file's spectra: the physical samples); the calibration knows only what the
+ * spectrophotometer measured. */
 static int demo_calibrate(demo_ctx *d)
 {
+	char *spectra = demo_path(d, DEMO_CHART_SPECTRA);
 	char *ref_rgb = demo_path(d, "reference_chart.cgats");
 	char *site_rgb = demo_path(d, "site_chart.cgats");
 	char *ref_json = demo_path(d, "reference.json");
@@ -274,19 +401,36 @@ static int demo_calibrate(demo_ctx *d)
 		ret = kg_chart_layout_load(d->layout_path, &layout, &d->err);
 	if (ret)
 		goto done;
+	if (layout->npatches > DEMO_MAX_PATCHES) {
+		ret = kg_fail(&d->err, KG_EINVAL, "%s: %d patches, the demo takes at most %d",
+		              d->layout_path, layout->npatches, DEMO_MAX_PATCHES);
+		goto done;
+	}
 	d->npatches = layout->npatches;
 	snprintf(d->layout_name, sizeof(d->layout_name), "%s", layout->name);
 	snprintf(d->layout_family, sizeof(d->layout_family), "%s", layout->family);
 	d->sample_fraction = layout->sample_fraction;
+	for (int i = 0; i < layout->npatches; i++) {
+		snprintf(d->patch_ids[i], sizeof(d->patch_ids[i]), "%s", layout->patches[i].id);
+		snprintf(d->patch_names[i], sizeof(d->patch_names[i]), "%s", layout->patches[i].name);
+	}
 
-	printf("[1/6] reference calibration: chart %s (%d patches of %s in an AprilTag frame), "
-	       "reference camera under %s\n",
-	       layout->name, layout->npatches, DEMO_CHART, DEMO_REFERENCE_ILLUMINANT);
+	printf("[1/7] chart spectra: the %d patches of %s measured with the spectrophotometer "
+	       "(%s)\n",
+	       layout->npatches, layout->name, DEMO_SPECTRO);
+	if ((ret = demo_measure_chart(d, chart)) != 0)
+		goto done;
+
+	printf("[2/7] reference calibration: chart %s (%d patches of %s in an AprilTag frame), "
+	       "reference camera under %s; S from %s\n",
+	       layout->name, layout->npatches, DEMO_CHART, DEMO_REFERENCE_ILLUMINANT,
+	       DEMO_CHART_SPECTRA);
 	ret = shoot_chart(d, layout, chart, &d->shots[0]);
 	kg_reference_options ropt;
 	kg_reference_options_default(&ropt);
+	/* S as measured, read back from the file, as `kogei calib reference` would. */
 	if (!ret)
-		ret = kg_reference_fit_files(DEMO_CHART, ref_rgb, NULL, &ropt, &d->ref, &d->err);
+		ret = kg_reference_fit_files(spectra, ref_rgb, NULL, &ropt, &d->ref, &d->err);
 	if (!ret && !(ret = kg_reference_save(d->ref, ref_json, &d->err))) {
 		const kg_spectral_map *pca = &d->ref->maps[KG_METHOD_PCA];
 		printf("  PCA K = %d (energy %.4f), M by least squares; leave-one-out RMSE %.4f, "
@@ -297,7 +441,7 @@ static int demo_calibrate(demo_ctx *d)
 	if (ret)
 		goto done;
 
-	printf("[2/6] site calibration: the same chart, another model camera under CIE %s, "
+	printf("[3/7] site calibration: the same chart, another model camera under CIE %s, "
 	       "noise %s\n",
 	       DEMO_SITE_ILLUMINANT, DEMO_SITE_NOISE);
 	ret = shoot_chart(d, layout, chart, &d->shots[1]);
@@ -325,6 +469,7 @@ done:
 	kg_camera_free(&fitted);
 	kg_chart_layout_free(&layout);
 	kg_patchset_free(&chart);
+	free(spectra);
 	free(ref_rgb);
 	free(site_rgb);
 	free(ref_json);
@@ -344,7 +489,7 @@ static int demo_object(demo_ctx *d)
 	kg_sim_material_set *set = NULL;
 	kg_sim_noise noise;
 	kg_sim_capture cap;
-	printf("[3/6] object: the library's samples at %g deg incidence, site camera under "
+	printf("[4/7] object: the library's samples at %g deg incidence, site camera under "
 	       "CIE %s\n",
 	       DEMO_ANGLE_DEG, DEMO_SITE_ILLUMINANT);
 	int ret = kg_sim_noise_parse(DEMO_SITE_NOISE, &noise, &d->err);
@@ -406,7 +551,7 @@ static int demo_estimate(demo_ctx *d)
 	kg_apply_options_init(&opt);
 	opt.description = "kogei demo: the object's reflectance, estimated";
 
-	printf("[4/6] estimate and classify (method %s)\n", kg_method_name(d->cam->method));
+	printf("[5/7] estimate and classify (method %s)\n", kg_method_name(d->cam->method));
 	int ret = kg_image_read(image, &img, &d->err);
 	if (!ret)
 		ret = kg_camera_kernel(d->cam, KG_METHOD_AUTO, 0, &kern, pre, &pre_needed, &d->err);
@@ -516,11 +661,11 @@ int kg_cmd_demo(int argc, char **argv)
 	if (!ret)
 		ret = demo_estimate(&d);
 	if (!ret) {
-		printf("[5/6] reflection models of the material library\n");
+		printf("[6/7] reflection models of the material library\n");
 		ret = demo_materials(&d);
 	}
 	if (!ret) {
-		printf("[6/6] report: estimated against true spectra, confusion, summary\n");
+		printf("[7/7] report: estimated against true spectra, confusion, summary\n");
 		ret = demo_report(&d);
 	}
 	demo_free(&d);

@@ -19,7 +19,8 @@ static const char usage_measure[] =
 	"  a white reference (the white standard), then the samples:\n"
 	"  R = (S - D) / (W - D) x R_white, resampled to 400-700 nm every 5 nm.\n"
 	"  URI: usbspec:<vid>:<pid>[:<serial>] (hex, e.g. usbspec:2457:101e) or\n"
-	"       sim:<spectra.cgats> (a simulated instrument measuring those spectra).\n"
+	"       sim:<spectra.cgats> (a simulated instrument measuring those spectra) or\n"
+	"       replay:<recording> (plays back a --record recording).\n"
 	"  --single           measure one spot (its SAMPLE_ID from --id, default 1)\n"
 	"  --chart LAYOUT     guide through the patches of a chart layout (kogei-chart/1\n"
 	"                     JSON or ArgyllCMS .cht), telling where each patch is\n"
@@ -36,6 +37,8 @@ static const char usage_measure[] =
 	"  --no-nonlinearity  do not apply the device's nonlinearity correction\n"
 	"  --yes              do not wait for the operator (scripts, tests)\n"
 	"  --resume           continue an interrupted chart from OUT.partial\n"
+	"  --record FILE      also write the raw reads to FILE (also on failure), a\n"
+	"                     recording that --spectro replay:FILE plays back\n"
 	"  Each prompt reads one line: Enter (or m) measures, r redoes the last patch,\n"
 	"  w measures the white again, q stops (what was measured stays in OUT.partial).\n"
 	"  Output: CGATS with SAMPLE_ID SPEC_400 ... SPEC_700, the instrument, its serial\n"
@@ -45,14 +48,9 @@ static const char usage_measure[] =
 #define WHITE_DRIFT_LIMIT 0.02
 
 typedef struct measure_ctx {
-	kg_spectro *spectro;
-	const char *uri;
-	kg_acquire_options acq;
-	kg_spectrum white_refl;
-	const char *white_ref_path;
+	kg_measure_session s; /* the instrument, settings, dark and white references */
 	double white_max_age;
 	int yes;
-	kg_spectro_reading dark, white;
 	int white_age_warned;
 } measure_ctx;
 
@@ -93,31 +91,19 @@ static int ask(const measure_ctx *m, const char *allowed, const char *fmt, ...)
 	}
 }
 
-static void warn_reading(const char *what, const kg_spectro_reading *r, double saturation)
+/* The session's warnings (saturation, pixels without white signal). */
+static void warn_stderr(void *user, const char *message)
 {
-	if (r->saturated)
-		fprintf(stderr,
-		        "warning: %s: %d pixels saturated (peak %.0f of %.0f counts): shorten the "
-		        "integration time\n", what, r->saturated, r->peak, saturation);
-}
-
-static int acquire(measure_ctx *m, const char *target, const char *what,
-                   kg_spectro_reading *out, kg_err *err)
-{
-	int r = kg_spectro_set_target(m->spectro, target, err);
-	if (!r)
-		r = kg_spectro_acquire(m->spectro, &m->acq, out, err);
-	if (!r)
-		warn_reading(what, out, kg_spectro_get_info(m->spectro)->saturation);
-	return r;
+	(void)user;
+	fprintf(stderr, "warning: %s\n", message);
 }
 
 static int measure_dark(measure_ctx *m, kg_err *err)
 {
 	if (ask(m, "", "Cover the probe (dark reference).") == 'q')
 		return 1;
-	kg_spectro_reading_clear(&m->dark);
-	return acquire(m, "dark", "dark reference", &m->dark, err);
+	kg_spectro_reading_clear(&m->s.dark);
+	return kg_measure_reading(&m->s, "dark", "dark reference", &m->s.dark, err);
 }
 
 /* Measure the white; with a previous white, report how far it drifted. */
@@ -126,11 +112,11 @@ static int measure_white(measure_ctx *m, kg_err *err)
 	if (ask(m, "", "Put the probe on the white standard (white reference).") == 'q')
 		return 1;
 	kg_spectro_reading w = {0};
-	int r = acquire(m, "white", "white reference", &w, err);
+	int r = kg_measure_reading(&m->s, "white", "white reference", &w, err);
 	if (r)
 		return r;
-	if (m->white.n) {
-		double d = kg_white_drift(&m->dark, &m->white, &w);
+	if (m->s.white.n) {
+		double d = kg_white_drift(&m->s.dark, &m->s.white, &w);
 		fprintf(stderr, "white reference changed by %+.2f %% since the last one\n", 100 * d);
 		if (fabs(d) > WHITE_DRIFT_LIMIT)
 			fprintf(stderr,
@@ -138,8 +124,8 @@ static int measure_white(measure_ctx *m, kg_err *err)
 			        "lamp or probe changed; readings since the last white may be off\n",
 			        100 * d, 100 * WHITE_DRIFT_LIMIT);
 	}
-	kg_spectro_reading_clear(&m->white);
-	m->white = w;
+	kg_spectro_reading_clear(&m->s.white);
+	m->s.white = w;
 	m->white_age_warned = 0;
 	return 0;
 }
@@ -148,48 +134,20 @@ static int measure_sample(measure_ctx *m, const char *id, kg_spectrum *out, kg_e
 {
 	struct timespec ts;
 	clock_gettime(CLOCK_REALTIME, &ts);
-	double age = ts.tv_sec - m->white.when;
+	double age = ts.tv_sec - m->s.white.when;
 	if (age > m->white_max_age && !m->white_age_warned) {
 		fprintf(stderr,
 		        "warning: the white reference is %.0f s old (limit %.0f s): answer w to "
 		        "measure it again\n", age, m->white_max_age);
 		m->white_age_warned = 1;
 	}
-	kg_spectro_reading s = {0};
-	int dropped = 0, r = acquire(m, id, id, &s, err);
-	if (!r)
-		r = kg_reflectance(&m->dark, &m->white, &m->white_refl, &s, out, &dropped, err);
-	if (!r && dropped)
-		fprintf(stderr,
-		        "warning: %s: %d pixels within 400-700 nm had no white signal and were "
-		        "interpolated across\n", id, dropped);
-	kg_spectro_reading_clear(&s);
-	return r;
+	return kg_measure_sample(&m->s, id, out, err);
 }
 
 /* Output keywords: instrument, serial, settings. */
 static int write_result(const measure_ctx *m, const char *path, kg_patchset *ps, kg_err *err)
 {
-	const kg_spectro_info *info = kg_spectro_get_info(m->spectro);
-	char integ[32], scans[16], boxcar[16], created[32];
-	snprintf(integ, sizeof(integ), "%u", info->integration_us);
-	snprintf(scans, sizeof(scans), "%d", m->acq.scans);
-	snprintf(boxcar, sizeof(boxcar), "%d", m->acq.boxcar);
-	time_t now = time(NULL);
-	struct tm tm;
-	strftime(created, sizeof(created), "%Y-%m-%dT%H:%M:%S", localtime_r(&now, &tm));
-	const char *kw[] = {"ORIGINATOR", "kogei measure",
-	                    "INSTRUMENT", info->model,
-	                    "SERIAL_NUMBER", info->serial,
-	                    "SPECTROMETER", m->uri,
-	                    "INTEGRATION_TIME_US", integ,
-	                    "SCANS_AVERAGED", scans,
-	                    "BOXCAR_HALF_WIDTH", boxcar,
-	                    "WHITE_REFERENCE", m->white_ref_path ? m->white_ref_path : "flat 0.99",
-	                    "MEASUREMENT_MODE", "reflectance",
-	                    "CREATED", created,
-	                    NULL};
-	return kg_patchset_write(path, ps, KG_PATCH_SPECTRA, kw, err);
+	return kg_measure_write(&m->s, path, ps, "kogei measure", NULL, err);
 }
 
 /* The patches to measure, with where each is on the chart. */
@@ -380,14 +338,14 @@ static int run_chart(measure_ctx *m, const patch_list *pl, const char *out, int 
 		kg_patchset_free(&sofar);
 	}
 	if (!rc && check_white) {
-		kg_spectro_reading before = m->white;
-		m->white = (kg_spectro_reading){0};
+		kg_spectro_reading before = m->s.white;
+		m->s.white = (kg_spectro_reading){0};
 		rc = measure_white(m, err);
 		if (!rc) {
-			double d = kg_white_drift(&m->dark, &before, &m->white);
+			double d = kg_white_drift(&m->s.dark, &before, &m->s.white);
 			fprintf(stderr, "white reference drift over the chart: %+.2f %%\n", 100 * d);
 		}
-		if (!rc && fabs(kg_white_drift(&m->dark, &before, &m->white)) > WHITE_DRIFT_LIMIT)
+		if (!rc && fabs(kg_white_drift(&m->s.dark, &before, &m->s.white)) > WHITE_DRIFT_LIMIT)
 			fprintf(stderr, "warning: the white reference drifted by more than %.0f %% "
 			                "during the chart: consider measuring it again\n",
 			        100 * WHITE_DRIFT_LIMIT);
@@ -415,11 +373,12 @@ int kg_cmd_measure(int argc, char **argv)
 	int single = 0, info_only = 0, yes = 0, resume = 0, check_white = 0, nl = 1;
 	double integration_ms = 100, max_age = 600;
 	measure_ctx m = {0};
-	kg_acquire_options_default(&m.acq);
-	m.acq.scans = 3;
+	kg_acquire_options_default(&m.s.acq);
+	m.s.acq.scans = 3;
 	enum { O_SINGLE = 256, O_CHART, O_PATCHES, O_PATCHES_FILE, O_INFO, O_INTEGRATION,
 	       O_AVERAGE, O_BOXCAR, O_WHITE_REF, O_MAX_AGE, O_CHECK_WHITE, O_NO_NL, O_YES,
-	       O_RESUME, O_ID };
+	       O_RESUME, O_ID, O_RECORD };
+	const char *record = NULL;
 	static const struct option opts[] = {
 		{"spectro", required_argument, NULL, 's'},
 		{"out", required_argument, NULL, 'o'},
@@ -438,6 +397,7 @@ int kg_cmd_measure(int argc, char **argv)
 		{"no-nonlinearity", no_argument, NULL, O_NO_NL},
 		{"yes", no_argument, NULL, O_YES},
 		{"resume", no_argument, NULL, O_RESUME},
+		{"record", required_argument, NULL, O_RECORD},
 		{"help", no_argument, NULL, 'h'},
 		{0, 0, 0, 0},
 	};
@@ -461,14 +421,14 @@ int kg_cmd_measure(int argc, char **argv)
 				                          "milliseconds > 0", optarg);
 			break;
 		case O_AVERAGE:
-			m.acq.scans = (int)strtol(optarg, &end, 10);
-			if (*end || m.acq.scans < 1 || m.acq.scans > 10000)
+			m.s.acq.scans = (int)strtol(optarg, &end, 10);
+			if (*end || m.s.acq.scans < 1 || m.s.acq.scans > 10000)
 				return kg_cli_usage_error(usage_measure, "--average %s: expected 1-10000",
 				                          optarg);
 			break;
 		case O_BOXCAR:
-			m.acq.boxcar = (int)strtol(optarg, &end, 10);
-			if (*end || m.acq.boxcar < 0 || m.acq.boxcar > 100)
+			m.s.acq.boxcar = (int)strtol(optarg, &end, 10);
+			if (*end || m.s.acq.boxcar < 0 || m.s.acq.boxcar > 100)
 				return kg_cli_usage_error(usage_measure, "--boxcar %s: expected 0-100",
 				                          optarg);
 			break;
@@ -483,6 +443,7 @@ int kg_cmd_measure(int argc, char **argv)
 		case O_NO_NL: nl = 0; break;
 		case O_YES: yes = 1; break;
 		case O_RESUME: resume = 1; break;
+		case O_RECORD: record = optarg; break;
 		case 'h': puts(usage_measure); return KG_EXIT_OK;
 		default: return kg_cli_usage_error(usage_measure, "bad option");
 		}
@@ -498,7 +459,7 @@ int kg_cmd_measure(int argc, char **argv)
 	if (!info_only && !out)
 		return kg_cli_usage_error(usage_measure, "--out FILE.cgats is required");
 	if (!nl)
-		m.acq.corrections &= ~(unsigned)KG_CORRECT_NONLINEARITY;
+		m.s.acq.corrections &= ~(unsigned)KG_CORRECT_NONLINEARITY;
 
 	kg_err err = {{0}};
 	patch_list pl = {0};
@@ -507,19 +468,25 @@ int kg_cmd_measure(int argc, char **argv)
 		patch_list_free(&pl);
 		return kg_cli_error(&err, r);
 	}
-	if ((r = kg_white_reference_load(white_ref, &m.white_refl, &err)) != 0) {
+	if ((r = kg_white_reference_load(white_ref, &m.s.white_refl, &err)) != 0) {
 		patch_list_free(&pl);
 		return kg_cli_error(&err, r);
 	}
-	m.uri = uri;
-	m.white_ref_path = white_ref;
+	m.s.uri = uri;
+	m.s.white_ref_path = white_ref;
+	m.s.warn = warn_stderr;
 	m.white_max_age = max_age;
 	m.yes = yes;
-	if ((r = kg_spectro_open(uri, &m.spectro, &err)) != 0) {
+	if ((r = kg_spectro_open(uri, &m.s.spectro, &err)) != 0) {
 		patch_list_free(&pl);
 		return device_exit(&err, r);
 	}
-	const kg_spectro_info *info = kg_spectro_get_info(m.spectro);
+	if (record && (r = kg_spectro_record_start(m.s.spectro, record, &err)) != 0) {
+		kg_spectro_free(&m.s.spectro);
+		patch_list_free(&pl);
+		return kg_cli_error(&err, r);
+	}
+	const kg_spectro_info *info = kg_spectro_get_info(m.s.spectro);
 	int exit_code = KG_EXIT_OK;
 	if (info_only) {
 		print_info(info);
@@ -527,9 +494,9 @@ int kg_cmd_measure(int argc, char **argv)
 		double us = floor(integration_ms * 1000 + 0.5);
 		r = us > UINT32_MAX
 		        ? kg_fail(&err, KG_EINVAL, "--integration %g ms is too long", integration_ms)
-		        : kg_spectro_set_integration(m.spectro, (uint32_t)us, &err);
+		        : kg_spectro_set_integration(m.s.spectro, (uint32_t)us, &err);
 		fprintf(stderr, "%s %s, integration %.3f ms, %d scan(s) averaged\n", info->model,
-		        info->serial, integration_ms, m.acq.scans);
+		        info->serial, integration_ms, m.s.acq.scans);
 		if (!r && single) {
 			kg_patchset *ps = NULL;
 			kg_spectrum s;
@@ -557,9 +524,14 @@ int kg_cmd_measure(int argc, char **argv)
 			exit_code = device_exit(&err, r);
 		}
 	}
-	kg_spectro_reading_clear(&m.dark);
-	kg_spectro_reading_clear(&m.white);
-	kg_spectro_free(&m.spectro);
+	int nrec = 0;
+	if (record && (r = kg_spectro_record_finish(m.s.spectro, &nrec, &err)) != 0) {
+		int e = kg_cli_error(&err, r);
+		exit_code = exit_code ? exit_code : e;
+	} else if (record)
+		fprintf(stderr, "recorded %d raw reads in %s\n", nrec, record);
+	kg_measure_session_clear(&m.s);
+	kg_spectro_free(&m.s.spectro);
 	patch_list_free(&pl);
 	return exit_code;
 }

@@ -38,6 +38,14 @@
 #define DEMO_SITE_ROTATE 10.0
 #define DEMO_SITE_BLUR 1.2
 #define DEMO_SITE_VIGNETTING 0.2
+/* The chart's spectra S, measured patch by patch with the simulated spectrophotometer
+ * (devices/, as `kogei measure` drives it): it reads DEMO_CHART's spectra through a
+ * lamp, a 2048-pixel detector and its noise, dark and white references first. */
+#define DEMO_SPECTRO "sim:" DEMO_CHART
+#define DEMO_SPECTRO_INTEGRATION_US 100000u /* 100 ms, `kogei measure`'s default */
+#define DEMO_SPECTRO_SCANS 5                /* averaged per reading */
+#define DEMO_CHART_SPECTRA "chart_spectra.cgats"
+#define DEMO_MAX_PATCHES 64
 #define DEMO_SEED_REFERENCE 1
 #define DEMO_SEED_SITE 2
 #define DEMO_SEED_OBJECT 3
@@ -64,6 +72,21 @@ typedef struct demo_chart_shot {
 	int decimate;
 } demo_chart_shot;
 
+/* The chart measured with the spectrophotometer, against the spectra it measured. */
+typedef struct demo_spectro_run {
+	char model[32], serial[32];
+	uint32_t integration_us;
+	int scans, boxcar;
+	int npatches;
+	int nwarnings;
+	double rmse[DEMO_MAX_PATCHES];     /* per patch, measured vs DEMO_CHART, 61 bands */
+	double max_diff[DEMO_MAX_PATCHES]; /* per patch, largest |measured - file| */
+	double rmse_mean, rmse_max, diff_max;
+	int rmse_max_at, diff_max_at;      /* patch index */
+	double diff_max_nm;
+	double ms;                         /* the whole run: dark, white, patches */
+} demo_spectro_run;
+
 typedef struct demo_ctx {
 	const char *dir;
 	kg_err err;
@@ -77,6 +100,9 @@ typedef struct demo_ctx {
 	char layout_family[32];
 	double sample_fraction; /* of each patch side, sampled */
 	int npatches;           /* of the chart */
+	char patch_ids[DEMO_MAX_PATCHES][32];   /* the layout's, in order */
+	char patch_names[DEMO_MAX_PATCHES][48];
+	demo_spectro_run spectro; /* step 1: the chart's spectra measured */
 	demo_chart_shot shots[2]; /* reference, site */
 
 	kg_reference *ref;      /* as fitted and saved */

@@ -397,33 +397,59 @@ static void write_summary(demo_ctx *d, const report *r, FILE *fp)
 	            "fixed seeds, so every run gives the same numbers.\n\n", KG_VERSION);
 	fprintf(fp, "## What was run\n\n");
 	const demo_chart_shot *rs = &d->shots[0], *ss = &d->shots[1];
-	fprintf(fp, "1. **Reference calibration** (calib reference -> `reference.json`): the %d "
+	const demo_spectro_run *sr = &d->spectro;
+	fprintf(fp, "1. **Chart spectra** (measure -> `%s`): the %d patches of the chart measured "
+	            "one by one with the simulated spectrophotometer `%s` (%s, serial %s): dark "
+	            "reference, white reference (flat 0.99 standard), then each patch; %.0f ms "
+	            "integration, %d scans averaged, electrical dark subtracted, reflectance "
+	            "(S - D) / (W - D) x 0.99 resampled to 400-700 nm every 5 nm.\n",
+	        DEMO_CHART_SPECTRA, sr->npatches, DEMO_SPECTRO, sr->model, sr->serial,
+	        sr->integration_us / 1e3, sr->scans);
+	fprintf(fp, "2. **Reference calibration** (calib reference -> `reference.json`): the %d "
 	            "CIE 13.3 test colour samples of `%s` (colord-data), mounted in the AprilTag "
 	            "frame `%s` (`fixtures/%s`), photographed by the model camera `%s` under %s "
 	            "(`reference_chart.tif`, %dx%d, tilt %g deg, blur %g px, vignetting %g, noise "
 	            "%s (full well:read noise:bits), seed %llu); the chart found by its tags and "
-	            "sampled (`reference_chart_overlay.png`, `reference_chart.cgats`).\n",
+	            "sampled (`reference_chart_overlay.png`, `reference_chart.cgats`); S: the "
+	            "measured spectra of `%s`.\n",
 	        d->npatches, DEMO_CHART, d->layout_name, DEMO_CHART_LAYOUT,
 	        DEMO_REFERENCE_CAMERA, DEMO_REFERENCE_ILLUMINANT, DEMO_CHART_WIDTH,
 	        DEMO_CHART_HEIGHT, rs->tilt_deg, rs->blur_px, rs->vignetting, rs->noise,
-	        (unsigned long long)rs->seed);
-	fprintf(fp, "2. **Site calibration** (calib camera -> `camera.json`): the same chart "
+	        (unsigned long long)rs->seed, DEMO_CHART_SPECTRA);
+	fprintf(fp, "3. **Site calibration** (calib camera -> `camera.json`): the same chart "
 	            "photographed by another model camera, `%s`, under CIE %s "
 	            "(`site_chart.tif`, tilt %g deg, rotated %g deg, blur %g px, vignetting %g, "
 	            "noise %s, seed %llu), found and sampled the same way "
 	            "(`site_chart_overlay.png`, `site_chart.cgats`).\n",
 	        DEMO_SITE_CAMERA, DEMO_SITE_ILLUMINANT, ss->tilt_deg, ss->rotate_deg, ss->blur_px,
 	        ss->vignetting, ss->noise, (unsigned long long)ss->seed);
-	fprintf(fp, "3. **Object** (`object.tif`, truth in `object_truth.hdr` and "
+	fprintf(fp, "4. **Object** (`object.tif`, truth in `object_truth.hdr` and "
 	            "`object_truth_labels.hdr`): one %dx%d px sample of each of the %d materials "
 	            "of the default library, seen in the specular direction at %g deg incidence "
 	            "by the site camera under CIE %s, noise %s, seed %d. Pixels between the "
 	            "samples are no data (NaN).\n",
 	        DEMO_TILE, DEMO_TILE, r->n, DEMO_ANGLE_DEG, DEMO_SITE_ILLUMINANT, DEMO_SITE_NOISE,
 	        DEMO_SEED_OBJECT);
-	fprintf(fp, "4. **Estimate** (`cube.hdr`/`.img`, ENVI float32 BSQ, 61 bands 400-700 nm) "
+	fprintf(fp, "5. **Estimate** (`cube.hdr`/`.img`, ENVI float32 BSQ, 61 bands 400-700 nm) "
 	            "and **classify** (`labels.hdr`, `labels.json`, `labels.png`) with the C APIs "
 	            "of calib/ and estimate/.\n\n");
+
+	fprintf(fp, "## Chart spectra (spectrophotometer)\n\n");
+	fprintf(fp, "The spectra the calibration uses, as measured, against the tabulated "
+	            "spectra of `%s` that the simulated instrument measured (its lamp, detector, "
+	            "dark current and noise in between), on the 61-band grid.\n\n",
+	        DEMO_CHART);
+	fprintf(fp, "Measured vs file: RMSE **%.4f** mean over the %d patches, worst %.4f (%s); "
+	            "largest |difference| %.4f (%s at %.0f nm); %d warning(s); %.0f ms for dark, "
+	            "white and the patches.\n\n",
+	        sr->rmse_mean, sr->npatches, sr->rmse_max, d->patch_ids[sr->rmse_max_at],
+	        sr->diff_max, d->patch_ids[sr->diff_max_at], sr->diff_max_nm, sr->nwarnings,
+	        sr->ms);
+	fprintf(fp, "| patch | RMSE | max abs diff |\n|---|---:|---:|\n");
+	for (int i = 0; i < sr->npatches && i < DEMO_MAX_PATCHES; i++)
+		fprintf(fp, "| %s %s | %.4f | %.4f |\n", d->patch_ids[i], d->patch_names[i],
+		        sr->rmse[i], sr->max_diff[i]);
+	fprintf(fp, "\n");
 
 	fprintf(fp, "## Chart detection\n\n");
 	fprintf(fp, "`kg_chart_detect` with its defaults on each photograph as written: AprilTag "
@@ -496,7 +522,8 @@ static void write_summary(demo_ctx *d, const report *r, FILE *fp)
 	fprintf(fp, "\n## Files\n\n"
 	            "`spectra_by_material.png` (estimated against true spectra), `confusion.png`, "
 	            "`object_d65.png` (camera image, true and estimated colour), `cube.hdr`, "
-	            "`labels.hdr`/`.json`/`.png`, `reference.json`, `camera.json`, the chart "
+	            "`labels.hdr`/`.json`/`.png`, `reference.json`, `camera.json`, the chart's "
+	            "measured spectra `chart_spectra.cgats`, the chart "
 	            "photographs `reference_chart.tif` and `site_chart.tif`, what detection found "
 	            "in them (`reference_chart_overlay.png`, `site_chart_overlay.png`) and the "
 	            "chart readings `reference_chart.cgats` and `site_chart.cgats`, and the library's "

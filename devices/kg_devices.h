@@ -4,6 +4,7 @@
  * A spectrometer is opened by URI:
  *   usbspec:<vid>:<pid>[:<serial>]   Ocean Optics FPGA-family over libusb (hex ids)
  *   sim:<spectra.cgats>              simulated instrument measuring known spectra
+ *   replay:<recording>               plays back a recording (kg_spectro_record_start)
  * Applications use this header only; drivers implement devices/spectro_driver.h. */
 #ifndef KG_DEVICES_H
 #define KG_DEVICES_H
@@ -48,6 +49,15 @@ int kg_spectro_read_raw(kg_spectro *s, double *counts, kg_err *err);
  * ("dark", "white" or a sample id). Real instruments ignore it; the simulated one
  * refuses a sample it does not have. */
 int kg_spectro_set_target(kg_spectro *s, const char *what, kg_err *err);
+
+/* Record the instrument's identity and then every raw read (with its integration time
+ * and the target last named) to path, a recording that replay:<path> plays back
+ * (format: devices/spectro_replay.c, docs/measure.md). Written to a temporary file and
+ * renamed into place by kg_spectro_record_finish (*nreads, if not NULL: the reads
+ * recorded), or by kg_spectro_free with errors unreported; a failed run keeps what was
+ * read so far. */
+int kg_spectro_record_start(kg_spectro *s, const char *path, kg_err *err);
+int kg_spectro_record_finish(kg_spectro *s, int *nreads, kg_err *err);
 
 /* Wavelength of a pixel from the calibration polynomial. */
 double kg_spectro_wavelength(const kg_spectro_info *info, int pixel);
@@ -112,5 +122,51 @@ int kg_reflectance(const kg_spectro_reading *dark, const kg_spectro_reading *whi
  * white readings: (later - earlier) / earlier. */
 double kg_white_drift(const kg_spectro_reading *dark, const kg_spectro_reading *earlier,
                       const kg_spectro_reading *later);
+
+/* ---- a measurement session (measure_run.c) ----
+ * Dark and white references, samples as reflectance, the output file: what `kogei
+ * measure` guides an operator through and what runs unattended (`kogei demo`). */
+
+/* A warning for the operator ("TCS01: 12 pixels saturated ..."), without "warning: ". */
+typedef void (*kg_measure_warn_fn)(void *user, const char *message);
+
+typedef struct kg_measure_session {
+	kg_spectro *spectro;        /* opened and freed by the caller */
+	const char *uri;            /* as opened: the output's SPECTROMETER keyword */
+	kg_acquire_options acq;
+	kg_spectrum white_refl;     /* the white standard's certified reflectance */
+	const char *white_ref_path; /* its file; NULL for flat 0.99 */
+	kg_spectro_reading dark, white; /* the current references */
+	kg_measure_warn_fn warn;    /* saturated or dropped pixels; NULL: not reported */
+	void *warn_user;
+} kg_measure_session;
+
+/* Free the references (not the spectrometer). */
+void kg_measure_session_clear(kg_measure_session *m);
+/* Point the instrument at `target` ("dark", "white" or a sample id) and acquire with
+ * m->acq into *out; warns, naming `what`, when pixels saturated. */
+int kg_measure_reading(kg_measure_session *m, const char *target, const char *what,
+                       kg_spectro_reading *out, kg_err *err);
+/* A sample's reflectance against m->dark and m->white (both measured); warns when
+ * pixels had no white signal. */
+int kg_measure_sample(kg_measure_session *m, const char *id, kg_spectrum *out, kg_err *err);
+/* Write reflectance spectra as `kogei measure` does: SAMPLE_ID SPEC_400 ... SPEC_700
+ * and the keywords ORIGINATOR (originator), INSTRUMENT, SERIAL_NUMBER, SPECTROMETER,
+ * INTEGRATION_TIME_US, SCANS_AVERAGED, BOXCAR_HALF_WIDTH, WHITE_REFERENCE,
+ * MEASUREMENT_MODE, CREATED, then `extra` (name, value pairs, NULL-terminated; may be
+ * NULL). */
+int kg_measure_write(const kg_measure_session *m, const char *path, const kg_patchset *ps,
+                     const char *originator, const char *const *extra, kg_err *err);
+
+/* Called after each patch of kg_spectro_measure_patches: i of n (0-based), its id and
+ * reflectance. */
+typedef void (*kg_measure_progress_fn)(void *user, int i, int n, const char *id,
+                                       const kg_spectrum *reflectance);
+/* Unattended: dark, white, then every id in order, into a new patch set of spectra
+ * (*out, the ids as given). Meant for instruments that need no operator (sim, replay)
+ * and for scripts; progress may be NULL. */
+int kg_spectro_measure_patches(kg_measure_session *m, int n, const char *const *ids,
+                               kg_measure_progress_fn progress, void *user,
+                               kg_patchset **out, kg_err *err);
 
 #endif

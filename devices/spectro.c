@@ -11,6 +11,7 @@ static const kg_spectro_driver *const drivers[] = {
 	&kg_spectro_ocean_fpga_driver,
 #endif
 	&kg_spectro_sim_driver,
+	&kg_spectro_replay_driver,
 };
 #define NDRIVERS ((int)(sizeof(drivers) / sizeof(drivers[0])))
 
@@ -21,6 +22,7 @@ struct kg_spectro {
 	const kg_spectro_driver *drv;
 	void *state;
 	kg_spectro_info info;
+	kg_spectro_recorder *rec; /* kg_spectro_record_start, NULL when not recording */
 };
 
 int kg_spectro_backend_count(void) { return NDRIVERS; }
@@ -40,8 +42,8 @@ int kg_spectro_open(const char *uri, kg_spectro **out, kg_err *err)
 	const char *colon = strchr(uri, ':');
 	if (!colon || colon == uri)
 		return kg_fail(err, KG_EINVAL,
-		               "spectrometer '%s': expected a URI usbspec:<vid>:<pid>[:<serial>] "
-		               "or sim:<spectra file>", uri);
+		               "spectrometer '%s': expected a URI usbspec:<vid>:<pid>[:<serial>], "
+		               "sim:<spectra file> or replay:<recording>", uri);
 	size_t slen = (size_t)(colon - uri);
 	const kg_spectro_driver *drv = NULL;
 	for (int i = 0; i < NDRIVERS; i++)
@@ -54,7 +56,8 @@ int kg_spectro_open(const char *uri, kg_spectro **out, kg_err *err)
 				               "spectrometer '%s': the %s backend is not built into this "
 				               "kogei (see 'kogei devices')", uri, known_schemes[i]);
 		return kg_fail(err, KG_EINVAL,
-		               "spectrometer '%s': unknown scheme '%.*s' (expected usbspec or sim)",
+		               "spectrometer '%s': unknown scheme '%.*s' (expected usbspec, sim or "
+		               "replay)",
 		               uri, (int)slen, uri);
 	}
 	kg_spectro *s = calloc(1, sizeof(*s));
@@ -89,6 +92,7 @@ void kg_spectro_free(kg_spectro **s)
 {
 	if (!s || !*s)
 		return;
+	kg_recorder_close(&(*s)->rec, NULL, NULL);
 	if ((*s)->state)
 		(*s)->drv->close((*s)->state);
 	free(*s);
@@ -117,13 +121,31 @@ int kg_spectro_read_raw(kg_spectro *s, double *counts, kg_err *err)
 	if (!s->info.integration_us)
 		return kg_fail(err, KG_EINVAL, "%s %s: set the integration time before reading",
 		               s->info.model, s->info.serial);
-	return s->drv->read_raw(s->state, counts, err);
+	int r = s->drv->read_raw(s->state, counts, err);
+	if (!r && s->rec)
+		kg_recorder_read(s->rec, s->info.integration_us, counts);
+	return r;
 }
 
 int kg_spectro_set_target(kg_spectro *s, const char *what, kg_err *err)
 {
 	kg_check_arg(s && what, err);
-	return s->drv->set_target ? s->drv->set_target(s->state, what, err) : 0;
+	int r = s->drv->set_target ? s->drv->set_target(s->state, what, err) : 0;
+	if (!r && s->rec)
+		kg_recorder_target(s->rec, what);
+	return r;
+}
+
+int kg_spectro_record_start(kg_spectro *s, const char *path, kg_err *err)
+{
+	kg_check_arg(s && path && !s->rec, err);
+	return kg_recorder_open(path, &s->info, &s->rec, err);
+}
+
+int kg_spectro_record_finish(kg_spectro *s, int *nreads, kg_err *err)
+{
+	kg_check_arg(s, err);
+	return kg_recorder_close(&s->rec, nreads, err);
 }
 
 double kg_spectro_wavelength(const kg_spectro_info *info, int pixel)

@@ -33,6 +33,18 @@ typedef struct kg_spectro_driver {
 } kg_spectro_driver;
 
 extern const kg_spectro_driver kg_spectro_sim_driver;
+extern const kg_spectro_driver kg_spectro_replay_driver;
+
+/* The recorder behind kg_spectro_record_start (spectro_replay.c, which owns the format
+ * replay: reads): open writes the identity to a temporary file, target notes what
+ * kg_spectro_set_target named, read appends one raw spectrum, close writes the end
+ * line and renames the file into place (*nreads: the reads recorded). */
+typedef struct kg_spectro_recorder kg_spectro_recorder;
+int kg_recorder_open(const char *path, const kg_spectro_info *info, kg_spectro_recorder **out,
+                     kg_err *err);
+void kg_recorder_target(kg_spectro_recorder *r, const char *what);
+void kg_recorder_read(kg_spectro_recorder *r, uint32_t us, const double *counts);
+int kg_recorder_close(kg_spectro_recorder **r, int *nreads, kg_err *err);
 #if HAVE_LIBUSB
 extern const kg_spectro_driver kg_spectro_ocean_fpga_driver;
 #endif
