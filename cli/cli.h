@@ -41,5 +41,6 @@ int kg_cmd_estimate(int argc, char **argv);
 int kg_cmd_classify(int argc, char **argv);
 int kg_cmd_bench(int argc, char **argv);
 int kg_cmd_measure(int argc, char **argv);
+int kg_cmd_devices(int argc, char **argv);
 
 #endif

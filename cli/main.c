@@ -20,6 +20,7 @@ static const kg_command commands[] = {
 	{"classify", kg_cmd_classify, "per-pixel material labels among the declared materials"},
 	{"bench", kg_cmd_bench, "speed against error of every estimation method"},
 	{"demo", kg_cmd_demo, "run the whole pipeline on the bundled default"},
+	{"devices", kg_cmd_devices, "camera and spectrometer backends built, spectrometers attached"},
 };
 
 int kg_cli_error(const kg_err *err, int code)

@@ -169,4 +169,17 @@ int kg_spectro_measure_patches(kg_measure_session *m, int n, const char *const *
                                kg_measure_progress_fn progress, void *user,
                                kg_patchset **out, kg_err *err);
 
+/* ---- USB id table (id_table.c) ----
+ * The USB devices every spectrometer driver knows, whether or not the driver is built
+ * into this binary: the source of udev/70-kogei.rules (kogei-gen-udev) and of the
+ * attached-device scan in `kogei devices`. */
+typedef struct kg_spectro_usb_id {
+	const char *scheme; /* the driver's URI scheme: "usbspec" */
+	uint16_t vid, pid;
+	const char *model;
+} kg_spectro_usb_id;
+
+/* The table, *n entries (n may be NULL); static, never freed. */
+const kg_spectro_usb_id *kg_spectro_usb_ids(int *n);
+
 #endif
