@@ -8,7 +8,7 @@ build-essential meson ninja-build pkg-config
 liblapacke-dev libtiff-dev libpng-dev libjansson-dev zlib1g-dev libcairo2-dev fonts-dejavu-core libssl-dev
 colord-data argyll argyll-ref
 python3 python3-numpy python3-spectral
-libapriltag-dev libopencv-contrib-dev
+libapriltag-dev libopencv-dev libopencv-contrib-dev
 libusb-1.0-0-dev umockdev libumockdev-dev
 "
 
