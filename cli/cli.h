@@ -21,9 +21,6 @@ int kg_cli_usage_error(const char *usage, const char *fmt, ...) KG_PRINTF(2, 3);
 /* 1 if argv holds -h or --help. */
 int kg_cli_wants_help(int argc, char **argv);
 
-/* A bundled data file (e.g. "materials/default.json"): $KOGEI_DATA_DIR, then the
- * installed data directory, then the source tree's fixtures/. Caller frees. */
-char *kg_cli_data_path(const char *name);
 /* Parse "start:stop:step" (degrees) into a newly allocated list. */
 int kg_cli_parse_range(const char *text, double **values, int *n, kg_err *err);
 

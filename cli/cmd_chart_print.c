@@ -26,7 +26,7 @@ static char *resolve_layout(const char *arg)
 		return strdup(arg);
 	char name[512];
 	snprintf(name, sizeof(name), "charts/%s%s", arg, strstr(arg, ".json") ? "" : ".json");
-	return kg_cli_data_path(name);
+	return kg_data_path(name);
 }
 
 int kg_cmd_chart_print(int argc, char **argv)

@@ -137,7 +137,7 @@ static int shoot_chart(demo_ctx *d, const kg_chart_layout *layout, const kg_patc
 	char *overlay_path = demo_path(d, name);
 	snprintf(name, sizeof(name), "%s_chart.cgats", sh->role);
 	char *patch_path = demo_path(d, name);
-	char *camera_path = kg_cli_data_path(sh->camera);
+	char *camera_path = kg_data_path(sh->camera);
 	kg_sim_noise noise;
 	kg_sim_capture cap;
 	kg_sim_chart_card card;
@@ -645,10 +645,10 @@ int kg_cmd_demo(int argc, char **argv)
 	}
 	if (optind != argc)
 		return kg_cli_usage_error(usage_demo, "unexpected argument '%s'", argv[optind]);
-	d.library_path = kg_cli_data_path("materials/default.json");
-	d.reference_camera = kg_cli_data_path(DEMO_REFERENCE_CAMERA);
-	d.site_camera = kg_cli_data_path(DEMO_SITE_CAMERA);
-	d.layout_path = kg_cli_data_path(DEMO_CHART_LAYOUT);
+	d.library_path = kg_data_path("materials/default.json");
+	d.reference_camera = kg_data_path(DEMO_REFERENCE_CAMERA);
+	d.site_camera = kg_data_path(DEMO_SITE_CAMERA);
+	d.layout_path = kg_data_path(DEMO_CHART_LAYOUT);
 	int ret = d.library_path && d.reference_camera && d.site_camera && d.layout_path
 	              ? kg_mkdir_p(d.dir, &d.err)
 	              : kg_fail(&d.err, KG_ENOMEM, "out of memory");

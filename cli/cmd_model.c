@@ -51,7 +51,7 @@ int kg_cmd_model(int argc, char **argv)
 		return kg_cli_usage_error(usage_model, "expected -o TABLE.csv and/or --plot FIG.png");
 
 	kg_err err = {{0}};
-	char *default_lib = lib_path ? NULL : kg_cli_data_path("materials/default.json");
+	char *default_lib = lib_path ? NULL : kg_data_path("materials/default.json");
 	kg_material_library *lib = NULL;
 	kg_illuminant *ill = NULL;
 	double *angles = NULL, *table = NULL;

@@ -6,21 +6,6 @@
 #include "cli.h"
 #include "kg_config.h"
 
-char *kg_cli_data_path(const char *name)
-{
-	const char *dirs[3] = {getenv("KOGEI_DATA_DIR"), KG_DATA_DIR, KG_SOURCE_ROOT "/fixtures"};
-	for (int i = 0; i < 3; i++) {
-		if (!dirs[i] || !*dirs[i])
-			continue;
-		char *p = kg_path_join(dirs[i], name);
-		struct stat st;
-		if (p && stat(p, &st) == 0)
-			return p;
-		free(p);
-	}
-	return kg_path_join(KG_SOURCE_ROOT "/fixtures", name);
-}
-
 int kg_cli_parse_range(const char *text, double **values, int *n, kg_err *err)
 {
 	double a, b, s;

@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include "fsutil.h"
+#include "kg_config.h"
 
 int kg_outfile_open(kg_outfile *o, const char *path, int allow_stdout, kg_err *err)
 {
@@ -153,4 +154,19 @@ char *kg_path_join(const char *dir, const char *name)
 	if (s)
 		snprintf(s, n, "%s%s%s", dir, (*dir && dir[strlen(dir) - 1] != '/') ? "/" : "", name);
 	return s;
+}
+
+char *kg_data_path(const char *name)
+{
+	const char *dirs[3] = {getenv("KOGEI_DATA_DIR"), KG_DATA_DIR, KG_SOURCE_ROOT "/fixtures"};
+	for (int i = 0; i < 3; i++) {
+		if (!dirs[i] || !*dirs[i])
+			continue;
+		char *p = kg_path_join(dirs[i], name);
+		struct stat st;
+		if (p && stat(p, &st) == 0)
+			return p;
+		free(p);
+	}
+	return kg_path_join(KG_SOURCE_ROOT "/fixtures", name);
 }

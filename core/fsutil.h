@@ -24,6 +24,9 @@ void kg_outfile_abort(kg_outfile *o);
 int kg_read_file(const char *path, char **buf, size_t *len, kg_err *err);
 /* Create a directory and its parents (like mkdir -p). */
 int kg_mkdir_p(const char *path, kg_err *err);
+/* A bundled data file (e.g. "materials/default.json"): $KOGEI_DATA_DIR, then the
+ * installed data directory, then the source tree's fixtures/. Caller frees. */
+char *kg_data_path(const char *name);
 /* Join dir and name into a newly allocated path. */
 char *kg_path_join(const char *dir, const char *name);
 

@@ -30,6 +30,11 @@ expect_exit 2 "$KOGEI" no-such-command
 expect_exit 2 "$KOGEI" spectra
 expect_exit 2 "$KOGEI" model --bogus
 expect_exit 0 "$KOGEI" model --help
+# `kogei bench` runs the kogei-bench program with its arguments.
+expect_exit 0 "$KOGEI" bench --help
+check "bench --help is the benchmark's" grep -q "Speed against error" "$T/out"
+expect_exit 2 "$KOGEI" bench --reps 0
+check "bench usage error names the option" grep -q -- "--reps 0" "$T/err"
 
 # spectra xyz: the perfect diffuser has Y = 100 and L* = 100.
 cat >"$T/white.cgats" <<'CG'
