@@ -39,5 +39,7 @@ int kg_cmd_classify(int argc, char **argv);
 int kg_cmd_bench(int argc, char **argv);
 int kg_cmd_measure(int argc, char **argv);
 int kg_cmd_devices(int argc, char **argv);
+int kg_cmd_acquire(int argc, char **argv);
+int kg_cmd_render(int argc, char **argv);
 
 #endif

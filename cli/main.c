@@ -6,6 +6,7 @@
 #include "kg_config.h"
 
 static const kg_command commands[] = {
+	{"acquire", kg_cmd_acquire, "record camera frames into a session (chart, object, dark, flat)"},
 	{"measure", kg_cmd_measure, "reflectance readings with a USB spectrometer (single spot or chart)"},
 	{"spectra xyz", kg_cmd_spectra_xyz, "CIE XYZ and CIELAB of the spectra in a CGATS file"},
 	{"model", kg_cmd_model, "reflectance of a material over wavelength and incidence angle"},
@@ -18,6 +19,7 @@ static const kg_command commands[] = {
 	{"calib camera", kg_cmd_calib_camera, "fit M2 for a site camera from its chart photograph"},
 	{"estimate", kg_cmd_estimate, "per-pixel 61-band reflectance cube of an image"},
 	{"classify", kg_cmd_classify, "per-pixel material labels among the declared materials"},
+	{"render", kg_cmd_render, "render a scene's mesh and materials under any light (Embree)"},
 	{"bench", kg_cmd_bench, "speed against error of every estimation method"},
 	{"demo", kg_cmd_demo, "run the whole pipeline on the bundled default"},
 	{"devices", kg_cmd_devices, "camera and spectrometer backends built, spectrometers attached"},

@@ -15,5 +15,6 @@
 #include "image.h"
 #include "json.h"
 #include "plot.h"
+#include "rng.h"
 
 #endif

@@ -30,24 +30,6 @@
 
 #include "kg_optics.h"
 
-/* ---- random numbers ------------------------------------------------------------ */
-
-/* xoshiro256** seeded through splitmix64. Plain value; no global state. */
-typedef struct kg_rng {
-	uint64_t s[4];
-	double spare; /* second normal deviate of the polar method */
-	int has_spare;
-} kg_rng;
-
-void kg_rng_seed(kg_rng *r, uint64_t seed);
-uint64_t kg_rng_next(kg_rng *r);
-/* Uniform on [0, 1), 53 random bits. */
-double kg_rng_uniform(kg_rng *r);
-/* Standard normal deviate. */
-double kg_rng_normal(kg_rng *r);
-/* Poisson deviate (a whole number, returned as double); 0 for mean <= 0 or NaN. */
-double kg_rng_poisson(kg_rng *r, double mean);
-
 /* ---- sensor noise -------------------------------------------------------------- */
 
 typedef struct kg_sim_noise {

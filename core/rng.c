@@ -4,7 +4,7 @@
  * lives in the kg_rng the caller passes, so a seed fixes every draw. */
 #include <math.h>
 
-#include "kg_sim.h"
+#include "rng.h"
 
 static uint64_t splitmix64(uint64_t *x)
 {

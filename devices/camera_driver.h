@@ -1,0 +1,62 @@
+/* The interface a camera driver implements (private to devices/). camera.c keeps the
+ * registry of drivers by URI scheme, the stream bookkeeping (dropped-frame counting
+ * from sequence gaps, timeouts) and the recorder; a driver only talks to its device.
+ * Every entry point returns 0 or a negative KG_E* code with a message naming the
+ * device and what was expected. Optional entry points may be NULL. */
+#ifndef KG_CAMERA_DRIVER_H
+#define KG_CAMERA_DRIVER_H
+
+#include "kg_camera.h"
+#include "kg_config.h"
+
+typedef struct kg_camera_driver {
+	const char *scheme;      /* URI scheme */
+	const char *description; /* one line for `kogei devices` */
+	/* Optional: report every camera this backend sees (found) or why it cannot look
+	 * (return an error). */
+	int (*enumerate)(kg_camera_found_fn found, void *user, kg_err *err);
+	/* Open the camera named by the part of the URI after "scheme:"; fill info
+	 * (backend and uri are filled by camera.c). */
+	int (*open)(const char *target, void **state, kg_camera_info *info, kg_err *err);
+	void (*close)(void *state);
+	int (*feature_info)(void *state, kg_feature f, kg_feature_info *out, kg_err *err);
+	int (*get)(void *state, kg_feature f, double *value, kg_err *err);
+	int (*set)(void *state, kg_feature f, double value, kg_err *err);
+	int (*set_format)(void *state, const kg_frame_format *want, kg_frame_format *got,
+	                  kg_err *err);
+	int (*get_format)(void *state, kg_frame_format *out, kg_err *err);
+	int (*start)(void *state, int nbuffers, kg_err *err);
+	int (*stop)(void *state, kg_err *err);
+	/* Fill frame (data, size, fmt, sequence, timestamp, status, slot; exposure_us and
+	 * gain if the driver knows them per frame, else camera.c fills the last values
+	 * read back). KG_ETIMEDOUT when nothing arrived in time. */
+	int (*pop)(void *state, int timeout_ms, kg_frame *frame, kg_err *err);
+	int (*push)(void *state, kg_frame *frame, kg_err *err);
+	/* Optional: driver-level counters (failed, incomplete, resent, missing_packets);
+	 * camera.c adds completed, dropped and timeouts. */
+	void (*stats)(void *state, kg_stream_stats *out);
+} kg_camera_driver;
+
+extern const kg_camera_driver kg_camera_sim_driver;
+extern const kg_camera_driver kg_camera_replay_driver;
+#if HAVE_V4L2
+extern const kg_camera_driver kg_camera_v4l2_driver;
+#endif
+#if HAVE_ARAVIS
+extern const kg_camera_driver kg_camera_aravis_driver;
+#endif
+#if HAVE_LIBCAMERA
+extern const kg_camera_driver kg_camera_libcamera_driver;
+#endif
+
+/* The recorder behind kg_camera_record_* (camera_record.c; replay: reads its format). */
+typedef struct kg_frame_recorder kg_frame_recorder;
+int kg_frame_recorder_open(const char *session_dir, const kg_camera_info *info,
+                           const kg_frame_format *fmt, kg_frame_recorder **out, kg_err *err);
+int kg_frame_recorder_capture(kg_frame_recorder *r, const char *capture, kg_err *err);
+int kg_frame_recorder_write(kg_frame_recorder *r, const kg_frame *f, kg_err *err);
+void kg_frame_recorder_last(const kg_frame_recorder *r, char *file, size_t len,
+                            char sha256[65]);
+int kg_frame_recorder_close(kg_frame_recorder **r, kg_err *err);
+
+#endif
