@@ -10,7 +10,7 @@ colord-data argyll argyll-ref
 python3 python3-numpy python3-spectral
 libapriltag-dev libopencv-dev libopencv-contrib-dev
 libusb-1.0-0-dev umockdev libumockdev-dev
-libaravis-dev aravis-tools-cli libcamera-dev
+libaravis-dev aravis-tools aravis-tools-cli libcamera-dev
 libembree-dev assimp-testmodels iproute2 util-linux
 "
 
