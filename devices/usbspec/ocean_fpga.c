@@ -17,6 +17,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "ocean_models.h"
 #include "spectro_driver.h"
 
 enum {
@@ -32,25 +33,6 @@ enum {
 	SPECTRUM_EXTRA_MS = 1000, /* beyond the integration time */
 };
 
-/* The id table: the models this driver knows. */
-typedef struct ocean_model {
-	uint16_t vid, pid;
-	const char *name;
-	int npixels;
-	int dark_first, dark_last;
-	uint32_t min_us, max_us;
-	double saturation;
-	int split_high_speed; /* first 2048 bytes on 0x86 at high speed */
-} ocean_model;
-
-static const ocean_model ocean_models[] = {
-	{0x2457, 0x101E, "USB2000+/Flame-S", 2048, 6, 21, 1000, 655350000, 65535, 0},
-	{0x2457, 0x1022, "USB4000", 3840, 5, 16, 10, 65535000, 65535, 1},
-	/* Not in the measured notes: the HR4000 is taken to share the USB4000's
-	 * detector layout and to have a 14-bit converter. Check on hardware. */
-	{0x2457, 0x1012, "HR4000", 3840, 5, 16, 10, 655350000, 16383, 0},
-};
-#define NMODELS ((int)(sizeof(ocean_models) / sizeof(ocean_models[0])))
 
 typedef struct ocean_state {
 	libusb_context *ctx;
@@ -231,9 +213,9 @@ static int ocean_open(const char *target, void **state, kg_err *err)
 		               "ids, e.g. usbspec:2457:101e", target);
 	const char *want_serial = c2 && c2[1] ? c2 + 1 : NULL;
 	const ocean_model *model = NULL;
-	for (int i = 0; i < NMODELS; i++)
-		if (ocean_models[i].vid == vid && ocean_models[i].pid == pid)
-			model = &ocean_models[i];
+	for (int i = 0; i < kg_ocean_nmodels; i++)
+		if (kg_ocean_models[i].vid == vid && kg_ocean_models[i].pid == pid)
+			model = &kg_ocean_models[i];
 	if (!model)
 		return kg_fail(err, KG_EINVAL,
 		               "usbspec:%s: %04x:%04x is not a model this driver knows (expected "
