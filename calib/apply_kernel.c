@@ -6,7 +6,7 @@
 
 #include "kg_calib.h"
 
-int kg_camera_kernel(const kg_camera *cam, kg_method m, int lut_size, kg_est_kernel **out,
+int kg_camera_kernel(const kg_camera_calib *cam, kg_method m, int lut_size, kg_est_kernel **out,
                      double pre[9], int *pre_needed, kg_err *err)
 {
 	kg_check_arg(cam && out && pre, err);

@@ -59,6 +59,6 @@ int calib_patchset_without(const kg_patchset *ps, const char *const *ids, int ni
 /* Quantities that follow from the stored ones (after a fit or a load): the pca
  * kernel's weight offset, and for a camera the weight matrix M M2. */
 void calib_reference_derive(kg_reference *ref);
-void calib_camera_derive(kg_camera *cam);
+void calib_camera_derive(kg_camera_calib *cam);
 
 #endif

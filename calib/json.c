@@ -304,7 +304,7 @@ int kg_reference_save(const kg_reference *ref, const char *path, kg_err *err)
 	return finish(&w, root, path, err);
 }
 
-int kg_camera_save(const kg_camera *cam, const char *path, kg_err *err)
+int kg_camera_save(const kg_camera_calib *cam, const char *path, kg_err *err)
 {
 	kg_check_arg(cam && path, err);
 	jw w = {0};
@@ -740,7 +740,7 @@ int kg_reference_load(const char *path, kg_reference **out, kg_err *err)
 	return 0;
 }
 
-static int load_camera(const char *file, const json_t *root, kg_camera *cam, kg_err *err)
+static int load_camera(const char *file, const json_t *root, kg_camera_calib *cam, kg_err *err)
 {
 	int ret = check_header(file, root, CAMERA_FORMAT, err);
 	if (!ret)
@@ -800,7 +800,7 @@ static int load_camera(const char *file, const json_t *root, kg_camera *cam, kg_
 	return ret;
 }
 
-int kg_camera_load(const char *path, kg_camera **out, kg_err *err)
+int kg_camera_load(const char *path, kg_camera_calib **out, kg_err *err)
 {
 	kg_check_arg(path && out, err);
 	*out = NULL;
@@ -808,11 +808,11 @@ int kg_camera_load(const char *path, kg_camera **out, kg_err *err)
 	int ret = kg_json_load(path, &root, err);
 	if (ret)
 		return ret;
-	kg_camera *cam = calloc(1, sizeof(*cam));
+	kg_camera_calib *cam = calloc(1, sizeof(*cam));
 	ret = cam ? load_camera(path, root, cam, err) : kg_fail(err, KG_ENOMEM, "out of memory");
 	json_decref(root);
 	if (ret) {
-		kg_camera_free(&cam);
+		kg_camera_calib_free(&cam);
 		return ret;
 	}
 	*out = cam;

@@ -11,7 +11,7 @@ void calib_reference_derive(kg_reference *ref)
 		                          ref->M[k * 3 + 2] * ref->rgb_mean[2]);
 }
 
-void calib_camera_derive(kg_camera *cam)
+void calib_camera_derive(kg_camera_calib *cam)
 {
 	for (int k = 0; k < cam->K; k++) {
 		for (int c = 0; c < 3; c++)
@@ -24,7 +24,7 @@ void calib_camera_derive(kg_camera *cam)
 	}
 }
 
-void kg_camera_weights(const kg_camera *cam, const double rgb[3], double *w)
+void kg_camera_weights(const kg_camera_calib *cam, const double rgb[3], double *w)
 {
 	for (int k = 0; k < cam->K; k++)
 		w[k] = cam->weight_matrix[k * 3] * rgb[0] + cam->weight_matrix[k * 3 + 1] * rgb[1] +
@@ -67,7 +67,7 @@ int kg_reference_kernel_desc(const kg_reference *ref, kg_method m, kg_est_desc *
 	return 0;
 }
 
-int kg_camera_kernel_desc(const kg_camera *cam, kg_method m, kg_est_desc *desc,
+int kg_camera_kernel_desc(const kg_camera_calib *cam, kg_method m, kg_est_desc *desc,
                           double pre[9], kg_err *err)
 {
 	kg_check_arg(cam && desc, err);

@@ -229,7 +229,7 @@ typedef struct kg_site_map {
 	double loo_rmse;                          /* the reference fit's LOO error */
 } kg_site_map;
 
-typedef struct kg_camera {
+typedef struct kg_camera_calib {
 	/* from the reference */
 	int K, centred;
 	double B[KG_NBANDS * KG_CALIB_MAX_BASIS]; /* 61 x K (stride K) */
@@ -257,7 +257,7 @@ typedef struct kg_camera {
 
 	int nsources;
 	kg_calib_source *sources; /* "reference", "site_rgb" */
-} kg_camera;
+} kg_camera_calib;
 
 /* M2 from the reference's rho0 and a site patch set (rgb), matched by SAMPLE_ID.
  * Refused (KG_EINVAL, the message names the cause and the patches): site ids the
@@ -267,21 +267,21 @@ typedef struct kg_camera {
  * black_level) and nearly collinear charts (equilibrated condition number >
  * max_cond; the message lists the patches and how close to grey they are). */
 int kg_camera_fit(const kg_reference *ref, const kg_patchset *site,
-                  const kg_camera_options *opt, kg_camera **out, kg_err *err);
+                  const kg_camera_options *opt, kg_camera_calib **out, kg_err *err);
 /* Read the reference JSON and the site patch file and fit (sources recorded). */
 int kg_camera_fit_files(const char *reference_path, const char *site_rgb_path,
-                        const kg_camera_options *opt, kg_camera **out, kg_err *err);
-int kg_camera_set_method(kg_camera *cam, kg_method m, kg_err *err);
-void kg_camera_free(kg_camera **cam);
+                        const kg_camera_options *opt, kg_camera_calib **out, kg_err *err);
+int kg_camera_set_method(kg_camera_calib *cam, kg_method m, kg_err *err);
+void kg_camera_calib_free(kg_camera_calib **cam);
 
 /* The map of a method (KG_METHOD_AUTO: the default one); KG_EINVAL if the method
  * was not available on the reference chart. */
-int kg_camera_site_map(const kg_camera *cam, kg_method m, const kg_site_map **out,
+int kg_camera_site_map(const kg_camera_calib *cam, kg_method m, const kg_site_map **out,
                        kg_err *err);
 /* Reference evaluation of a site map at one pixel (tests, demo). */
 void kg_site_map_apply(const kg_site_map *map, const double rgb[3], kg_spectrum *out);
 /* The pca weights of a site pixel: w = M (M2 rho - rgb_mean); s = mean + B w. */
-void kg_camera_weights(const kg_camera *cam, const double rgb[3], double *w);
+void kg_camera_weights(const kg_camera_calib *cam, const double rgb[3], double *w);
 
 /* ---- kernels for estimate/ ------------------------------------------------------ */
 
@@ -296,12 +296,12 @@ int kg_reference_kernel_desc(const kg_reference *ref, kg_method m, kg_est_desc *
  * M M2). The root-polynomial terms are not linear, so for rootpoly2/3 the kernel is
  * the reference's and the pixels must first be multiplied by pre (= M2); for every
  * other method pre is the identity. pre may be NULL only for the linear methods. */
-int kg_camera_kernel_desc(const kg_camera *cam, kg_method m, kg_est_desc *desc,
+int kg_camera_kernel_desc(const kg_camera_calib *cam, kg_method m, kg_est_desc *desc,
                           double pre[9], kg_err *err);
 
 /* "format": "kogei-camera/1"; the keys are listed at the top of calib/json.c. */
-int kg_camera_save(const kg_camera *cam, const char *path, kg_err *err);
-int kg_camera_load(const char *path, kg_camera **out, kg_err *err);
+int kg_camera_save(const kg_camera_calib *cam, const char *path, kg_err *err);
+int kg_camera_load(const char *path, kg_camera_calib **out, kg_err *err);
 
 /* sha256 of a file as 64 hex digits. */
 int kg_calib_sha256_file(const char *path, char hex[65], kg_err *err);
@@ -315,7 +315,7 @@ int kg_calib_sha256_file(const char *path, char hex[65], kg_err *err);
  * to apply to each pixel first (M2 for rootpoly2/3, else the identity); *pre_needed
  * (may be NULL) is set to 0 when it is the identity. The kernel is independent of cam
  * once built. Free with kg_est_kernel_free. */
-int kg_camera_kernel(const kg_camera *cam, kg_method m, int lut_size, kg_est_kernel **out,
+int kg_camera_kernel(const kg_camera_calib *cam, kg_method m, int lut_size, kg_est_kernel **out,
                      double pre[9], int *pre_needed, kg_err *err);
 
 /* ==== end of apply_kernel.c ======================================================= */

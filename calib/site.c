@@ -17,11 +17,11 @@ void kg_camera_options_default(kg_camera_options *o)
 	o->pinv_rtol = KG_CALIB_PINV_RTOL;
 }
 
-void kg_camera_free(kg_camera **pcam)
+void kg_camera_calib_free(kg_camera_calib **pcam)
 {
 	if (!pcam || !*pcam)
 		return;
-	kg_camera *cam = *pcam;
+	kg_camera_calib *cam = *pcam;
 	calib_strv_free(cam->ids, cam->k);
 	free(cam->rho_r);
 	free(cam->rho0);
@@ -170,7 +170,7 @@ done:
 }
 
 /* M2 = R0 pinv(R) with R, R0 the 3 x k site and reference values. */
-static int solve_m2(kg_camera *cam, double rtol, kg_err *err)
+static int solve_m2(kg_camera_calib *cam, double rtol, kg_err *err)
 {
 	int k = cam->k;
 	kg_mat *R = NULL, *P = NULL;
@@ -210,7 +210,7 @@ static int solve_m2(kg_camera *cam, double rtol, kg_err *err)
 }
 
 int kg_camera_fit(const kg_reference *ref, const kg_patchset *site,
-                  const kg_camera_options *opt, kg_camera **out, kg_err *err)
+                  const kg_camera_options *opt, kg_camera_calib **out, kg_err *err)
 {
 	kg_check_arg(ref && site && out, err);
 	*out = NULL;
@@ -229,7 +229,7 @@ int kg_camera_fit(const kg_reference *ref, const kg_patchset *site,
 	int *idx_ref = malloc((ref->k > 0 ? (size_t)ref->k : 1) * sizeof(int));
 	int *idx_site = malloc((ref->k > 0 ? (size_t)ref->k : 1) * sizeof(int));
 	double *clipped = NULL;
-	kg_camera *cam = calloc(1, sizeof(*cam));
+	kg_camera_calib *cam = calloc(1, sizeof(*cam));
 	int k = 0;
 	if (!idx_ref || !idx_site || !cam) {
 		ret = kg_fail(err, KG_ENOMEM, "out of memory");
@@ -297,18 +297,18 @@ error:
 	free(idx_ref);
 	free(idx_site);
 	free(clipped);
-	kg_camera_free(&cam);
+	kg_camera_calib_free(&cam);
 	return ret;
 }
 
 int kg_camera_fit_files(const char *reference_path, const char *site_rgb_path,
-                        const kg_camera_options *opt, kg_camera **out, kg_err *err)
+                        const kg_camera_options *opt, kg_camera_calib **out, kg_err *err)
 {
 	kg_check_arg(reference_path && site_rgb_path && out, err);
 	*out = NULL;
 	kg_reference *ref = NULL;
 	kg_patchset *site = NULL;
-	kg_camera *cam = NULL;
+	kg_camera_calib *cam = NULL;
 	int ret = kg_reference_load(reference_path, &ref, err);
 	if (ret == 0)
 		ret = kg_patchset_read(site_rgb_path, 0, &site, err);
@@ -324,14 +324,14 @@ int kg_camera_fit_files(const char *reference_path, const char *site_rgb_path,
 	kg_reference_free(&ref);
 	kg_patchset_free(&site);
 	if (ret) {
-		kg_camera_free(&cam);
+		kg_camera_calib_free(&cam);
 		return ret;
 	}
 	*out = cam;
 	return 0;
 }
 
-int kg_camera_set_method(kg_camera *cam, kg_method m, kg_err *err)
+int kg_camera_set_method(kg_camera_calib *cam, kg_method m, kg_err *err)
 {
 	kg_check_arg(cam && m >= 0 && m < KG_METHOD_COUNT, err);
 	if (!cam->maps[m].available)
@@ -341,7 +341,7 @@ int kg_camera_set_method(kg_camera *cam, kg_method m, kg_err *err)
 	return 0;
 }
 
-int kg_camera_site_map(const kg_camera *cam, kg_method m, const kg_site_map **out,
+int kg_camera_site_map(const kg_camera_calib *cam, kg_method m, const kg_site_map **out,
                        kg_err *err)
 {
 	kg_check_arg(cam && out && m >= KG_METHOD_AUTO && m < KG_METHOD_COUNT, err);

@@ -1,10 +1,321 @@
-/* Placeholder until kogei acquire lands. */
+/* kogei acquire: one capture from a camera into a session (acquire/, docs/acquire.md). */
+#include <getopt.h>
+#include <math.h>
 #include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
 
 #include "cli.h"
+#include "kg_acquire.h"
+#include "kg_calib.h"
+
+static const char usage_acquire[] =
+	"kogei acquire --camera URI --out SESSION --kind chart|object|dark|flat [options]\n"
+	"  Take one capture: N frames averaged (mean and per-pixel variance, float32 TIFF),\n"
+	"  dark-subtracted and flat-field corrected, demosaiced when Bayer, and recorded\n"
+	"  into the session directory with its manifest (SESSION/session.json).\n"
+	"  URI: v4l2:/dev/videoN, aravis:ADDRESS, libcamera:ID, replay:SESSION[#CAPTURE],\n"
+	"       sim:[IMAGE][?key=value&...] (see `kogei devices`, docs/cameras.md)\n"
+	"  --name NAME          capture name (default <kind>-NNNN, the next free number)\n"
+	"  --frames N           frames averaged (default 10)\n"
+	"  --exposure US|auto   exposure in microseconds, or auto: the exposure helper sets\n"
+	"                       it so the brightest patch sits at --target, then locks it\n"
+	"                       (default: the camera's exposure, auto exposure off)\n"
+	"  --target LEVEL       the helper's level, 0..1 of full scale (default 0.8)\n"
+	"  --layout L           the helper measures the brightest patch of this chart\n"
+	"                       layout (kogei-chart/1 JSON or .cht); without it a robust\n"
+	"                       high percentile of the blurred frame\n"
+	"  --gain G             gain in the camera's unit (default: the camera's)\n"
+	"  --format PIXFMT      mono8..16, bayer8..16, bayer_rggb12, rgb8, rgb16, yuyv\n"
+	"  --roi WxH+X+Y        region of the sensor\n"
+	"  --dark NAME|none     dark capture to subtract (default: the session's latest\n"
+	"                       dark with the same exposure, gain, format and size)\n"
+	"  --flat NAME          flat capture to divide by (normalised to its mean)\n"
+	"  --timeout-ms T       wait per frame (default 2000 + twice the exposure)\n"
+	"  --max-dropped N      dropped frames tolerated (default 0)\n"
+	"  --force-nonlinear    accept YUYV (not linear; never for measurements)\n"
+	"  --no-record          do not store the raw frames (no replay possible)\n"
+	"  Exit 0 ok, 1 bad input, 2 bad usage, 3 the camera failed (timeouts, dropped or\n"
+	"  incomplete frames: the counts are printed and nothing is added to the session).";
+
+/* ---- the chart measure of the exposure helper --------------------------------------- */
+
+typedef struct chart_measure {
+	kg_chart_layout *layout;
+	kg_chart_detect_options opt;
+} chart_measure;
+
+/* The level of the brightest patch: the largest channel of any sampled patch. */
+static int brightest_patch(void *user, const kg_image *frame, double *level, kg_err *err)
+{
+	chart_measure *m = user;
+	kg_chart_result *r = NULL;
+	int ret = kg_chart_detect(m->layout, frame, &m->opt, &r, err);
+	if (ret)
+		return ret == KG_ENOENT ? KG_ENOENT : ret;
+	double best = -INFINITY;
+	for (int i = 0; i < r->npatches; i++) {
+		const kg_chart_sample *p = &r->patches[i];
+		if (p->flags & KG_CHART_FLAG_REJECTED)
+			continue;
+		for (int c = 0; c < 3; c++)
+			if (isfinite(p->rgb[c]) && p->rgb[c] > best)
+				best = p->rgb[c];
+	}
+	kg_chart_result_free(&r);
+	if (!isfinite(best))
+		return kg_fail(err, KG_ENOENT, "chart %s found but no patch could be sampled",
+		               m->layout->name);
+	*level = best;
+	return 0;
+}
+
+/* ---- terminal --------------------------------------------------------------------- */
+
+static void progress(void *user, const char *name, int i, int n, double fps)
+{
+	int tty = *(int *)user;
+	if (tty) {
+		fprintf(stderr, "\r%s: frame %d/%d  %.1f fps ", name, i, n, fps);
+		if (i == n)
+			fputc('\n', stderr);
+	} else if (i == n || i % (n >= 10 ? n / 10 : 1) == 0) {
+		fprintf(stderr, "%s: frame %d/%d  %.1f fps\n", name, i, n, fps);
+	}
+	fflush(stderr);
+}
+
+static void note(void *user, const char *message)
+{
+	(void)user;
+	fprintf(stderr, "kogei: note: %s\n", message);
+}
+
+/* ---- options ---------------------------------------------------------------------- */
+
+static int parse_long(const char *opt, const char *text, long min, long max, long *out)
+{
+	char *end;
+	long v = strtol(text, &end, 10);
+	if (end == text || *end || v < min || v > max)
+		return kg_cli_usage_error(usage_acquire, "%s '%s': expected a whole number %ld..%ld",
+		                          opt, text, min, max);
+	*out = v;
+	return 0;
+}
+
+static int parse_double(const char *opt, const char *text, double min, double max,
+                        double *out)
+{
+	char *end;
+	double v = strtod(text, &end);
+	if (end == text || *end || !isfinite(v) || v < min || v > max)
+		return kg_cli_usage_error(usage_acquire, "%s '%s': expected a number %g..%g", opt,
+		                          text, min, max);
+	*out = v;
+	return 0;
+}
+
+static int parse_roi(const char *text, kg_frame_format *f)
+{
+	int w, h, x, y, n = 0;
+	if (sscanf(text, "%dx%d+%d+%d%n", &w, &h, &x, &y, &n) != 4 || text[n] || w < 1 ||
+	    h < 1 || x < 0 || y < 0)
+		return kg_cli_usage_error(usage_acquire,
+		                          "--roi '%s': expected WxH+X+Y (e.g. 640x480+16+8)", text);
+	f->width = w;
+	f->height = h;
+	f->offset_x = x;
+	f->offset_y = y;
+	return 0;
+}
+
+/* Exit code for a camera or session error. */
+static int exit_for(const kg_err *err, int code, int device)
+{
+	fprintf(stderr, "kogei: %s\n", err->msg[0] ? err->msg : "failed");
+	(void)code;
+	return device ? KG_EXIT_DEVICE : KG_EXIT_INPUT;
+}
+
+static void print_summary(const kg_capture_result *r, const kg_capture_options *o,
+                          const char *session, int ncaptures)
+{
+	printf("%s: %d frames, %s%s%s %d bits %dx%d+%d+%d, exposure %.6g us, gain %.6g\n", r->name,
+	       o->frames, kg_pixfmt_name(r->format.pixfmt), r->format.cfa[0] ? " " : "",
+	       r->format.cfa, r->format.bits, r->format.width, r->format.height,
+	       r->format.offset_x, r->format.offset_y, r->exposure_us, r->gain);
+	if (r->nsteps)
+		printf("  exposure helper: %d step(s), locked at %.6g us (level %.4f, target %.3f)\n",
+		       r->nsteps, r->steps[r->nsteps - 1].exposure_us, r->steps[r->nsteps - 1].level,
+		       o->target);
+	printf("  clipped %.4f %%, under-exposed %.2f %%, max %.4f, p99 %.4f, p50 %.4f\n",
+	       100 * r->clipped_fraction, 100 * r->stats.underexposed_fraction, r->stats.max,
+	       r->stats.p99, r->stats.p50);
+	printf("  stream: %llu completed, %llu dropped, %llu incomplete, %llu failed, %llu "
+	       "timeouts\n",
+	       (unsigned long long)r->stream.completed, (unsigned long long)r->stream.dropped,
+	       (unsigned long long)r->stream.incomplete, (unsigned long long)r->stream.failed,
+	       (unsigned long long)r->stream.timeouts);
+	printf("  dark: %s, flat: %s\n", r->dark[0] ? r->dark : "none",
+	       r->flat[0] ? r->flat : "none");
+	printf("  wrote %s/captures/%s/mean.tif, variance.tif%s; %s/%s holds %d capture(s)\n",
+	       session, r->name, r->rgb ? ", rgb.tif" : "", session, KG_SESSION_MANIFEST,
+	       ncaptures);
+}
 
 int kg_cmd_acquire(int argc, char **argv)
 {
-	fprintf(stderr, "kogei acquire: not implemented yet\n");
-	return KG_EXIT_USAGE;
+	if (kg_cli_wants_help(argc, argv)) {
+		printf("usage: %s\n", usage_acquire);
+		return KG_EXIT_OK;
+	}
+	kg_capture_options o;
+	kg_capture_options_default(&o);
+	const char *uri = NULL, *out = NULL, *kind = NULL, *layout = NULL;
+	int have_target = 0;
+	enum { O_NAME = 256, O_FRAMES, O_EXPOSURE, O_TARGET, O_LAYOUT, O_GAIN, O_FORMAT, O_ROI,
+	       O_DARK, O_FLAT, O_TIMEOUT, O_MAX_DROPPED, O_FORCE, O_NO_RECORD, O_KIND };
+	static const struct option opts[] = {
+		{"camera", required_argument, NULL, 'c'},
+		{"out", required_argument, NULL, 'o'},
+		{"kind", required_argument, NULL, O_KIND},
+		{"name", required_argument, NULL, O_NAME},
+		{"frames", required_argument, NULL, O_FRAMES},
+		{"exposure", required_argument, NULL, O_EXPOSURE},
+		{"target", required_argument, NULL, O_TARGET},
+		{"layout", required_argument, NULL, O_LAYOUT},
+		{"gain", required_argument, NULL, O_GAIN},
+		{"format", required_argument, NULL, O_FORMAT},
+		{"roi", required_argument, NULL, O_ROI},
+		{"dark", required_argument, NULL, O_DARK},
+		{"flat", required_argument, NULL, O_FLAT},
+		{"timeout-ms", required_argument, NULL, O_TIMEOUT},
+		{"max-dropped", required_argument, NULL, O_MAX_DROPPED},
+		{"force-nonlinear", no_argument, NULL, O_FORCE},
+		{"no-record", no_argument, NULL, O_NO_RECORD},
+		{NULL, 0, NULL, 0},
+	};
+	optind = 1;
+	opterr = 0;
+	int opt, r = 0;
+	long n;
+	kg_err err = {{0}};
+	while (!r && (opt = getopt_long(argc, argv, ":c:o:", opts, NULL)) != -1) {
+		switch (opt) {
+		case 'c': uri = optarg; break;
+		case 'o': out = optarg; break;
+		case O_KIND: kind = optarg; break;
+		case O_NAME: o.name = optarg; break;
+		case O_FRAMES:
+			if (!(r = parse_long("--frames", optarg, 1, 1000000, &n)))
+				o.frames = (int)n;
+			break;
+		case O_EXPOSURE:
+			if (!strcmp(optarg, "auto"))
+				o.auto_exposure = 1;
+			else
+				r = parse_double("--exposure", optarg, 1e-3, 1e9, &o.exposure_us);
+			break;
+		case O_TARGET:
+			r = parse_double("--target", optarg, 0.01, 0.99, &o.target);
+			have_target = 1;
+			break;
+		case O_LAYOUT: layout = optarg; break;
+		case O_GAIN: r = parse_double("--gain", optarg, -1e6, 1e6, &o.gain); break;
+		case O_FORMAT:
+			if (kg_pixfmt_parse(optarg, &o.format.pixfmt, &o.format.bits, o.format.cfa, &err))
+				r = kg_cli_usage_error(usage_acquire, "--format: %s", err.msg);
+			break;
+		case O_ROI: r = parse_roi(optarg, &o.format); break;
+		case O_DARK: o.dark = optarg; break;
+		case O_FLAT: o.flat = optarg; break;
+		case O_TIMEOUT:
+			if (!(r = parse_long("--timeout-ms", optarg, 1, 3600000, &n)))
+				o.timeout_ms = (int)n;
+			break;
+		case O_MAX_DROPPED:
+			r = parse_long("--max-dropped", optarg, 0, 1000000000, &o.max_dropped);
+			break;
+		case O_FORCE: o.force_nonlinear = 1; break;
+		case O_NO_RECORD: o.record = 0; break;
+		case ':':
+			r = kg_cli_usage_error(usage_acquire, "option %s needs a value", argv[optind - 1]);
+			break;
+		default:
+			r = kg_cli_usage_error(usage_acquire, "unknown option '%s'", argv[optind - 1]);
+			break;
+		}
+	}
+	if (r)
+		return r;
+	if (optind < argc)
+		return kg_cli_usage_error(usage_acquire, "unexpected argument '%s'", argv[optind]);
+	if (!uri)
+		return kg_cli_usage_error(usage_acquire, "--camera URI is required");
+	if (!out)
+		return kg_cli_usage_error(usage_acquire, "--out SESSION is required");
+	if (!kind)
+		return kg_cli_usage_error(usage_acquire, "--kind chart|object|dark|flat is required");
+	if (kg_capture_kind_parse(kind, &o.kind, &err))
+		return kg_cli_usage_error(usage_acquire, "--kind: %s", err.msg);
+	if ((have_target || layout) && !o.auto_exposure)
+		return kg_cli_usage_error(usage_acquire, "%s: only with --exposure auto",
+		                          have_target ? "--target" : "--layout");
+	if (o.kind == KG_CAPTURE_DARK && o.auto_exposure)
+		return kg_cli_usage_error(usage_acquire,
+		                          "--exposure auto: a dark has no light to meter; give the "
+		                          "exposure of the captures it is for");
+	if (o.kind == KG_CAPTURE_DARK && o.dark && strcmp(o.dark, "none"))
+		return kg_cli_usage_error(usage_acquire, "--dark: does not apply to --kind dark");
+	if ((o.kind == KG_CAPTURE_DARK || o.kind == KG_CAPTURE_FLAT) && o.flat)
+		return kg_cli_usage_error(usage_acquire, "--flat: does not apply to --kind %s", kind);
+
+	chart_measure cm = {0};
+	if (layout) {
+		if ((r = kg_chart_layout_load(layout, &cm.layout, &err)))
+			return kg_cli_error(&err, r);
+		kg_chart_detect_options_default(&cm.opt);
+		o.measure = brightest_patch;
+		o.measure_user = &cm;
+	}
+	char measure_name[96];
+	snprintf(measure_name, sizeof(measure_name), "brightest patch of chart %s",
+	         cm.layout ? cm.layout->name : "");
+	o.measure_name = measure_name;
+	int tty = isatty(STDERR_FILENO);
+	o.progress = progress;
+	o.progress_user = &tty;
+	o.note = note;
+
+	kg_session *s = NULL;
+	kg_camera *camera = NULL;
+	kg_capture_result res;
+	memset(&res, 0, sizeof(res));
+	int code = kg_session_open(out, &s, &err);
+	if (code) {
+		r = exit_for(&err, code, 0);
+		goto done;
+	}
+	code = kg_camera_open(uri, &camera, &err);
+	if (code) {
+		r = exit_for(&err, code,
+		             code == KG_ENODEV || code == KG_EIO || code == KG_ETIMEDOUT ||
+		                 code == KG_ENOTSUP);
+		goto done;
+	}
+	code = kg_capture_run(s, camera, &o, &res, &err);
+	if (code) {
+		r = exit_for(&err, code, res.device_failure);
+		goto done;
+	}
+	print_summary(&res, &o, out,
+	              (int)json_array_size(json_object_get(kg_session_manifest(s), "captures")));
+done:
+	kg_capture_result_clear(&res);
+	kg_camera_free(&camera);
+	kg_session_free(&s);
+	kg_chart_layout_free(&cm.layout);
+	return r;
 }

@@ -221,7 +221,7 @@ int kg_cmd_calib_reference(int argc, char **argv)
 	return ret ? kg_cli_error(&err, ret) : KG_EXIT_OK;
 }
 
-static void print_camera(FILE *fp, const kg_camera *cam, const char *out)
+static void print_camera(FILE *fp, const kg_camera_calib *cam, const char *out)
 {
 	fprintf(fp, "site calibration: %d patches; condition number %.4g (unit-RMS channels %.4g), "
 	            "rank %d\n",
@@ -308,7 +308,7 @@ int kg_cmd_calib_camera(int argc, char **argv)
 		return kg_cli_error(&err, kg_fail(&err, KG_ENOMEM, "out of memory"));
 	opt.exclude = (const char *const *)ids;
 	opt.nexclude = nids;
-	kg_camera *cam = NULL;
+	kg_camera_calib *cam = NULL;
 	int ret = kg_camera_fit_files(refpath, rgb, &opt, &cam, &err);
 	if (!ret && method != KG_METHOD_AUTO)
 		ret = kg_camera_set_method(cam, method, &err);
@@ -316,7 +316,7 @@ int kg_cmd_calib_camera(int argc, char **argv)
 		ret = kg_camera_save(cam, out, &err);
 	if (!ret)
 		print_camera(report_stream(out), cam, out);
-	kg_camera_free(&cam);
+	kg_camera_calib_free(&cam);
 	free_ids(&ids);
 	return ret ? kg_cli_error(&err, ret) : KG_EXIT_OK;
 }

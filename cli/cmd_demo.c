@@ -84,7 +84,7 @@ static int demo_materials(demo_ctx *d)
 
 /* The detection summary of a shot, from the result and the patch set it gave. */
 static void shot_summarise(demo_chart_shot *sh, const kg_chart_result *res,
-                           const kg_patchset *ps, const kg_sim_chart_result *rendered)
+                           const kg_patchset *ps, const kg_patchset *truth)
 {
 	static const char channel[3] = {'R', 'G', 'B'};
 	size_t at = 0;
@@ -110,8 +110,9 @@ static void shot_summarise(demo_chart_shot *sh, const kg_chart_result *res,
 			sh->nflagged++;
 		if (p->flags & KG_CHART_FLAG_REJECTED)
 			continue;
-		/* The card is the only one, so the truth is in the layout's order. */
-		const kg_sim_chart_truth *t = i < rendered->ntruth ? &rendered->truth[i] : NULL;
+		/* The noise-free patch means the session was recorded from, by id. */
+		int ti = truth->rgb ? kg_patchset_find(truth, p->id) : -1;
+		const double *t = ti >= 0 ? truth->rgb[ti] : NULL;
 		for (int c = 0; c < 3; c++) {
 			if (p->sd[c] > sh->worst_sd) {
 				sh->worst_sd = p->sd[c];
@@ -119,94 +120,52 @@ static void shot_summarise(demo_chart_shot *sh, const kg_chart_result *res,
 				sh->worst_channel = channel[c];
 			}
 			if (t)
-				sh->max_error = fmax(sh->max_error, 100.0 * fabs(p->rgb[c] - t->rgb[c]));
+				sh->max_error = fmax(sh->max_error, 100.0 * fabs(p->rgb[c] - t[c]));
 		}
 	}
 }
 
-/* One camera photographing the chart in its frame: the scene rendered (sim/), the
- * image written and read back, the chart found by its tags and sampled (calib/), the
- * overlay and the patch file written. The patch file is what the calibration reads. */
-static int shoot_chart(demo_ctx *d, const kg_chart_layout *layout, const kg_patchset *chart,
-                       demo_chart_shot *sh)
+/* One camera's photograph of the chart in its frame: the averaged capture replayed
+ * from the bundled session (demo_session_replay), the chart found by its tags and
+ * sampled (calib/), the overlay and the patch file written. The patch file is what the
+ * calibration reads. The noise-free patch means the session was rendered from
+ * (fixtures/demo/<role>_chart_truth.cgats) judge the readings. */
+static int shoot_chart(demo_ctx *d, const kg_chart_layout *layout, demo_chart_shot *sh)
 {
-	char image_name[64], name[64];
-	snprintf(image_name, sizeof(image_name), "%s_chart.tif", sh->role);
-	char *image_path = demo_path(d, image_name);
+	const kg_image *img = sh == &d->shots[0] ? d->photos.reference_chart : d->photos.site_chart;
+	char image_name[128], name[64];
+	snprintf(image_name, sizeof(image_name), "session/captures/%s/%s",
+	         sh == &d->shots[0] ? DEMO_CAPTURE_REFERENCE : DEMO_CAPTURE_SITE,
+	         img && img->cfa ? "mean.tif" : "rgb.tif");
 	snprintf(name, sizeof(name), "%s_chart_overlay.png", sh->role);
 	char *overlay_path = demo_path(d, name);
 	snprintf(name, sizeof(name), "%s_chart.cgats", sh->role);
 	char *patch_path = demo_path(d, name);
-	char *camera_path = kg_data_path(sh->camera);
-	kg_sim_noise noise;
-	kg_sim_capture cap;
-	kg_sim_chart_card card;
-	kg_cli_card_parts parts = {0};
-	kg_sim_chart_result *rendered = NULL;
-	kg_image *img = NULL;
+	snprintf(name, sizeof(name), "demo/%s_chart_truth.cgats", sh->role);
+	char *truth_path = kg_data_path(name);
+	kg_patchset *truth = NULL;
 	kg_chart_result *res = NULL;
 	kg_patchset *ps = NULL;
-	int ret = camera_path ? kg_sim_noise_parse(sh->noise, &noise, &d->err)
-	                      : kg_fail(&d->err, KG_ENOMEM, "out of memory");
+	int ret = truth_path ? kg_patchset_read(truth_path, KG_PATCH_RGB, &truth, &d->err)
+	                     : kg_fail(&d->err, KG_ENOMEM, "out of memory");
+	if (!ret && !img)
+		ret = kg_fail(&d->err, KG_EINVAL, "the session has no %s chart capture", sh->role);
 	if (!ret)
-		ret = kg_sim_capture_load(&cap, camera_path, sh->illuminant, DEMO_WHITE_LEVEL,
-		                          &noise, 0, &d->err);
-	if (!ret) {
-		kg_cli_card_options co = {
-			.paper = DEMO_CHART_PAPER,
-			.ink = DEMO_CHART_INK,
-			.white_level = DEMO_WHITE_LEVEL,
-			.spectra_name = DEMO_CHART,
-		};
-		ret = kg_cli_chart_card(layout, chart, &co, &card, &parts, &d->err);
-	}
-	kg_sim_chart_desc desc = {
-		.width = DEMO_CHART_WIDTH,
-		.height = DEMO_CHART_HEIGHT,
-		.focal_px = kg_sim_chart_focal_px(DEMO_CHART_WIDTH, DEMO_CHART_FOV),
-		.cards = &card,
-		.ncards = 1,
-		.background = DEMO_CHART_BACKGROUND,
-		.supersample = 4,
-		.blur_sigma = sh->blur_px,
-		.vignetting = sh->vignetting,
-		.seed = sh->seed,
-	};
-	if (!ret) {
-		double box[4] = {0, 0, DEMO_CHART_WIDTH, DEMO_CHART_HEIGHT};
-		card.pose = (kg_sim_chart_pose){.rotate_deg = sh->rotate_deg,
-		                                .tilt_deg = sh->tilt_deg,
-		                                .tilt_axis_deg = sh->tilt_axis_deg};
-		ret = kg_sim_chart_pose_fit(&card.pose, card.size_mm, desc.focal_px, desc.width,
-		                            desc.height, box, DEMO_CHART_FILL, &d->err);
-	}
-	if (!ret)
-		ret = kg_sim_chart_render(&desc, &cap, &rendered, &d->err);
-	if (!ret)
-		ret = kg_image_write(rendered->image, image_path, KG_SIM_DEPTH_U16, &d->err);
-	if (!ret) {
-		printf("  rendered %dx%d: tilt %g deg (axis %g), rotated %g deg, blur %g px, "
-		       "vignetting %g, noise %s\n",
-		       desc.width, desc.height, sh->tilt_deg, sh->tilt_axis_deg, sh->rotate_deg,
-		       sh->blur_px, sh->vignetting, sh->noise);
-		demo_wrote(d, image_path, "the chart photograph (16-bit linear TIFF)");
-	}
-	/* Found in the file, as a later session would find it. */
-	if (!ret)
-		ret = kg_image_read(image_path, &img, &d->err);
+		printf("  %s chart photograph: %dx%d, %s, replayed from the session\n", sh->role,
+		       img->width, img->height, img->cfa ? "raw Bayer mean" : "demosaiced RGB mean");
 	kg_chart_detect_options opt;
 	kg_chart_detect_options_default(&opt);
 	if (!ret && (ret = kg_chart_detect(layout, img, &opt, &res, &d->err)))
-		kg_err_prefix(&d->err, "%s: chart %s not found: ", image_path, layout->name);
+		kg_err_prefix(&d->err, "%s: chart %s not found: ", image_name, layout->name);
 	if (!ret)
 		ret = kg_chart_result_patchset(res, &ps, &d->err);
 	if (!ret) {
-		shot_summarise(sh, res, ps, rendered);
+		shot_summarise(sh, res, ps, truth);
 		printf("  chart found: %d tags used (%s), homography RMS %.3f px, %d of %d patches "
 		       "sampled, worst patch spread %.4f (%s %c), %.0f ms (decimate %d)\n",
 		       sh->ntags_used, sh->tags_used, sh->rms_px, sh->nsampled, sh->npatches,
 		       sh->worst_sd, sh->worst_id, sh->worst_channel, sh->detect_ms, sh->decimate);
-		printf("  patch values within %.3f %% of full scale of the rendered truth\n",
+		printf("  patch values within %.3f %% of full scale of the noise-free truth\n",
 		       sh->max_error);
 		for (int i = 0; i < res->nwarnings; i++)
 			printf("  warning: %s\n", res->warnings[i]);
@@ -218,13 +177,13 @@ static int shoot_chart(demo_ctx *d, const kg_chart_layout *layout, const kg_patc
 		snprintf(seed_text, sizeof(seed_text), "%llu", (unsigned long long)sh->seed);
 		snprintf(rms, sizeof(rms), "%.4f", res->rms_px);
 		snprintf(decimate, sizeof(decimate), "%d", res->decimate);
-		snprintf(pose, sizeof(pose), "tilt %g axis %g rotate %g distance %.6g mm",
-		         sh->tilt_deg, sh->tilt_axis_deg, sh->rotate_deg, card.pose.distance_mm);
+		snprintf(pose, sizeof(pose), "tilt %g axis %g rotate %g", sh->tilt_deg,
+		         sh->tilt_axis_deg, sh->rotate_deg);
 		const char *keywords[] = {
 			"ORIGINATOR", "kogei demo",
-			"DESCRIPTOR", "chart readings found in a simulated photograph (linear, 0..1)",
+			"DESCRIPTOR", "chart readings found in a replayed photograph (linear, 0..1)",
 			"CHART_LAYOUT", layout->name,
-			"IMAGE", image_name, /* beside the patch file */
+			"IMAGE", image_name, /* relative to the patch file */
 			"DETECTOR", "apriltag",
 			"TAG_FAMILY", layout->family,
 			"TAG_DECIMATE", decimate,
@@ -247,12 +206,9 @@ static int shoot_chart(demo_ctx *d, const kg_chart_layout *layout, const kg_patc
 		                              ? "the reference camera's chart readings (rho, rho0)"
 		                              : "the site camera's chart readings (rho_r)");
 	kg_patchset_free(&ps);
+	kg_patchset_free(&truth);
 	kg_chart_result_free(&res);
-	kg_image_free(&img);
-	kg_sim_chart_result_free(&rendered);
-	kg_cli_card_parts_free(&parts);
-	free(camera_path);
-	free(image_path);
+	free(truth_path);
 	free(overlay_path);
 	free(patch_path);
 	return ret;
@@ -389,7 +345,7 @@ static int demo_calibrate(demo_ctx *d)
 	char *cam_json = demo_path(d, "camera.json");
 	kg_patchset *chart = NULL;
 	kg_chart_layout *layout = NULL;
-	kg_camera *fitted = NULL;
+	kg_camera_calib *fitted = NULL;
 	kg_mat *m2 = NULL;
 	int ret = access(DEMO_CHART, R_OK) == 0
 	              ? kg_sim_read_spectra(DEMO_CHART, 0, &chart, &d->err)
@@ -425,7 +381,7 @@ static int demo_calibrate(demo_ctx *d)
 	       "reference camera under %s; S from %s\n",
 	       layout->name, layout->npatches, DEMO_CHART, DEMO_REFERENCE_ILLUMINANT,
 	       DEMO_CHART_SPECTRA);
-	ret = shoot_chart(d, layout, chart, &d->shots[0]);
+	ret = shoot_chart(d, layout, &d->shots[0]);
 	kg_reference_options ropt;
 	kg_reference_options_default(&ropt);
 	/* S as measured, read back from the file, as `kogei calib reference` would. */
@@ -444,7 +400,7 @@ static int demo_calibrate(demo_ctx *d)
 	printf("[3/7] site calibration: the same chart, another model camera under CIE %s, "
 	       "noise %s\n",
 	       DEMO_SITE_ILLUMINANT, DEMO_SITE_NOISE);
-	ret = shoot_chart(d, layout, chart, &d->shots[1]);
+	ret = shoot_chart(d, layout, &d->shots[1]);
 	kg_camera_options copt;
 	kg_camera_options_default(&copt);
 	if (!ret)
@@ -466,7 +422,7 @@ static int demo_calibrate(demo_ctx *d)
 	}
 done:
 	kg_mat_free(&m2);
-	kg_camera_free(&fitted);
+	kg_camera_calib_free(&fitted);
 	kg_chart_layout_free(&layout);
 	kg_patchset_free(&chart);
 	free(spectra);
@@ -510,8 +466,20 @@ static int demo_object(demo_ctx *d)
 		};
 		ret = kg_sim_scene_new(&desc, &cap, DEMO_SEED_OBJECT, &d->scene, &d->err);
 	}
+	/* The photograph is the session's object capture; the scene supplies the ground
+	 * truth it was rendered from (the same layout, fixtures/demo/make_session.sh). */
+	const kg_image *photo = d->photos.object;
+	if (!ret && (!photo || photo->channels != 3 || photo->width != d->scene->width ||
+	             photo->height != d->scene->height))
+		ret = kg_fail(&d->err, KG_EINVAL,
+		              "the session's object capture is %dx%d with %d channels; the demo's "
+		              "scene is %dx%d RGB (re-record with fixtures/demo/make_session.sh)",
+		              photo ? photo->width : 0, photo ? photo->height : 0,
+		              photo ? photo->channels : 0, d->scene->width, d->scene->height);
 	if (!ret) {
 		kg_sim_scene *s = d->scene;
+		for (long i = 0; i < 3L * s->width * s->height; i++)
+			s->rgb[i] = photo->data[i];
 		for (long i = 0; i < (long)s->width * s->height; i++)
 			if (s->sample[i] < 0)
 				s->rgb[3 * i] = s->rgb[3 * i + 1] = s->rgb[3 * i + 2] = NAN;
@@ -607,9 +575,10 @@ static void demo_free(demo_ctx *d)
 	free(d->site_camera);
 	free(d->layout_path);
 	kg_reference_free(&d->ref);
-	kg_camera_free(&d->cam);
+	kg_camera_calib_free(&d->cam);
 	kg_sim_scene_free(&d->scene);
 	kg_classify_result_free(&d->classes);
+	demo_photos_free(&d->photos);
 }
 
 int kg_cmd_demo(int argc, char **argv)
@@ -654,8 +623,12 @@ int kg_cmd_demo(int argc, char **argv)
 	              : kg_fail(&d.err, KG_ENOMEM, "out of memory");
 	if (!ret) {
 		printf("kogei demo: writing to %s/\n", d.dir);
-		ret = demo_calibrate(&d);
+		printf("[0/7] the bundled session: its recorded frames replayed through the "
+		       "replay: camera and averaged (acquire/)\n");
+		ret = demo_session_replay(&d, &d.photos);
 	}
+	if (!ret)
+		ret = demo_calibrate(&d);
 	if (!ret)
 		ret = demo_object(&d);
 	if (!ret)

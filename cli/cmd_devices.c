@@ -1,9 +1,11 @@
-/* kogei devices: the backends built into this binary and the spectrometers attached. */
+/* kogei devices: the camera and spectrometer backends built into this binary, the
+ * cameras they can enumerate, and the spectrometers attached. */
 #include <stdio.h>
 #include <string.h>
 
 #include "cli.h"
 #include "kg_config.h"
+#include "kg_camera.h"
 #include "kg_devices.h"
 
 #if HAVE_LIBUSB
@@ -54,31 +56,65 @@ static void list_attached(void)
 #endif
 }
 
+static void camera_found(void *user, const char *uri, const char *model, const char *serial,
+                         const char *transport)
+{
+	(*(int *)user)++;
+	printf("  %-28s %s%s%s (%s)\n", uri, model, serial && *serial ? "  serial " : "",
+	       serial ? serial : "", transport);
+}
+
+static void camera_note(void *user, const char *scheme, const char *message)
+{
+	(void)user;
+	printf("  %s: %s\n", scheme, message);
+}
+
+/* Cameras the backends that can enumerate see (sim and replay are opened by URI). */
+static void list_cameras(void)
+{
+	printf("\ncameras:\n");
+	int found = 0;
+	kg_camera_enumerate(camera_found, camera_note, &found);
+	if (!found)
+		printf("  none found\n");
+}
+
 int kg_cmd_devices(int argc, char **argv)
 {
 	if (kg_cli_wants_help(argc, argv)) {
 		printf("usage: %s\n\n"
-		       "List the camera and spectrometer backends built into this kogei, and the\n"
-		       "USB spectrometers attached whose ids the drivers know.\n",
+		       "List the camera and spectrometer backends built into this kogei, the\n"
+		       "cameras each camera backend can enumerate, and the USB spectrometers\n"
+		       "attached whose ids the drivers know. sim: and replay: cameras are not\n"
+		       "listed: they are opened by URI (docs/cameras.md).\n\n"
+		       "Environment: KOGEI_CAMERA_DISCOVERY=none skips backends that discover\n"
+		       "cameras by broadcasting on the network (aravis: GigE Vision).\n",
 		       devices_usage);
 		return KG_EXIT_OK;
 	}
 	if (argc > 1)
 		return kg_cli_usage_error(devices_usage, "unexpected argument '%s'", argv[1]);
 
-	static const struct {
-		const char *name;
-		int built;
-	} cameras[] = {
-		{"v4l2", HAVE_V4L2},
-		{"aravis", HAVE_ARAVIS},
-		{"libcamera", HAVE_LIBCAMERA},
-	};
 	printf("camera backends:\n");
-	for (size_t i = 0; i < sizeof(cameras) / sizeof(cameras[0]); i++)
-		printf("  %-10s %s\n", cameras[i].name,
-		       cameras[i].built ? "dependency found, camera support not implemented yet"
-		                        : "not built");
+	int nc = kg_camera_backend_count();
+	for (int i = 0; i < nc; i++)
+		printf("  %-10s %s\n", kg_camera_backend_scheme(i), kg_camera_backend_description(i));
+	static const struct {
+		const char *scheme, *needs;
+	} optional[] = {
+		{"v4l2", "linux/videodev2.h"},
+		{"aravis", "aravis-0.8"},
+		{"libcamera", "libcamera"},
+	};
+	for (size_t k = 0; k < sizeof(optional) / sizeof(optional[0]); k++) {
+		int built = 0;
+		for (int i = 0; i < nc; i++)
+			built |= !strcmp(kg_camera_backend_scheme(i), optional[k].scheme);
+		if (!built)
+			printf("  %-10s not built (needs %s)\n", optional[k].scheme, optional[k].needs);
+	}
+	list_cameras();
 
 	printf("\nspectrometer backends:\n");
 	int n = kg_spectro_backend_count();

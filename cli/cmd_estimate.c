@@ -227,7 +227,7 @@ int kg_cmd_estimate(int argc, char **argv)
 		return kg_cli_usage_error(usage_estimate, "--method: %s, or lut", err.msg);
 
 	const char *image = argv[optind];
-	kg_camera *cam = NULL;
+	kg_camera_calib *cam = NULL;
 	kg_image *img = NULL;
 	kg_est_kernel *k = NULL;
 	double pre[9];
@@ -270,7 +270,7 @@ int kg_cmd_estimate(int argc, char **argv)
 	}
 	kg_est_kernel_free(&k);
 	kg_image_free(&img);
-	kg_camera_free(&cam);
+	kg_camera_calib_free(&cam);
 	return rc ? kg_cli_error(&err, rc) : KG_EXIT_OK;
 }
 
@@ -374,7 +374,7 @@ int kg_cmd_classify(int argc, char **argv)
 	}
 
 	const char *image = argv[optind];
-	kg_camera *cam = NULL;
+	kg_camera_calib *cam = NULL;
 	kg_material_library *lib = NULL;
 	kg_est_material_set *set = NULL;
 	kg_image *img = NULL;
@@ -427,7 +427,7 @@ int kg_cmd_classify(int argc, char **argv)
 	kg_image_free(&img);
 	kg_est_material_set_free(&set);
 	kg_material_library_free(&lib);
-	kg_camera_free(&cam);
+	kg_camera_calib_free(&cam);
 	free(only_copy);
 	return rc ? kg_cli_error(&err, rc) : KG_EXIT_OK;
 }

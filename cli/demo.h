@@ -21,13 +21,9 @@
 /* The chart: the 15 samples in a printed AprilTag frame (fixtures/demo/README.md),
  * photographed, found by its tags and sampled (kg_chart_detect). */
 #define DEMO_CHART_LAYOUT "demo/cie-tcs-frame.json"
-#define DEMO_CHART_WIDTH 1600  /* px, both chart photographs */
-#define DEMO_CHART_HEIGHT 1200
-#define DEMO_CHART_FOV 40.0    /* horizontal field of view, degrees */
-#define DEMO_CHART_FILL 0.85   /* of the image the card fills (tighter side) */
-#define DEMO_CHART_PAPER 0.85  /* flat reflectances: frame paper, tag black, table */
-#define DEMO_CHART_INK 0.03
-#define DEMO_CHART_BACKGROUND 0.2
+/* The photographs themselves (sizes, field of view, pose, blur, vignetting, paper
+ * and ink) are fixed when the session is recorded: fixtures/demo/make_session.sh;
+ * the poses below are the ones it uses, for the report. */
 #define DEMO_REFERENCE_TILT 20.0     /* deg; the lab: a modest tilt, a sharp lens */
 #define DEMO_REFERENCE_TILT_AXIS 30.0
 #define DEMO_REFERENCE_ROTATE 0.0
@@ -49,6 +45,20 @@
 #define DEMO_SEED_REFERENCE 1
 #define DEMO_SEED_SITE 2
 #define DEMO_SEED_OBJECT 3
+
+/* The demo's photographs as a recorded session (fixtures/demo/session, recorded by
+ * fixtures/demo/make_session.sh): replayed through the replay: camera with acquire/
+ * into DIR/session (cli/demo_session.c), one capture each. The charts come back as the
+ * demosaiced RGB mean, or without OpenCV as the raw Bayer mean with its CFA attached
+ * (kg_chart_detect demosaics it); the object as its RGB mean, 0 (not NaN) off the
+ * samples. */
+#define DEMO_SESSION "demo/session"
+#define DEMO_CAPTURE_REFERENCE "reference-chart"
+#define DEMO_CAPTURE_SITE "site-chart"
+#define DEMO_CAPTURE_OBJECT "object"
+typedef struct demo_photos {
+	kg_image *reference_chart, *site_chart, *object;
+} demo_photos;
 
 /* One photograph of the chart: how it was taken and what detection found. */
 typedef struct demo_chart_shot {
@@ -106,15 +116,21 @@ typedef struct demo_ctx {
 	demo_chart_shot shots[2]; /* reference, site */
 
 	kg_reference *ref;      /* as fitted and saved */
-	kg_camera *cam;         /* as read back from camera.json */
+	kg_camera_calib *cam;   /* as read back from camera.json */
 	double cond_m2;         /* of the 3 x 3 M2 */
 	kg_sim_scene *scene;    /* the object, with its ground truth */
 	kg_est_stats est_stats; /* of the cube */
 	kg_classify_result classes;
+	demo_photos photos;     /* the session's captures, replayed */
 } demo_ctx;
 
 /* DIR/name (caller frees). */
 char *demo_path(demo_ctx *d, const char *name);
+
+/* Replay the bundled session into DIR/session (see demo_photos above). */
+int demo_session_replay(demo_ctx *d, demo_photos *out);
+void demo_photos_free(demo_photos *p);
+
 /* A progress line for a file just written. */
 void demo_wrote(demo_ctx *d, const char *path, const char *what);
 

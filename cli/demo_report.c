@@ -390,7 +390,7 @@ static int plot_object(demo_ctx *d, const report *r)
 static void write_summary(demo_ctx *d, const report *r, FILE *fp)
 {
 	const kg_reference *ref = d->ref;
-	const kg_camera *cam = d->cam;
+	const kg_camera_calib *cam = d->cam;
 	const kg_spectral_map *map = &ref->maps[cam->method];
 	fprintf(fp, "# kogei demo: a simulated session\n\n");
 	fprintf(fp, "Written by `kogei demo` (kogei %s). Everything below was simulated with "
@@ -405,25 +405,32 @@ static void write_summary(demo_ctx *d, const report *r, FILE *fp)
 	            "(S - D) / (W - D) x 0.99 resampled to 400-700 nm every 5 nm.\n",
 	        DEMO_CHART_SPECTRA, sr->npatches, DEMO_SPECTRO, sr->model, sr->serial,
 	        sr->integration_us / 1e3, sr->scans);
+	fprintf(fp, "0. **The session** (`session/`): the bundled recording "
+	            "`fixtures/%s` (raw frames from the simulated sensor, recorded by "
+	            "`fixtures/demo/make_session.sh` with `kogei acquire`) replayed through the "
+	            "`replay:` camera and averaged again by acquire/; each capture's mean is "
+	            "checked against the sha256 the recording's manifest holds.\n",
+	        DEMO_SESSION);
 	fprintf(fp, "2. **Reference calibration** (calib reference -> `reference.json`): the %d "
 	            "CIE 13.3 test colour samples of `%s` (colord-data), mounted in the AprilTag "
 	            "frame `%s` (`fixtures/%s`), photographed by the model camera `%s` under %s "
-	            "(`reference_chart.tif`, %dx%d, tilt %g deg, blur %g px, vignetting %g, noise "
+	            "(the session's capture `%s`: tilt %g deg, blur %g px, vignetting %g, noise "
 	            "%s (full well:read noise:bits), seed %llu); the chart found by its tags and "
 	            "sampled (`reference_chart_overlay.png`, `reference_chart.cgats`); S: the "
 	            "measured spectra of `%s`.\n",
 	        d->npatches, DEMO_CHART, d->layout_name, DEMO_CHART_LAYOUT,
-	        DEMO_REFERENCE_CAMERA, DEMO_REFERENCE_ILLUMINANT, DEMO_CHART_WIDTH,
-	        DEMO_CHART_HEIGHT, rs->tilt_deg, rs->blur_px, rs->vignetting, rs->noise,
+	        DEMO_REFERENCE_CAMERA, DEMO_REFERENCE_ILLUMINANT, DEMO_CAPTURE_REFERENCE,
+	        rs->tilt_deg, rs->blur_px, rs->vignetting, rs->noise,
 	        (unsigned long long)rs->seed, DEMO_CHART_SPECTRA);
 	fprintf(fp, "3. **Site calibration** (calib camera -> `camera.json`): the same chart "
 	            "photographed by another model camera, `%s`, under CIE %s "
-	            "(`site_chart.tif`, tilt %g deg, rotated %g deg, blur %g px, vignetting %g, "
+	            "(the session's capture `" DEMO_CAPTURE_SITE "`: tilt %g deg, rotated %g deg, blur %g px, vignetting %g, "
 	            "noise %s, seed %llu), found and sampled the same way "
 	            "(`site_chart_overlay.png`, `site_chart.cgats`).\n",
 	        DEMO_SITE_CAMERA, DEMO_SITE_ILLUMINANT, ss->tilt_deg, ss->rotate_deg, ss->blur_px,
 	        ss->vignetting, ss->noise, (unsigned long long)ss->seed);
-	fprintf(fp, "4. **Object** (`object.tif`, truth in `object_truth.hdr` and "
+	fprintf(fp, "4. **Object** (the session's capture `" DEMO_CAPTURE_OBJECT "`, as "
+	            "`object.tif`; truth in `object_truth.hdr` and "
 	            "`object_truth_labels.hdr`): one %dx%d px sample of each of the %d materials "
 	            "of the default library, seen in the specular direction at %g deg incidence "
 	            "by the site camera under CIE %s, noise %s, seed %d. Pixels between the "
@@ -455,16 +462,17 @@ static void write_summary(demo_ctx *d, const report *r, FILE *fp)
 	fprintf(fp, "`kg_chart_detect` with its defaults on each photograph as written: AprilTag "
 	            "%s frame, homography from every tag corner found, each patch's median over "
 	            "its centred %g x %g. Spread: 1.4826 x MAD of a patch's pixels, the largest "
-	            "of any patch and channel. Error: the largest |detected - rendered truth| of "
-	            "any patch and channel, %% of full scale (the truth includes the vignetting "
-	            "at the patch).\n\n",
+	            "of any patch and channel. Error: the largest |detected - noise-free truth| "
+	            "of any patch and channel, %% of full scale (the truth, "
+	            "`fixtures/demo/<role>_chart_truth.cgats`, is what the session was rendered "
+	            "from and includes the vignetting at the patch).\n\n",
 	        d->layout_family, d->sample_fraction, d->sample_fraction);
 	fprintf(fp, "| image | tags used | homography RMS (px) | patches | worst patch spread "
 	            "| error vs truth | time |\n");
 	fprintf(fp, "|---|---|---:|---:|---|---:|---:|\n");
 	for (int k = 0; k < 2; k++) {
 		const demo_chart_shot *sh = &d->shots[k];
-		fprintf(fp, "| `%s_chart.tif` | %d (%s) | %.3f | %d of %d%s | %.4f (%s %c) | %.3f %% "
+		fprintf(fp, "| %s chart | %d (%s) | %.3f | %d of %d%s | %.4f (%s %c) | %.3f %% "
 		            "| %.0f ms (decimate %d) |\n",
 		        sh->role, sh->ntags_used, sh->tags_used, sh->rms_px, sh->nsampled,
 		        sh->npatches, sh->nflagged ? " (some flagged)" : "", sh->worst_sd,
@@ -523,8 +531,8 @@ static void write_summary(demo_ctx *d, const report *r, FILE *fp)
 	            "`spectra_by_material.png` (estimated against true spectra), `confusion.png`, "
 	            "`object_d65.png` (camera image, true and estimated colour), `cube.hdr`, "
 	            "`labels.hdr`/`.json`/`.png`, `reference.json`, `camera.json`, the chart's "
-	            "measured spectra `chart_spectra.cgats`, the chart "
-	            "photographs `reference_chart.tif` and `site_chart.tif`, what detection found "
+	            "measured spectra `chart_spectra.cgats`, the session replayed (`session/`, "
+	            "with the averaged chart photographs in `session/captures/`), what detection found "
 	            "in them (`reference_chart_overlay.png`, `site_chart_overlay.png`) and the "
 	            "chart readings `reference_chart.cgats` and `site_chart.cgats`, and the library's "
 	            "`fig7_shibuichi-nami.csv`/`.png` and `materials_d65.png`. See docs/demo.md.\n");

@@ -217,7 +217,7 @@ int kg_camera_open(const char *uri, kg_camera **out, kg_err *err)
 	c->exposure_us = c->gain = NAN;
 	int ret = drv->open(colon + 1, &c->state, &c->info, err);
 	if (ret) {
-		kg_err_prefix(err, "camera '%s': ", uri);
+		kg_err_prefix(err, "camera '%s'", uri);
 		free(c);
 		return ret;
 	}
@@ -248,7 +248,7 @@ const kg_camera_info *kg_camera_get_info(const kg_camera *c) { return &c->info; 
 static int prefixed(kg_camera *c, kg_err *err, int ret)
 {
 	if (ret && err && strncmp(err->msg, "camera '", 8))
-		kg_err_prefix(err, "camera '%s': ", c->info.uri);
+		kg_err_prefix(err, "camera '%s'", c->info.uri);
 	return ret;
 }
 
@@ -295,9 +295,10 @@ int kg_camera_set(kg_camera *c, kg_feature f, double value, double *got, kg_err 
 		return prefixed(c, err, ret);
 	if (got)
 		*got = back;
-	/* Within one step (or 0.5 % for continuous controls, cameras round to line times
-	 * and register units). */
-	double tol = fi.step > 0 ? fi.step : 0.005 * fabs(value) + 1e-9;
+	/* On/off features exactly; others within one step (or 0.5 % for continuous
+	 * controls: cameras round to line times and register units). */
+	int onoff = f == KG_FEAT_AUTO_EXPOSURE || f == KG_FEAT_AUTO_WHITE_BALANCE;
+	double tol = onoff ? 0 : fi.step > 0 ? fi.step : 0.005 * fabs(value) + 1e-9;
 	if (!(fabs(back - value) <= tol))
 		return kg_fail(err, KG_ERANGE,
 		               "camera '%s': %s set to %g %s but reads back %g (%s)", c->info.uri,
@@ -403,8 +404,20 @@ int kg_camera_pop(kg_camera *c, int timeout_ms, kg_frame *frame, kg_err *err)
 	frame->exposure_us = NAN;
 	frame->gain = NAN;
 	int ret = c->drv->pop(c->state, timeout_ms, frame, err);
-	if (ret == KG_ETIMEDOUT)
+	if (ret == KG_ETIMEDOUT) {
 		c->counts.timeouts++;
+		if (err) { /* the counts say whether the camera stopped or never started */
+			kg_stream_stats st;
+			kg_camera_stats(c, &st);
+			size_t n = strlen(err->msg);
+			snprintf(err->msg + n, sizeof(err->msg) - n,
+			         " (since start: %llu complete, %llu dropped, %llu incomplete, "
+			         "%llu failed, %llu timeouts)",
+			         (unsigned long long)st.completed, (unsigned long long)st.dropped,
+			         (unsigned long long)st.incomplete, (unsigned long long)st.failed,
+			         (unsigned long long)st.timeouts);
+		}
+	}
 	if (ret)
 		return prefixed(c, err, ret);
 	if (isnan(frame->exposure_us))
@@ -444,7 +457,10 @@ void kg_camera_stats(kg_camera *c, kg_stream_stats *out)
 
 int kg_camera_record_start(kg_camera *c, const char *session_dir, kg_err *err)
 {
-	kg_check_arg(c && session_dir && !c->rec, err);
+	kg_check_arg(c && session_dir, err);
+	if (c->rec)
+		return kg_fail(err, KG_EINVAL, "camera '%s': already recording (record_stop first)",
+		               c->info.uri);
 	kg_frame_format fmt;
 	int ret = kg_camera_get_format(c, &fmt, err);
 	if (!ret)
@@ -468,6 +484,12 @@ int kg_camera_record_last(kg_camera *c, char *file, size_t file_len, char sha256
 	return 0;
 }
 
+int kg_camera_record_sync(kg_camera *c, kg_err *err)
+{
+	kg_check_arg(c, err);
+	return c->rec ? kg_frame_recorder_sync(c->rec, err) : 0;
+}
+
 int kg_camera_record_stop(kg_camera *c, kg_err *err)
 {
 	kg_check_arg(c, err);
@@ -476,11 +498,25 @@ int kg_camera_record_stop(kg_camera *c, kg_err *err)
 
 /* ---- enumeration -------------------------------------------------------------- */
 
+/* Backends whose enumeration broadcasts on the network (GigE Vision discovery). */
+static int discovers_over_network(const kg_camera_driver *d)
+{
+	return !strcmp(d->scheme, "aravis");
+}
+
 void kg_camera_enumerate(kg_camera_found_fn found, kg_camera_note_fn note, void *user)
 {
+	const char *disc = getenv("KOGEI_CAMERA_DISCOVERY");
+	int no_network = disc && !strcmp(disc, "none");
 	for (int i = 0; i < NDRIVERS; i++) {
 		if (!drivers[i]->enumerate)
 			continue;
+		if (no_network && discovers_over_network(drivers[i])) {
+			if (note)
+				note(user, drivers[i]->scheme,
+				     "not scanned: network discovery is off (KOGEI_CAMERA_DISCOVERY=none)");
+			continue;
+		}
 		kg_err e = {{0}};
 		if (drivers[i]->enumerate(found, user, &e) && note)
 			note(user, drivers[i]->scheme, e.msg);
@@ -514,6 +550,11 @@ int kg_frame_to_image(const kg_frame *f, int allow_nonlinear, kg_image **out, kg
 		               "frame %llu: %zu bytes do not hold %dx%d %s (stride %zu)",
 		               (unsigned long long)f->sequence, f->size, fmt->width, fmt->height,
 		               kg_pixfmt_name(fmt->pixfmt), fmt->stride);
+	if (fmt->pixfmt == KG_PIX_YUYV && (fmt->width & 1))
+		return kg_fail(err, KG_EINVAL,
+		               "frame %llu: YUYV width %d: expected an even width (pixels come in "
+		               "pairs sharing Cb and Cr)",
+		               (unsigned long long)f->sequence, fmt->width);
 	int ch = kg_pixfmt_channels(fmt->pixfmt);
 	kg_image *img;
 	int ret = kg_image_new(fmt->width, fmt->height, ch, &img, err);

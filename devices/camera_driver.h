@@ -55,8 +55,16 @@ int kg_frame_recorder_open(const char *session_dir, const kg_camera_info *info,
                            const kg_frame_format *fmt, kg_frame_recorder **out, kg_err *err);
 int kg_frame_recorder_capture(kg_frame_recorder *r, const char *capture, kg_err *err);
 int kg_frame_recorder_write(kg_frame_recorder *r, const kg_frame *f, kg_err *err);
+int kg_frame_recorder_sync(kg_frame_recorder *r, kg_err *err);
 void kg_frame_recorder_last(const kg_frame_recorder *r, char *file, size_t len,
                             char sha256[65]);
 int kg_frame_recorder_close(kg_frame_recorder **r, kg_err *err);
+/* Shared by the recorder and replay (camera_record.c): the sha256 of a frame's bytes
+ * as 64 lower-case hex digits, and a frame format as the JSON object of the index
+ * ({"pixfmt","bits","cfa","width","height","offset_x","offset_y","stride","size"}). */
+int kg_frame_sha256(const void *data, size_t size, char hex[65]);
+json_t *kg_frame_format_json(const kg_frame_format *f);
+int kg_frame_format_from_json(const char *file, const json_t *o, kg_frame_format *f,
+                              kg_err *err);
 
 #endif

@@ -173,16 +173,23 @@ int kg_camera_record_start(kg_camera *c, const char *session_dir, kg_err *err);
 int kg_camera_record_capture(kg_camera *c, const char *capture, kg_err *err);
 /* The file and sha256 (hex) of the last frame recorded, for a session manifest. */
 int kg_camera_record_last(kg_camera *c, char *file, size_t file_len, char sha256[65]);
+/* Make every frame recorded so far durable against power loss (one syncfs); call it
+ * before a manifest names the frames. Frames are not fsynced one by one: a process
+ * killed mid-recording loses nothing already written, and capture boundaries and
+ * kg_camera_record_stop sync too. */
+int kg_camera_record_sync(kg_camera *c, kg_err *err);
 int kg_camera_record_stop(kg_camera *c, kg_err *err);
 
 /* The recording (devices/camera_record.c owns it):
  *   frames/camera.json            identity (kg_camera_info) and the format at start;
  *                                 written to a temporary name and renamed
  *   frames/<capture>/<n>.raw      frame bytes exactly as the driver delivered them;
- *                                 written to a temporary name, fsynced, renamed
- *   frames/index.jsonl            one JSON object per line, appended and fsynced after
- *                                 the frame file is in place: capture, file, sha256,
- *                                 format, sequence, timestamp, status, exposure_us, gain
+ *                                 written to a temporary name and renamed
+ *   frames/index.jsonl            one JSON object per line, appended (one write) after
+ *                                 the frame file is in place: capture, file (relative
+ *                                 to the session), sha256, format, bytes, sequence,
+ *                                 timestamp, status, exposure_us, gain
+ * (details and an example line: docs/cameras.md; the capture is "capture" until named)
  * A line without its newline (a writer killed mid-line) is ignored on read, so a
  * recording interrupted at any point replays every frame that was completed. */
 
@@ -190,7 +197,10 @@ int kg_camera_record_stop(kg_camera *c, kg_err *err);
 typedef void (*kg_camera_found_fn)(void *user, const char *uri, const char *model,
                                    const char *serial, const char *transport);
 /* Enumerate every built-in backend that can enumerate; per-backend failures are
- * reported through note (may be NULL) and do not stop the scan. */
+ * reported through note (may be NULL) and do not stop the scan. With the environment
+ * variable KOGEI_CAMERA_DISCOVERY=none, backends that discover cameras by broadcasting
+ * on the network (aravis: GigE Vision) are not scanned (a note says so); tests set it.
+ * Other values, or none, scan everything. */
 typedef void (*kg_camera_note_fn)(void *user, const char *scheme, const char *message);
 void kg_camera_enumerate(kg_camera_found_fn found, kg_camera_note_fn note, void *user);
 

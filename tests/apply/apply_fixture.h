@@ -197,14 +197,14 @@ static inline kg_patchset *fx_chart(int m, const kg_spectrum sens[3], uint64_t s
 
 /* Fit the synthetic reference and site camera and save the camera to CAM.json in
  * the test directory. Returns the camera (caller frees) or NULL. */
-static inline kg_camera *fx_make_camera(const char *cam_path)
+static inline kg_camera_calib *fx_make_camera(const char *cam_path)
 {
 	kg_spectrum ref_sens[3], site_sens[3];
 	fx_sensitivities(ref_sens, fx_identity);
 	fx_sensitivities(site_sens, fx_site_mix);
 	kg_patchset *chart = fx_chart(40, ref_sens, 7), *site = NULL;
 	kg_reference *ref = NULL;
-	kg_camera *cam = NULL;
+	kg_camera_calib *cam = NULL;
 	kg_err err = {{0}};
 	kg_reference_options ro;
 	kg_reference_options_default(&ro);
@@ -226,7 +226,7 @@ static inline kg_camera *fx_make_camera(const char *cam_path)
 		rc = kg_camera_save(cam, cam_path, &err);
 	if (rc) {
 		fprintf(stderr, "synthetic calibration: %s\n", err.msg);
-		kg_camera_free(&cam);
+		kg_camera_calib_free(&cam);
 	}
 	kg_reference_free(&ref);
 	kg_patchset_free(&chart);

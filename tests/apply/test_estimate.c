@@ -21,7 +21,7 @@
 
 static int kind[W * H];
 static kg_image *img;
-static kg_camera *cam;
+static kg_camera_calib *cam;
 
 /* The direct evaluation of a method at pixel i; returns its minimum before clamping.
  * scale[l] receives |offset_l| + sum_j |A_lj x_j|, the size of the terms the float
@@ -296,7 +296,7 @@ int main(int argc, char **argv)
 	check_cube("lut", KG_METHOD_PCA, 1e-5);
 
 	kg_image_free(&img);
-	kg_camera_free(&cam);
+	kg_camera_calib_free(&cam);
 	int rc = kg_test_done("apply-estimate");
 	if (rc == 0)
 		fx_cleanup();

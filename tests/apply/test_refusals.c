@@ -21,7 +21,7 @@ int main(int argc, char **argv)
 {
 	fx_setup(argc, argv);
 	const char *cam_path = fx_path("cam.json");
-	kg_camera *cam = fx_make_camera(cam_path);
+	kg_camera_calib *cam = fx_make_camera(cam_path);
 	kg_image *img = fx_image(16, 9, NULL), *grey = NULL;
 	kg_err err = {{0}};
 	CHECK(cam && img, "fixture");
@@ -88,7 +88,7 @@ int main(int argc, char **argv)
 
 	kg_image_free(&img);
 	kg_image_free(&grey);
-	kg_camera_free(&cam);
+	kg_camera_calib_free(&cam);
 	int rc = kg_test_done("apply-refusals");
 	fx_cleanup();
 	return rc;

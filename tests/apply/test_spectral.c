@@ -38,7 +38,7 @@ int main(int argc, char **argv)
 	}
 	fx_setup(argc, argv);
 	const char *cam_path = fx_path("cam.json");
-	kg_camera *cam = fx_make_camera(cam_path);
+	kg_camera_calib *cam = fx_make_camera(cam_path);
 	kg_image *img = fx_image(W, H, NULL);
 	kg_err err = {{0}};
 	CHECK(cam && img, "fixture");
@@ -64,7 +64,7 @@ int main(int argc, char **argv)
 	int st = system(cmd);
 	CHECK(st == 0, "Spectral Python check failed (status %d)", st);
 	kg_image_free(&img);
-	kg_camera_free(&cam);
+	kg_camera_calib_free(&cam);
 	int rc = kg_test_done("apply-spectral");
 	if (rc == 0)
 		fx_cleanup();

@@ -162,7 +162,7 @@ int main(int argc, char **argv)
 	printf("%s", out);
 	CHECK(rc == 0, "calib camera: exit %d: %s", rc, errs);
 	CHECK(strstr(out, "condition number") && strstr(out, "residual"), "report: %s", out);
-	kg_camera *c = NULL;
+	kg_camera_calib *c = NULL;
 	CHECK(kg_camera_load(cam, &c, &err) == 0, "load: %s", err.msg);
 	if (c) {
 		/* rho_site = T rho: M2 = T^-1, i.e. M2 T = I. */
@@ -174,7 +174,7 @@ int main(int argc, char **argv)
 				CHECK_NEAR(v, a == b, 1e-9, "M2 T = I");
 			}
 	}
-	kg_camera_free(&c);
+	kg_camera_calib_free(&c);
 
 	/* JSON to standard output, report to standard error. */
 	rc = RUN("calib", "camera", "--reference", ref, "--rgb", site, "--method", "linear", "-o",

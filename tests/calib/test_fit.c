@@ -288,7 +288,7 @@ static void test_round_trip(const kg_patchset *chart, const char *dir)
 	}
 	free(text);
 
-	kg_camera *cam = NULL, *cback = NULL;
+	kg_camera_calib *cam = NULL, *cback = NULL;
 	ret = kg_camera_fit_files(r1, site, NULL, &cam, &err);
 	CHECK(ret == 0, "camera from files: %s", err.msg);
 	if (cam) {
@@ -323,8 +323,8 @@ static void test_round_trip(const kg_patchset *chart, const char *dir)
 	kg_reference_free(&back);
 	ret = kg_reference_load(c1, &back, &err);
 	CHECK(ret == KG_EINVAL && strstr(err.msg, "expected \"kogei-reference/1\""), "%s", err.msg);
-	kg_camera_free(&cam);
-	kg_camera_free(&cback);
+	kg_camera_calib_free(&cam);
+	kg_camera_calib_free(&cback);
 	kg_reference_free(&ref);
 	kg_reference_free(&back);
 	const char *files[] = {spectra, rgb, site, r1, r2, c1, c2};

@@ -125,7 +125,7 @@ static void check_reference(const kg_patchset *chart, int centred)
 
 	/* Site camera: responses T rho. */
 	kg_patchset *site = fx_site(chart);
-	kg_camera *cam = NULL;
+	kg_camera_calib *cam = NULL;
 	ret = kg_camera_fit(ref, site, NULL, &cam, &err);
 	CHECK(ret == 0, "camera fit: %s", err.msg);
 	if (ret == 0) {
@@ -188,7 +188,7 @@ static void check_reference(const kg_patchset *chart, int centred)
 		}
 		CHECK(worst < 1e-9, "weights: recovery error %.3g", worst);
 	}
-	kg_camera_free(&cam);
+	kg_camera_calib_free(&cam);
 	kg_patchset_free(&site);
 	kg_reference_free(&ref);
 }

@@ -142,7 +142,7 @@ int main(void)
 	}
 
 	/* Collinearity on a real chart: all 24 patches against the six neutrals (19-24). */
-	kg_camera *camfit = NULL;
+	kg_camera_calib *camfit = NULL;
 	ret = kg_camera_fit(ref, cc, NULL, &camfit, &err);
 	CHECK(ret == 0, "site fit with all 24 patches refused: %s", err.msg);
 	if (camfit) {
@@ -153,7 +153,7 @@ int main(void)
 		for (int i = 0; i < 9; i++)
 			CHECK_NEAR(camfit->M2[i], i % 4 == 0, 1e-9, "M2 of the reference camera itself");
 	}
-	kg_camera_free(&camfit);
+	kg_camera_calib_free(&camfit);
 	kg_patchset *neutral = NULL;
 	if (kg_patchset_new(6, KG_PATCH_RGB, &neutral, &err) == 0) {
 		for (int i = 0; i < 6; i++) {
@@ -166,7 +166,7 @@ int main(void)
 		CHECK(strstr(err.msg, "collinear") && strstr(err.msg, "neutral"), "message: %s",
 		      err.msg);
 	}
-	kg_camera_free(&camfit);
+	kg_camera_calib_free(&camfit);
 	kg_patchset_free(&neutral);
 	kg_reference_free(&ref);
 

@@ -44,7 +44,7 @@ static kg_patchset *site_set(int n, const char *const *ids, const double (*rgb)[
 static void expect_refusal(const char *what, const kg_reference *ref, const kg_patchset *site,
                            const kg_camera_options *opt, const char *const *fragments)
 {
-	kg_camera *cam = NULL;
+	kg_camera_calib *cam = NULL;
 	kg_err err = {{0}};
 	int ret = kg_camera_fit(ref, site, opt, &cam, &err);
 	printf("%s: %s\n", what, ret ? err.msg : "(accepted)");
@@ -53,19 +53,19 @@ static void expect_refusal(const char *what, const kg_reference *ref, const kg_p
 	for (int i = 0; fragments[i]; i++)
 		CHECK(strstr(err.msg, fragments[i]) != NULL, "%s: message lacks \"%s\": %s", what,
 		      fragments[i], err.msg);
-	kg_camera_free(&cam);
+	kg_camera_calib_free(&cam);
 }
 
 static void expect_accepted(const char *what, const kg_reference *ref, const kg_patchset *site,
                             const kg_camera_options *opt, int k)
 {
-	kg_camera *cam = NULL;
+	kg_camera_calib *cam = NULL;
 	kg_err err = {{0}};
 	int ret = kg_camera_fit(ref, site, opt, &cam, &err);
 	CHECK(ret == 0, "%s: refused: %s", what, err.msg);
 	if (cam)
 		CHECK(cam->k == k, "%s: %d patches used, expected %d", what, cam->k, k);
-	kg_camera_free(&cam);
+	kg_camera_calib_free(&cam);
 }
 
 int main(void)
@@ -126,7 +126,7 @@ int main(void)
 	for (int i = 0; i < 3; i++)
 		memcpy(three_rgb[i], rgb[best[i]], sizeof(three_rgb[i]));
 	kg_patchset *three = site_set(3, three_ids, (const double (*)[3])three_rgb);
-	kg_camera *cam3 = NULL;
+	kg_camera_calib *cam3 = NULL;
 	kg_err err3 = {{0}};
 	int ret3 = kg_camera_fit(ref, three, &opt, &cam3, &err3);
 	CHECK(ret3 == 0, "three patches %s %s %s: %s", three_ids[0], three_ids[1], three_ids[2],
@@ -145,7 +145,7 @@ int main(void)
 				CHECK_NEAR(check[r], chart->rgb[best[i]][r], 1e-12, "M2 rho_r = rho0");
 		}
 	}
-	kg_camera_free(&cam3);
+	kg_camera_calib_free(&cam3);
 	kg_patchset_free(&three);
 
 	/* Only neutral patches: all proportional to one grey, with a tiny tint. */

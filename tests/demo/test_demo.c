@@ -44,8 +44,8 @@
 
 static const char *const files[] = {
 	"chart_spectra.cgats",
-	"reference_chart.tif", "reference_chart_overlay.png", "reference_chart.cgats",
-	"site_chart.tif", "site_chart_overlay.png", "site_chart.cgats",
+	"session/captures/reference-chart/mean.tif", "reference_chart_overlay.png", "reference_chart.cgats",
+	"session/captures/site-chart/mean.tif", "site_chart_overlay.png", "site_chart.cgats",
 	"reference.json", "camera.json",
 	"object.tif", "object_truth.hdr", "object_truth.img", "object_truth_labels.hdr",
 	"object_truth_labels.img", "cube.hdr", "cube.img", "cube_mask.hdr", "labels.hdr",
@@ -55,7 +55,7 @@ static const char *const files[] = {
 };
 
 static const char *const pngs[] = {
-	"reference_chart.tif", "reference_chart_overlay.png", "site_chart.tif",
+	"session/captures/reference-chart/mean.tif", "reference_chart_overlay.png", "session/captures/site-chart/mean.tif",
 	"site_chart_overlay.png", "labels.png", "spectra_by_material.png", "confusion.png", "object_d65.png",
 	"fig7_shibuichi-nami.png", "materials_d65.png",
 };
@@ -250,8 +250,8 @@ static void check_summary(const char *dir, const kg_material_library *lib)
 		CHECK(strstr(text, "## Chart spectra (spectrophotometer)") &&
 		          strstr(text, "Measured vs file: RMSE **"),
 		      "%s: no chart spectra section with the measured-vs-file RMSE", path);
-		CHECK(strstr(text, "## Chart detection") && strstr(text, "| `reference_chart.tif` | 4 (") &&
-		          strstr(text, "| `site_chart.tif` | 4 ("),
+		CHECK(strstr(text, "## Chart detection") && strstr(text, "| reference chart | 4 (") &&
+		          strstr(text, "| site chart | 4 ("),
 		      "%s: no chart detection table with four tags per photograph", path);
 		const char *key = "Classification accuracy: **";
 		const char *at = strstr(text, key);
@@ -327,7 +327,8 @@ int main(int argc, char **argv)
 
 	/* Nothing half-written: no temporary files left beside the outputs. */
 	char cmd[256];
-	snprintf(cmd, sizeof(cmd), "ls -A %s | grep -v -E '\\.(cgats|json|tif|hdr|img|png|md|csv)$'",
+	snprintf(cmd, sizeof(cmd),
+	         "find %s -type f | grep -v -E '\\.(cgats|json|jsonl|tif|hdr|img|png|md|csv|raw)$|/session/\\.lock$'",
 	         dir);
 	CHECK(system(cmd) != 0, "unexpected files in %s (listed above)", dir);
 	if (!kg_test_failures) {

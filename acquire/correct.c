@@ -1,0 +1,305 @@
+/* Dark subtraction, flat-field correction, image statistics and the robust bright
+ * level the exposure helper uses without a chart. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "kg_acquire.h"
+
+/* A flat sample below this fraction of its colour's mean is not usable (dust, a dead
+ * pixel, the edge of the illumination). */
+#define FLAT_VALID_FRACTION 0.05
+
+static int same_size(const kg_image *a, const kg_image *b, const char *what, kg_err *err)
+{
+	if (a->width != b->width || a->height != b->height || a->channels != b->channels)
+		return kg_fail(err, KG_EINVAL,
+		               "%s is %dx%d with %d channel(s); the image is %dx%d with %d: expected "
+		               "the same size",
+		               what, b->width, b->height, b->channels, a->width, a->height,
+		               a->channels);
+	if (a->cfa && b->cfa && strcmp(a->cfa, b->cfa))
+		return kg_fail(err, KG_EINVAL, "%s has the CFA pattern %s; the image has %s", what,
+		               b->cfa, a->cfa);
+	return 0;
+}
+
+int kg_correct_dark(kg_image *mean, const kg_image *dark, kg_err *err)
+{
+	kg_check_arg(mean && dark, err);
+	int ret = same_size(mean, dark, "the dark", err);
+	if (ret)
+		return ret;
+	size_t n = (size_t)mean->width * (size_t)mean->height * (size_t)mean->channels;
+	for (size_t i = 0; i < n; i++)
+		mean->data[i] -= dark->data[i];
+	return 0;
+}
+
+/* The colour class of sample i: its channel for RGB, its CFA letter for a mosaic
+ * (R 0, G 1, B 2, others 3), 0 for mono. */
+static int colour_class(const kg_image *img, size_t i)
+{
+	if (img->channels > 1)
+		return (int)(i % (size_t)img->channels);
+	if (!img->cfa)
+		return 0;
+	size_t x = i % (size_t)img->width, y = i / (size_t)img->width;
+	char l = img->cfa[(y % (size_t)img->cfa_rows) * (size_t)img->cfa_cols +
+	                  x % (size_t)img->cfa_cols];
+	return l == 'R' ? 0 : l == 'G' ? 1 : l == 'B' ? 2 : 3;
+}
+
+int kg_correct_flat(kg_image *mean, kg_image *variance, const kg_image *flat, long *invalid,
+                    kg_err *err)
+{
+	kg_check_arg(mean && flat, err);
+	int ret = same_size(mean, flat, "the flat", err);
+	if (!ret && variance)
+		ret = same_size(mean, variance, "the variance", err);
+	if (ret)
+		return ret;
+	size_t n = (size_t)mean->width * (size_t)mean->height * (size_t)mean->channels;
+	double sum[4] = {0}, cut[4];
+	long count[4] = {0};
+	/* The colour means over positive samples, then again over the valid ones. */
+	for (size_t i = 0; i < n; i++) {
+		float v = flat->data[i];
+		if (isfinite(v) && v > 0) {
+			int c = colour_class(flat, i);
+			sum[c] += v;
+			count[c]++;
+		}
+	}
+	for (int c = 0; c < 4; c++) {
+		cut[c] = count[c] ? FLAT_VALID_FRACTION * sum[c] / (double)count[c] : INFINITY;
+		sum[c] = 0;
+		count[c] = 0;
+	}
+	for (size_t i = 0; i < n; i++) {
+		float v = flat->data[i];
+		int c = colour_class(flat, i);
+		if (isfinite(v) && v > cut[c]) {
+			sum[c] += v;
+			count[c]++;
+		}
+	}
+	long bad = 0;
+	for (size_t i = 0; i < n; i++) {
+		float v = flat->data[i];
+		int c = colour_class(flat, i);
+		if (!(isfinite(v) && v > cut[c])) {
+			mean->data[i] = NAN;
+			if (variance)
+				variance->data[i] = NAN;
+			bad++;
+			continue;
+		}
+		double g = v / (sum[c] / (double)count[c]);
+		mean->data[i] = (float)(mean->data[i] / g);
+		if (variance)
+			variance->data[i] = (float)(variance->data[i] / (g * g));
+	}
+	if (invalid)
+		*invalid = bad;
+	return 0;
+}
+
+/* ---- order statistics ------------------------------------------------------------ */
+
+/* Rearrange v so v[k] is the k-th smallest, smaller ones before it, larger after
+ * (Hoare's selection with a median-of-three pivot). */
+static void select_kth(float *v, size_t n, size_t k)
+{
+	size_t lo = 0, hi = n - 1;
+	while (hi > lo) {
+		size_t mid = lo + (hi - lo) / 2;
+		float a = v[lo], b = v[mid], c = v[hi];
+		float pivot = a < b ? (b < c ? b : a < c ? c : a) : (a < c ? a : b < c ? c : b);
+		size_t i = lo, j = hi;
+		while (i <= j) {
+			while (v[i] < pivot)
+				i++;
+			while (v[j] > pivot)
+				j--;
+			if (i <= j) {
+				float t = v[i];
+				v[i] = v[j];
+				v[j] = t;
+				i++;
+				if (j == 0)
+					break;
+				j--;
+			}
+		}
+		if (k <= j)
+			hi = j;
+		else if (k >= i)
+			lo = i;
+		else
+			return;
+	}
+}
+
+/* Percentile p (0..100) of v[0..n-1] with linear interpolation between order
+ * statistics (v is reordered). */
+static double percentile(float *v, size_t n, double p)
+{
+	double pos = p / 100.0 * (double)(n - 1);
+	size_t k = (size_t)floor(pos);
+	if (k >= n - 1) {
+		select_kth(v, n, n - 1);
+		return v[n - 1];
+	}
+	select_kth(v, n, k);
+	float next = v[k + 1];
+	for (size_t i = k + 2; i < n; i++)
+		if (v[i] < next)
+			next = v[i];
+	return v[k] + (pos - (double)k) * ((double)next - v[k]);
+}
+
+int kg_image_stats_compute(const kg_image *img, kg_image_stats *out, kg_err *err)
+{
+	kg_check_arg(img && out, err);
+	memset(out, 0, sizeof(*out));
+	size_t n = (size_t)img->width * (size_t)img->height * (size_t)img->channels;
+	float *v = malloc(n * sizeof(float));
+	if (!v)
+		return kg_fail(err, KG_ENOMEM, "out of memory");
+	size_t m = 0, under = 0;
+	for (size_t i = 0; i < n; i++)
+		if (isfinite(img->data[i])) {
+			v[m++] = img->data[i];
+			under += img->data[i] < KG_UNDEREXPOSED_LEVEL;
+		}
+	out->nonfinite = (long)(n - m);
+	if (!m) {
+		out->min = out->max = out->p01 = out->p50 = out->p99 = out->p999 = NAN;
+		out->underexposed_fraction = NAN;
+		free(v);
+		return 0;
+	}
+	out->underexposed_fraction = (double)under / (double)m;
+	out->min = out->max = v[0];
+	for (size_t i = 1; i < m; i++) {
+		if (v[i] < out->min)
+			out->min = v[i];
+		if (v[i] > out->max)
+			out->max = v[i];
+	}
+	out->p01 = percentile(v, m, 1);
+	out->p50 = percentile(v, m, 50);
+	out->p99 = percentile(v, m, 99);
+	out->p999 = percentile(v, m, 99.9);
+	free(v);
+	return 0;
+}
+
+/* ---- bright level -------------------------------------------------------------- */
+
+/* Box mean of radius r over the finite values of a w x h plane (borders: the samples
+ * that exist), in place. sum and cnt are scratch of w * h, colsum and colcnt of w. */
+static void box_mean(float *p, int w, int h, int r, double *sum, int *cnt, double *colsum,
+                     int *colcnt)
+{
+	for (int y = 0; y < h; y++) { /* horizontal running sums */
+		const float *row = p + (size_t)y * (size_t)w;
+		double s = 0;
+		int c = 0;
+		for (int x = -r; x < w; x++) {
+			int add = x + r, drop = x - r - 1;
+			if (add < w && isfinite(row[add])) {
+				s += row[add];
+				c++;
+			}
+			if (drop >= 0 && isfinite(row[drop])) {
+				s -= row[drop];
+				c--;
+			}
+			if (x >= 0) {
+				sum[(size_t)y * (size_t)w + (size_t)x] = s;
+				cnt[(size_t)y * (size_t)w + (size_t)x] = c;
+			}
+		}
+	}
+	memset(colsum, 0, sizeof(double) * (size_t)w); /* vertical, on the row sums */
+	memset(colcnt, 0, sizeof(int) * (size_t)w);
+	for (int y = -r; y < h; y++) {
+		int add = y + r, drop = y - r - 1;
+		for (int x = 0; x < w; x++) {
+			if (add < h) {
+				colsum[x] += sum[(size_t)add * (size_t)w + (size_t)x];
+				colcnt[x] += cnt[(size_t)add * (size_t)w + (size_t)x];
+			}
+			if (drop >= 0) {
+				colsum[x] -= sum[(size_t)drop * (size_t)w + (size_t)x];
+				colcnt[x] -= cnt[(size_t)drop * (size_t)w + (size_t)x];
+			}
+			if (y >= 0)
+				p[(size_t)y * (size_t)w + (size_t)x] =
+					colcnt[x] ? (float)(colsum[x] / colcnt[x]) : NAN;
+		}
+	}
+}
+
+int kg_bright_level(const kg_image *img, int radius, double percentile_p, double *level,
+                    kg_err *err)
+{
+	kg_check_arg(img && level && radius >= 0 && percentile_p >= 0 && percentile_p <= 100,
+	             err);
+	/* Planes of one colour: each channel; for a mosaic each site of its repeat. */
+	int sy_n = 1, sx_n = 1;
+	if (img->channels == 1 && img->cfa) {
+		sy_n = img->cfa_rows;
+		sx_n = img->cfa_cols;
+	}
+	size_t total = (size_t)img->width * (size_t)img->height * (size_t)img->channels;
+	float *all = malloc(total * sizeof(float));
+	float *plane = malloc(total * sizeof(float));
+	double *sum = malloc(total * sizeof(double));
+	int *cnt = malloc(total * sizeof(int));
+	double *colsum = malloc((size_t)img->width * sizeof(double));
+	int *colcnt = malloc((size_t)img->width * sizeof(int));
+	if (!all || !plane || !sum || !cnt || !colsum || !colcnt) {
+		free(all);
+		free(plane);
+		free(sum);
+		free(cnt);
+		free(colsum);
+		free(colcnt);
+		return kg_fail(err, KG_ENOMEM, "out of memory");
+	}
+	size_t m = 0;
+	for (int c = 0; c < img->channels; c++)
+		for (int sy = 0; sy < sy_n; sy++)
+			for (int sx = 0; sx < sx_n; sx++) {
+				int w = (img->width - sx + sx_n - 1) / sx_n;
+				int h = (img->height - sy + sy_n - 1) / sy_n;
+				if (w <= 0 || h <= 0)
+					continue;
+				for (int y = 0; y < h; y++)
+					for (int x = 0; x < w; x++) {
+						size_t X = (size_t)(sx + x * sx_n), Y = (size_t)(sy + y * sy_n);
+						plane[(size_t)y * (size_t)w + (size_t)x] =
+							img->data[(Y * (size_t)img->width + X) * (size_t)img->channels +
+							          (size_t)c];
+					}
+				box_mean(plane, w, h, radius, sum, cnt, colsum, colcnt);
+				for (size_t i = 0; i < (size_t)w * (size_t)h; i++)
+					if (isfinite(plane[i]))
+						all[m++] = plane[i];
+			}
+	int ret = 0;
+	if (!m)
+		ret = kg_fail(err, KG_EINVAL, "bright level: the image has no finite sample");
+	else
+		*level = percentile(all, m, percentile_p);
+	free(all);
+	free(plane);
+	free(sum);
+	free(cnt);
+	free(colsum);
+	free(colcnt);
+	return ret;
+}

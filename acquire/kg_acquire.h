@@ -1,0 +1,203 @@
+/* acquire/: capture sessions on top of devices/ cameras (docs/acquire.md).
+ *
+ * A session is a directory (DESIGN.md §3):
+ *   session.json              the manifest ("kogei-session/1"): station, devices, and one
+ *                             entry per completed capture (settings read back, times,
+ *                             frames and outputs with their sha256, statistics, the
+ *                             dark/flat and demosaicing used)
+ *   frames/                   raw frames as the camera delivered them (devices/ recorder,
+ *                             kg_camera_record_*), so replay:SESSION serves them again
+ *   captures/<name>/          mean.tif and variance.tif (float32), rgb.tif (float32,
+ *                             demosaiced, Bayer only)
+ * The manifest is rewritten to a temporary name and renamed only after a capture's
+ * outputs are in place, so a session killed at any moment holds every completed capture;
+ * files of an unfinished capture may exist but are not referenced.
+ *
+ * A capture: kg_camera_manual, format/ROI, gain, exposure (a number, or the exposure
+ * helper), N frames averaged in double precision (Welford) with per-pixel variance,
+ * dark subtraction and flat-field correction, clipping and under-exposure statistics,
+ * Bayer demosaicing (OpenCV, when built with it). A frame flagged incomplete or
+ * corrupt, more dropped frames than allowed, or a timeout ends the capture with an
+ * error giving the stream counts; nothing of it enters the manifest. */
+#ifndef KG_ACQUIRE_H
+#define KG_ACQUIRE_H
+
+#include <stdint.h>
+
+#include "kg_camera.h"
+#include "kg_core.h"
+
+#define KG_SESSION_FORMAT "kogei-session/1"
+#define KG_SESSION_MANIFEST "session.json"
+#define KG_CAPTURE_NAME_MAX 64
+
+/* A sample whose mean is below this fraction of full scale counts as under-exposed. */
+#define KG_UNDEREXPOSED_LEVEL 0.02
+
+/* ==== Frame averaging =============================================================== */
+
+/* Accumulates frames of one format: per sample (pixel and channel) the running mean and
+ * sum of squared deviations in double precision (Welford's update), and whether any
+ * frame reached full scale. Integer formats are accumulated as sensor values (DN) and
+ * scaled to 0..1 by 2^bits - 1 at the end; YUYV (only when allow_nonlinear) through
+ * kg_frame_to_image. MJPEG is refused. */
+typedef struct kg_frame_accum kg_frame_accum;
+
+int kg_frame_accum_new(const kg_frame_format *fmt, int allow_nonlinear, kg_frame_accum **out,
+                       kg_err *err);
+/* Add one frame; its format must equal the accumulator's (KG_EINVAL otherwise). */
+int kg_frame_accum_add(kg_frame_accum *a, const kg_frame *f, kg_err *err);
+long kg_frame_accum_count(const kg_frame_accum *a);
+/* Mean and per-sample variance of the frames (unbiased, n - 1; 0 for one frame), both
+ * on the 0..1 scale (variance in its square), as new float images; Bayer formats keep
+ * their CFA pattern attached. Either output may be NULL. */
+int kg_frame_accum_result(const kg_frame_accum *a, kg_image **mean, kg_image **variance,
+                          kg_err *err);
+/* Fraction of samples that reached full scale in at least one frame. */
+double kg_frame_accum_clipped_fraction(const kg_frame_accum *a);
+void kg_frame_accum_free(kg_frame_accum **a);
+
+/* ==== Corrections and statistics ===================================================== */
+
+/* mean -= dark (same size and channels). */
+int kg_correct_dark(kg_image *mean, const kg_image *dark, kg_err *err);
+/* Flat-field: flat is an already dark-subtracted flat capture of the same size. Each
+ * colour (channel for RGB, CFA colour for a Bayer mosaic, the one channel for mono) is
+ * normalised to its mean over the valid flat samples (finite and above 5 % of that
+ * mean), and mean /= normalised flat, variance /= its square (variance may be NULL).
+ * Samples where the flat is not valid become NaN; *invalid (may be NULL) counts them. */
+int kg_correct_flat(kg_image *mean, kg_image *variance, const kg_image *flat, long *invalid,
+                    kg_err *err);
+
+typedef struct kg_image_stats {
+	double min, max;
+	double p01, p50, p99, p999; /* percentiles 1, 50, 99, 99.9 of the finite samples */
+	double underexposed_fraction; /* of samples below KG_UNDEREXPOSED_LEVEL */
+	long nonfinite;               /* NaN or Inf samples (left out of the above) */
+} kg_image_stats;
+
+int kg_image_stats_compute(const kg_image *img, kg_image_stats *out, kg_err *err);
+
+/* The robust bright level of an image (the exposure helper's measure without a chart
+ * detector): each sample is replaced by the mean of the (2 radius + 1)^2 samples of the
+ * same colour around it (same channel; same CFA site for a mosaic), and the given
+ * percentile (0..100) of those is returned. */
+int kg_bright_level(const kg_image *img, int radius, double percentile, double *level,
+                    kg_err *err);
+#define KG_BRIGHT_RADIUS 2
+#define KG_BRIGHT_PERCENTILE 99.5
+
+/* Demosaicing of a float Bayer mosaic (1 channel with a 2x2 CFA) into RGB with OpenCV
+ * (bilinear, cv::demosaicing on a 16-bit copy scaled to the mosaic's range; the step of
+ * that scaling goes to *step). KG_ENOTSUP when kogei was built without OpenCV.
+ * kg_demosaic_algorithm() names the method, or NULL without OpenCV. */
+int kg_demosaic(const kg_image *mosaic, kg_image **rgb, double *step, kg_err *err);
+const char *kg_demosaic_algorithm(void);
+
+/* ==== Sessions ======================================================================= */
+
+typedef struct kg_session kg_session;
+
+/* Open a session directory, creating it (and a new manifest in memory) when absent;
+ * an existing manifest is read and captures are appended. A directory that holds
+ * anything other than a session's files is refused. The session is locked (flock on
+ * DIR/.lock) until kg_session_free: a second writer gets KG_EINVAL naming the lock. */
+int kg_session_open(const char *dir, kg_session **out, kg_err *err);
+void kg_session_free(kg_session **s);
+const char *kg_session_dir(const kg_session *s);
+/* The manifest (borrowed; valid until the next append or free). */
+const json_t *kg_session_manifest(const kg_session *s);
+/* The capture entry named name, or NULL. */
+const json_t *kg_session_find(const kg_session *s, const char *name);
+/* Check every file the manifest references exists and has its recorded sha256.
+ * KG_EIO naming the first file that does not. *nfiles (may be NULL): files checked. */
+int kg_session_verify(const kg_session *s, long *nfiles, kg_err *err);
+
+/* sha256 of a file as 64 lower-case hex digits. */
+int kg_file_sha256(const char *path, char hex[65], kg_err *err);
+
+/* ==== Captures ======================================================================= */
+
+typedef enum kg_capture_kind {
+	KG_CAPTURE_CHART = 0,
+	KG_CAPTURE_OBJECT,
+	KG_CAPTURE_DARK,
+	KG_CAPTURE_FLAT,
+} kg_capture_kind;
+
+/* "chart", "object", "dark", "flat". */
+const char *kg_capture_kind_name(kg_capture_kind k);
+int kg_capture_kind_parse(const char *text, kg_capture_kind *out, kg_err *err);
+
+/* The exposure helper's measure: the level (0..1 of full scale) of the brightest chart
+ * patch in a frame (1 channel, possibly a mosaic with its CFA, or 3). Return KG_ENOENT
+ * when no chart is found (the helper then uses kg_bright_level for that frame). */
+typedef int (*kg_level_fn)(void *user, const kg_image *frame, double *level, kg_err *err);
+
+/* Progress of the averaging: frame i of n, frames per second so far. */
+typedef void (*kg_capture_progress_fn)(void *user, const char *name, int i, int n,
+                                       double fps);
+
+typedef struct kg_capture_options {
+	kg_capture_kind kind;
+	const char *name;        /* NULL: "<kind>-NNNN", the next free number */
+	int frames;              /* averaged, >= 1 (default 10) */
+	double exposure_us;      /* > 0 sets it; 0 keeps the camera's (read back) */
+	int auto_exposure;       /* 1: the exposure helper (exposure_us is ignored) */
+	double target;           /* helper: level of the brightest patch, 0..1 (0.8) */
+	int max_iterations;      /* helper: frames measured at most (10) */
+	kg_level_fn measure;     /* helper: chart measure, or NULL for kg_bright_level */
+	void *measure_user;
+	const char *measure_name; /* described in the manifest ("chart cie-tcs-frame") */
+	double gain;             /* NAN keeps the camera's gain */
+	kg_frame_format format;  /* pixfmt/bits/cfa/width/height/offset requests (0 keeps) */
+	const char *dark;        /* NULL: the latest matching dark of the session (if any);
+	                          * "none": no dark; else a capture name */
+	const char *flat;        /* NULL: none; else a capture name */
+	int timeout_ms;          /* per frame; 0: 2000 ms plus twice the exposure */
+	long max_dropped;        /* dropped frames tolerated (0) */
+	int force_nonlinear;     /* accept YUYV */
+	int record;              /* record the raw frames into the session (1) */
+	kg_capture_progress_fn progress;
+	void *progress_user;
+	/* Notes for the operator (dark chosen, clipping, ...), one sentence each. */
+	void (*note)(void *user, const char *message);
+	void *note_user;
+} kg_capture_options;
+
+void kg_capture_options_default(kg_capture_options *o);
+
+/* One iteration of the exposure helper. */
+typedef struct kg_exposure_step {
+	double exposure_us; /* read back */
+	double level;       /* measured, 0..1 */
+	int chart;          /* 1: measured on the chart, 0: kg_bright_level */
+} kg_exposure_step;
+#define KG_EXPOSURE_MAX_STEPS 32
+
+typedef struct kg_capture_result {
+	char name[KG_CAPTURE_NAME_MAX];
+	kg_image *mean;      /* corrected mean (dark, flat) */
+	kg_image *variance;  /* per-sample variance of the frames (flat applied) */
+	kg_image *rgb;       /* demosaiced mean (Bayer with OpenCV), else NULL */
+	kg_frame_format format; /* as read back */
+	double exposure_us, gain;
+	kg_stream_stats stream;
+	double clipped_fraction;
+	kg_image_stats stats; /* of the uncorrected mean */
+	long flat_invalid;
+	char dark[KG_CAPTURE_NAME_MAX], flat[KG_CAPTURE_NAME_MAX]; /* "" when none */
+	int nsteps;
+	kg_exposure_step steps[KG_EXPOSURE_MAX_STEPS];
+	int device_failure;  /* the error came from the camera (stream, timeout, drops) */
+} kg_capture_result;
+
+/* Take one capture with an open (not streaming) camera into the session and append it
+ * to the manifest. On failure nothing is added to the manifest and no output file is
+ * left; res->device_failure says whether the camera failed (exit 3) or the request
+ * (exit 1). res is filled on success; free it with kg_capture_result_clear. */
+int kg_capture_run(kg_session *s, kg_camera *cam, const kg_capture_options *o,
+                   kg_capture_result *res, kg_err *err);
+void kg_capture_result_clear(kg_capture_result *r);
+
+#endif

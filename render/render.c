@@ -1,0 +1,601 @@
+/* The renderer on Embree 3: one triangle geometry sharing the mesh's index buffer,
+ * camera rays traced as 16-ray packets per 4 x 4 pixel block, paths continued one ray
+ * at a time with hero-wavelength spectral sampling (A. Wilkie, S. Nawaz, M. Droske,
+ * A. Weidlich and J. Hanika, "Hero wavelength spectral sampling", Computer Graphics
+ * Forum 33(4), 123-131, 2014), tiles handed to worker threads from an atomic counter.
+ *
+ * Determinism: every sample of every pixel draws from its own generator seeded from
+ * (seed, pixel, sample), a pixel is finished by one thread, and every worker runs
+ * with the same floating-point modes, so the image does not depend on the thread
+ * count or on which thread takes which tile. */
+#include <math.h>
+#include <pthread.h>
+#include <stdatomic.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+
+#include <embree3/rtcore.h>
+#if defined(__SSE2__)
+#include <pmmintrin.h>
+#include <xmmintrin.h>
+#endif
+
+#include "render_private.h"
+
+#define TILE 16   /* pixels per tile side, a multiple of the 4 x 4 packet */
+#define MAX_THREADS 256
+
+typedef struct rd_hit {
+	int valid;
+	unsigned prim;
+	float u, v, t;
+	float ng[3];
+} rd_hit;
+
+typedef struct rd_ctx {
+	const kg_scene *s;
+	RTCDevice dev;
+	RTCScene scene;
+	float *vbuf;            /* nverts x 4 (x, y, z, pad): Embree reads 16 bytes */
+	rd_material *mat;
+	int nmat;
+	const uint16_t *tri_mat; /* NULL: material 0 everywhere */
+	uint16_t *label_tri_mat; /* the label map projected onto the triangles */
+	rd_frame frame;
+	int width, height, spp, nwl, bounces;
+	uint64_t seed;
+	kg_render_mode mode;
+	double eps;             /* ray origin offset along the geometric normal */
+	float *out;             /* width x height x 3 */
+	int tiles_x, ntiles;
+	atomic_int next_tile;
+	pthread_mutex_t lock;   /* progress */
+	int tiles_done;
+	const kg_render_options *opt;
+	atomic_ullong rays, shadow_rays, primary_rays;
+	char embree_error[256];
+} rd_ctx;
+
+int kg_render_available(void)
+{
+	return 1;
+}
+
+static double now_s(void)
+{
+	struct timespec ts;
+	clock_gettime(CLOCK_MONOTONIC, &ts);
+	return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+static void embree_error(void *user, enum RTCError code, const char *str)
+{
+	rd_ctx *c = user;
+	if (!c->embree_error[0])
+		snprintf(c->embree_error, sizeof(c->embree_error), "Embree error %d: %s", (int)code,
+		         str ? str : "");
+}
+
+/* Flush-to-zero and denormals-are-zero, in every thread that traces or shades
+ * (Embree's advice, and the same arithmetic everywhere). */
+static void set_fp_modes(void)
+{
+#if defined(__SSE2__)
+	_MM_SET_FLUSH_ZERO_MODE(_MM_FLUSH_ZERO_ON);
+	_MM_SET_DENORMALS_ZERO_MODE(_MM_DENORMALS_ZERO_ON);
+#endif
+}
+
+/* A 64-bit mix (the finaliser of MurmurHash3) for the per-sample seeds. */
+static uint64_t mix64(uint64_t x)
+{
+	x ^= x >> 33;
+	x *= 0xff51afd7ed558ccdULL;
+	x ^= x >> 33;
+	x *= 0xc4ceb9fe1a85ec53ULL;
+	x ^= x >> 33;
+	return x;
+}
+
+static double dot3(const double a[3], const double b[3])
+{
+	return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
+
+static void normalize3(double v[3])
+{
+	double n = sqrt(dot3(v, v));
+	if (n > 0.0)
+		for (int i = 0; i < 3; i++)
+			v[i] /= n;
+}
+
+/* ---- Embree scene ---------------------------------------------------------------- */
+
+static int build_scene(rd_ctx *c, int threads, kg_err *err)
+{
+	const kg_mesh *mesh = c->s->mesh;
+	char cfg[64];
+	snprintf(cfg, sizeof(cfg), "threads=%d", threads);
+	c->dev = rtcNewDevice(cfg);
+	if (!c->dev)
+		return kg_fail(err, KG_EIO, "Embree: cannot create a device (error %d)",
+		               (int)rtcGetDeviceError(NULL));
+	rtcSetDeviceErrorFunction(c->dev, embree_error, c);
+	c->vbuf = aligned_alloc(16, sizeof(float) * 4 * (mesh->nverts + 1));
+	if (!c->vbuf)
+		return kg_fail(err, KG_ENOMEM, "out of memory for %zu vertices", mesh->nverts);
+	double extent = 0.0;
+	for (size_t i = 0; i < mesh->nverts; i++) {
+		for (int k = 0; k < 3; k++) {
+			c->vbuf[4 * i + k] = mesh->pos[3 * i + k];
+			if (isfinite(mesh->pos[3 * i + k]))
+				extent = fmax(extent, fabs(mesh->pos[3 * i + k]));
+		}
+		c->vbuf[4 * i + 3] = 0.0f;
+	}
+	memset(c->vbuf + 4 * mesh->nverts, 0, 4 * sizeof(float));
+	/* a few float ulps of the largest coordinate */
+	c->eps = fmax(extent, 1e-3) * 2e-5;
+
+	c->scene = rtcNewScene(c->dev);
+	RTCGeometry g = rtcNewGeometry(c->dev, RTC_GEOMETRY_TYPE_TRIANGLE);
+	if (c->scene && g) {
+		rtcSetSceneBuildQuality(c->scene, RTC_BUILD_QUALITY_MEDIUM);
+		rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, c->vbuf,
+		                           0, 4 * sizeof(float), mesh->nverts);
+		rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, mesh->tri,
+		                           0, 3 * sizeof(uint32_t), mesh->ntris);
+		rtcCommitGeometry(g);
+		rtcAttachGeometry(c->scene, g);
+	}
+	if (g)
+		rtcReleaseGeometry(g);
+	if (c->scene)
+		rtcCommitScene(c->scene);
+	if (c->embree_error[0] || !c->scene || !g)
+		return kg_fail(err, KG_EIO, "Embree: building the scene of %zu triangles: %s",
+		               mesh->ntris, c->embree_error[0] ? c->embree_error : "failed");
+	return 0;
+}
+
+static void hit_from(rd_hit *h, float t, unsigned geom, unsigned prim, float u, float v,
+                     float nx, float ny, float nz)
+{
+	h->valid = geom != RTC_INVALID_GEOMETRY_ID;
+	h->prim = prim;
+	h->t = t;
+	h->u = u;
+	h->v = v;
+	h->ng[0] = nx, h->ng[1] = ny, h->ng[2] = nz;
+}
+
+static void trace1(rd_ctx *c, const double org[3], const double dir[3], rd_hit *h)
+{
+	struct RTCIntersectContext ictx;
+	rtcInitIntersectContext(&ictx);
+	struct RTCRayHit rh;
+	rh.ray.org_x = (float)org[0], rh.ray.org_y = (float)org[1], rh.ray.org_z = (float)org[2];
+	rh.ray.dir_x = (float)dir[0], rh.ray.dir_y = (float)dir[1], rh.ray.dir_z = (float)dir[2];
+	rh.ray.tnear = 0.0f;
+	rh.ray.tfar = INFINITY;
+	rh.ray.time = 0.0f;
+	rh.ray.mask = ~0u;
+	rh.ray.id = 0;
+	rh.ray.flags = 0;
+	rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+	rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+	rtcIntersect1(c->scene, &ictx, &rh);
+	hit_from(h, rh.ray.tfar, rh.hit.geomID, rh.hit.primID, rh.hit.u, rh.hit.v, rh.hit.Ng_x,
+	         rh.hit.Ng_y, rh.hit.Ng_z);
+}
+
+/* 1 when nothing lies between org and org + tfar dir. */
+static int unoccluded(rd_ctx *c, const double org[3], const double dir[3], float tfar)
+{
+	struct RTCIntersectContext ictx;
+	rtcInitIntersectContext(&ictx);
+	struct RTCRay r;
+	r.org_x = (float)org[0], r.org_y = (float)org[1], r.org_z = (float)org[2];
+	r.dir_x = (float)dir[0], r.dir_y = (float)dir[1], r.dir_z = (float)dir[2];
+	r.tnear = 0.0f;
+	r.tfar = tfar;
+	r.time = 0.0f;
+	r.mask = ~0u;
+	r.id = 0;
+	r.flags = 0;
+	rtcOccluded1(c->scene, &ictx, &r);
+	return r.tfar >= 0.0f;
+}
+
+/* ---- label map ------------------------------------------------------------------- */
+
+/* Each triangle takes the label under its centroid as seen from the label camera when
+ * the centroid is in view and nothing hides it; the fallback otherwise. */
+static int project_labels(rd_ctx *c, uint64_t *rays, kg_err *err)
+{
+	const kg_scene *s = c->s;
+	const rd_label_map *lm = &s->label;
+	const kg_mesh *mesh = s->mesh;
+	rd_frame f;
+	rd_view_frame(&lm->view, &f);
+	double aspect = (double)lm->width / lm->height;
+	if (!(c->label_tri_mat = malloc(sizeof(uint16_t) * mesh->ntris)))
+		return kg_fail(err, KG_ENOMEM, "out of memory");
+	for (size_t t = 0; t < mesh->ntris; t++) {
+		double p[3] = {0, 0, 0};
+		for (int k = 0; k < 3; k++)
+			for (int i = 0; i < 3; i++)
+				p[i] += mesh->pos[3 * mesh->tri[3 * t + k] + i] / 3.0;
+		int mat = lm->fallback;
+		double d[3] = {p[0] - lm->view.pos[0], p[1] - lm->view.pos[1],
+		               p[2] - lm->view.pos[2]};
+		double z = dot3(d, f.fwd);
+		if (z > 0.0) {
+			double x = dot3(d, f.right) / (z * f.tan_half * aspect);
+			double y = dot3(d, f.up) / (z * f.tan_half);
+			double px = (x + 1.0) * 0.5 * lm->width, py = (1.0 - y) * 0.5 * lm->height;
+			if (px >= 0.0 && px < lm->width && py >= 0.0 && py < lm->height) {
+				double dist = sqrt(dot3(d, d)), back[3], org[3];
+				for (int i = 0; i < 3; i++) {
+					back[i] = -d[i] / dist;
+					org[i] = p[i] + back[i] * c->eps;
+				}
+				(*rays)++;
+				if (unoccluded(c, org, back, (float)(dist - 2.0 * c->eps))) {
+					int label = lm->labels[(size_t)py * (size_t)lm->width + (size_t)px];
+					if (lm->class_mat[label] >= 0)
+						mat = lm->class_mat[label];
+				}
+			}
+		}
+		c->label_tri_mat[t] = (uint16_t)mat;
+	}
+	c->tri_mat = c->label_tri_mat;
+	return 0;
+}
+
+/* ---- shading --------------------------------------------------------------------- */
+
+static void env_radiance(const kg_scene *s, const double dir[3], const int *band, int n,
+                         float *out)
+{
+	if (!s->has_env) {
+		memset(out, 0, sizeof(float) * (size_t)n);
+		return;
+	}
+	if (!s->env_coef) {
+		for (int j = 0; j < n; j++)
+			out[j] = s->env_radiance[band[j]];
+		return;
+	}
+	/* equirectangular, +z up: the column from the azimuth atan2(y, x) (0 = +x, a
+	 * quarter of the width = +y) plus the rotation, the row from the angle to +z (the
+	 * top row straight up); bilinear in the texel coefficients */
+	double phi = atan2(dir[1], dir[0]) + s->env_rotation_deg * M_PI / 180.0;
+	double u = phi / (2.0 * M_PI);
+	u -= floor(u);
+	double v = acos(fmax(-1.0, fmin(1.0, dir[2]))) / M_PI;
+	double x = u * s->env_width - 0.5, y = v * s->env_height - 0.5;
+	double fx = floor(x), fy = floor(y);
+	double tx = x - fx, ty = y - fy;
+	int x0 = (int)fx, y0 = (int)fy;
+	float coef[3] = {0, 0, 0};
+	for (int k = 0; k < 4; k++) {
+		int xi = x0 + (k & 1), yi = y0 + (k >> 1);
+		xi = ((xi % s->env_width) + s->env_width) % s->env_width;
+		yi = yi < 0 ? 0 : yi >= s->env_height ? s->env_height - 1 : yi;
+		double w = ((k & 1) ? tx : 1.0 - tx) * ((k >> 1) ? ty : 1.0 - ty);
+		const float *t = s->env_coef + 3 * ((size_t)yi * (size_t)s->env_width + (size_t)xi);
+		for (int i = 0; i < 3; i++)
+			coef[i] += (float)w * t[i];
+	}
+	for (int j = 0; j < n; j++) {
+		int b = band[j];
+		float r = coef[0] * s->env_up.basis[0][b] + coef[1] * s->env_up.basis[1][b] +
+		          coef[2] * s->env_up.basis[2][b];
+		out[j] = r > 0.0f ? r * s->env_radiance[b] : 0.0f;
+	}
+}
+
+/* Shading frame at a hit: geometric normal ng and shading normal ns, both on the side
+ * of the viewer V; the interpolated vertex normal when the mesh has normals and it
+ * faces the viewer. */
+static void shading_frame(const rd_ctx *c, const rd_hit *h, const double V[3], double ng[3],
+                          double ns[3])
+{
+	const kg_mesh *mesh = c->s->mesh;
+	for (int i = 0; i < 3; i++)
+		ng[i] = h->ng[i];
+	normalize3(ng);
+	if (dot3(ng, V) < 0.0)
+		for (int i = 0; i < 3; i++)
+			ng[i] = -ng[i];
+	memcpy(ns, ng, sizeof(double) * 3);
+	if (mesh->normal) {
+		const uint32_t *tri = mesh->tri + 3 * (size_t)h->prim;
+		double w0 = 1.0 - h->u - h->v, n[3];
+		for (int i = 0; i < 3; i++)
+			n[i] = w0 * mesh->normal[3 * tri[0] + i] + h->u * mesh->normal[3 * tri[1] + i] +
+			       h->v * mesh->normal[3 * tri[2] + i];
+		normalize3(n);
+		if (dot3(n, ng) < 0.0)
+			for (int i = 0; i < 3; i++)
+				n[i] = -n[i];
+		if (dot3(n, V) > 0.0 && isfinite(n[0]) && isfinite(n[1]) && isfinite(n[2]))
+			memcpy(ns, n, sizeof(double) * 3);
+	}
+}
+
+typedef struct rd_counts {
+	uint64_t rays, shadow_rays, primary_rays;
+} rd_counts;
+
+/* One path from the camera, its first hit given; adds its XYZ to xyz. */
+static void trace_path(rd_ctx *c, kg_rng *rng, const double org0[3], const double dir0[3],
+                       const rd_hit *first, double xyz[3], rd_counts *cnt)
+{
+	const kg_scene *s = c->s;
+	int n = c->nwl, band[KG_NBANDS];
+	int hero = (int)(kg_rng_uniform(rng) * KG_NBANDS);
+	for (int j = 0; j < n; j++)
+		band[j] = (hero + j * KG_NBANDS / n) % KG_NBANDS;
+	float T[KG_NBANDS], L[KG_NBANDS], tmp[KG_NBANDS];
+	for (int j = 0; j < n; j++)
+		T[j] = 1.0f, L[j] = 0.0f;
+	double org[3], dir[3];
+	memcpy(org, org0, sizeof(org));
+	memcpy(dir, dir0, sizeof(dir));
+	rd_hit h = *first;
+	for (int depth = 0;; depth++) {
+		if (!h.valid) {
+			env_radiance(s, dir, band, n, tmp);
+			for (int j = 0; j < n; j++)
+				L[j] += T[j] * tmp[j];
+			break;
+		}
+		if (depth == c->bounces)
+			break;
+		double P[3], V[3] = {-dir[0], -dir[1], -dir[2]}, ng[3], ns[3];
+		for (int i = 0; i < 3; i++)
+			P[i] = org[i] + h.t * dir[i];
+		shading_frame(c, &h, V, ng, ns);
+		const rd_material *m = &c->mat[c->tri_mat ? c->tri_mat[h.prim] : 0];
+		if (s->has_sun && dot3(ng, s->sun_dir) > 0.0 &&
+		    rd_eval(m, ns, V, s->sun_dir, band, n, tmp)) {
+			double o[3];
+			for (int i = 0; i < 3; i++)
+				o[i] = P[i] + c->eps * ng[i];
+			cnt->shadow_rays++;
+			if (unoccluded(c, o, s->sun_dir, INFINITY))
+				for (int j = 0; j < n; j++)
+					L[j] += T[j] * tmp[j] * s->sun_irradiance[band[j]];
+		}
+		double u[3] = {kg_rng_uniform(rng), kg_rng_uniform(rng), kg_rng_uniform(rng)};
+		double Lo[3];
+		if (!rd_sample(m, ns, V, u, band, n, Lo, tmp))
+			break;
+		/* a shading normal can send a sample under the surface: drop it */
+		double side = dot3(ng, Lo);
+		if (!(side > 0.0))
+			break;
+		for (int j = 0; j < n; j++)
+			T[j] *= tmp[j];
+		for (int i = 0; i < 3; i++) {
+			org[i] = P[i] + c->eps * ng[i];
+			dir[i] = Lo[i];
+		}
+		cnt->rays++;
+		trace1(c, org, dir, &h);
+	}
+	/* eq. 12 estimated from the path's bands: each stands for KG_NBANDS / n of them */
+	double k = (double)KG_NBANDS / n;
+	for (int ch = 0; ch < 3; ch++) {
+		double sum = 0.0;
+		for (int j = 0; j < n; j++)
+			sum += (double)s->xyz_w[ch][band[j]] * L[j];
+		xyz[ch] += k * sum;
+	}
+}
+
+static void render_tile(rd_ctx *c, int tile, rd_counts *cnt)
+{
+	const kg_scene *s = c->s;
+	int tx0 = (tile % c->tiles_x) * TILE, ty0 = (tile / c->tiles_x) * TILE;
+	double acc[TILE * TILE][3];
+	memset(acc, 0, sizeof(acc));
+	double aspect = (double)c->width / c->height;
+	const rd_frame *f = &c->frame;
+	struct RTCIntersectContext ictx;
+	rtcInitIntersectContext(&ictx);
+	ictx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+
+	for (int by = ty0; by < ty0 + TILE && by < c->height; by += 4)
+		for (int bx = tx0; bx < tx0 + TILE && bx < c->width; bx += 4)
+			for (int smp = 0; smp < c->spp; smp++) {
+				_Alignas(64) int valid[16];
+				struct RTCRayHit16 rh;
+				kg_rng rng[16];
+				double dirs[16][3];
+				for (int l = 0; l < 16; l++) {
+					int x = bx + (l & 3), y = by + (l >> 2);
+					valid[l] = (x < c->width && y < c->height) ? -1 : 0;
+					uint64_t pixel = (uint64_t)y * (uint64_t)c->width + (uint64_t)x;
+					kg_rng_seed(&rng[l], mix64(mix64(c->seed ^ 0x6b67656900000000ULL) + pixel) +
+					                         (uint64_t)smp * 0x9e3779b97f4a7c15ULL);
+					double jx = kg_rng_uniform(&rng[l]), jy = kg_rng_uniform(&rng[l]);
+					double px = (2.0 * (x + jx) / c->width - 1.0) * f->tan_half * aspect;
+					double py = (1.0 - 2.0 * (y + jy) / c->height) * f->tan_half;
+					for (int i = 0; i < 3; i++)
+						dirs[l][i] = f->fwd[i] + px * f->right[i] + py * f->up[i];
+					normalize3(dirs[l]);
+					rh.ray.org_x[l] = (float)s->view.pos[0];
+					rh.ray.org_y[l] = (float)s->view.pos[1];
+					rh.ray.org_z[l] = (float)s->view.pos[2];
+					rh.ray.dir_x[l] = (float)dirs[l][0];
+					rh.ray.dir_y[l] = (float)dirs[l][1];
+					rh.ray.dir_z[l] = (float)dirs[l][2];
+					rh.ray.tnear[l] = 0.0f;
+					rh.ray.tfar[l] = INFINITY;
+					rh.ray.time[l] = 0.0f;
+					rh.ray.mask[l] = ~0u;
+					rh.ray.id[l] = (unsigned)l;
+					rh.ray.flags[l] = 0;
+					rh.hit.geomID[l] = RTC_INVALID_GEOMETRY_ID;
+					rh.hit.instID[0][l] = RTC_INVALID_GEOMETRY_ID;
+					cnt->primary_rays += valid[l] != 0;
+				}
+				rtcIntersect16(valid, c->scene, &ictx, &rh);
+				for (int l = 0; l < 16; l++) {
+					if (!valid[l])
+						continue;
+					int x = bx + (l & 3), y = by + (l >> 2);
+					double *a = acc[(y - ty0) * TILE + (x - tx0)];
+					rd_hit h;
+					hit_from(&h, rh.ray.tfar[l], rh.hit.geomID[l], rh.hit.primID[l],
+					         rh.hit.u[l], rh.hit.v[l], rh.hit.Ng_x[l], rh.hit.Ng_y[l],
+					         rh.hit.Ng_z[l]);
+					if (c->mode == KG_RENDER_PREVIEW) {
+						double V[3] = {-dirs[l][0], -dirs[l][1], -dirs[l][2]}, ng[3], ns[3];
+						double g = 0.0;
+						if (h.valid) {
+							shading_frame(c, &h, V, ng, ns);
+							g = dot3(ns, V);
+						}
+						a[0] += g * s->white.X, a[1] += g * s->white.Y, a[2] += g * s->white.Z;
+						continue;
+					}
+					trace_path(c, &rng[l], s->view.pos, dirs[l], &h, a, cnt);
+				}
+			}
+	double k = s->exposure / c->spp;
+	for (int y = ty0; y < ty0 + TILE && y < c->height; y++)
+		for (int x = tx0; x < tx0 + TILE && x < c->width; x++)
+			for (int ch = 0; ch < 3; ch++)
+				c->out[3 * ((size_t)y * (size_t)c->width + (size_t)x) + ch] =
+					(float)(acc[(y - ty0) * TILE + (x - tx0)][ch] * k);
+}
+
+static void *worker(void *arg)
+{
+	rd_ctx *c = arg;
+	set_fp_modes();
+	rd_counts cnt = {0};
+	for (;;) {
+		int tile = atomic_fetch_add(&c->next_tile, 1);
+		if (tile >= c->ntiles)
+			break;
+		render_tile(c, tile, &cnt);
+		if (c->opt && c->opt->progress) {
+			pthread_mutex_lock(&c->lock);
+			c->tiles_done++;
+			c->opt->progress(c->opt->progress_user, c->tiles_done, c->ntiles);
+			pthread_mutex_unlock(&c->lock);
+		}
+	}
+	atomic_fetch_add(&c->rays, cnt.rays + cnt.primary_rays);
+	atomic_fetch_add(&c->shadow_rays, cnt.shadow_rays);
+	atomic_fetch_add(&c->primary_rays, cnt.primary_rays);
+	return NULL;
+}
+
+static void ctx_free(rd_ctx *c)
+{
+	if (c->scene)
+		rtcReleaseScene(c->scene);
+	if (c->dev)
+		rtcReleaseDevice(c->dev);
+	free(c->vbuf);
+	for (int i = 0; c->mat && i < c->nmat; i++)
+		rd_material_clear(&c->mat[i]);
+	free(c->mat);
+	free(c->label_tri_mat);
+}
+
+int kg_render(const kg_scene *s, const kg_render_options *opt, kg_image **xyz,
+              kg_render_stats *stats, kg_err *err)
+{
+	kg_check_arg(s && xyz, err);
+	*xyz = NULL;
+	static const kg_render_options defaults;
+	if (!opt)
+		opt = &defaults;
+	rd_ctx c = {.s = s, .opt = opt, .mode = opt->mode};
+	c.width = opt->width > 0 ? opt->width : s->view.width;
+	c.height = opt->height > 0 ? opt->height : s->view.height;
+	c.spp = opt->spp > 0 ? opt->spp : s->spp;
+	c.nwl = opt->wavelengths > 0 ? opt->wavelengths : s->wavelengths;
+	c.bounces = opt->bounces > 0 ? opt->bounces : s->bounces;
+	c.seed = opt->seed_set ? opt->seed : s->seed;
+	int threads = opt->threads > 0 ? opt->threads : (int)sysconf(_SC_NPROCESSORS_ONLN);
+	if (threads < 1)
+		threads = 1;
+	if (threads > MAX_THREADS)
+		threads = MAX_THREADS;
+	if (c.nwl > KG_RENDER_ALL_BANDS)
+		return kg_fail(err, KG_EINVAL, "wavelengths per path: %d: expected 1 to %d", c.nwl,
+		               KG_RENDER_ALL_BANDS);
+	if (c.width > 16384 || c.height > 16384)
+		return kg_fail(err, KG_EINVAL, "image size %d x %d: expected at most 16384 per side",
+		               c.width, c.height);
+	rd_view_frame(&s->view, &c.frame);
+
+	set_fp_modes();
+	double t0 = now_s();
+	int ret = build_scene(&c, threads, err);
+	double t1 = now_s();
+	uint64_t label_rays = 0;
+	if (!ret && s->assign == RD_ASSIGN_LABEL_MAP)
+		ret = project_labels(&c, &label_rays, err);
+	else
+		c.tri_mat = s->tri_mat;
+	if (!ret && !(c.mat = calloc((size_t)s->nmat, sizeof(*c.mat))))
+		ret = kg_fail(err, KG_ENOMEM, "out of memory");
+	for (int i = 0; !ret && i < s->nmat; i++, c.nmat++)
+		ret = rd_material_init(&c.mat[i], s->mat[i], err);
+	kg_image *img = NULL;
+	if (!ret)
+		ret = kg_image_new(c.width, c.height, 3, &img, err);
+	if (ret) {
+		ctx_free(&c);
+		return ret;
+	}
+	c.out = img->data;
+	c.tiles_x = (c.width + TILE - 1) / TILE;
+	c.ntiles = c.tiles_x * ((c.height + TILE - 1) / TILE);
+	atomic_init(&c.next_tile, 0);
+	atomic_init(&c.rays, 0);
+	atomic_init(&c.shadow_rays, 0);
+	atomic_init(&c.primary_rays, 0);
+	pthread_mutex_init(&c.lock, NULL);
+	pthread_t tid[MAX_THREADS];
+	int started = 0;
+	double t2 = now_s();
+	for (; started < threads; started++)
+		if (pthread_create(&tid[started], NULL, worker, &c) != 0)
+			break;
+	if (started == 0)
+		worker(&c); /* no thread could be started: render here */
+	for (int i = 0; i < started; i++)
+		pthread_join(tid[i], NULL);
+	double t3 = now_s();
+	pthread_mutex_destroy(&c.lock);
+	if (c.embree_error[0])
+		ret = kg_fail(err, KG_EIO, "%s", c.embree_error);
+	if (!ret && stats) {
+		*stats = (kg_render_stats){
+			.width = c.width, .height = c.height, .spp = c.spp, .wavelengths = c.nwl,
+			.bounces = c.bounces, .threads = threads, .build_s = t1 - t0,
+			.render_s = t3 - t2, .primary_rays = atomic_load(&c.primary_rays),
+			.rays = atomic_load(&c.rays), .shadow_rays = atomic_load(&c.shadow_rays),
+			.label_rays = label_rays,
+		};
+	}
+	ctx_free(&c);
+	if (ret)
+		kg_image_free(&img);
+	*xyz = img;
+	return ret;
+}

@@ -1,0 +1,225 @@
+/* `kogei acquire` on the sim camera:
+ * - bad options exit 2 naming the option; --help exits 0;
+ * - a stalling camera (stall=N) and a dropping one (drop=N) exit 3 with the counts,
+ *   leave session.json byte-identical and no output folder; with --max-dropped the
+ *   dropped count in the manifest is the one the drop rule implies;
+ * - dark and flat end to end: scenes with a dark offset and vignetting; the corrected
+ *   object must be proportional to the scene, equal (to float rounding) to the
+ *   uncorrected mean of the same frames (a second session, same sim seed) minus the dark
+ *   over the normalised flat, and the manifest must name the dark and flat used; a dark
+ *   of another exposure is refused (exit 1) without touching the session. */
+#include "acq_test.h"
+#include "kg_acquire.h"
+
+#define W 96
+#define H 64
+
+static int contains(const char *hay, const char *needle) { return strstr(hay, needle) != NULL; }
+
+static void bad_options(void)
+{
+	char s[4200];
+	snprintf(s, sizeof(s), "%s", acq_path("bad"));
+	static const struct {
+		const char *a, *b, *needle;
+	} cases[] = {
+		{"--frames", "0", "--frames"},       {"--roi", "10x10", "--roi"},
+		{"--kind", "photo", "--kind"},       {"--format", "mono9", "--format"},
+		{"--bogus", NULL, "--bogus"},        {"--target", "0.5", "--target"},
+		{"--exposure", "fast", "--exposure"}, {"--max-dropped", "-1", "--max-dropped"},
+		{"--timeout-ms", "0", "--timeout-ms"}, {"--layout", "x.json", "--layout"},
+	};
+	for (size_t i = 0; i < sizeof(cases) / sizeof(cases[0]); i++) {
+		int rc = acq_run("acquire", "--camera", "sim:", "--out", s, "--kind",
+		                 strcmp(cases[i].a, "--kind") ? "chart" : cases[i].b, cases[i].a,
+		                 cases[i].b, NULL);
+		CHECK(rc == 2, "%s %s: exit %d, expected 2", cases[i].a, cases[i].b ? cases[i].b : "",
+		      rc);
+		CHECK(contains(acq_errtext, cases[i].needle), "%s: the message does not name it: %s",
+		      cases[i].a, acq_errtext);
+	}
+	int rc = acq_run("acquire", "--camera", "sim:", "--kind", "chart", NULL);
+	CHECK(rc == 2 && contains(acq_errtext, "--out"), "missing --out: exit %d: %s", rc,
+	      acq_errtext);
+	rc = acq_run("acquire", "--out", s, "--kind", "dark", "--camera", "sim:", "--dark",
+	             "dark-0001", NULL);
+	CHECK(rc == 2 && contains(acq_errtext, "--dark"), "--dark on a dark: exit %d: %s", rc,
+	      acq_errtext);
+	CHECK(!kg_test_file_exists(s), "bad options must not create the session");
+	rc = acq_run("acquire", "--help", NULL);
+	CHECK(rc == 0 && contains(acq_out, "--max-dropped"), "--help: exit %d", rc);
+}
+
+/* The camera fails: exit 3, the counts, and the session as it was. */
+static void failing_camera(void)
+{
+	char s[4200];
+	snprintf(s, sizeof(s), "%s", acq_path("fail"));
+	int rc = acq_run("acquire", "--camera", "sim:?width=32&height=24", "--out", s, "--kind",
+	                 "object", "--frames", "3", NULL);
+	CHECK(rc == 0, "first capture: exit %d: %s", rc, acq_errtext);
+	char manifest[8192], outdir[8192];
+	snprintf(manifest, sizeof(manifest), "%s/session.json", s);
+	static char full_before[1 << 16], full_after[1 << 16];
+	acq_slurp(manifest, full_before, sizeof(full_before));
+
+	rc = acq_run("acquire", "--camera", "sim:?width=32&height=24&stall=3", "--out", s,
+	             "--kind", "object", "--frames", "6", "--timeout-ms", "200", NULL);
+	CHECK(rc == 3, "stall: exit %d, expected 3", rc);
+	CHECK(contains(acq_errtext, "3 completed") && contains(acq_errtext, "1 timeouts"),
+	      "stall: the counts are missing: %s", acq_errtext);
+	acq_slurp(manifest, full_after, sizeof(full_after));
+	CHECK(!strcmp(full_before, full_after), "stall: session.json changed");
+	snprintf(outdir, sizeof(outdir), "%s/captures/object-0002", s);
+	CHECK(!kg_test_file_exists(outdir), "stall: %s exists", outdir);
+
+	rc = acq_run("acquire", "--camera", "sim:?width=32&height=24&drop=2", "--out", s,
+	             "--kind", "object", "--frames", "6", NULL);
+	CHECK(rc == 3, "drop: exit %d, expected 3", rc);
+	CHECK(contains(acq_errtext, "1 dropped") && contains(acq_errtext, "--max-dropped"),
+	      "drop: the counts are missing: %s", acq_errtext);
+	acq_slurp(manifest, full_after, sizeof(full_after));
+	CHECK(!strcmp(full_before, full_after), "drop: session.json changed");
+	CHECK(acq_check_session(s, NULL, 0) == 1, "the session lost its capture");
+
+	/* Tolerated drops: frames numbered by multiples of 2 are lost, so 6 delivered frames
+	 * are 1, 3, ..., 11 and the gaps between them hold 11 - 6 = 5 frames. */
+	rc = acq_run("acquire", "--camera", "sim:?width=32&height=24&drop=2", "--out", s,
+	             "--kind", "object", "--frames", "6", "--max-dropped", "100", "--name",
+	             "dropped-ok", NULL);
+	CHECK(rc == 0, "--max-dropped: exit %d: %s", rc, acq_errtext);
+	json_t *root = acq_manifest(s);
+	json_t *cap = json_array_get(json_object_get(root, "captures"), 1);
+	json_t *stream = json_object_get(json_object_get(cap, "statistics"), "stream");
+	long long dropped = (long long)json_integer_value(json_object_get(stream, "dropped"));
+	CHECK(dropped == 5, "dropped %lld, expected 5", dropped);
+	CHECK(json_array_size(json_object_get(cap, "frames")) == 6, "frames listed: %zu",
+	      json_array_size(json_object_get(cap, "frames")));
+	json_decref(root);
+}
+
+static void write_scene(const char *name, double offset, double gain_w, int object)
+{
+	kg_image *img;
+	kg_err err = {{0}};
+	kg_image_new(W, H, 1, &img, &err);
+	for (int y = 0; y < H; y++)
+		for (int x = 0; x < W; x++) {
+			double dx = (x - W / 2.0) / W, dy = (y - H / 2.0) / H;
+			double v = 1 - 1.2 * (dx * dx + dy * dy); /* 0.6 .. 1 */
+			double s = object ? 0.2 + 0.6 * ((x / 8 + y / 8) % 4) / 3.0 : gain_w;
+			img->data[y * W + x] = (float)(offset + s * v);
+		}
+	if (kg_image_write_tiff(img, acq_path(name), 32, &err))
+		fprintf(stderr, "%s\n", err.msg);
+	kg_image_free(&img);
+}
+
+static double scene_at(int x, int y) { return 0.2 + 0.6 * ((x / 8 + y / 8) % 4) / 3.0; }
+
+static kg_image *read_output(const char *session, const char *capture)
+{
+	char p[8192];
+	snprintf(p, sizeof(p), "%s/captures/%s/mean.tif", session, capture);
+	kg_image *img = NULL;
+	kg_err err = {{0}};
+	if (kg_image_read(p, &img, &err))
+		fprintf(stderr, "%s\n", err.msg);
+	return img;
+}
+
+static void dark_and_flat(void)
+{
+	const double offset = 0.05;
+	write_scene("dark.tif", offset, 0, 0);
+	write_scene("flat.tif", offset, 0.7, 0);
+	write_scene("object.tif", offset, 0, 1);
+	const char *keys = "?format=mono16&bits=16&fullwell=200000&read=3&seed=9";
+	char dark_uri[4400], flat_uri[4400], obj_uri[4400];
+	snprintf(dark_uri, sizeof(dark_uri), "sim:%s%s", acq_path("dark.tif"), keys);
+	snprintf(flat_uri, sizeof(flat_uri), "sim:%s%s", acq_path("flat.tif"), keys);
+	snprintf(obj_uri, sizeof(obj_uri), "sim:%s%s", acq_path("object.tif"), keys);
+	char a[4200], b[4200];
+	snprintf(a, sizeof(a), "%s", acq_path("corrected"));
+	snprintf(b, sizeof(b), "%s", acq_path("plain"));
+	int rc = acq_run("acquire", "--camera", dark_uri, "--out", a, "--kind", "dark", "--frames",
+	                 "8", "--exposure", "10000", NULL);
+	CHECK(rc == 0, "dark: exit %d: %s", rc, acq_errtext);
+	rc = acq_run("acquire", "--camera", flat_uri, "--out", a, "--kind", "flat", "--frames", "8",
+	             "--exposure", "10000", NULL);
+	CHECK(rc == 0, "flat: exit %d: %s", rc, acq_errtext);
+	rc = acq_run("acquire", "--camera", obj_uri, "--out", a, "--kind", "object", "--frames",
+	             "8", "--exposure", "10000", "--flat", "flat-0001", NULL);
+	CHECK(rc == 0, "object: exit %d: %s", rc, acq_errtext);
+	rc = acq_run("acquire", "--camera", obj_uri, "--out", b, "--kind", "object", "--frames",
+	             "8", "--exposure", "10000", "--dark", "none", NULL);
+	CHECK(rc == 0, "uncorrected object: exit %d: %s", rc, acq_errtext);
+	CHECK(acq_check_session(a, NULL, 0) == 3, "session with 3 captures");
+
+	json_t *root = acq_manifest(a);
+	json_t *caps = json_object_get(root, "captures");
+	const char *fd = json_string_value(json_object_get(
+		json_object_get(json_array_get(caps, 1), "corrections"), "dark"));
+	const char *od = json_string_value(json_object_get(
+		json_object_get(json_array_get(caps, 2), "corrections"), "dark"));
+	const char *of = json_string_value(json_object_get(
+		json_object_get(json_array_get(caps, 2), "corrections"), "flat"));
+	CHECK(fd && !strcmp(fd, "dark-0001"), "the flat's dark: %s", fd ? fd : "null");
+	CHECK(od && !strcmp(od, "dark-0001") && of && !strcmp(of, "flat-0001"),
+	      "the object's dark/flat: %s/%s", od ? od : "null", of ? of : "null");
+	json_decref(root);
+
+	kg_image *C = read_output(a, "object-0001"), *U = read_output(b, "object-0001");
+	kg_image *D = read_output(a, "dark-0001"), *F = read_output(a, "flat-0001");
+	if (!C || !U || !D || !F) {
+		CHECK(0, "outputs missing");
+		goto out;
+	}
+	/* exact: C = (U - D) / (F / mean F) */
+	double fm = 0;
+	for (int i = 0; i < W * H; i++)
+		fm += F->data[i];
+	fm /= W * H;
+	double worst = 0, rmin = INFINITY, rmax = 0;
+	for (int y = 0; y < H; y++)
+		for (int x = 0; x < W; x++) {
+			int i = y * W + x;
+			double want = ((double)U->data[i] - D->data[i]) / (F->data[i] / fm);
+			worst = fmax(worst, fabs(C->data[i] - want) / fabs(want));
+			double r = C->data[i] / scene_at(x, y);
+			rmin = fmin(rmin, r);
+			rmax = fmax(rmax, r);
+		}
+	CHECK(worst < 1e-5, "corrected object differs from (U - D) / flat by %.3g", worst);
+	/* statistical: the vignetting (40 %) and the offset are gone */
+	CHECK(rmax / rmin < 1.03, "corrected / scene spans %.4f .. %.4f", rmin, rmax);
+	printf("dark+flat end to end: exact within %.2g; corrected/scene %.4f .. %.4f\n", worst,
+	       rmin, rmax);
+
+	/* a dark of another exposure is refused, the session untouched */
+	static char m1[1 << 16], m2[1 << 16];
+	char mp[8192];
+	snprintf(mp, sizeof(mp), "%s/session.json", a);
+	acq_slurp(mp, m1, sizeof(m1));
+	rc = acq_run("acquire", "--camera", obj_uri, "--out", a, "--kind", "object", "--frames",
+	             "2", "--exposure", "5000", "--dark", "dark-0001", NULL);
+	CHECK(rc == 1 && contains(acq_errtext, "exposure"), "mismatching dark: exit %d: %s", rc,
+	      acq_errtext);
+	acq_slurp(mp, m2, sizeof(m2));
+	CHECK(!strcmp(m1, m2), "a refused capture changed session.json");
+out:
+	kg_image_free(&C);
+	kg_image_free(&U);
+	kg_image_free(&D);
+	kg_image_free(&F);
+}
+
+int main(int argc, char **argv)
+{
+	acq_init(argc, argv, "acquire-cli");
+	bad_options();
+	failing_camera();
+	dark_and_flat();
+	acq_cleanup();
+	return kg_test_done("acquire-cli");
+}

@@ -1,0 +1,269 @@
+/* Corrections and statistics against direct computations:
+ * - dark and flat on a synthetic Bayer scene with vignetting, per-colour gains and a
+ *   dark offset: the corrected image must be scene x gain x (mean vignetting of that
+ *   colour), the variance divided by the squared normalised flat, unusable flat
+ *   samples NaN and counted;
+ * - percentiles and the under-exposed fraction against a sorted copy;
+ * - the bright level against a brute-force same-colour box mean and a sorted copy;
+ * - demosaicing (when built with OpenCV): uniform colours and a ramp come back for each
+ *   of the four CFA patterns (a swapped pattern fails). */
+#include <string.h>
+
+#include "kg_acquire.h"
+#include "kg_test.h"
+
+static int cmp_float(const void *a, const void *b)
+{
+	float x = *(const float *)a, y = *(const float *)b;
+	return x < y ? -1 : x > y;
+}
+
+/* numpy's default percentile (linear between order statistics) on a sorted array */
+static double ref_percentile(const float *sorted, size_t n, double p)
+{
+	double pos = p / 100 * (double)(n - 1);
+	size_t k = (size_t)floor(pos);
+	if (k >= n - 1)
+		return sorted[n - 1];
+	return sorted[k] + (pos - (double)k) * ((double)sorted[k + 1] - sorted[k]);
+}
+
+static int colour_of(const char *cfa, int x, int y)
+{
+	char l = cfa[(y & 1) * 2 + (x & 1)];
+	return l == 'R' ? 0 : l == 'G' ? 1 : 2;
+}
+
+static void test_dark_flat(void)
+{
+	const int W = 64, H = 48;
+	const char *cfa = "GRBG";
+	const double gain[3] = {0.8, 1.0, 0.6};
+	kg_image *scene, *obj, *var, *flat, *dark;
+	kg_err err = {{0}};
+	kg_image_new(W, H, 1, &scene, &err);
+	kg_image_new(W, H, 1, &obj, &err);
+	kg_image_new(W, H, 1, &var, &err);
+	kg_image_new(W, H, 1, &flat, &err);
+	kg_image_new(W, H, 1, &dark, &err);
+	kg_image_set_cfa(obj, cfa, 2, 2, &err);
+	kg_image_set_cfa(var, cfa, 2, 2, &err);
+	kg_image_set_cfa(flat, cfa, 2, 2, &err);
+	kg_rng rng;
+	kg_rng_seed(&rng, 7);
+	double fsum[3] = {0}, fn[3] = {0};
+	double *vign = malloc(sizeof(double) * (size_t)(W * H));
+	for (int y = 0; y < H; y++)
+		for (int x = 0; x < W; x++) {
+			int i = y * W + x, c = colour_of(cfa, x, y);
+			double dx = (x - W / 2.0) / W, dy = (y - H / 2.0) / H;
+			double F = 1 - 0.6 * (dx * dx + dy * dy);
+			double D = 0.01 + 0.02 * kg_rng_uniform(&rng);
+			vign[i] = F;
+			scene->data[i] = (float)(0.1 + 0.5 * kg_rng_uniform(&rng));
+			obj->data[i] = (float)(scene->data[i] * F * gain[c] + D);
+			var->data[i] = (float)(1e-4 * F);
+			dark->data[i] = (float)D;
+			flat->data[i] = (float)(0.7 * F * gain[c]); /* a flat, dark already taken off */
+			fsum[c] += F;
+			fn[c]++;
+		}
+	/* two dead flat samples */
+	flat->data[5 * W + 7] = 0;
+	flat->data[9 * W + 11] = NAN;
+	CHECK(kg_correct_dark(obj, dark, &err) == 0, "dark: %s", err.msg);
+	long invalid = -1;
+	CHECK(kg_correct_flat(obj, var, flat, &invalid, &err) == 0, "flat: %s", err.msg);
+	CHECK(invalid == 2, "invalid flat samples %ld, expected 2", invalid);
+	/* the class means exclude the two dead samples */
+	fsum[colour_of(cfa, 7, 5)] -= vign[5 * W + 7];
+	fn[colour_of(cfa, 7, 5)]--;
+	fsum[colour_of(cfa, 11, 9)] -= vign[9 * W + 11];
+	fn[colour_of(cfa, 11, 9)]--;
+	double worst = 0, worst_v = 0;
+	for (int y = 0; y < H; y++)
+		for (int x = 0; x < W; x++) {
+			int i = y * W + x, c = colour_of(cfa, x, y);
+			if ((x == 7 && y == 5) || (x == 11 && y == 9)) {
+				CHECK(isnan(obj->data[i]) && isnan(var->data[i]), "dead flat at %d,%d: %g", x,
+				      y, obj->data[i]);
+				continue;
+			}
+			double mf = fsum[c] / fn[c];
+			double want = scene->data[i] * gain[c] * mf;
+			double g = vign[i] / mf;
+			double want_v = 1e-4 * vign[i] / (g * g);
+			worst = fmax(worst, fabs(obj->data[i] - want) / want);
+			worst_v = fmax(worst_v, fabs(var->data[i] - want_v) / want_v);
+		}
+	CHECK(worst < 2e-6, "flat-corrected image off by %.3g (relative)", worst);
+	CHECK(worst_v < 2e-6, "flat-corrected variance off by %.3g (relative)", worst_v);
+	printf("dark+flat: largest relative error %.2g (image), %.2g (variance)\n", worst,
+	       worst_v);
+
+	/* size and pattern mismatches */
+	kg_image *small;
+	kg_image_new(W - 2, H, 1, &small, &err);
+	CHECK(kg_correct_dark(obj, small, &err) == KG_EINVAL, "a smaller dark was accepted");
+	CHECK(strstr(err.msg, "the dark is 62x48"), "message '%s'", err.msg);
+	kg_image_set_cfa(dark, "RGGB", 2, 2, &err);
+	CHECK(kg_correct_dark(obj, dark, &err) == KG_EINVAL, "another CFA was accepted");
+	kg_image_free(&small);
+	kg_image_free(&scene);
+	kg_image_free(&obj);
+	kg_image_free(&var);
+	kg_image_free(&flat);
+	kg_image_free(&dark);
+	free(vign);
+}
+
+static void test_stats(void)
+{
+	kg_image *img;
+	kg_err err = {{0}};
+	kg_image_new(101, 37, 3, &img, &err);
+	size_t n = 101 * 37 * 3;
+	kg_rng rng;
+	kg_rng_seed(&rng, 11);
+	for (size_t i = 0; i < n; i++)
+		img->data[i] = (float)(kg_rng_uniform(&rng) * kg_rng_uniform(&rng));
+	img->data[17] = NAN;
+	img->data[18] = INFINITY;
+	float *sorted = malloc(sizeof(float) * n);
+	size_t m = 0, under = 0;
+	for (size_t i = 0; i < n; i++)
+		if (isfinite(img->data[i])) {
+			sorted[m++] = img->data[i];
+			under += img->data[i] < KG_UNDEREXPOSED_LEVEL;
+		}
+	qsort(sorted, m, sizeof(float), cmp_float);
+	kg_image_stats st;
+	CHECK(kg_image_stats_compute(img, &st, &err) == 0, "%s", err.msg);
+	CHECK(st.nonfinite == 2, "nonfinite %ld", st.nonfinite);
+	CHECK_NEAR(st.min, sorted[0], 0, "min");
+	CHECK_NEAR(st.max, sorted[m - 1], 0, "max");
+	CHECK_NEAR(st.p01, ref_percentile(sorted, m, 1), 1e-7, "p1");
+	CHECK_NEAR(st.p50, ref_percentile(sorted, m, 50), 1e-7, "p50");
+	CHECK_NEAR(st.p99, ref_percentile(sorted, m, 99), 1e-7, "p99");
+	CHECK_NEAR(st.p999, ref_percentile(sorted, m, 99.9), 1e-7, "p99.9");
+	CHECK_NEAR(st.underexposed_fraction, (double)under / (double)m, 1e-12, "under-exposed");
+	free(sorted);
+	kg_image_free(&img);
+}
+
+/* Brute force: same-colour neighbours within radius r (in same-colour steps). */
+static double ref_bright(const kg_image *img, int r, double p)
+{
+	int step = img->cfa ? 2 : 1, ch = img->channels;
+	size_t n = (size_t)img->width * (size_t)img->height * (size_t)ch;
+	float *v = malloc(sizeof(float) * n);
+	size_t m = 0;
+	for (int y = 0; y < img->height; y++)
+		for (int x = 0; x < img->width; x++)
+			for (int c = 0; c < ch; c++) {
+				double s = 0;
+				int k = 0;
+				for (int dy = -r; dy <= r; dy++)
+					for (int dx = -r; dx <= r; dx++) {
+						int X = x + dx * step, Y = y + dy * step;
+						if (X < 0 || Y < 0 || X >= img->width || Y >= img->height)
+							continue;
+						s += img->data[((size_t)Y * (size_t)img->width + (size_t)X) * (size_t)ch + (size_t)c];
+						k++;
+					}
+				v[m++] = (float)(s / k);
+			}
+	qsort(v, m, sizeof(float), cmp_float);
+	double out = ref_percentile(v, m, p);
+	free(v);
+	return out;
+}
+
+static void test_bright_level(void)
+{
+	kg_err err = {{0}};
+	for (int mosaic = 0; mosaic < 2; mosaic++) {
+		int ch = mosaic ? 1 : 3;
+		kg_image *img;
+		kg_image_new(120, 90, ch, &img, &err);
+		if (mosaic)
+			kg_image_set_cfa(img, "BGGR", 2, 2, &err);
+		kg_rng rng;
+		kg_rng_seed(&rng, 5 + (uint64_t)mosaic);
+		size_t n = (size_t)120 * 90 * (size_t)ch;
+		for (size_t i = 0; i < n; i++)
+			img->data[i] = (float)(0.2 + 0.05 * kg_rng_uniform(&rng));
+		/* a bright 14 x 14 patch (1.8 % of the image) and isolated hot pixels */
+		for (int y = 30; y < 44; y++)
+			for (int x = 50; x < 64; x++)
+				for (int c = 0; c < ch; c++)
+					img->data[((size_t)y * 120 + (size_t)x) * (size_t)ch + (size_t)c] = 0.9f;
+		for (int k = 0; k < 40; k++)
+			img->data[(size_t)(kg_rng_uniform(&rng) * (double)n)] = 1.0f;
+		double level = -1;
+		CHECK(kg_bright_level(img, KG_BRIGHT_RADIUS, KG_BRIGHT_PERCENTILE, &level, &err) == 0,
+		      "%s", err.msg);
+		double want = ref_bright(img, KG_BRIGHT_RADIUS, KG_BRIGHT_PERCENTILE);
+		CHECK_NEAR(level, want, 1e-6, mosaic ? "bright level (mosaic)" : "bright level (rgb)");
+		/* the hot pixels do not decide it: the patch does */
+		CHECK(level > 0.6 && level < 0.95, "bright level %g should be near the patch", level);
+		printf("bright level (%s): %.6f (brute force %.6f)\n", mosaic ? "mosaic" : "rgb", level,
+		       want);
+		kg_image_free(&img);
+	}
+}
+
+static void test_demosaic(void)
+{
+	if (!kg_demosaic_algorithm()) {
+		printf("demosaic: built without OpenCV, not tested\n");
+		kg_image *m;
+		kg_err err = {{0}};
+		kg_image_new(8, 8, 1, &m, &err);
+		kg_image_set_cfa(m, "RGGB", 2, 2, &err);
+		kg_image *rgb = NULL;
+		CHECK(kg_demosaic(m, &rgb, NULL, &err) == KG_ENOTSUP, "demosaic without OpenCV");
+		kg_image_free(&m);
+		return;
+	}
+	static const char *const pats[] = {"RGGB", "GRBG", "GBRG", "BGGR"};
+	const double colour[3] = {0.2, 0.5, 0.7};
+	for (int p = 0; p < 4; p++) {
+		const int W = 40, H = 30;
+		kg_image *m, *rgb = NULL;
+		kg_err err = {{0}};
+		kg_image_new(W, H, 1, &m, &err);
+		kg_image_set_cfa(m, pats[p], 2, 2, &err);
+		/* each colour is a ramp across x: bilinear interpolation keeps it exactly */
+		for (int y = 0; y < H; y++)
+			for (int x = 0; x < W; x++)
+				m->data[y * W + x] = (float)(colour[colour_of(pats[p], x, y)] * (1 + 0.01 * x));
+		double step = 0;
+		int ret = kg_demosaic(m, &rgb, &step, &err);
+		CHECK(ret == 0, "%s: %s", pats[p], err.msg);
+		if (ret) {
+			kg_image_free(&m);
+			continue;
+		}
+		double worst = 0;
+		for (int y = 2; y < H - 2; y++)
+			for (int x = 2; x < W - 2; x++)
+				for (int c = 0; c < 3; c++)
+					worst = fmax(worst, fabs(rgb->data[(y * W + x) * 3 + c] -
+					                         colour[c] * (1 + 0.01 * x)));
+		CHECK(worst <= 2 * step + 1e-6, "%s: interior off by %.3g (step %.3g)", pats[p], worst,
+		      step);
+		printf("demosaic %s: interior within %.3g (16-bit step %.3g)\n", pats[p], worst, step);
+		kg_image_free(&m);
+		kg_image_free(&rgb);
+	}
+}
+
+int main(void)
+{
+	test_dark_flat();
+	test_stats();
+	test_bright_level();
+	test_demosaic();
+	return kg_test_done("acquire-correct");
+}

@@ -1,0 +1,117 @@
+/* Sessions killed with SIGKILL stay valid. One capture completes; then `kogei acquire
+ * --frames 200` on a real-time sim camera (50 fps) is killed at several moments during
+ * its capture, and short captures are killed at random moments of their whole run
+ * (0.3 to 1.2 times a full run: metering, frames, outputs, manifest, exit). After every
+ * kill session.json must parse, every file it references must exist with its sha256,
+ * and every capture completed
+ * before must still be there. Finally the session takes another capture, and a
+ * completed capture of it replays bit-identically. */
+#include "acq_test.h"
+#include "kg_core.h"
+
+static char done_names[64][64];
+static int ndone;
+
+/* Check the session and that the captures known to be complete are all in it;
+ * returns the number of captures and records the names. */
+static int check(const char *s, const char *when)
+{
+	char names[64][64];
+	int n = acq_check_session(s, names, 64);
+	CHECK(n >= ndone, "%s: session invalid or lost captures (%d, had %d)", when, n, ndone);
+	for (int i = 0; i < ndone && n >= ndone; i++)
+		CHECK(!strcmp(names[i], done_names[i]), "%s: capture %d is %s, was %s", when, i,
+		      names[i], done_names[i]);
+	for (int i = ndone; i < n && i < 64; i++)
+		memcpy(done_names[i], names[i], 64);
+	if (n > ndone)
+		ndone = n;
+	return n;
+}
+
+static double now_s(void)
+{
+	struct timespec ts;
+	clock_gettime(CLOCK_MONOTONIC, &ts);
+	return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+static void kill_after(char *const *args, double delay)
+{
+	pid_t pid = acq_spawn(args);
+	usleep((useconds_t)(delay * 1e6));
+	kill(pid, SIGKILL);
+	int st;
+	waitpid(pid, &st, 0);
+}
+
+int main(int argc, char **argv)
+{
+	acq_init(argc, argv, "acquire-sigkill");
+	char s[4200];
+	snprintf(s, sizeof(s), "%s", acq_path("session"));
+	const char *rt = "sim:?realtime=1&fps=50&width=64&height=48";
+	int rc = acq_run("acquire", "--camera", rt, "--out", s, "--kind", "chart", "--frames", "3",
+	                 NULL);
+	CHECK(rc == 0, "first capture: exit %d: %s", rc, acq_errtext);
+	CHECK(check(s, "after the first capture") == 1, "one capture");
+
+	/* during the frames of a long capture (200 frames at 50 fps: 4 s) */
+	char *long_args[] = {"acquire", "--camera", (char *)rt, "--out", s, "--kind", "chart",
+	                     "--frames", "200", NULL};
+	const double delays[] = {0.05, 0.3, 0.9, 1.6};
+	for (int i = 0; i < 4; i++) {
+		kill_after(long_args, delays[i]);
+		char when[64];
+		snprintf(when, sizeof(when), "killed after %.2f s of 200 frames", delays[i]);
+		CHECK(check(s, when) == 1, "%s: a killed capture entered the manifest", when);
+	}
+
+	/* at random moments of short captures */
+	char *short_args[] = {"acquire", "--camera", "sim:?width=320&height=240&format=bayer_rggb12",
+	                      "--out", s, "--kind", "object", "--frames", "2", "--exposure", "auto",
+	                      NULL};
+	double t0 = now_s();
+	rc = acq_wait(acq_spawn(short_args), 60);
+	double full = now_s() - t0;
+	CHECK(rc == 0, "short capture: exit %d: %s", rc, acq_errtext);
+	int before = ndone;
+	CHECK(check(s, "after a short capture") == before + 1, "the short capture is missing");
+	kg_rng rng;
+	kg_rng_seed(&rng, 2024);
+	int killed_complete = 0;
+	for (int i = 0; i < 10; i++) {
+		int had = ndone;
+		double d = full * (0.3 + 0.9 * kg_rng_uniform(&rng));
+		kill_after(short_args, d);
+		char when[64];
+		snprintf(when, sizeof(when), "short capture killed after %.3f s", d);
+		int n = check(s, when);
+		CHECK(n == had || n == had + 1, "%s: %d captures, had %d", when, n, had);
+		killed_complete += n == had + 1;
+	}
+	printf("short capture: %.3f s; 10 kills at 0.3..1.2 of that, %d after the manifest\n",
+	       full, killed_complete);
+
+	/* the session still takes captures, with fresh names */
+	int had = ndone;
+	rc = acq_run("acquire", "--camera", rt, "--out", s, "--kind", "chart", "--frames", "2",
+	             NULL);
+	CHECK(rc == 0, "capture after the kills: exit %d: %s", rc, acq_errtext);
+	CHECK(check(s, "after the kills") == had + 1, "one more capture");
+	printf("captures after the kills: %d (%s ... %s)\n", ndone, done_names[0],
+	       done_names[ndone - 1]);
+
+	/* and its recording still replays: the first capture, bit for bit */
+	char uri[4400], t[4200], pa[4400], pb[4400];
+	snprintf(uri, sizeof(uri), "replay:%s#chart-0001", s);
+	snprintf(t, sizeof(t), "%s", acq_path("replayed"));
+	rc = acq_run("acquire", "--camera", uri, "--out", t, "--kind", "chart", "--frames", "3",
+	             NULL);
+	CHECK(rc == 0, "replay after the kills: exit %d: %s", rc, acq_errtext);
+	snprintf(pa, sizeof(pa), "%s/captures/chart-0001/mean.tif", s);
+	snprintf(pb, sizeof(pb), "%s/captures/chart-0001/mean.tif", t);
+	CHECK(acq_same_file(pa, pb) == 0, "the replayed mean differs");
+	acq_cleanup();
+	return kg_test_done("acquire-sigkill");
+}

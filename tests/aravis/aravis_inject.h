@@ -1,0 +1,94 @@
+/* Frames injected into an Aravis fake camera (in-process, or served over loopback by
+ * the fake GigE Vision camera) through its fill callback, and the check that kogei
+ * delivers them byte for byte.
+ *
+ * Frame k of a run is 16 bytes of header (the frame number, then the exposure and gain
+ * the fake camera reported to the callback) followed by xoshiro256** bytes seeded with
+ * k, so a reordered, repeated, truncated or shifted frame cannot match. The callback is
+ * called only for frames that have a buffer to go to, so the k-th frame kogei delivers
+ * must be the k-th one filled. */
+#ifndef KG_ARAVIS_INJECT_H
+#define KG_ARAVIS_INJECT_H
+
+#include <arv.h>
+#include <stdint.h>
+#include <string.h>
+
+#include "kg_camera.h"
+#include "kg_core.h"
+
+typedef struct inject {
+	ArvFakeCamera *fake;
+	GMutex lock;
+	uint64_t filled;       /* frames filled so far */
+	uint32_t exposure_us;  /* as the fake camera passed them to the last fill */
+	uint32_t gain;
+	size_t last_size;      /* bytes written into the last frame */
+} inject;
+
+static inline void inject_frame_bytes(uint64_t k, uint8_t *out, size_t size)
+{
+	kg_rng r;
+	kg_rng_seed(&r, 0x6b6f676569ull ^ (k * 0x9e3779b97f4a7c15ull));
+	for (size_t i = 0; i < size; i += 8) {
+		uint64_t v = kg_rng_next(&r);
+		memcpy(out + i, &v, size - i < 8 ? size - i : 8);
+	}
+	memcpy(out, &k, size < 8 ? size : 8);
+}
+
+/* ArvFakeCameraFillPattern. The buffer's own size is stale in Aravis 0.8.26 (often 0):
+ * the frame size comes from the registers and the pixel format. */
+static inline void inject_fill(ArvBuffer *b, void *user, guint32 exposure_us, guint32 gain,
+                               ArvPixelFormat pf)
+{
+	inject *in = user;
+	guint32 w = 0, h = 0;
+	arv_fake_camera_read_register(in->fake, ARV_FAKE_CAMERA_REGISTER_WIDTH, &w);
+	arv_fake_camera_read_register(in->fake, ARV_FAKE_CAMERA_REGISTER_HEIGHT, &h);
+	size_t size = (size_t)w * h * ARV_PIXEL_FORMAT_BIT_PER_PIXEL(pf) / 8;
+	uint8_t *data = (uint8_t *)arv_buffer_get_data(b, NULL);
+	g_mutex_lock(&in->lock);
+	uint64_t k = in->filled++;
+	in->exposure_us = exposure_us;
+	in->gain = gain;
+	in->last_size = size;
+	g_mutex_unlock(&in->lock);
+	inject_frame_bytes(k, data, size);
+	if (size >= 16) {
+		memcpy(data + 8, &exposure_us, 4);
+		memcpy(data + 12, &gain, 4);
+	}
+}
+
+static inline void inject_attach(inject *in, ArvFakeCamera *fake)
+{
+	memset(in, 0, sizeof(*in));
+	g_mutex_init(&in->lock);
+	in->fake = fake;
+	arv_fake_camera_set_fill_pattern(fake, inject_fill, in);
+}
+
+/* 1 when frame f is injected frame k byte for byte; else prints where they differ. */
+static inline int inject_matches(const kg_frame *f, uint64_t k)
+{
+	size_t n = f->fmt.size;
+	uint8_t *want = malloc(n ? n : 1);
+	if (!want)
+		return 0;
+	inject_frame_bytes(k, want, n);
+	if (n >= 16)
+		memcpy(want + 8, (const uint8_t *)f->data + 8, 8); /* settings: checked apart */
+	size_t at = n;
+	for (size_t i = 0; i < n && at == n; i++)
+		if (want[i] != ((const uint8_t *)f->data)[i])
+			at = i;
+	if (at < n)
+		fprintf(stderr, "frame %llu (sequence %llu): byte %zu of %zu is 0x%02x, injected 0x%02x\n",
+		        (unsigned long long)k, (unsigned long long)f->sequence, at, n,
+		        ((const uint8_t *)f->data)[at], want[at]);
+	free(want);
+	return at == n && f->size == n;
+}
+
+#endif
