@@ -382,10 +382,11 @@ static void report(FILE *fp, const opts *o, const char *date, const char *machin
 	        "not a camera link's; compare the two tools within one run. Machines drift 15-30 %% "
 	        "between sessions.\n"
 	        "- **Recording**: kogei's receiver with kg_camera_record_start into a temporary "
-	        "session: every frame is written to its own file, fsynced and renamed, and its line "
-	        "appended to index.jsonl and fsynced (devices/kg_camera.h), so the rate is bounded "
-	        "by the disk's sync latency as much as by its bandwidth. Frames the recorder "
-	        "cannot keep up with are lost for want of a free buffer and show as dropped.\n\n");
+	        "session: every frame is written to its own file (temporary name, renamed) and its "
+	        "line appended to index.jsonl, with one syncfs when recording stops "
+	        "(devices/kg_camera.h), so the rate is bounded by the page cache and the disk's "
+	        "bandwidth, not by one sync per frame. Frames the recorder cannot keep up with are "
+	        "lost for want of a free buffer and show as dropped.\n\n");
 	fprintf(fp, "## Streaming\n\n");
 	fprintf(fp, "| size | receiver | frames/s | MiB/s | completed | failed | incomplete | "
 	            "dropped | missing packets | resent | note |\n");
