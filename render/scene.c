@@ -187,7 +187,7 @@ static int load_illuminant(kg_scene *s, const json_t *root, const char *path,
 		              "(D65, A, E, D50, 5500K, ...) nor a file (looked for %s)", s->path,
 		              path, name, file);
 	else if ((ret = kg_illuminant_from_file(file, out, err)))
-		kg_err_prefix(err, "%s: key '%s': ", s->path, path);
+		kg_err_prefix(err, "%s: key '%s'", s->path, path);
 	free(file);
 	return ret;
 }
@@ -331,7 +331,7 @@ static int load_label_map(kg_scene *s, const json_t *root, kg_err *err)
 	kg_envi *e = NULL;
 	float *data = NULL;
 	if ((ret = kg_envi_open(lm->path, &e, err))) {
-		kg_err_prefix(err, "%s: key 'materials.label_map.file': ", s->path);
+		kg_err_prefix(err, "%s: key 'materials.label_map.file'", s->path);
 		return ret;
 	}
 	const kg_envi_meta *m = &e->meta;
@@ -355,7 +355,7 @@ static int load_label_map(kg_scene *s, const json_t *root, kg_err *err)
 	}
 	if (!ret && (ret = kg_envi_read(e, 0, 0, m->samples, m->lines, KG_LAYOUT_BIP, data,
 	                                err)))
-		kg_err_prefix(err, "%s: key 'materials.label_map.file': ", s->path);
+		kg_err_prefix(err, "%s: key 'materials.label_map.file'", s->path);
 	for (size_t i = 0; !ret && i < npix; i++) {
 		if (!(data[i] >= 0.0f && data[i] < (float)m->classes) || data[i] != floorf(data[i]))
 			ret = kg_fail(err, KG_EINVAL, "%s: %s: pixel (%zu, %zu) holds %g: expected a "
@@ -436,7 +436,7 @@ static int load_materials(kg_scene *s, const json_t *root, kg_err *err)
 		return kg_fail(err, KG_ENOENT, "%s: key 'materials.library' is absent and the "
 		               "bundled library (materials/default.json) was not found", s->path);
 	if ((ret = kg_material_library_load(s->library_path, &s->lib, err))) {
-		kg_err_prefix(err, "%s: key 'materials.library': ", s->path);
+		kg_err_prefix(err, "%s: key 'materials.library'", s->path);
 		return ret;
 	}
 	static const char *const modes[] = {"material", "face_ids", "vertex_ids", "label_map"};
@@ -506,7 +506,7 @@ static int load_part(kg_scene *s, const json_t *root, const char *path, kg_mesh 
 		if (!file)
 			return kg_fail(err, KG_ENOMEM, "out of memory");
 		if ((ret = kg_ply_load(file, out, err)))
-			kg_err_prefix(err, "%s: key '%s': ", s->path, path);
+			kg_err_prefix(err, "%s: key '%s'", s->path, path);
 		free(file);
 	} else if (json_is_string(gen)) {
 		const char *g = json_string_value(gen);
@@ -674,7 +674,7 @@ static int load_environment_image(kg_scene *s, const json_t *root, const kg_illu
 	if (!file)
 		return kg_fail(err, KG_ENOMEM, "out of memory");
 	if ((ret = kg_image_read(file, &img, err)))
-		kg_err_prefix(err, "%s: key 'environment.image': ", s->path);
+		kg_err_prefix(err, "%s: key 'environment.image'", s->path);
 	free(file);
 	if (!ret)
 		ret = rd_upsampler_init(&s->env_up, ill, err);
@@ -704,8 +704,8 @@ static int load_environment_image(kg_scene *s, const json_t *root, const kg_illu
 	return ret;
 }
 
-/* The light and the environment; the white is the light's illuminant, else the
- * environment's. */
+/* The light and the environment; the white is camera.white when given, else the
+ * light's illuminant, else the environment's. */
 static int load_lights(kg_scene *s, const json_t *root, kg_err *err)
 {
 	static const char *const light_keys[] = {"illuminant", "direction", "intensity", NULL};
@@ -755,8 +755,11 @@ static int load_lights(kg_scene *s, const json_t *root, kg_err *err)
 		if (!ret)
 			snprintf(s->env_illuminant, sizeof(s->env_illuminant), "%s", sky->name);
 	}
+	kg_illuminant *balance = NULL;
+	if (!ret && kg_json_find(root, "camera.white"))
+		ret = load_illuminant(s, root, "camera.white", &balance, err);
 	if (!ret) {
-		const kg_illuminant *white = sun ? sun : sky;
+		const kg_illuminant *white = balance ? balance : sun ? sun : sky;
 		kg_xyz_weights w;
 		kg_xyz_weights_signal(white, &w);
 		for (int c = 0; c < 3; c++)
@@ -774,6 +777,7 @@ static int load_lights(kg_scene *s, const json_t *root, kg_err *err)
 		ret = load_environment_image(s, root, sky, err);
 	kg_illuminant_free(&sun);
 	kg_illuminant_free(&sky);
+	kg_illuminant_free(&balance);
 	return ret;
 }
 
@@ -782,7 +786,7 @@ static int load_lights(kg_scene *s, const json_t *root, kg_err *err)
 static int load_camera(kg_scene *s, const json_t *root, kg_err *err)
 {
 	static const char *const keys[] = {"position", "look_at", "up", "fov_deg", "width",
-	                                   "height", "exposure", NULL};
+	                                   "height", "exposure", "white", NULL};
 	json_t *cam;
 	long w, h;
 	int ret = get_object(s->path, root, "camera", &cam, err);
