@@ -371,13 +371,13 @@ static int demo_calibrate(demo_ctx *d)
 		snprintf(d->patch_names[i], sizeof(d->patch_names[i]), "%s", layout->patches[i].name);
 	}
 
-	printf("[1/7] chart spectra: the %d patches of %s measured with the spectrophotometer "
+	printf("[1/8] chart spectra: the %d patches of %s measured with the spectrophotometer "
 	       "(%s)\n",
 	       layout->npatches, layout->name, DEMO_SPECTRO);
 	if ((ret = demo_measure_chart(d, chart)) != 0)
 		goto done;
 
-	printf("[2/7] reference calibration: chart %s (%d patches of %s in an AprilTag frame), "
+	printf("[2/8] reference calibration: chart %s (%d patches of %s in an AprilTag frame), "
 	       "reference camera under %s; S from %s\n",
 	       layout->name, layout->npatches, DEMO_CHART, DEMO_REFERENCE_ILLUMINANT,
 	       DEMO_CHART_SPECTRA);
@@ -397,7 +397,7 @@ static int demo_calibrate(demo_ctx *d)
 	if (ret)
 		goto done;
 
-	printf("[3/7] site calibration: the same chart, another model camera under CIE %s, "
+	printf("[3/8] site calibration: the same chart, another model camera under CIE %s, "
 	       "noise %s\n",
 	       DEMO_SITE_ILLUMINANT, DEMO_SITE_NOISE);
 	ret = shoot_chart(d, layout, &d->shots[1]);
@@ -445,7 +445,7 @@ static int demo_object(demo_ctx *d)
 	kg_sim_material_set *set = NULL;
 	kg_sim_noise noise;
 	kg_sim_capture cap;
-	printf("[4/7] object: the library's samples at %g deg incidence, site camera under "
+	printf("[4/8] object: the library's samples at %g deg incidence, site camera under "
 	       "CIE %s\n",
 	       DEMO_ANGLE_DEG, DEMO_SITE_ILLUMINANT);
 	int ret = kg_sim_noise_parse(DEMO_SITE_NOISE, &noise, &d->err);
@@ -519,7 +519,7 @@ static int demo_estimate(demo_ctx *d)
 	kg_apply_options_init(&opt);
 	opt.description = "kogei demo: the object's reflectance, estimated";
 
-	printf("[5/7] estimate and classify (method %s)\n", kg_method_name(d->cam->method));
+	printf("[5/8] estimate and classify (method %s)\n", kg_method_name(d->cam->method));
 	int ret = kg_image_read(image, &img, &d->err);
 	if (!ret)
 		ret = kg_camera_kernel(d->cam, KG_METHOD_AUTO, 0, &kern, pre, &pre_needed, &d->err);
@@ -623,7 +623,7 @@ int kg_cmd_demo(int argc, char **argv)
 	              : kg_fail(&d.err, KG_ENOMEM, "out of memory");
 	if (!ret) {
 		printf("kogei demo: writing to %s/\n", d.dir);
-		printf("[0/7] the bundled session: its recorded frames replayed through the "
+		printf("[0/8] the bundled session: its recorded frames replayed through the "
 		       "replay: camera and averaged (acquire/)\n");
 		ret = demo_session_replay(&d, &d.photos);
 	}
@@ -634,11 +634,16 @@ int kg_cmd_demo(int argc, char **argv)
 	if (!ret)
 		ret = demo_estimate(&d);
 	if (!ret) {
-		printf("[6/7] reflection models of the material library\n");
+		printf("[6/8] reflection models of the material library\n");
 		ret = demo_materials(&d);
 	}
 	if (!ret) {
-		printf("[7/7] report: estimated against true spectra, confusion, summary\n");
+		printf("[7/8] the object rendered in each material of the paper's Fig. 13 "
+		       "(render/, Embree)\n");
+		ret = demo_render(&d);
+	}
+	if (!ret) {
+		printf("[8/8] report: estimated against true spectra, confusion, summary\n");
 		ret = demo_report(&d);
 	}
 	demo_free(&d);

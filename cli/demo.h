@@ -134,6 +134,13 @@ void demo_photos_free(demo_photos *p);
 /* A progress line for a file just written. */
 void demo_wrote(demo_ctx *d, const char *path, const char *what);
 
+/* The object (the tsuba of render/kg_mesh.h) rendered in each material of the paper's
+ * Fig. 13 (the five shibuichi, gold, copper, urushi) into render/<material>.png and
+ * the labelled contact sheet render_fig13.png, with the scene (render_scene.json) and
+ * its environment (render_sky.tif); skipped with a message without Embree
+ * (cli/demo_render.c). */
+int demo_render(demo_ctx *d);
+
 /* Read the cube and the label map back, compare them with the scene's ground truth
  * and write spectra_by_material.png, confusion.png, object_d65.png and summary.md,
  * then print the summary. */

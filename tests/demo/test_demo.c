@@ -44,7 +44,8 @@
 
 static const char *const files[] = {
 	"chart_spectra.cgats",
-	"session/captures/reference-chart/mean.tif", "reference_chart_overlay.png", "reference_chart.cgats",
+	"session/session.json", "session/captures/reference-chart/mean.tif",
+	"reference_chart_overlay.png", "reference_chart.cgats",
 	"session/captures/site-chart/mean.tif", "site_chart_overlay.png", "site_chart.cgats",
 	"reference.json", "camera.json",
 	"object.tif", "object_truth.hdr", "object_truth.img", "object_truth_labels.hdr",
@@ -55,8 +56,8 @@ static const char *const files[] = {
 };
 
 static const char *const pngs[] = {
-	"session/captures/reference-chart/mean.tif", "reference_chart_overlay.png", "session/captures/site-chart/mean.tif",
-	"site_chart_overlay.png", "labels.png", "spectra_by_material.png", "confusion.png", "object_d65.png",
+	"session/captures/reference-chart/mean.tif", "reference_chart_overlay.png",
+	"session/captures/site-chart/mean.tif", "site_chart_overlay.png", "labels.png", "spectra_by_material.png", "confusion.png", "object_d65.png",
 	"fig7_shibuichi-nami.png", "materials_d65.png",
 };
 
@@ -308,6 +309,23 @@ int main(int argc, char **argv)
 		kg_image_free(&img);
 		free(p);
 	}
+#if HAVE_EMBREE
+	/* Step 7: the Fig. 13 contact sheet and one render per material. */
+	static const char *const renders[] = {
+		"render_fig13.png", "render/shibuichi-nami.png", "render/shibuichi-shiro.png",
+		"render/shibuichi-jo.png", "render/shibuichi-nami-uchisanbu.png",
+		"render/shibuichi-nami-sotosanbu.png", "render/gold.png", "render/copper.png",
+		"render/urushi.png",
+	};
+	for (size_t i = 0; i < sizeof(renders) / sizeof(renders[0]); i++) {
+		char *p = in_dir(dir, renders[i]);
+		kg_image *img = NULL;
+		CHECK(kg_image_read(p, &img, &err) == 0 && img->width > 0 && img->channels == 3,
+		      "%s: %s", p, err.msg);
+		kg_image_free(&img);
+		free(p);
+	}
+#endif
 	kg_chart_layout *layout = NULL;
 	int lret = kg_chart_layout_load(DEMO_LAYOUT, &layout, &err);
 	CHECK(lret == 0, "%s", err.msg);
