@@ -30,10 +30,6 @@ int kg_frame_accum_new(const kg_frame_format *fmt, int allow_nonlinear, kg_frame
 {
 	kg_check_arg(fmt && out, err);
 	*out = NULL;
-	if (fmt->pixfmt == KG_PIX_MJPEG)
-		return kg_fail(err, KG_ENOTSUP,
-		               "format mjpeg: compressed and lossy frames cannot be averaged (kogei "
-		               "does not decode JPEG); choose an uncompressed format");
 	if (!kg_pixfmt_is_linear(fmt->pixfmt) && !allow_nonlinear)
 		return kg_fail(err, KG_EINVAL,
 		               "format %s: not linear sensor data; refused for measurement unless "
@@ -43,9 +39,10 @@ int kg_frame_accum_new(const kg_frame_format *fmt, int allow_nonlinear, kg_frame
 	int ch = kg_pixfmt_channels(fmt->pixfmt);
 	int wide = fmt->pixfmt == KG_PIX_MONO16 || fmt->pixfmt == KG_PIX_BAYER16 ||
 	           fmt->pixfmt == KG_PIX_RGB16;
-	if (!bpp || fmt->width <= 0 || fmt->height <= 0 ||
+	int mjpeg = fmt->pixfmt == KG_PIX_MJPEG; /* decoded frame by frame, no fixed stride */
+	if ((!bpp && !mjpeg) || fmt->width <= 0 || fmt->height <= 0 ||
 	    (long)fmt->width * fmt->height > KG_IMAGE_MAX_PIXELS ||
-	    fmt->stride < (size_t)fmt->width * (size_t)bpp || fmt->bits < 1 ||
+	    (!mjpeg && fmt->stride < (size_t)fmt->width * (size_t)bpp) || fmt->bits < 1 ||
 	    fmt->bits > (wide ? 16 : 8))
 		return kg_fail(err, KG_EINVAL,
 		               "format %s %dx%d, %d bits, stride %zu: expected a positive size, a "
@@ -59,7 +56,7 @@ int kg_frame_accum_new(const kg_frame_format *fmt, int allow_nonlinear, kg_frame
 	a->channels = ch;
 	a->allow_nonlinear = allow_nonlinear;
 	a->nsamples = (size_t)fmt->width * (size_t)fmt->height * (size_t)ch;
-	a->fullscale = fmt->pixfmt == KG_PIX_YUYV ? 1.0 : (double)((1u << fmt->bits) - 1u);
+	a->fullscale = !kg_pixfmt_is_linear(fmt->pixfmt) ? 1.0 : (double)((1u << fmt->bits) - 1u);
 	a->mean = calloc(a->nsamples, sizeof(double));
 	a->m2 = calloc(a->nsamples, sizeof(double));
 	a->clipped = calloc(a->nsamples, 1);
@@ -107,6 +104,17 @@ int kg_frame_accum_add(kg_frame_accum *a, const kg_frame *f, kg_err *err)
 		               fmt->width, fmt->height, fmt->bits, fmt->stride,
 		               kg_pixfmt_name(a->fmt.pixfmt), a->fmt.width, a->fmt.height,
 		               a->fmt.bits, a->fmt.stride);
+	if (!kg_pixfmt_is_linear(fmt->pixfmt)) { /* YUYV, MJPEG: through the decoder */
+		kg_image *img = NULL;
+		int ret = kg_frame_to_image(f, a->allow_nonlinear, &img, err);
+		if (ret)
+			return ret;
+		a->n++;
+		for (size_t i = 0; i < a->nsamples; i++)
+			welford(a, i, img->data[i], 1.0 / (double)a->n);
+		kg_image_free(&img);
+		return 0;
+	}
 	size_t row_bytes = (size_t)fmt->width * (size_t)kg_pixfmt_bytes_per_pixel(fmt->pixfmt);
 	if (f->size < fmt->stride * (size_t)(fmt->height - 1) + row_bytes)
 		return kg_fail(err, KG_EINVAL, "frame %llu: %zu bytes do not hold %dx%d %s",
@@ -115,18 +123,6 @@ int kg_frame_accum_add(kg_frame_accum *a, const kg_frame *f, kg_err *err)
 	a->n++;
 	double inv_n = 1.0 / (double)a->n;
 	size_t row_samples = (size_t)fmt->width * (size_t)a->channels;
-	if (fmt->pixfmt == KG_PIX_YUYV) {
-		kg_image *img = NULL;
-		int ret = kg_frame_to_image(f, a->allow_nonlinear, &img, err);
-		if (ret) {
-			a->n--;
-			return ret;
-		}
-		for (size_t i = 0; i < a->nsamples; i++)
-			welford(a, i, img->data[i], inv_n);
-		kg_image_free(&img);
-		return 0;
-	}
 	int wide = kg_pixfmt_bytes_per_pixel(fmt->pixfmt) / a->channels == 2;
 	for (int y = 0; y < fmt->height; y++) {
 		const uint8_t *row = (const uint8_t *)f->data + fmt->stride * (size_t)y;

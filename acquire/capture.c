@@ -573,11 +573,6 @@ static int setup_camera(cap_ctx *c, kg_err *err)
 	}
 	if ((ret = cam(c, kg_camera_get_format(c->cam, &r->format, err))))
 		return ret;
-	if (r->format.pixfmt == KG_PIX_MJPEG)
-		return kg_fail(err, KG_ENOTSUP,
-		               "camera '%s': delivers MJPEG, compressed and lossy: kogei cannot average "
-		               "it; choose an uncompressed --format",
-		               kg_camera_get_info(c->cam)->uri);
 	if (!kg_pixfmt_is_linear(r->format.pixfmt) && !o->force_nonlinear)
 		return kg_fail(err, KG_EINVAL,
 		               "camera '%s': delivers %s, which is not linear sensor data: refused for "
@@ -612,6 +607,12 @@ static int average(cap_ctx *c, int timeout_ms, kg_err *err)
 		if ((ret = pop_frame(c, timeout_ms, &f, err)))
 			break;
 		ret = kg_frame_accum_add(acc, &f, err);
+		if (ret == KG_EINVAL && f.fmt.pixfmt == KG_PIX_MJPEG) {
+			/* a damaged compressed frame is the camera's fault: fail with the counts */
+			char why[sizeof(err->msg)];
+			snprintf(why, sizeof(why), "%s", err ? err->msg : "damaged MJPEG frame");
+			ret = stream_error(c, KG_EIO, why, err);
+		}
 		json_t *e = ret ? NULL : frame_entry(c, &f);
 		if (e)
 			json_array_append_new(c->frames, e);
@@ -708,7 +709,7 @@ int kg_capture_run(kg_session *s, kg_camera *camera, const kg_capture_options *o
 	kg_image *dark = NULL, *flat = NULL;
 	json_t *demosaic = NULL;
 	char started[32], ended[32];
-	int wrote = 0;
+	int wrote = 0, recorded = 0;
 	if (!c.frames || !c.steps) {
 		ret = kg_fail(err, KG_ENOMEM, "out of memory");
 		goto done;
@@ -719,6 +720,7 @@ int kg_capture_run(kg_session *s, kg_camera *camera, const kg_capture_options *o
 		if ((ret = cam(&c, kg_camera_record_start(camera, kg_session_dir(s), err))))
 			goto done;
 		c.recording = 1;
+		recorded = 1;
 		if ((ret = cam(&c, kg_camera_record_capture(camera, res->name, err))))
 			goto done;
 	}
@@ -827,6 +829,12 @@ done:
 		kg_camera_record_stop(camera, NULL);
 	if (ret && wrote)
 		remove_outputs(&c);
+	if (ret && recorded) { /* nothing of a failed capture stays, its raw frames neither */
+		kg_err e2 = {{0}};
+		if (kg_camera_recording_discard(kg_session_dir(s), res->name, NULL, &e2))
+			note(&c, "%s: could not take the failed capture's frames back out: %s",
+			     res->name, e2.msg);
+	}
 	json_decref(demosaic);
 	json_decref(c.frames);
 	json_decref(c.steps);

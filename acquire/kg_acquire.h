@@ -39,8 +39,8 @@
 /* Accumulates frames of one format: per sample (pixel and channel) the running mean and
  * sum of squared deviations in double precision (Welford's update), and whether any
  * frame reached full scale. Integer formats are accumulated as sensor values (DN) and
- * scaled to 0..1 by 2^bits - 1 at the end; YUYV (only when allow_nonlinear) through
- * kg_frame_to_image. MJPEG is refused. */
+ * scaled to 0..1 by 2^bits - 1 at the end; YUYV and MJPEG (only when allow_nonlinear)
+ * decoded through kg_frame_to_image. */
 typedef struct kg_frame_accum kg_frame_accum;
 
 int kg_frame_accum_new(const kg_frame_format *fmt, int allow_nonlinear, kg_frame_accum **out,
@@ -156,7 +156,7 @@ typedef struct kg_capture_options {
 	const char *flat;        /* NULL: none; else a capture name */
 	int timeout_ms;          /* per frame; 0: 2000 ms plus twice the exposure */
 	long max_dropped;        /* dropped frames tolerated (0) */
-	int force_nonlinear;     /* accept YUYV */
+	int force_nonlinear;     /* accept YUYV and MJPEG */
 	int record;              /* record the raw frames into the session (1) */
 	kg_capture_progress_fn progress;
 	void *progress_user;

@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "camera_driver.h"
+#include "mjpeg.h"
 
 static const kg_camera_driver *const drivers[] = {
 #if HAVE_V4L2
@@ -527,21 +528,54 @@ void kg_camera_enumerate(kg_camera_found_fn found, kg_camera_note_fn note, void 
 
 static float clamp01(float v) { return v < 0 ? 0 : v > 1 ? 1 : v; }
 
+/* A forced MJPEG frame: decoded to R'G'B' (display-encoded, like YUYV) on 0..1. */
+static int mjpeg_to_image(const kg_frame *f, kg_image **out, kg_err *err)
+{
+	const kg_frame_format *fmt = &f->fmt;
+	if (fmt->width <= 0 || fmt->height <= 0 ||
+	    (long)fmt->width * fmt->height > KG_IMAGE_MAX_PIXELS)
+		return kg_fail(err, KG_EINVAL, "frame %llu: MJPEG size %dx%d: expected 1..%ld pixels",
+		               (unsigned long long)f->sequence, fmt->width, fmt->height,
+		               (long)KG_IMAGE_MAX_PIXELS);
+	size_t n = (size_t)fmt->width * (size_t)fmt->height * 3;
+	uint8_t *rgb = malloc(n);
+	if (!rgb)
+		return kg_fail(err, KG_ENOMEM, "out of memory for a %dx%d MJPEG frame", fmt->width,
+		               fmt->height);
+	int ret = kg_mjpeg_decode(f->data, f->size, fmt->width, fmt->height, rgb, err);
+	kg_image *img = NULL;
+	if (!ret)
+		ret = kg_image_new(fmt->width, fmt->height, 3, &img, err);
+	if (ret) {
+		free(rgb);
+		if (err)
+			kg_err_prefix(err, "frame %llu", (unsigned long long)f->sequence);
+		return ret;
+	}
+	for (size_t i = 0; i < n; i++)
+		img->data[i] = (float)rgb[i] / 255.0f;
+	free(rgb);
+	img->bits = 8;
+	img->is_float = 0;
+	*out = img;
+	return 0;
+}
+
 int kg_frame_to_image(const kg_frame *f, int allow_nonlinear, kg_image **out, kg_err *err)
 {
 	kg_check_arg(f && f->data && out, err);
 	*out = NULL;
 	const kg_frame_format *fmt = &f->fmt;
-	if (fmt->pixfmt == KG_PIX_MJPEG)
-		return kg_fail(err, KG_ENOTSUP,
-		               "frame %llu: MJPEG is lossy and compressed; kogei does not decode it "
-		               "(choose an uncompressed format)",
-		               (unsigned long long)f->sequence);
 	if (!kg_pixfmt_is_linear(fmt->pixfmt) && !allow_nonlinear)
 		return kg_fail(err, KG_EINVAL,
-		               "frame %llu: %s is not linear sensor data; refused for measurement "
+		               "frame %llu: %s is not linear sensor data%s; refused for measurement "
 		               "unless forced",
-		               (unsigned long long)f->sequence, kg_pixfmt_name(fmt->pixfmt));
+		               (unsigned long long)f->sequence, kg_pixfmt_name(fmt->pixfmt),
+		               fmt->pixfmt == KG_PIX_MJPEG ? " (MJPEG: compressed, lossy and "
+		                                             "display-encoded)"
+		                                           : "");
+	if (fmt->pixfmt == KG_PIX_MJPEG)
+		return mjpeg_to_image(f, out, err);
 	int bpp = kg_pixfmt_bytes_per_pixel(fmt->pixfmt);
 	if (!bpp || fmt->width <= 0 || fmt->height <= 0 ||
 	    fmt->stride < (size_t)fmt->width * (size_t)bpp ||

@@ -79,7 +79,9 @@ int kg_frame_format_from_json(const char *file, const json_t *o, kg_frame_format
 	    (ret = kg_json_get_int(file, o, "height", 1, 1L << 20, &h, err)) ||
 	    (ret = kg_json_get_int(file, o, "offset_x", 0, 1L << 20, &ox, err)) ||
 	    (ret = kg_json_get_int(file, o, "offset_y", 0, 1L << 20, &oy, err)) ||
-	    (ret = kg_json_get_int(file, o, "stride", 1, 1L << 40, &stride, err)) ||
+	    /* 0 for MJPEG: compressed frames have no row stride */
+	    (ret = kg_json_get_int(file, o, "stride", f->pixfmt == KG_PIX_MJPEG ? 0 : 1, 1L << 40,
+	                           &stride, err)) ||
 	    (ret = kg_json_get_int(file, o, "size", 1, 1L << 40, &size, err)))
 		return ret;
 	int bayer = f->pixfmt == KG_PIX_BAYER8 || f->pixfmt == KG_PIX_BAYER16;
@@ -399,5 +401,72 @@ int kg_frame_recorder_close(kg_frame_recorder **pr, kg_err *err)
 	free(r->index_path);
 	free(r->frames);
 	free(r);
+	return ret;
+}
+
+/* ---- discarding a failed capture --------------------------------------------------- */
+
+int kg_camera_recording_discard(const char *session_dir, const char *capture, long *removed,
+                                kg_err *err)
+{
+	kg_check_arg(session_dir && capture, err);
+	if (removed)
+		*removed = 0;
+	if (!capture_name_ok(capture))
+		return kg_fail(err, KG_EINVAL, "capture name '%s': not a recorded capture's name",
+		               capture);
+	char *frames = kg_path_join(session_dir, "frames");
+	char *index = frames ? kg_path_join(frames, "index.jsonl") : NULL;
+	char *buf = NULL;
+	size_t len = 0;
+	struct stat st;
+	int ret = index ? 0 : kg_fail(err, KG_ENOMEM, "%s: out of memory", session_dir);
+	if (!ret && stat(index, &st) != 0) /* nothing was recorded */
+		goto done;
+	if (!ret)
+		ret = kg_read_file(index, &buf, &len, err);
+	kg_outfile out = {0};
+	if (!ret)
+		ret = kg_outfile_open(&out, index, 0, err);
+	long gone = 0;
+	/* Keep every other line as it is; a last line without its newline (cut off) goes. */
+	for (char *line = buf, *nl; !ret && line && (nl = memchr(line, '\n', len - (size_t)(line - buf)));
+	     line = nl + 1) {
+		json_t *o = json_loadb(line, (size_t)(nl - line), 0, NULL);
+		const char *cap = json_string_value(json_object_get(o, "capture"));
+		const char *file = json_string_value(json_object_get(o, "file"));
+		if (cap && !strcmp(cap, capture)) {
+			/* only files inside frames/<capture>/ */
+			size_t n = strlen(capture);
+			if (file && !strncmp(file, "frames/", 7) && !strncmp(file + 7, capture, n) &&
+			    file[7 + n] == '/' && !strchr(file + 8 + n, '/')) {
+				char *path = kg_path_join(session_dir, file);
+				if (path)
+					unlink(path);
+				free(path);
+			}
+			gone++;
+		} else if (fwrite(line, 1, (size_t)(nl - line) + 1, out.fp) != (size_t)(nl - line) + 1) {
+			ret = kg_fail(err, KG_EIO, "%s: write failed: %s", index, strerror(errno));
+		}
+		json_decref(o);
+	}
+	if (!ret)
+		ret = kg_outfile_commit(&out, err);
+	else
+		kg_outfile_abort(&out);
+	if (!ret) {
+		char *dir = kg_path_join(frames, capture);
+		if (dir)
+			rmdir(dir); /* fails, harmlessly, if anything else is in it */
+		free(dir);
+		ret = fsync_dir(frames, err);
+	}
+	if (!ret && removed)
+		*removed = gone;
+done:
+	free(buf);
+	free(index);
+	free(frames);
 	return ret;
 }

@@ -179,6 +179,12 @@ int kg_camera_record_last(kg_camera *c, char *file, size_t file_len, char sha256
  * kg_camera_record_stop sync too. */
 int kg_camera_record_sync(kg_camera *c, kg_err *err);
 int kg_camera_record_stop(kg_camera *c, kg_err *err);
+/* Take a failed capture back out of a stopped recording: the index lines of `capture`
+ * and their frame files under frames/<capture>/ go (the index is rewritten to a
+ * temporary name and renamed), so replay never serves frames no manifest lists. A
+ * session without a recording is left alone. *removed (may be NULL): frames removed. */
+int kg_camera_recording_discard(const char *session_dir, const char *capture, long *removed,
+                                kg_err *err);
 
 /* The recording (devices/camera_record.c owns it):
  *   frames/camera.json            identity (kg_camera_info) and the format at start;
@@ -211,7 +217,8 @@ const char *kg_camera_backend_description(int i);
 
 /* Convert a frame to float samples on 0..1 (divided by 2^bits - 1; RGB and YUYV to
  * 3 channels, Bayer kept raw with its CFA attached). MJPEG and YUYV are refused
- * unless allow_nonlinear. *out is a new image. */
+ * unless allow_nonlinear; then they are decoded to display-encoded R'G'B' (MJPEG
+ * through libjpeg; a damaged stream is an error). *out is a new image. */
 int kg_frame_to_image(const kg_frame *f, int allow_nonlinear, kg_image **out, kg_err *err);
 
 #endif

@@ -5,7 +5,7 @@ set -eu
 
 PACKAGES="
 build-essential meson ninja-build pkg-config
-liblapacke-dev libtiff-dev libpng-dev libjansson-dev zlib1g-dev libcairo2-dev fonts-dejavu-core libssl-dev
+liblapacke-dev libtiff-dev libpng-dev libjansson-dev zlib1g-dev libcairo2-dev fonts-dejavu-core libssl-dev libjpeg-dev
 colord-data argyll argyll-ref
 python3 python3-numpy python3-spectral
 libapriltag-dev libopencv-dev libopencv-contrib-dev

@@ -163,7 +163,13 @@ int main(void)
 
 	/* formats that are not linear */
 	fmt.pixfmt = KG_PIX_MJPEG;
-	CHECK(kg_frame_accum_new(&fmt, 1, &acc, &err) == KG_ENOTSUP, "MJPEG accepted");
+	kg_frame_format_fill(&fmt);
+	CHECK(kg_frame_accum_new(&fmt, 0, &acc, &err) == KG_EINVAL &&
+	          strstr(err.msg, "--force-nonlinear"),
+	      "MJPEG accepted unforced: %s", err.msg);
+	CHECK(kg_frame_accum_new(&fmt, 1, &acc, &err) == 0, "MJPEG refused when forced: %s",
+	      err.msg);
+	kg_frame_accum_free(&acc);
 	fmt.pixfmt = KG_PIX_YUYV;
 	kg_frame_format_fill(&fmt);
 	CHECK(kg_frame_accum_new(&fmt, 0, &acc, &err) == KG_EINVAL, "YUYV accepted unforced");

@@ -1,7 +1,8 @@
 /* `kogei acquire` on the sim camera:
  * - bad options exit 2 naming the option; --help exits 0;
  * - a stalling camera (stall=N) and a dropping one (drop=N) exit 3 with the counts,
- *   leave session.json byte-identical and no output folder; with --max-dropped the
+ *   leave session.json and frames/index.jsonl byte-identical and no output or frames
+ *   folder; with --max-dropped the
  *   dropped count in the manifest is the one the drop rule implies;
  * - dark and flat end to end: scenes with a dark offset and vignetting; the corrected
  *   object must be proportional to the scene, equal (to float rounding) to the
@@ -61,7 +62,13 @@ static void failing_camera(void)
 	char manifest[8192], outdir[8192];
 	snprintf(manifest, sizeof(manifest), "%s/session.json", s);
 	static char full_before[1 << 16], full_after[1 << 16];
+	static char index_before[1 << 16], index_after[1 << 16];
+	char index[8192], framedir[8192];
+	snprintf(index, sizeof(index), "%s/frames/index.jsonl", s);
+	snprintf(framedir, sizeof(framedir), "%s/frames/object-0002", s);
 	acq_slurp(manifest, full_before, sizeof(full_before));
+	acq_slurp(index, index_before, sizeof(index_before));
+	CHECK(strstr(index_before, "object-0001"), "the first capture's frames are not indexed");
 
 	rc = acq_run("acquire", "--camera", "sim:?width=32&height=24&stall=3", "--out", s,
 	             "--kind", "object", "--frames", "6", "--timeout-ms", "200", NULL);
@@ -72,6 +79,10 @@ static void failing_camera(void)
 	CHECK(!strcmp(full_before, full_after), "stall: session.json changed");
 	snprintf(outdir, sizeof(outdir), "%s/captures/object-0002", s);
 	CHECK(!kg_test_file_exists(outdir), "stall: %s exists", outdir);
+	/* its raw frames are taken back out too: replay serves only what a manifest lists */
+	acq_slurp(index, index_after, sizeof(index_after));
+	CHECK(!strcmp(index_before, index_after), "stall: frames/index.jsonl changed");
+	CHECK(!kg_test_file_exists(framedir), "stall: %s exists", framedir);
 
 	rc = acq_run("acquire", "--camera", "sim:?width=32&height=24&drop=2", "--out", s,
 	             "--kind", "object", "--frames", "6", NULL);
@@ -80,6 +91,9 @@ static void failing_camera(void)
 	      "drop: the counts are missing: %s", acq_errtext);
 	acq_slurp(manifest, full_after, sizeof(full_after));
 	CHECK(!strcmp(full_before, full_after), "drop: session.json changed");
+	acq_slurp(index, index_after, sizeof(index_after));
+	CHECK(!strcmp(index_before, index_after), "drop: frames/index.jsonl changed");
+	CHECK(!kg_test_file_exists(framedir), "drop: %s exists", framedir);
 	CHECK(acq_check_session(s, NULL, 0) == 1, "the session lost its capture");
 
 	/* Tolerated drops: frames numbered by multiples of 2 are lost, so 6 delivered frames

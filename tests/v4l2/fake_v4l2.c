@@ -11,6 +11,12 @@
 #include <time.h>
 #include <unistd.h>
 
+#if FAKE_V4L2_JPEG
+#include <stdio.h>
+
+#include <jpeglib.h>
+#endif
+
 #define MAX_HANDLES 8
 #define MAX_BUFS 8
 #define MAX_FORMATS 32
@@ -95,6 +101,14 @@ uint32_t fake_v4l2_sample(int x, int y, int c, uint32_t seq, int bits)
 	h *= 0x297A2D39u;
 	h ^= h >> 15;
 	return bits >= 32 ? h : h & ((1u << bits) - 1u);
+}
+
+void fake_v4l2_smooth_rgb(int x, int y, uint32_t seq, uint8_t rgb[3])
+{
+	for (int c = 0; c < 3; c++) {
+		double v = 128.0 + 90.0 * sin(0.07 * x + 2.1 * c + 0.3 * seq) * cos(0.05 * y - c);
+		rgb[c] = (uint8_t)lrint(v);
+	}
 }
 
 void fake_v4l2_yuyv_rgb(int x, int y, uint32_t seq, uint8_t rgb[3])
@@ -266,7 +280,7 @@ static void pix_of(const fake_v4l2 *f, struct v4l2_pix_format *p)
 	p->colorspace = V4L2_COLORSPACE_SRGB;
 	if (m->kind == K_JPEG) {
 		p->bytesperline = 0;
-		p->sizeimage = (uint32_t)(f->width * f->height / 2 + 1024);
+		p->sizeimage = (uint32_t)(f->width * f->height * 2 + 4096);
 	} else {
 		p->bytesperline = (uint32_t)(f->width * m->bytes + f->cfg.pad);
 		p->sizeimage = p->bytesperline * p->height;
@@ -295,21 +309,88 @@ static void set_size(fake_v4l2 *f, uint32_t w, uint32_t h)
 
 static uint8_t clamp_u8(double v) { return v < 0 ? 0 : v > 255 ? 255 : (uint8_t)(v + 0.5); }
 
+#if FAKE_V4L2_JPEG
+/* Drop the DHT (FF C4) segments before the scan, as UVC cameras send MJPEG. */
+static size_t strip_dht(uint8_t *j, size_t n)
+{
+	size_t i = 2, o = 2;
+	while (i + 4 <= n && j[i] == 0xFF && j[i + 1] != 0xDA) {
+		size_t len = 2 + ((size_t)j[i + 2] << 8 | j[i + 3]);
+		if (i + len > n)
+			break;
+		if (j[i + 1] != 0xC4) {
+			memmove(j + o, j + i, len);
+			o += len;
+		}
+		i += len;
+	}
+	memmove(j + o, j + i, n - i);
+	return o + (n - i);
+}
+
+/* A real baseline JPEG (quality 95, 4:2:0) of fake_v4l2_smooth_rgb; frames with an
+ * odd sequence number lack their Huffman tables, like a UVC camera's. */
+static size_t fill_jpeg(fake_v4l2 *f, uint8_t *dst, size_t cap, uint32_t seq)
+{
+	struct jpeg_compress_struct ci;
+	struct jpeg_error_mgr je;
+	ci.err = jpeg_std_error(&je);
+	jpeg_create_compress(&ci);
+	unsigned char *out = NULL;
+	unsigned long outlen = 0;
+	jpeg_mem_dest(&ci, &out, &outlen);
+	ci.image_width = (JDIMENSION)f->width;
+	ci.image_height = (JDIMENSION)f->height;
+	ci.input_components = 3;
+	ci.in_color_space = JCS_RGB;
+	jpeg_set_defaults(&ci);
+	jpeg_set_quality(&ci, 95, TRUE);
+	jpeg_start_compress(&ci, TRUE);
+	uint8_t *row = malloc((size_t)f->width * 3);
+	while (row && ci.next_scanline < ci.image_height) {
+		for (int x = 0; x < f->width; x++)
+			fake_v4l2_smooth_rgb(x, (int)ci.next_scanline, seq, row + 3 * x);
+		JSAMPROW r = row;
+		jpeg_write_scanlines(&ci, &r, 1);
+	}
+	jpeg_finish_compress(&ci);
+	jpeg_destroy_compress(&ci);
+	free(row);
+	size_t n = outlen;
+	if (seq & 1)
+		n = strip_dht(out, n);
+	if (n > cap) {
+		fprintf(stderr, "fake_v4l2: a JPEG of %zu bytes does not fit %zu\n", n, cap);
+		n = 0;
+	}
+	memcpy(dst, out, n);
+	free(out);
+	return n;
+}
+#else
+/* Without libjpeg: FF D8, hash bytes, FF D9 (not decodable). */
+static size_t fill_jpeg(fake_v4l2 *f, uint8_t *dst, size_t cap, uint32_t seq)
+{
+	(void)f;
+	(void)cap;
+	memset(dst, 0, FAKE_V4L2_JPEG_BYTES);
+	dst[0] = 0xFF;
+	dst[1] = 0xD8;
+	for (int i = 2; i < FAKE_V4L2_JPEG_BYTES - 2; i++)
+		dst[i] = (uint8_t)fake_v4l2_sample(i, 0, 0, seq, 8);
+	dst[FAKE_V4L2_JPEG_BYTES - 2] = 0xFF;
+	dst[FAKE_V4L2_JPEG_BYTES - 1] = 0xD9;
+	return FAKE_V4L2_JPEG_BYTES;
+}
+#endif
+
 static size_t fill(fake_v4l2 *f, uint8_t *dst, uint32_t seq)
 {
 	const struct fake_fmt *m = fmt_info(f->fourcc);
 	struct v4l2_pix_format p;
 	pix_of(f, &p);
-	if (m->kind == K_JPEG) {
-		memset(dst, 0, FAKE_V4L2_JPEG_BYTES);
-		dst[0] = 0xFF;
-		dst[1] = 0xD8;
-		for (int i = 2; i < FAKE_V4L2_JPEG_BYTES - 2; i++)
-			dst[i] = (uint8_t)fake_v4l2_sample(i, 0, 0, seq, 8);
-		dst[FAKE_V4L2_JPEG_BYTES - 2] = 0xFF;
-		dst[FAKE_V4L2_JPEG_BYTES - 1] = 0xD9;
-		return FAKE_V4L2_JPEG_BYTES;
-	}
+	if (m->kind == K_JPEG)
+		return fill_jpeg(f, dst, p.sizeimage, seq);
 	int ox = f->cfg.selection ? (int)f->crop.left : 0;
 	int oy = f->cfg.selection ? (int)f->crop.top : 0;
 	for (int y = 0; y < f->height; y++) {

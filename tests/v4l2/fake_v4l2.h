@@ -75,7 +75,11 @@ uint32_t fake_v4l2_sample(int x, int y, int c, uint32_t seq, int bits);
  * fake_v4l2_sample(x & ~1, y, 0..2, seq, 8), so both pixels of a pair share one colour
  * and the chroma they share is exact. */
 void fake_v4l2_yuyv_rgb(int x, int y, uint32_t seq, uint8_t rgb[3]);
-/* Bytes and content of a fake MJPEG frame (starts FF D8, ends FF D9). */
+/* MJPEG frames (built with libjpeg, FAKE_V4L2_JPEG): a baseline JPEG at quality 95 of
+ * the R'G'B' this returns, a smooth pattern JPEG keeps to a level or two; frames with
+ * an odd sequence number come without Huffman tables, as UVC cameras send them.
+ * Without libjpeg: FAKE_V4L2_JPEG_BYTES bytes, FF D8 ... FF D9, not decodable. */
+void fake_v4l2_smooth_rgb(int x, int y, uint32_t seq, uint8_t rgb[3]);
 enum { FAKE_V4L2_JPEG_BYTES = 600 };
 
 #endif

@@ -85,6 +85,11 @@ static fake_v4l2 *make_device(void)
 	}
 	const char *stall = getenv("KOGEI_FAKE_V4L2_STALL");
 	cfg.stall = stall && !strcmp(stall, "1");
+	/* the n-th frame (1-based) flagged V4L2_BUF_FLAG_ERROR, or 100 bytes short */
+	const char *error_at = getenv("KOGEI_FAKE_V4L2_ERROR_AT");
+	const char *short_at = getenv("KOGEI_FAKE_V4L2_SHORT_AT");
+	cfg.error_at = error_at ? atoi(error_at) : 0;
+	cfg.short_at = short_at ? atoi(short_at) : 0;
 	return fake_v4l2_new(&cfg);
 }
 

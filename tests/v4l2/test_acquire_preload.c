@@ -21,16 +21,27 @@
 #include "fake_v4l2.h"
 #include "kg_acquire.h"
 #include "kg_test.h"
+#include "mjpeg.h"
 
 #define FAKE_PATH "/dev/video-kogei-fake"
 #define FW 160 /* the shim's default sensor */
 #define FH 120
 
-/* Run kogei with the shim preloaded; output to log. Returns the exit status, or -1 when
- * it did not exit (killed after 60 s). */
-static int run_kogei(const char *kogei, const char *shim, const char *session, int stall,
-                     const char *log)
+/* Run kogei acquire with the shim preloaded (the device's current format `format`, a
+ * fourcc; a fault such as "KOGEI_FAKE_V4L2_SHORT_AT=2" in its environment, or NULL),
+ * writing into session with the extra arguments; output to log. Returns the
+ * exit status, or -1 when it did not exit (killed after 60 s). */
+static int run_acquire(const char *kogei, const char *shim, const char *camera,
+                       const char *session, const char *format, const char *fault,
+                       const char *const *extra, const char *log)
 {
+	const char *argv[32] = {kogei,     "acquire", "--camera", camera,          "--out",
+	                        session,   "--kind",  "chart",    "--frames",      "4",
+	                        "--timeout-ms", "300"};
+	int n = 12;
+	for (int i = 0; extra && extra[i] && n < 31; i++)
+		argv[n++] = extra[i];
+	argv[n] = NULL;
 	pid_t pid = fork();
 	if (pid == 0) {
 		int fd = open(log, O_WRONLY | O_CREAT | O_TRUNC, 0644);
@@ -40,9 +51,9 @@ static int run_kogei(const char *kogei, const char *shim, const char *session, i
 		dup2(fd, 2);
 		setenv("LD_PRELOAD", shim, 1);
 		setenv("KOGEI_FAKE_V4L2", FAKE_PATH, 1);
-		setenv("KOGEI_FAKE_V4L2_FORMAT", "Y16", 1);
-		if (stall)
-			setenv("KOGEI_FAKE_V4L2_STALL", "1", 1);
+		setenv("KOGEI_FAKE_V4L2_FORMAT", format, 1);
+		if (fault)
+			putenv((char *)fault);
 		/* The sanitizer runtime is linked into kogei, the shim is preloaded before it. */
 		const char *asan = getenv("ASAN_OPTIONS");
 		char opts[512];
@@ -50,14 +61,20 @@ static int run_kogei(const char *kogei, const char *shim, const char *session, i
 		         asan && *asan ? ":" : "");
 		setenv("ASAN_OPTIONS", opts, 1);
 		alarm(60);
-		execl(kogei, kogei, "acquire", "--camera", "v4l2:" FAKE_PATH, "--out", session,
-		      "--kind", "chart", "--frames", "4", "--timeout-ms", "300", (char *)NULL);
+		execv(kogei, (char *const *)argv);
 		_exit(127);
 	}
 	int st;
 	if (pid < 0 || waitpid(pid, &st, 0) != pid)
 		return -1;
 	return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+}
+
+static int run_kogei(const char *kogei, const char *shim, const char *session, int stall,
+                     const char *log)
+{
+	return run_acquire(kogei, shim, "v4l2:" FAKE_PATH, session, "Y16",
+	                   stall ? "KOGEI_FAKE_V4L2_STALL=1" : NULL, NULL, log);
 }
 
 static char *slurp(const char *path)
@@ -159,6 +176,174 @@ static void check_session(const char *session)
 	kg_session_free(&s);
 }
 
+/* The capture's mean image, read through the manifest (NULL on failure). */
+static kg_image *capture_mean(const char *session, const json_t *cap)
+{
+	const char *file = json_string_value(
+	    json_object_get(json_object_get(json_object_get(cap, "outputs"), "mean"), "file"));
+	char path[4096];
+	snprintf(path, sizeof(path), "%s/%.2000s", session, file ? file : "(none)");
+	kg_image *img = NULL;
+	kg_err err = {{0}};
+	CHECK(kg_image_read(path, &img, &err) == 0, "mean image %s: %s", path, err.msg);
+	return img;
+}
+
+/* MJPEG from a UVC-style device: refused unless forced; forced, the mean of the decoded
+ * frames is the average of what the device encoded (within JPEG's loss), and replaying
+ * the recorded JPEG bytes gives the same mean to the bit. */
+static void test_mjpeg(const char *kogei, const char *shim, const char *dir)
+{
+	char session[512], log[512], replayed[512];
+	snprintf(session, sizeof(session), "%s/mjpeg", dir);
+	snprintf(replayed, sizeof(replayed), "%s/mjpeg-replayed", dir);
+	snprintf(log, sizeof(log), "%s/log-mjpeg", dir);
+	const char *plain[] = {"--format", "mjpeg", NULL};
+	int rc = run_acquire(kogei, shim, "v4l2:" FAKE_PATH, session, "MJPG", NULL, plain, log);
+	char *text = slurp(log);
+	CHECK(rc == 1 && text && strstr(text, "mjpeg") && strstr(text, "--force-nonlinear"),
+	      "MJPEG unforced: exit %d:\n%s", rc, text ? text : "");
+	free(text);
+
+	const char *forced[] = {"--format", "mjpeg", "--force-nonlinear", NULL};
+	rc = run_acquire(kogei, shim, "v4l2:" FAKE_PATH, session, "MJPG", NULL, forced, log);
+	text = slurp(log);
+	if (!kg_mjpeg_available()) {
+		CHECK(rc == 1 && text && strstr(text, "without libjpeg"),
+		      "MJPEG forced without libjpeg: exit %d:\n%s", rc, text ? text : "");
+		free(text);
+		return;
+	}
+	CHECK(rc == 0, "MJPEG forced: exit %d:\n%s", rc, text ? text : "");
+	free(text);
+	if (rc)
+		return;
+	kg_err err = {{0}};
+	kg_session *s = NULL;
+	CHECK(kg_session_open(session, &s, &err) == 0 && kg_session_verify(s, NULL, &err) == 0,
+	      "MJPEG session: %s", err.msg);
+	if (!s)
+		return;
+	const json_t *cap = json_array_get(json_object_get(kg_session_manifest(s), "captures"), 0);
+	const char *pixfmt = json_string_value(json_object_get(
+	    json_object_get(json_object_get(cap, "settings"), "format"), "pixfmt"));
+	CHECK(pixfmt && !strcmp(pixfmt, "mjpeg") &&
+	          json_is_true(json_object_get(json_object_get(cap, "settings"), "force_nonlinear")),
+	      "manifest: format %s, force_nonlinear recorded", pixfmt ? pixfmt : "(none)");
+	const json_t *frames = json_object_get(cap, "frames");
+	CHECK(json_array_size(frames) == 4, "%zu MJPEG frames", json_array_size(frames));
+	double *want = calloc((size_t)FW * FH * 3, sizeof(double));
+	size_t k;
+	const json_t *fr;
+	json_array_foreach(frames, k, fr)
+	{
+		long seq = (long)json_integer_value(json_object_get(fr, "sequence"));
+		for (int y = 0; y < FH; y++)
+			for (int x = 0; x < FW; x++) {
+				uint8_t rgb[3];
+				fake_v4l2_smooth_rgb(x, y, (uint32_t)seq, rgb);
+				for (int c = 0; c < 3; c++)
+					want[((size_t)y * FW + x) * 3 + c] += rgb[c] / 255.0 / 4;
+			}
+	}
+	char name[128];
+	snprintf(name, sizeof(name), "%s", json_string_value(json_object_get(cap, "name")));
+	kg_image *mean = capture_mean(session, cap);
+	kg_session_free(&s);
+	CHECK(mean && mean->width == FW && mean->height == FH && mean->channels == 3,
+	      "MJPEG mean: %dx%dx%d", mean ? mean->width : 0, mean ? mean->height : 0,
+	      mean ? mean->channels : 0);
+	if (mean && mean->width == FW && mean->height == FH && mean->channels == 3) {
+		double worst = 0, sum = 0;
+		for (size_t i = 0; i < (size_t)FW * FH * 3; i++) {
+			double d = fabs(mean->data[i] - want[i]) * 255;
+			worst = fmax(worst, d);
+			sum += d;
+		}
+		sum /= (double)FW * FH * 3;
+		CHECK(worst <= 12 && sum <= 1.5,
+		      "MJPEG mean within %.2f levels of the encoded frames' (mean %.3f): expected "
+		      "<= 12 (mean <= 1.5)",
+		      worst, sum);
+		printf("MJPEG: forced capture of 4 frames within %.2f levels (mean %.3f) of the "
+		       "encoded pattern\n",
+		       worst, sum);
+	}
+	free(want);
+
+	/* The recorded JPEG bytes replay to the same mean, bit for bit. */
+	char camera[1200];
+	snprintf(camera, sizeof(camera), "replay:%s#%s", session, name);
+	const char *again[] = {"--force-nonlinear", NULL};
+	rc = run_acquire(kogei, shim, camera, replayed, "MJPG", NULL, again, log);
+	text = slurp(log);
+	CHECK(rc == 0, "MJPEG replay: exit %d:\n%s", rc, text ? text : "");
+	free(text);
+	s = NULL;
+	if (!rc && kg_session_open(replayed, &s, &err) == 0) {
+		kg_image *m2 = capture_mean(
+		    replayed, json_array_get(json_object_get(kg_session_manifest(s), "captures"), 0));
+		CHECK(m2 && mean && m2->width == mean->width && m2->height == mean->height &&
+		          m2->channels == mean->channels &&
+		          !memcmp(m2->data, mean->data,
+		                  sizeof(float) * (size_t)FW * FH * (size_t)mean->channels),
+		      "the replayed MJPEG capture's mean differs from the original's");
+		kg_image_free(&m2);
+	}
+	kg_session_free(&s);
+	kg_image_free(&mean);
+}
+
+/* Damaged frames end a capture with exit 3, the counts, and nothing of it in the
+ * session: a frame the driver flags as erroneous, one that arrives short, and (forced
+ * MJPEG) a truncated JPEG. The session's earlier capture stays as it was. */
+static void test_damaged(const char *kogei, const char *shim, const char *dir)
+{
+	char session[512], log[512], manifest[600], index[600], before[1 << 14], after[1 << 14];
+	char before_index[1 << 14], after_index[1 << 14];
+	snprintf(session, sizeof(session), "%s/damaged", dir);
+	snprintf(log, sizeof(log), "%s/log-damaged", dir);
+	snprintf(manifest, sizeof(manifest), "%s/session.json", session);
+	snprintf(index, sizeof(index), "%s/frames/index.jsonl", session);
+	int rc = run_acquire(kogei, shim, "v4l2:" FAKE_PATH, session, "Y16", NULL, NULL, log);
+	CHECK(rc == 0, "first capture: exit %d", rc);
+	char *m = slurp(manifest), *ix = slurp(index);
+	snprintf(before, sizeof(before), "%s", m ? m : "");
+	snprintf(before_index, sizeof(before_index), "%s", ix ? ix : "");
+	free(m);
+	free(ix);
+	static const struct {
+		const char *fault, *format, *needle;
+	} cases[] = {
+		{"KOGEI_FAKE_V4L2_ERROR_AT=2", "Y16", "1 failed"},
+		{"KOGEI_FAKE_V4L2_SHORT_AT=3", "Y16", "1 incomplete"},
+		{"KOGEI_FAKE_V4L2_SHORT_AT=2", "MJPG", "damaged"},
+	};
+	const char *mjpeg[] = {"--format", "mjpeg", "--force-nonlinear", NULL};
+	for (size_t i = 0; i < sizeof(cases) / sizeof(cases[0]); i++) {
+		int jpeg = !strcmp(cases[i].format, "MJPG");
+		if (jpeg && !kg_mjpeg_available())
+			continue;
+		rc = run_acquire(kogei, shim, "v4l2:" FAKE_PATH, session, cases[i].format,
+		                 cases[i].fault, jpeg ? mjpeg : NULL, log);
+		char *text = slurp(log);
+		CHECK(rc == 3 && text && strstr(text, cases[i].needle) &&
+		          strstr(text, "nothing of it was added"),
+		      "%s (%s): exit %d, expected 3 naming '%s':\n%s", cases[i].fault, cases[i].format,
+		      rc, cases[i].needle, text ? text : "");
+		free(text);
+		m = slurp(manifest);
+		ix = slurp(index);
+		snprintf(after, sizeof(after), "%s", m ? m : "");
+		snprintf(after_index, sizeof(after_index), "%s", ix ? ix : "");
+		free(m);
+		free(ix);
+		CHECK(!strcmp(before, after), "%s: session.json changed", cases[i].fault);
+		CHECK(!strcmp(before_index, after_index), "%s: frames/index.jsonl changed",
+		      cases[i].fault);
+	}
+}
+
 int main(int argc, char **argv)
 {
 	if (argc != 3) {
@@ -201,6 +386,9 @@ int main(int argc, char **argv)
 		CHECK(json_array_size(json_object_get(root, "captures")) == 0,
 		      "a failed capture entered the manifest");
 	json_decref(root);
+
+	test_mjpeg(kogei, shim, dir);
+	test_damaged(kogei, shim, dir);
 
 	char cmd[300];
 	snprintf(cmd, sizeof(cmd), "rm -rf '%s'", dir);
