@@ -130,12 +130,14 @@ static int stream_error(cap_ctx *c, int code, const char *what, kg_err *err)
 	int named = !strncmp(what, "camera '", 8);
 	return kg_fail(err, code,
 	               "%s%s%scapture %s: %s (%llu completed, %llu dropped, %llu incomplete, "
-	               "%llu failed, %llu timeouts); nothing of it was added to the session",
+	               "%llu failed, %llu timeouts, %llu packets resent, %llu packets missing); "
+	               "nothing of it was added to the session",
 	               named ? "" : "camera '", named ? "" : uri, named ? "" : "': ",
 	               c->res->name, what,
 	               (unsigned long long)st.completed, (unsigned long long)st.dropped,
 	               (unsigned long long)st.incomplete, (unsigned long long)st.failed,
-	               (unsigned long long)st.timeouts);
+	               (unsigned long long)st.timeouts, (unsigned long long)st.resent,
+	               (unsigned long long)st.missing_packets);
 }
 
 /* Pop one frame; a timeout or a flagged frame is an error with the counts. */

@@ -155,10 +155,11 @@ static void print_summary(const kg_capture_result *r, const kg_capture_options *
 	       100 * r->clipped_fraction, 100 * r->stats.underexposed_fraction, r->stats.max,
 	       r->stats.p99, r->stats.p50);
 	printf("  stream: %llu completed, %llu dropped, %llu incomplete, %llu failed, %llu "
-	       "timeouts\n",
+	       "timeouts, %llu packets resent, %llu packets missing\n",
 	       (unsigned long long)r->stream.completed, (unsigned long long)r->stream.dropped,
 	       (unsigned long long)r->stream.incomplete, (unsigned long long)r->stream.failed,
-	       (unsigned long long)r->stream.timeouts);
+	       (unsigned long long)r->stream.timeouts, (unsigned long long)r->stream.resent,
+	       (unsigned long long)r->stream.missing_packets);
 	printf("  dark: %s, flat: %s\n", r->dark[0] ? r->dark : "none",
 	       r->flat[0] ? r->flat : "none");
 	printf("  wrote %s/captures/%s/mean.tif, variance.tif%s; %s/%s holds %d capture(s)\n",

@@ -1,5 +1,6 @@
 /* kogei-gen-udev: print udev/70-kogei.rules from the drivers' USB id table
- * (kg_spectro_usb_ids) and the camera classes. Not installed; regenerate with
+ * (kg_spectro_usb_ids) and the camera backends' device classes
+ * (kg_camera_device_classes). Not installed; regenerate with
  *   build/devices/kogei-gen-udev > udev/70-kogei.rules
  * tests/udev checks that the checked-in file matches. */
 #include <stdio.h>
@@ -24,15 +25,11 @@ int main(void)
 		       "SUBSYSTEM==\"usb\", ATTRS{idVendor}==\"%04x\", ATTRS{idProduct}==\"%04x\", "
 		       "MODE=\"0660\", GROUP=\"plugdev\", TAG+=\"uaccess\"\n",
 		       ids[i].scheme, ids[i].model, ids[i].vid, ids[i].pid);
-	printf("\n"
-	       "# USB3 Vision cameras (aravis over libusb): an interface of class 0xEF\n"
-	       "# (miscellaneous), subclass 0x05, protocol 0x00. ID_USB_INTERFACES comes from\n"
-	       "# udev's usb_id builtin (50-udev-default.rules).\n"
-	       "SUBSYSTEM==\"usb\", ENV{DEVTYPE}==\"usb_device\", ENV{ID_USB_INTERFACES}==\"*:ef0500:*\", "
-	       "MODE=\"0660\", GROUP=\"plugdev\", TAG+=\"uaccess\"\n"
-	       "\n"
-	       "# V4L2 cameras: UVC (interface class 0x0E, bound to uvcvideo) and CSI sensors\n"
-	       "# are used through their video4linux nodes.\n"
-	       "SUBSYSTEM==\"video4linux\", MODE=\"0660\", GROUP=\"video\", TAG+=\"uaccess\"\n");
+	int nc;
+	const kg_camera_device_class *cls = kg_camera_device_classes(&nc);
+	printf("\n# Cameras (kogei acquire --camera <scheme>:...), matched by device class\n");
+	for (int i = 0; i < nc; i++)
+		printf("# %s: %s\n%s, MODE=\"0660\", GROUP=\"%s\", TAG+=\"uaccess\"\n", cls[i].scheme,
+		       cls[i].what, cls[i].match, cls[i].group);
 	return ferror(stdout) ? 1 : 0;
 }

@@ -33,3 +33,24 @@ const kg_spectro_usb_id *kg_spectro_usb_ids(int *n)
 		*n = nusb_ids;
 	return usb_ids;
 }
+
+/* USB3 Vision: an interface of class 0xEF (miscellaneous), subclass 0x05, protocol 0x00
+ * (USB3 Vision 1.0, section 4.2; what Aravis' USB3 Vision backend opens through
+ * libusb); ID_USB_INTERFACES comes from udev's usb_id builtin. V4L2: UVC cameras
+ * (interface class 0x0E, uvcvideo) and CSI sensors, used through their video4linux
+ * nodes. */
+static const kg_camera_device_class camera_classes[] = {
+	{"aravis", "USB3 Vision cameras (interface class EF/05/00, opened through libusb)",
+	 "SUBSYSTEM==\"usb\", ENV{DEVTYPE}==\"usb_device\", ENV{ID_USB_INTERFACES}==\"*:ef0500:*\"",
+	 "plugdev"},
+	{"v4l2", "V4L2 cameras: UVC (interface class 0E, uvcvideo) and sensor drivers, through "
+	         "their video4linux nodes",
+	 "SUBSYSTEM==\"video4linux\"", "video"},
+};
+
+const kg_camera_device_class *kg_camera_device_classes(int *n)
+{
+	if (n)
+		*n = (int)(sizeof(camera_classes) / sizeof(camera_classes[0]));
+	return camera_classes;
+}

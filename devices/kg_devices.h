@@ -182,4 +182,16 @@ typedef struct kg_spectro_usb_id {
 /* The table, *n entries (n may be NULL); static, never freed. */
 const kg_spectro_usb_id *kg_spectro_usb_ids(int *n);
 
+/* The device classes each camera backend opens, whether or not the backend is built:
+ * cameras are matched by class (USB3 Vision interface, video4linux node), not by
+ * vendor and product. The source of the camera rules in udev/70-kogei.rules. */
+typedef struct kg_camera_device_class {
+	const char *scheme;  /* the backend's URI scheme: "aravis", "v4l2" */
+	const char *what;    /* for the rules' comment */
+	const char *match;   /* udev match keys */
+	const char *group;   /* the group given access besides the seat's user */
+} kg_camera_device_class;
+
+const kg_camera_device_class *kg_camera_device_classes(int *n);
+
 #endif

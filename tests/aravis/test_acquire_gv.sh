@@ -34,6 +34,10 @@ S=$tmp/S
 	{ cat "$tmp/acq.log"; fail "kogei acquire from aravis:127.0.0.1 failed"; }
 grep -q '"transport": "GigE Vision"' "$S/session.json" || fail "session.json: no GigE Vision camera"
 grep -q 'mono16 16 bits 320x240+16+8' "$tmp/acq.log" || { cat "$tmp/acq.log"; fail "format or region not applied"; }
+# GigE Vision's packet counters reach the operator and the manifest.
+grep -q 'stream: 4 completed, 0 dropped, 0 incomplete, 0 failed, 0 timeouts, [0-9]* packets resent, 0 packets missing' "$tmp/acq.log" ||
+	{ cat "$tmp/acq.log"; fail "the stream line lacks the packet counts"; }
+grep -q '"missing_packets": 0' "$S/session.json" || fail "session.json: no missing_packets count"
 n=$(ls "$S/frames/chart-0001" | grep -c '\.raw$')
 [ "$n" = 4 ] || fail "$n raw frames recorded, expected 4"
 f1=$(sha256sum <"$S/frames/chart-0001/000001.raw")

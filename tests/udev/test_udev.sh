@@ -17,6 +17,26 @@ if grep -n '^[^#]*MODE="0666"' "$rules" "$tmp/rules"; then
 	echo 'FAIL: MODE="0666" gives every user the device; use uaccess and a group'
 	fail=1
 fi
+# Every rule: mode 0660, a group, and uaccess for the user at the seat.
+grep -v '^#' "$rules" | grep -v '^$' > "$tmp/lines"
+[ -s "$tmp/lines" ] || { echo "FAIL: $rules has no rules"; fail=1; }
+while IFS= read -r line; do
+	case $line in
+	*'MODE="0660"'*'GROUP="'?*'"'*'TAG+="uaccess"'*) ;;
+	*) echo "FAIL: rule without MODE=\"0660\", a GROUP and TAG+=\"uaccess\": $line"; fail=1 ;;
+	esac
+done < "$tmp/lines"
+for m in 'ID_USB_INTERFACES}=="\*:ef0500:\*"' 'SUBSYSTEM=="video4linux"'; do
+	grep -q "$m" "$tmp/rules" || { echo "FAIL: no camera rule matching $m"; fail=1; }
+done
+# meson install puts the rules into a udev rules directory.
+installed=${KOGEI_BUILD_ROOT:-}/meson-info/intro-installed.json
+if [ -f "$installed" ]; then
+	grep -q '70-kogei.rules": "[^"]*/udev/rules.d/70-kogei.rules"' "$installed" ||
+		{ echo "FAIL: $installed does not install 70-kogei.rules into .../udev/rules.d"; fail=1; }
+else
+	echo "note: $installed not found; install location not checked"
+fi
 if ! grep -q 'ATTRS{idVendor}=="2457", ATTRS{idProduct}=="101e"' "$tmp/rules"; then
 	echo "FAIL: no rule for 2457:101e"
 	fail=1
