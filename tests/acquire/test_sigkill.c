@@ -36,13 +36,29 @@ static double now_s(void)
 	return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
-static void kill_after(char *const *args, double delay)
+/* Returns 1 when the child died of the SIGKILL (0: it had exited already). */
+static int kill_after(char *const *args, double delay)
 {
 	pid_t pid = acq_spawn(args);
 	usleep((useconds_t)(delay * 1e6));
 	kill(pid, SIGKILL);
 	int st;
 	waitpid(pid, &st, 0);
+	return WIFSIGNALED(st) && WTERMSIG(st) == SIGKILL;
+}
+
+/* Lines of frames/index.jsonl: every frame recorded so far. */
+static long recorded_frames(const char *s)
+{
+	char path[4400];
+	snprintf(path, sizeof(path), "%s/frames/index.jsonl", s);
+	FILE *f = fopen(path, "r");
+	long n = 0;
+	for (int c; f && (c = fgetc(f)) != EOF;)
+		n += c == '\n';
+	if (f)
+		fclose(f);
+	return n;
 }
 
 int main(int argc, char **argv)
@@ -61,9 +77,18 @@ int main(int argc, char **argv)
 	                     "--frames", "200", NULL};
 	const double delays[] = {0.05, 0.3, 0.9, 1.6};
 	for (int i = 0; i < 4; i++) {
-		kill_after(long_args, delays[i]);
+		long frames_before = recorded_frames(s);
+		int killed = kill_after(long_args, delays[i]);
+		long frames_during = recorded_frames(s) - frames_before;
 		char when[64];
 		snprintf(when, sizeof(when), "killed after %.2f s of 200 frames", delays[i]);
+		CHECK(killed, "%s: kogei was not running any more when killed", when);
+		/* mid-capture indeed: frames of it were recorded (from 0.9 s on, so that a slow
+		 * start under sanitizers on a loaded machine still counts) */
+		CHECK(delays[i] < 0.85 || (frames_during > 0 && frames_during < 200),
+		      "%s: %ld frames of the killed capture recorded, expected 1..199", when,
+		      frames_during);
+		printf("%s: %ld frames of it were recorded\n", when, frames_during);
 		CHECK(check(s, when) == 1, "%s: a killed capture entered the manifest", when);
 	}
 
