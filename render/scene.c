@@ -131,7 +131,7 @@ void rd_view_frame(const rd_view *v, rd_frame *f)
 	f->tan_half = tan(v->fov_deg * M_PI / 360.0);
 }
 
-/* A pose: position, look_at, up (default +y), vertical fov_deg. */
+/* A pose: position, look_at, up (default +z), vertical fov_deg. */
 static int parse_pose(const char *file, const json_t *root, const char *path, rd_view *v,
                       kg_err *err)
 {
@@ -499,6 +499,10 @@ static int load_part(kg_scene *s, const json_t *root, const char *path, kg_mesh 
 	if (!ply && (ret = check_keys(s->path, item, path, keys, err)))
 		return ret;
 	json_t *gen = ply ? NULL : json_object_get(item, "generator");
+	if (gen && json_object_get(item, "ply"))
+		return kg_fail(err, KG_EINVAL,
+		               "%s: key '%s': both \"ply\" and \"generator\": expected one of them",
+		               s->path, path);
 	if (!ply && !gen && json_is_string(json_object_get(item, "ply")))
 		ply = json_string_value(json_object_get(item, "ply"));
 	if (ply) {

@@ -1,4 +1,5 @@
-/* A sphere of each metal (gold, silver, copper and the alloy shibuichi-nami) under a
+/* A sphere of each metal and alloy of the library (gold, silver, copper, shakudo and the
+ * five shibuichi of the paper's Table 1) under a
  * uniform environment (equal energy, and D65 with all bands), seen head-on through a narrow field of view, so
  * the pixels see the sphere within about 6 degrees of normal incidence. A convex
  * object in a uniform environment reflects the environment's radiance times its
@@ -52,7 +53,10 @@ static kg_xyz scaled(kg_xyz c, double s)
  * when `hero` is set. */
 static void check_environment(const kg_material_library *lib, const char *env, int hero)
 {
-	static const char *const metals[] = {"gold", "silver", "copper", "shibuichi-nami"};
+	static const char *const metals[] = {
+		"gold", "silver", "copper", "shakudo", "shibuichi-nami", "shibuichi-shiro",
+		"shibuichi-jo", "shibuichi-nami-uchisanbu", "shibuichi-nami-sotosanbu"};
+	const int nmetals = (int)(sizeof(metals) / sizeof(metals[0]));
 	kg_err err;
 	kg_illuminant *ill = NULL;
 	if (kg_illuminant_by_name(env, &ill, &err)) {
@@ -69,7 +73,7 @@ static void check_environment(const kg_material_library *lib, const char *env, i
 		"            \"width\": 16, \"height\": 16},\n"
 		" \"sampling\": {\"spp\": 256, \"wavelengths\": 4, \"bounces\": 4, \"seed\": 11}}\n",
 		env);
-	for (int i = 0; i < 4; i++) {
+	for (int i = 0; i < nmetals; i++) {
 		const kg_material *mat = kg_material_library_find(lib, metals[i]);
 		kg_spectrum f0, albedo;
 		if (!mat || kg_material_reflectance(mat, 0.0, &f0, &err)) {

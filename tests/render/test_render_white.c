@@ -11,6 +11,8 @@
  *    wavelengths each path's Y depends on its random bands; the image mean must lie
  *    within 4 standard errors of 1, the standard error computed here from the spread
  *    of that estimate over the 61 possible hero bands (CIE weights of core/). */
+#include <unistd.h>
+
 #include "render_test.h"
 
 #define NEUTRAL_TOL 0.5
@@ -109,6 +111,7 @@ static void check_furnace(void)
 	CHECK(mean.Y >= 1.0 - 1e-3 && mean.Y <= 1.0 + 1e-5, "furnace: mean Y %.6f, expected 1",
 	      mean.Y);
 	CHECK(ymax <= 1.0 + 1e-5, "furnace: a pixel has Y %.6f > 1: energy created", ymax);
+	CHECK(ymin >= 1.0 - 1e-3, "furnace: a pixel has Y %.6f < 1: energy lost", ymin);
 	CHECK(fabs(mean.X / mean.Y - white.X) <= 1e-4 && fabs(mean.Z / mean.Y - white.Z) <= 1e-4,
 	      "furnace: the colour of the environment (its white %.6f %.6f %.6f), got %.6f "
 	      "%.6f %.6f", white.X, white.Y, white.Z, mean.X, mean.Y, mean.Z);
@@ -132,6 +135,76 @@ static void check_furnace(void)
 	      "%.6f, expected 1 within %.6f", mean.Y, 4.0 * se + 1e-3);
 }
 
+/* Shadows: a matte sphere over a matte plane, lit by a light alone from 45 degrees on
+ * one side, seen from straight above. The plane at 1.9 units on the light's side is
+ * lit; at 1.9 on the other side it lies in the sphere's shadow (the shadow of a unit
+ * sphere at height 1 spans -2.41 .. 0.41 along the light's azimuth) and gets only
+ * what the sphere reflects. Neither point is hidden from the camera by the sphere.
+ * With the light moved to the other side, the dark side must follow. The light is
+ * also given as a CGATS spectrum (colord's CIE D65): the lit plane must match the
+ * named D65 within 0.5 %. */
+static void check_shadow(void)
+{
+	double side[2][2]; /* [light from -x / +x][patch at image left / right] */
+	for (int k = 0; k < 2; k++) {
+		char scene[512];
+		render_test_write(scene, sizeof(scene), "shadow.json",
+			"{\"format\": \"kogei-scene/1\",\n"
+			" \"mesh\": [{\"generator\": \"icosphere\", \"level\": 4, \"translate\": [0, 0, 1]},\n"
+			"          {\"generator\": \"plane\", \"half_size\": 6}],\n"
+			" \"materials\": {\"library\": \"lib.json\", \"material\": \"matte-white\"},\n"
+			" \"light\": {\"illuminant\": \"D65\", \"direction\": [%d, 0, 1], \"intensity\": 1},\n"
+			" \"camera\": {\"position\": [0, 0, 10], \"look_at\": [0, 0, 0], \"up\": [0, 1, 0],\n"
+			"            \"fov_deg\": 40, \"width\": 64, \"height\": 64},\n"
+			" \"sampling\": {\"spp\": 16, \"wavelengths\": 4, \"bounces\": 4, \"seed\": 7}}\n",
+			k ? 1 : -1);
+		kg_image *img = render_test_render(scene, NULL, NULL, NULL);
+		/* x = -1.9 and +1.9 on the plane: columns 32 -/+ 1.9 / (10 tan 20 deg) * 32 */
+		int dx = (int)lround(1.9 / (10 * tan(20 * M_PI / 180)) * 32);
+		side[k][0] = render_test_mean(img, 32 - dx - 2, 30, 32 - dx + 2, 34).Y;
+		side[k][1] = render_test_mean(img, 32 + dx - 2, 30, 32 + dx + 2, 34).Y;
+		kg_image_free(&img);
+	}
+	printf("shadow: light from -x: plane Y left %.4f right %.4f; from +x: left %.4f right "
+	       "%.4f\n",
+	       side[0][0], side[0][1], side[1][0], side[1][1]);
+	/* the side away from the light is in shadow, whichever way the image is oriented */
+	int lit0 = side[0][0] > side[0][1], lit1 = side[1][0] > side[1][1];
+	double r0 = fmin(side[0][0], side[0][1]) / fmax(side[0][0], side[0][1]);
+	double r1 = fmin(side[1][0], side[1][1]) / fmax(side[1][0], side[1][1]);
+	CHECK(lit0 != lit1, "shadow: moving the light to the other side did not move the shadow");
+	CHECK(r0 < 0.2 && r1 < 0.2, "shadow: shadowed/lit plane %.3f and %.3f, expected < 0.2",
+	      r0, r1);
+	CHECK(fabs(side[0][lit0 ? 0 : 1] / side[1][lit1 ? 0 : 1] - 1) < 0.02,
+	      "shadow: the lit plane differs between the two sides: %.4f vs %.4f",
+	      side[0][lit0 ? 0 : 1], side[1][lit1 ? 0 : 1]);
+
+	const char *cgats = "/usr/share/colord/illuminant/CIE-D65.sp";
+	if (access(cgats, R_OK) != 0) {
+		printf("%s absent (colord-data): the CGATS light is not checked\n", cgats);
+		return;
+	}
+	double lit[2];
+	for (int k = 0; k < 2; k++) {
+		char scene[512];
+		render_test_write(scene, sizeof(scene), "lit.json",
+			"{\"format\": \"kogei-scene/1\",\n"
+			" \"mesh\": {\"generator\": \"plane\", \"half_size\": 6},\n"
+			" \"materials\": {\"library\": \"lib.json\", \"material\": \"matte-white\"},\n"
+			" \"light\": {\"illuminant\": \"%s\", \"direction\": [1, 0, 1], \"intensity\": 1},\n"
+			" \"camera\": {\"position\": [0, 0, 10], \"look_at\": [0, 0, 0], \"up\": [0, 1, 0],\n"
+			"            \"fov_deg\": 20, \"width\": 16, \"height\": 16},\n"
+			" \"sampling\": {\"spp\": 4, \"wavelengths\": \"all\", \"bounces\": 1, \"seed\": 7}}\n",
+			k ? cgats : "D65");
+		kg_image *img = render_test_render(scene, NULL, NULL, NULL);
+		lit[k] = render_test_mean(img, 0, 0, img->width, img->height).Y;
+		kg_image_free(&img);
+	}
+	printf("light D65 by name: plane Y %.5f; from %s: %.5f\n", lit[0], cgats, lit[1]);
+	CHECK(lit[0] > 0 && fabs(lit[1] / lit[0] - 1) < 0.005,
+	      "a CGATS D65 light gives Y %.5f, the named D65 %.5f", lit[1], lit[0]);
+}
+
 int main(void)
 {
 	render_test_init();
@@ -139,6 +212,7 @@ int main(void)
 	render_test_write(lib, sizeof(lib), "lib.json", "%s", library);
 	check_neutral();
 	check_furnace();
+	check_shadow();
 	render_test_cleanup();
 	return kg_test_done("render-white");
 }
