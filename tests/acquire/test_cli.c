@@ -228,11 +228,48 @@ out:
 	kg_image_free(&F);
 }
 
+/* A Bayer capture: progress on the terminal frame by frame, and the demosaicing (OpenCV's
+ * algorithm, or a note that the build has none) recorded in the manifest beside an
+ * rgb.tif that exists only when it was demosaiced. */
+static void bayer_capture(void)
+{
+	char s[4200];
+	snprintf(s, sizeof(s), "%s", acq_path("bayer"));
+	int rc = acq_run("acquire", "--camera", "sim:?width=32&height=24&format=bayer_rggb12",
+	                 "--out", s, "--kind", "object", "--frames", "3", "--name", "mosaic", NULL);
+	CHECK(rc == 0, "bayer capture: exit %d: %s", rc, acq_errtext);
+	for (int i = 1; i <= 3; i++) {
+		char want[64];
+		snprintf(want, sizeof(want), "mosaic: frame %d/3", i);
+		CHECK(contains(acq_errtext, want), "no progress line '%s' in: %s", want, acq_errtext);
+	}
+	json_t *root = acq_manifest(s);
+	json_t *cap = json_array_get(json_object_get(root, "captures"), 0);
+	json_t *dm = json_object_get(cap, "demosaic");
+	const char *algo = json_string_value(json_object_get(dm, "algorithm"));
+	const json_t *rgb = json_object_get(json_object_get(cap, "outputs"), "rgb");
+	if (kg_demosaic_algorithm()) {
+		CHECK(algo && contains(algo, "OpenCV") && !strcmp(algo, kg_demosaic_algorithm()),
+		      "manifest demosaic.algorithm '%s', expected '%s'", algo ? algo : "(none)",
+		      kg_demosaic_algorithm());
+		CHECK(rgb && json_integer_value(json_object_get(rgb, "channels")) == 3,
+		      "no 3-channel rgb output in the manifest");
+	} else {
+		const char *why = json_string_value(json_object_get(dm, "note"));
+		CHECK(dm && json_is_null(json_object_get(dm, "algorithm")) && why &&
+		          contains(why, "without OpenCV"),
+		      "without OpenCV the manifest must say the mosaic was not demosaiced");
+		CHECK(!rgb, "an rgb output without demosaicing");
+	}
+	json_decref(root);
+}
+
 int main(int argc, char **argv)
 {
 	acq_init(argc, argv, "acquire-cli");
 	bad_options();
 	failing_camera();
+	bayer_capture();
 	dark_and_flat();
 	acq_cleanup();
 	return kg_test_done("acquire-cli");
