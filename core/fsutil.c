@@ -1,4 +1,5 @@
 #include <errno.h>
+#include <sched.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
@@ -169,4 +170,17 @@ char *kg_data_path(const char *name)
 		free(p);
 	}
 	return kg_path_join(KG_SOURCE_ROOT "/fixtures", name);
+}
+
+int kg_cpu_count(int max)
+{
+	cpu_set_t set;
+	long n = 0;
+	if (sched_getaffinity(0, sizeof(set), &set) == 0)
+		n = CPU_COUNT(&set);
+	if (n < 1)
+		n = sysconf(_SC_NPROCESSORS_ONLN);
+	if (n < 1)
+		n = 1;
+	return max > 0 && n > max ? max : (int)n;
 }

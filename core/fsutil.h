@@ -30,4 +30,8 @@ char *kg_data_path(const char *name);
 /* Join dir and name into a newly allocated path. */
 char *kg_path_join(const char *dir, const char *name);
 
+/* CPUs this process may run on (its affinity mask: taskset, cgroups' cpusets), at
+ * least 1 and at most max: the default thread count of every parallel loop. */
+int kg_cpu_count(int max);
+
 #endif

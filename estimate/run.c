@@ -106,8 +106,7 @@ static void *worker_main(void *arg)
 
 static int default_threads(void)
 {
-	long n = sysconf(_SC_NPROCESSORS_ONLN);
-	return n < 1 ? 1 : n > MAX_THREADS ? MAX_THREADS : (int)n;
+	return kg_cpu_count(MAX_THREADS);
 }
 
 static int same_doubles(const double *a, const double *b, size_t n)

@@ -529,7 +529,7 @@ int kg_render(const kg_scene *s, const kg_render_options *opt, kg_image **xyz,
 	c.nwl = opt->wavelengths > 0 ? opt->wavelengths : s->wavelengths;
 	c.bounces = opt->bounces > 0 ? opt->bounces : s->bounces;
 	c.seed = opt->seed_set ? opt->seed : s->seed;
-	int threads = opt->threads > 0 ? opt->threads : (int)sysconf(_SC_NPROCESSORS_ONLN);
+	int threads = opt->threads > 0 ? opt->threads : kg_cpu_count(MAX_THREADS);
 	if (threads < 1)
 		threads = 1;
 	if (threads > MAX_THREADS)

@@ -674,8 +674,7 @@ static int parse_cfa(const char *cfa, int ch[4], kg_err *err)
 
 static int default_threads(void)
 {
-	long n = sysconf(_SC_NPROCESSORS_ONLN);
-	return n < 1 ? 1 : (n > MAX_THREADS ? MAX_THREADS : (int)n);
+	return kg_cpu_count(MAX_THREADS);
 }
 
 int kg_sim_chart_render(const kg_sim_chart_desc *d, const kg_sim_capture *cap,
