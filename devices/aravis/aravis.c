@@ -384,7 +384,9 @@ static int choose_pixfmt(arv_state *s, const kg_frame_format *want, ArvPixelForm
 	if (e)
 		return gfail(err, KG_EIO, &e, "PixelFormat: cannot list the formats offered");
 	ArvPixelFormat cur = arv_camera_get_pixel_format(s->cam, NULL);
-	int best = -1;
+	int cur_i = pixfmt_index(cur);
+	const char *cur_cfa = cur_i >= 0 ? pixfmts[cur_i].cfa : "";
+	int best = -1, best_rank = 0;
 	for (guint k = 0; k < n; k++) {
 		int i = pixfmt_index((ArvPixelFormat)have[k]);
 		if (i < 0 || pixfmts[i].f != want->pixfmt)
@@ -393,9 +395,17 @@ static int choose_pixfmt(arv_state *s, const kg_frame_format *want, ArvPixelForm
 			continue;
 		if (want->cfa[0] && strcmp(want->cfa, pixfmts[i].cfa))
 			continue;
+		/* Among equally deep formats: the current one, then one with its CFA. */
+		int rank = 0;
+		if (pixfmts[i].arv == cur)
+			rank = 2;
+		else if (pixfmts[i].cfa[0] && !strcmp(pixfmts[i].cfa, cur_cfa))
+			rank = 1;
 		if (best < 0 || pixfmts[i].bits > pixfmts[best].bits ||
-		    (pixfmts[i].bits == pixfmts[best].bits && pixfmts[i].arv == cur))
+		    (pixfmts[i].bits == pixfmts[best].bits && rank > best_rank)) {
 			best = i;
+			best_rank = rank;
+		}
 	}
 	if (best >= 0) {
 		*out = pixfmts[best].arv;

@@ -4,6 +4,7 @@
 #include <string.h>
 
 #include "camera_test.h"
+#include "mjpeg.h"
 
 static kg_frame frame_of(kg_pixfmt pf, int bits, const char *cfa, int w, int h,
                          size_t stride, const void *data, size_t size)
@@ -190,10 +191,16 @@ static void test_convert(void)
 	f = frame_of(KG_PIX_YUYV, 8, NULL, 5, 1, 10, yuyv, 10);
 	CHECK(kg_frame_to_image(&f, 1, &tmp, &e) == KG_EINVAL && strstr(e.msg, "even"),
 	      "odd YUYV width refused: %s", e.msg);
-	/* MJPEG is never decoded. */
+	/* MJPEG: refused unless forced; forced, bytes that are no JPEG stream are an error
+	 * (real JPEG frames: tests/v4l2). */
 	f = frame_of(KG_PIX_MJPEG, 8, NULL, 2, 2, 0, yuyv, sizeof(yuyv));
-	CHECK(kg_frame_to_image(&f, 1, &tmp, &e) == KG_ENOTSUP && strstr(e.msg, "MJPEG"),
-	      "MJPEG refused: %s", e.msg);
+	CHECK(kg_frame_to_image(&f, 0, &tmp, &e) == KG_EINVAL && !tmp &&
+	          strstr(e.msg, "MJPEG") && strstr(e.msg, "unless forced"),
+	      "MJPEG refused unless forced: %s", e.msg);
+	int want_code = kg_mjpeg_available() ? KG_EINVAL : KG_ENOTSUP;
+	CHECK(kg_frame_to_image(&f, 1, &tmp, &e) == want_code && !tmp &&
+	          strstr(e.msg, kg_mjpeg_available() ? "SOI" : "without libjpeg"),
+	      "MJPEG of 12 bytes, forced: %s", e.msg);
 	/* Too few bytes for the format. */
 	f = frame_of(KG_PIX_MONO16, 16, NULL, 3, 2, 6, m12, sizeof(m12));
 	CHECK(kg_frame_to_image(&f, 0, &tmp, &e) == KG_EINVAL && strstr(e.msg, "6 bytes"),
