@@ -37,16 +37,23 @@ static inline void inject_frame_bytes(uint64_t k, uint8_t *out, size_t size)
 	memcpy(out, &k, size < 8 ? size : 8);
 }
 
-/* ArvFakeCameraFillPattern. The buffer's own size is stale in Aravis 0.8.26 (often 0):
- * the frame size comes from the registers and the pixel format. */
+/* The bytes of the frame a fill callback is asked for. The buffer's own size is stale
+ * in Aravis 0.8.26 (often 0): the frame size comes from the registers and the pixel
+ * format. */
+static inline size_t inject_frame_size(ArvFakeCamera *fake, ArvPixelFormat pf)
+{
+	guint32 w = 0, h = 0;
+	arv_fake_camera_read_register(fake, ARV_FAKE_CAMERA_REGISTER_WIDTH, &w);
+	arv_fake_camera_read_register(fake, ARV_FAKE_CAMERA_REGISTER_HEIGHT, &h);
+	return (size_t)w * h * ARV_PIXEL_FORMAT_BIT_PER_PIXEL(pf) / 8;
+}
+
+/* ArvFakeCameraFillPattern. */
 static inline void inject_fill(ArvBuffer *b, void *user, guint32 exposure_us, guint32 gain,
                                ArvPixelFormat pf)
 {
 	inject *in = user;
-	guint32 w = 0, h = 0;
-	arv_fake_camera_read_register(in->fake, ARV_FAKE_CAMERA_REGISTER_WIDTH, &w);
-	arv_fake_camera_read_register(in->fake, ARV_FAKE_CAMERA_REGISTER_HEIGHT, &h);
-	size_t size = (size_t)w * h * ARV_PIXEL_FORMAT_BIT_PER_PIXEL(pf) / 8;
+	size_t size = inject_frame_size(in->fake, pf);
 	uint8_t *data = (uint8_t *)arv_buffer_get_data(b, NULL);
 	g_mutex_lock(&in->lock);
 	uint64_t k = in->filled++;

@@ -37,6 +37,7 @@
 #include "camera_driver.h"
 #include "image.h"
 #include "json.h"
+#include "aravis_inject.h"
 #include "kg_camera.h"
 #include "kg_test.h"
 
@@ -187,10 +188,7 @@ static void fill(ArvBuffer *b, void *user, guint32 exposure_us, guint32 gain, Ar
 	(void)exposure_us;
 	(void)gain;
 	server *s = user;
-	guint32 w = 0, h = 0;
-	arv_fake_camera_read_register(s->fake, ARV_FAKE_CAMERA_REGISTER_WIDTH, &w);
-	arv_fake_camera_read_register(s->fake, ARV_FAKE_CAMERA_REGISTER_HEIGHT, &h);
-	size_t size = (size_t)w * h * ARV_PIXEL_FORMAT_BIT_PER_PIXEL(pf) / 8;
+	size_t size = inject_frame_size(s->fake, pf);
 	uint8_t *data = (uint8_t *)arv_buffer_get_data(b, NULL);
 	g_mutex_lock(&s->lock);
 	int i = s->nfills++;
