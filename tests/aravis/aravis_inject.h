@@ -76,8 +76,20 @@ static inline void inject_attach(inject *in, ArvFakeCamera *fake)
 	arv_fake_camera_set_fill_pattern(fake, inject_fill, in);
 }
 
-/* 1 when frame f is injected frame k byte for byte; else prints where they differ. */
-static inline int inject_matches(const kg_frame *f, uint64_t k)
+/* Keep only the bits of `mask` in every little-endian 16-bit sample (a 12-bit camera's
+ * samples). */
+static inline void inject_mask_samples(uint8_t *data, size_t size, guint32 mask)
+{
+	for (size_t i = 0; i + 1 < size; i += 2) {
+		guint32 v = (guint32)(data[i] | data[i + 1] << 8) & mask;
+		data[i] = (uint8_t)v;
+		data[i + 1] = (uint8_t)(v >> 8);
+	}
+}
+
+/* 1 when frame f is injected frame k byte for byte, its 16-bit samples cut to mask
+ * (0: as injected); else prints where they differ. */
+static inline int inject_matches_masked(const kg_frame *f, uint64_t k, guint32 mask)
 {
 	size_t n = f->fmt.size;
 	uint8_t *want = malloc(n ? n : 1);
@@ -86,6 +98,8 @@ static inline int inject_matches(const kg_frame *f, uint64_t k)
 	inject_frame_bytes(k, want, n);
 	if (n >= 16)
 		memcpy(want + 8, (const uint8_t *)f->data + 8, 8); /* settings: checked apart */
+	if (mask)
+		inject_mask_samples(want, n, mask);
 	size_t at = n;
 	for (size_t i = 0; i < n && at == n; i++)
 		if (want[i] != ((const uint8_t *)f->data)[i])
@@ -96,6 +110,11 @@ static inline int inject_matches(const kg_frame *f, uint64_t k)
 		        ((const uint8_t *)f->data)[at], want[at]);
 	free(want);
 	return at == n && f->size == n;
+}
+
+static inline int inject_matches(const kg_frame *f, uint64_t k)
+{
+	return inject_matches_masked(f, k, 0);
 }
 
 #endif

@@ -59,15 +59,6 @@ typedef struct filler {
 
 static filler fl;
 
-static void mask_samples(uint8_t *data, size_t size, guint32 mask)
-{
-	for (size_t i = 0; i + 1 < size; i += 2) {
-		guint32 v = (guint32)(data[i] | data[i + 1] << 8) & mask;
-		data[i] = (uint8_t)v;
-		data[i + 1] = (uint8_t)(v >> 8);
-	}
-}
-
 static void fill(ArvBuffer *b, void *user, guint32 exposure_us, guint32 gain, ArvPixelFormat pf)
 {
 	filler *f = user;
@@ -78,31 +69,9 @@ static void fill(ArvBuffer *b, void *user, guint32 exposure_us, guint32 gain, Ar
 	f->last_pf = (guint32)pf;
 	g_mutex_unlock(&f->in.lock);
 	if (mask)
-		mask_samples((uint8_t *)arv_buffer_get_data(b, NULL), size, mask);
+		inject_mask_samples((uint8_t *)arv_buffer_get_data(b, NULL), size, mask);
 }
 
-/* inject_matches, for a frame whose samples were masked. */
-static int matches_masked(const kg_frame *f, uint64_t k, guint32 mask)
-{
-	size_t n = f->fmt.size;
-	uint8_t *want = malloc(n ? n : 1);
-	if (!want)
-		return 0;
-	inject_frame_bytes(k, want, n);
-	if (n >= 16)
-		memcpy(want + 8, (const uint8_t *)f->data + 8, 8);
-	mask_samples(want, n, mask);
-	int ok = f->size == n && !memcmp(want, f->data, n);
-	if (!ok)
-		for (size_t i = 0; i < n; i++)
-			if (want[i] != ((const uint8_t *)f->data)[i]) {
-				fprintf(stderr, "frame %llu: byte %zu of %zu is 0x%02x, injected 0x%02x\n",
-				        (unsigned long long)k, i, n, ((const uint8_t *)f->data)[i], want[i]);
-				break;
-			}
-	free(want);
-	return ok;
-}
 
 static guint32 reg(guint32 address)
 {
@@ -403,7 +372,7 @@ static void stream_format(kg_camera *c, const fmt_case *fc)
 		          f.fmt.width == W && f.fmt.height == H,
 		      "%s: frame %d is %s %d bits '%s' %dx%d", fc->name, k, kg_pixfmt_name(f.fmt.pixfmt),
 		      f.fmt.bits, f.fmt.cfa, f.fmt.width, f.fmt.height);
-		int same = mask ? matches_masked(&f, (uint64_t)k, mask) : inject_matches(&f, (uint64_t)k);
+		int same = inject_matches_masked(&f, (uint64_t)k, mask);
 		CHECK(same, "%s: frame %d is not the injected frame", fc->name, k);
 		good = good && same;
 		if (k == 0)
