@@ -110,8 +110,9 @@ int kg_frame_accum_add(kg_frame_accum *a, const kg_frame *f, kg_err *err)
 		if (ret)
 			return ret;
 		a->n++;
+		double inv_n = 1.0 / (double)a->n;
 		for (size_t i = 0; i < a->nsamples; i++)
-			welford(a, i, img->data[i], 1.0 / (double)a->n);
+			welford(a, i, img->data[i], inv_n);
 		kg_image_free(&img);
 		return 0;
 	}

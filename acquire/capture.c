@@ -833,7 +833,7 @@ done:
 		remove_outputs(&c);
 	if (ret && recorded) { /* nothing of a failed capture stays, its raw frames neither */
 		kg_err e2 = {{0}};
-		if (kg_camera_recording_discard(kg_session_dir(s), res->name, NULL, &e2))
+		if (kg_camera_recording_discard(kg_session_dir(s), res->name, &e2))
 			note(&c, "%s: could not take the failed capture's frames back out: %s",
 			     res->name, e2.msg);
 	}

@@ -532,22 +532,18 @@ static float clamp01(float v) { return v < 0 ? 0 : v > 1 ? 1 : v; }
 static int mjpeg_to_image(const kg_frame *f, kg_image **out, kg_err *err)
 {
 	const kg_frame_format *fmt = &f->fmt;
-	if (fmt->width <= 0 || fmt->height <= 0 ||
-	    (long)fmt->width * fmt->height > KG_IMAGE_MAX_PIXELS)
-		return kg_fail(err, KG_EINVAL, "frame %llu: MJPEG size %dx%d: expected 1..%ld pixels",
-		               (unsigned long long)f->sequence, fmt->width, fmt->height,
-		               (long)KG_IMAGE_MAX_PIXELS);
-	size_t n = (size_t)fmt->width * (size_t)fmt->height * 3;
-	uint8_t *rgb = malloc(n);
-	if (!rgb)
-		return kg_fail(err, KG_ENOMEM, "out of memory for a %dx%d MJPEG frame", fmt->width,
-		               fmt->height);
-	int ret = kg_mjpeg_decode(f->data, f->size, fmt->width, fmt->height, rgb, err);
 	kg_image *img = NULL;
+	int ret = kg_image_new(fmt->width, fmt->height, 3, &img, err); /* checks the size */
+	size_t n = img ? (size_t)fmt->width * (size_t)fmt->height * 3 : 0;
+	uint8_t *rgb = img ? malloc(n) : NULL;
+	if (!ret && !rgb)
+		ret = kg_fail(err, KG_ENOMEM, "out of memory for a %dx%d MJPEG frame", fmt->width,
+		              fmt->height);
 	if (!ret)
-		ret = kg_image_new(fmt->width, fmt->height, 3, &img, err);
+		ret = kg_mjpeg_decode(f->data, f->size, fmt->width, fmt->height, rgb, err);
 	if (ret) {
 		free(rgb);
+		kg_image_free(&img);
 		if (err)
 			kg_err_prefix(err, "frame %llu", (unsigned long long)f->sequence);
 		return ret;

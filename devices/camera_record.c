@@ -406,38 +406,39 @@ int kg_frame_recorder_close(kg_frame_recorder **pr, kg_err *err)
 
 /* ---- discarding a failed capture --------------------------------------------------- */
 
-int kg_camera_recording_discard(const char *session_dir, const char *capture, long *removed,
-                                kg_err *err)
+int kg_camera_recording_discard(const char *session_dir, const char *capture, kg_err *err)
 {
 	kg_check_arg(session_dir && capture, err);
-	if (removed)
-		*removed = 0;
 	if (!capture_name_ok(capture))
-		return kg_fail(err, KG_EINVAL, "capture name '%s': not a recorded capture's name",
-		               capture);
+		return kg_fail(err, KG_EINVAL,
+		               "%s: capture name '%s': expected 1 to %d letters, digits, '.', '_' "
+		               "or '-', not starting with '.'",
+		               session_dir, capture, CAPTURE_MAX - 1);
 	char *frames = kg_path_join(session_dir, "frames");
 	char *index = frames ? kg_path_join(frames, "index.jsonl") : NULL;
 	char *buf = NULL;
 	size_t len = 0;
+	kg_outfile out = {0};
 	struct stat st;
 	int ret = index ? 0 : kg_fail(err, KG_ENOMEM, "%s: out of memory", session_dir);
-	if (!ret && stat(index, &st) != 0) /* nothing was recorded */
-		goto done;
-	if (!ret)
-		ret = kg_read_file(index, &buf, &len, err);
-	kg_outfile out = {0};
+	if (ret || stat(index, &st) != 0) { /* nothing was recorded */
+		free(index);
+		free(frames);
+		return ret;
+	}
+	ret = kg_read_file(index, &buf, &len, err);
 	if (!ret)
 		ret = kg_outfile_open(&out, index, 0, err);
-	long gone = 0;
 	/* Keep every other line as it is; a last line without its newline (cut off) goes. */
+	size_t n = strlen(capture);
 	for (char *line = buf, *nl; !ret && line && (nl = memchr(line, '\n', len - (size_t)(line - buf)));
 	     line = nl + 1) {
-		json_t *o = json_loadb(line, (size_t)(nl - line), 0, NULL);
+		size_t llen = (size_t)(nl - line) + 1;
+		json_t *o = json_loadb(line, llen - 1, 0, NULL);
 		const char *cap = json_string_value(json_object_get(o, "capture"));
 		const char *file = json_string_value(json_object_get(o, "file"));
 		if (cap && !strcmp(cap, capture)) {
 			/* only files inside frames/<capture>/ */
-			size_t n = strlen(capture);
 			if (file && !strncmp(file, "frames/", 7) && !strncmp(file + 7, capture, n) &&
 			    file[7 + n] == '/' && !strchr(file + 8 + n, '/')) {
 				char *path = kg_path_join(session_dir, file);
@@ -445,8 +446,7 @@ int kg_camera_recording_discard(const char *session_dir, const char *capture, lo
 					unlink(path);
 				free(path);
 			}
-			gone++;
-		} else if (fwrite(line, 1, (size_t)(nl - line) + 1, out.fp) != (size_t)(nl - line) + 1) {
+		} else if (fwrite(line, 1, llen, out.fp) != llen) {
 			ret = kg_fail(err, KG_EIO, "%s: write failed: %s", index, strerror(errno));
 		}
 		json_decref(o);
@@ -462,9 +462,6 @@ int kg_camera_recording_discard(const char *session_dir, const char *capture, lo
 		free(dir);
 		ret = fsync_dir(frames, err);
 	}
-	if (!ret && removed)
-		*removed = gone;
-done:
 	free(buf);
 	free(index);
 	free(frames);

@@ -182,9 +182,8 @@ int kg_camera_record_stop(kg_camera *c, kg_err *err);
 /* Take a failed capture back out of a stopped recording: the index lines of `capture`
  * and their frame files under frames/<capture>/ go (the index is rewritten to a
  * temporary name and renamed), so replay never serves frames no manifest lists. A
- * session without a recording is left alone. *removed (may be NULL): frames removed. */
-int kg_camera_recording_discard(const char *session_dir, const char *capture, long *removed,
-                                kg_err *err);
+ * session without a recording is left alone. */
+int kg_camera_recording_discard(const char *session_dir, const char *capture, kg_err *err);
 
 /* The recording (devices/camera_record.c owns it):
  *   frames/camera.json            identity (kg_camera_info) and the format at start;

@@ -86,9 +86,25 @@ static kg_camera *open_cam(void)
 /* A forced MJPEG frame decodes (with or without its Huffman tables: odd sequence numbers
  * come without) to the R'G'B' the fake encoded, within JPEG's loss at quality 95; a
  * damaged one is an error, not a picture. Without libjpeg the message says so. */
+/* 1 when the JPEG stream has a DHT (FF C4) segment before its scan. */
+static int has_huffman_tables(const uint8_t *j, size_t n)
+{
+	for (size_t i = 2; i + 4 <= n && j[i] == 0xFF && j[i + 1] != 0xDA;
+	     i += 2 + ((size_t)j[i + 2] << 8 | j[i + 3]))
+		if (j[i + 1] == 0xC4)
+			return 1;
+	return 0;
+}
+
 static void check_mjpeg(const kg_frame *fr)
 {
 	kg_err err = {{0}};
+	if (kg_mjpeg_available()) /* the fake's real JPEG: odd frames without tables */
+		CHECK(has_huffman_tables(fr->data, fr->size) == !(fr->sequence & 1),
+		      "MJPEG sequence %llu: Huffman tables %s, expected %s",
+		      (unsigned long long)fr->sequence,
+		      has_huffman_tables(fr->data, fr->size) ? "present" : "absent",
+		      fr->sequence & 1 ? "absent" : "present");
 	kg_image *img = NULL;
 	int ret = kg_frame_to_image(fr, 1, &img, &err);
 	if (!kg_mjpeg_available()) {
