@@ -12,6 +12,8 @@ libapriltag-dev libopencv-dev libopencv-contrib-dev
 libusb-1.0-0-dev umockdev libumockdev-dev
 libaravis-dev aravis-tools aravis-tools-cli libcamera-dev
 libembree-dev assimp-testmodels iproute2 util-linux
+chromium python3-websocket
+libraw-dev libgphoto2-dev libmicrohttpd-dev
 "
 
 missing=""
