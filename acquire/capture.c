@@ -675,6 +675,8 @@ static json_t *capture_json(cap_ctx *c, const char *started, const char *ended,
 			          "measure", o->measure && o->measure_name ? o->measure_name
 			                     : "99.5th percentile of 5x5 same-colour means",
 			          "iterations", r->nsteps, "steps", c->steps, "locked", 1));
+	if (cap && o->chart_layout)
+		json_object_set_new(cap, "chart_layout", json_string(o->chart_layout));
 	if (cap)
 		json_object_set_new(cap, "demosaic", demosaic ? demosaic : json_null());
 	else

@@ -23,8 +23,9 @@ static const char usage_acquire[] =
 	"                       it so the brightest patch sits at --target, then locks it\n"
 	"                       (default: the camera's exposure, auto exposure off)\n"
 	"  --target LEVEL       the helper's level, 0..1 of full scale (default 0.8)\n"
-	"  --layout L           the helper measures the brightest patch of this chart\n"
-	"                       layout (kogei-chart/1 JSON or .cht); without it a robust\n"
+	"  --layout L           the chart's layout (kogei-chart/1 JSON or .cht), recorded\n"
+	"                       with a chart capture for `kogei process`; the helper\n"
+	"                       measures the brightest patch of it; without it a robust\n"
 	"                       high percentile of the blurred frame\n"
 	"  --gain G             gain in the camera's unit (default: the camera's)\n"
 	"  --format PIXFMT      mono8..16, bayer8..16, bayer_rggb12, rgb8, rgb16, yuyv, mjpeg\n"
@@ -262,9 +263,11 @@ int kg_cmd_acquire(int argc, char **argv)
 		return kg_cli_usage_error(usage_acquire, "--kind chart|object|dark|flat is required");
 	if (kg_capture_kind_parse(kind, &o.kind, &err))
 		return kg_cli_usage_error(usage_acquire, "--kind: %s", err.msg);
-	if ((have_target || layout) && !o.auto_exposure)
-		return kg_cli_usage_error(usage_acquire, "%s: only with --exposure auto",
-		                          have_target ? "--target" : "--layout");
+	if (have_target && !o.auto_exposure)
+		return kg_cli_usage_error(usage_acquire, "--target: only with --exposure auto");
+	if (layout && !o.auto_exposure && o.kind != KG_CAPTURE_CHART)
+		return kg_cli_usage_error(usage_acquire, "--layout: only with --exposure auto or "
+		                          "--kind chart");
 	if (o.kind == KG_CAPTURE_DARK && o.auto_exposure)
 		return kg_cli_usage_error(usage_acquire,
 		                          "--exposure auto: a dark has no light to meter; give the "
@@ -279,8 +282,9 @@ int kg_cmd_acquire(int argc, char **argv)
 		if ((r = kg_chart_layout_load(layout, &cm.layout, &err)))
 			return kg_cli_error(&err, r);
 		kg_chart_detect_options_default(&cm.opt);
-		o.measure = brightest_patch;
+		o.measure = o.auto_exposure ? brightest_patch : NULL;
 		o.measure_user = &cm;
+		o.chart_layout = layout;
 	}
 	char measure_name[96];
 	snprintf(measure_name, sizeof(measure_name), "brightest patch of chart %s",

@@ -19,6 +19,7 @@ static const char image_usage[] =
     "kogei sim image [--spectra S.cgats|S.csv] --materials LIB.json [--only a,b,c]\n"
     "                --camera CSS.csv --illuminant NAME|FILE [--angle DEG]\n"
     "                [--patch-size PX] [--gap PX] [--columns N] [--background R]\n"
+    "                [--size WxH]\n"
     "                [--depth 8|16|float] [--noise none|FULLWELL:READ:BITS]\n"
     "                [--white-level 0.9] [--seed N] [--extrapolate] -o SCENE.tif\n"
     "                [--truth-cube TRUTH.hdr] [--truth-labels LABELS.hdr]";
@@ -65,6 +66,8 @@ static void image_help(void)
 	       "  --patch-size PX       tile side in pixels (default 32)\n"
 	       "  --gap PX              background between tiles (default patch-size / 4)\n"
 	       "  --columns N           tiles per row (default 6)\n"
+	       "  --size WxH            image size, the grid of tiles centred in it (default:\n"
+	       "                        the grid's own size)\n"
 	       "  --background R        flat reflectance of the background (default 0)\n"
 	       "  --depth D             TIFF sample format: 8, 16 (default) or float\n"
 	       "%s"
@@ -275,7 +278,7 @@ int kg_cmd_sim_image(int argc, char **argv)
 	const char *materials = NULL, *only = NULL, *truth_cube = NULL, *truth_labels = NULL;
 	const char *depth_text = "16";
 	double angle = 0.0, background = 0.0;
-	int tile = 32, gap = -1, columns = 6;
+	int tile = 32, gap = -1, columns = 6, width = 0, height = 0;
 	for (int i = 1; i < argc; i++) {
 		int status = 0, missing = 0;
 		const char *v;
@@ -304,7 +307,13 @@ int kg_cmd_sim_image(int argc, char **argv)
 			status = parse_int(image_usage, "--gap", v, 0, 4096, &gap);
 		else if ((v = option_value(argc, argv, &i, "--columns", &missing)))
 			status = parse_int(image_usage, "--columns", v, 1, 1024, &columns);
-		else if (!missing)
+		else if ((v = option_value(argc, argv, &i, "--size", &missing))) {
+			char tail;
+			if (sscanf(v, "%dx%d%c", &width, &height, &tail) != 2 || width < 1 ||
+			    height < 1 || width > 16384 || height > 16384)
+				return kg_cli_usage_error(image_usage, "--size %s: expected WxH, e.g. "
+				                          "800x600", v);
+		} else if (!missing)
 			return kg_cli_usage_error(image_usage, "unexpected argument '%s'", argv[i]);
 		if (missing)
 			return kg_cli_usage_error(image_usage, "%s: expected a value", argv[i]);
@@ -351,6 +360,8 @@ int kg_cmd_sim_image(int argc, char **argv)
 		    .gap = gap,
 		    .columns = columns,
 		    .background = background,
+		    .width = width,
+		    .height = height,
 		};
 		ret = kg_sim_scene_new(&d, &capture, a.seed, &scene, &err);
 	}

@@ -13,6 +13,9 @@
  * and blue samples (1 for green and mono). The random generator of a frame is seeded
  * from (seed, sequence), so a frame depends only on the settings it was taken with.
  *
+ * light=F scales the scene (light=0: the lens capped, for dark captures); uniform=V
+ * makes every scene value V (a flat field; an image given then sets only the size).
+ *
  * The sensor counts frames from 1 for the life of the camera (across stop/start);
  * drop=N loses every frame whose number is a multiple of N, stall=N stops delivering
  * after N frames. Timestamps are the sensor's own clock (seconds from open: each frame
@@ -36,6 +39,8 @@ typedef struct sim_cam {
 	uint64_t seed;
 	long drop, stall;
 	int realtime;
+	double light;   /* scale of the scene (0: the lens capped, for darks) */
+	double uniform; /* >= 0: every scene value this (flats); the image sets the size */
 	/* features */
 	double exposure_us, gain_db, fps, wb_red, wb_blue;
 	int auto_exposure, auto_wb;
@@ -286,7 +291,7 @@ static void sim_close(void *state)
 }
 
 static const char sim_keys[] = "width, height, format, bits, fullwell, read, seed, "
-                               "ref_exposure_us, fps, drop, stall, realtime";
+                               "ref_exposure_us, fps, drop, stall, realtime, light, uniform";
 
 /* A number filling all of text within [min, max]; integral when asked. */
 static int parse_value(const char *key, const char *text, double min, double max,
@@ -355,6 +360,10 @@ static int parse_keys(sim_cam *s, char *q, int have_image, int *w, int *h, kg_er
 			if (!ret && kv[0] == 'd' && v == 1)
 				ret = kg_fail(err, KG_EINVAL, "drop=1: would lose every frame; expected 0 "
 				                              "(none) or 2 and more");
+		} else if (!strcmp(kv, "light")) {
+			ret = parse_value(kv, val, 0, 1e6, 0, &s->light, err);
+		} else if (!strcmp(kv, "uniform")) {
+			ret = parse_value(kv, val, 0, 1e6, 0, &s->uniform, err);
 		} else if (!strcmp(kv, "realtime")) {
 			if (!(ret = parse_value(kv, val, 0, 1, 1, &v, err)))
 				s->realtime = (int)v;
@@ -381,6 +390,8 @@ static int sim_open(const char *target, void **state, kg_camera_info *info, kg_e
 	s->seed = 1;
 	s->ref_exposure_us = 10000;
 	s->fps = 30;
+	s->light = 1;
+	s->uniform = -1;
 	s->gain_db = 0;
 	s->wb_red = s->wb_blue = 1;
 	s->auto_exposure = s->auto_wb = 1;
@@ -400,6 +411,12 @@ static int sim_open(const char *target, void **state, kg_camera_info *info, kg_e
 		ret = builtin_scene(w, h, &s->scene, err);
 	}
 	s->exposure_us = s->ref_exposure_us;
+	if (!ret && (s->light != 1 || s->uniform >= 0)) {
+		size_t n = (size_t)s->scene->width * (size_t)s->scene->height * (size_t)s->scene->channels;
+		for (size_t i = 0; i < n; i++)
+			s->scene->data[i] = (float)((s->uniform >= 0 ? s->uniform : s->scene->data[i]) *
+			                            s->light);
+	}
 	if (!ret) {
 		int bayer = s->fmt.pixfmt == KG_PIX_BAYER8 || s->fmt.pixfmt == KG_PIX_BAYER16;
 		if (bayer && !s->fmt.cfa[0])

@@ -92,6 +92,9 @@ int kg_mesh_icosphere(unsigned level, kg_mesh **out, kg_err *err);
 
 /* A square ground plane of side 2*half_size in z = 0, normal +z, two triangles. */
 int kg_mesh_plane(float half_size, kg_mesh **out, kg_err *err);
+/* The same plane as a grid of segments x segments squares (1..4096), two triangles
+ * each, so a projected label map can give each its own material. */
+int kg_mesh_plane_grid(float half_size, unsigned segments, kg_mesh **out, kg_err *err);
 
 /* A surface of revolution about the z axis. The profile runs through points (r >= 0,
  * z) with the solid on its left, i.e. counter-clockwise in the (r, z) half-plane for

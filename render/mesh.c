@@ -228,26 +228,41 @@ done:
 
 int kg_mesh_plane(float half_size, kg_mesh **out, kg_err *err)
 {
+	return kg_mesh_plane_grid(half_size, 1, out, err);
+}
+
+int kg_mesh_plane_grid(float half_size, unsigned segments, kg_mesh **out, kg_err *err)
+{
 	kg_check_arg(out != NULL, err);
 	*out = NULL;
 	if (!(half_size > 0) || !isfinite(half_size))
 		return kg_fail(err, KG_EINVAL, "plane: half size %g (expected a positive number)",
 		               (double)half_size);
+	if (segments < 1 || segments > 4096)
+		return kg_fail(err, KG_EINVAL, "plane: %u segments (expected 1..4096)", segments);
+	unsigned n = segments + 1;
 	kg_mesh *m;
-	int ret = kg_mesh_new(4, 2, KG_MESH_NORMALS, &m, err);
+	int ret = kg_mesh_new((size_t)n * n, 2 * (size_t)segments * segments, KG_MESH_NORMALS, &m,
+	                      err);
 	if (ret)
 		return ret;
-	static const float corner[4][2] = { { -1, -1 }, { 1, -1 }, { 1, 1 }, { -1, 1 } };
-	for (int i = 0; i < 4; i++) {
-		float *p = &m->pos[i * 3], *n = &m->normal[i * 3];
-		p[0] = corner[i][0] * half_size;
-		p[1] = corner[i][1] * half_size;
-		p[2] = 0;
-		n[0] = n[1] = 0;
-		n[2] = 1;
-	}
-	static const uint32_t tris[6] = { 0, 1, 2, 0, 2, 3 };
-	memcpy(m->tri, tris, sizeof(tris));
+	for (unsigned j = 0; j < n; j++)
+		for (unsigned i = 0; i < n; i++) {
+			size_t v = (size_t)j * n + i;
+			float *p = &m->pos[v * 3], *nr = &m->normal[v * 3];
+			p[0] = (2.0f * (float)i / (float)segments - 1.0f) * half_size;
+			p[1] = (2.0f * (float)j / (float)segments - 1.0f) * half_size;
+			p[2] = 0;
+			nr[0] = nr[1] = 0;
+			nr[2] = 1;
+		}
+	uint32_t *t = m->tri;
+	for (unsigned j = 0; j < segments; j++)
+		for (unsigned i = 0; i < segments; i++) {
+			uint32_t a = j * n + i, b = a + 1, c = a + n + 1, d = a + n;
+			t[0] = a, t[1] = b, t[2] = c, t[3] = a, t[4] = c, t[5] = d;
+			t += 6;
+		}
 	*out = m;
 	return 0;
 }

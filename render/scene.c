@@ -524,8 +524,11 @@ static int load_part(kg_scene *s, const json_t *root, const char *path, kg_mesh 
 		} else if (strcmp(g, "plane") == 0) {
 			snprintf(key, sizeof(key), "%s.half_size", path);
 			ret = opt_number(s->path, root, key, 1.0, 1e-9, 1e9, &half, err);
+			snprintf(key, sizeof(key), "%s.segments", path);
 			if (!ret)
-				ret = kg_mesh_plane((float)half, out, err);
+				ret = opt_int(s->path, root, key, 1, 1, 4096, &v, err);
+			if (!ret)
+				ret = kg_mesh_plane_grid((float)half, (unsigned)v, out, err);
 		} else if (strcmp(g, "tsuba") == 0) {
 			snprintf(key, sizeof(key), "%s.segments", path);
 			ret = opt_int(s->path, root, key, 128, 16, 4096, &v, err);

@@ -149,6 +149,8 @@ typedef struct kg_sim_scene_desc {
 	int gap;                          /* background between and around tiles (>= 0) */
 	int columns;                      /* tiles per row (>= 1) */
 	double background;                /* flat reflectance of the background */
+	int width, height;                /* the image, the grid centred in it; 0: the
+	                                   * grid's own size */
 } kg_sim_scene_desc;
 
 /* Class 0 of every scene; background pixels carry it. */

@@ -121,6 +121,15 @@ int kg_sim_scene_new(const kg_sim_scene_desc *d, const kg_sim_capture *c, uint64
 	                                                    : d->columns;
 	long long width = (long long)cols * (d->tile + d->gap) + d->gap;
 	long long height = (long long)rows * (d->tile + d->gap) + d->gap;
+	if ((d->width > 0 && d->width < width) || (d->height > 0 && d->height < height))
+		return kg_fail(err, KG_ERANGE, "scene: %d x %d pixels cannot hold the %lld x %lld "
+		               "grid of tiles", d->width, d->height, width, height);
+	int ox = d->width > 0 ? (int)(d->width - width) / 2 : 0;
+	int oy = d->height > 0 ? (int)(d->height - height) / 2 : 0;
+	if (d->width > 0)
+		width = d->width;
+	if (d->height > 0)
+		height = d->height;
 	if (width > MAX_SIDE || height > MAX_SIDE)
 		return kg_fail(err, KG_ERANGE,
 		               "scene: %lld x %lld pixels: expected at most %d on a side "
@@ -183,8 +192,8 @@ int kg_sim_scene_new(const kg_sim_scene_desc *d, const kg_sim_capture *c, uint64
 	for (int i = 0; i < s->nsamples; i++) {
 		int row, col;
 		tile_of(d, i, &row, &col);
-		int x0 = d->gap + col * (d->tile + d->gap);
-		int y0 = d->gap + row * (d->tile + d->gap);
+		int x0 = ox + d->gap + col * (d->tile + d->gap);
+		int y0 = oy + d->gap + row * (d->tile + d->gap);
 		for (int y = y0; y < y0 + d->tile; y++)
 			for (int x = x0; x < x0 + d->tile; x++) {
 				size_t p = (size_t)y * (size_t)s->width + (size_t)x;

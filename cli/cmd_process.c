@@ -1,0 +1,180 @@
+/* kogei process: a recorded session to calibration, maps, scenes and the report
+ * (pipeline/ does the work; this file parses the command line). */
+#include <getopt.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cli.h"
+#include "kg_pipeline.h"
+
+static const char usage_process[] =
+	"kogei process SESSION (--reference REF.json | --spectra CHART.cgats) -o OUTDIR\n"
+	"              [--spectra CHART.cgats] [--materials LIB] [--only a,b,c] [--layout L]\n"
+	"              [--chart CAPTURE] [--mesh M.ply] [--angle DEG] [--min-tags N]\n"
+	"              [--max-residual R] [--force] [--assume-same-exposure] [--no-render]\n"
+	"              [--threads N] [--quiet]";
+
+static const char help_process[] =
+	"\n"
+	"Runs a session recorded by `kogei acquire` end to end: the chart capture (the latest\n"
+	"of kind chart, or --chart) dark- and flat-corrected where acquire did not, the chart\n"
+	"found and sampled, flagged patches left out, M2 fitted and checked; then every\n"
+	"object capture from the same camera, normalised by exposure time x gain to the\n"
+	"chart capture's, estimated into a 61-band cube, classified among the declared\n"
+	"materials, and given a render scene. Writes into OUTDIR:\n"
+	"  camera.json, chart_overlay.png, process.json, report.html, and per object\n"
+	"  capture <capture>/cube.hdr, labels.hdr (+ .json, .png, _confidence), photo.png,\n"
+	"  confidence.png, scene.json (renders with `kogei render --scene`), render.png.\n"
+	"Running it again keeps the objects whose inputs and parameters are unchanged.\n"
+	"\n"
+	"  --reference REF.json  the reference calibration (kogei calib reference)\n"
+	"  --spectra CHART       the chart's measured spectra (kogei measure --chart): without\n"
+	"                        --reference a lab session, whose chart capture gives the\n"
+	"                        reference (OUTDIR/reference.json); with it, the colour\n"
+	"                        accuracy of the report (else the reference's own spectra)\n"
+	"  --materials LIB       material library file or bundled name (default: default)\n"
+	"  --only a,b,c          the materials declared for the scene (default: all)\n"
+	"  --layout L            chart layout file or bundled name (default: the one the chart\n"
+	"                        capture records, acquire --layout)\n"
+	"  --chart CAPTURE       the capture that shows the chart (default: the latest chart)\n"
+	"  --mesh M.ply          the object's mesh in the chart's frame (metres) for the\n"
+	"                        scenes (default: a plane in the chart's plane)\n"
+	"  --angle DEG           incidence of the library's spectra (default 30)\n"
+	"  --min-tags N          at least N tags place the chart, and no tagless fallback\n"
+	"                        (default: 2 tags, or OpenCV mcc for a ColorChecker 24)\n"
+	"  --max-residual R      refuse an M2 whose relative residual exceeds R (default 0.05)\n"
+	"  --force               accept a 3-patch chart (uncheckable) and objects from\n"
+	"                        another camera than the chart's, with warnings\n"
+	"  --assume-same-exposure  captures without exposure settings are taken as the\n"
+	"                        chart's (else refused)\n"
+	"  --no-render           write scene.json but do not render it\n"
+	"  --threads N           worker threads (default: all)\n"
+	"  --quiet               no progress on standard error\n"
+	"\n"
+	"Exit status 1 when the session cannot give a trustworthy result (no chart, too few\n"
+	"usable patches, M2 residual above the limit, another camera, unknown exposure); the\n"
+	"message names the capture or file and the cause, and nothing is written.";
+
+/* "a,b,c" into a list (the strings point into text, which is modified). */
+static int split_names(char *text, const char ***out, int *n)
+{
+	int cap = 1;
+	for (const char *s = text; *s; s++)
+		cap += *s == ',';
+	const char **v = calloc((size_t)cap, sizeof(*v));
+	if (!v)
+		return -1;
+	int k = 0;
+	for (char *tok = strtok(text, ","); tok; tok = strtok(NULL, ","))
+		v[k++] = tok;
+	*out = v;
+	*n = k;
+	return 0;
+}
+
+int kg_cmd_process(int argc, char **argv)
+{
+	if (kg_cli_wants_help(argc, argv)) {
+		printf("usage: %s\n%s\n", usage_process, help_process);
+		return KG_EXIT_OK;
+	}
+	enum { O_REF = 256, O_SPECTRA, O_MAT, O_ONLY, O_LAYOUT, O_CHART, O_MESH, O_ANGLE,
+	       O_MINTAGS, O_MAXRES, O_FORCE, O_SAME, O_NORENDER, O_THREADS, O_QUIET };
+	static const struct option longopts[] = {
+		{"reference", required_argument, NULL, O_REF},
+		{"spectra", required_argument, NULL, O_SPECTRA},
+		{"materials", required_argument, NULL, O_MAT},
+		{"only", required_argument, NULL, O_ONLY},
+		{"layout", required_argument, NULL, O_LAYOUT},
+		{"chart", required_argument, NULL, O_CHART},
+		{"mesh", required_argument, NULL, O_MESH},
+		{"angle", required_argument, NULL, O_ANGLE},
+		{"min-tags", required_argument, NULL, O_MINTAGS},
+		{"max-residual", required_argument, NULL, O_MAXRES},
+		{"force", no_argument, NULL, O_FORCE},
+		{"assume-same-exposure", no_argument, NULL, O_SAME},
+		{"no-render", no_argument, NULL, O_NORENDER},
+		{"threads", required_argument, NULL, O_THREADS},
+		{"quiet", no_argument, NULL, O_QUIET},
+		{"output", required_argument, NULL, 'o'},
+		{NULL, 0, NULL, 0},
+	};
+	kg_process_options o;
+	kg_process_options_default(&o);
+	o.progress = stderr;
+	char *only = NULL;
+	const char **names = NULL;
+	int quiet = 0, ch;
+	optind = 1;
+	while ((ch = getopt_long(argc, argv, "o:", longopts, NULL)) != -1) {
+		char *end;
+		long v;
+		switch (ch) {
+		case 'o': o.outdir = optarg; break;
+		case O_REF: o.reference = optarg; break;
+		case O_SPECTRA: o.spectra = optarg; break;
+		case O_MAT: o.materials = optarg; break;
+		case O_ONLY: only = optarg; break;
+		case O_LAYOUT: o.layout = optarg; break;
+		case O_CHART: o.chart = optarg; break;
+		case O_MESH: o.mesh = optarg; break;
+		case O_ANGLE:
+			o.angle_deg = strtod(optarg, &end);
+			if (*end || !(o.angle_deg >= 0 && o.angle_deg < 90))
+				return kg_cli_usage_error(usage_process, "--angle %s: expected degrees in "
+				                          "0..90", optarg);
+			break;
+		case O_MINTAGS:
+			v = strtol(optarg, &end, 10);
+			if (*end || *optarg == '\0' || v < 1 || v > 1000)
+				return kg_cli_usage_error(usage_process, "--min-tags %s: expected 1..1000",
+				                          optarg);
+			o.min_tags = (int)v;
+			break;
+		case O_MAXRES:
+			o.max_residual = strtod(optarg, &end);
+			if (*end || !(o.max_residual > 0 && o.max_residual < 1))
+				return kg_cli_usage_error(usage_process, "--max-residual %s: expected a "
+				                          "fraction in (0, 1)", optarg);
+			break;
+		case O_FORCE: o.force = 1; break;
+		case O_SAME: o.assume_same_exposure = 1; break;
+		case O_NORENDER: o.render = 0; break;
+		case O_THREADS:
+			v = strtol(optarg, &end, 10);
+			if (*end || *optarg == '\0' || v < 1 || v > 256)
+				return kg_cli_usage_error(usage_process, "--threads %s: expected 1..256",
+				                          optarg);
+			o.threads = (int)v;
+			break;
+		case O_QUIET: quiet = 1; break;
+		default: return kg_cli_usage_error(usage_process, "bad option");
+		}
+	}
+	if (optind != argc - 1)
+		return kg_cli_usage_error(usage_process, optind >= argc ? "expected SESSION"
+		                                                        : "expected one SESSION");
+	o.session = argv[optind];
+	if (!o.outdir)
+		return kg_cli_usage_error(usage_process, "-o OUTDIR is required");
+	if (!o.reference && !o.spectra)
+		return kg_cli_usage_error(usage_process, "--reference REF.json (a site session) or "
+		                          "--spectra CHART.cgats (a lab session) is required");
+	if (quiet)
+		o.progress = NULL;
+	if (only && split_names(only, &names, &o.nonly))
+		return kg_cli_usage_error(usage_process, "out of memory");
+	o.only = names;
+	kg_err err = {{0}};
+	kg_process_summary sum;
+	int ret = kg_process_run(&o, &sum, &err);
+	free(names);
+	if (ret)
+		return kg_cli_error(&err, ret);
+	printf("kogei process: %s -> %s: %d object(s), %d processed, %d unchanged; M2 residual "
+	       "%.2f %%; %d warning(s); %.1f s\n",
+	       o.session, o.outdir, sum.objects, sum.processed, sum.skipped, 100 * sum.residual,
+	       sum.warnings, sum.seconds);
+	return KG_EXIT_OK;
+}

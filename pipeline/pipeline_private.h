@@ -1,0 +1,92 @@
+/* Private to pipeline/: the session job's state, shared by its files. */
+#ifndef KG_PIPELINE_PRIVATE_H
+#define KG_PIPELINE_PRIVATE_H
+
+#include "kg_acquire.h"
+#include "kg_calib.h"
+#include "kg_pipeline.h"
+
+/* One capture of the session's manifest, as the job reads it. */
+typedef struct proc_capture {
+	const json_t *j;          /* the manifest entry (borrowed) */
+	const char *name;
+	kg_capture_kind kind;
+	const json_t *camera;     /* its devices.cameras entry, or NULL */
+	double exposure_us;       /* NAN when not recorded */
+	double gain_linear;       /* 10^(dB / 20); NAN when not recorded or not in dB */
+	long frames;
+	const char *pixfmt, *cfa;
+	long bits, width, height;
+	const char *dark, *flat;  /* corrections acquire applied (NULL: none) */
+} proc_capture;
+
+/* The image of a capture, ready to estimate: RGB (demosaiced where needed), corrected
+ * for dark and flat, with the per-channel variance of the mean when recorded. */
+typedef struct proc_image {
+	kg_image *rgb;
+	kg_image *variance;       /* of the mean (frame variance / frames), or NULL */
+	char dark[KG_CAPTURE_NAME_MAX], flat[KG_CAPTURE_NAME_MAX]; /* applied, "" none */
+	int dark_by_process, flat_by_process; /* 1: applied here, not by acquire */
+} proc_image;
+
+typedef struct proc {
+	const kg_process_options *o;
+	kg_err *err;
+	char *manifest_path;
+	json_t *manifest;
+	char manifest_sha[65];
+	proc_capture *caps;
+	int ncaps;
+	json_t *inputs;           /* [{role, path, sha256}] */
+	json_t *warnings;         /* every warning of every step */
+	const proc_capture *chart;
+	kg_chart_layout *layout;
+	char *layout_path;
+	kg_reference *ref;
+	kg_camera_calib *cam;
+	json_t *calibration;      /* process.json "calibration" */
+	json_t *calib_key;        /* what the calibration depended on */
+	double chart_H[9];        /* chart mm -> chart capture px */
+	int chart_width, chart_height;
+	char *library_path;
+	json_t *previous;         /* the last run's process.json, or NULL */
+} proc;
+
+/* A warning: kept for process.json and the report, and printed on progress. */
+void proc_warn(proc *p, json_t *list, const char *fmt, ...) KG_PRINTF(3, 4);
+/* A progress line ("kogei process: ..."). */
+void proc_progress(proc *p, const char *fmt, ...) KG_PRINTF(2, 3);
+
+/* Record a file read: its sha256 against the manifest's (when expected is not NULL),
+ * into the inputs list under role. */
+int proc_input(proc *p, const char *role, const char *path, const char *expected);
+
+/* The capture's image, corrected, normalised by scale (exposure x gain relative to
+ * the chart's; 1 for the chart itself). */
+int proc_capture_image(proc *p, const proc_capture *c, double scale, proc_image *out);
+void proc_image_clear(proc_image *img);
+
+/* Chart capture -> chart found, calibrations fitted and written (process_calib.c). */
+int proc_calibrate(proc *p);
+
+/* Refuse, before anything is written, objects from another camera (unless force) or
+ * of unknown exposure (unless assume_same_exposure). */
+int proc_objects_precheck(proc *p);
+/* Every object capture (process_object.c); objects is the process.json list. */
+int proc_objects(proc *p, json_t *objects, kg_process_summary *sum);
+
+/* The kogei-scene/1 file of an object: the chart capture's pose from its homography
+ * (the focal length from it where the pose allows, else fov_deg_default), a plane in
+ * the chart's plane (or mesh), the label map projected from that pose (scene.c).
+ * class_map maps label names that are not library materials (unknown, background)
+ * to one. */
+int proc_scene_write(proc *p, const char *path, const char *labels_file, int width,
+                     int height, const json_t *class_map, const char *fallback, json_t *object);
+/* The same camera: backend, model and serial of the manifest's devices.cameras. */
+int proc_same_camera(const proc_capture *a, const proc_capture *b);
+
+/* An sRGB preview of a linear image (the 99.5th percentile at 0.9), at most max_side
+ * pixels on its longer side. */
+int proc_preview_png(const kg_image *rgb, const char *path, int max_side, kg_err *err);
+
+#endif

@@ -1,0 +1,548 @@
+/* kogei process: a recorded session in, calibration, maps, scenes and report out
+ * (kg_pipeline.h). This file reads the session and its images and runs the steps;
+ * process_calib.c finds the chart and calibrates, process_object.c does each object. */
+#include <errno.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "kg_config.h"
+#include "pipeline_private.h"
+
+void kg_process_options_default(kg_process_options *o)
+{
+	memset(o, 0, sizeof(*o));
+	o->max_residual = KG_PROCESS_MAX_RESIDUAL;
+	o->angle_deg = 30.0;
+	o->render = 1;
+}
+
+void proc_progress(proc *p, const char *fmt, ...)
+{
+	if (!p->o->progress)
+		return;
+	va_list ap;
+	va_start(ap, fmt);
+	fputs("kogei process: ", p->o->progress);
+	vfprintf(p->o->progress, fmt, ap);
+	fputc('\n', p->o->progress);
+	fflush(p->o->progress);
+	va_end(ap);
+}
+
+void proc_warn(proc *p, json_t *list, const char *fmt, ...)
+{
+	char msg[1024];
+	va_list ap;
+	va_start(ap, fmt);
+	vsnprintf(msg, sizeof(msg), fmt, ap);
+	va_end(ap);
+	json_array_append_new(list ? list : p->warnings, json_string(msg));
+	if (list && list != p->warnings)
+		json_array_append_new(p->warnings, json_string(msg));
+	if (p->o->progress)
+		fprintf(p->o->progress, "kogei process: warning: %s\n", msg);
+}
+
+int proc_input(proc *p, const char *role, const char *path, const char *expected)
+{
+	char hex[65];
+	int ret = kg_file_sha256(path, hex, p->err);
+	if (ret)
+		return ret;
+	if (expected && strcmp(expected, hex))
+		return kg_fail(p->err, KG_EIO, "%s: sha256 %s, but %s records %s: the file changed "
+		               "after it was recorded", path, hex, p->manifest_path, expected);
+	json_array_append_new(p->inputs, json_pack("{s:s, s:s, s:s}", "role", role, "path", path,
+	                                           "sha256", hex));
+	return 0;
+}
+
+/* ---- the session's manifest --------------------------------------------------- */
+
+static const json_t *find_camera(const json_t *manifest, const char *id)
+{
+	const json_t *c;
+	size_t i;
+	json_array_foreach(kg_json_find(manifest, "devices.cameras"), i, c)
+	{
+		const char *cid = json_string_value(json_object_get(c, "id"));
+		if (id && cid && !strcmp(cid, id))
+			return c;
+	}
+	return NULL;
+}
+
+static int read_captures(proc *p)
+{
+	const json_t *list = json_object_get(p->manifest, "captures");
+	if (!json_is_array(list))
+		return kg_fail(p->err, KG_EINVAL, "%s: key 'captures': expected an array",
+		               p->manifest_path);
+	p->ncaps = (int)json_array_size(list);
+	p->caps = calloc((size_t)(p->ncaps ? p->ncaps : 1), sizeof(*p->caps));
+	if (!p->caps)
+		return kg_fail(p->err, KG_ENOMEM, "out of memory");
+	for (int i = 0; i < p->ncaps; i++) {
+		proc_capture *c = &p->caps[i];
+		const char *kind, *cam_id = NULL;
+		c->j = json_array_get(list, (size_t)i);
+		int ret = kg_json_get_string(p->manifest_path, c->j, "name", &c->name, p->err);
+		if (!ret)
+			ret = kg_json_get_string(p->manifest_path, c->j, "kind", &kind, p->err);
+		if (!ret)
+			ret = kg_capture_kind_parse(kind, &c->kind, p->err);
+		if (ret) {
+			kg_err_prefix(p->err, "%s: capture %d: ", p->manifest_path, i + 1);
+			return ret;
+		}
+		cam_id = json_string_value(json_object_get(c->j, "camera"));
+		c->camera = find_camera(p->manifest, cam_id);
+		const json_t *s = json_object_get(c->j, "settings");
+		const json_t *e = kg_json_find(s, "exposure_us"), *g = kg_json_find(s, "gain");
+		const char *unit = json_string_value(kg_json_find(s, "gain_unit"));
+		c->exposure_us = json_is_number(e) && json_number_value(e) > 0 ? json_number_value(e)
+		                                                               : NAN;
+		c->gain_linear = NAN;
+		if (json_is_number(g) && unit && !strcmp(unit, "dB"))
+			c->gain_linear = pow(10.0, json_number_value(g) / 20.0);
+		c->frames = (long)json_number_value(kg_json_find(s, "frames"));
+		c->pixfmt = json_string_value(kg_json_find(s, "format.pixfmt"));
+		c->cfa = json_string_value(kg_json_find(s, "format.cfa"));
+		c->bits = (long)json_number_value(kg_json_find(s, "format.bits"));
+		c->width = (long)json_number_value(kg_json_find(s, "format.width"));
+		c->height = (long)json_number_value(kg_json_find(s, "format.height"));
+		c->dark = json_string_value(kg_json_find(c->j, "corrections.dark"));
+		c->flat = json_string_value(kg_json_find(c->j, "corrections.flat"));
+	}
+	return 0;
+}
+
+/* ---- a capture's image ----------------------------------------------------------- */
+
+void proc_image_clear(proc_image *img)
+{
+	kg_image_free(&img->rgb);
+	kg_image_free(&img->variance);
+	memset(img, 0, sizeof(*img));
+}
+
+/* A capture's output (mean, variance, rgb): read, its sha256 checked and recorded. */
+static int read_output(proc *p, const proc_capture *c, const char *key, kg_image **out)
+{
+	char where[96];
+	snprintf(where, sizeof(where), "outputs.%s.file", key);
+	const char *rel = json_string_value(kg_json_find(c->j, where));
+	snprintf(where, sizeof(where), "outputs.%s.sha256", key);
+	const char *sha = json_string_value(kg_json_find(c->j, where));
+	*out = NULL;
+	if (!rel)
+		return KG_ENOENT;
+	char *path = kg_path_join(p->o->session, rel);
+	char role[128];
+	snprintf(role, sizeof(role), "capture %s %s", c->name, key);
+	int ret = path ? proc_input(p, role, path, sha) : kg_fail(p->err, KG_ENOMEM, "out of memory");
+	if (!ret)
+		ret = kg_image_read(path, out, p->err);
+	if (ret)
+		kg_err_prefix(p->err, "capture %s: ", c->name);
+	free(path);
+	return ret;
+}
+
+static int same_format(const proc_capture *a, const proc_capture *b)
+{
+	return a->pixfmt && b->pixfmt && !strcmp(a->pixfmt, b->pixfmt) && a->bits == b->bits &&
+	       a->width == b->width && a->height == b->height &&
+	       ((!a->cfa && !b->cfa) || (a->cfa && b->cfa && !strcmp(a->cfa, b->cfa)));
+}
+
+int proc_same_camera(const proc_capture *a, const proc_capture *b)
+{
+	if (!a->camera || !b->camera)
+		return a->camera == b->camera;
+	static const char *const keys[] = {"backend", "model", "serial"};
+	for (int k = 0; k < 3; k++) {
+		const char *x = json_string_value(json_object_get(a->camera, keys[k]));
+		const char *y = json_string_value(json_object_get(b->camera, keys[k]));
+		if (!x || !y || strcmp(x, y))
+			return 0;
+	}
+	return 1;
+}
+
+/* The latest dark of the session for c: same camera, format, exposure and gain. */
+static const proc_capture *matching_dark(const proc *p, const proc_capture *c)
+{
+	const proc_capture *best = NULL;
+	for (int i = 0; i < p->ncaps; i++) {
+		const proc_capture *d = &p->caps[i];
+		if (d->kind == KG_CAPTURE_DARK && proc_same_camera(d, c) && same_format(d, c) &&
+		    fabs(d->exposure_us - c->exposure_us) <= 1e-6 * c->exposure_us &&
+		    (d->gain_linear == c->gain_linear ||
+		     (isnan(d->gain_linear) && isnan(c->gain_linear))))
+			best = d;
+	}
+	return best;
+}
+
+static const proc_capture *matching_flat(const proc *p, const proc_capture *c)
+{
+	const proc_capture *best = NULL;
+	for (int i = 0; i < p->ncaps; i++)
+		if (p->caps[i].kind == KG_CAPTURE_FLAT && proc_same_camera(&p->caps[i], c) &&
+		    same_format(&p->caps[i], c))
+			best = &p->caps[i];
+	return best;
+}
+
+/* A capture's mean with the dark subtracted where acquire did not and the session
+ * holds a matching one (*dark: its name, "" when none was used). */
+static int dark_corrected_mean(proc *p, const proc_capture *c, kg_image **mean, char *dark,
+                               int *by_process)
+{
+	int ret = read_output(p, c, "mean", mean);
+	if (ret)
+		return ret == KG_ENOENT ? kg_fail(p->err, KG_EINVAL, "%s: capture %s has no "
+		                                  "outputs.mean", p->manifest_path, c->name)
+		                        : ret;
+	dark[0] = '\0';
+	*by_process = 0;
+	if (c->dark) {
+		snprintf(dark, KG_CAPTURE_NAME_MAX, "%s", c->dark);
+		return 0;
+	}
+	const proc_capture *d = c->kind == KG_CAPTURE_DARK ? NULL : matching_dark(p, c);
+	if (!d)
+		return 0;
+	kg_image *dm = NULL;
+	if (!(ret = read_output(p, d, "mean", &dm)))
+		ret = kg_correct_dark(*mean, dm, p->err);
+	kg_image_free(&dm);
+	if (ret) {
+		kg_err_prefix(p->err, "capture %s, dark %s: ", c->name, d->name);
+		return ret;
+	}
+	snprintf(dark, KG_CAPTURE_NAME_MAX, "%s", d->name);
+	*by_process = 1;
+	return 0;
+}
+
+int proc_capture_image(proc *p, const proc_capture *c, double scale, proc_image *out)
+{
+	memset(out, 0, sizeof(*out));
+	kg_image *mean = NULL, *var = NULL, *flat = NULL;
+	int ret = 0;
+	/* acquire's own demosaiced RGB when it applied every correction there is */
+	const proc_capture *fc = c->flat ? NULL : matching_flat(p, c);
+	int needs_dark = !c->dark && matching_dark(p, c);
+	int rgb_ok = json_object_get(json_object_get(c->j, "outputs"), "rgb") && !needs_dark && !fc;
+	if (rgb_ok) {
+		ret = read_output(p, c, "rgb", &out->rgb);
+		if (c->dark)
+			snprintf(out->dark, sizeof(out->dark), "%s", c->dark);
+		if (c->flat)
+			snprintf(out->flat, sizeof(out->flat), "%s", c->flat);
+	} else {
+		ret = dark_corrected_mean(p, c, &mean, out->dark, &out->dark_by_process);
+		if (c->flat)
+			snprintf(out->flat, sizeof(out->flat), "%s", c->flat);
+	}
+	if (!ret) {
+		int r2 = read_output(p, c, "variance", &var);
+		if (r2 && r2 != KG_ENOENT)
+			ret = r2;
+	}
+	if (!ret && fc && mean) {
+		char fdark[KG_CAPTURE_NAME_MAX];
+		int fby;
+		ret = dark_corrected_mean(p, fc, &flat, fdark, &fby);
+		long invalid = 0;
+		if (!ret)
+			ret = kg_correct_flat(mean, var, flat, &invalid, p->err);
+		if (ret)
+			kg_err_prefix(p->err, "capture %s, flat %s: ", c->name, fc->name);
+		else {
+			snprintf(out->flat, sizeof(out->flat), "%s", fc->name);
+			out->flat_by_process = 1;
+			if (invalid)
+				proc_warn(p, NULL, "capture %s: %ld samples where the flat %s is not valid "
+				          "are left out (NaN)", c->name, invalid, fc->name);
+			if (!fdark[0])
+				proc_warn(p, NULL, "flat %s has no dark subtracted (no matching dark in the "
+				          "session)", fc->name);
+		}
+	}
+	if (!ret && mean) {
+		if (mean->channels == 3) {
+			out->rgb = mean;
+			mean = NULL;
+		} else if (mean->cfa) {
+			double step;
+			ret = kg_demosaic(mean, &out->rgb, &step, p->err);
+			if (ret)
+				kg_err_prefix(p->err, "capture %s: demosaicing: ", c->name);
+		} else {
+			ret = kg_fail(p->err, KG_EINVAL, "capture %s: a grey (1-channel) image without a "
+			              "CFA pattern cannot give colour: expected RGB or raw Bayer", c->name);
+		}
+	}
+	/* The variance follows the image into RGB: a mosaic's by the same demosaicing */
+	if (!ret && var && var->channels == 1 && var->cfa) {
+		kg_image *v3 = NULL;
+		double step;
+		if (kg_demosaic(var, &v3, &step, p->err) == 0) {
+			kg_image_free(&var);
+			var = v3;
+		} else {
+			kg_image_free(&var);
+		}
+	}
+	if (!ret && var && (var->channels != 3 || var->width != out->rgb->width ||
+	                    var->height != out->rgb->height))
+		kg_image_free(&var);
+	if (!ret) {
+		size_t n = (size_t)out->rgb->width * (size_t)out->rgb->height * 3;
+		double frames = c->frames > 0 ? (double)c->frames : 1.0;
+		if (scale != 1.0)
+			for (size_t i = 0; i < n; i++)
+				out->rgb->data[i] = (float)(out->rgb->data[i] * scale);
+		if (var)
+			for (size_t i = 0; i < n; i++)
+				var->data[i] = (float)(var->data[i] * scale * scale / frames);
+		out->variance = var;
+		var = NULL;
+	}
+	kg_image_free(&mean);
+	kg_image_free(&var);
+	kg_image_free(&flat);
+	if (ret)
+		proc_image_clear(out);
+	return ret;
+}
+
+/* ---- previews -------------------------------------------------------------------- */
+
+int proc_preview_png(const kg_image *rgb, const char *path, int max_side, kg_err *err)
+{
+	int w = rgb->width, h = rgb->height, step = 1;
+	while ((w + step - 1) / step > max_side || (h + step - 1) / step > max_side)
+		step++;
+	int ow = (w + step - 1) / step, oh = (h + step - 1) / step;
+	size_t n = (size_t)w * (size_t)h * 3;
+	/* white point: the 99.5th percentile of a sample of the finite values */
+	int nsamp = 0, cap = 65536;
+	float *samp = malloc(sizeof(float) * (size_t)cap);
+	unsigned char *out = malloc((size_t)ow * (size_t)oh * 3);
+	if (!samp || !out) {
+		free(samp);
+		free(out);
+		return kg_fail(err, KG_ENOMEM, "out of memory");
+	}
+	size_t stride = n / (size_t)cap + 1;
+	for (size_t i = 0; i < n && nsamp < cap; i += stride)
+		if (isfinite(rgb->data[i]))
+			samp[nsamp++] = rgb->data[i];
+	double white = 1.0;
+	if (nsamp > 0) {
+		int k = (int)(0.995 * (nsamp - 1));
+		/* partial selection by sorting: small sample */
+		for (int i = 1; i < nsamp; i++) {
+			float v = samp[i];
+			int j = i;
+			while (j > 0 && samp[j - 1] > v) {
+				samp[j] = samp[j - 1];
+				j--;
+			}
+			samp[j] = v;
+		}
+		white = samp[k] > 1e-6 ? samp[k] / 0.9 : 1.0;
+	}
+	for (int y = 0; y < oh; y++)
+		for (int x = 0; x < ow; x++) {
+			const float *px = rgb->data + ((size_t)y * step * (size_t)w + (size_t)x * step) * 3;
+			unsigned char *o = out + ((size_t)y * ow + x) * 3;
+			if (!isfinite(px[0]) || !isfinite(px[1]) || !isfinite(px[2])) {
+				o[0] = 128, o[1] = 0, o[2] = 128;
+				continue;
+			}
+			kg_rgb c = {fmin(fmax(px[0] / white, 0), 1), fmin(fmax(px[1] / white, 0), 1),
+			            fmin(fmax(px[2] / white, 0), 1)};
+			kg_rgb_to_u8(kg_srgb_encode(c), o);
+		}
+	int ret = kg_png_write_rgb8(path, out, ow, oh, err);
+	free(samp);
+	free(out);
+	return ret;
+}
+
+/* ---- the run ----------------------------------------------------------------------- */
+
+static void proc_free(proc *p)
+{
+	free(p->manifest_path);
+	json_decref(p->manifest);
+	free(p->caps);
+	json_decref(p->inputs);
+	json_decref(p->warnings);
+	kg_chart_layout_free(&p->layout);
+	free(p->layout_path);
+	kg_reference_free(&p->ref);
+	kg_camera_calib_free(&p->cam);
+	json_decref(p->calibration);
+	json_decref(p->calib_key);
+	free(p->library_path);
+	json_decref(p->previous);
+}
+
+static json_t *jstr_or_null(const char *s)
+{
+	return s ? json_string(s) : json_null();
+}
+
+static json_t *parameters_json(const kg_process_options *o, const char *materials)
+{
+	json_t *only = json_null();
+	if (o->nonly > 0) {
+		only = json_array();
+		for (int i = 0; i < o->nonly; i++)
+			json_array_append_new(only, json_string(o->only[i]));
+	}
+	return json_pack("{s:o, s:o, s:s, s:o, s:o, s:o, s:o, s:f, s:i, s:b, s:b, s:f, s:o}",
+	                 "reference", jstr_or_null(o->reference), "spectra", jstr_or_null(o->spectra),
+	                 "materials", materials, "only", only, "layout", jstr_or_null(o->layout),
+	                 "mesh", jstr_or_null(o->mesh), "mask", jstr_or_null(o->mask),
+	                 "max_residual", o->max_residual, "min_tags", o->min_tags, "force", o->force,
+	                 "assume_same_exposure", o->assume_same_exposure, "angle_deg", o->angle_deg,
+	                 "chart", jstr_or_null(o->chart));
+}
+
+static void iso_time(char *buf, size_t n)
+{
+	time_t t = time(NULL);
+	struct tm tm;
+	gmtime_r(&t, &tm);
+	strftime(buf, n, "%Y-%m-%dT%H:%M:%SZ", &tm);
+}
+
+static int load_previous(proc *p)
+{
+	char *path = kg_path_join(p->o->outdir, "process.json");
+	if (!path)
+		return kg_fail(p->err, KG_ENOMEM, "out of memory");
+	if (access(path, F_OK) == 0) {
+		kg_err e = {{0}};
+		json_t *prev = NULL;
+		if (kg_json_load(path, &prev, &e) == 0) {
+			const char *f = json_string_value(json_object_get(prev, "format"));
+			if (f && !strcmp(f, KG_PROCESS_FORMAT))
+				p->previous = prev;
+			else
+				json_decref(prev);
+		}
+		if (!p->previous) {
+			int ret = kg_fail(p->err, KG_EINVAL, "%s: exists but is not a %s file: refusing "
+			                  "to write into %s", path, KG_PROCESS_FORMAT, p->o->outdir);
+			free(path);
+			return ret;
+		}
+	}
+	free(path);
+	return 0;
+}
+
+/* OUTDIR may be new, empty, or a previous run's; nothing else is overwritten. */
+static int check_outdir(proc *p)
+{
+	struct stat st;
+	if (stat(p->o->outdir, &st) == 0 && !S_ISDIR(st.st_mode))
+		return kg_fail(p->err, KG_EINVAL, "%s: exists and is not a directory", p->o->outdir);
+	struct stat ss;
+	if (stat(p->o->session, &ss) == 0 && stat(p->o->outdir, &st) == 0 &&
+	    ss.st_dev == st.st_dev && ss.st_ino == st.st_ino)
+		return kg_fail(p->err, KG_EINVAL, "%s: is the session directory: choose another -o",
+		               p->o->outdir);
+	return load_previous(p);
+}
+
+int kg_process_run(const kg_process_options *o, kg_process_summary *summary, kg_err *err)
+{
+	kg_check_arg(o && o->session && o->outdir && (o->reference || o->spectra), err);
+	struct timespec t0, t1;
+	clock_gettime(CLOCK_MONOTONIC, &t0);
+	kg_process_summary sum = {0};
+	proc p = {.o = o, .err = err};
+	json_t *objects = json_array(), *root = NULL;
+	p.inputs = json_array();
+	p.warnings = json_array();
+	p.manifest_path = kg_path_join(o->session, KG_SESSION_MANIFEST);
+	int ret = p.manifest_path && objects && p.inputs && p.warnings
+	              ? 0 : kg_fail(err, KG_ENOMEM, "out of memory");
+	if (!ret && access(p.manifest_path, R_OK) != 0)
+		ret = kg_fail(err, KG_ENOENT, "%s: not a kogei session (no readable %s)", o->session,
+		              KG_SESSION_MANIFEST);
+	if (!ret)
+		ret = kg_json_load(p.manifest_path, &p.manifest, err);
+	if (!ret) {
+		const char *f = json_string_value(json_object_get(p.manifest, "format"));
+		if (!f || strcmp(f, KG_SESSION_FORMAT))
+			ret = kg_fail(err, KG_EINVAL, "%s: key 'format': expected \"%s\"", p.manifest_path,
+			              KG_SESSION_FORMAT);
+	}
+	if (!ret)
+		ret = kg_file_sha256(p.manifest_path, p.manifest_sha, err);
+	if (!ret)
+		ret = read_captures(&p);
+	if (!ret)
+		ret = check_outdir(&p);
+	if (!ret)
+		ret = kg_mkdir_p(o->outdir, err);
+	if (!ret) {
+		proc_progress(&p, "session %s: %d captures", o->session, p.ncaps);
+		ret = proc_calibrate(&p);
+	}
+	if (!ret)
+		ret = proc_objects(&p, objects, &sum);
+	if (!ret) {
+		char created[32];
+		iso_time(created, sizeof(created));
+		root = json_pack("{s:s, s:s, s:{s:s, s:s}, s:{s:s, s:s}, s:o, s:O, s:O, s:O, s:O, "
+		                 "s:O, s:O}",
+		                 "format", KG_PROCESS_FORMAT, "created", created, "software", "name",
+		                 "kogei", "version", KG_VERSION, "session", "path", o->session,
+		                 "manifest_sha256", p.manifest_sha, "parameters",
+		                 parameters_json(o, p.library_path), "inputs", p.inputs, "devices",
+		                 json_object_get(p.manifest, "devices"), "calibration", p.calibration,
+		                 "calibration_key", p.calib_key, "objects", objects, "warnings",
+		                 p.warnings);
+		if (!root)
+			ret = kg_fail(err, KG_ENOMEM, "out of memory");
+		if (!ret && o->command)
+			json_object_set_new(root, "command", json_string(o->command));
+	}
+	char *pj = kg_path_join(o->outdir, "process.json");
+	if (!ret)
+		ret = pj ? kg_json_write(root, pj, err) : kg_fail(err, KG_ENOMEM, "out of memory");
+	if (!ret) {
+		proc_progress(&p, "wrote %s", pj);
+		ret = kg_report_write(o->outdir, err);
+		if (!ret)
+			proc_progress(&p, "wrote %s/report.html", o->outdir);
+	}
+	free(pj);
+	clock_gettime(CLOCK_MONOTONIC, &t1);
+	sum.seconds = (double)(t1.tv_sec - t0.tv_sec) + 1e-9 * (double)(t1.tv_nsec - t0.tv_nsec);
+	sum.warnings = p.warnings ? (int)json_array_size(p.warnings) : 0;
+	sum.residual = p.cam ? p.cam->residual_relative : NAN;
+	if (summary)
+		*summary = sum;
+	json_decref(root);
+	json_decref(objects);
+	proc_free(&p);
+	return ret;
+}

@@ -1,0 +1,391 @@
+/* kogei process, the calibration: the chart capture's image, the chart found and
+ * sampled, flagged patches left out, the reference (lab sessions) and M2 fitted and
+ * checked, camera.json written, and the colour accuracy of the site estimate on the
+ * chart against its measured spectra (kg_pipeline.h). */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "kg_sim.h"
+#include "pipeline_private.h"
+
+/* A layout by path, else by bundled name (fixtures/charts/NAME.json, or the demo's). */
+static char *resolve_layout(const char *name)
+{
+	if (access(name, R_OK) == 0)
+		return strdup(name);
+	char rel[256];
+	static const char *const dirs[] = {"charts", "demo"};
+	for (int i = 0; i < 2; i++) {
+		snprintf(rel, sizeof(rel), "%s/%s.json", dirs[i], name);
+		char *p = kg_data_path(rel);
+		if (p && access(p, R_OK) == 0)
+			return p;
+		free(p);
+	}
+	return NULL;
+}
+
+static int load_layout(proc *p)
+{
+	const char *name = p->o->layout;
+	if (!name)
+		name = json_string_value(json_object_get(p->chart->j, "chart_layout"));
+	if (!name)
+		return kg_fail(p->err, KG_EINVAL, "%s: chart capture %s records no chart layout "
+		               "(acquire --layout L): give --layout", p->manifest_path, p->chart->name);
+	p->layout_path = resolve_layout(name);
+	if (!p->layout_path)
+		return kg_fail(p->err, KG_ENOENT, "chart layout '%s': no such file and not a bundled "
+		               "layout (colorchecker24-frame, colorchecker-passport-frame, "
+		               "colorchecker-sg-frame, cie-tcs-frame)", name);
+	int ret = proc_input(p, "layout", p->layout_path, NULL);
+	if (!ret)
+		ret = kg_chart_layout_load(p->layout_path, &p->layout, p->err);
+	return ret;
+}
+
+static const proc_capture *choose_chart(proc *p)
+{
+	const proc_capture *c = NULL;
+	for (int i = 0; i < p->ncaps; i++) {
+		const proc_capture *x = &p->caps[i];
+		if (p->o->chart ? !strcmp(x->name, p->o->chart) : x->kind == KG_CAPTURE_CHART)
+			c = x;
+	}
+	return c;
+}
+
+static double gmean3(const double v[3])
+{
+	return (v[0] + v[1] + v[2]) / 3.0;
+}
+
+/* The Lab of a reflectance under an illuminant's weights. */
+static kg_lab lab_of(const kg_xyz_weights *w, kg_xyz white, const kg_spectrum *s)
+{
+	return kg_xyz_to_lab(kg_xyz_from_weights(w, s), white);
+}
+
+static json_t *spectrum_json(const kg_spectrum *s)
+{
+	json_t *a = json_array();
+	for (int b = 0; b < KG_NBANDS; b++)
+		json_array_append_new(a, json_real(s->v[b]));
+	return a;
+}
+
+/* The patches of the chart with their flags, and where measured spectra are known,
+ * the site estimate against them (ΔE00 under D50 and D65; ΔL*, ΔE(a*b*) under D50). */
+static int patches_json(proc *p, const kg_chart_result *res, const kg_patchset *measured,
+                        json_t **out)
+{
+	kg_illuminant *d50 = NULL, *d65 = NULL;
+	kg_xyz_weights w50, w65;
+	const kg_site_map *map = NULL;
+	int ret = kg_illuminant_by_name("D50", &d50, p->err);
+	if (!ret)
+		ret = kg_illuminant_by_name("D65", &d65, p->err);
+	if (!ret)
+		ret = kg_camera_site_map(p->cam, KG_METHOD_AUTO, &map, p->err);
+	if (ret)
+		goto done;
+	kg_xyz_weights_reflectance(d50, &w50);
+	kg_xyz_weights_reflectance(d65, &w65);
+	kg_xyz white50 = kg_illuminant_white(d50), white65 = kg_illuminant_white(d65);
+	json_t *list = json_array();
+	for (int i = 0; i < res->npatches; i++) {
+		const kg_chart_sample *s = &res->patches[i];
+		const kg_chart_patch *lp = &p->layout->patches[i];
+		int used = 0;
+		for (int k = 0; k < p->cam->k; k++)
+			if (!strcmp(p->cam->ids[k], s->id))
+				used = 1;
+		json_t *e = json_pack("{s:s, s:s, s:[fff], s:i, s:b, s:s}", "id", s->id, "name",
+		                      lp->name, "rgb", s->rgb[0], s->rgb[1], s->rgb[2], "flags",
+		                      (int)s->flags, "used", used, "warning", s->warning);
+		int mi = measured ? kg_patchset_find(measured, s->id) : -1;
+		if (mi < 0 && measured && lp->alias[0])
+			mi = kg_patchset_find(measured, lp->alias);
+		if (mi >= 0 && !(s->flags & KG_CHART_FLAG_REJECTED)) {
+			kg_spectrum est;
+			kg_site_map_apply(map, s->rgb, &est);
+			const kg_spectrum *m = &measured->spectra[mi];
+			kg_lab a50 = lab_of(&w50, white50, m), b50 = lab_of(&w50, white50, &est);
+			kg_lab a65 = lab_of(&w65, white65, m), b65 = lab_of(&w65, white65, &est);
+			double chroma = hypot(a50.a, a50.b);
+			json_object_set_new(e, "measured", spectrum_json(m));
+			json_object_set_new(e, "estimated", spectrum_json(&est));
+			json_object_set_new(e, "de00_d50", json_real(kg_ciede2000(a50, b50)));
+			json_object_set_new(e, "de00_d65", json_real(kg_ciede2000(a65, b65)));
+			json_object_set_new(e, "dL", json_real(b50.L - a50.L));
+			json_object_set_new(e, "dab", json_real(hypot(b50.a - a50.a, b50.b - a50.b)));
+			/* neutral: the measured patch's chroma C*ab under D50 below 4 */
+			json_object_set_new(e, "neutral", json_boolean(chroma < 4.0));
+		} else {
+			json_object_set_new(e, "measured", json_null());
+			json_object_set_new(e, "estimated", json_null());
+			json_object_set_new(e, "de00_d50", json_null());
+			json_object_set_new(e, "de00_d65", json_null());
+			json_object_set_new(e, "dL", json_null());
+			json_object_set_new(e, "dab", json_null());
+			json_object_set_new(e, "neutral", json_false());
+		}
+		json_array_append_new(list, e);
+	}
+	*out = list;
+done:
+	kg_illuminant_free(&d50);
+	kg_illuminant_free(&d65);
+	return ret;
+}
+
+static double cond_of(int rows, int cols, const double *m, kg_err *err)
+{
+	kg_mat *a = NULL;
+	double c = NAN;
+	if (kg_mat_from(rows, cols, m, &a, err) == 0 && kg_cond(a, 0, &c, err) != 0)
+		c = NAN;
+	kg_mat_free(&a);
+	return c;
+}
+
+/* The chart's measured spectra for the report: --spectra, else the reference's. */
+static int measured_spectra(proc *p, kg_patchset **out)
+{
+	*out = NULL;
+	const char *path = p->o->spectra;
+	if (!path && p->ref)
+		for (int i = 0; i < p->ref->nsources; i++)
+			if (!strcmp(p->ref->sources[i].role, "spectra"))
+				path = p->ref->sources[i].path;
+	if (!path)
+		return 0;
+	if (access(path, R_OK) != 0) {
+		proc_warn(p, NULL, "%s: the reference's chart spectra cannot be read: no colour "
+		          "accuracy against measured spectra (give --spectra)", path);
+		return 0;
+	}
+	int ret = p->o->spectra ? 0 : proc_input(p, "spectra", path, NULL);
+	if (!ret)
+		ret = kg_sim_read_spectra(path, 0, out, p->err);
+	return ret;
+}
+
+int proc_calibrate(proc *p)
+{
+	const kg_process_options *o = p->o;
+	kg_err *err = p->err;
+	proc_image img = {0};
+	kg_chart_result *res = NULL;
+	kg_patchset *ps = NULL, *spectra = NULL, *train = NULL, *measured = NULL;
+	kg_camera_calib *cam = NULL;
+	char **flagged = NULL;
+	int nflagged = 0, ret = 0;
+	char *ref_out = kg_path_join(o->outdir, "reference.json");
+	char *cam_out = kg_path_join(o->outdir, "camera.json");
+	char *overlay = kg_path_join(o->outdir, "chart_overlay.png");
+	if (!ref_out || !cam_out || !overlay)
+		return kg_fail(err, KG_ENOMEM, "out of memory");
+
+	if (!(p->chart = choose_chart(p))) {
+		ret = o->chart ? kg_fail(err, KG_EINVAL, "%s: no capture named '%s'", p->manifest_path,
+		                         o->chart)
+		               : kg_fail(err, KG_EINVAL, "%s: no chart capture (acquire --kind "
+		                         "chart): a session without the chart cannot be calibrated",
+		                         p->manifest_path);
+		goto done;
+	}
+	if (p->chart->kind != KG_CAPTURE_CHART)
+		proc_warn(p, NULL, "capture %s is of kind %s, used as the chart capture (--chart)",
+		          p->chart->name, kg_capture_kind_name(p->chart->kind));
+	if ((ret = proc_objects_precheck(p)) || (ret = load_layout(p)))
+		goto done;
+	if (o->reference) {
+		if (!(ret = proc_input(p, "reference", o->reference, NULL)))
+			ret = kg_reference_load(o->reference, &p->ref, err);
+		if (ret)
+			goto done;
+	}
+	if (o->spectra && (ret = proc_input(p, "spectra", o->spectra, NULL)))
+		goto done;
+
+	proc_progress(p, "chart: capture %s, layout %s", p->chart->name, p->layout->name);
+	if ((ret = proc_capture_image(p, p->chart, 1.0, &img)))
+		goto done;
+	p->chart_width = img.rgb->width;
+	p->chart_height = img.rgb->height;
+	kg_chart_detect_options dopt;
+	kg_chart_detect_options_default(&dopt);
+	if (o->min_tags > 0)
+		dopt.min_tags = o->min_tags;
+	if (o->threads > 0)
+		dopt.threads = o->threads;
+	if ((ret = kg_chart_detect(p->layout, img.rgb, &dopt, &res, err))) {
+		kg_err_prefix(err, "capture %s: no chart %s: ", p->chart->name, p->layout->name);
+		goto done;
+	}
+	memcpy(p->chart_H, res->H, sizeof(p->chart_H));
+	for (int i = 0; i < res->nwarnings; i++)
+		proc_warn(p, NULL, "chart: %s", res->warnings[i]);
+	if ((ret = kg_chart_result_patchset(res, &ps, err)))
+		goto done;
+
+	/* Flagged patches are left out of every fit. */
+	flagged = calloc((size_t)res->npatches + 1, sizeof(*flagged));
+	if (!flagged) {
+		ret = kg_fail(err, KG_ENOMEM, "out of memory");
+		goto done;
+	}
+	char flagged_list[1024] = "";
+	size_t at = 0;
+	for (int i = 0; i < res->npatches; i++)
+		if (res->patches[i].flags) {
+			flagged[nflagged++] = res->patches[i].id;
+			if (at < sizeof(flagged_list) - 1)
+				at += (size_t)snprintf(flagged_list + at, sizeof(flagged_list) - at,
+				                       "%s%s (%s)", at ? "; " : "", res->patches[i].id,
+				                       res->patches[i].warning);
+		}
+	int usable = res->npatches - nflagged;
+	proc_progress(p, "chart found (%s): %d of %d patches usable%s%s",
+	              res->tagless ? "tagless" : "tags", usable, res->npatches,
+	              nflagged ? ", left out: " : "", flagged_list);
+	if (usable < 3) {
+		ret = kg_fail(err, KG_EINVAL, "capture %s: only %d of the %d patches of %s are "
+		              "usable, 3 at least are needed; flagged: %s (is it the right layout, "
+		              "evenly lit and not clipped?)",
+		              p->chart->name, usable, res->npatches, p->layout->name, flagged_list);
+		goto done;
+	}
+
+	if (!p->ref) { /* a lab session: the reference from this chart */
+		kg_reference_options ropt;
+		kg_reference_options_default(&ropt);
+		ropt.exclude = (const char *const *)flagged;
+		ropt.nexclude = nflagged;
+		ret = kg_sim_read_spectra(o->spectra, 0, &spectra, err);
+		if (!ret)
+			ret = kg_calib_pair(spectra, ps, &train, err);
+		if (!ret)
+			ret = kg_reference_fit(train, ps, &ropt, &p->ref, err);
+		if (ret) {
+			kg_err_prefix(err, "capture %s with %s: reference calibration: ", p->chart->name,
+			              o->spectra);
+			goto done;
+		}
+		proc_progress(p, "reference fitted: K = %d, leave-one-out RMSE %.4f", p->ref->K,
+		              p->ref->maps[p->ref->method].loo_rmse);
+	}
+
+	kg_camera_options copt;
+	kg_camera_options_default(&copt);
+	copt.exclude = (const char *const *)flagged;
+	copt.nexclude = nflagged;
+	if ((ret = kg_camera_fit(p->ref, ps, &copt, &cam, err))) {
+		kg_err_prefix(err, "capture %s: site calibration: ", p->chart->name);
+		goto done;
+	}
+	if (cam->k <= 3 && !o->force) {
+		ret = kg_fail(err, KG_EINVAL, "capture %s: M2 rests on %d patches, which it fits "
+		              "exactly (residual 0): the calibration cannot be checked; use a chart "
+		              "with more patches, or --force to accept it unchecked",
+		              p->chart->name, cam->k);
+		goto done;
+	}
+	if (cam->k <= 3)
+		proc_warn(p, NULL, "M2 rests on %d patches and cannot be checked (--force)", cam->k);
+	if (!(cam->residual_relative <= o->max_residual)) {
+		int worst = 0;
+		double wv = -1;
+		for (int k = 0; k < cam->k; k++) {
+			double e = fabs(cam->residual[k][0]) + fabs(cam->residual[k][1]) +
+			           fabs(cam->residual[k][2]);
+			if (e > wv)
+				wv = e, worst = k;
+		}
+		ret = kg_fail(err, KG_EINVAL, "capture %s: M2 residual %.1f %% of the reference "
+		              "values, above the limit %.1f %% (--max-residual): the patches found "
+		              "do not behave as chart %s; worst patch %s (reference %.3f, site mapped "
+		              "off by %.3f on average)",
+		              p->chart->name, 100 * cam->residual_relative, 100 * o->max_residual,
+		              p->layout->name, cam->ids[worst], gmean3(cam->rho0[worst]), wv / 3);
+		goto done;
+	}
+	p->cam = cam;
+	cam = NULL;
+	if ((ret = measured_spectra(p, &measured)))
+		goto done;
+
+	/* Everything checked: the files. */
+	if (!o->reference) {
+		if ((ret = kg_reference_save(p->ref, ref_out, err)))
+			goto done;
+		proc_progress(p, "wrote %s", ref_out);
+	}
+	if ((ret = kg_camera_save(p->cam, cam_out, err)))
+		goto done;
+	proc_progress(p, "wrote %s (M2 residual %.2f %%, %d patches)", cam_out,
+	              100 * p->cam->residual_relative, p->cam->k);
+	if ((ret = kg_chart_overlay_write(res, img.rgb, overlay, 0, err)))
+		goto done;
+
+	json_t *patches = NULL;
+	if ((ret = patches_json(p, res, measured, &patches)))
+		goto done;
+	json_t *tags = json_array();
+	for (int i = 0; i < res->ntags; i++)
+		if (res->tags[i].used)
+			json_array_append_new(tags, json_integer(res->tags[i].id));
+	const json_t *s = json_object_get(p->chart->j, "settings");
+	p->calibration = json_pack(
+		"{s:s, s:s, s:s, s:s, s:s, s:o, s:f, s:s, s:O, s:O, s:O, s:O, s:f, s:o, s:o, s:f, "
+		"s:f, s:o, s:f, s:o, s:o, s:i}",
+		"file", "camera.json", "chart_capture", p->chart->name, "layout", p->layout->name,
+		"layout_file", p->layout_path, "detector", res->tagless ? "tagless" : "apriltag",
+		"tags_used", tags, "homography_rms_px", res->rms_px, "overlay", "chart_overlay.png",
+		"exposure_us", kg_json_find(s, "exposure_us") ? kg_json_find(s, "exposure_us")
+		                                              : json_null(),
+		"gain", kg_json_find(s, "gain") ? kg_json_find(s, "gain") : json_null(), "gain_unit",
+		kg_json_find(s, "gain_unit") ? kg_json_find(s, "gain_unit") : json_null(), "frames",
+		kg_json_find(s, "frames") ? kg_json_find(s, "frames") : json_null(), "cond_M",
+		cond_of(p->cam->K, 3, p->cam->M, err), "dark", img.dark[0] ? json_string(img.dark)
+		                                                           : json_null(),
+		"flat", img.flat[0] ? json_string(img.flat) : json_null(), "cond_M2",
+		cond_of(3, 3, p->cam->M2, err), "residual_relative", p->cam->residual_relative, "M2",
+		json_pack("[fffffffff]", p->cam->M2[0], p->cam->M2[1], p->cam->M2[2], p->cam->M2[3],
+		          p->cam->M2[4], p->cam->M2[5], p->cam->M2[6], p->cam->M2[7], p->cam->M2[8]),
+		"cond_rho_r", p->cam->cond, "patches", patches,
+		"spectra_source", measured && measured->source ? json_string(measured->source)
+		                                               : json_null(),
+		"patches_used", p->cam->k);
+	if (!p->calibration) {
+		ret = kg_fail(err, KG_ENOMEM, "out of memory");
+		goto done;
+	}
+	json_t *fl = json_array();
+	for (int i = 0; i < nflagged; i++)
+		json_array_append_new(fl, json_string(flagged[i]));
+	json_object_set_new(p->calibration, "patches_flagged", fl);
+	if (!o->reference)
+		json_object_set_new(p->calibration, "reference_file", json_string("reference.json"));
+	/* What the calibration rests on: the inputs read so far and the parameters. */
+	p->calib_key = json_pack("{s:o, s:f, s:i, s:b}", "inputs", json_deep_copy(p->inputs),
+	                         "max_residual", o->max_residual, "min_tags", o->min_tags, "force",
+	                         o->force);
+done:
+	proc_image_clear(&img);
+	kg_chart_result_free(&res);
+	kg_patchset_free(&ps);
+	kg_patchset_free(&spectra);
+	kg_patchset_free(&train);
+	kg_patchset_free(&measured);
+	kg_camera_calib_free(&cam);
+	free(flagged);
+	free(ref_out);
+	free(cam_out);
+	free(overlay);
+	return ret;
+}

@@ -1,0 +1,491 @@
+/* kogei process, the objects: each object capture checked against the chart's camera,
+ * normalised by exposure, estimated, classified, previewed and given a scene; written
+ * into a temporary folder renamed into place when complete; skipped when its inputs
+ * and parameters have not changed since the last run (kg_pipeline.h). */
+#include <ftw.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "kg_render.h"
+#include "pipeline_private.h"
+
+static int remove_entry(const char *path, const struct stat *st, int flag, struct FTW *ftw)
+{
+	(void)st;
+	(void)flag;
+	(void)ftw;
+	return remove(path);
+}
+
+static void remove_tree(const char *dir)
+{
+	nftw(dir, remove_entry, 16, FTW_DEPTH | FTW_PHYS);
+}
+
+static const char *cam_str(const proc_capture *c, const char *key)
+{
+	const char *v = c->camera ? json_string_value(json_object_get(c->camera, key)) : NULL;
+	return v ? v : "?";
+}
+
+/* The object's camera against the chart's: the same device and pixel format. */
+static int check_camera(proc *p, const proc_capture *c, json_t *warnings)
+{
+	const proc_capture *k = p->chart;
+	int same = proc_same_camera(c, k) && c->pixfmt && k->pixfmt && !strcmp(c->pixfmt, k->pixfmt) &&
+	           c->bits == k->bits;
+	if (same)
+		return 0;
+	char what[640];
+	snprintf(what, sizeof(what), "capture %s was taken with %s %s (serial %s, %s %ld bits), the "
+	         "chart capture %s with %s %s (serial %s, %s %ld bits)",
+	         c->name, cam_str(c, "backend"), cam_str(c, "model"), cam_str(c, "serial"),
+	         c->pixfmt ? c->pixfmt : "?", c->bits, k->name, cam_str(k, "backend"),
+	         cam_str(k, "model"), cam_str(k, "serial"), k->pixfmt ? k->pixfmt : "?", k->bits);
+	if (!p->o->force)
+		return kg_fail(p->err, KG_EINVAL, "%s: the calibration is another camera's (--force "
+		               "to use it anyway)", what);
+	proc_warn(p, warnings, "%s; used anyway (--force)", what);
+	return 0;
+}
+
+/* Camera values of c relative to the chart capture's: (t g)_chart / (t g)_object. */
+static int exposure_scale(proc *p, const proc_capture *c, json_t *warnings, double *scale)
+{
+	const proc_capture *k = p->chart;
+	double a = k->exposure_us * k->gain_linear, b = c->exposure_us * c->gain_linear;
+	if (isfinite(a) && isfinite(b) && a > 0 && b > 0) {
+		*scale = a / b;
+		return 0;
+	}
+	if (!p->o->assume_same_exposure)
+		return kg_fail(p->err, KG_EINVAL, "capture %s: exposure time or gain (in dB) not "
+		               "recorded for it or for the chart capture %s, so its values cannot be "
+		               "normalised to the chart's; --assume-same-exposure if they were equal",
+		               isfinite(b) ? k->name : c->name, k->name);
+	*scale = 1;
+	proc_warn(p, warnings, "capture %s: exposure unknown, assumed equal to the chart "
+	          "capture's (--assume-same-exposure)", c->name);
+	return 0;
+}
+
+/* What an object's result depends on; equal keys mean the files can be kept. */
+static json_t *object_key(proc *p, const proc_capture *c)
+{
+	return json_pack("{s:O, s:s, s:O, s:O, s:o, s:s}", "calibration", p->calib_key, "capture",
+	                 c->name, "outputs", json_object_get(c->j, "outputs"), "corrections",
+	                 json_object_get(c->j, "corrections"), "parameters",
+	                 json_pack("{s:s, s:f, s:o, s:o, s:b, s:b}", "materials", p->library_path,
+	                           "angle_deg", p->o->angle_deg, "mesh",
+	                           p->o->mesh ? json_string(p->o->mesh) : json_null(), "mask",
+	                           p->o->mask ? json_string(p->o->mask) : json_null(), "render",
+	                           p->o->render, "assume_same_exposure",
+	                           p->o->assume_same_exposure),
+	                 "session", json_string_value(json_object_get(p->manifest, "created"))
+	                                ? json_string_value(json_object_get(p->manifest, "created"))
+	                                : "");
+}
+
+static const json_t *previous_object(const proc *p, const char *name)
+{
+	const json_t *e;
+	size_t i;
+	json_array_foreach(json_object_get(p->previous, "objects"), i, e)
+	{
+		const char *n = json_string_value(json_object_get(e, "capture"));
+		if (n && !strcmp(n, name))
+			return e;
+	}
+	return NULL;
+}
+
+/* The confidence band as a grey image: 0 black, the 95th percentile and up white,
+ * not classified (NaN) dark red. */
+static int confidence_png(const char *hdr, const char *png, kg_err *err)
+{
+	kg_envi *e = NULL;
+	int ret = kg_envi_open(hdr, &e, err);
+	if (ret)
+		return ret;
+	int w = e->meta.samples, h = e->meta.lines;
+	size_t n = (size_t)w * (size_t)h;
+	float *v = malloc(sizeof(float) * n), *sorted = malloc(sizeof(float) * n);
+	unsigned char *rgb = malloc(3 * n);
+	if (!v || !sorted || !rgb)
+		ret = kg_fail(err, KG_ENOMEM, "out of memory");
+	if (!ret)
+		ret = kg_envi_read(e, 0, 0, w, h, KG_LAYOUT_BIP, v, err);
+	if (!ret) {
+		size_t m = 0;
+		for (size_t i = 0; i < n; i++)
+			if (isfinite(v[i]))
+				sorted[m++] = v[i];
+		double top = 1;
+		if (m) {
+			/* the 95th percentile by a counting pass over 1024 bins of the range */
+			float lo = sorted[0], hi = sorted[0];
+			for (size_t i = 1; i < m; i++)
+				lo = fminf(lo, sorted[i]), hi = fmaxf(hi, sorted[i]);
+			long bins[1024] = {0};
+			for (size_t i = 0; i < m; i++)
+				bins[hi > lo ? (int)((sorted[i] - lo) / (hi - lo) * 1023) : 0]++;
+			long acc = 0;
+			int b = 0;
+			while (b < 1023 && (acc += bins[b]) < (long)(0.95 * (double)m))
+				b++;
+			top = lo + (hi - lo) * (b + 1) / 1024.0;
+			if (!(top > 0))
+				top = hi > 0 ? hi : 1;
+		}
+		for (size_t i = 0; i < n; i++) {
+			if (!isfinite(v[i])) {
+				rgb[3 * i] = 96, rgb[3 * i + 1] = 16, rgb[3 * i + 2] = 16;
+				continue;
+			}
+			double t = fmin(fmax(v[i] / top, 0), 1);
+			rgb[3 * i] = rgb[3 * i + 1] = rgb[3 * i + 2] = (unsigned char)lround(255 * t);
+		}
+		ret = kg_png_write_rgb8(png, rgb, w, h, err);
+	}
+	free(v);
+	free(sorted);
+	free(rgb);
+	kg_envi_close(&e);
+	return ret;
+}
+
+static void render_progress(void *user, int done, int total)
+{
+	FILE *fp = user;
+	/* a line at every quarter */
+	if (fp && total > 0 && (4 * done / total) != (4 * (done - 1) / total))
+		fprintf(fp, "kogei process: rendering: %d of %d tiles\n", done, total);
+}
+
+static int render_scene(proc *p, const char *scene_path, const char *png)
+{
+	kg_scene *s = NULL;
+	kg_image *xyz = NULL;
+	kg_render_options ro = {.threads = p->o->threads, .progress = render_progress,
+	                        .progress_user = p->o->progress};
+	int ret = kg_scene_load(scene_path, &s, p->err);
+	if (!ret)
+		ret = kg_render(s, &ro, &xyz, NULL, p->err);
+	if (!ret)
+		ret = kg_render_write_png(xyz, kg_scene_white(s), png, p->err);
+	kg_image_free(&xyz);
+	kg_scene_free(&s);
+	return ret;
+}
+
+/* The classes of labels.json with their library models, for process.json. */
+static int classes_json(proc *p, const char *labels_json, const kg_est_material_set *set,
+                        json_t *object, json_t *class_map, const char *fallback)
+{
+	json_t *lj = NULL;
+	int ret = kg_json_load(labels_json, &lj, p->err);
+	if (ret)
+		return ret;
+	json_t *out = json_array();
+	const json_t *c;
+	size_t i;
+	double pixels = json_number_value(json_object_get(lj, "pixels"));
+	json_object_set_new(object, "pixels", json_integer((json_int_t)pixels));
+	json_object_set_new(object, "unknown_fraction", json_real(0));
+	json_object_set_new(object, "background_fraction", json_real(0));
+	json_array_foreach(json_object_get(lj, "classes"), i, c)
+	{
+		const char *name = json_string_value(json_object_get(c, "name"));
+		double frac = json_number_value(json_object_get(c, "fraction"));
+		if (!name)
+			continue;
+		if (!strcmp(name, "unclassified")) {
+			json_object_set_new(object, "unclassified_fraction", json_real(frac));
+			continue;
+		}
+		if (!strcmp(name, "unknown") || !strcmp(name, "background")) {
+			char key[32];
+			snprintf(key, sizeof(key), "%s_fraction", name);
+			json_object_set_new(object, key, json_real(frac));
+		}
+		json_t *model = json_null();
+		int found = 0;
+		for (int j = 0; j < set->n; j++)
+			if (!strcmp(set->names[j], name)) {
+				found = 1;
+				model = json_array();
+				for (int b = 0; b < KG_NBANDS; b++)
+					json_array_append_new(model, json_real(set->spectra[j].v[b]));
+			}
+		if (!found)
+			json_object_set_new(class_map, name, json_string(fallback));
+		json_t *e = json_pack("{s:s, s:O, s:O, s:O, s:O, s:o}", "name", name, "pixels",
+		                      json_object_get(c, "pixels"), "fraction",
+		                      json_object_get(c, "fraction"), "colour",
+		                      json_object_get(c, "colour") ? json_object_get(c, "colour")
+		                                                   : json_null(),
+		                      "mean_spectrum",
+		                      json_object_get(c, "mean_spectrum") ? json_object_get(c, "mean_spectrum")
+		                                                          : json_null(),
+		                      "model_spectrum", model);
+		json_array_append_new(out, e);
+	}
+	json_object_set_new(object, "classes", out);
+	json_decref(lj);
+	return 0;
+}
+
+/* One object into dir (a temporary folder). */
+static int process_into(proc *p, const proc_capture *c, const char *dir, double scale,
+                        const kg_est_material_set *set, json_t *object)
+{
+	kg_err *err = p->err;
+	proc_image img = {0};
+	kg_est_kernel *kern = NULL, *kclass = NULL;
+	double pre[9], pre_c[9];
+	int pre_needed = 0, pre_c_needed = 0;
+	char *cube = kg_path_join(dir, "cube.hdr"), *labels = kg_path_join(dir, "labels.hdr");
+	char *ljson = kg_path_join(dir, "labels.json"), *photo = kg_path_join(dir, "photo.png");
+	char *conf = kg_path_join(dir, "labels_confidence.hdr");
+	char *confpng = kg_path_join(dir, "confidence.png");
+	char *scene = kg_path_join(dir, "scene.json"), *render = kg_path_join(dir, "render.png");
+	json_t *class_map = json_object();
+	int ret = cube && labels && ljson && photo && conf && confpng && scene && render && class_map
+	              ? 0 : kg_fail(err, KG_ENOMEM, "out of memory");
+	if (!ret)
+		ret = proc_capture_image(p, c, scale, &img);
+	if (!ret) {
+		json_object_set_new(object, "width", json_integer(img.rgb->width));
+		json_object_set_new(object, "height", json_integer(img.rgb->height));
+		json_object_set_new(object, "dark", img.dark[0] ? json_string(img.dark) : json_null());
+		json_object_set_new(object, "flat", img.flat[0] ? json_string(img.flat) : json_null());
+		ret = proc_preview_png(img.rgb, photo, 1200, err);
+	}
+	kg_apply_options opt;
+	kg_apply_options_init(&opt);
+	opt.threads = p->o->threads;
+	opt.progress = p->o->progress;
+	/* full scale moves with the exposure normalisation */
+	opt.clip_level = (float)(0.999 * scale);
+	char desc[256];
+	snprintf(desc, sizeof(desc), "kogei process: reflectance of capture %s", c->name);
+	opt.description = desc;
+	if (!ret)
+		ret = kg_camera_kernel(p->cam, KG_METHOD_AUTO, 0, &kern, pre, &pre_needed, err);
+	kg_est_stats stats;
+	if (!ret) {
+		opt.pre = pre_needed ? pre : NULL;
+		proc_progress(p, "%s: estimating %dx%d pixels (%s)", c->name, img.rgb->width,
+		              img.rgb->height, kg_method_name(p->cam->method));
+		ret = kg_estimate_image(kern, img.rgb, KG_EST_F32_BSQ, &opt, cube, &stats, err);
+	}
+	if (!ret) {
+		char line[256];
+		kg_est_stats_format(&stats, line, sizeof(line));
+		proc_progress(p, "%s: cube written: %s", c->name, line);
+		json_object_set_new(object, "estimate", json_pack("{s:I, s:I, s:I, s:I}", "pixels",
+		                    (json_int_t)stats.pixels, "nonfinite", (json_int_t)stats.nonfinite,
+		                    "clipped", (json_int_t)stats.clipped, "clamped",
+		                    (json_int_t)stats.clamped_pixels));
+		/* classification works in the PCA weights */
+		ret = kg_camera_kernel(p->cam, KG_METHOD_PCA, 0, &kclass, pre_c, &pre_c_needed, err);
+	}
+	kg_classify_result cres = {0};
+	if (!ret) {
+		kg_classify_info info = {.calib = "camera.json", .materials = p->library_path,
+		                         .method = "pca", .image = c->name};
+		opt.pre = pre_c_needed ? pre_c : NULL;
+		opt.description = NULL;
+		proc_progress(p, "%s: classifying among %d materials", c->name, set->n);
+		ret = kg_classify_image(kclass, set, KG_EST_DIST_PLAIN, img.rgb, &opt, &info, labels,
+		                        &cres, err);
+	}
+	kg_classify_result_free(&cres);
+	const char *fallback = set->names[set->n - 1];
+	if (!ret)
+		ret = classes_json(p, ljson, set, object, class_map, fallback);
+	if (!ret)
+		ret = confidence_png(conf, confpng, err);
+	if (!ret)
+		ret = proc_scene_write(p, scene, "labels.hdr", img.rgb->width, img.rgb->height,
+		                       class_map, fallback, object);
+	if (!ret && p->o->render && kg_render_available()) {
+		proc_progress(p, "%s: rendering scene.json", c->name);
+		ret = render_scene(p, scene, render);
+		if (ret)
+			kg_err_prefix(err, "%s: rendering %s: ", c->name, scene);
+	}
+	if (ret)
+		kg_err_prefix(err, "capture %s: ", c->name);
+	proc_image_clear(&img);
+	kg_est_kernel_free(&kern);
+	kg_est_kernel_free(&kclass);
+	json_decref(class_map);
+	free(cube);
+	free(labels);
+	free(ljson);
+	free(photo);
+	free(conf);
+	free(confpng);
+	free(scene);
+	free(render);
+	return ret;
+}
+
+static void set_paths(json_t *object, const char *name, int rendered)
+{
+	static const char *const keys[][2] = {
+		{"photo", "photo.png"},         {"cube", "cube.hdr"},
+		{"labels", "labels.hdr"},       {"labels_png", "labels.png"},
+		{"confidence_png", "confidence.png"}, {"scene", "scene.json"},
+	};
+	char rel[256];
+	json_object_set_new(object, "dir", json_string(name));
+	for (size_t i = 0; i < sizeof(keys) / sizeof(keys[0]); i++) {
+		snprintf(rel, sizeof(rel), "%s/%s", name, keys[i][1]);
+		json_object_set_new(object, keys[i][0], json_string(rel));
+	}
+	snprintf(rel, sizeof(rel), "%s/render.png", name);
+	json_object_set_new(object, "render", rendered ? json_string(rel) : json_null());
+}
+
+/* Move dir into place as OUTDIR/name, replacing a previous run's folder. */
+static int commit_dir(proc *p, const char *tmp, const char *final, const char *name)
+{
+	char old[4200];
+	snprintf(old, sizeof(old), "%s/.%s.old-%ld", p->o->outdir, name, (long)getpid());
+	int had = access(final, F_OK) == 0;
+	if (had && rename(final, old) != 0)
+		return kg_fail(p->err, KG_EIO, "%s: cannot move the previous run's folder aside",
+		               final);
+	if (rename(tmp, final) != 0) {
+		if (had)
+			rename(old, final);
+		return kg_fail(p->err, KG_EIO, "%s: cannot rename %s into place", final, tmp);
+	}
+	if (had)
+		remove_tree(old);
+	return 0;
+}
+
+int proc_objects_precheck(proc *p)
+{
+	json_t *scratch = json_array();
+	int ret = scratch ? 0 : kg_fail(p->err, KG_ENOMEM, "out of memory");
+	for (int i = 0; i < p->ncaps && !ret; i++) {
+		const proc_capture *c = &p->caps[i];
+		double scale;
+		if (c->kind != KG_CAPTURE_OBJECT)
+			continue;
+		if (!p->o->force)
+			ret = check_camera(p, c, scratch);
+		if (!ret && !p->o->assume_same_exposure)
+			ret = exposure_scale(p, c, scratch, &scale);
+	}
+	json_decref(scratch);
+	return ret;
+}
+
+int proc_objects(proc *p, json_t *objects, kg_process_summary *sum)
+{
+	kg_material_library *lib = NULL;
+	kg_est_material_set *set = NULL;
+	const char *mat = p->o->materials ? p->o->materials : "default";
+	int ret = 0;
+	if (access(mat, R_OK) == 0) {
+		p->library_path = strdup(mat);
+	} else {
+		char rel[256];
+		snprintf(rel, sizeof(rel), "materials/%s.json", mat);
+		p->library_path = kg_data_path(rel);
+		if (p->library_path && access(p->library_path, R_OK) != 0) {
+			free(p->library_path);
+			p->library_path = NULL;
+		}
+		if (!p->library_path)
+			return kg_fail(p->err, KG_ENOENT, "material library '%s': no such file and not a "
+			               "bundled library (default)", mat);
+	}
+	ret = proc_input(p, "materials", p->library_path, NULL);
+	if (!ret)
+		ret = kg_material_library_load(p->library_path, &lib, p->err);
+	if (!ret)
+		ret = kg_est_material_set_new(lib, p->library_path, p->o->only, p->o->nonly,
+		                              p->o->angle_deg, &set, p->err);
+	for (int i = 0; i < p->ncaps && !ret; i++) {
+		const proc_capture *c = &p->caps[i];
+		if (c->kind != KG_CAPTURE_OBJECT)
+			continue;
+		sum->objects++;
+		json_t *object = json_pack("{s:s, s:b, s:[]}", "capture", c->name, "skipped", 0,
+		                           "warnings");
+		json_t *warnings = json_object_get(object, "warnings");
+		double scale = 1;
+		if ((ret = check_camera(p, c, warnings)) || (ret = exposure_scale(p, c, warnings, &scale))) {
+			json_decref(object);
+			break;
+		}
+		json_t *key = object_key(p, c);
+		char *final = kg_path_join(p->o->outdir, c->name);
+		char *labels = final ? kg_path_join(final, "labels.hdr") : NULL;
+		const json_t *prev = previous_object(p, c->name);
+		if (prev && json_equal(json_object_get(prev, "key"), key) && labels &&
+		    access(labels, R_OK) == 0) {
+			json_t *copy = json_deep_copy(prev);
+			json_object_set_new(copy, "skipped", json_true());
+			json_array_append_new(objects, copy);
+			proc_progress(p, "%s: unchanged since the last run, kept", c->name);
+			sum->skipped++;
+			json_decref(object);
+			json_decref(key);
+			free(final);
+			free(labels);
+			continue;
+		}
+		json_object_set_new(object, "key", key);
+		json_object_set(object, "exposure_us", kg_json_find(c->j, "settings.exposure_us")
+		                                           ? kg_json_find(c->j, "settings.exposure_us")
+		                                           : json_null());
+		json_object_set(object, "gain", kg_json_find(c->j, "settings.gain")
+		                                    ? kg_json_find(c->j, "settings.gain")
+		                                    : json_null());
+		json_object_set_new(object, "frames", json_integer(c->frames));
+		json_object_set_new(object, "exposure_scale", json_real(scale));
+		if (fabs(scale - 1) > 1e-9)
+			proc_progress(p, "%s: exposure %.6g us x gain %.4g against the chart's %.6g us x "
+			              "%.4g: values scaled by %.6g", c->name, c->exposure_us,
+			              c->gain_linear, p->chart->exposure_us, p->chart->gain_linear, scale);
+		char tmp[4200];
+		snprintf(tmp, sizeof(tmp), "%s/.%s.partial-%ld", p->o->outdir, c->name, (long)getpid());
+		remove_tree(tmp);
+		if (!final || !labels)
+			ret = kg_fail(p->err, KG_ENOMEM, "out of memory");
+		else if (mkdir(tmp, 0777) != 0)
+			ret = kg_fail(p->err, KG_EIO, "%s: cannot create it", tmp);
+		if (!ret)
+			ret = process_into(p, c, tmp, scale, set, object);
+		if (!ret)
+			ret = commit_dir(p, tmp, final, c->name);
+		if (ret)
+			remove_tree(tmp);
+		else {
+			set_paths(object, c->name, p->o->render && kg_render_available());
+			json_array_append(objects, object);
+			sum->processed++;
+			proc_progress(p, "%s: done", c->name);
+		}
+		json_decref(object);
+		free(final);
+		free(labels);
+	}
+	if (!ret && sum->objects == 0)
+		proc_warn(p, NULL, "the session has no object capture: only the calibration was "
+		          "written");
+	kg_est_material_set_free(&set);
+	kg_material_library_free(&lib);
+	return ret;
+}

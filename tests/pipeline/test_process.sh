@@ -1,0 +1,175 @@
+#!/bin/sh
+# kogei process end to end on a session recorded with the sim devices (dark, flat,
+# chart, three objects, the chart measured), then every refusal: no chart, wrong
+# layout, too few usable patches, an uncheckable 3-patch chart, an M2 residual above
+# the limit, unknown exposure, another camera, the session as output; re-runs that
+# skip unchanged objects; the scenes render; exposure normalisation within 1 %.
+# usage: test_process.sh KOGEI SOURCE_ROOT HAVE_EMBREE
+set -u
+KOGEI=$1
+FIX=$2/fixtures
+HAVE_EMBREE=${3:-0}
+[ -r /usr/share/colord/ref/CIE-TCS.sp ] || { echo "SKIP: colord-data missing"; exit 77; }
+PY=/usr/bin/python3; [ -x "$PY" ] || PY=python3
+"$PY" -c 'import numpy' 2>/dev/null ||
+	{ echo "SKIP: python3-numpy missing"; exit 77; }
+. "$(dirname "$0")/sim_session.sh"
+T=$(mktemp -d)
+trap 'rm -rf "$T"' EXIT
+fail=0
+check() { desc=$1; shift; if "$@"; then :; else echo "FAIL: $desc"; fail=1; fi; }
+expect_exit() { # code, command...
+	want=$1; shift
+	"$@" >"$T/out" 2>"$T/err"
+	got=$?
+	if [ "$got" != "$want" ]; then
+		echo "FAIL: '$*' exited $got, expected $want"; cat "$T/err"; fail=1
+	fi
+}
+# A refusal: exit 1, the message names $2, and OUTDIR holds nothing.
+expect_refusal() { # outdir pattern command...
+	out=$1 pat=$2; shift 2
+	expect_exit 1 "$@"
+	check "refusal names '$pat'" grep -q -- "$pat" "$T/err"
+	if [ -e "$out" ] && [ -n "$(ls -A "$out")" ]; then
+		echo "FAIL: a refused run left files in $out:"; ls -A "$out"; fail=1
+	fi
+}
+
+sim_scenes "$T" || { echo "FAIL: simulated scenes"; exit 1; }
+S=$T/S
+sim_acquire "$S" dark "$T/chart.tif" 10000 '&light=0' || fail=1
+sim_acquire "$S" dark "$T/chart.tif" 5000 '&light=0' || fail=1
+sim_acquire "$S" flat "$T/chart.tif" 10000 '&uniform=0.6' || fail=1
+sim_acquire "$S" chart "$T/chart.tif" 10000 '' --layout cie-tcs-frame || fail=1
+sim_acquire "$S" object "$T/object.tif" 10000 '' --name object-full || fail=1
+sim_acquire "$S" object "$T/object.tif" 5000 '&seed=7' --name object-half || fail=1
+sim_acquire "$S" object "$T/object.tif" 10000 '&seed=9' --name object-again || fail=1
+sim_measure "$T/chart.cgats" || { echo "FAIL: kogei measure"; fail=1; }
+[ $fail = 0 ] || exit 1
+
+# ---- the lab session: its chart gives the reference; then every object ------------
+O=$T/lab
+expect_exit 0 "$KOGEI" process "$S" --spectra "$T/chart.cgats" -o "$O"
+for f in camera.json reference.json process.json report.html chart_overlay.png; do
+	check "process writes $f" test -s "$O/$f"
+done
+for c in object-full object-half object-again; do
+	for f in cube.hdr cube.img labels.hdr labels.json labels.png photo.png confidence.png scene.json; do
+		check "process writes $c/$f" test -s "$O/$c/$f"
+	done
+done
+check "progress on stderr" grep -q "kogei process: object-half: estimating" "$T/err"
+check "summary: 3 processed" grep -q "3 object(s), 3 processed, 0 unchanged" "$T/out"
+check "dark and flat applied" "$PY" - "$O/process.json" <<'PY'
+import json, sys
+d = json.load(open(sys.argv[1]))
+c = d["calibration"]
+assert c["dark"] and c["flat"], (c["dark"], c["flat"])
+o = {x["capture"]: x for x in d["objects"]}
+assert o["object-half"]["dark"] == "dark-0002", o["object-half"]["dark"]
+assert abs(o["object-half"]["exposure_scale"] - 2) < 1e-9
+PY
+# The half-exposure object gives the same reflectance within 1 %.
+check "exposure normalised: half exposure within 1 %" "$PY" - "$O" <<'PY'
+import sys, numpy as np
+def cube(d):
+    h = open(f"{d}/cube.hdr").read()
+    def key(k): return int(h.split(k)[1].split("=")[1].split("\n")[0])
+    s, l, b = key("samples"), key("lines"), key("bands")
+    return np.fromfile(f"{d}/cube.img", dtype="<f4").reshape(b, l, s)
+full, half = cube(sys.argv[1] + "/object-full"), cube(sys.argv[1] + "/object-half")
+ok = np.isfinite(full).all(0) & np.isfinite(half).all(0) & (full.mean(0) > 0.05)
+assert ok.sum() > 10000, ok.sum()
+r = half[:, ok].mean(1) / full[:, ok].mean(1)
+print("half/full reflectance ratio per band: %.4f .. %.4f" % (r.min(), r.max()))
+assert np.all(np.abs(r - 1) < 0.01), r
+PY
+
+# Scenes render as written.
+if [ "$HAVE_EMBREE" = 1 ]; then
+	check "process rendered object-full" test -s "$O/object-full/render.png"
+	expect_exit 0 "$KOGEI" render --scene "$O/object-full/scene.json" -o "$T/r.png" --spp 2
+	check "kogei render --scene renders process's scene" test -s "$T/r.png"
+fi
+
+# Re-runs skip what did not change; a later object is the only one processed.
+expect_exit 0 "$KOGEI" process "$S" --spectra "$T/chart.cgats" -o "$O" --quiet
+check "re-run: all unchanged" grep -q "3 object(s), 0 processed, 3 unchanged" "$T/out"
+sim_acquire "$S" object "$T/object.tif" 10000 '&seed=11' --name object-later || fail=1
+expect_exit 0 "$KOGEI" process "$S" --spectra "$T/chart.cgats" -o "$O" --quiet
+check "later object: only it processed" grep -q "4 object(s), 1 processed, 3 unchanged" "$T/out"
+expect_exit 0 "$KOGEI" process "$S" --spectra "$T/chart.cgats" -o "$O" --quiet --angle 40
+check "changed parameters: all processed" grep -q "4 object(s), 4 processed, 0 unchanged" "$T/out"
+
+# ---- the site session against the lab's reference ----------------------------------
+expect_exit 0 "$KOGEI" process "$S" --reference "$O/reference.json" --spectra "$T/chart.cgats" \
+	-o "$T/site" --no-render --quiet
+check "site: colour accuracy per patch" "$PY" - "$T/site/process.json" <<'PY'
+import json, sys
+p = json.load(open(sys.argv[1]))["calibration"]["patches"]
+assert len(p) == 15 and all(x["de00_d65"] is not None for x in p), p[0]
+PY
+
+# ---- refusals: exit 1, the cause named, nothing written ----------------------------
+# No chart: the chart capture shows only the material tiles.
+N=$T/nochart
+sim_acquire "$N" chart "$T/object.tif" 10000 '' --layout cie-tcs-frame || fail=1
+expect_refusal "$T/r1" "chart-0001" "$KOGEI" process "$N" --spectra "$T/chart.cgats" -o "$T/r1"
+# The wrong layout: not this chart.
+expect_refusal "$T/r2" "chart-0001" "$KOGEI" process "$S" --spectra "$T/chart.cgats" \
+	--layout colorchecker24-frame -o "$T/r2"
+# The M2 residual above the limit: another photograph of the chart (its own noise)
+# against the lab's reference.
+R=$T/resid
+cp -r "$S" "$R"
+sim_acquire "$R" chart "$T/chart.tif" 10000 '&seed=5' --layout cie-tcs-frame --name chart-again || fail=1
+expect_refusal "$T/r3" "residual" "$KOGEI" process "$R" --reference "$O/reference.json" \
+	--chart chart-again -o "$T/r3" --max-residual 0.00001
+# A 3-patch chart cannot be checked: refused unless --force.
+"$PY" - "$FIX/demo/cie-tcs-frame.json" "$T/three.json" <<'PY'
+import json, sys
+l = json.load(open(sys.argv[1]))
+l["name"] = "cie-tcs-three"
+l["patches"] = [p for p in l["patches"] if p["id"] in ("TCS02", "TCS05", "TCS09")]
+json.dump(l, open(sys.argv[2], "w"))
+PY
+expect_refusal "$T/r4" "cannot be checked" "$KOGEI" process "$S" --reference "$O/reference.json" \
+	--layout "$T/three.json" -o "$T/r4"
+expect_exit 0 "$KOGEI" process "$S" --reference "$O/reference.json" --layout "$T/three.json" \
+	-o "$T/r4" --force --no-render --quiet
+# Unknown exposure: refused unless --assume-same-exposure.
+U=$T/unknown
+cp -r "$S" "$U"
+"$PY" - "$U/session.json" <<'PY'
+import json, sys
+m = json.load(open(sys.argv[1]))
+for c in m["captures"]:
+    if c["name"] == "object-half":
+        del c["settings"]["exposure_us"]
+json.dump(m, open(sys.argv[1], "w"), indent=1)
+PY
+expect_refusal "$T/r5" "object-half" "$KOGEI" process "$U" --reference "$O/reference.json" -o "$T/r5"
+check "unknown exposure: the cause" grep -q "exposure" "$T/err"
+expect_exit 0 "$KOGEI" process "$U" --reference "$O/reference.json" -o "$T/r5" \
+	--assume-same-exposure --no-render --quiet
+# Another camera: an object from serial site-2 against the chart of site-1.
+C=$T/camera
+cp -r "$S" "$C"
+sim_acquire "$C" object "$T/object.tif" 10000 '&serial=site-2' --name object-other || fail=1
+expect_refusal "$T/r6" "site-2" "$KOGEI" process "$C" --reference "$O/reference.json" -o "$T/r6"
+check "another camera: both named" grep -q "site-1" "$T/err"
+expect_exit 0 "$KOGEI" process "$C" --reference "$O/reference.json" -o "$T/r6" --force \
+	--no-render --quiet
+# The session itself as the output.
+expect_exit 1 "$KOGEI" process "$S" --reference "$O/reference.json" -o "$S"
+check "session as output refused" grep -q "session directory" "$T/err"
+# A folder that is not a previous run's is not written into.
+mkdir -p "$T/other" && echo x >"$T/other/process.json"
+expect_exit 1 "$KOGEI" process "$S" --reference "$O/reference.json" -o "$T/other"
+check "foreign process.json refused" grep -q "not a kogei-process/1 file" "$T/err"
+# Usage.
+expect_exit 2 "$KOGEI" process "$S" -o "$T/x"
+expect_exit 2 "$KOGEI" process --reference r.json "$S"
+
+exit $fail
