@@ -128,7 +128,14 @@ int main(void)
 	kg_patchset *three = site_set(3, three_ids, (const double (*)[3])three_rgb);
 	kg_camera_calib *cam3 = NULL;
 	kg_err err3 = {{0}};
+	/* Their residual is 0 whatever they are: refused as unchecked, unless forced. */
 	int ret3 = kg_camera_fit(ref, three, &opt, &cam3, &err3);
+	CHECK(ret3 == KG_EINVAL && !cam3 && strstr(err3.msg, "only 3 usable patches") &&
+	          strstr(err3.msg, "cannot be checked") && strstr(err3.msg, "--force"),
+	      "three patches unforced: %d %s", ret3, err3.msg);
+	kg_camera_options forced = opt;
+	forced.force = 1;
+	ret3 = kg_camera_fit(ref, three, &forced, &cam3, &err3);
 	CHECK(ret3 == 0, "three patches %s %s %s: %s", three_ids[0], three_ids[1], three_ids[2],
 	      err3.msg);
 	if (cam3) {
