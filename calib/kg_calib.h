@@ -209,9 +209,10 @@ int kg_reference_load(const char *path, kg_reference **out, kg_err *err);
  * chart leaves a few per cent: measured (ColorChecker 24, babelcolor spectra,
  * reference Nikon D5100 under D65, noise 20000:5:12) 1.5-2.0 % for eight other
  * cameras under D65 and 2.2-3.4 % under A; kogei demo 3.3 %. Patches read in the wrong
- * order give 60-80 % (the chart turned 180 degrees: 62 %; rows shifted: 79 %), an
- * object photograph's material tiles taken for a ColorChecker 69 %. 10 % is three
- * times the worst good chart and far below those. */
+ * order give 55-80 % (the ColorChecker turned 180 degrees: 62 %, rows shifted: 79 %;
+ * the CIE test colours reversed: 55 %), an object photograph's material tiles taken
+ * for a ColorChecker 69 %. 10 % is three times the worst good chart and far below
+ * those (docs/calib-camera.md). */
 #define KG_CALIB_MAX_RESIDUAL 0.10
 
 typedef struct kg_camera_options {
