@@ -113,6 +113,26 @@ const json_t *kg_session_find(const kg_session *s, const char *name);
  * KG_EIO naming the first file that does not. *nfiles (may be NULL): files checked. */
 int kg_session_verify(const kg_session *s, long *nfiles, kg_err *err);
 
+/* The capture an image file of a session belongs to and the camera that took it. */
+typedef struct kg_session_image {
+	char session[4096];             /* the session directory (resolved) */
+	char capture[KG_CAPTURE_NAME_MAX];
+	char backend[16];               /* devices.cameras entry of the capture */
+	char model[64], serial[64];
+	char pixfmt[16];                /* settings.format.pixfmt ("bayer16", "rgb16") */
+	int bits;                       /* settings.format.bits */
+	long white_level;               /* full scale: 2^bits - 1 (4095 for 12 bits) */
+	char demosaic[128];             /* demosaic.algorithm, "none" when not demosaiced */
+} kg_session_image;
+
+/* Identify an image file inside a session: SESSION/captures/<name>/<file> (mean.tif,
+ * rgb.tif, variance.tif), the session being the nearest directory above the file
+ * holding a session.json of format kogei-session/1. KG_ENOENT when the file is not
+ * in a session's captures/ (an image from elsewhere: its camera is unknown);
+ * KG_EINVAL, naming the manifest and the key, when the manifest does not list the
+ * capture (an unfinished one) or its camera. */
+int kg_session_image_identify(const char *image_path, kg_session_image *out, kg_err *err);
+
 /* sha256 of a file as 64 lower-case hex digits. */
 int kg_file_sha256(const char *path, char hex[65], kg_err *err);
 

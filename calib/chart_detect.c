@@ -267,7 +267,7 @@ void kg_chart_detect_options_default(kg_chart_detect_options *o)
 	o->trim = 0.1;
 	o->family = NULL;
 	o->tagless = 0;
-	o->min_tags = 2;
+	o->min_tags = 0;
 	o->min_pixels = 30;
 	o->clip_level = 0;
 	o->nonuniformity_limit = 0.05;
@@ -1349,41 +1349,40 @@ static int detect_tagless(const kg_chart_layout *l, const layout_view *L, const 
 			upright = turn;
 	}
 	/* One step out of order or a patch brighter than the white: no turn reads as a
-	 * ColorChecker (other colours on its geometry, or bad light); neither the patches
-	 * nor mcc, whose choice also rests on the ColorChecker's colours, can tell, so
-	 * the chart is taken as photographed upright. */
+	 * ColorChecker (other colours on its geometry, such as an object's tiles, or bad
+	 * light). Neither the patches nor mcc, whose choice also rests on the
+	 * ColorChecker's colours, can then say which patch is which: refused. */
 	int uncertain = !ret && score[best] >= 1;
-	int chosen = uncertain ? upright : best;
 	for (int turn = 0; turn < 4; turn++)
-		if (ret || turn != chosen)
+		if (ret || uncertain || turn != best)
 			samples_free(sampled[turn], L->npatches);
 	if (ret)
 		return ret;
-	r->patches = sampled[chosen];
+	if (uncertain)
+		return kg_fail(err, KG_ENOENT,
+		               "the tagless detector (OpenCV mcc, fit cost %.3g) found a box, but "
+		               "its patches do not read as layout %s in any of its 4 turns: the "
+		               "neutral row D01-D06 does not darken from D01, the brightest patch "
+		               "(best score %.3f, a ColorChecker scores below 1). No ColorChecker "
+		               "in view (other colours on its geometry), or light too uneven or "
+		               "clipped to tell; row A01-A06 would run at %.0f degrees from the "
+		               "image's x axis", cost, l->name, score[best], angle[upright]);
+	r->patches = sampled[best];
 	r->npatches = L->npatches;
-	memcpy(r->H, H[chosen], sizeof(r->H));
+	memcpy(r->H, H[best], sizeof(r->H));
 	for (int k = 0; k < 4; k++)
 		kg_homography_map(r->H, L->outline[k][0], L->outline[k][1], r->outline[k]);
 	double next = INFINITY;
 	for (int turn = 0; turn < 4; turn++)
 		if (turn != best)
 			next = fmin(next, score[turn]);
-	if (uncertain)
-		ret = add_warning(r, "chart placed by the tagless detector (OpenCV mcc, fit cost "
-		                  "%.3g) from the 4 corners of its box, not by tags; orientation "
-		                  "uncertain: in no turn does the neutral row D01-D06 darken from "
-		                  "D01, the brightest patch (best score %.3f; is this a ColorChecker "
-		                  "24, evenly lit and not clipped?), so the chart is taken as upright: "
-		                  "row A01-A06 runs at %.0f degrees clockwise from the image's x axis",
-		                  cost, score[best], angle[chosen]);
-	else
-		ret = add_warning(r, "chart placed by the tagless detector (OpenCV mcc, fit cost "
-		                  "%.3g) from the 4 corners of its box, not by tags; orientation "
-		                  "chosen from the patches (neutral row D01-D06 darkening from D01, "
-		                  "the brightest patch): score %.3f, next best of the 4 turns %.3f, "
-		                  "%s mcc's own; row A01-A06 runs at %.0f degrees clockwise from the "
-		                  "image's x axis", cost, score[best], next,
-		                  best == 0 ? "agreeing with" : "overruling", angle[chosen]);
+	ret = add_warning(r, "chart placed by the tagless detector (OpenCV mcc, fit cost "
+	                  "%.3g) from the 4 corners of its box, not by tags; orientation "
+	                  "chosen from the patches (neutral row D01-D06 darkening from D01, "
+	                  "the brightest patch): score %.3f, next best of the 4 turns %.3f, "
+	                  "%s mcc's own; row A01-A06 runs at %.0f degrees clockwise from the "
+	                  "image's x axis", cost, score[best], next,
+	                  best == 0 ? "agreeing with" : "overruling", angle[best]);
 	return ret ? kg_fail(err, ret, "out of memory") : 0;
 }
 #else
@@ -1432,11 +1431,15 @@ int kg_chart_detect(const kg_chart_layout *l, const kg_image *img,
 	if (!(opt.sample_fraction > 0))
 		opt.sample_fraction = l->sample_fraction > 0 ? l->sample_fraction : 0.6;
 	if (opt.sample_fraction > 1 || opt.trim < 0 || opt.trim >= 0.5 || opt.decimate < 0 ||
-	    opt.min_tags < 1)
+	    opt.min_tags < 0)
 		return kg_fail(err, KG_EINVAL, "chart detection: sample fraction %g (expected "
-		               "0..1), trim %g (0..0.5), decimate %d (>= 0) or min tags %d (>= 1) "
+		               "0..1), trim %g (0..0.5), decimate %d (>= 0) or min tags %d (>= 0) "
 		               "out of range", opt.sample_fraction, opt.trim, opt.decimate,
 		               opt.min_tags);
+	/* min_tags 0: the default of 2 tags, with the ColorChecker fallback. */
+	int fallback = opt.min_tags == 0;
+	if (fallback)
+		opt.min_tags = 2;
 	if (l->npatches < 1)
 		return kg_fail(err, KG_EINVAL, "layout %s has no patches", l->name);
 	layout_view L;
@@ -1457,7 +1460,7 @@ int kg_chart_detect(const kg_chart_layout *l, const kg_image *img,
 	if (!tagless) {
 		kg_err tag_err = {{0}};
 		ret = detect_with_tags(&L, &wi, &opt, r, &tag_err);
-		if (ret && tagless_fallback(l, r, ret)) {
+		if (ret && fallback && tagless_fallback(l, r, ret)) {
 			kg_err mcc_err = {{0}};
 			ret = detect_tagless(l, &L, &wi, &opt, r, &mcc_err);
 			if (ret)

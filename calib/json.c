@@ -28,7 +28,10 @@
  *     offset, loo_rmse}}: s = offset + A x(pre rho_site),
  *   site {patches, ids, rho_r, rho0, residual (3 x k each), residual_rms,
  *     residual_relative, condition_number, condition_number_equilibrated,
- *     singular_values, rank},
+ *     singular_values, rank, flagged [{id, flags}]: patches chart detection flagged,
+ *     left out},
+ *   camera {backend, model, serial, pixfmt, white_level, demosaic, capture}: the site
+ *     camera, null when unknown (files without the key load as unknown),
  *   devices, sources. */
 #include <math.h>
 #include <stdlib.h>
@@ -348,7 +351,20 @@ int kg_camera_save(const kg_camera_calib *cam, const char *path, kg_err *err)
 	put(&w, fit, "condition_number_equilibrated", jnum(cam->cond_equilibrated));
 	put(&w, fit, "singular_values", jrow(&w, cam->singular_values, 3, 1));
 	put(&w, fit, "rank", json_integer(cam->rank));
+	json_t *flagged = json_array();
+	for (int i = 0; flagged && i < cam->nflagged; i++)
+		if (json_array_append_new(flagged, json_pack("{s:s, s:i}", "id", cam->flagged_ids[i],
+		                                             "flags", (int)cam->flagged_flags[i])))
+			w.bad = 1;
+	put(&w, fit, "flagged", flagged);
 	put(&w, root, "site", fit);
+	const kg_camera_identity *id = &cam->identity;
+	put(&w, root, "camera",
+	    id->known ? json_pack("{s:s, s:s, s:s, s:s, s:I, s:s, s:s}", "backend", id->backend,
+	                          "model", id->model, "serial", id->serial, "pixfmt", id->pixfmt,
+	                          "white_level", (json_int_t)id->white_level, "demosaic",
+	                          id->demosaic, "capture", id->capture)
+	              : json_null());
 	put(&w, root, "devices", jdevices(&w, cam->sources, cam->nsources));
 	put(&w, root, "sources", jsources(&w, cam->sources, cam->nsources));
 	return finish(&w, root, path, err);
@@ -740,6 +756,63 @@ int kg_reference_load(const char *path, kg_reference **out, kg_err *err)
 	return 0;
 }
 
+/* site.flagged, optional: [{id, flags}]. */
+static int get_flagged(const char *file, const json_t *root, kg_camera_calib *cam, kg_err *err)
+{
+	json_t *a = kg_json_find(root, "site.flagged");
+	if (!a)
+		return 0;
+	if (!json_is_array(a))
+		return kg_fail(err, KG_EINVAL, "%s: site.flagged: expected an array", file);
+	int n = (int)json_array_size(a);
+	cam->flagged_ids = calloc(n > 0 ? (size_t)n : 1, sizeof(char *));
+	cam->flagged_flags = calloc(n > 0 ? (size_t)n : 1, sizeof(unsigned));
+	if (!cam->flagged_ids || !cam->flagged_flags)
+		return kg_fail(err, KG_ENOMEM, "out of memory");
+	for (int i = 0; i < n; i++) {
+		json_t *o = json_array_get(a, (size_t)i);
+		json_t *id = json_object_get(o, "id"), *f = json_object_get(o, "flags");
+		if (!json_is_string(id) || !json_is_integer(f) || json_integer_value(f) < 0)
+			return kg_fail(err, KG_EINVAL, "%s: site.flagged[%d]: expected {\"id\": a string, "
+			               "\"flags\": a whole number >= 0}", file, i);
+		if (!(cam->flagged_ids[i] = strdup(json_string_value(id))))
+			return kg_fail(err, KG_ENOMEM, "out of memory");
+		cam->flagged_flags[i] = (unsigned)json_integer_value(f);
+		cam->nflagged = i + 1;
+	}
+	return 0;
+}
+
+/* camera, optional: the site camera's identity (absent or null: unknown). */
+static int get_identity(const char *file, const json_t *root, kg_camera_identity *id,
+                        kg_err *err)
+{
+	memset(id, 0, sizeof(*id));
+	json_t *o = kg_json_find(root, "camera");
+	if (!o || json_is_null(o))
+		return 0;
+	if (!json_is_object(o))
+		return kg_fail(err, KG_EINVAL, "%s: camera: expected an object or null", file);
+	static const char *const keys[] = {"backend", "model", "serial", "pixfmt", "demosaic",
+	                                   "capture"};
+	char *dst[] = {id->backend, id->model, id->serial, id->pixfmt, id->demosaic, id->capture};
+	size_t size[] = {sizeof(id->backend), sizeof(id->model),    sizeof(id->serial),
+	                 sizeof(id->pixfmt),  sizeof(id->demosaic), sizeof(id->capture)};
+	for (int k = 0; k < 6; k++) {
+		json_t *v = json_object_get(o, keys[k]);
+		if (!json_is_string(v))
+			return kg_fail(err, KG_EINVAL, "%s: camera.%s: expected a string", file, keys[k]);
+		snprintf(dst[k], size[k], "%s", json_string_value(v));
+	}
+	json_t *wl = json_object_get(o, "white_level");
+	if (!json_is_integer(wl) || json_integer_value(wl) < 0)
+		return kg_fail(err, KG_EINVAL, "%s: camera.white_level: expected a whole number >= 0",
+		               file);
+	id->white_level = (long)json_integer_value(wl);
+	id->known = 1;
+	return 0;
+}
+
 static int load_camera(const char *file, const json_t *root, kg_camera_calib *cam, kg_err *err)
 {
 	int ret = check_header(file, root, CAMERA_FORMAT, err);
@@ -794,6 +867,10 @@ static int load_camera(const char *file, const json_t *root, kg_camera_calib *ca
 	if (!ret)
 		ret = kg_json_get_int(file, root, "site.rank", 0, 3, &rank, err);
 	cam->rank = (int)rank;
+	if (!ret)
+		ret = get_flagged(file, root, cam, err);
+	if (!ret)
+		ret = get_identity(file, root, &cam->identity, err);
 	if (!ret)
 		ret = get_sources(file, root, &cam->sources, &cam->nsources, err);
 	calib_camera_derive(cam);

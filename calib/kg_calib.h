@@ -204,11 +204,25 @@ int kg_reference_load(const char *path, kg_reference **out, kg_err *err);
 #define KG_CALIB_BLACK_LEVEL 0.01 /* a patch whose brightest channel is below is black */
 #define KG_CALIB_PINV_RTOL 1e-10  /* singular values <= rtol * smax count as zero */
 
+/* Default limit of the relative residual ||rho0 - M2 rho_r||_F / ||rho0||_F. M2 (3 x 3)
+ * cannot absorb the difference between two cameras' spectral responses, so a good
+ * chart leaves a few per cent: measured (ColorChecker 24, babelcolor spectra,
+ * reference Nikon D5100 under D65, noise 20000:5:12) 1.5-2.0 % for eight other
+ * cameras under D65 and 2.2-3.4 % under A; kogei demo 3.3 %. Patches read in the wrong
+ * order give 55-80 % (the ColorChecker turned 180 degrees: 62 %, rows shifted: 79 %;
+ * the CIE test colours reversed: 55 %), an object photograph's material tiles taken
+ * for a ColorChecker 69 %. 10 % is three times the worst good chart and far below
+ * those (docs/calib-camera.md). */
+#define KG_CALIB_MAX_RESIDUAL 0.10
+
 typedef struct kg_camera_options {
 	double max_cond;
 	double clip_level;
 	double black_level;
 	double pinv_rtol;
+	double max_residual; /* relative residual above which the fit is refused */
+	int force;           /* accept a chart of exactly 3 usable patches, whose residual
+	                      * is 0 whatever the chart: M2 cannot be checked */
 	const char *const *exclude; /* ids to leave out of the fit (both files), or NULL */
 	int nexclude;
 } kg_camera_options;
@@ -228,6 +242,39 @@ typedef struct kg_site_map {
 	double lambda;                            /* the reference fit's ridge */
 	double loo_rmse;                          /* the reference fit's LOO error */
 } kg_site_map;
+
+/* The camera a site calibration belongs to, as the session that photographed the
+ * chart recorded it (kogei chart detect writes it into the patch file as the keywords
+ * CAMERA_BACKEND, CAMERA_MODEL, CAMERA_SERIAL, CAMERA_PIXFMT, CAMERA_WHITE_LEVEL,
+ * CAMERA_DEMOSAIC and CAPTURE). Backend, model and serial say which camera it is;
+ * pixel format, white level and demosaicing how it was read. */
+typedef struct kg_camera_identity {
+	int known;          /* 0: not recorded (a chart from outside a session, older files) */
+	char backend[32];   /* URI scheme: "sim", "aravis", "v4l2", ... */
+	char model[128];
+	char serial[128];
+	char pixfmt[32];    /* "bayer16", "rgb16", ... */
+	long white_level;   /* full scale in DN, 2^bits - 1 (4095 for 12 bits); 0 unknown */
+	char demosaic[160]; /* the algorithm, "none" when the camera delivered RGB */
+	char capture[64];   /* the session capture the chart was photographed in */
+} kg_camera_identity;
+
+/* The identity in CGATS keywords (names[i] = values[i]; the names above). known is set
+ * when CAMERA_BACKEND, CAMERA_MODEL and CAMERA_SERIAL are all present; KG_EINVAL when
+ * CAMERA_WHITE_LEVEL is not a whole number >= 1. `what` names the file in messages. */
+int kg_camera_identity_from_keywords(const char *what, char *const *names,
+                                     char *const *values, int n, kg_camera_identity *out,
+                                     kg_err *err);
+/* "sim camera \"simulated sensor\" serial A (bayer16, white level 4095, demosaic X)". */
+void kg_camera_identity_describe(const kg_camera_identity *id, char *buf, size_t size);
+/* Whether an image's camera is the calibration's. 0: the same camera (backend, model
+ * and serial); *note (note_size > 0) then says which reading settings differ (pixel
+ * format, white level, demosaicing), "" when none. KG_ENOENT when either identity is
+ * unknown (the message says which, so nothing was checked); KG_EINVAL when they are
+ * different cameras, the message naming both (calib_what, image_what: file names). */
+int kg_camera_identity_check(const kg_camera_identity *calib, const char *calib_what,
+                             const kg_camera_identity *image, const char *image_what,
+                             char *note, size_t note_size, kg_err *err);
 
 typedef struct kg_camera_calib {
 	/* from the reference */
@@ -254,18 +301,28 @@ typedef struct kg_camera_calib {
 	double (*residual)[3];    /* rho0 - M2 rho_r, k x 3 */
 	double residual_rms;      /* over all patches and channels */
 	double residual_relative; /* ||rho0 - M2 rho_r||_F / ||rho0||_F */
+	int nflagged;             /* patches left out because detection flagged them */
+	char **flagged_ids;
+	unsigned *flagged_flags;  /* their FLAGS (KG_CHART_FLAG_*) */
+
+	kg_camera_identity identity; /* the site camera */
 
 	int nsources;
 	kg_calib_source *sources; /* "reference", "site_rgb" */
 } kg_camera_calib;
 
 /* M2 from the reference's rho0 and a site patch set (rgb), matched by SAMPLE_ID.
- * Refused (KG_EINVAL, the message names the cause and the patches): site ids the
- * reference does not know, fewer than 3 patches in common (which are missing),
- * non-finite values, clipped patches (a channel >= clip_level, or a clipped-fraction
- * column > 0 when the file has one), near-black patches (brightest channel <
- * black_level) and nearly collinear charts (equilibrated condition number >
- * max_cond; the message lists the patches and how close to grey they are). */
+ * Patches the detector flagged (a FLAGS column: clipped, glare, too few pixels, out of
+ * frame, non-uniform) are left out and listed in flagged_ids. Refused (KG_EINVAL, the
+ * message names the cause and the patches): site ids the reference does not know,
+ * fewer than 3 patches in common (which are missing) or left after the flagged ones
+ * (which were flagged and why), non-finite values, clipped patches (a channel >=
+ * clip_level, or a clipped-fraction column > 0 when the file has one), near-black
+ * patches (brightest channel < black_level), nearly collinear charts (equilibrated
+ * condition number > max_cond; the message lists the patches and how close to grey
+ * they are), a relative residual above max_residual (the residual and the worst
+ * patches: the patches do not read as the reference's chart), and, unless force, a
+ * chart of exactly 3 patches (its residual is 0 whatever was photographed). */
 int kg_camera_fit(const kg_reference *ref, const kg_patchset *site,
                   const kg_camera_options *opt, kg_camera_calib **out, kg_err *err);
 /* Read the reference JSON and the site patch file and fit (sources recorded). */
@@ -449,7 +506,9 @@ typedef struct kg_chart_detect_options {
 	double trim;             /* trimmed mean: fraction cut at each end (0.1) */
 	const char *family;      /* tag family; NULL: the layout's */
 	int tagless;             /* 1: OpenCV mcc only (ColorChecker 24 / SG layouts) */
-	int min_tags;            /* fewest tags that place the chart (2) */
+	int min_tags;            /* fewest tags that place the chart; 0 (the default): 2,
+	                          * and a ColorChecker 24 layout with no tag in view falls
+	                          * back to the tagless detector; N > 0: N, no fallback */
 	int min_pixels;          /* fewer sampled pixels flag a patch (30) */
 	double clip_level;       /* a channel at or above is clipped; 0: the source's full
 	                          * scale (1 - 0.5 / (2^bits - 1) for integer images, 1.0
@@ -516,7 +575,9 @@ typedef struct kg_chart_result {
 /* Find the chart of layout l in img and sample its patches. img: 1 channel (grey,
  * or raw with a CFA pattern, demosaiced first) or 3 (RGB), linear 0..1. Errors:
  * KG_ENOENT when the chart is not found (the message says what was seen: no tags,
- * tags of other ids, too few tags); KG_ENOTSUP when a needed library is missing.
+ * tags of other ids, too few tags; for the tagless detector, a box whose patches do
+ * not read as the layout's in any of its four turns); KG_ENOTSUP when a needed
+ * library is missing.
  * Warnings (tags ignored, missing, few tags, flagged patches) are in the result. */
 int kg_chart_detect(const kg_chart_layout *l, const kg_image *img,
                     const kg_chart_detect_options *opt, kg_chart_result **out, kg_err *err);

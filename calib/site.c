@@ -1,6 +1,7 @@
 /* Site calibration: M2 = rho0 pinv(rho_r), the 3 x 3 map from a site camera's RGB
  * into the reference camera's, and the per-pixel maps that fold it in. */
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -15,6 +16,7 @@ void kg_camera_options_default(kg_camera_options *o)
 	o->clip_level = KG_CALIB_CLIP_LEVEL;
 	o->black_level = KG_CALIB_BLACK_LEVEL;
 	o->pinv_rtol = KG_CALIB_PINV_RTOL;
+	o->max_residual = KG_CALIB_MAX_RESIDUAL;
 }
 
 void kg_camera_calib_free(kg_camera_calib **pcam)
@@ -26,6 +28,8 @@ void kg_camera_calib_free(kg_camera_calib **pcam)
 	free(cam->rho_r);
 	free(cam->rho0);
 	free(cam->residual);
+	calib_strv_free(cam->flagged_ids, cam->nflagged);
+	free(cam->flagged_flags);
 	calib_sources_free(&cam->sources, &cam->nsources);
 	free(cam);
 	*pcam = NULL;
@@ -85,6 +89,9 @@ static int check_options(const kg_camera_options *opt, kg_err *err)
 	if (!(opt->pinv_rtol >= 0 && opt->pinv_rtol < 1))
 		return kg_fail(err, KG_EINVAL, "pinv tolerance %g: expected 0 <= rtol < 1",
 		               opt->pinv_rtol);
+	if (!(opt->max_residual > 0) || !isfinite(opt->max_residual))
+		return kg_fail(err, KG_EINVAL, "residual limit %g: expected a finite number > 0",
+		               opt->max_residual);
 	return 0;
 }
 
@@ -209,6 +216,119 @@ static int solve_m2(kg_camera_calib *cam, double rtol, kg_err *err)
 	return ret;
 }
 
+/* The detector's reasons for flags, as kogei chart detect's FLAGS column codes them. */
+static void describe_flags(unsigned f, char *buf, size_t n)
+{
+	static const struct {
+		unsigned bit;
+		const char *why;
+	} names[] = {{KG_CHART_FLAG_CLIPPED, "clipped"},
+	             {KG_CHART_FLAG_GLARE, "glare"},
+	             {KG_CHART_FLAG_FEW_PIXELS, "too few pixels"},
+	             {KG_CHART_FLAG_OUT_OF_FRAME, "out of frame"},
+	             {KG_CHART_FLAG_NONUNIFORM, "non-uniform"},
+	             {KG_CHART_FLAG_REJECTED, "rejected"}};
+	size_t at = 0;
+	buf[0] = 0;
+	for (size_t i = 0; i < sizeof(names) / sizeof(names[0]) && at < n; i++)
+		if (f & names[i].bit)
+			at += (size_t)snprintf(buf + at, n - at, "%s%s", at ? ", " : "", names[i].why);
+	if (!at)
+		snprintf(buf, n, "flags %u", f);
+}
+
+/* Leave out the pairs whose site patch the detector flagged (FLAGS column != 0),
+ * recording them in cam; fewer than 3 left is refused naming them. */
+static int drop_flagged(const kg_patchset *site, const char *what, int *idx_ref,
+                        int *idx_site, int *k, const kg_reference *ref, kg_camera_calib *cam,
+                        kg_err *err)
+{
+	int col = kg_patchset_extra_index(site, "FLAGS");
+	if (col < 0)
+		return 0;
+	int kept = 0, n = *k;
+	cam->flagged_ids = calloc(n > 0 ? (size_t)n : 1, sizeof(char *));
+	cam->flagged_flags = calloc(n > 0 ? (size_t)n : 1, sizeof(unsigned));
+	if (!cam->flagged_ids || !cam->flagged_flags)
+		return kg_fail(err, KG_ENOMEM, "out of memory");
+	for (int i = 0; i < n; i++) {
+		double f = site->extra[(size_t)idx_site[i] * site->nextra + col];
+		if (f == 0 || !isfinite(f) || f < 0) {
+			idx_ref[kept] = idx_ref[i];
+			idx_site[kept++] = idx_site[i];
+			continue;
+		}
+		if (!(cam->flagged_ids[cam->nflagged] = strdup(ref->field_ids[idx_ref[i]])))
+			return kg_fail(err, KG_ENOMEM, "out of memory");
+		cam->flagged_flags[cam->nflagged++] = (unsigned)f;
+	}
+	*k = kept;
+	if (kept >= 3)
+		return 0;
+	char list[600] = "";
+	size_t at = 0;
+	for (int i = 0; i < cam->nflagged && at < sizeof(list) - 1; i++) {
+		char why[96];
+		describe_flags(cam->flagged_flags[i], why, sizeof(why));
+		if (i == 12) {
+			snprintf(list + at, sizeof(list) - at, " and %d more", cam->nflagged - 12);
+			break;
+		}
+		at += (size_t)snprintf(list + at, sizeof(list) - at, "%s%s (%s)", i ? ", " : "",
+		                       cam->flagged_ids[i], why);
+	}
+	return kg_fail(err, KG_EINVAL,
+	               "%s: %d of its %d patches in common with the reference were flagged by "
+	               "chart detection and left out: %s; %d usable patch%s left, M2 needs at "
+	               "least 3. Was the chart detected with its own layout, evenly lit and in "
+	               "full view?",
+	               what, cam->nflagged, n, list, kept, kept == 1 ? "" : "es");
+}
+
+/* A fit whose residual cannot be checked (k = 3) or is too large is refused. */
+static int check_residual(const kg_camera_calib *cam, const kg_camera_options *opt,
+                          const char *what, kg_err *err)
+{
+	if (cam->k == 3 && !opt->force)
+		return kg_fail(err, KG_EINVAL,
+		               "%s: only 3 usable patches (%s, %s, %s): M2 has 9 numbers for 9 "
+		               "values, so its residual is 0 whatever was photographed and the fit "
+		               "cannot be checked; photograph more patches, or pass --force to "
+		               "accept it unchecked",
+		               what, cam->ids[0], cam->ids[1], cam->ids[2]);
+	if (cam->k == 3 || !(cam->residual_relative > opt->max_residual))
+		return 0;
+	/* The worst patches by their residual relative to their reference value. */
+	int order[5] = {-1, -1, -1, -1, -1};
+	double rel[5] = {0};
+	int nworst = cam->k < 5 ? cam->k : 5;
+	for (int i = 0; i < cam->k; i++) {
+		const double *r = cam->residual[i], *v = cam->rho0[i];
+		double e = sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2]);
+		double nv = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+		double x = nv > 0 ? e / nv : e;
+		for (int j = 0; j < nworst; j++)
+			if (order[j] < 0 || x > rel[j]) {
+				memmove(order + j + 1, order + j, (size_t)(nworst - 1 - j) * sizeof(int));
+				memmove(rel + j + 1, rel + j, (size_t)(nworst - 1 - j) * sizeof(double));
+				order[j] = i;
+				rel[j] = x;
+				break;
+			}
+	}
+	char list[400] = "";
+	size_t at = 0;
+	for (int j = 0; j < nworst && at < sizeof(list) - 1; j++)
+		at += (size_t)snprintf(list + at, sizeof(list) - at, "%s%s %.0f %%", j ? ", " : "",
+		                       cam->ids[order[j]], 100 * rel[j]);
+	return kg_fail(err, KG_EINVAL,
+	               "%s: relative residual ||rho0 - M2 rho_r|| / ||rho0|| = %.1f %% over %d "
+	               "patches, above the limit of %.1f %%: the patches do not read as the "
+	               "reference's chart (wrong layout or orientation, no chart in view, or "
+	               "uneven light). Worst patches: %s. --max-residual raises the limit",
+	               what, 100 * cam->residual_relative, cam->k, 100 * opt->max_residual, list);
+}
+
 int kg_camera_fit(const kg_reference *ref, const kg_patchset *site,
                   const kg_camera_options *opt, kg_camera_calib **out, kg_err *err)
 {
@@ -236,6 +356,8 @@ int kg_camera_fit(const kg_reference *ref, const kg_patchset *site,
 		goto error;
 	}
 	ret = match_patches(ref, site, opt, what, idx_ref, idx_site, &k, err);
+	if (!ret)
+		ret = drop_flagged(site, what, idx_ref, idx_site, &k, ref, cam, err);
 	if (ret)
 		goto error;
 
@@ -274,6 +396,8 @@ int kg_camera_fit(const kg_reference *ref, const kg_patchset *site,
 	if (ret)
 		goto error;
 	ret = solve_m2(cam, opt->pinv_rtol, err);
+	if (!ret)
+		ret = check_residual(cam, opt, what, err);
 	if (ret)
 		goto error;
 
@@ -321,6 +445,12 @@ int kg_camera_fit_files(const char *reference_path, const char *site_rgb_path,
 		                       err);
 	if (ret == 0)
 		ret = calib_source_add(&cam->sources, &cam->nsources, "site_rgb", site_rgb_path, err);
+	if (ret == 0) {
+		const kg_calib_source *src = &cam->sources[cam->nsources - 1];
+		ret = kg_camera_identity_from_keywords(site_rgb_path, src->keyword_names,
+		                                       src->keyword_values, src->nkeywords,
+		                                       &cam->identity, err);
+	}
 	kg_reference_free(&ref);
 	kg_patchset_free(&site);
 	if (ret) {

@@ -4,6 +4,7 @@
 #ifndef KG_CLI_H
 #define KG_CLI_H
 
+#include "kg_calib.h"
 #include "kg_core.h"
 
 enum { KG_EXIT_OK = 0, KG_EXIT_INPUT = 1, KG_EXIT_USAGE = 2, KG_EXIT_DEVICE = 3 };
@@ -23,6 +24,18 @@ int kg_cli_wants_help(int argc, char **argv);
 
 /* Parse "start:stop:step" (degrees) into a newly allocated list. */
 int kg_cli_parse_range(const char *text, double **values, int *n, kg_err *err);
+
+/* The camera identity of an image file inside a kogei session (the capture's camera,
+ * pixel format and demosaicing, kg_session_image_identify). An image outside a
+ * session gives id->known = 0 and 0; a session that does not list the image's capture
+ * is an error. */
+int kg_cli_image_identity(const char *image, kg_camera_identity *id, kg_err *err);
+/* Before applying a calibration to an image: 0 when the image's camera is the
+ * calibration's (a note on stderr when its reading settings differ) or either is
+ * unknown (a note that identity was not checked); another camera is refused (err set,
+ * KG_EINVAL) unless force, which turns the refusal into a warning. */
+int kg_cli_check_camera(const kg_camera_calib *cam, const char *calib_path,
+                        const char *image, int force, kg_err *err);
 
 int kg_cmd_spectra_xyz(int argc, char **argv);
 int kg_cmd_model(int argc, char **argv);

@@ -12,7 +12,7 @@ static const char usage_reference[] =
 	"                      [--field-rgb F.cgats] [--basis K|auto] [--centred]\n"
 	"                      [--ridge L] [--noise SIGMA] [--method NAME|auto]\n"
 	"                      [--max-cond C] [--exclude ID[,ID...]]\n"
-	"  Reference calibration (DESIGN.md section 1, step 1). The chart's spectra S\n"
+	"  Reference calibration (once, in the lab). The chart's spectra S\n"
 	"  (CGATS SPEC_* fields, or a patch,name,<nm>... CSV table) and the reference\n"
 	"  camera's linear RGB rho (RGB_R RGB_G RGB_B) are matched by SAMPLE_ID. Fitted:\n"
 	"    pca        B = the K leading right singular vectors of S (--centred: about\n"
@@ -32,19 +32,28 @@ static const char usage_reference[] =
 
 static const char usage_camera[] =
 	"kogei calib camera --reference REF.json --rgb P.cgats -o CAM.json\n"
-	"                   [--method NAME] [--max-cond C] [--clip-level V]\n"
-	"                   [--black-level V] [--exclude ID[,ID...]]\n"
-	"  Site calibration (DESIGN.md section 1, step 2): the site camera's values\n"
-	"  rho_r of the field chart, matched to the reference's rho0 by SAMPLE_ID, give\n"
-	"  M2 = rho0 pinv(rho_r) (SVD). Refused, naming the patches: site ids not on the\n"
-	"  reference's chart, fewer than 3 patches in common, clipped patches (a channel\n"
-	"  >= V, default 0.98; a clipped-fraction column > 0 when the file has one),\n"
-	"  near-black patches (brightest channel < V, default 0.01), and nearly collinear\n"
-	"  charts (condition number of rho_r with each channel scaled to unit RMS above\n"
-	"  C, default 100: e.g. neutral patches only). --exclude leaves patches out.\n"
+	"                   [--method NAME] [--max-cond C] [--max-residual R] [--force]\n"
+	"                   [--clip-level V] [--black-level V] [--exclude ID[,ID...]]\n"
+	"  Site calibration: the site camera's values rho_r of the field chart, matched to\n"
+	"  the reference's rho0 by SAMPLE_ID, give M2 = rho0 pinv(rho_r) (SVD). Patches\n"
+	"  chart detection flagged (FLAGS: clipped, glare, too few pixels, out of frame,\n"
+	"  non-uniform) are left out and listed. Refused, naming the patches: site ids not\n"
+	"  on the reference's chart, fewer than 3 patches in common or left after the\n"
+	"  flagged ones, clipped patches (a channel >= V, default 0.98; a clipped-fraction\n"
+	"  column > 0 when the file has one), near-black patches (brightest channel < V,\n"
+	"  default 0.01), nearly collinear charts (condition number of rho_r with each\n"
+	"  channel scaled to unit RMS above C, default 100: e.g. neutral patches only), a\n"
+	"  relative residual ||rho0 - M2 rho_r|| / ||rho0|| above R (default 0.10: good\n"
+	"  charts of another camera leave 1.5-3.4 %, patches read in the wrong order or no\n"
+	"  chart in view 60 % and more), and a chart of exactly 3 usable patches, whose\n"
+	"  residual is 0 whatever was photographed, unless --force. --exclude leaves\n"
+	"  patches out.\n"
 	"  --method sets the default method of CAM.json (default: the reference's).\n"
-	"  Writes kogei-camera/1 JSON (B, M, M2, A = B M M2, every method's map) and\n"
-	"  prints the condition number and residuals.";
+	"  The camera that photographed the chart (patch file keywords CAMERA_*, written by\n"
+	"  kogei chart detect on a session's capture) is recorded in CAM.json; estimate\n"
+	"  and classify refuse images of another camera. Writes kogei-camera/1 JSON (B, M,\n"
+	"  M2, A = B M M2, every method's map) and prints the condition number and\n"
+	"  residuals.";
 
 /* Split "a,b,c" into a NULL-terminated list (one allocation for the pointers, one
  * for the text). */
@@ -243,8 +252,22 @@ static void print_camera(FILE *fp, const kg_camera_calib *cam, const char *out)
 	}
 	fprintf(fp, "largest residual: patch %s (%.5f)\n", cam->ids[worst], wv);
 	fprintf(fp, "default method: %s\n", kg_method_name(cam->method));
+	char id[512];
+	kg_camera_identity_describe(&cam->identity, id, sizeof(id));
+	fprintf(fp, "camera: %s\n", id);
 	if (strcmp(out, "-") != 0)
 		fprintf(fp, "wrote %s\n", out);
+}
+
+/* The patches chart detection flagged, left out of M2. */
+static void note_flagged(const kg_camera_calib *cam, const char *rgb)
+{
+	fprintf(stderr, "kogei: note: %s: %d patch%s flagged by chart detection left out of M2:",
+	        rgb, cam->nflagged, cam->nflagged == 1 ? "" : "es");
+	for (int i = 0; i < cam->nflagged; i++)
+		fprintf(stderr, "%s %s (flags %u)", i ? "," : "", cam->flagged_ids[i],
+		        cam->flagged_flags[i]);
+	fputc('\n', stderr);
 }
 
 int kg_cmd_calib_camera(int argc, char **argv)
@@ -260,6 +283,8 @@ int kg_cmd_calib_camera(int argc, char **argv)
 		{"max-cond", required_argument, NULL, 'C'},
 		{"clip-level", required_argument, NULL, 'L'},
 		{"black-level", required_argument, NULL, 'B'},
+		{"max-residual", required_argument, NULL, 'X'},
+		{"force", no_argument, NULL, 'f'},
 		{"exclude", required_argument, NULL, 'x'},
 		{"output", required_argument, NULL, 'o'},
 		{"help", no_argument, NULL, 'h'},
@@ -293,6 +318,12 @@ int kg_cmd_calib_camera(int argc, char **argv)
 				return kg_cli_usage_error(usage_camera,
 				                          "--black-level %s: expected a number >= 0", optarg);
 			break;
+		case 'X':
+			if (parse_double(optarg, &opt.max_residual) || !(opt.max_residual > 0))
+				return kg_cli_usage_error(usage_camera,
+				                          "--max-residual %s: expected a number > 0", optarg);
+			break;
+		case 'f': opt.force = 1; break;
 		case 'h': puts(usage_camera); return KG_EXIT_OK;
 		default: return kg_cli_usage_error(usage_camera, "bad option");
 		}
@@ -312,6 +343,11 @@ int kg_cmd_calib_camera(int argc, char **argv)
 	int ret = kg_camera_fit_files(refpath, rgb, &opt, &cam, &err);
 	if (!ret && method != KG_METHOD_AUTO)
 		ret = kg_camera_set_method(cam, method, &err);
+	if (!ret && cam->nflagged)
+		note_flagged(cam, rgb);
+	if (!ret && cam->k == 3)
+		fprintf(stderr, "kogei: warning: --force: M2 from exactly 3 patches; its residual is "
+		                "0 by construction, so the fit was not checked\n");
 	if (!ret)
 		ret = kg_camera_save(cam, out, &err);
 	if (!ret)

@@ -40,10 +40,18 @@ static const char help_detect[] =
 	"  --statistic S        median (default; interpolated between integer codes) or\n"
 	"                       trimmed-mean (10 % cut at each end)\n"
 	"  --family NAME        tag family (default: the layout's)\n"
-	"  --min-tags N         fewest tags that may place the chart (default 2)\n"
+	"  --min-tags N         fewest tags that may place the chart; without it 2, and a\n"
+	"                       ColorChecker 24 layout with no tag in view falls back to\n"
+	"                       the tagless detector; N given: N tags, no fallback\n"
 	"  --clip-level V       a channel at or above V is clipped (default: full scale)\n"
-	"  --tagless            find an unframed ColorChecker with OpenCV mcc\n"
+	"  --tagless            find an unframed ColorChecker with OpenCV mcc; a box whose\n"
+	"                       patches do not read as the layout in any turn is refused\n"
 	"  --quiet              no summary on standard error (warnings still shown)\n"
+	"\n"
+	"IMAGE inside a kogei session (SESSION/captures/NAME/rgb.tif, mean.tif) also gives\n"
+	"the patch file the camera that took it: keywords CAMERA_BACKEND, CAMERA_MODEL,\n"
+	"CAMERA_SERIAL, CAMERA_PIXFMT, CAMERA_WHITE_LEVEL, CAMERA_DEMOSAIC and CAPTURE,\n"
+	"which kogei calib camera records in the calibration.\n"
 	"\n"
 	"Warnings go to standard error. Exit status 1 when the chart is not found (the\n"
 	"message says what was seen), 2 on bad usage.";
@@ -156,6 +164,9 @@ int kg_cmd_chart_detect(int argc, char **argv)
 		goto fail;
 	if ((code = kg_image_read(image_path, &img, &err)))
 		goto fail;
+	kg_camera_identity id;
+	if ((code = kg_cli_image_identity(image_path, &id, &err)))
+		goto fail;
 	if ((code = kg_chart_detect(layout, img, &opt, &res, &err))) {
 		kg_err_prefix(&err, "%s: chart %s not found", image_path, layout->name);
 		goto fail;
@@ -172,6 +183,8 @@ int kg_cmd_chart_detect(int argc, char **argv)
 		if (res->tags[i].used)
 			at += (size_t)snprintf(used + at, sizeof(used) - at, "%s%d", at ? "," : "",
 			                       res->tags[i].id);
+	char white[24];
+	snprintf(white, sizeof(white), "%ld", id.white_level);
 	const char *keywords[] = {
 		"ORIGINATOR", "kogei chart detect",
 		"CHART_LAYOUT", layout->name,
@@ -183,8 +196,19 @@ int kg_cmd_chart_detect(int argc, char **argv)
 		"TAGS_USED", used[0] ? used : "none",
 		"HOMOGRAPHY_RMS_PX", rms,
 		"PATCH_STATISTIC", kg_chart_statistic_name(opt.statistic),
+		/* the camera, when the image is a session's capture */
+		"CAMERA_BACKEND", id.backend,
+		"CAMERA_MODEL", id.model,
+		"CAMERA_SERIAL", id.serial,
+		"CAMERA_PIXFMT", id.pixfmt,
+		"CAMERA_WHITE_LEVEL", white,
+		"CAMERA_DEMOSAIC", id.demosaic,
+		"CAPTURE", id.capture,
 		NULL,
 	};
+	for (int i = 0; !id.known && keywords[i]; i += 2)
+		if (strcmp(keywords[i], "CAMERA_BACKEND") == 0)
+			keywords[i] = NULL;
 	if ((code = kg_patchset_write(out_path, ps, KG_PATCH_RGB | KG_PATCH_EXTRA, keywords, &err)))
 		goto fail;
 	if (overlay && (code = kg_chart_overlay_write(res, img, overlay, 0, &err)))

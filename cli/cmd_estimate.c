@@ -13,7 +13,7 @@
 static const char usage_estimate[] =
 	"kogei estimate --calib CAM.json IMAGE -o CUBE.hdr [--format f32|f16|weights]\n"
 	"               [--interleave bsq|bip] [--method NAME|lut|auto] [--lut-size N]\n"
-	"               [--threads N] [--block-rows N] [--clip-level V] [--quiet]";
+	"               [--threads N] [--block-rows N] [--clip-level V] [--force] [--quiet]";
 
 static const char help_estimate[] =
 	"\n"
@@ -43,7 +43,15 @@ static const char help_estimate[] =
 	"  --block-rows N       rows per block (default: about 4 MiB of output)\n"
 	"  --clip-level V       pixels with a channel >= V are flagged clipped and not\n"
 	"                       estimated (default 0.999; 'none' disables)\n"
+	"  --force              apply the calibration to an image of another camera\n"
+	"                       (a warning instead of the refusal)\n"
 	"  --quiet              no summary line or progress on standard error\n"
+	"\n"
+	"An IMAGE inside a kogei session (SESSION/captures/NAME/rgb.tif) names its camera;\n"
+	"when it is not the one CAM.json calibrates (backend, model and serial), nothing is\n"
+	"written and the exit status is 1, unless --force. An image from outside a session,\n"
+	"or a calibration that records no camera, is processed with a note that the camera\n"
+	"was not checked.\n"
 	"\n"
 	"Flagged pixels (NaN/Inf input, clipped) are NaN in the cube. A summary line on\n"
 	"standard error counts pixels, clipped, non-finite and clamped ones; images of\n"
@@ -54,7 +62,7 @@ static const char usage_classify[] =
 	"kogei classify --calib CAM.json --materials LIB.json IMAGE -o LABELS.hdr\n"
 	"               [--only a,b,c] [--distance plain|scale-free] [--angle DEG]\n"
 	"               [--method pca] [--threads N] [--block-rows N] [--clip-level V]\n"
-	"               [--quiet]";
+	"               [--force] [--quiet]";
 
 static const char help_classify[] =
 	"\n"
@@ -78,7 +86,8 @@ static const char help_classify[] =
 	"                       counts, mean spectra, confidence), LABELS.png (preview;\n"
 	"                       flagged pixels grey), LABELS_confidence.hdr (float32: the\n"
 	"                       margin to the runner-up) and LABELS_mask.hdr (pixel flags)\n"
-	"  --threads, --block-rows, --clip-level, --quiet   as for kogei estimate\n"
+	"  --threads, --block-rows, --clip-level, --force, --quiet   as for kogei estimate\n"
+	"                       (an image of another camera is refused unless --force)\n"
 	"\n"
 	"Prints the classes with their pixel counts and median margins. Exit status 1 on\n"
 	"bad input (nothing is written), 2 on bad usage.";
@@ -109,7 +118,8 @@ static int parse_clip(const char *text, float *out)
 
 /* Options both commands take. Returns 1 when the option was one of them, 0 when not,
  * and KG_EXIT_USAGE (after the message) when its value is bad. */
-static int common_option(int c, const char *usage, kg_apply_options *opt, int *quiet)
+static int common_option(int c, const char *usage, kg_apply_options *opt, int *quiet,
+                         int *force)
 {
 	switch (c) {
 	case 't':
@@ -127,6 +137,7 @@ static int common_option(int c, const char *usage, kg_apply_options *opt, int *q
 			                           optarg);
 		return 1;
 	case 'q': *quiet = 1; return 1;
+	case 'F': *force = 1; return 1;
 	default: return 0;
 	}
 }
@@ -135,6 +146,7 @@ static int common_option(int c, const char *usage, kg_apply_options *opt, int *q
 	{"calib", required_argument, NULL, 'C'}, {"threads", required_argument, NULL, 't'}, \
 	{"block-rows", required_argument, NULL, 'b'},                                    \
 	{"clip-level", required_argument, NULL, 'c'}, {"quiet", no_argument, NULL, 'q'},  \
+	{"force", no_argument, NULL, 'F'},                                                \
 	{"output", required_argument, NULL, 'o'}, {"help", no_argument, NULL, 'h'}
 
 static int load_image(const char *path, kg_image **img, kg_err *err)
@@ -159,7 +171,7 @@ int kg_cmd_estimate(int argc, char **argv)
 {
 	const char *calib = NULL, *out = NULL;
 	const char *format = "f32", *interleave = "bsq", *method = "auto";
-	int lut_size = 33, quiet = 0;
+	int lut_size = 33, quiet = 0, force = 0;
 	kg_apply_options opt;
 	kg_apply_options_init(&opt);
 	static const struct option opts[] = {
@@ -173,7 +185,7 @@ int kg_cmd_estimate(int argc, char **argv)
 	int c;
 	optind = 1;
 	while ((c = getopt_long(argc, argv, "o:h", opts, NULL)) != -1) {
-		int r = common_option(c, usage_estimate, &opt, &quiet);
+		int r = common_option(c, usage_estimate, &opt, &quiet, &force);
 		if (r < 0)
 			return -r;
 		if (r)
@@ -234,6 +246,8 @@ int kg_cmd_estimate(int argc, char **argv)
 	int pre_needed = 0;
 	kg_est_stats stats;
 	int rc = kg_camera_load(calib, &cam, &err);
+	if (!rc)
+		rc = kg_cli_check_camera(cam, calib, image, force, &err);
 	if (!rc && (rc = kg_camera_kernel(cam, m, lut ? lut_size : 0, &k, pre, &pre_needed, &err)))
 		kg_err_prefix(&err, "%s: ", calib);
 	if (!rc && fmt == KG_EST_WEIGHTS && kg_est_kernel_k(k) == 0)
@@ -297,7 +311,7 @@ int kg_cmd_classify(int argc, char **argv)
 	const char *method = "pca";
 	char *only = NULL;
 	double angle = 0;
-	int quiet = 0;
+	int quiet = 0, force = 0;
 	kg_apply_options opt;
 	kg_apply_options_init(&opt);
 	static const struct option opts[] = {
@@ -312,7 +326,7 @@ int kg_cmd_classify(int argc, char **argv)
 	int c;
 	optind = 1;
 	while ((c = getopt_long(argc, argv, "o:h", opts, NULL)) != -1) {
-		int r = common_option(c, usage_classify, &opt, &quiet);
+		int r = common_option(c, usage_classify, &opt, &quiet, &force);
 		if (r < 0)
 			return -r;
 		if (r)
@@ -382,6 +396,8 @@ int kg_cmd_classify(int argc, char **argv)
 	double pre[9];
 	kg_classify_result res = {0};
 	int rc = kg_camera_load(calib, &cam, &err);
+	if (!rc)
+		rc = kg_cli_check_camera(cam, calib, image, force, &err);
 	if (!rc && (rc = kg_camera_kernel(cam, m, 0, &k, pre, NULL, &err)))
 		kg_err_prefix(&err, "%s: ", calib);
 	if (!rc)

@@ -1,9 +1,11 @@
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
 
 #include "cli.h"
+#include "kg_acquire.h"
 #include "kg_config.h"
 
 int kg_cli_parse_range(const char *text, double **values, int *n, kg_err *err)
@@ -25,5 +27,49 @@ int kg_cli_parse_range(const char *text, double **values, int *n, kg_err *err)
 		v[i] = a + i * s;
 	*values = v;
 	*n = count;
+	return 0;
+}
+
+int kg_cli_image_identity(const char *image, kg_camera_identity *id, kg_err *err)
+{
+	memset(id, 0, sizeof(*id));
+	kg_session_image si;
+	kg_err local = {{0}};
+	int ret = kg_session_image_identify(image, &si, &local);
+	if (ret == KG_ENOENT)
+		return 0;
+	if (ret)
+		return kg_fail(err, ret, "%s", local.msg);
+	id->known = 1;
+	snprintf(id->backend, sizeof(id->backend), "%s", si.backend);
+	snprintf(id->model, sizeof(id->model), "%s", si.model);
+	snprintf(id->serial, sizeof(id->serial), "%s", si.serial);
+	snprintf(id->pixfmt, sizeof(id->pixfmt), "%s", si.pixfmt);
+	id->white_level = si.white_level;
+	snprintf(id->demosaic, sizeof(id->demosaic), "%s", si.demosaic);
+	snprintf(id->capture, sizeof(id->capture), "%s", si.capture);
+	return 0;
+}
+
+int kg_cli_check_camera(const kg_camera_calib *cam, const char *calib_path,
+                        const char *image, int force, kg_err *err)
+{
+	kg_camera_identity id;
+	int ret = kg_cli_image_identity(image, &id, err);
+	if (ret)
+		return ret;
+	char note[512];
+	kg_err why = {{0}};
+	ret = kg_camera_identity_check(&cam->identity, calib_path, &id, image, note,
+	                               sizeof(note), &why);
+	if (ret == 0 && note[0])
+		fprintf(stderr, "kogei: note: %s: same camera as %s, read differently: %s\n", image,
+		        calib_path, note);
+	else if (ret == KG_ENOENT)
+		fprintf(stderr, "kogei: note: camera identity not checked: %s\n", why.msg);
+	else if (ret == KG_EINVAL && force)
+		fprintf(stderr, "kogei: warning: --force: %s\n", why.msg);
+	else if (ret)
+		return kg_fail(err, ret, "%s", why.msg);
 	return 0;
 }

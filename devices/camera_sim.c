@@ -12,6 +12,8 @@
  * the Rec. 709 luminance of an RGB scene for mono, and wb the white-balance gain of red
  * and blue samples (1 for green and mono). The random generator of a frame is seeded
  * from (seed, sequence), so a frame depends only on the settings it was taken with.
+ * The camera's identity is the sensor's: model "simulated sensor (fullwell F e-, read R
+ * e-)" and serial from serial= (default "sim"), whatever the scene and the seed.
  *
  * light=F scales the scene (light=0: the lens capped, for dark captures); uniform=V
  * makes every scene value V (a flat field; an image given then sets only the size).
@@ -37,6 +39,7 @@ typedef struct sim_cam {
 	/* model */
 	double fullwell, read_e, ref_exposure_us;
 	uint64_t seed;
+	char serial[64];
 	long drop, stall;
 	int realtime;
 	double light;   /* scale of the scene (0: the lens capped, for darks) */
@@ -291,7 +294,7 @@ static void sim_close(void *state)
 }
 
 static const char sim_keys[] = "width, height, format, bits, fullwell, read, seed, "
-                               "ref_exposure_us, fps, drop, stall, realtime, light, uniform";
+                               "serial, ref_exposure_us, fps, drop, stall, realtime, light, uniform";
 
 /* A number filling all of text within [min, max]; integral when asked. */
 static int parse_value(const char *key, const char *text, double min, double max,
@@ -350,6 +353,15 @@ static int parse_keys(sim_cam *s, char *q, int have_image, int *w, int *h, kg_er
 			s->seed = strtoull(val, &end, 10);
 			if (end == val || *end)
 				ret = kg_fail(err, KG_EINVAL, "seed=%s: expected a whole number", val);
+		} else if (!strcmp(kv, "serial")) {
+			size_t n = strlen(val);
+			int ok = n > 0 && n < sizeof(s->serial);
+			for (size_t i = 0; ok && i < n; i++)
+				ok = val[i] > ' ' && val[i] < 127;
+			if (!ok)
+				return kg_fail(err, KG_EINVAL, "serial=%s: expected 1..%zu printable "
+				               "characters without spaces", val, sizeof(s->serial) - 1);
+			memcpy(s->serial, val, n + 1);
 		} else if (!strcmp(kv, "ref_exposure_us")) {
 			ret = parse_value(kv, val, 10, 1e7, 0, &s->ref_exposure_us, err);
 		} else if (!strcmp(kv, "fps")) {
@@ -388,6 +400,7 @@ static int sim_open(const char *target, void **state, kg_camera_info *info, kg_e
 	s->fullwell = 20000;
 	s->read_e = 5;
 	s->seed = 1;
+	snprintf(s->serial, sizeof(s->serial), "sim");
 	s->ref_exposure_us = 10000;
 	s->fps = 30;
 	s->light = 1;
@@ -433,9 +446,12 @@ static int sim_open(const char *target, void **state, kg_camera_info *info, kg_e
 	}
 	clock_gettime(CLOCK_MONOTONIC, &s->t0);
 	snprintf(info->vendor, sizeof(info->vendor), "kogei");
-	snprintf(info->model, sizeof(info->model), "simulated sensor%s%.40s", t[0] ? ": " : "",
-	         t[0] ? (strrchr(t, '/') ? strrchr(t, '/') + 1 : t) : "");
-	snprintf(info->serial, sizeof(info->serial), "sim-%llu", (unsigned long long)s->seed);
+	/* The sensor, not what it looks at: one simulated camera photographing a chart and
+	 * then an object is one camera. */
+	char params[96];
+	snprintf(params, sizeof(params), "fullwell %.6g e-, read %.4g e-", s->fullwell, s->read_e);
+	snprintf(info->model, sizeof(info->model), "simulated sensor (%.40s)", params);
+	snprintf(info->serial, sizeof(info->serial), "%s", s->serial);
 	snprintf(info->transport, sizeof(info->transport), "sim");
 	info->sensor_width = s->scene->width;
 	info->sensor_height = s->scene->height;
@@ -614,7 +630,8 @@ static int sim_push(void *state, kg_frame *frame, kg_err *err)
 
 const kg_camera_driver kg_camera_sim_driver = {
 	.scheme = "sim",
-	.description = "simulated sensor: sim:[IMAGE][?key=value&...] (Poisson and read noise)",
+	.description = "simulated sensor: sim:[IMAGE][?key=value&...] (Poisson and read noise; "
+	               "serial=S names the camera)",
 	.open = sim_open,
 	.close = sim_close,
 	.feature_info = sim_feature_info,

@@ -8,7 +8,15 @@
  *  - near-black patches (brightest channel < 0.01);
  *  - site ids the reference does not know;
  *  - NaN values, duplicate ids, an --exclude id that exists nowhere;
- * and --exclude turns a refused chart into an accepted one. */
+ *  - exactly 3 patches (residual 0 by construction) unless forced;
+ *  - patches read in the wrong order (relative residual above max_residual);
+ *  - too few patches left after those detection flagged (which are left out and
+ *    listed, also through kogei-camera/1);
+ * and --exclude turns a refused chart into an accepted one. The camera identity
+ * comparison and its JSON round trip are checked at the end. */
+#include <stdlib.h>
+#include <unistd.h>
+
 #include "calib_fixture.h"
 #include "kg_test.h"
 
@@ -66,6 +74,131 @@ static void expect_accepted(const char *what, const kg_reference *ref, const kg_
 	if (cam)
 		CHECK(cam->k == k, "%s: %d patches used, expected %d", what, cam->k, k);
 	kg_camera_calib_free(&cam);
+}
+
+/* Patches flagged by detection (a FLAGS column) are left out and listed; too few
+ * left refuses. Patches in the wrong order leave a residual above the limit. */
+static void test_flagged_and_residual(const kg_reference *ref, int n, const char *const *ids,
+                                      const double (*rgb)[3])
+{
+	kg_camera_options opt;
+	kg_camera_options_default(&opt);
+	kg_err err = {{0}};
+	kg_patchset *site = site_set(n, ids, rgb);
+	CHECK(kg_patchset_add_extra(site, "FLAGS", &err) == 0, "%s", err.msg);
+	int col = kg_patchset_extra_index(site, "FLAGS");
+	site->extra[1 * site->nextra + col] = KG_CHART_FLAG_NONUNIFORM;
+	site->extra[4 * site->nextra + col] = KG_CHART_FLAG_GLARE | KG_CHART_FLAG_CLIPPED;
+	kg_camera_calib *cam = NULL;
+	int ret = kg_camera_fit(ref, site, &opt, &cam, &err);
+	CHECK(ret == 0 && cam && cam->k == n - 2 && cam->nflagged == 2, "two flagged: %d %s", ret,
+	      err.msg);
+	if (cam && cam->nflagged == 2) {
+		CHECK(!strcmp(cam->flagged_ids[0], ids[1]) && !strcmp(cam->flagged_ids[1], ids[4]) &&
+		          cam->flagged_flags[0] == KG_CHART_FLAG_NONUNIFORM &&
+		          cam->flagged_flags[1] == (KG_CHART_FLAG_GLARE | KG_CHART_FLAG_CLIPPED),
+		      "flagged: %s %u, %s %u", cam->flagged_ids[0], cam->flagged_flags[0],
+		      cam->flagged_ids[1], cam->flagged_flags[1]);
+		for (int i = 0; i < cam->k; i++)
+			CHECK(strcmp(cam->ids[i], ids[1]) && strcmp(cam->ids[i], ids[4]),
+			      "flagged patch %s used", cam->ids[i]);
+		/* Through the file and back. */
+		memcpy(cam->identity.backend, "sim", 4);
+		cam->identity.known = 1;
+		snprintf(cam->identity.model, sizeof(cam->identity.model), "simulated sensor");
+		snprintf(cam->identity.serial, sizeof(cam->identity.serial), "A");
+		snprintf(cam->identity.pixfmt, sizeof(cam->identity.pixfmt), "bayer16");
+		cam->identity.white_level = 4095;
+		snprintf(cam->identity.demosaic, sizeof(cam->identity.demosaic), "bilinear");
+		snprintf(cam->identity.capture, sizeof(cam->identity.capture), "chart");
+		char path[] = "/tmp/kg-calib-refusals-XXXXXX";
+		int fd = mkstemp(path);
+		if (fd >= 0)
+			close(fd);
+		kg_camera_calib *back = NULL;
+		CHECK(fd >= 0 && kg_camera_save(cam, path, &err) == 0 &&
+		          kg_camera_load(path, &back, &err) == 0,
+		      "round trip: %s", err.msg);
+		if (back) {
+			CHECK(back->nflagged == 2 && !strcmp(back->flagged_ids[1], ids[4]) &&
+			          back->flagged_flags[1] == cam->flagged_flags[1],
+			      "flagged after the round trip");
+			CHECK(!memcmp(&back->identity, &cam->identity, sizeof(cam->identity)),
+			      "identity after the round trip: %s %s", back->identity.model,
+			      back->identity.serial);
+		}
+		kg_camera_calib_free(&back);
+		unlink(path);
+	}
+	kg_camera_calib_free(&cam);
+	/* All but 2 flagged: refused, naming them and why. */
+	for (int i = 0; i < n - 2; i++)
+		site->extra[i * site->nextra + col] = KG_CHART_FLAG_NONUNIFORM;
+	expect_refusal("all but 2 flagged", ref, site, &opt,
+	               (const char *const[]){"flagged by chart detection and left out",
+	                                     "(non-uniform)", "2 usable patches left", NULL});
+	kg_patchset_free(&site);
+
+	/* The chart read turned around: ids kept, values reversed. */
+	double turned[64][3];
+	for (int i = 0; i < n; i++)
+		memcpy(turned[i], rgb[n - 1 - i], sizeof(turned[i]));
+	kg_patchset *rev = site_set(n, ids, (const double (*)[3])turned);
+	expect_refusal("turned chart", ref, rev, &opt,
+	               (const char *const[]){"site.cgats: relative residual",
+	                                     "above the limit of 10.0 %", "Worst patches: P", NULL});
+	opt.max_residual = 10;
+	expect_accepted("turned chart, limit 1000 %", ref, rev, &opt, n);
+	opt.max_residual = 0;
+	expect_refusal("limit 0", ref, rev, &opt, (const char *const[]){"residual limit 0", NULL});
+	kg_patchset_free(&rev);
+}
+
+/* Same camera, another camera, unknown. */
+static void test_identity(void)
+{
+	kg_camera_identity a = {.known = 1, .white_level = 4095}, b, u = {0};
+	snprintf(a.backend, sizeof(a.backend), "sim");
+	snprintf(a.model, sizeof(a.model), "simulated sensor");
+	snprintf(a.serial, sizeof(a.serial), "A");
+	snprintf(a.pixfmt, sizeof(a.pixfmt), "bayer16");
+	snprintf(a.demosaic, sizeof(a.demosaic), "bilinear");
+	b = a;
+	char note[256];
+	kg_err err = {{0}};
+	CHECK(kg_camera_identity_check(&a, "cam.json", &b, "img.tif", note, sizeof(note), &err) ==
+	              0 && note[0] == 0,
+	      "same camera: %s / %s", err.msg, note);
+	snprintf(b.pixfmt, sizeof(b.pixfmt), "rgb16");
+	CHECK(kg_camera_identity_check(&a, "cam.json", &b, "img.tif", note, sizeof(note), &err) ==
+	              0 && strstr(note, "pixel format rgb16, calibrated in bayer16"),
+	      "same camera, another format: %s", note);
+	snprintf(b.serial, sizeof(b.serial), "B");
+	int ret = kg_camera_identity_check(&a, "cam.json", &b, "img.tif", note, sizeof(note), &err);
+	CHECK(ret == KG_EINVAL && strstr(err.msg, "img.tif was taken by sim camera") &&
+	          strstr(err.msg, "serial B") && strstr(err.msg, "cam.json calibrates") &&
+	          strstr(err.msg, "serial A") && strstr(err.msg, "--force"),
+	      "another camera: %d %s", ret, err.msg);
+	ret = kg_camera_identity_check(&u, "cam.json", &b, "img.tif", note, sizeof(note), &err);
+	CHECK(ret == KG_ENOENT && strstr(err.msg, "cam.json records no camera identity"),
+	      "calibration unknown: %s", err.msg);
+	ret = kg_camera_identity_check(&a, "cam.json", &u, "img.tif", note, sizeof(note), &err);
+	CHECK(ret == KG_ENOENT && strstr(err.msg, "img.tif is not a capture of a kogei session"),
+	      "image unknown: %s", err.msg);
+	/* From keywords: known only with backend, model and serial. */
+	char *names[] = {"CAMERA_BACKEND", "CAMERA_MODEL", "CAMERA_SERIAL", "CAMERA_WHITE_LEVEL"};
+	char *values[] = {"sim", "simulated sensor", "A", "4095"};
+	kg_camera_identity k;
+	CHECK(kg_camera_identity_from_keywords("p.cgats", names, values, 4, &k, &err) == 0 &&
+	          k.known && k.white_level == 4095 && !strcmp(k.serial, "A"),
+	      "from keywords: %s", err.msg);
+	CHECK(kg_camera_identity_from_keywords("p.cgats", names, values, 2, &k, &err) == 0 &&
+	          !k.known,
+	      "without a serial: unknown");
+	values[3] = "4095.5";
+	CHECK(kg_camera_identity_from_keywords("p.cgats", names, values, 4, &k, &err) ==
+	              KG_EINVAL && strstr(err.msg, "p.cgats: CAMERA_WHITE_LEVEL"),
+	      "bad white level: %s", err.msg);
 }
 
 int main(void)
@@ -128,7 +261,14 @@ int main(void)
 	kg_patchset *three = site_set(3, three_ids, (const double (*)[3])three_rgb);
 	kg_camera_calib *cam3 = NULL;
 	kg_err err3 = {{0}};
+	/* Their residual is 0 whatever they are: refused as unchecked, unless forced. */
 	int ret3 = kg_camera_fit(ref, three, &opt, &cam3, &err3);
+	CHECK(ret3 == KG_EINVAL && !cam3 && strstr(err3.msg, "only 3 usable patches") &&
+	          strstr(err3.msg, "cannot be checked") && strstr(err3.msg, "--force"),
+	      "three patches unforced: %d %s", ret3, err3.msg);
+	kg_camera_options forced = opt;
+	forced.force = 1;
+	ret3 = kg_camera_fit(ref, three, &forced, &cam3, &err3);
 	CHECK(ret3 == 0, "three patches %s %s %s: %s", three_ids[0], three_ids[1], three_ids[2],
 	      err3.msg);
 	if (cam3) {
@@ -268,6 +408,9 @@ int main(void)
 	CHECK(ret == 0 && r2 && r2->m == 23 && r2->k == 23, "reference with P4 excluded: %s",
 	      err.msg);
 	kg_reference_free(&r2);
+
+	test_flagged_and_residual(ref, 24, ids, (const double (*)[3])rgb);
+	test_identity();
 
 	kg_patchset_free(&good);
 	kg_reference_free(&ref);

@@ -164,7 +164,7 @@ static void test_round_trip(const char *session)
 	kg_err e = {{0}};
 	const kg_camera_info *info = kg_camera_get_info(c);
 	CHECK(!strcmp(info->transport, "replay") && !strcmp(info->vendor, "kogei") &&
-	          !strcmp(info->serial, "sim-3") && info->sensor_width == 24,
+	          !strcmp(info->serial, "S3") && info->sensor_width == 24,
 	      "identity: %s %s %s", info->transport, info->vendor, info->serial);
 	cam_must(kg_camera_manual(c, &e), &e, "manual");
 	double v = 0;
@@ -355,7 +355,7 @@ int main(void)
 	char session[4400], again[4400];
 	snprintf(session, sizeof(session), "%s", cam_path("session"));
 	snprintf(again, sizeof(again), "%s", cam_path("again"));
-	record("sim:?width=24&height=16&format=bayer_rggb12&seed=3", session, shots);
+	record("sim:?width=24&height=16&format=bayer_rggb12&seed=3&serial=S3", session, shots);
 	test_recorded_files(session);
 	test_round_trip(session);
 	test_rerecord(session, again);
