@@ -87,7 +87,7 @@ static double confusion(const char *title, const char *labels_hdr, const char *t
 	}
 	int lmap[256], tmap[256];
 	int nl = class_map(el, lmap, 256), nt = class_map(et, tmap, 256);
-	CHECK(nl == NM + 1 && nt >= NM + 1, "%s: %d and %d classes", title, nl, nt);
+	CHECK(nl == NM + 3 && nt >= NM + 1, "%s: %d and %d classes", title, nl, nt);
 	long cm[NM][NM] = {{0}}, row[NM] = {0}, correct = 0, total = 0, unclassified = 0;
 	size_t n = (size_t)el->meta.samples * el->meta.lines;
 	for (size_t i = 0; i < n; i++) {
@@ -105,7 +105,7 @@ static double confusion(const char *title, const char *labels_hdr, const char *t
 		correct += l == t;
 	}
 	printf("\n%s: confusion matrix (rows: true material, columns: label; %ld pixels, "
-	       "%ld unclassified)\n%-26s",
+	       "%ld unclassified, unknown or background)\n%-26s",
 	       title, total, unclassified, "");
 	for (int j = 0; j < NM; j++)
 		printf(" %5.5s", materials[j] + (strncmp(materials[j], "shibuichi-", 10) ? 0 : 10));
@@ -137,16 +137,16 @@ static void check_side_files(const char *stem)
 	snprintf(p, sizeof(p), "%s.hdr", fx_path(stem));
 	float *lab = fx_read_envi(p, NULL);
 	CHECK(conf && lab, "%s: confidence and labels read back", stem);
-	long counts[NM + 1] = {0};
+	long counts[NM + 3] = {0};
 	if (conf && lab) {
 		int bad = 0;
 		size_t n = (size_t)e->meta.samples * e->meta.lines;
 		for (size_t i = 0; i < n; i++) {
 			int l = (int)lab[i];
-			if (l >= 0 && l <= NM)
+			if (l >= 0 && l <= NM + 2)
 				counts[l]++;
-			bad += l > 0 && !(conf[i] >= 0);
-			bad += l == 0 && !isnan(conf[i]);
+			bad += l > 0 && l <= NM && !(conf[i] >= 0);
+			bad += (l == 0 || l > NM) && !isnan(conf[i]);
 		}
 		CHECK(bad == 0, "%s: %d margins negative or misplaced", stem, bad);
 	}
@@ -155,14 +155,14 @@ static void check_side_files(const char *stem)
 	kg_err err = {{0}};
 	CHECK(kg_json_load(p, &root, &err) == 0, "%s: %s", p, err.msg);
 	json_t *classes = root ? json_object_get(root, "classes") : NULL;
-	CHECK(json_is_array(classes) && json_array_size(classes) == NM + 1,
-	      "%s: expected %d classes", p, NM + 1);
+	CHECK(json_is_array(classes) && json_array_size(classes) == NM + 3,
+	      "%s: expected %d classes", p, NM + 3);
 	for (size_t j = 0; classes && j < json_array_size(classes); j++) {
 		json_t *c = json_array_get(classes, j);
 		long px = (long)json_integer_value(json_object_get(c, "pixels"));
-		CHECK(j > NM || px == counts[j], "%s: class %zu: %ld pixels, the map has %ld", p, j, px,
-		      j <= NM ? counts[j] : -1L);
-		if (j > 0 && px > 0) {
+		CHECK(j > NM + 2 || px == counts[j], "%s: class %zu: %ld pixels, the map has %ld", p, j,
+		      px, j <= NM + 2 ? counts[j] : -1L);
+		if (j > 0 && j <= NM && px > 0) {
 			json_t *ms = json_object_get(c, "mean_spectrum");
 			CHECK(json_is_array(ms) && json_array_size(ms) == KG_NBANDS,
 			      "%s: class %zu: mean spectrum", p, j);
