@@ -1,9 +1,10 @@
 /* `kogei classify` on simulated scenes of the paper's materials, with real camera
  * sensitivities and chart spectra from ../shared/reference (skipped without it).
  *
- * Setup: reference camera Nikon D5100 and site camera Canon EOS 5D Mark II, both
- * under D65, calibrated on the ColorChecker 24 (BabelColor average) through `kogei sim
- * patches` (noise-free), `kogei calib reference` (pca, K = 3) and `kogei calib camera`.
+ * Setup: fx_paper_calibration (reference camera Nikon D5100 and site camera Canon EOS
+ * 5D Mark II, both under D65, calibrated on the ColorChecker 24 (BabelColor average)
+ * through `kogei sim patches` (noise-free), `kogei calib reference` (pca, K = 3) and
+ * `kogei calib camera`).
  * Scene: `kogei sim image` of gold, silver, copper, the five shibuichi, shakudo and
  * urushi at normal incidence, 40 x 40 pixels each, seen by the site camera with
  * noise: full well 20000 e-, read noise 10 e- rms, 12 bits (shot-noise SNR 100 at
@@ -179,33 +180,21 @@ static void check_side_files(const char *stem)
 int main(int argc, char **argv)
 {
 	fx_setup(argc, argv);
-	const char *refdir = kg_test_reference_dir();
-	char chart[8192], refcam[8192], sitecam[8192], lib[8192];
-	snprintf(chart, sizeof(chart), "%s/charts/colorchecker24_babelcolor_avg.csv", refdir);
-	snprintf(refcam, sizeof(refcam), "%s/cameras/Nikon_D5100.csv", refdir);
-	snprintf(sitecam, sizeof(sitecam), "%s/cameras/Canon_EOS_5D_Mark_II.csv", refdir);
+	char sitecam[8192], lib[4096];
 	snprintf(lib, sizeof(lib), "%s/fixtures/materials/default.json", KG_SOURCE_ROOT);
-	if (!kg_test_file_exists(chart) || !kg_test_file_exists(refcam) ||
-	    !kg_test_file_exists(sitecam))
-		kg_test_skip("ColorChecker or camera files missing from ../shared/reference");
-
-	const char *ref_rgb = fx_path("ref.cgats"), *site_rgb = fx_path("site.cgats");
-	const char *ref = fx_path("ref.json"), *cam = fx_path("cam.json");
+	const char *cam = fx_path("cam.json");
 	const char *scene = fx_path("scene.tif"), *truth = fx_path("truth.hdr");
 	const char *scene0 = fx_path("scene0.tif"), *truth0 = fx_path("truth0.hdr");
-	int ok = FX_RUN("sim", "patches", "--spectra", chart, "--camera", refcam, "--illuminant",
-	                "D65", "-o", ref_rgb) == 0 &&
-	         FX_RUN("sim", "patches", "--spectra", chart, "--camera", sitecam, "--illuminant",
-	                "D65", "-o", site_rgb) == 0 &&
-	         FX_RUN("calib", "reference", "--spectra", chart, "--rgb", ref_rgb, "-o", ref) == 0 &&
-	         FX_RUN("calib", "camera", "--reference", ref, "--rgb", site_rgb, "--method", "pca",
-	                "-o", cam) == 0 &&
-	         FX_RUN("sim", "image", "--materials", lib, "--only", only, "--camera", sitecam,
-	                "--illuminant", "D65", "--patch-size", "40", "--depth", "16", "--noise",
-	                "20000:10:12", "--seed", "1", "-o", scene, "--truth-labels", truth) == 0 &&
-	         FX_RUN("sim", "image", "--materials", lib, "--only", only, "--camera", sitecam,
-	                "--illuminant", "D65", "--patch-size", "40", "--depth", "float", "-o",
-	                scene0, "--truth-labels", truth0) == 0;
+	int ok = fx_paper_calibration(cam, sitecam, sizeof(sitecam));
+	if (ok == 77)
+		kg_test_skip("ColorChecker or camera files missing from ../shared/reference");
+	ok = ok &&
+	     FX_RUN("sim", "image", "--materials", lib, "--only", only, "--camera", sitecam,
+	            "--illuminant", "D65", "--patch-size", "40", "--depth", "16", "--noise",
+	            "20000:10:12", "--seed", "1", "-o", scene, "--truth-labels", truth) == 0 &&
+	     FX_RUN("sim", "image", "--materials", lib, "--only", only, "--camera", sitecam,
+	            "--illuminant", "D65", "--patch-size", "40", "--depth", "float", "-o", scene0,
+	            "--truth-labels", truth0) == 0;
 	CHECK(ok, "simulation and calibration: %s", fx_errs);
 	if (!ok)
 		return kg_test_done("apply-classify");
