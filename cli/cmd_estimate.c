@@ -458,8 +458,15 @@ int kg_cmd_classify(int argc, char **argv)
 	if (!rc) {
 		kg_classify_info info = {calib, library, kg_method_name(m), image, variance, mask};
 		opt.progress = quiet ? NULL : stderr;
-		copt.residual_relative = cam->residual_relative;
-		rc = kg_classify_image_opts(k, set, img, &opt, &copt, &info, out, &res, &err);
+		copt.residual_relative = isinf(copt.unknown_threshold) ? 0 : cam->residual_relative;
+		if (!(copt.residual_relative >= 0 && isfinite(copt.residual_relative)))
+			rc = kg_fail(&err, KG_EINVAL,
+			             "%s: site.residual_relative is %g: the unknown test needs the "
+			             "calibration's relative residual (recalibrate, or classify with "
+			             "--unknown-threshold none)",
+			             calib, cam->residual_relative);
+		else
+			rc = kg_classify_image_opts(k, set, img, &opt, &copt, &info, out, &res, &err);
 	}
 	if (!rc) {
 		if (!quiet) {
