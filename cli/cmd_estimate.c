@@ -59,11 +59,13 @@ static const char usage_classify[] =
 
 static const char help_classify[] =
 	"\n"
-	"Material labels (the paper's eq. 11): each pixel\n"
-	"gets the material j minimising ||C_j - s||^2 over the declared materials, where\n"
-	"C_j is the library reflectance at --angle. Because s = mean + B w lies in the\n"
-	"span of the pca basis, this is computed from the K weights w alone:\n"
+	"Material labels (the paper's eq. 11): each pixel gets the material j minimising\n"
+	"||C_j - s||^2 over the declared materials, where C_j is the library reflectance\n"
+	"at --angle. Because s = mean + B w lies in the span of the pca basis, this is\n"
+	"computed from the K weights w alone:\n"
 	"||C_j - s||^2 = ||B^T (C_j - mean) - w||^2 + ||(I - B B^T)(C_j - mean)||^2.\n"
+	"A pixel that j does not explain within the noise is 'unknown', and a dark or\n"
+	"masked-out one 'background', rather than the nearest material.\n"
 	"\n"
 	"  --calib CAM.json     site calibration; its pca map is used (other methods have\n"
 	"                       no K-dimensional basis and are refused)\n"
