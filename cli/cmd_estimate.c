@@ -17,7 +17,7 @@ static const char usage_estimate[] =
 
 static const char help_estimate[] =
 	"\n"
-	"Per-pixel spectral reflectance (DESIGN.md section 1, step 3): s = A x(rho) with the\n"
+	"Per-pixel spectral reflectance (the paper's eq. 10): s = A x(rho) with the\n"
 	"site camera's calibration (kogei calib camera), 61 bands 400-700 nm every 5 nm.\n"
 	"IMAGE is a linear 3-channel TIFF or PNG (0..1 scale; raw Bayer frames must be\n"
 	"demosaiced first). Rows are processed in blocks and streamed to the file, so\n"
@@ -61,16 +61,19 @@ static const char help_estimate[] =
 static const char usage_classify[] =
 	"kogei classify --calib CAM.json --materials LIB.json IMAGE -o LABELS.hdr\n"
 	"               [--only a,b,c] [--distance plain|scale-free] [--angle DEG]\n"
-	"               [--method pca] [--threads N] [--block-rows N] [--clip-level V]\n"
-	"               [--force] [--quiet]";
+	"               [--method pca] [--variance VAR.tif] [--frames N] [--mask MASK.png]\n"
+	"               [--background-level L|none] [--unknown-threshold T|none]\n"
+	"               [--threads N] [--block-rows N] [--clip-level V] [--force] [--quiet]";
 
 static const char help_classify[] =
 	"\n"
-	"Material labels (DESIGN.md section 1, step 4, the paper's eq. 11): each pixel\n"
-	"gets the material j minimising ||C_j - s||^2 over the declared materials, where\n"
-	"C_j is the library reflectance at --angle. Because s = mean + B w lies in the\n"
-	"span of the pca basis, this is computed from the K weights w alone:\n"
+	"Material labels (the paper's eq. 11): each pixel gets the material j minimising\n"
+	"||C_j - s||^2 over the declared materials, where C_j is the library reflectance\n"
+	"at --angle. Because s = mean + B w lies in the span of the pca basis, this is\n"
+	"computed from the K weights w alone:\n"
 	"||C_j - s||^2 = ||B^T (C_j - mean) - w||^2 + ||(I - B B^T)(C_j - mean)||^2.\n"
+	"A pixel that j does not explain within the noise is 'unknown', and a dark or\n"
+	"masked-out one 'background', rather than the nearest material.\n"
 	"\n"
 	"  --calib CAM.json     site calibration; its pca map is used (other methods have\n"
 	"                       no K-dimensional basis and are refused)\n"
@@ -80,12 +83,32 @@ static const char help_classify[] =
 	"  --distance D         plain (default) or scale-free: min over a >= 0 of\n"
 	"                       ||a C_j - s||^2, for specular levels that vary with geometry\n"
 	"  --angle DEG          incidence angle of the material spectra, 0-90 (default 0)\n"
+	"  --variance VAR.tif   per-pixel variance of the single frames (3 channels, the\n"
+	"                       image's size; acquire records it as variance.tif)\n"
+	"  --frames N           frames averaged into IMAGE (default 1): the mean's\n"
+	"                       variance is VAR / N\n"
+	"  --unknown-threshold T  a pixel whose best material does not explain it is\n"
+	"                       'unknown': chi2 > T, where chi2 weighs its residual in\n"
+	"                       the K weights by the noise (VAR / N, or without --variance\n"
+	"                       a model: sigma = 0.002 + 1 % of the level, in quadrature)\n"
+	"                       plus the calibration's relative residual times the level\n"
+	"                       and the material's part outside the basis, all propagated\n"
+	"                       through the weight matrix M M2. Default: the 99.9 % point\n"
+	"                       of chi-square with K (scale-free: K - 1) degrees of\n"
+	"                       freedom (16.27 for K = 3); 'none': no unknown test\n"
+	"  --background-level L pixels whose largest channel is below L (0..1 of full\n"
+	"                       scale; default 0.01) are 'background'; 'none' or 0: off\n"
+	"  --mask MASK.png      grey PNG or TIFF of the image's size: 0 = background,\n"
+	"                       non-zero = object; background wins over every other label\n"
 	"  -o LABELS.hdr        ENVI classification file (LABELS.hdr + LABELS.img;\n"
 	"                       class 0 'unclassified' = flagged pixels, then the\n"
-	"                       materials), and beside it LABELS.json (classes, pixel\n"
-	"                       counts, mean spectra, confidence), LABELS.png (preview;\n"
-	"                       flagged pixels grey), LABELS_confidence.hdr (float32: the\n"
-	"                       margin to the runner-up) and LABELS_mask.hdr (pixel flags)\n"
+	"                       materials, then 'unknown' and 'background'), and beside\n"
+	"                       it LABELS.json (classes, pixel counts, mean spectra,\n"
+	"                       confidence, the noise model and bounds used), LABELS.png\n"
+	"                       (preview; flagged grey, unknown magenta, background dark),\n"
+	"                       LABELS_confidence.hdr (float32: the margin to the\n"
+	"                       runner-up; NaN for unknown and background) and\n"
+	"                       LABELS_mask.hdr (pixel flags)\n"
 	"  --threads, --block-rows, --clip-level, --force, --quiet   as for kogei estimate\n"
 	"                       (an image of another camera is refused unless --force)\n"
 	"\n"
@@ -308,12 +331,14 @@ static int split_names(char *text, char **names, int max, int *n)
 int kg_cmd_classify(int argc, char **argv)
 {
 	const char *calib = NULL, *out = NULL, *library = NULL, *distance = "plain";
-	const char *method = "pca";
+	const char *method = "pca", *variance = NULL, *mask = NULL;
 	char *only = NULL;
 	double angle = 0;
 	int quiet = 0, force = 0;
 	kg_apply_options opt;
 	kg_apply_options_init(&opt);
+	kg_classify_options copt;
+	kg_classify_options_init(&copt);
 	static const struct option opts[] = {
 		COMMON_LONG_OPTIONS,
 		{"materials", required_argument, NULL, 'M'},
@@ -321,6 +346,11 @@ int kg_cmd_classify(int argc, char **argv)
 		{"distance", required_argument, NULL, 'd'},
 		{"angle", required_argument, NULL, 'a'},
 		{"method", required_argument, NULL, 'm'},
+		{"variance", required_argument, NULL, 'V'},
+		{"frames", required_argument, NULL, 'F'},
+		{"mask", required_argument, NULL, 'K'},
+		{"background-level", required_argument, NULL, 'L'},
+		{"unknown-threshold", required_argument, NULL, 'U'},
 		{0, 0, 0, 0},
 	};
 	int c;
@@ -339,6 +369,39 @@ int kg_cmd_classify(int argc, char **argv)
 		case 'y': only = optarg; break;
 		case 'd': distance = optarg; break;
 		case 'm': method = optarg; break;
+		case 'V': variance = optarg; break;
+		case 'K': mask = optarg; break;
+		case 'F':
+			if (parse_int(optarg, 1, 1 << 20, &copt.frames))
+				return kg_cli_usage_error(usage_classify, "--frames %s: expected 1 or more",
+				                          optarg);
+			break;
+		case 'L':
+			if (strcmp(optarg, "none") == 0) {
+				copt.background_level = 0;
+				break;
+			}
+			copt.background_level = strtod(optarg, &end);
+			if (!end || end == optarg || *end ||
+			    !(copt.background_level >= 0 && copt.background_level <= 1))
+				return kg_cli_usage_error(usage_classify,
+				                          "--background-level %s: expected 0 to 1 (of full "
+				                          "scale) or none",
+				                          optarg);
+			break;
+		case 'U':
+			if (strcmp(optarg, "none") == 0) {
+				copt.unknown_threshold = INFINITY;
+				break;
+			}
+			copt.unknown_threshold = strtod(optarg, &end);
+			if (!end || end == optarg || *end || !(copt.unknown_threshold > 0) ||
+			    !isfinite(copt.unknown_threshold))
+				return kg_cli_usage_error(usage_classify,
+				                          "--unknown-threshold %s: expected a number > 0 or "
+				                          "none",
+				                          optarg);
+			break;
 		case 'a':
 			angle = strtod(optarg, &end);
 			if (!end || end == optarg || *end || !(angle >= 0 && angle <= 90))
@@ -359,11 +422,10 @@ int kg_cmd_classify(int argc, char **argv)
 		return kg_cli_usage_error(usage_classify,
 		                          "-o -: a label map cannot go to standard output; name a "
 		                          ".hdr file");
-	kg_est_distance dist;
 	if (strcmp(distance, "plain") == 0)
-		dist = KG_EST_DIST_PLAIN;
+		copt.distance = KG_EST_DIST_PLAIN;
 	else if (strcmp(distance, "scale-free") == 0)
-		dist = KG_EST_DIST_SCALE_FREE;
+		copt.distance = KG_EST_DIST_SCALE_FREE;
 	else
 		return kg_cli_usage_error(usage_classify, "--distance %s: expected plain or scale-free",
 		                          distance);
@@ -374,7 +436,7 @@ int kg_cmd_classify(int argc, char **argv)
 	if (m != KG_METHOD_PCA)
 		return kg_cli_error(&err, kg_fail(&err, KG_EINVAL,
 		                                  "--method %s: classification works on the K weights of "
-		                                  "a basis (DESIGN.md section 1, step 4) and only pca has "
+		                                  "a basis (the paper's eq. 11) and only pca has "
 		                                  "one; use --method pca",
 		                                  method));
 	char *only_copy = only ? strdup(only) : NULL;
@@ -391,7 +453,7 @@ int kg_cmd_classify(int argc, char **argv)
 	kg_camera_calib *cam = NULL;
 	kg_material_library *lib = NULL;
 	kg_est_material_set *set = NULL;
-	kg_image *img = NULL;
+	kg_image *img = NULL, *var_img = NULL, *mask_img = NULL;
 	kg_est_kernel *k = NULL;
 	double pre[9];
 	kg_classify_result res = {0};
@@ -407,10 +469,22 @@ int kg_cmd_classify(int argc, char **argv)
 		                             &set, &err);
 	if (!rc)
 		rc = load_image(image, &img, &err);
+	if (!rc && variance && (rc = kg_image_read(variance, &var_img, &err)) == 0)
+		copt.variance = var_img;
+	if (!rc && mask && (rc = kg_image_read(mask, &mask_img, &err)) == 0)
+		copt.mask = mask_img;
 	if (!rc) {
-		kg_classify_info info = {calib, library, kg_method_name(m), image};
+		kg_classify_info info = {calib, library, kg_method_name(m), image, variance, mask};
 		opt.progress = quiet ? NULL : stderr;
-		rc = kg_classify_image(k, set, dist, img, &opt, &info, out, &res, &err);
+		copt.residual_relative = isinf(copt.unknown_threshold) ? 0 : cam->residual_relative;
+		if (!(copt.residual_relative >= 0 && isfinite(copt.residual_relative)))
+			rc = kg_fail(&err, KG_EINVAL,
+			             "%s: site.residual_relative is %g: the unknown test needs the "
+			             "calibration's relative residual (recalibrate, or classify with "
+			             "--unknown-threshold none)",
+			             calib, cam->residual_relative);
+		else
+			rc = kg_classify_image_opts(k, set, img, &opt, &copt, &info, out, &res, &err);
 	}
 	if (!rc) {
 		if (!quiet) {
@@ -428,12 +502,25 @@ int kg_cmd_classify(int argc, char **argv)
 			printf("%-28s %12llu %8.3f%% %14.4g\n", res.classes[j].name,
 			       (unsigned long long)res.classes[j].pixels, 100.0 * res.classes[j].fraction,
 			       res.classes[j].margin_median);
+		const uint64_t refused[2] = {res.unknown, res.background};
+		const char *refused_name[2] = {"unknown", "background"};
+		for (int j = 0; j < 2; j++)
+			printf("%-28s %12llu %8.3f%% %14s\n", refused_name[j], (unsigned long long)refused[j],
+			       res.stats.pixels ? 100.0 * (double)refused[j] / (double)res.stats.pixels : 0.0,
+			       "-");
 		char *json = NULL, *png = NULL, *conf = NULL;
 		if (kg_apply_side_path(out, ".json", &json, &err) == 0 &&
 		    kg_apply_side_path(out, ".png", &png, &err) == 0 &&
 		    kg_apply_side_path(out, "_confidence.hdr", &conf, &err) == 0)
 			printf("wrote %s, %s, %s and %s (%s distance, %d materials at %g degrees)\n", out,
 			       json, png, conf, distance, set->n, angle);
+		if (!quiet && isfinite(res.unknown_threshold))
+			fprintf(stderr,
+			        "classify: unknown above chi2 %.4g (%d degrees of freedom), noise from %s, "
+			        "calibration residual %.4g relative\n",
+			        res.unknown_threshold, res.dof,
+			        variance ? variance : "the default model (no --variance)",
+			        cam->residual_relative);
 		free(json);
 		free(png);
 		free(conf);
@@ -441,6 +528,8 @@ int kg_cmd_classify(int argc, char **argv)
 	kg_classify_result_free(&res);
 	kg_est_kernel_free(&k);
 	kg_image_free(&img);
+	kg_image_free(&var_img);
+	kg_image_free(&mask_img);
 	kg_est_material_set_free(&set);
 	kg_material_library_free(&lib);
 	kg_camera_calib_free(&cam);

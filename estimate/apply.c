@@ -574,6 +574,90 @@ static void class_colour(int j, unsigned char rgb[3])
 }
 
 static const unsigned char flagged_grey[3] = {128, 128, 128};
+static const unsigned char unknown_magenta[3] = {255, 0, 255};
+static const unsigned char background_dark[3] = {24, 24, 24};
+
+/* Labels of the two refusal classes after the n materials. */
+static int label_unknown(const kg_est_material_set *set) { return set->n + 1; }
+static int label_background(const kg_est_material_set *set) { return set->n + 2; }
+
+static const char *label_name(const kg_est_material_set *set, int label)
+{
+	if (label == KG_EST_LABEL_NONE)
+		return "unclassified";
+	if (label == label_unknown(set))
+		return "unknown";
+	if (label == label_background(set))
+		return "background";
+	return set->names[label - 1];
+}
+
+static void label_colour(const kg_est_material_set *set, int label, unsigned char rgb[3])
+{
+	if (label == KG_EST_LABEL_NONE)
+		memcpy(rgb, flagged_grey, 3);
+	else if (label == label_unknown(set))
+		memcpy(rgb, unknown_magenta, 3);
+	else if (label == label_background(set))
+		memcpy(rgb, background_dark, 3);
+	else
+		class_colour(label - 1, rgb);
+}
+
+/* The refusal stage (kg_classify_options), applied to every block after the label
+ * kernel, whichever implementation produced it: per pixel, in double. */
+typedef struct refusal {
+	const kg_est_kernel *k;
+	const kg_est_classifier *cls;
+	const float *raw;  /* the image's values, before pre */
+	const float *kin;  /* what the kernel saw (after pre) */
+	const float *var;  /* variance of single frames, 3 per pixel, or NULL */
+	const float *mask; /* 1 per pixel, or NULL */
+	double inv_frames, noise_rel2, noise_floor2, resid2;
+	double g[KG_EST_MAX_K * 3]; /* A_w P: K x 3 */
+	double threshold;           /* +Inf: no unknown test */
+	float background_level;     /* 0: no low-signal test */
+	uint8_t unknown, background;
+} refusal;
+
+static void refuse_pixel(const refusal *r, size_t i, uint8_t *label, float *conf)
+{
+	const float *px = r->raw + 3 * i;
+	if (r->mask && r->mask[i] == 0.0f) {
+		*label = r->background;
+		*conf = NAN;
+		return;
+	}
+	if (*label == KG_EST_LABEL_NONE)
+		return;
+	if (fmaxf(px[0], fmaxf(px[1], px[2])) < r->background_level) {
+		*label = r->background;
+		*conf = NAN;
+		return;
+	}
+	if (isinf(r->threshold))
+		return;
+	const int k = r->cls->k;
+	float w[KG_EST_MAX_K];
+	kg_est_kernel_eval(r->k, r->kin + 3 * i, INFINITY, 1, w);
+	double var[3];
+	for (int c = 0; c < 3; c++) {
+		double rho = px[c] > 0.0f ? px[c] : 0.0;
+		double noise = r->var ? r->var[3 * i + c] * r->inv_frames
+		                      : r->noise_floor2 + r->noise_rel2 * rho * rho;
+		var[c] = noise + r->resid2 * rho * rho;
+	}
+	double sigma[KG_EST_MAX_K * KG_EST_MAX_K];
+	for (int a = 0; a < k; a++)
+		for (int b = 0; b < k; b++)
+			sigma[a * k + b] = r->g[a * 3] * r->g[b * 3] * var[0] +
+			                   r->g[a * 3 + 1] * r->g[b * 3 + 1] * var[1] +
+			                   r->g[a * 3 + 2] * r->g[b * 3 + 2] * var[2];
+	if (kg_est_classifier_chi2(r->cls, *label - 1, w, sigma) > r->threshold) {
+		*label = r->unknown;
+		*conf = NAN;
+	}
+}
 
 typedef struct cls_sink {
 	kg_envi_writer *labels, *conf, *mask;
@@ -583,24 +667,28 @@ typedef struct cls_sink {
 	float *margin;      /* whole image */
 	double (*rgb_sum)[3];
 	const float *rgb;
+	const refusal *refuse;
+	int nmaterials;
 } cls_sink;
 
 static int cls_sink_fn(void *user, const kg_est_block *b, kg_err *err)
 {
 	cls_sink *s = user;
 	size_t n = (size_t)b->rows * b->width, at = (size_t)b->y0 * b->width;
-	const uint8_t *lab = b->data;
-	memcpy(s->label_map + at, lab, n);
-	memcpy(s->margin + at, b->confidence, n * sizeof(float));
+	uint8_t *lab = s->label_map + at;
+	float *conf = s->margin + at;
+	memcpy(lab, b->data, n);
+	memcpy(conf, b->confidence, n * sizeof(float));
 	const float *p = s->rgb + 3 * at;
-	for (size_t i = 0; i < n; i++)
-		if (lab[i] != KG_EST_LABEL_NONE)
+	for (size_t i = 0; i < n; i++) {
+		refuse_pixel(s->refuse, at + i, &lab[i], &conf[i]);
+		if (lab[i] != KG_EST_LABEL_NONE && lab[i] <= s->nmaterials)
 			for (int c = 0; c < 3; c++)
 				s->rgb_sum[lab[i]][c] += p[3 * i + c];
+	}
 	int rc = put_bytes(s->labels, &s->stage, b, lab, err);
 	if (!rc)
-		rc = kg_envi_writer_put(s->conf, b->y0, b->y0 + b->rows, KG_LAYOUT_BIP, b->confidence,
-		                        err);
+		rc = kg_envi_writer_put(s->conf, b->y0, b->y0 + b->rows, KG_LAYOUT_BIP, conf, err);
 	if (!rc)
 		rc = put_bytes(s->mask, &s->stage, b, b->mask, err);
 	progress_rows(&s->prog, b->y0 + b->rows);
@@ -620,7 +708,7 @@ static int summarise(const kg_est_kernel *k, const kg_est_material_set *set, con
 	int n = set->n;
 	res->nclasses = n;
 	res->classes = calloc((size_t)n, sizeof(*res->classes));
-	uint64_t *count = calloc((size_t)n + 1, sizeof(uint64_t));
+	uint64_t *count = calloc((size_t)n + 3, sizeof(uint64_t));
 	if (!res->classes || !count) {
 		free(count);
 		return kg_fail(err, KG_ENOMEM, "out of memory");
@@ -628,6 +716,8 @@ static int summarise(const kg_est_kernel *k, const kg_est_material_set *set, con
 	for (size_t i = 0; i < npix; i++)
 		count[s->label_map[i]]++;
 	res->unclassified = count[0];
+	res->unknown = count[label_unknown(set)];
+	res->background = count[label_background(set)];
 	uint64_t largest = 0;
 	for (int j = 1; j <= n; j++)
 		largest = count[j] > largest ? count[j] : largest;
@@ -683,10 +773,72 @@ static const char *distance_name(kg_est_distance d)
 	return d == KG_EST_DIST_SCALE_FREE ? "scale-free" : "plain";
 }
 
-static int write_json(const char *path, const kg_est_material_set *set, kg_est_distance dist,
-                      const kg_image *img, const kg_apply_options *opt,
-                      const kg_classify_info *info, const char *const files[4],
-                      const kg_classify_result *res, kg_err *err)
+/* How unknown and background were decided, for LABELS.json. */
+static json_t *refusal_json(const kg_classify_options *copt, const kg_classify_info *info,
+                            const kg_classify_result *res)
+{
+	json_t *r = json_object();
+	json_t *bg = json_object();
+	json_object_set_new(bg, "level", copt->background_level > 0
+	                                     ? json_real(copt->background_level)
+	                                     : json_null());
+	json_object_set_new(bg, "signal",
+	                    json_string("largest channel of the image, 0..1 full scale"));
+	json_object_set_new(bg, "mask", copt->mask ? json_string(info && info->mask ? info->mask
+	                                                                            : "given")
+	                                           : json_null());
+	json_object_set_new(r, "background", bg);
+	json_t *u = json_object();
+	int on = isfinite(res->unknown_threshold);
+	json_object_set_new(u, "enabled", json_boolean(on));
+	json_object_set_new(u, "statistic",
+	                    json_string("chi2 = r^T (sigma_w + (o_j / K) I)^-1 r of the best "
+	                                "material j: r its residual in the K weights, o_j the "
+	                                "distance's part outside the basis, sigma_w the noise "
+	                                "and calibration error propagated through the weight "
+	                                "matrix"));
+	json_object_set_new(u, "threshold", json_num(res->unknown_threshold));
+	json_object_set_new(u, "dof", json_integer(res->dof));
+	json_object_set_new(u, "probability",
+	                    on && copt->unknown_threshold == 0 ? json_real(0.999) : json_null());
+	json_object_set_new(u, "residual_relative", json_real(copt->residual_relative));
+	if (copt->variance) {
+		json_object_set_new(u, "noise", json_string("variance image"));
+		json_object_set_new(u, "variance", json_string(info && info->variance ? info->variance
+		                                                                      : "given"));
+		json_object_set_new(u, "frames", json_integer(copt->frames));
+	} else {
+		json_object_set_new(u, "noise", json_string("model"));
+		json_object_set_new(u, "noise_relative", json_real(copt->noise_relative));
+		json_object_set_new(u, "noise_floor", json_real(copt->noise_floor));
+		json_object_set_new(u, "note",
+		                    json_string("no variance image: assumed per channel sigma^2 = "
+		                                "noise_floor^2 + (noise_relative rho)^2"));
+	}
+	json_object_set_new(r, "unknown", u);
+	return r;
+}
+
+static json_t *refusal_class(const kg_est_material_set *set, int label, uint64_t pixels,
+                             uint64_t total)
+{
+	unsigned char col[3];
+	label_colour(set, label, col);
+	json_t *o = json_object();
+	json_object_set_new(o, "label", json_integer(label));
+	json_object_set_new(o, "name", json_string(label_name(set, label)));
+	json_object_set_new(o, "pixels", json_integer((json_int_t)pixels));
+	json_object_set_new(o, "fraction", json_real(total ? (double)pixels / (double)total : 0.0));
+	json_object_set_new(o, "colour", json_pack("[iii]", col[0], col[1], col[2]));
+	json_object_set_new(o, "mean_spectrum", json_null());
+	json_object_set_new(o, "confidence", json_null());
+	return o;
+}
+
+static int write_json(const char *path, const kg_est_material_set *set,
+                      const kg_classify_options *copt, const kg_image *img,
+                      const kg_apply_options *opt, const kg_classify_info *info,
+                      const char *const files[4], const kg_classify_result *res, kg_err *err)
 {
 	json_t *root = json_object();
 	json_t *classes = json_array();
@@ -703,7 +855,7 @@ static int write_json(const char *path, const kg_est_material_set *set, kg_est_d
 	                       info ? info->materials : NULL, info ? info->method : NULL};
 	for (int i = 0; i < 4; i++)
 		json_object_set_new(root, keys[i], vals[i] ? json_string(vals[i]) : json_null());
-	json_object_set_new(root, "distance", json_string(distance_name(dist)));
+	json_object_set_new(root, "distance", json_string(distance_name(copt->distance)));
 	json_object_set_new(root, "angle_deg", json_real(set->angle_deg));
 	json_object_set_new(root, "clip_level", json_num(opt->clip_level));
 	json_object_set_new(root, "width", json_integer(img->width));
@@ -714,6 +866,7 @@ static int write_json(const char *path, const kg_est_material_set *set, kg_est_d
 	json_object_set_new(fl, "nonfinite", json_integer((json_int_t)res->stats.nonfinite));
 	json_object_set_new(fl, "clipped", json_integer((json_int_t)res->stats.clipped));
 	json_object_set_new(root, "flagged", fl);
+	json_object_set_new(root, "refusal", refusal_json(copt, info, res));
 	json_t *fs = json_object();
 	const char *fkeys[4] = {"labels", "confidence", "mask", "preview"};
 	for (int i = 0; i < 4; i++)
@@ -721,7 +874,8 @@ static int write_json(const char *path, const kg_est_material_set *set, kg_est_d
 	json_object_set_new(root, "files", fs);
 	json_object_set_new(root, "confidence",
 	                    json_string("margin: distance to the runner-up minus distance to the "
-	                                "chosen material (squared reflectance over 61 bands)"));
+	                                "chosen material (squared reflectance over 61 bands); "
+	                                "none for unknown and background"));
 	for (int l = 0; l < KG_NBANDS; l++)
 		json_array_append_new(wl, json_real(kg_band_nm(l)));
 	json_object_set_new(root, "wavelength_nm", wl);
@@ -738,7 +892,7 @@ static int write_json(const char *path, const kg_est_material_set *set, kg_est_d
 		const kg_class_summary *c = &res->classes[j];
 		json_t *o = json_object();
 		unsigned char col[3];
-		class_colour(j, col);
+		label_colour(set, j + 1, col);
 		json_object_set_new(o, "label", json_integer(j + 1));
 		json_object_set_new(o, "name", json_string(c->name));
 		json_object_set_new(o, "pixels", json_integer((json_int_t)c->pixels));
@@ -758,6 +912,10 @@ static int write_json(const char *path, const kg_est_material_set *set, kg_est_d
 		json_object_set_new(o, "confidence", conf);
 		json_array_append_new(classes, o);
 	}
+	json_array_append_new(classes, refusal_class(set, label_unknown(set), res->unknown,
+	                                             res->stats.pixels));
+	json_array_append_new(classes, refusal_class(set, label_background(set), res->background,
+	                                             res->stats.pixels));
 	json_object_set_new(root, "classes", classes);
 	int rc = kg_json_write(root, path, err);
 	json_decref(root);
@@ -766,8 +924,9 @@ static int write_json(const char *path, const kg_est_material_set *set, kg_est_d
 	return rc;
 }
 
-/* The label map with class colours (flagged pixels grey), at most 720 pixels on its
- * longer side (nearest sample), and a legend with each class's share. */
+/* The label map with class colours (flagged pixels grey, unknown magenta, background
+ * near-black), at most 720 pixels on its longer side (nearest sample), and a legend
+ * with each class's share. */
 static int write_preview(const char *path, const kg_est_material_set *set,
                          const uint8_t *labels, int width, int height,
                          const kg_classify_result *res, kg_err *err)
@@ -777,7 +936,8 @@ static int write_preview(const char *path, const kg_est_material_set *set,
 	pw = pw < 1 ? 1 : pw;
 	ph = ph < 1 ? 1 : ph;
 	const int margin = 10, legend_w = 260, entry_h = 20;
-	int legend_h = entry_h * (set->n + 1) + 2 * margin;
+	const int nlabels = set->n + 3;
+	int legend_h = entry_h * nlabels + 2 * margin;
 	int fig_h = (ph + 2 * margin > legend_h ? ph + 2 * margin : legend_h);
 	kg_plot *p = NULL;
 	int rc = kg_plot_new(pw + legend_w + 2 * margin, fig_h, &p, err);
@@ -791,9 +951,8 @@ static int write_preview(const char *path, const kg_est_material_set *set,
 		kg_plot_free(&p);
 		return kg_fail(err, KG_ENOMEM, "out of memory");
 	}
-	memcpy(pal[0], flagged_grey, 3);
-	for (int j = 0; j < set->n; j++)
-		class_colour(j, pal[j + 1]);
+	for (int l = 0; l < 256; l++)
+		label_colour(set, l < nlabels ? l : 0, pal[l]);
 	for (int x = 0; x < pw; x++) {
 		int sx = (int)((long)x * width / pw);
 		src_x[x] = sx < width ? sx : width - 1;
@@ -813,17 +972,18 @@ static int write_preview(const char *path, const kg_est_material_set *set,
 	}
 	const double black[3] = {0, 0, 0};
 	double lx = pw + 2 * margin;
-	for (int j = 0; j <= set->n; j++) {
+	for (int j = 0; j < nlabels; j++) {
 		double y = margin + entry_h * j;
 		double c[3] = {pal[j][0] / 255.0, pal[j][1] / 255.0, pal[j][2] / 255.0};
 		kg_plot_fill_rect(p, lx, y + 3, 14, 14, c);
-		double frac = res->stats.pixels
-		                  ? 100.0 *
-		                        (double)(j ? res->classes[j - 1].pixels : res->unclassified) /
-		                        (double)res->stats.pixels
-		                  : 0.0;
+		uint64_t count = j == 0                        ? res->unclassified
+		                 : j == label_unknown(set)     ? res->unknown
+		                 : j == label_background(set)  ? res->background
+		                                               : res->classes[j - 1].pixels;
+		double frac =
+			res->stats.pixels ? 100.0 * (double)count / (double)res->stats.pixels : 0.0;
 		kg_plot_text(p, lx + 20, y + 15, 12, KG_ALIGN_LEFT, black, "%s  %.1f %%",
-		             j ? set->names[j - 1] : "flagged (unclassified)", frac);
+		             j ? label_name(set, j) : "flagged (unclassified)", frac);
 	}
 	free(pal);
 	free(src_x);
@@ -834,10 +994,134 @@ static int write_preview(const char *path, const kg_est_material_set *set,
 	return rc;
 }
 
+void kg_classify_options_init(kg_classify_options *o)
+{
+	memset(o, 0, sizeof(*o));
+	o->distance = KG_EST_DIST_PLAIN;
+	o->frames = 1;
+	o->noise_relative = 0.01;
+	o->noise_floor = 0.002;
+	o->residual_relative = 0.0;
+	o->unknown_threshold = 0.0;
+	o->background_level = 0.01;
+}
+
+static int check_options(const kg_classify_options *o, const kg_image *img,
+                         const kg_classify_info *info, const char *what, kg_err *err)
+{
+	if (o->frames < 1)
+		return kg_fail(err, KG_EINVAL, "%s: frames %d: expected 1 or more", what, o->frames);
+	const double nonneg[3] = {o->noise_relative, o->noise_floor, o->residual_relative};
+	const char *names[3] = {"noise_relative", "noise_floor", "residual_relative"};
+	for (int i = 0; i < 3; i++)
+		if (!(nonneg[i] >= 0 && isfinite(nonneg[i])))
+			return kg_fail(err, KG_EINVAL, "%s: %s %g: expected a finite value >= 0", what,
+			               names[i], nonneg[i]);
+	if (!(o->unknown_threshold >= 0))
+		return kg_fail(err, KG_EINVAL,
+		               "%s: unknown threshold %g: expected a value > 0, 0 for the 99.9 %% "
+		               "point or infinity for no unknown test",
+		               what, o->unknown_threshold);
+	if (!(o->background_level >= 0 && o->background_level <= 1))
+		return kg_fail(err, KG_EINVAL,
+		               "%s: background level %g: expected 0 to 1 of full scale (0: none)", what,
+		               o->background_level);
+	if (o->distance != KG_EST_DIST_PLAIN && o->distance != KG_EST_DIST_SCALE_FREE)
+		return kg_fail(err, KG_EINVAL, "%s: distance %d: expected plain or scale-free", what,
+		               (int)o->distance);
+	const kg_image *side[2] = {o->variance, o->mask};
+	const char *side_name[2] = {info && info->variance ? info->variance : "the variance image",
+	                            info && info->mask ? info->mask : "the mask"};
+	const int side_channels[2] = {3, 1};
+	for (int s = 0; s < 2; s++) {
+		const kg_image *v = side[s];
+		if (!v)
+			continue;
+		if (!v->data || v->width != img->width || v->height != img->height)
+			return kg_fail(err, KG_EINVAL,
+			               "%s: %s is %d x %d pixels: expected the image's size, %d x %d",
+			               what, side_name[s], v->width, v->height, img->width, img->height);
+		if (v->channels != side_channels[s])
+			return kg_fail(err, KG_EINVAL, "%s: %s has %d channel%s: expected %d (%s)", what,
+			               side_name[s], v->channels, v->channels == 1 ? "" : "s",
+			               side_channels[s],
+			               s ? "grey: 0 = background, non-zero = object"
+			                 : "one variance per channel of the image");
+	}
+	if (o->variance) {
+		size_t n = (size_t)img->width * (size_t)img->height * 3;
+		for (size_t i = 0; i < n; i++)
+			if (!(o->variance->data[i] >= 0 && isfinite(o->variance->data[i])))
+				return kg_fail(err, KG_EINVAL,
+				               "%s: %s: pixel (%zu, %zu) channel %zu is %g: "
+				               "expected a finite variance >= 0",
+				               what, side_name[0], i / 3 % (size_t)img->width, i / 3 / (size_t)img->width,
+				               i % 3, o->variance->data[i]);
+	}
+	return 0;
+}
+
+/* The refusal stage's constants; dof and threshold also go to the result. */
+static int refusal_init(refusal *r, const kg_est_kernel *k, const kg_est_classifier *cls,
+                        const kg_est_material_set *set, const kg_image *img,
+                        const apply_input *in, const kg_apply_options *opt,
+                        const kg_classify_options *o, kg_classify_result *res, kg_err *err)
+{
+	memset(r, 0, sizeof(*r));
+	r->k = k;
+	r->cls = cls;
+	r->raw = img->data;
+	r->kin = in->rgb;
+	r->var = o->variance ? o->variance->data : NULL;
+	r->mask = o->mask ? o->mask->data : NULL;
+	r->inv_frames = 1.0 / o->frames;
+	r->noise_rel2 = o->noise_relative * o->noise_relative;
+	r->noise_floor2 = o->noise_floor * o->noise_floor;
+	r->resid2 = o->residual_relative * o->residual_relative;
+	r->background_level = (float)o->background_level;
+	r->unknown = (uint8_t)label_unknown(set);
+	r->background = (uint8_t)label_background(set);
+	res->dof = kg_est_classifier_dof(cls);
+	r->threshold = o->unknown_threshold > 0 ? o->unknown_threshold
+	                                        : kg_chi2_quantile(0.999, res->dof);
+	res->unknown_threshold = r->threshold;
+	if (isinf(r->threshold))
+		return 0;
+	if (k->method != KG_EST_LINEAR)
+		return kg_fail(err, KG_EINVAL,
+		               "classify: the unknown test propagates the noise through the kernel's "
+		               "weight matrix: expected the linear pca kernel, not a %s one (or no "
+		               "unknown test)",
+		               k->method == KG_EST_LUT ? "lookup-table" : "root-polynomial");
+	const double ident[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+	const double *P = opt->pre ? opt->pre : ident;
+	for (int a = 0; a < k->k; a++)
+		for (int c = 0; c < 3; c++) {
+			double g = 0;
+			for (int t = 0; t < 3; t++)
+				g += (double)k->wts.a[a * 3 + t] * P[3 * t + c];
+			r->g[a * 3 + c] = g;
+		}
+	return 0;
+}
+
 int kg_classify_image(const kg_est_kernel *k, const kg_est_material_set *set,
                       kg_est_distance distance, const kg_image *img,
                       const kg_apply_options *opt, const kg_classify_info *info,
                       const char *out_hdr, kg_classify_result *res, kg_err *err)
+{
+	kg_classify_options o;
+	kg_classify_options_init(&o);
+	o.distance = distance;
+	o.unknown_threshold = INFINITY;
+	o.background_level = 0;
+	return kg_classify_image_opts(k, set, img, opt, &o, info, out_hdr, res, err);
+}
+
+int kg_classify_image_opts(const kg_est_kernel *k, const kg_est_material_set *set,
+                           const kg_image *img, const kg_apply_options *opt,
+                           const kg_classify_options *copt, const kg_classify_info *info,
+                           const char *out_hdr, kg_classify_result *res, kg_err *err)
 {
 	kg_check_arg(k && set && img && out_hdr, err);
 	kg_apply_options dflt;
@@ -845,13 +1129,19 @@ int kg_classify_image(const kg_est_kernel *k, const kg_est_material_set *set,
 		kg_apply_options_init(&dflt);
 		opt = &dflt;
 	}
+	kg_classify_options cdflt;
+	if (!copt) {
+		kg_classify_options_init(&cdflt);
+		copt = &cdflt;
+	}
+	const kg_est_distance distance = copt->distance;
 	kg_classify_result local = {0};
 	if (res)
 		memset(res, 0, sizeof(*res));
 	if (kg_est_kernel_k(k) == 0)
 		return kg_fail(err, KG_EINVAL,
 		               "%s: classification works in the K-dimensional subspace of a basis "
-		               "(DESIGN.md section 1, step 4): it needs a method with one (pca)",
+		               "(the paper's eq. 11): it needs a method with one (pca)",
 		               out_hdr);
 	if (set->n < 1 || set->n > KG_EST_MAX_MATERIALS)
 		return kg_fail(err, KG_EINVAL, "%s: %d materials: expected 1 to %d", out_hdr, set->n,
@@ -861,36 +1151,41 @@ int kg_classify_image(const kg_est_kernel *k, const kg_est_material_set *set,
 	int rc = input_prepare(img, opt, "classify", &in, err);
 	if (rc)
 		return rc;
+	if ((rc = check_options(copt, img, info, "classify", err))) {
+		free(in.owned);
+		return rc;
+	}
+	refusal refuse;
 	kg_est_classifier *cls = NULL;
 	kg_envi_writer *ws[3] = {NULL, NULL, NULL};
 	char *conf_path = NULL, *mask_path = NULL, *json_path = NULL, *png_path = NULL;
 	const char *paths[3] = {out_hdr, NULL, NULL};
-	char **names = NULL;
+	const char **names = NULL;
 	unsigned char *lookup = NULL;
 	cls_sink sink = {0};
 	written done = {0};
 	size_t npix = (size_t)img->width * (size_t)img->height;
 
-	if ((rc = kg_est_classifier_new(k, set->materials, set->n, distance, &cls, err)))
+	if ((rc = kg_est_classifier_new(k, set->materials, set->n, distance, &cls, err)) ||
+	    (rc = refusal_init(&refuse, k, cls, set, img, &in, opt, copt, &local, err)))
 		goto out;
 	if ((rc = kg_apply_side_path(out_hdr, "_confidence.hdr", &conf_path, err)) ||
 	    (rc = kg_apply_side_path(out_hdr, ".json", &json_path, err)) ||
 	    (rc = kg_apply_side_path(out_hdr, ".png", &png_path, err)))
 		goto out;
-	names = calloc((size_t)set->n + 1, sizeof(char *));
-	lookup = malloc(3 * ((size_t)set->n + 1));
+	const int nlabels = set->n + 3;
+	names = calloc((size_t)nlabels, sizeof(char *));
+	lookup = malloc(3 * (size_t)nlabels);
 	sink.label_map = malloc(npix);
 	sink.margin = malloc(npix * sizeof(float));
-	sink.rgb_sum = calloc((size_t)set->n + 1, sizeof(*sink.rgb_sum));
+	sink.rgb_sum = calloc((size_t)nlabels, sizeof(*sink.rgb_sum));
 	if (!names || !lookup || !sink.label_map || !sink.margin || !sink.rgb_sum) {
 		rc = kg_fail(err, KG_ENOMEM, "classify: out of memory for %zu pixels", npix);
 		goto out;
 	}
-	names[0] = "unclassified";
-	memcpy(lookup, flagged_grey, 3);
-	for (int j = 0; j < set->n; j++) {
-		names[j + 1] = set->names[j];
-		class_colour(j, lookup + 3 * (j + 1));
+	for (int l = 0; l < nlabels; l++) {
+		names[l] = label_name(set, l);
+		label_colour(set, l, lookup + 3 * l);
 	}
 
 	kg_envi_meta m = {0};
@@ -903,8 +1198,8 @@ int kg_classify_image(const kg_est_kernel *k, const kg_est_material_set *set,
 	snprintf(desc, sizeof(desc), "kogei classify: %d materials, %s distance, %g degrees",
 	         set->n, distance_name(distance), set->angle_deg);
 	m.description = opt->description ? opt->description : desc;
-	m.classes = set->n + 1;
-	m.class_names = (const char *const *)names;
+	m.classes = nlabels;
+	m.class_names = names;
 	m.class_lookup = lookup;
 	if ((rc = kg_envi_writer_open(out_hdr, &m, &ws[0], err))) {
 		kg_err_prefix(err, "%s: ", out_hdr);
@@ -917,7 +1212,8 @@ int kg_classify_image(const kg_est_kernel *k, const kg_est_material_set *set,
 	mc.data_type = KG_ENVI_F32;
 	mc.interleave = KG_ENVI_BSQ;
 	mc.description = "kogei classify confidence: distance to the runner-up minus distance "
-	                 "to the chosen material; NaN for flagged pixels, Inf with one material";
+	                 "to the chosen material; NaN for flagged, unknown and background "
+	                 "pixels, Inf with one material";
 	const char *band[1] = {"margin"};
 	mc.band_names = band;
 	if ((rc = kg_envi_writer_open(conf_path, &mc, &ws[1], err))) {
@@ -940,6 +1236,8 @@ int kg_classify_image(const kg_est_kernel *k, const kg_est_material_set *set,
 	sink.conf = ws[1];
 	sink.mask = ws[2];
 	sink.rgb = in.rgb;
+	sink.refuse = &refuse;
+	sink.nmaterials = set->n;
 	progress_init(&sink.prog, opt, "classify", img);
 	rc = kg_est_run_stream(&job, in.rgb, img->width, img->height, cls_sink_fn, &sink,
 	                       &local.stats, err);
@@ -952,7 +1250,7 @@ int kg_classify_image(const kg_est_kernel *k, const kg_est_material_set *set,
 	if ((rc = finish_all(ws, paths, 3, &done, err)))
 		goto out;
 	const char *files[4] = {out_hdr, conf_path, mask_path, png_path};
-	if ((rc = write_json(json_path, set, distance, img, opt, info, files, &local, err)))
+	if ((rc = write_json(json_path, set, copt, img, opt, info, files, &local, err)))
 		goto out;
 	written_add(&done, json_path);
 	if ((rc = write_preview(png_path, set, sink.label_map, img->width, img->height, &local,

@@ -154,3 +154,99 @@ void kg_est_classifier_distances(const kg_est_classifier *c, const float *w, dou
 	for (int j = 0; j < c->n; j++)
 		d[j] = est_material_distance(c, j, v);
 }
+
+int kg_est_classifier_dof(const kg_est_classifier *c)
+{
+	if (c->distance == KG_EST_DIST_PLAIN)
+		return c->k;
+	return c->k > 1 ? c->k - 1 : 1;
+}
+
+/* The residual inside span B and the distance's part outside it, for material j. */
+static double split_residual(const kg_est_classifier *c, int j, const double *v, double *r)
+{
+	const double *cj = c->c + (size_t)j * c->k;
+	if (c->distance == KG_EST_DIST_PLAIN) {
+		for (int i = 0; i < c->k; i++)
+			r[i] = v[i] - cj[i];
+		return c->e[j];
+	}
+	double p = c->g[j];
+	for (int i = 0; i < c->k; i++)
+		p += cj[i] * v[i];
+	double a = p > 0.0 ? p * c->inv_norm[j] : 0.0;
+	for (int i = 0; i < c->k; i++)
+		r[i] = v[i] - a * cj[i];
+	double outside = c->h + a * (a * c->q[j] - 2.0 * c->g[j]);
+	return outside > 0.0 ? outside : 0.0;
+}
+
+double kg_est_classifier_chi2(const kg_est_classifier *c, int j, const float *w,
+                              const double *sigma_w)
+{
+	const int k = c->k;
+	double v[KG_EST_MAX_K], r[KG_EST_MAX_K], l[KG_EST_MAX_K * KG_EST_MAX_K];
+	est_weights_to_v(c, w, v);
+	double floor = split_residual(c, j, v, r) / k;
+	/* Cholesky factor L of sigma_w + floor I (lower, row-major), then ||L^-1 r||^2. */
+	for (int a = 0; a < k; a++)
+		for (int b = 0; b <= a; b++) {
+			double s = sigma_w[a * k + b] + (a == b ? floor : 0.0);
+			for (int m = 0; m < b; m++)
+				s -= l[a * k + m] * l[b * k + m];
+			if (a == b) {
+				if (!(s > 0.0)) {
+					for (int i = 0; i < k; i++)
+						if (r[i] != 0.0)
+							return INFINITY;
+					return 0.0;
+				}
+				l[a * k + a] = sqrt(s);
+			} else {
+				l[a * k + b] = s / l[b * k + b];
+			}
+		}
+	double chi2 = 0.0, y[KG_EST_MAX_K];
+	for (int a = 0; a < k; a++) {
+		double s = r[a];
+		for (int m = 0; m < a; m++)
+			s -= l[a * k + m] * y[m];
+		y[a] = s / l[a * k + a];
+		chi2 += y[a] * y[a];
+	}
+	return chi2;
+}
+
+/* Regularised lower incomplete gamma P(s, x) by its series, which converges for every
+ * x; enough terms for the x of a chi-square quantile (below a few thousand). */
+static double gamma_p(double s, double x)
+{
+	if (x <= 0.0)
+		return 0.0;
+	double term = 1.0 / s, sum = term;
+	for (int n = 1; n < 100000; n++) {
+		term *= x / (s + n);
+		sum += term;
+		if (term < sum * 1e-17)
+			break;
+	}
+	double p = exp(s * log(x) - x - lgamma(s)) * sum;
+	return p < 1.0 ? p : 1.0;
+}
+
+double kg_chi2_quantile(double p, int dof)
+{
+	if (!(p > 0.0 && p < 1.0) || dof < 1 || dof > 1000)
+		return NAN;
+	double lo = 0.0, hi = dof + 10.0;
+	while (gamma_p(0.5 * dof, 0.5 * hi) < p)
+		hi *= 2.0;
+	while (hi - lo > 1e-10 * hi) {
+		double mid = 0.5 * (lo + hi);
+		if (gamma_p(0.5 * dof, 0.5 * mid) < p)
+			lo = mid;
+		else
+			hi = mid;
+	}
+	return 0.5 * (lo + hi);
+}

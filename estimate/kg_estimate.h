@@ -17,8 +17,8 @@
  *     matrix kernel, read with trilinear interpolation.
  * A kernel made with a K-dimensional basis B (61 x K, orthonormal columns, and an
  * optional mean for centred PCA) produces either the spectrum s = mean + B w or the
- * K weights w themselves, and can feed the material classifier (DESIGN.md section 1,
- * step 4, eq. 11), which works on w alone.
+ * K weights w themselves, and can feed the material classifier (the paper's eq. 11),
+ * which works on w alone.
  *
  * Every kernel has a plain C reference implementation and, on x86-64 CPUs with AVX2
  * and F16C, an optimised one. Both produce bit-identical output: they perform the same
@@ -45,7 +45,9 @@
 
 #define KG_EST_MAX_K 16          /* largest basis */
 #define KG_EST_MAX_TERMS 13      /* terms of KG_EST_ROOTPOLY3 */
-#define KG_EST_MAX_MATERIALS 254 /* labels 1..254 fit in a byte beside KG_EST_LABEL_NONE */
+/* Labels 1..253 for the materials, then "unknown" and "background" (label map classes,
+ * kg_classify_image_opts) fit in a byte beside KG_EST_LABEL_NONE. */
+#define KG_EST_MAX_MATERIALS 253
 #define KG_EST_LUT_MAX_N 65
 
 typedef enum kg_est_method {
@@ -133,7 +135,7 @@ int kg_est_method_terms(kg_est_method m);
  * Returns the number of terms or KG_EINVAL. */
 int kg_est_terms(kg_est_method m, const double rgb[3], double *terms);
 
-/* Material classification in the K-dim subspace (DESIGN.md section 1, step 4). */
+/* Material classification in the K-dim subspace (the paper's eq. 11). */
 typedef enum kg_est_distance {
 	KG_EST_DIST_PLAIN,      /* ||C_j - s||^2 */
 	KG_EST_DIST_SCALE_FREE, /* min over a >= 0 of ||a C_j - s||^2 */
@@ -156,6 +158,30 @@ const char *kg_est_classifier_name(const kg_est_classifier *c, int j);
 /* Distances of weights w (K values) to every material, as the reference kernel
  * computes them (double). */
 void kg_est_classifier_distances(const kg_est_classifier *c, const float *w, double *d);
+
+/* Is material j an explanation of weights w at all? The distance splits into a part
+ * inside span B and one outside it: plain d_j = ||v - c_j||^2 + o_j with v = w +
+ * B^T mean, c_j = B^T C_j and o_j = ||(I - B B^T)(C_j - mean)||^2; scale-free the same
+ * with a C_j at the best a. Noise moves only the inside part; the outside part o_j is
+ * what the K-dimensional model cannot represent of the material, so it is taken as
+ * model error of that size spread evenly over the K weights. The statistic is
+ *   chi2_j = r^T (sigma_w + (o_j / K) I)^-1 r,   r = v - c_j (plain) or v - a c_j,
+ * where sigma_w (K x K, row-major, symmetric) is the covariance of the pixel's
+ * weights (noise and calibration error propagated through the kernel's weight
+ * matrix: sigma_w = A_w sigma_rgb A_w^T). For a pixel of material j whose errors are
+ * Gaussian with that covariance it follows a chi-square distribution with
+ * kg_est_classifier_dof degrees of freedom. A singular covariance gives 0 when r is
+ * 0 and +Inf otherwise. Computed in double by Cholesky factorisation. */
+double kg_est_classifier_chi2(const kg_est_classifier *c, int j, const float *w,
+                              const double *sigma_w);
+/* Degrees of freedom of kg_est_classifier_chi2: K for the plain distance, K - 1 (at
+ * least 1) for the scale-free one, whose scale a is fitted. */
+int kg_est_classifier_dof(const kg_est_classifier *c);
+/* The point x with P(X <= x) = p for X chi-square with dof degrees of freedom
+ * (1 <= dof <= 1000, 0 < p < 1), from the regularised incomplete gamma function by
+ * bisection, to 1e-9 relative; NaN for arguments out of range. E.g. p = 0.999:
+ * 10.828 (dof 1), 13.816 (2), 16.266 (3). */
+double kg_chi2_quantile(double p, int dof);
 
 /* What to compute and how. Set with kg_est_job_init, then adjust. */
 typedef struct kg_est_job {
@@ -224,7 +250,7 @@ float kg_f32_from_f16(uint16_t h);
 
 /* ==== Images to files: cubes, masks and label maps (apply.c) =====================
  *
- * The glue between a kernel and the files of DESIGN.md section 3. It knows nothing
+ * The glue between a kernel and the station's file formats. It knows nothing
  * of calibrations: the caller builds the kernel (calib/: kg_camera_kernel) and, for
  * site maps of the root-polynomial methods, passes the 3 x 3 matrix applied to each
  * pixel before the kernel. Rows go through kg_est_run_stream into the streaming ENVI
@@ -241,12 +267,16 @@ float kg_f32_from_f16(uint16_t h);
  *                                  wavelength" (61), so s = mean + basis w)
  *              <stem>_mask.hdr     uint8, one band, the KG_EST_MASK_* bits per pixel
  *   classify:  OUT                 ENVI Classification, uint8: 0 "unclassified"
- *                                  (flagged pixels), j + 1 the j-th material
+ *                                  (flagged pixels), j + 1 the j-th material, n + 1
+ *                                  "unknown", n + 2 "background" (n materials)
  *              <stem>_confidence.hdr  float32, the margin to the runner-up (NaN when
- *                                  flagged, +Inf with a single material)
+ *                                  flagged, unknown or background, +Inf with a
+ *                                  single material)
  *              <stem>_mask.hdr     as for estimate
- *              <stem>.json         classes, counts, mean spectra, confidence
- *              <stem>.png          preview: class colours, flagged pixels grey, legend */
+ *              <stem>.json         classes, counts, mean spectra, confidence, and how
+ *                                  unknown and background were decided
+ *              <stem>.png          preview: class colours, flagged pixels grey,
+ *                                  unknown magenta, background near-black, legend */
 
 #include <stdio.h>
 
@@ -334,6 +364,10 @@ typedef struct kg_classify_result {
 	int nclasses;              /* materials; class j + 1 of the label map */
 	kg_class_summary *classes; /* nclasses entries */
 	uint64_t unclassified;     /* flagged pixels, label 0 */
+	uint64_t unknown;          /* label nclasses + 1: no declared material explains them */
+	uint64_t background;       /* label nclasses + 2: masked out or below the level */
+	double unknown_threshold;  /* the bound used (+Inf when the test was off) */
+	int dof;                   /* its degrees of freedom */
 	kg_est_stats stats;
 } kg_classify_result;
 
@@ -345,14 +379,71 @@ typedef struct kg_classify_info {
 	const char *materials; /* the material library */
 	const char *method;    /* e.g. "pca" */
 	const char *image;     /* the input image */
+	const char *variance;  /* the variance image, if one was given */
+	const char *mask;      /* the mask, if one was given */
 } kg_classify_info;
 
+/* How a label map refuses pixels instead of naming a wrong material.
+ *
+ * Background: a pixel the mask marks 0, or whose largest channel (on the image's
+ * 0..1 full scale, before pre) is below background_level, is labelled background.
+ *
+ * Unknown: the pixel's best material j (by the distance) must explain it:
+ * kg_est_classifier_chi2 <= unknown_threshold, with sigma_w = G sigma_rgb G^T, G =
+ * A_w P the kernel's K x 3 weight matrix (pca: M M2) times pre, and sigma_rgb
+ * diagonal, per channel c of the pixel's values rho_c:
+ *   variance_c / frames + (residual_relative rho_c)^2                 with variance,
+ *   noise_floor^2 + (noise_relative rho_c)^2 + (residual_relative rho_c)^2  without.
+ * variance is what acquire records: the per-pixel variance of the single frames
+ * (3 channels, the image's size and 0..1 scale, squared), of which the mean of
+ * `frames` frames has 1 / frames. residual_relative is the calibration's relative
+ * model error (kg_camera_calib residual_relative: ||rho0 - M2 rho_r||_F / ||rho0||_F),
+ * a floor proportional to the pixel's level. The statistic of a correctly explained
+ * pixel is chi-square with the classifier's dof, so unknown_threshold 0 means the
+ * 99.9 % point (1 in 1000 explained pixels called unknown when the noise model
+ * holds). The 61-band form of the test is the same number: the estimate's noise
+ * lies in span B (sigma_s = B sigma_w B^T), and the part outside is o_j.
+ *
+ * Precedence: masked-out pixels are background whatever else they are; then flagged
+ * pixels (non-finite, clipped) are unclassified; then low signal is background; then
+ * the unknown test. The labels of the remaining pixels, and their confidences, are
+ * exactly those of the label kernel (reference or optimised: the refusal stage is
+ * the same code after either). */
+typedef struct kg_classify_options {
+	kg_est_distance distance;
+	const kg_image *variance; /* 3 channels, or NULL: the noise model below */
+	int frames;               /* frames averaged into the image, >= 1 */
+	double noise_relative;    /* noise model without a variance image */
+	double noise_floor;
+	double residual_relative; /* calibration model error, >= 0 */
+	double unknown_threshold; /* > 0; 0: the 99.9 % point; INFINITY: no unknown test */
+	double background_level;  /* 0..1; 0: no low-signal test */
+	const kg_image *mask;     /* 1 channel, the image's size; 0 = background, or NULL */
+} kg_classify_options;
+
+/* Defaults: distance plain, no variance (the noise model: noise_relative 0.01 and
+ * noise_floor 0.002, i.e. 1 % of the level plus half a step of an 8-bit scale),
+ * frames 1, residual_relative 0 (callers pass their calibration's), unknown_threshold
+ * 0 (the 99.9 % point), background_level 0.01 (1 % of full scale), no mask. */
+void kg_classify_options_init(kg_classify_options *o);
+
 /* Classify every pixel of a 3-channel image among the materials of set (eq. 11 in
- * the K-dim subspace of kernel k, which must have a basis; distance plain or
- * scale-free) and write the label map out_hdr with its side files (see above).
- * res (may be NULL) receives the summary; free it with kg_classify_result_free.
- * Needs memory for 5 bytes per pixel beside the image (labels and margins, for the
- * exact median and percentile). */
+ * the K-dim subspace of kernel k, which must have a basis) with the refusals of
+ * copt (NULL: kg_classify_options_init), and write the label map out_hdr with its
+ * side files (see above). The unknown test needs a linear kernel (pca), not a LUT.
+ * Refused (KG_EINVAL, naming both sizes or the bad value): a variance image or mask
+ * that does not match the image, a variance that is negative or not finite, bad
+ * option values. res (may be NULL) receives the summary; free it with
+ * kg_classify_result_free. Needs memory for 5 bytes per pixel beside the image
+ * (labels and margins, for the exact median and percentile). */
+int kg_classify_image_opts(const kg_est_kernel *k, const kg_est_material_set *set,
+                           const kg_image *img, const kg_apply_options *opt,
+                           const kg_classify_options *copt, const kg_classify_info *info,
+                           const char *out_hdr, kg_classify_result *res, kg_err *err);
+
+/* kg_classify_image_opts with the distance given and nothing refused: no unknown
+ * test, no background level, no mask (the classes unknown and background exist in
+ * the label map but stay empty). */
 int kg_classify_image(const kg_est_kernel *k, const kg_est_material_set *set,
                       kg_est_distance distance, const kg_image *img,
                       const kg_apply_options *opt, const kg_classify_info *info,

@@ -89,19 +89,15 @@ static inline void fx_slurp(const char *file, char *buf, size_t len)
 	fclose(fp);
 }
 
-/* Run kogei with the arguments (NULL-terminated); stdout and stderr land in fx_out
- * and fx_errs (and stderr is echoed to the test log). Returns the exit status. */
-static inline int fx_run(const char *first, ...)
+/* Run kogei with args (n of them); stdout and stderr land in fx_out and fx_errs (and
+ * stderr is echoed to the test log). Returns the exit status. */
+static inline int fx_runv(const char *const *args, int nargs)
 {
 	char *argv[48];
 	int n = 0;
 	argv[n++] = (char *)fx_kogei;
-	argv[n++] = (char *)first;
-	va_list ap;
-	va_start(ap, first);
-	for (char *a; n < 47 && (a = va_arg(ap, char *));)
-		argv[n++] = a;
-	va_end(ap);
+	for (int i = 0; i < nargs && n < 47; i++)
+		argv[n++] = (char *)args[i];
 	argv[n] = NULL;
 	char out_path[] = "/tmp/kogei-apply-out-XXXXXX", err_path[] = "/tmp/kogei-apply-err-XXXXXX";
 	int fo = mkstemp(out_path), fe = mkstemp(err_path);
@@ -126,6 +122,20 @@ static inline int fx_run(const char *first, ...)
 		fprintf(stderr, " %s", argv[i]);
 	fprintf(stderr, "\n%s", fx_errs);
 	return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+/* fx_runv with the arguments given (NULL-terminated). */
+static inline int fx_run(const char *first, ...)
+{
+	const char *args[46];
+	int n = 0;
+	args[n++] = first;
+	va_list ap;
+	va_start(ap, first);
+	for (const char *a; n < 46 && (a = va_arg(ap, const char *));)
+		args[n++] = a;
+	va_end(ap);
+	return fx_runv(args, n);
 }
 #define FX_RUN(...) fx_run(__VA_ARGS__, (char *)NULL)
 
@@ -273,6 +283,34 @@ static inline kg_image *fx_image(int w, int h, int *kind)
 			kind[i] = k;
 	}
 	return img;
+}
+
+/* The calibration of the tests on the paper's materials (needs ../shared/reference):
+ * reference camera Nikon D5100 and site camera Canon EOS 5D Mark II under D65, both
+ * fitted on the ColorChecker 24 (BabelColor average) through noise-free `kogei sim
+ * patches`, `kogei calib reference` (pca, K = 3) and `kogei calib camera --method pca`
+ * into cam_path. site_camera receives the site camera's sensitivities file (for
+ * `kogei sim image`). Returns 1 on success, 0 on failure (fx_errs says why), 77 when
+ * the reference files are missing. */
+static inline int fx_paper_calibration(const char *cam_path, char *site_camera, size_t len)
+{
+	const char *refdir = kg_test_reference_dir();
+	char chart[8192], refcam[8192];
+	snprintf(chart, sizeof(chart), "%s/charts/colorchecker24_babelcolor_avg.csv", refdir);
+	snprintf(refcam, sizeof(refcam), "%s/cameras/Nikon_D5100.csv", refdir);
+	snprintf(site_camera, len, "%s/cameras/Canon_EOS_5D_Mark_II.csv", refdir);
+	if (!kg_test_file_exists(chart) || !kg_test_file_exists(refcam) ||
+	    !kg_test_file_exists(site_camera))
+		return 77;
+	const char *ref_rgb = fx_path("ref.cgats"), *site_rgb = fx_path("site.cgats");
+	const char *ref = fx_path("ref.json");
+	return FX_RUN("sim", "patches", "--spectra", chart, "--camera", refcam, "--illuminant",
+	              "D65", "-o", ref_rgb) == 0 &&
+	       FX_RUN("sim", "patches", "--spectra", chart, "--camera", site_camera,
+	              "--illuminant", "D65", "-o", site_rgb) == 0 &&
+	       FX_RUN("calib", "reference", "--spectra", chart, "--rgb", ref_rgb, "-o", ref) == 0 &&
+	       FX_RUN("calib", "camera", "--reference", ref, "--rgb", site_rgb, "--method", "pca",
+	              "-o", cam_path) == 0;
 }
 
 /* Compare two files byte for byte. */

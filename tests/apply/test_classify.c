@@ -1,9 +1,10 @@
 /* `kogei classify` on simulated scenes of the paper's materials, with real camera
  * sensitivities and chart spectra from ../shared/reference (skipped without it).
  *
- * Setup: reference camera Nikon D5100 and site camera Canon EOS 5D Mark II, both
- * under D65, calibrated on the ColorChecker 24 (BabelColor average) through `kogei sim
- * patches` (noise-free), `kogei calib reference` (pca, K = 3) and `kogei calib camera`.
+ * Setup: fx_paper_calibration (reference camera Nikon D5100 and site camera Canon EOS
+ * 5D Mark II, both under D65, calibrated on the ColorChecker 24 (BabelColor average)
+ * through `kogei sim patches` (noise-free), `kogei calib reference` (pca, K = 3) and
+ * `kogei calib camera`).
  * Scene: `kogei sim image` of gold, silver, copper, the five shibuichi, shakudo and
  * urushi at normal incidence, 40 x 40 pixels each, seen by the site camera with
  * noise: full well 20000 e-, read noise 10 e- rms, 12 bits (shot-noise SNR 100 at
@@ -87,7 +88,7 @@ static double confusion(const char *title, const char *labels_hdr, const char *t
 	}
 	int lmap[256], tmap[256];
 	int nl = class_map(el, lmap, 256), nt = class_map(et, tmap, 256);
-	CHECK(nl == NM + 1 && nt >= NM + 1, "%s: %d and %d classes", title, nl, nt);
+	CHECK(nl == NM + 3 && nt >= NM + 1, "%s: %d and %d classes", title, nl, nt);
 	long cm[NM][NM] = {{0}}, row[NM] = {0}, correct = 0, total = 0, unclassified = 0;
 	size_t n = (size_t)el->meta.samples * el->meta.lines;
 	for (size_t i = 0; i < n; i++) {
@@ -105,7 +106,7 @@ static double confusion(const char *title, const char *labels_hdr, const char *t
 		correct += l == t;
 	}
 	printf("\n%s: confusion matrix (rows: true material, columns: label; %ld pixels, "
-	       "%ld unclassified)\n%-26s",
+	       "%ld unclassified, unknown or background)\n%-26s",
 	       title, total, unclassified, "");
 	for (int j = 0; j < NM; j++)
 		printf(" %5.5s", materials[j] + (strncmp(materials[j], "shibuichi-", 10) ? 0 : 10));
@@ -137,16 +138,16 @@ static void check_side_files(const char *stem)
 	snprintf(p, sizeof(p), "%s.hdr", fx_path(stem));
 	float *lab = fx_read_envi(p, NULL);
 	CHECK(conf && lab, "%s: confidence and labels read back", stem);
-	long counts[NM + 1] = {0};
+	long counts[NM + 3] = {0};
 	if (conf && lab) {
 		int bad = 0;
 		size_t n = (size_t)e->meta.samples * e->meta.lines;
 		for (size_t i = 0; i < n; i++) {
 			int l = (int)lab[i];
-			if (l >= 0 && l <= NM)
+			if (l >= 0 && l <= NM + 2)
 				counts[l]++;
-			bad += l > 0 && !(conf[i] >= 0);
-			bad += l == 0 && !isnan(conf[i]);
+			bad += l > 0 && l <= NM && !(conf[i] >= 0);
+			bad += (l == 0 || l > NM) && !isnan(conf[i]);
 		}
 		CHECK(bad == 0, "%s: %d margins negative or misplaced", stem, bad);
 	}
@@ -155,14 +156,14 @@ static void check_side_files(const char *stem)
 	kg_err err = {{0}};
 	CHECK(kg_json_load(p, &root, &err) == 0, "%s: %s", p, err.msg);
 	json_t *classes = root ? json_object_get(root, "classes") : NULL;
-	CHECK(json_is_array(classes) && json_array_size(classes) == NM + 1,
-	      "%s: expected %d classes", p, NM + 1);
+	CHECK(json_is_array(classes) && json_array_size(classes) == NM + 3,
+	      "%s: expected %d classes", p, NM + 3);
 	for (size_t j = 0; classes && j < json_array_size(classes); j++) {
 		json_t *c = json_array_get(classes, j);
 		long px = (long)json_integer_value(json_object_get(c, "pixels"));
-		CHECK(j > NM || px == counts[j], "%s: class %zu: %ld pixels, the map has %ld", p, j, px,
-		      j <= NM ? counts[j] : -1L);
-		if (j > 0 && px > 0) {
+		CHECK(j > NM + 2 || px == counts[j], "%s: class %zu: %ld pixels, the map has %ld", p, j,
+		      px, j <= NM + 2 ? counts[j] : -1L);
+		if (j > 0 && j <= NM && px > 0) {
 			json_t *ms = json_object_get(c, "mean_spectrum");
 			CHECK(json_is_array(ms) && json_array_size(ms) == KG_NBANDS,
 			      "%s: class %zu: mean spectrum", p, j);
@@ -179,33 +180,21 @@ static void check_side_files(const char *stem)
 int main(int argc, char **argv)
 {
 	fx_setup(argc, argv);
-	const char *refdir = kg_test_reference_dir();
-	char chart[8192], refcam[8192], sitecam[8192], lib[8192];
-	snprintf(chart, sizeof(chart), "%s/charts/colorchecker24_babelcolor_avg.csv", refdir);
-	snprintf(refcam, sizeof(refcam), "%s/cameras/Nikon_D5100.csv", refdir);
-	snprintf(sitecam, sizeof(sitecam), "%s/cameras/Canon_EOS_5D_Mark_II.csv", refdir);
+	char sitecam[8192], lib[4096];
 	snprintf(lib, sizeof(lib), "%s/fixtures/materials/default.json", KG_SOURCE_ROOT);
-	if (!kg_test_file_exists(chart) || !kg_test_file_exists(refcam) ||
-	    !kg_test_file_exists(sitecam))
-		kg_test_skip("ColorChecker or camera files missing from ../shared/reference");
-
-	const char *ref_rgb = fx_path("ref.cgats"), *site_rgb = fx_path("site.cgats");
-	const char *ref = fx_path("ref.json"), *cam = fx_path("cam.json");
+	const char *cam = fx_path("cam.json");
 	const char *scene = fx_path("scene.tif"), *truth = fx_path("truth.hdr");
 	const char *scene0 = fx_path("scene0.tif"), *truth0 = fx_path("truth0.hdr");
-	int ok = FX_RUN("sim", "patches", "--spectra", chart, "--camera", refcam, "--illuminant",
-	                "D65", "-o", ref_rgb) == 0 &&
-	         FX_RUN("sim", "patches", "--spectra", chart, "--camera", sitecam, "--illuminant",
-	                "D65", "-o", site_rgb) == 0 &&
-	         FX_RUN("calib", "reference", "--spectra", chart, "--rgb", ref_rgb, "-o", ref) == 0 &&
-	         FX_RUN("calib", "camera", "--reference", ref, "--rgb", site_rgb, "--method", "pca",
-	                "-o", cam) == 0 &&
-	         FX_RUN("sim", "image", "--materials", lib, "--only", only, "--camera", sitecam,
-	                "--illuminant", "D65", "--patch-size", "40", "--depth", "16", "--noise",
-	                "20000:10:12", "--seed", "1", "-o", scene, "--truth-labels", truth) == 0 &&
-	         FX_RUN("sim", "image", "--materials", lib, "--only", only, "--camera", sitecam,
-	                "--illuminant", "D65", "--patch-size", "40", "--depth", "float", "-o",
-	                scene0, "--truth-labels", truth0) == 0;
+	int ok = fx_paper_calibration(cam, sitecam, sizeof(sitecam));
+	if (ok == 77)
+		kg_test_skip("ColorChecker or camera files missing from ../shared/reference");
+	ok = ok &&
+	     FX_RUN("sim", "image", "--materials", lib, "--only", only, "--camera", sitecam,
+	            "--illuminant", "D65", "--patch-size", "40", "--depth", "16", "--noise",
+	            "20000:10:12", "--seed", "1", "-o", scene, "--truth-labels", truth) == 0 &&
+	     FX_RUN("sim", "image", "--materials", lib, "--only", only, "--camera", sitecam,
+	            "--illuminant", "D65", "--patch-size", "40", "--depth", "float", "-o", scene0,
+	            "--truth-labels", truth0) == 0;
 	CHECK(ok, "simulation and calibration: %s", fx_errs);
 	if (!ok)
 		return kg_test_done("apply-classify");

@@ -82,9 +82,23 @@ int main(int argc, char **argv)
 	CHECK(FX_RUN("classify", "--calib", cam_path, "--materials", lib, tif, "-o", labels,
 	             "--angle", "95") == 2,
 	      "--angle 95: expected exit 2");
+	const char *bad_refusal[4][2] = {{"--frames", "0"},
+	                                 {"--unknown-threshold", "-1"},
+	                                 {"--background-level", "2"},
+	                                 {"--unknown-threshold", "nan"}};
+	for (int i = 0; i < 4; i++)
+		CHECK(FX_RUN("classify", "--calib", cam_path, "--materials", lib, tif, "-o", labels,
+		             bad_refusal[i][0], bad_refusal[i][1]) == 2,
+		      "%s %s: expected exit 2", bad_refusal[i][0], bad_refusal[i][1]);
+	expect_refusal(FX_RUN("classify", "--calib", cam_path, "--materials", lib, tif, "-o",
+	                      labels, "--variance", grey_tif),
+	               "classify, 1-channel variance image", "expected 3", NULL);
 	CHECK(fx_count_files() == ninputs, "usage errors left files behind");
 	CHECK(FX_RUN("estimate", "--help") == 0 && strstr(fx_out, "--format"), "estimate --help");
-	CHECK(FX_RUN("classify", "--help") == 0 && strstr(fx_out, "scale-free"), "classify --help");
+	CHECK(FX_RUN("classify", "--help") == 0 && strstr(fx_out, "scale-free") &&
+	          strstr(fx_out, "--variance") && strstr(fx_out, "--mask") &&
+	          strstr(fx_out, "--background-level") && strstr(fx_out, "--unknown-threshold"),
+	      "classify --help");
 
 	kg_image_free(&img);
 	kg_image_free(&grey);

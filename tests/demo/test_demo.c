@@ -114,11 +114,17 @@ static void check_labels(const char *dir, const kg_material_library *lib)
 	CHECK(ret == 0, "%s: %s", path, err.msg);
 	int n = kg_material_library_count(lib);
 	if (!ret) {
-		CHECK(e->meta.classes == n + 1, "%s: %d classes, expected %d", path, e->meta.classes,
-		      n + 1);
+		/* unclassified, the materials, then unknown and background */
+		CHECK(e->meta.classes == n + 3, "%s: %d classes, expected %d", path, e->meta.classes,
+		      n + 3);
 		for (int j = 0; j < n && j + 1 < e->meta.classes; j++)
 			CHECK(strcmp(e->meta.class_names[j + 1], kg_material_library_get(lib, j)->name) == 0,
 			      "%s: class %d is '%s'", path, j + 1, e->meta.class_names[j + 1]);
+		if (e->meta.classes == n + 3)
+			CHECK(strcmp(e->meta.class_names[n + 1], "unknown") == 0 &&
+			          strcmp(e->meta.class_names[n + 2], "background") == 0,
+			      "%s: classes %d and %d are '%s' and '%s'", path, n + 1, n + 2,
+			      e->meta.class_names[n + 1], e->meta.class_names[n + 2]);
 	}
 	kg_envi_close(&e);
 	free(path);
