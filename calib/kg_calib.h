@@ -1,5 +1,6 @@
 /* calib/: the reference calibration (once, in the lab) and the site calibration
- * (every session) of DESIGN.md §1 steps 1-2, and the JSON files that carry them.
+ * (every session) of docs/architecture.md, "The method", steps 1-2, and the JSON files
+ * that carry them.
  *
  * Reference calibration. A chart of m patches gives spectra S (m x 61) and the
  * reference camera's linear RGB rho (m x 3), matched by SAMPLE_ID. Five ways of

@@ -17,7 +17,7 @@ static const char usage_estimate[] =
 
 static const char help_estimate[] =
 	"\n"
-	"Per-pixel spectral reflectance (DESIGN.md section 1, step 3): s = A x(rho) with the\n"
+	"Per-pixel spectral reflectance (docs/estimate.md): s = A x(rho) with the\n"
 	"site camera's calibration (kogei calib camera), 61 bands 400-700 nm every 5 nm.\n"
 	"IMAGE is a linear 3-channel TIFF or PNG (0..1 scale; raw Bayer frames must be\n"
 	"demosaiced first). Rows are processed in blocks and streamed to the file, so\n"
@@ -58,7 +58,7 @@ static const char usage_classify[] =
 
 static const char help_classify[] =
 	"\n"
-	"Material labels (DESIGN.md section 1, step 4, the paper's eq. 11): each pixel\n"
+	"Material labels (docs/estimate.md, the paper's eq. 11): each pixel\n"
 	"gets the material j minimising ||C_j - s||^2 over the declared materials, where\n"
 	"C_j is the library reflectance at --angle. Because s = mean + B w lies in the\n"
 	"span of the pca basis, this is computed from the K weights w alone:\n"
@@ -361,7 +361,7 @@ int kg_cmd_classify(int argc, char **argv)
 	if (m != KG_METHOD_PCA)
 		return kg_cli_error(&err, kg_fail(&err, KG_EINVAL,
 		                                  "--method %s: classification works on the K weights of "
-		                                  "a basis (DESIGN.md section 1, step 4) and only pca has "
+		                                  "a basis and only pca has "
 		                                  "one; use --method pca",
 		                                  method));
 	char *only_copy = only ? strdup(only) : NULL;

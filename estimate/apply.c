@@ -845,8 +845,8 @@ int kg_classify_image(const kg_est_kernel *k, const kg_est_material_set *set,
 		memset(res, 0, sizeof(*res));
 	if (kg_est_kernel_k(k) == 0)
 		return kg_fail(err, KG_EINVAL,
-		               "%s: classification works in the K-dimensional subspace of a basis "
-		               "(DESIGN.md section 1, step 4): it needs a method with one (pca)",
+		               "%s: classification works in the K-dimensional subspace of a basis: "
+		               "it needs a method with one (pca)",
 		               out_hdr);
 	if (set->n < 1 || set->n > KG_EST_MAX_MATERIALS)
 		return kg_fail(err, KG_EINVAL, "%s: %d materials: expected 1 to %d", out_hdr, set->n,

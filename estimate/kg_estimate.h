@@ -17,8 +17,8 @@
  *     matrix kernel, read with trilinear interpolation.
  * A kernel made with a K-dimensional basis B (61 x K, orthonormal columns, and an
  * optional mean for centred PCA) produces either the spectrum s = mean + B w or the
- * K weights w themselves, and can feed the material classifier (DESIGN.md section 1,
- * step 4, eq. 11), which works on w alone.
+ * K weights w themselves, and can feed the material classifier (docs/architecture.md,
+ * step 4; the paper's eq. 11), which works on w alone.
  *
  * Every kernel has a plain C reference implementation and, on x86-64 CPUs with AVX2
  * and F16C, an optimised one. Both produce bit-identical output: they perform the same
@@ -133,7 +133,7 @@ int kg_est_method_terms(kg_est_method m);
  * Returns the number of terms or KG_EINVAL. */
 int kg_est_terms(kg_est_method m, const double rgb[3], double *terms);
 
-/* Material classification in the K-dim subspace (DESIGN.md section 1, step 4). */
+/* Material classification in the K-dim subspace (docs/estimate.md, `kogei classify`). */
 typedef enum kg_est_distance {
 	KG_EST_DIST_PLAIN,      /* ||C_j - s||^2 */
 	KG_EST_DIST_SCALE_FREE, /* min over a >= 0 of ||a C_j - s||^2 */
@@ -224,7 +224,7 @@ float kg_f32_from_f16(uint16_t h);
 
 /* ==== Images to files: cubes, masks and label maps (apply.c) =====================
  *
- * The glue between a kernel and the files of DESIGN.md section 3. It knows nothing
+ * The glue between a kernel and the files of docs/formats.md. It knows nothing
  * of calibrations: the caller builds the kernel (calib/: kg_camera_kernel) and, for
  * site maps of the root-polynomial methods, passes the 3 x 3 matrix applied to each
  * pixel before the kernel. Rows go through kg_est_run_stream into the streaming ENVI
