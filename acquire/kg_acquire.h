@@ -1,6 +1,6 @@
 /* acquire/: capture sessions on top of devices/ cameras (docs/acquire.md).
  *
- * A session is a directory (DESIGN.md §3):
+ * A session is a directory (docs/formats.md, "Capture sessions"):
  *   session.json              the manifest ("kogei-session/1"): station, devices, and one
  *                             entry per completed capture (settings read back, times,
  *                             frames and outputs with their sha256, statistics, the

@@ -151,6 +151,7 @@ static int load_manifest(kg_session *s, kg_err *err)
 	int ret = kg_json_load(f, &s->root, err);
 	if (ret)
 		return ret;
+	kg_inputs_forget(f); /* the session's own, rewritten after every capture */
 	const char *format;
 	json_t *v;
 	if ((ret = kg_json_get_string(f, s->root, "format", &format, err)))

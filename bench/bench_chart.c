@@ -266,11 +266,13 @@ int main(int argc, char **argv)
 	       render_s[0], render_s[1]);
 
 	if (json_path) {
-		FILE *fp = strcmp(json_path, "-") ? fopen(json_path, "w") : stdout;
-		if (!fp) {
-			perror(json_path);
+		kg_outfile out;
+		kg_err jerr = {{0}};
+		if (kg_outfile_open(&out, json_path, 1, &jerr)) {
+			fprintf(stderr, "%s\n", jerr.msg);
 			return 1;
 		}
+		FILE *fp = out.fp;
 		fprintf(fp, "{\"format\": \"kogei-bench-chart/1\", \"width\": %d, \"height\": %d, "
 		            "\"reps\": %d, \"layout\": \"%s\", \"spectra\": %s, \"rows\": [\n",
 		        width, height, reps, layout->name, have_spectra ? "true" : "false");
@@ -293,8 +295,10 @@ int main(int argc, char **argv)
 			fprintf(fp, "}%s\n", i + 1 < nrows ? "," : "");
 		}
 		fprintf(fp, "]}\n");
-		if (fp != stdout)
-			fclose(fp);
+		if (kg_outfile_commit(&out, &jerr)) {
+			fprintf(stderr, "%s\n", jerr.msg);
+			return 1;
+		}
 	}
 	kg_chart_layout_free(&layout);
 	if (!keep) {

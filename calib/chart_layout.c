@@ -765,12 +765,22 @@ static int has_suffix(const char *s, const char *suffix)
 	return n >= m && strcasecmp(s + n - m, suffix) == 0;
 }
 
-int kg_chart_layout_load(const char *path, kg_chart_layout **out, kg_err *err)
+static const kg_data_name bundled_layouts[] = {
+	{"colorchecker24-frame", "charts/colorchecker24-frame.json"},
+	{"colorchecker-passport-frame", "charts/colorchecker-passport-frame.json"},
+	{"colorchecker-sg-frame", "charts/colorchecker-sg-frame.json"},
+	{"cie-tcs-frame", "demo/cie-tcs-frame.json"},
+};
+
+int kg_chart_layout_resolve(const char *arg, char **path, kg_err *err)
 {
-	kg_check_arg(path && out, err);
-	*out = NULL;
-	if (has_suffix(path, ".cht"))
-		return kg_chart_layout_load_cht(path, 0, out, err);
+	return kg_data_resolve(arg, "chart layout", bundled_layouts,
+	                       (int)(sizeof(bundled_layouts) / sizeof(bundled_layouts[0])), path,
+	                       err);
+}
+
+static int load_json(const char *path, kg_chart_layout **out, kg_err *err)
+{
 	json_t *root = NULL;
 	int ret = kg_json_load(path, &root, err);
 	if (ret)
@@ -790,4 +800,18 @@ int kg_chart_layout_load(const char *path, kg_chart_layout **out, kg_err *err)
 	}
 	*out = l;
 	return 0;
+}
+
+int kg_chart_layout_load(const char *arg, kg_chart_layout **out, kg_err *err)
+{
+	kg_check_arg(arg && out, err);
+	*out = NULL;
+	char *path;
+	int ret = kg_chart_layout_resolve(arg, &path, err);
+	if (ret)
+		return ret;
+	ret = has_suffix(path, ".cht") ? kg_chart_layout_load_cht(path, 0, out, err)
+	                               : load_json(path, out, err);
+	free(path);
+	return ret;
 }

@@ -1,5 +1,6 @@
 /* calib/: the reference calibration (once, in the lab) and the site calibration
- * (every session) of DESIGN.md §1 steps 1-2, and the JSON files that carry them.
+ * (every session) of docs/architecture.md, "The method", steps 1-2, and the JSON files
+ * that carry them.
  *
  * Reference calibration. A chart of m patches gives spectra S (m x 61) and the
  * reference camera's linear RGB rho (m x 3), matched by SAMPLE_ID. Five ways of
@@ -426,9 +427,16 @@ typedef struct kg_chart_layout {
 	kg_chart_patch *patches;
 } kg_chart_layout;
 
-/* Load a layout: "kogei-chart/1" JSON, or (by the .cht extension, any case) an
- * ArgyllCMS template in its own units. The geometry is checked (kg_chart_layout_check).
- * Errors name the file, the key or line, and what was expected. */
+/* The file a --layout argument names: an existing file (or any argument with a '/') as
+ * it is, else a bundled layout by name: colorchecker24-frame, colorchecker-passport-frame,
+ * colorchecker-sg-frame and the demo's cie-tcs-frame. An unknown name fails with
+ * KG_ENOENT listing them. *path is newly allocated. Every command that takes a layout
+ * goes through this (kg_chart_layout_load calls it). */
+int kg_chart_layout_resolve(const char *arg, char **path, kg_err *err);
+/* Load a layout (a file or a bundled name, kg_chart_layout_resolve): "kogei-chart/1"
+ * JSON, or (by the .cht extension, any case) an ArgyllCMS template in its own units. The
+ * geometry is checked (kg_chart_layout_check). Errors name the file, the key or line,
+ * and what was expected. */
 int kg_chart_layout_load(const char *path, kg_chart_layout **out, kg_err *err);
 /* Read an ArgyllCMS .cht recognition template as patch geometry: every sample box
  * of its X/Y BOXES lines at full size (ids as the template writes them, e.g. "A1");

@@ -1,6 +1,6 @@
 /* The kogei command line: argument parsing and dispatch only. Each command is a
  * function taking its own argv (argv[0] is the command name). Exit codes follow
- * DESIGN.md §4: 0 success, 1 bad input, 2 bad usage, 3 device failure. */
+ * docs/architecture.md: 0 success, 1 bad input, 2 bad usage, 3 device failure. */
 #ifndef KG_CLI_H
 #define KG_CLI_H
 

@@ -12,7 +12,7 @@ static const char usage_reference[] =
 	"                      [--field-rgb F.cgats] [--basis K|auto] [--centred]\n"
 	"                      [--ridge L] [--noise SIGMA] [--method NAME|auto]\n"
 	"                      [--max-cond C] [--exclude ID[,ID...]]\n"
-	"  Reference calibration (once, in the lab). The chart's spectra S\n"
+	"  Reference calibration (docs/architecture.md, step 1). The chart's spectra S\n"
 	"  (CGATS SPEC_* fields, or a patch,name,<nm>... CSV table) and the reference\n"
 	"  camera's linear RGB rho (RGB_R RGB_G RGB_B) are matched by SAMPLE_ID. Fitted:\n"
 	"    pca        B = the K leading right singular vectors of S (--centred: about\n"

@@ -23,7 +23,10 @@ static const char help_detect[] =
 	"grey (patch values come out grey), RGB, or a raw frame with a CFA pattern\n"
 	"(demosaiced bilinearly). Values are linear on the 0..1 scale of the image.\n"
 	"\n"
-	"  --layout L           chart layout (kogei-chart/1 JSON, or an ArgyllCMS .cht)\n"
+	"  --layout L           chart layout (kogei-chart/1 JSON, an ArgyllCMS .cht, or a\n"
+	"                       bundled layout's name: colorchecker24-frame,\n"
+	"                       colorchecker-passport-frame, colorchecker-sg-frame,\n"
+	"                       cie-tcs-frame)\n"
 	"  -o P.cgats           patch file: SAMPLE_ID RGB_R RGB_G RGB_B RGB_R_SD RGB_G_SD\n"
 	"                       RGB_B_SD CLIPPED_FRACTION NONUNIFORMITY PIXELS FLAGS\n"
 	"                       ('-' for standard output); SD is 1.4826 x MAD of the\n"
@@ -160,7 +163,9 @@ int kg_cmd_chart_detect(int argc, char **argv)
 	kg_chart_result *res = NULL;
 	kg_patchset *ps = NULL;
 	int code = 0;
-	if ((code = kg_chart_layout_load(layout_path, &layout, &err)))
+	char *layout_file = NULL;
+	if ((code = kg_chart_layout_resolve(layout_path, &layout_file, &err)) ||
+	    (code = kg_chart_layout_load(layout_file, &layout, &err)))
 		goto fail;
 	if ((code = kg_image_read(image_path, &img, &err)))
 		goto fail;
@@ -188,7 +193,7 @@ int kg_cmd_chart_detect(int argc, char **argv)
 	const char *keywords[] = {
 		"ORIGINATOR", "kogei chart detect",
 		"CHART_LAYOUT", layout->name,
-		"CHART_LAYOUT_FILE", layout_path,
+		"CHART_LAYOUT_FILE", layout_file,
 		"IMAGE", image_path,
 		"DETECTOR", res->tagless ? "opencv-mcc" : "apriltag",
 		"TAG_FAMILY", opt.family ? opt.family : layout->family,
@@ -209,7 +214,9 @@ int kg_cmd_chart_detect(int argc, char **argv)
 	for (int i = 0; !id.known && keywords[i]; i += 2)
 		if (strcmp(keywords[i], "CAMERA_BACKEND") == 0)
 			keywords[i] = NULL;
-	if ((code = kg_patchset_write(out_path, ps, KG_PATCH_RGB | KG_PATCH_EXTRA, keywords, &err)))
+	/* both outputs checked against the inputs before the first is written */
+	if ((overlay && (code = kg_inputs_check_output(overlay, &err))) ||
+	    (code = kg_patchset_write(out_path, ps, KG_PATCH_RGB | KG_PATCH_EXTRA, keywords, &err)))
 		goto fail;
 	if (overlay && (code = kg_chart_overlay_write(res, img, overlay, 0, &err)))
 		goto fail;
@@ -224,5 +231,6 @@ fail:
 	kg_chart_result_free(&res);
 	kg_image_free(&img);
 	kg_chart_layout_free(&layout);
+	free(layout_file);
 	return code ? kg_cli_error(&err, code) : KG_EXIT_OK;
 }

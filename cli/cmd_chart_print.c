@@ -2,7 +2,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/stat.h>
 
 #include "cli.h"
 #include "kg_calib.h"
@@ -14,20 +13,10 @@ static const char usage_chart_print[] =
 	"  the outline of where the chart goes, the patch ids, a 50 mm scale bar and the\n"
 	"  layout's name, on a page 10 mm larger than the frame on every side. L is a\n"
 	"  layout file (kogei-chart/1 JSON or an ArgyllCMS .cht) or the name of a bundled\n"
-	"  layout (colorchecker24-frame, colorchecker-passport-frame, colorchecker-sg-frame).\n"
+	"  layout (colorchecker24-frame, colorchecker-passport-frame, colorchecker-sg-frame,\n"
+	"  cie-tcs-frame).\n"
 	"  --dpi sets a PNG's resolution (default 300); --width gives a .cht template's\n"
 	"  physical chart width in mm (templates are in scan pixels). Print at 100 %.";
-
-/* A layout argument: an existing file, else a bundled layout's name. */
-static char *resolve_layout(const char *arg)
-{
-	struct stat st;
-	if (stat(arg, &st) == 0 || strchr(arg, '/'))
-		return strdup(arg);
-	char name[512];
-	snprintf(name, sizeof(name), "charts/%s%s", arg, strstr(arg, ".json") ? "" : ".json");
-	return kg_data_path(name);
-}
 
 int kg_cmd_chart_print(int argc, char **argv)
 {
@@ -80,12 +69,12 @@ int kg_cmd_chart_print(int argc, char **argv)
 	}
 
 	kg_err err = {{0}};
-	char *path = resolve_layout(layout_arg);
+	char *path = NULL;
 	kg_chart_layout *layout = NULL;
+	int ret = kg_chart_layout_resolve(layout_arg, &path, &err);
 	size_t n = path ? strlen(path) : 0;
-	int ret;
-	if (!path)
-		ret = kg_fail(&err, KG_ENOMEM, "out of memory");
+	if (ret)
+		;
 	else if (width > 0 && !(n >= 4 && strcasecmp(path + n - 4, ".cht") == 0))
 		ret = kg_fail(&err, KG_EINVAL, "--width applies to .cht templates only, not %s",
 		              path);

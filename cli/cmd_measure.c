@@ -23,7 +23,8 @@ static const char usage_measure[] =
 	"       replay:<recording> (plays back a --record recording).\n"
 	"  --single           measure one spot (its SAMPLE_ID from --id, default 1)\n"
 	"  --chart LAYOUT     guide through the patches of a chart layout (kogei-chart/1\n"
-	"                     JSON or ArgyllCMS .cht), telling where each patch is\n"
+	"                     JSON, ArgyllCMS .cht, or a bundled layout's name such as\n"
+	"                     colorchecker24-frame), telling where each patch is\n"
 	"  --patches IDS      the same with a comma-separated list of patch ids\n"
 	"  --patches-file F   the same with the SAMPLE_IDs of a CGATS file (.ti1/.ti3)\n"
 	"  --info             print the instrument's identity and calibration and exit\n"
@@ -269,6 +270,7 @@ static int run_chart(measure_ctx *m, const patch_list *pl, const char *out, int 
 		            "remove the file", partial);
 	if (!r && resume && exists) {
 		r = kg_patchset_read(partial, 0, &done, err);
+		kg_inputs_forget(partial); /* this run's own progress, rewritten after each patch */
 		for (int i = 0; !r && i < done->n; i++) {
 			int k = kg_patchset_find(ps, done->ids[i]);
 			if (k < 0 || !done->spectra) {

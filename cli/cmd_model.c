@@ -51,7 +51,7 @@ int kg_cmd_model(int argc, char **argv)
 		return kg_cli_usage_error(usage_model, "expected -o TABLE.csv and/or --plot FIG.png");
 
 	kg_err err = {{0}};
-	char *default_lib = lib_path ? NULL : kg_data_path("materials/default.json");
+	char *lib_file = NULL;
 	kg_material_library *lib = NULL;
 	kg_illuminant *ill = NULL;
 	double *angles = NULL, *table = NULL;
@@ -61,7 +61,9 @@ int kg_cmd_model(int argc, char **argv)
 		ret = kg_fail(&err, KG_EINVAL, "--angles %s: expected angles within 0..90 degrees",
 		              angles_text);
 	if (!ret)
-		ret = kg_material_library_load(lib_path ? lib_path : default_lib, &lib, &err);
+		ret = kg_material_library_resolve(lib_path ? lib_path : "default", &lib_file, &err);
+	if (!ret)
+		ret = kg_material_library_load(lib_file, &lib, &err);
 	const kg_material *mat = NULL;
 	if (!ret && !(mat = kg_material_library_find(lib, name))) {
 		char known[512] = "";
@@ -71,12 +73,14 @@ int kg_cmd_model(int argc, char **argv)
 			         kg_material_library_get(lib, i)->name);
 		}
 		ret = kg_fail(&err, KG_EINVAL, "%s: no material named '%s' (the library has: %s)",
-		              lib_path ? lib_path : default_lib, name, known);
+		              lib_file, name, known);
 	}
 	if (!ret && !(table = malloc(sizeof(double) * KG_NBANDS * nangles)))
 		ret = kg_fail(&err, KG_ENOMEM, "out of memory");
 	if (!ret)
 		ret = kg_model_table(mat, angles, nangles, table, &err);
+	if (!ret && out && plot) /* neither output written when the other is an input */
+		ret = kg_inputs_check_output(plot, &err);
 	if (!ret && out)
 		ret = kg_model_table_write_csv(out, angles, nangles, table, &err);
 	if (!ret && plot)
@@ -89,7 +93,7 @@ int kg_cmd_model(int argc, char **argv)
 	}
 	free(angles);
 	free(table);
-	free(default_lib);
+	free(lib_file);
 	kg_illuminant_free(&ill);
 	kg_material_library_free(&lib);
 	return ret ? kg_cli_error(&err, ret) : KG_EXIT_OK;

@@ -333,7 +333,9 @@ int kg_envi_writer_open(const char *path, const kg_envi_meta *meta, kg_envi_writ
 		kg_err_prefix(err, "%s", path);
 		goto fail;
 	}
-	if ((ret = kg_envi_paths(path, &w->hdr_path, &w->data_path, err)))
+	if ((ret = kg_envi_paths(path, &w->hdr_path, &w->data_path, err)) ||
+	    (ret = kg_inputs_check_output(w->hdr_path, err)) ||
+	    (ret = kg_inputs_check_output(w->data_path, err)))
 		goto fail;
 	w->samples = meta->samples;
 	w->lines = meta->lines;
@@ -566,6 +568,10 @@ int kg_envi_writer_finish(kg_envi_writer **wp, kg_err *err)
 	if (fputs(w->header, hdr.fp) == EOF) {
 		kg_outfile_abort(&hdr);
 		ret = kg_fail(err, KG_EIO, "%s: write failed: %s", w->hdr_path, strerror(errno));
+		goto out;
+	}
+	if ((ret = kg_inputs_check_output(w->data_path, err))) {
+		kg_outfile_abort(&hdr);
 		goto out;
 	}
 	if (rename(w->tmp_path, w->data_path) != 0) {
@@ -1075,6 +1081,7 @@ int kg_envi_open(const char *path, kg_envi **out, kg_err *err)
 		              e->data_path, strerror(errno));
 		goto fail;
 	}
+	kg_inputs_add(e->data_path, e->fd);
 	kg_envi_meta *m = &e->meta;
 	size_t ts = type_size(m->data_type);
 	unsigned long long px = (unsigned long long)m->samples * (unsigned long long)m->lines;

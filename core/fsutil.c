@@ -1,4 +1,5 @@
 #include <errno.h>
+#include <pthread.h>
 #include <sched.h>
 #include <stdlib.h>
 #include <string.h>
@@ -7,6 +8,86 @@
 
 #include "fsutil.h"
 #include "kg_config.h"
+
+/* The process's inputs: a short list (a command reads a handful of files), searched
+ * linearly. The one process-level registry of core, so that every writer checks the
+ * same thing whatever front end called it. */
+typedef struct input_file {
+	dev_t dev;
+	ino_t ino;
+	char *path;
+} input_file;
+
+static struct {
+	pthread_mutex_t lock;
+	input_file *files;
+	size_t n, cap;
+} inputs = {PTHREAD_MUTEX_INITIALIZER, NULL, 0, 0};
+
+void kg_inputs_add(const char *path, int fd)
+{
+	struct stat st;
+	if (!path || (fd >= 0 ? fstat(fd, &st) : stat(path, &st)) != 0 || !S_ISREG(st.st_mode))
+		return;
+	pthread_mutex_lock(&inputs.lock);
+	int known = 0;
+	for (size_t i = 0; i < inputs.n && !known; i++)
+		known = inputs.files[i].dev == st.st_dev && inputs.files[i].ino == st.st_ino;
+	if (!known && inputs.n == inputs.cap) {
+		size_t cap = inputs.cap ? 2 * inputs.cap : 16;
+		input_file *f = realloc(inputs.files, cap * sizeof(*f));
+		if (f) {
+			inputs.files = f;
+			inputs.cap = cap;
+		}
+	}
+	char *copy = known || inputs.n == inputs.cap ? NULL : strdup(path);
+	if (copy)
+		inputs.files[inputs.n++] = (input_file){st.st_dev, st.st_ino, copy};
+	pthread_mutex_unlock(&inputs.lock);
+}
+
+void kg_inputs_forget(const char *path)
+{
+	struct stat st;
+	if (!path || stat(path, &st) != 0)
+		return;
+	pthread_mutex_lock(&inputs.lock);
+	for (size_t i = 0; i < inputs.n; i++)
+		if (inputs.files[i].dev == st.st_dev && inputs.files[i].ino == st.st_ino) {
+			free(inputs.files[i].path);
+			inputs.files[i] = inputs.files[--inputs.n];
+			break;
+		}
+	pthread_mutex_unlock(&inputs.lock);
+}
+
+int kg_inputs_check_output(const char *path, kg_err *err)
+{
+	struct stat st;
+	if (!path || !strcmp(path, "-") || stat(path, &st) != 0)
+		return 0;
+	int ret = 0;
+	pthread_mutex_lock(&inputs.lock);
+	for (size_t i = 0; i < inputs.n && !ret; i++)
+		if (inputs.files[i].dev == st.st_dev && inputs.files[i].ino == st.st_ino)
+			ret = kg_fail(err, KG_EINVAL,
+			              "%s: is an input of this command (%s); choose another output name",
+			              path, inputs.files[i].path);
+	pthread_mutex_unlock(&inputs.lock);
+	return ret;
+}
+
+void kg_inputs_reset(void)
+{
+	pthread_mutex_lock(&inputs.lock);
+	for (size_t i = 0; i < inputs.n; i++)
+		free(inputs.files[i].path);
+	free(inputs.files);
+	inputs.files = NULL;
+	inputs.n = inputs.cap = 0;
+	pthread_mutex_unlock(&inputs.lock);
+}
 
 int kg_outfile_open(kg_outfile *o, const char *path, int allow_stdout, kg_err *err)
 {
@@ -21,6 +102,9 @@ int kg_outfile_open(kg_outfile *o, const char *path, int allow_stdout, kg_err *e
 		o->path = strdup(path);
 		return o->path ? 0 : KG_ENOMEM;
 	}
+	int ret = kg_inputs_check_output(path, err);
+	if (ret)
+		return ret;
 	o->path = strdup(path);
 	size_t n = strlen(path) + 32;
 	o->tmp_path = malloc(n);
@@ -64,6 +148,8 @@ int kg_outfile_commit(kg_outfile *o, kg_err *err)
 	if (fclose(o->fp) != 0 && ret == 0)
 		ret = kg_fail(err, KG_EIO, "%s: write failed: %s", o->path, strerror(errno));
 	o->fp = NULL;
+	if (ret == 0)
+		ret = kg_inputs_check_output(o->path, err);
 	if (ret == 0 && rename(o->tmp_path, o->path) != 0)
 		ret = kg_fail(err, KG_EIO, "%s: cannot rename into place: %s", o->path,
 		              strerror(errno));
@@ -94,6 +180,7 @@ int kg_read_file(const char *path, char **buf, size_t *len, kg_err *err)
 	if (!fp)
 		return kg_fail(err, errno == ENOENT ? KG_ENOENT : KG_EIO, "%s: cannot open: %s",
 		               path, strerror(errno));
+	kg_inputs_add(path, fileno(fp));
 	size_t cap = 1 << 16, n = 0;
 	char *b = malloc(cap + 1);
 	while (b) {
@@ -170,6 +257,32 @@ char *kg_data_path(const char *name)
 		free(p);
 	}
 	return kg_path_join(KG_SOURCE_ROOT "/fixtures", name);
+}
+
+int kg_data_resolve(const char *arg, const char *what, const kg_data_name *table, int n,
+                    char **path, kg_err *err)
+{
+	kg_check_arg(arg && what && path && (table || n == 0), err);
+	*path = NULL;
+	struct stat st;
+	if (stat(arg, &st) == 0 || strchr(arg, '/')) {
+		*path = strdup(arg);
+		return *path ? 0 : kg_fail(err, KG_ENOMEM, "%s: out of memory", arg);
+	}
+	size_t len = strlen(arg);
+	if (len > 5 && !strcmp(arg + len - 5, ".json"))
+		len -= 5;
+	for (int i = 0; i < n; i++)
+		if (strlen(table[i].name) == len && !strncmp(table[i].name, arg, len)) {
+			*path = kg_data_path(table[i].file);
+			return *path ? 0 : kg_fail(err, KG_ENOMEM, "%s: out of memory", arg);
+		}
+	char names[512] = "";
+	for (int i = 0, at = 0; i < n && at < (int)sizeof(names); i++)
+		at += snprintf(names + at, sizeof(names) - (size_t)at, "%s%s", i ? ", " : "",
+		               table[i].name);
+	return kg_fail(err, KG_ENOENT, "%s: no such file, and no bundled %s of that name "
+	               "(expected a file or one of: %s)", arg, what, names);
 }
 
 int kg_cpu_count(int max)

@@ -1,5 +1,15 @@
 /* Files written atomically: data goes to a temporary name beside the target and is
- * renamed over it only when complete, so a reader never sees a half-written file. */
+ * renamed over it only when complete, so a reader never sees a half-written file.
+ *
+ * No command overwrites what it reads. Every reader in core (kg_read_file, and through
+ * it the CGATS, CSV and layout readers; kg_json_load; the TIFF, PNG and JPEG readers;
+ * both files of an ENVI cube) notes the file it opened, by device and inode, in one
+ * process-wide registry of inputs. Every writer checks its final name against it before
+ * it writes anything and again before it renames into place (kg_outfile_open and
+ * kg_outfile_commit, the ENVI writer), so -o naming an input, a hard link to one or a
+ * symbolic link to one fails with KG_EINVAL and leaves the input as it was. A name that
+ * does not exist yet cannot collide; a writer of several files (a cube and its header,
+ * a label map and its .json and .png) checks every name before it writes the first. */
 #ifndef KG_FSUTIL_H
 #define KG_FSUTIL_H
 
@@ -20,13 +30,40 @@ int kg_outfile_commit(kg_outfile *o, kg_err *err);
 /* Abandon: close and remove the temporary file. Safe to call after commit. */
 void kg_outfile_abort(kg_outfile *o);
 
-/* Read a whole file into a NUL-terminated buffer (caller frees). */
+/* Note path (opened for reading through fd, or -1 to stat the name) as an input of
+ * this process. A file that cannot be stat'ed is not noted. Thread-safe. */
+void kg_inputs_add(const char *path, int fd);
+/* A file read only to be rewritten by its owner (a session's manifest, a recording's
+ * index) is not an input: drop it from the registry. */
+void kg_inputs_forget(const char *path);
+/* 0 if writing path cannot replace an input of this process, else KG_EINVAL with
+ * "<path>: is an input of this command (<input>); choose another output name". "-"
+ * (standard output) never collides. */
+int kg_inputs_check_output(const char *path, kg_err *err);
+/* Empty the registry: a front end that runs one job after another (the console, a test
+ * that writes what it read) starts each job with no inputs. */
+void kg_inputs_reset(void);
+
+/* Read a whole file into a NUL-terminated buffer (caller frees); the file is noted as
+ * an input. */
 int kg_read_file(const char *path, char **buf, size_t *len, kg_err *err);
 /* Create a directory and its parents (like mkdir -p). */
 int kg_mkdir_p(const char *path, kg_err *err);
 /* A bundled data file (e.g. "materials/default.json"): $KOGEI_DATA_DIR, then the
  * installed data directory, then the source tree's fixtures/. Caller frees. */
 char *kg_data_path(const char *name);
+/* A bundled data file known by name: "colorchecker24-frame" is charts/....json. */
+typedef struct kg_data_name {
+	const char *name;
+	const char *file; /* for kg_data_path */
+} kg_data_name;
+/* What a command-line argument naming a data file means: arg itself when a file of that
+ * name exists or it contains a '/'; else the bundled file whose name is arg (a ".json"
+ * suffix is allowed) among the n of table. An unknown name fails with KG_ENOENT and a
+ * message that lists the bundled names of this kind (what: "chart layout"). *path is
+ * newly allocated. */
+int kg_data_resolve(const char *arg, const char *what, const kg_data_name *table, int n,
+                    char **path, kg_err *err);
 /* Join dir and name into a newly allocated path. */
 char *kg_path_join(const char *dir, const char *name);
 

@@ -89,6 +89,7 @@ int kg_image_read(const char *path, kg_image **out, kg_err *err)
 	if (!fp)
 		return kg_fail(err, errno == ENOENT ? KG_ENOENT : KG_EIO, "%s: cannot open: %s", path,
 		               strerror(errno));
+	kg_inputs_add(path, fileno(fp));
 	size_t n = fread(magic, 1, sizeof(magic), fp);
 	fclose(fp);
 	if (n >= 8 && png_sig_cmp(magic, 0, 8) == 0)
@@ -265,6 +266,7 @@ int kg_image_read_tiff(const char *path, kg_image **out, kg_err *err)
 	if (fd < 0)
 		return kg_fail(err, errno == ENOENT ? KG_ENOENT : KG_EIO, "%s: cannot open: %s", path,
 		               strerror(errno));
+	kg_inputs_add(path, fd);
 	struct tiff_msg msg = {{0}};
 	TIFF *tif = tiff_open_fd(fd, path, "r", &msg);
 	if (!tif) {
@@ -532,6 +534,7 @@ int kg_image_read_png(const char *path, kg_image **out, kg_err *err)
 	if (!j.fp)
 		return kg_fail(err, errno == ENOENT ? KG_ENOENT : KG_EIO, "%s: cannot open: %s", path,
 		               strerror(errno));
+	kg_inputs_add(path, fileno(j.fp));
 	int ret;
 	j.png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &j, png_error_fn, png_warning_fn);
 	j.info = j.png ? png_create_info_struct(j.png) : NULL;

@@ -12,8 +12,10 @@ int kg_json_load(const char *path, json_t **root, kg_err *err)
 	kg_check_arg(path && root, err);
 	json_error_t e;
 	*root = json_load_file(path, JSON_REJECT_DUPLICATES, &e);
-	if (*root)
+	if (*root) {
+		kg_inputs_add(path, -1);
 		return 0;
+	}
 	switch (json_error_code(&e)) {
 	case json_error_cannot_open_file:
 		return kg_fail(err, access(path, F_OK) != 0 ? KG_ENOENT : KG_EIO, "%s", e.text);

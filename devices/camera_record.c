@@ -287,13 +287,15 @@ static json_t *json_number_or_null(double v)
  * fsync per frame. */
 static int write_frame_file(const char *path, const void *data, size_t size, kg_err *err)
 {
+	int ret = kg_inputs_check_output(path, err);
+	if (ret)
+		return ret;
 	size_t n = strlen(path);
 	char *tmp = malloc(n + 5);
 	if (!tmp)
 		return kg_fail(err, KG_ENOMEM, "%s: out of memory", path);
 	memcpy(tmp, path, n);
 	memcpy(tmp + n, ".tmp", 5);
-	int ret = 0;
 	int fd = open(tmp, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
 	if (fd < 0)
 		ret = kg_fail(err, KG_EIO, "%s: cannot create: %s", tmp, strerror(errno));
@@ -427,6 +429,7 @@ int kg_camera_recording_discard(const char *session_dir, const char *capture, kg
 		return ret;
 	}
 	ret = kg_read_file(index, &buf, &len, err);
+	kg_inputs_forget(index); /* read to be rewritten without one capture's lines */
 	if (!ret)
 		ret = kg_outfile_open(&out, index, 0, err);
 	/* Keep every other line as it is; a last line without its newline (cut off) goes. */

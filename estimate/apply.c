@@ -262,10 +262,7 @@ static int open_mask(const char *out_hdr, const kg_image *img, char **mask_path,
 	m.data_type = KG_ENVI_U8;
 	m.interleave = KG_ENVI_BSQ;
 	m.description = mask_description;
-	rc = kg_envi_writer_open(*mask_path, &m, w, err);
-	if (rc)
-		kg_err_prefix(err, "%s: ", *mask_path);
-	return rc;
+	return kg_envi_writer_open(*mask_path, &m, w, err); /* its messages name the file */
 }
 
 /* ---- estimate ---------------------------------------------------------------------- */
@@ -418,10 +415,8 @@ int kg_estimate_image(const kg_est_kernel *k, const kg_image *img, kg_est_format
 	if (m.data_type == KG_ENVI_U16)
 		extra[m.n_extra++] = (kg_envi_pair){"kogei sample format", "ieee-half"};
 
-	if ((rc = kg_envi_writer_open(out_hdr, &m, &ws[0], err))) {
-		kg_err_prefix(err, "%s: ", out_hdr);
+	if ((rc = kg_envi_writer_open(out_hdr, &m, &ws[0], err)))
 		goto out;
-	}
 	if ((rc = open_mask(out_hdr, img, &mask_path, &ws[1], err)))
 		goto out;
 	paths[1] = mask_path;
@@ -1171,7 +1166,9 @@ int kg_classify_image_opts(const kg_est_kernel *k, const kg_est_material_set *se
 		goto out;
 	if ((rc = kg_apply_side_path(out_hdr, "_confidence.hdr", &conf_path, err)) ||
 	    (rc = kg_apply_side_path(out_hdr, ".json", &json_path, err)) ||
-	    (rc = kg_apply_side_path(out_hdr, ".png", &png_path, err)))
+	    (rc = kg_apply_side_path(out_hdr, ".png", &png_path, err)) ||
+	    (rc = kg_inputs_check_output(json_path, err)) ||
+	    (rc = kg_inputs_check_output(png_path, err)))
 		goto out;
 	const int nlabels = set->n + 3;
 	names = calloc((size_t)nlabels, sizeof(char *));
@@ -1201,10 +1198,8 @@ int kg_classify_image_opts(const kg_est_kernel *k, const kg_est_material_set *se
 	m.classes = nlabels;
 	m.class_names = names;
 	m.class_lookup = lookup;
-	if ((rc = kg_envi_writer_open(out_hdr, &m, &ws[0], err))) {
-		kg_err_prefix(err, "%s: ", out_hdr);
+	if ((rc = kg_envi_writer_open(out_hdr, &m, &ws[0], err)))
 		goto out;
-	}
 	kg_envi_meta mc = {0};
 	mc.samples = img->width;
 	mc.lines = img->height;
@@ -1216,10 +1211,8 @@ int kg_classify_image_opts(const kg_est_kernel *k, const kg_est_material_set *se
 	                 "pixels, Inf with one material";
 	const char *band[1] = {"margin"};
 	mc.band_names = band;
-	if ((rc = kg_envi_writer_open(conf_path, &mc, &ws[1], err))) {
-		kg_err_prefix(err, "%s: ", conf_path);
+	if ((rc = kg_envi_writer_open(conf_path, &mc, &ws[1], err)))
 		goto out;
-	}
 	paths[1] = conf_path;
 	if ((rc = open_mask(out_hdr, img, &mask_path, &ws[2], err)))
 		goto out;

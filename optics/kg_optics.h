@@ -217,6 +217,12 @@ int kg_material_eval(const kg_material *mat, const double N[3], const double V[3
  * Errors name the file, the entry and the field. */
 typedef struct kg_material_library kg_material_library;
 
+/* The file a --materials argument names: an existing file (or any argument with a '/')
+ * as it is, else a bundled library by name ("default": fixtures/materials/default.json,
+ * installed with kogei). An unknown name fails with KG_ENOENT listing the bundled
+ * names. *path is newly allocated. kg_material_library_load calls it, so every command
+ * and scene that takes a library takes a name too. */
+int kg_material_library_resolve(const char *arg, char **path, kg_err *err);
 int kg_material_library_load(const char *path, kg_material_library **out, kg_err *err);
 void kg_material_library_free(kg_material_library **lib);
 int kg_material_library_count(const kg_material_library *lib);

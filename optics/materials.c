@@ -435,10 +435,19 @@ static int parse_common(const char *file, int i, const json_t *entry,
 	return 0;
 }
 
-int kg_material_library_load(const char *path, kg_material_library **out, kg_err *err)
+static const kg_data_name bundled_libraries[] = {
+	{"default", "materials/default.json"},
+};
+
+int kg_material_library_resolve(const char *arg, char **path, kg_err *err)
 {
-	kg_check_arg(path && out, err);
-	*out = NULL;
+	return kg_data_resolve(arg, "material library", bundled_libraries,
+	                       (int)(sizeof(bundled_libraries) / sizeof(bundled_libraries[0])),
+	                       path, err);
+}
+
+static int load_library(const char *path, kg_material_library **out, kg_err *err)
+{
 	json_t *root = NULL, *list;
 	kg_material_library *lib = NULL;
 	char *dir = NULL;
@@ -504,5 +513,18 @@ done:
 	if (r != 0)
 		kg_material_library_free(&lib);
 	*out = lib;
+	return r;
+}
+
+int kg_material_library_load(const char *arg, kg_material_library **out, kg_err *err)
+{
+	kg_check_arg(arg && out, err);
+	*out = NULL;
+	char *path;
+	int r = kg_material_library_resolve(arg, &path, err);
+	if (r)
+		return r;
+	r = load_library(path, out, err);
+	free(path);
 	return r;
 }

@@ -1409,6 +1409,7 @@ int kg_ply_load(const char *path, kg_mesh **out, kg_err *err)
 		close(fd);
 		return kg_fail(err, KG_EIO, "%s: not a regular file", path);
 	}
+	kg_inputs_add(path, fd);
 	size_t len = (size_t)st.st_size;
 	if (len == 0) {
 		close(fd);

@@ -430,11 +430,20 @@ static int load_materials(kg_scene *s, const json_t *root, kg_err *err)
 	if (lib && !json_is_string(lib))
 		return kg_fail(err, KG_EINVAL, "%s: key 'materials.library': expected a file name",
 		               s->path);
-	s->library_path = lib ? scene_relative(s, json_string_value(lib))
-	                      : kg_data_path("materials/default.json");
-	if (!s->library_path)
-		return kg_fail(err, KG_ENOENT, "%s: key 'materials.library' is absent and the "
-		               "bundled library (materials/default.json) was not found", s->path);
+	/* A file beside the scene, else a bundled library's name (kg_material_library_resolve);
+	 * without the key, the bundled default. */
+	const char *lib_name = lib ? json_string_value(lib) : "default";
+	char *beside = lib ? scene_relative(s, lib_name) : NULL;
+	if (beside && !strchr(lib_name, '/') && !file_exists(beside)) {
+		free(beside);
+		beside = NULL;
+	}
+	if (beside)
+		s->library_path = beside;
+	else if ((ret = kg_material_library_resolve(lib_name, &s->library_path, err))) {
+		kg_err_prefix(err, "%s: key 'materials.library': ", s->path);
+		return ret;
+	}
 	if ((ret = kg_material_library_load(s->library_path, &s->lib, err))) {
 		kg_err_prefix(err, "%s: key 'materials.library'", s->path);
 		return ret;

@@ -10,8 +10,8 @@
  * diffuser (R = 1) gives `white_level` in its brightest channel:
  * k = white_level / max_c sum E S_c dlambda. For a metal the camera sees the
  * specular colour signal E(lambda) R_material(lambda, theta); pass R_material at
- * the incidence angle as the reflectance. Values are on the 0..1 scale of DESIGN.md
- * §4 (1 = full scale).
+ * the incidence angle as the reflectance. Values are linear on a 0..1 scale (1 = full
+ * scale), as every camera value in kogei.
  *
  * Noise model (kg_sim_noise). The noise-free value v is turned into v * full_well
  * expected photo-electrons; the count is drawn from a Poisson distribution (exact:

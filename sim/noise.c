@@ -1,6 +1,6 @@
 /* Sensor noise: photon shot noise for a full-well capacity, read noise, clipping at
- * full scale and quantisation to a bit depth. Values are on the 0..1 scale of
- * DESIGN.md §4 (1 = full well = the largest code). */
+ * full scale and quantisation to a bit depth. Values are linear on a 0..1 scale, as
+ * every camera value in kogei (1 = full well = the largest code). */
 #include <errno.h>
 #include <math.h>
 #include <stdio.h>

@@ -1,5 +1,5 @@
 /* `kogei sim patches`: one simulated reading per spectrum, written as a patch file
- * (SAMPLE_ID RGB_R RGB_G RGB_B, DESIGN.md §4). */
+ * (SAMPLE_ID RGB_R RGB_G RGB_B, linear, 0..1; docs/formats.md). */
 #include "kg_sim.h"
 
 int kg_sim_write_patches(const char *path, const kg_patchset *spectra,

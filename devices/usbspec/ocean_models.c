@@ -1,5 +1,6 @@
-/* The models of the usbspec driver (ocean_models.h). Facts: NOTES.md, "Ocean Optics /
- * Ocean Insight FPGA spectrometers" (public SeaBreeze facts). */
+/* The models of the usbspec driver (ocean_models.h). Facts: the Ocean Optics / Ocean
+ * Insight FPGA spectrometers as the public SeaBreeze sources describe them (vendor and
+ * product ids, pixel counts, endpoints, integration limits); docs/measure.md. */
 #include "ocean_models.h"
 
 const ocean_model kg_ocean_models[] = {

@@ -296,6 +296,7 @@ static void test_damage(const char *session)
 	shot more;
 	kg_camera *c = cam_open("sim:?width=24&height=16&format=bayer_rggb12&seed=3");
 	cam_must(kg_camera_manual(c, &e), &e, "manual");
+	kg_inputs_reset(); /* a new job: the replays above read this session */
 	cam_must(kg_camera_record_start(c, session, &e), &e, "record_start again");
 	cam_must(kg_camera_record_capture(c, "chart-0001", &e), &e, "capture");
 	cam_must(kg_camera_start(c, 0, &e), &e, "start");

@@ -330,8 +330,8 @@ static void test_image_seed(void)
 		kg_image_free(&img[k]);
 }
 
-/* The bundled library: every material of DESIGN.md §3 becomes its own class, in
- * library order, and a grazing angle still gives reflectances in [0, 1]. */
+/* The bundled library: every material of fixtures/materials/default.json becomes its
+ * own class, in library order, and a grazing angle still gives reflectances in [0, 1]. */
 static void test_default_library(void)
 {
 	char lib[4200], errbuf[4096];

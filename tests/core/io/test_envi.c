@@ -303,6 +303,7 @@ static void test_large(void)
 		kg_envi_meta m = {.samples = LS, .lines = LL, .bands = LB, .data_type = KG_ENVI_U16,
 		                  .interleave = ils[i], .scale = 1000};
 		kg_err err;
+		kg_inputs_reset(); /* the cube read in the last round is written again */
 		CHECK(kg_envi_write(io_path("large.hdr"), &m, KG_LAYOUT_BIP, cube, &err) == 0,
 		      "large: %s", err.msg);
 		kg_envi *e;
