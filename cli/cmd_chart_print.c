@@ -73,15 +73,13 @@ int kg_cmd_chart_print(int argc, char **argv)
 	kg_chart_layout *layout = NULL;
 	int ret = kg_chart_layout_resolve(layout_arg, &path, &err);
 	size_t n = path ? strlen(path) : 0;
-	if (ret)
-		;
-	else if (width > 0 && !(n >= 4 && strcasecmp(path + n - 4, ".cht") == 0))
+	int cht = n >= 4 && strcasecmp(path + n - 4, ".cht") == 0;
+	if (!ret && width > 0 && !cht)
 		ret = kg_fail(&err, KG_EINVAL, "--width applies to .cht templates only, not %s",
 		              path);
-	else if (width > 0)
-		ret = kg_chart_layout_load_cht(path, width, &layout, &err);
-	else
-		ret = kg_chart_layout_load(path, &layout, &err);
+	else if (!ret)
+		ret = width > 0 ? kg_chart_layout_load_cht(path, width, &layout, &err)
+		                : kg_chart_layout_load(path, &layout, &err);
 	if (!ret)
 		ret = kg_chart_print(layout, out, dpi, &err);
 	kg_chart_layout_free(&layout);

@@ -2,14 +2,16 @@
  * renamed over it only when complete, so a reader never sees a half-written file.
  *
  * No command overwrites what it reads. Every reader in core (kg_read_file, and through
- * it the CGATS, CSV and layout readers; kg_json_load; the TIFF, PNG and JPEG readers;
- * both files of an ENVI cube) notes the file it opened, by device and inode, in one
- * process-wide registry of inputs. Every writer checks its final name against it before
- * it writes anything and again before it renames into place (kg_outfile_open and
- * kg_outfile_commit, the ENVI writer), so -o naming an input, a hard link to one or a
- * symbolic link to one fails with KG_EINVAL and leaves the input as it was. A name that
- * does not exist yet cannot collide; a writer of several files (a cube and its header,
- * a label map and its .json and .png) checks every name before it writes the first. */
+ * it the CGATS, CSV and layout readers; kg_json_load; the TIFF and PNG readers; both
+ * files of an ENVI cube) and the PLY loader note the file they opened, by device and
+ * inode, in one process-wide registry of inputs. Every writer checks its final name
+ * against it before it writes anything and again before it renames into place
+ * (kg_outfile_open and kg_outfile_commit, through which the CGATS, CSV, JSON, TIFF,
+ * PNG, plot, SVG/PDF and PLY writers go; the ENVI writer; a session's frame files), so
+ * -o naming an input, a hard link to one or a symbolic link to one fails with KG_EINVAL
+ * and leaves the input as it was. A name that does not exist yet cannot collide; a
+ * writer of several files (a cube and its header, a label map and its .json and .png)
+ * checks every name before the first is renamed into place. */
 #ifndef KG_FSUTIL_H
 #define KG_FSUTIL_H
 
