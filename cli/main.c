@@ -20,6 +20,7 @@ static const kg_command commands[] = {
 	{"estimate", kg_cmd_estimate, "per-pixel 61-band reflectance cube of an image"},
 	{"classify", kg_cmd_classify, "per-pixel material labels among the declared materials"},
 	{"render", kg_cmd_render, "render a scene's mesh and materials under any light (Embree)"},
+	{"report", kg_cmd_report, "write a processed session's report.html again from its process.json"},
 	{"bench", kg_cmd_bench, "speed against error of every estimation method"},
 	{"demo", kg_cmd_demo, "run the whole pipeline on the bundled default"},
 	{"devices", kg_cmd_devices, "camera and spectrometer backends built, spectrometers attached"},
