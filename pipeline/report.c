@@ -383,8 +383,11 @@ static void section_summary(report *r)
 	row(r, "Session", str(r, "session.path"));
 	row(r, "Processed (UTC)", str(r, "created"));
 	rowf(r, "Software", "%s %s", str(r, "software.name"), str(r, "software.version"));
-	rowf(r, "Objects", "%d object capture%s%s", nobj, nobj == 1 ? "" : "s",
-	     skipped ? " (some unchanged since the last run, shown from that run's files)" : "");
+	if (skipped)
+		rowf(r, "Objects", "%d object capture%s (%d unchanged since the last run, shown "
+		     "from that run's files)", nobj, nobj == 1 ? "" : "s", skipped);
+	else
+		rowf(r, "Objects", "%d object capture%s", nobj, nobj == 1 ? "" : "s");
 	html(r, "<tr><th scope=\"row\">Warnings</th><td>%ld (<a href=\"#warnings\">list</a>)"
 	        "</td></tr>\n</table>\n", r->warnings);
 
@@ -460,8 +463,9 @@ static void section_calibration(report *r)
 	html(r, ")</td></tr>\n</table>\n");
 
 	html(r, "<h3>M2: site camera RGB to reference camera RGB</h3>\n"
-	        "<table class=\"matrix\"><caption>3 &times; 3, dimensionless (linear camera "
-	        "values on a 0..1 scale), rows R, G, B of the reference camera</caption>\n");
+	        "<p>3 &times; 3, dimensionless (linear camera values on a 0..1 scale); rows: "
+	        "the reference camera's R, G, B; columns: the site camera's R, G, B.</p>\n"
+	        "<table class=\"matrix\">\n");
 	int nm2;
 	json_t *m2 = arr(r, &nm2, "calibration.M2");
 	if (m2 && nm2 != 9)
@@ -619,22 +623,30 @@ static void section_color_accuracy(report *r)
 
 	report_panel *panels = calloc(n > 0 ? n : 1, sizeof(*panels));
 	double (*spectra)[2][KG_NBANDS] = calloc(n > 0 ? n : 1, sizeof(*spectra));
-	if (!panels || !spectra) {
+	char (*titles)[64] = calloc(n > 0 ? n : 1, sizeof(*titles));
+	if (!panels || !spectra || !titles) {
 		failed(r, KG_ENOMEM, "%s: out of memory", r->file);
 	} else if (n > 0) {
 		for (int i = 0; i < n; i++) {
-			panels[i].title = str(r, "calibration.patches[%d].id", i);
+			snprintf(titles[i], sizeof(titles[i]), "%s %s",
+			         str(r, "calibration.patches[%d].id", i),
+			         str(r, "calibration.patches[%d].name", i));
+			panels[i].title = titles[i];
 			panels[i].solid = spectrum(r, spectra[i][0], "calibration.patches[%d].measured", i);
 			panels[i].dashed = spectrum(r, spectra[i][1], "calibration.patches[%d].estimated", i);
+			panels[i].note = !panels[i].solid && !panels[i].dashed ? "no spectra"
+			                 : !panels[i].solid ? "not measured"
+			                 : !panels[i].dashed ? "not estimated" : NULL;
 		}
 		if (!r->ret)
-			put_figure(r, panels, n, 6, "Chart patches: estimated against measured reflectance",
+			put_figure(r, panels, n, 4, "Chart patches: estimated against measured reflectance",
 			           "measured (spectrophotometer)", "estimated (site camera)",
 			           "Reflectance (0..1) against wavelength (400-700 nm) for every chart "
 			           "patch; each panel has its own scale.");
 	}
 	free(panels);
 	free(spectra);
+	free(titles);
 	section_end(r);
 }
 
@@ -712,6 +724,9 @@ static void put_object(report *r, int i)
 			                           "objects[%d].classes[%d].model_spectrum", i, c);
 			panels[c].dashed = spectrum(r, spectra[c][1],
 			                            "objects[%d].classes[%d].mean_spectrum", i, c);
+			panels[c].note = !panels[c].solid && !panels[c].dashed ? "no spectra"
+			                 : !panels[c].solid ? "no library model"
+			                 : !panels[c].dashed ? "no estimate" : NULL;
 		}
 		if (!r->ret)
 			put_figure(r, panels, nclasses, 4, "Mean estimated reflectance against the "
@@ -754,7 +769,8 @@ static void section_objects(report *r)
 	section_end(r);
 }
 
-static void acquisition_row(report *r, const char *who, const char *prefix)
+/* scale: the object's exposure relative to the chart's, NAN for the chart itself. */
+static void acquisition_row(report *r, const char *who, const char *prefix, double scale)
 {
 	html(r, "<tr><td>");
 	text(r, who);
@@ -764,6 +780,11 @@ static void acquisition_row(report *r, const char *who, const char *prefix)
 	put_num(r, num(r, "%s.gain", prefix), 2);
 	html(r, "</td><td>");
 	put_num(r, num(r, "%s.frames", prefix), 0);
+	html(r, "</td><td>");
+	if (isfinite(scale))
+		html(r, "%.4g", scale);
+	else
+		html(r, "1 (chart)");
 	html(r, "</td><td>");
 	const char *dark = opt_str(r, "%s.dark", prefix), *flat = opt_str(r, "%s.flat", prefix);
 	text(r, dark ? dark : "none");
@@ -821,24 +842,18 @@ static void section_provenance(report *r)
 	html(r, "<h3>Acquisition</h3>\n<table class=\"num\"><thead><tr><th>capture</th>"
 	        "<th>exposure (&micro;s)</th><th>gain (");
 	text(r, str(r, "calibration.gain_unit"));
-	html(r, ")</th><th>frames averaged</th><th>dark</th><th>flat</th></tr></thead>"
+	html(r, ")</th><th>frames averaged</th><th>exposure scale (&times; chart)</th><th>dark</th><th>flat</th></tr></thead>"
 	        "<tbody>\n");
-	acquisition_row(r, str(r, "calibration.chart_capture"), "calibration");
+	acquisition_row(r, str(r, "calibration.chart_capture"), "calibration", NAN);
 	int n;
 	arr(r, &n, "objects");
 	for (int i = 0; i < n && !r->ret; i++) {
 		char prefix[32];
 		snprintf(prefix, sizeof(prefix), "objects[%d]", i);
-		acquisition_row(r, str(r, "objects[%d].capture", i), prefix);
+		acquisition_row(r, str(r, "objects[%d].capture", i), prefix,
+		                num(r, "objects[%d].exposure_scale", i));
 	}
-	html(r, "</tbody></table>\n<p>Exposure scale of each object capture relative to the "
-	        "chart:");
-	for (int i = 0; i < n && !r->ret; i++) {
-		html(r, "%s ", i ? "," : "");
-		textf(r, "%s %.4g", str(r, "objects[%d].capture", i),
-		      num(r, "objects[%d].exposure_scale", i));
-	}
-	html(r, "%s.</p>\n", n ? "" : " no object captures");
+	html(r, "</tbody></table>\n");
 
 	html(r, "<h3>Input files</h3>\n<table class=\"files\"><thead><tr><th>role</th>"
 	        "<th>path</th><th>sha256</th></tr></thead><tbody>\n");
@@ -906,7 +921,7 @@ static const char style[] =
 	"th,td{border:1px solid #bbb;padding:3px 8px;text-align:left;vertical-align:top}"
 	"thead th{background:#eee}table.kv th{background:#f5f5f5;font-weight:600;width:16em}"
 	"table.num td{text-align:right;font-variant-numeric:tabular-nums}"
-	"table.num td.name{text-align:left}table.matrix td{text-align:right;min-width:6em;"
+	"table.num td.name,table.num td:first-child{text-align:left}table.matrix td{text-align:right;min-width:6em;"
 	"font-variant-numeric:tabular-nums}caption{caption-side:top;text-align:left;"
 	"color:#444;padding:2px 0 4px}tr.aggregate th,tr.aggregate td{background:#f5f5f5}"
 	"td.hash,td.path{font-family:'DejaVu Sans Mono',monospace;font-size:12px;"
@@ -917,7 +932,8 @@ static const char style[] =
 	"padding:4px 8px}.note{background:#eef4ff;border-left:4px solid #4a78c2;"
 	"padding:4px 8px}ul.verdicts li{margin:3px 0}ul.warnings li{margin:2px 0}"
 	"figure{margin:10px 0 16px}figcaption{font-size:13px;color:#444;margin-top:4px}"
-	"img{max-width:100%;height:auto;border:1px solid #ccc}img.map{image-rendering:pixelated}"
+	"img{max-width:100%;height:auto;border:1px solid #ccc}img.photo{min-width:min(100%,480px)}"
+	".images img{width:100%}img.map{image-rendering:pixelated}"
 	".images{display:flex;flex-wrap:wrap;gap:14px}.images figure{flex:1 1 320px;margin:0}"
 	".swatch{display:inline-block;width:18px;height:14px;border:1px solid #333;"
 	"vertical-align:middle}article.object{border-top:1px solid #ccc;margin-top:18px}"

@@ -3,6 +3,7 @@
  * library model (the paper's Figs. 11-12). */
 #include <math.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "report_private.h"
 
@@ -59,9 +60,11 @@ int report_figure_spectra(const report_panel *panels, int n, int cols, const cha
 	for (int b = 0; b < KG_NBANDS; b++)
 		wl[b] = kg_band_nm(b);
 	kg_plot_text(p, width / 2.0, 30, 17, KG_ALIGN_CENTER, NULL, "%s", title);
-	double lx = width / 2.0 - 170;
+	/* Legend entries: a 24 px line, a gap and the label (about 7 px a character). */
+	double solid_w = 30 + 7.0 * strlen(solid_label), dashed_w = 30 + 7.0 * strlen(dashed_label);
+	double lx = (width - solid_w - 40 - dashed_w) / 2;
 	kg_plot_legend(p, lx, 62, solid_colour, 0, solid_label);
-	kg_plot_legend(p, lx + 190, 62, dashed_colour, 1, dashed_label);
+	kg_plot_legend(p, lx + solid_w + 40, 62, dashed_colour, 1, dashed_label);
 	for (int i = 0; i < n; i++) {
 		const report_panel *q = &panels[i];
 		double x = margin + (i % cols) * cell_w + axes_dx;
@@ -77,11 +80,9 @@ int report_figure_spectra(const report_panel *panels, int n, int cols, const cha
 			kg_plot_line(p, &ax, wl, q->solid, KG_NBANDS, solid_colour, 1.8, 0);
 		if (q->dashed)
 			kg_plot_line(p, &ax, wl, q->dashed, KG_NBANDS, dashed_colour, 1.8, 1);
-		if (!q->solid || !q->dashed)
-			kg_plot_text(p, x + axes_w / 2.0, y + axes_h / 2.0, 11, KG_ALIGN_CENTER,
-			             note_colour, "%s", !q->solid && !q->dashed ? "no spectra"
-			                                : !q->solid ? "no reference spectrum"
-			                                            : "no estimate");
+		if (q->note)
+			kg_plot_text(p, x + axes_w - 6, y + 16, 11, KG_ALIGN_RIGHT, note_colour, "%s",
+			             q->note);
 	}
 	ret = kg_plot_encode_png(p, png, len, err);
 	kg_plot_free(&p);

@@ -23,6 +23,7 @@ typedef struct report_panel {
 	const char *title;
 	const double *solid;  /* KG_NBANDS values or NULL: the measured or model spectrum */
 	const double *dashed; /* KG_NBANDS values or NULL: the estimate */
+	const char *note;     /* said inside the panel (e.g. what is missing), or NULL */
 } report_panel;
 
 /* Small multiples: one reflectance panel per entry, `cols` to a row, each on its own
