@@ -9,6 +9,7 @@
 #include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "report_private.h"
 
@@ -258,6 +259,30 @@ static void put_image_file(report *r, const char *rel, const char *alt, const ch
 	}
 	free(data);
 	free(path);
+}
+
+/* The files of an object capture the page does not show (cube, label map, scene):
+ * named, and said to be missing when they are. */
+static void put_file_list(report *r, int i)
+{
+	static const struct {
+		const char *key, *label;
+	} files[] = {
+		{"cube", "reflectance cube"},
+		{"labels", "label map"},
+		{"scene", "render scene"},
+	};
+	html(r, "<p>Files:");
+	for (size_t k = 0; k < sizeof(files) / sizeof(files[0]); k++) {
+		const char *rel = str(r, "objects[%d].%s", i, files[k].key);
+		char *path = rel[0] == '/' ? strdup(rel) : kg_path_join(r->outdir, rel);
+		html(r, "%s %s <code>", k ? "," : "", files[k].label);
+		text(r, rel);
+		html(r, "</code>%s", path && access(path, F_OK) == 0
+		                         ? "" : " <span class=\"fail\">missing</span>");
+		free(path);
+	}
+	html(r, ".</p>\n");
 }
 
 static void put_figure(report *r, const report_panel *panels, int n, int cols,
@@ -664,7 +689,9 @@ static void put_object(report *r, int i)
 	textf(r, "%.0f x %.0f pixels (%.0f), folder %s.",
 	      num(r, "objects[%d].width", i), num(r, "objects[%d].height", i), pixels,
 	      str(r, "objects[%d].dir", i));
-	html(r, "</p>\n<div class=\"images\">\n<figure>");
+	html(r, "</p>\n");
+	put_file_list(r, i);
+	html(r, "<div class=\"images\">\n<figure>");
 	put_image_file(r, str(r, "objects[%d].photo", i), "photograph", "photo");
 	html(r, "<figcaption>Photograph (site camera, display sRGB).</figcaption></figure>\n"
 	        "<figure>");
@@ -937,6 +964,7 @@ static const char style[] =
 	".images{display:flex;flex-wrap:wrap;gap:14px}.images figure{flex:1 1 320px;margin:0}"
 	".swatch{display:inline-block;width:18px;height:14px;border:1px solid #333;"
 	"vertical-align:middle}article.object{border-top:1px solid #ccc;margin-top:18px}"
+	"code{font-family:'DejaVu Sans Mono',monospace;font-size:13px}"
 	"footer{margin-top:36px;color:#666;font-size:12px;border-top:1px solid #ccc;"
 	"padding-top:6px}"
 	"@media print{body{max-width:none;padding:0;font-size:11pt}nav{display:none}"

@@ -53,6 +53,10 @@ cleanup() {
 trap cleanup EXIT
 trap 'exit 1' INT TERM HUP
 
+# Without job control the background child is no process group leader, so setsid
+# makes it the leader of a new group in place (no fork): $! is Chromium itself and
+# its group holds exactly the processes it starts.
+set +m
 setsid "$chromium" --headless=new --no-sandbox --disable-gpu --remote-debugging-port=0 \
 	--user-data-dir="$profile" --no-first-run --no-default-browser-check \
 	--disable-background-networking --disable-component-update --disable-sync \

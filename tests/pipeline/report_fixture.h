@@ -67,6 +67,16 @@ static int fixture_png(const char *dir, const char *name, int w, int h, int kind
 	return ret;
 }
 
+/* An empty stand-in for a file the report only names (cube, label map). */
+static int fixture_touch(const char *dir, const char *name)
+{
+	char *path = kg_path_join(dir, name);
+	FILE *f = path ? fopen(path, "w") : NULL;
+	int ret = f && fclose(f) == 0 ? 0 : -1;
+	free(path);
+	return ret;
+}
+
 static json_t *fixture_patches(void)
 {
 	json_t *patches = json_array();
@@ -150,7 +160,8 @@ static int fixture_write(const char *outdir)
 		int ret = !dir || kg_mkdir_p(dir, &err) || fixture_png(dir, "photo.png", 64, 48, 0) ||
 		          fixture_png(dir, "labels.png", 64, 48, 1) ||
 		          fixture_png(dir, "confidence.png", 64, 48, 2) ||
-		          (i == 1 && fixture_png(dir, "render.png", 64, 48, 0));
+		          (i == 1 && fixture_png(dir, "render.png", 64, 48, 0)) ||
+		          fixture_touch(dir, "cube.hdr") || fixture_touch(dir, "labels.hdr");
 		free(dir);
 		if (ret)
 			return -1;

@@ -93,6 +93,12 @@ static void check_content(const char *page)
 	CHECK(contains(page, "confidence map: not shown: the file is missing"),
 	      "missing confidence map not stated");
 	CHECK(contains(page, "Unchanged since the last run"), "skipped object not noted");
+	/* The fixture writes no scene.json: named and said to be missing, twice. */
+	CHECK(contains(page, "reflectance cube <code>object-0001/cube.hdr</code>, label map"),
+	      "cube listed as present");
+	const char *scene = "render scene <code>object-0002/scene.json</code> "
+	                    "<span class=\"fail\">missing</span>";
+	CHECK(contains(page, scene), "missing scene.json not stated");
 	CHECK(contains(page, "<td>gold</td><td>300</td><td>9.77</td>") ||
 	      contains(page, "gold</td><td>300</td><td>9.77</td>"), "class pixels and fraction");
 }
