@@ -55,5 +55,6 @@ int kg_cmd_devices(int argc, char **argv);
 int kg_cmd_acquire(int argc, char **argv);
 int kg_cmd_render(int argc, char **argv);
 int kg_cmd_process(int argc, char **argv);
+int kg_cmd_report(int argc, char **argv);
 
 #endif

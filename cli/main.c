@@ -21,6 +21,7 @@ static const kg_command commands[] = {
 	{"classify", kg_cmd_classify, "per-pixel material labels among the declared materials"},
 	{"render", kg_cmd_render, "render a scene's mesh and materials under any light (Embree)"},
 	{"process", kg_cmd_process, "a recorded session to calibration, material maps, scenes and report"},
+	{"report", kg_cmd_report, "write a processed session's report.html again from its process.json"},
 	{"bench", kg_cmd_bench, "speed against error of every estimation method"},
 	{"demo", kg_cmd_demo, "run the whole pipeline on the bundled default"},
 	{"devices", kg_cmd_devices, "camera and spectrometer backends built, spectrometers attached"},

@@ -74,6 +74,42 @@ int kg_plot_save_png(kg_plot *p, const char *path, kg_err *err)
 	return kg_outfile_commit(&o, err);
 }
 
+typedef struct png_buffer {
+	unsigned char *data;
+	size_t len, cap;
+} png_buffer;
+
+static cairo_status_t append_cb(void *closure, const unsigned char *data, unsigned int len)
+{
+	png_buffer *b = closure;
+	if (b->len + len > b->cap) {
+		size_t cap = b->cap ? b->cap : 65536;
+		while (cap < b->len + len)
+			cap *= 2;
+		unsigned char *grown = realloc(b->data, cap);
+		if (!grown)
+			return CAIRO_STATUS_NO_MEMORY;
+		b->data = grown;
+		b->cap = cap;
+	}
+	memcpy(b->data + b->len, data, len);
+	b->len += len;
+	return CAIRO_STATUS_SUCCESS;
+}
+
+int kg_plot_encode_png(kg_plot *p, unsigned char **png, size_t *len, kg_err *err)
+{
+	png_buffer b = {0};
+	cairo_surface_flush(p->surface);
+	if (cairo_surface_write_to_png_stream(p->surface, append_cb, &b) != CAIRO_STATUS_SUCCESS) {
+		free(b.data);
+		return kg_fail(err, KG_ENOMEM, "plot: cannot encode a %dx%d PNG", p->width, p->height);
+	}
+	*png = b.data;
+	*len = b.len;
+	return 0;
+}
+
 static void set_rgb(kg_plot *p, const double rgb[3])
 {
 	cairo_set_source_rgb(p->cr, rgb[0], rgb[1], rgb[2]);

@@ -19,6 +19,8 @@ int kg_plot_new(int width, int height, kg_plot **out, kg_err *err);
 void kg_plot_free(kg_plot **p);
 /* Write the figure as an 8-bit RGB PNG, atomically. */
 int kg_plot_save_png(kg_plot *p, const char *path, kg_err *err);
+/* The same PNG in memory (for pages that inline their figures); the caller frees *png. */
+int kg_plot_encode_png(kg_plot *p, unsigned char **png, size_t *len, kg_err *err);
 
 /* Colours are linear 0..1 display values already encoded for the screen (sRGB). */
 void kg_plot_fill_rect(kg_plot *p, double x, double y, double w, double h, const double rgb[3]);

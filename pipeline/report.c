@@ -1,0 +1,1040 @@
+/* The operator's report: OUTDIR/report.html from OUTDIR/process.json and the files
+ * it names (kg_pipeline.h, docs/report.md).
+ *
+ * process.json is read through a small set of getters that remember the first
+ * missing or mistyped required key; the page is written to a temporary file that is
+ * renamed into place only when no key was missing, so a bad record leaves no report
+ * rather than a misleading one. */
+#include <math.h>
+#include <stdarg.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "report_private.h"
+
+typedef struct report {
+	const char *outdir;
+	char *file;   /* OUTDIR/process.json, named in messages */
+	json_t *root;
+	FILE *fp;
+	kg_err *err;
+	int ret;      /* first error met, 0 if none */
+
+	/* Colour accuracy of the chart, from the per-patch values. */
+	kg_de_summary d50, d65;
+	int graded;   /* d50 holds at least one value */
+	int accepted, forced;
+	long warnings;
+} report;
+
+/* ---- process.json --------------------------------------------------------------- */
+
+static int failed(report *r, int code, const char *fmt, ...) KG_PRINTF(3, 4);
+static int failed(report *r, int code, const char *fmt, ...)
+{
+	if (r->ret)
+		return r->ret;
+	char msg[sizeof(r->err->msg)];
+	va_list ap;
+	va_start(ap, fmt);
+	vsnprintf(msg, sizeof(msg), fmt, ap);
+	va_end(ap);
+	r->ret = kg_fail(r->err, code, "%s", msg);
+	return r->ret;
+}
+
+/* The value at a key path (printf-style), required to exist; NULL (and r->ret set)
+ * when it does not. */
+static json_t *vget(report *r, const char *fmt, va_list ap, char *path, size_t size)
+{
+	vsnprintf(path, size, fmt, ap);
+	if (r->ret)
+		return NULL;
+	json_t *v = NULL;
+	kg_err e;
+	int ret = kg_json_get(r->file, r->root, path, &v, &e);
+	if (ret) {
+		failed(r, ret, "%s", e.msg);
+		return NULL;
+	}
+	return v;
+}
+
+#define GETTER_PROLOGUE                                                                \
+	char path[256];                                                                    \
+	va_list ap;                                                                        \
+	va_start(ap, fmt);                                                                 \
+	json_t *v = vget(r, fmt, ap, path, sizeof(path));                                  \
+	va_end(ap)
+
+static const char *str(report *r, const char *fmt, ...) KG_PRINTF(2, 3);
+static const char *str(report *r, const char *fmt, ...)
+{
+	GETTER_PROLOGUE;
+	if (v && !json_is_string(v))
+		failed(r, KG_EINVAL, "%s: key '%s': expected a string", r->file, path);
+	return json_is_string(v) ? json_string_value(v) : "";
+}
+
+/* A string or null (NULL). */
+static const char *opt_str(report *r, const char *fmt, ...) KG_PRINTF(2, 3);
+static const char *opt_str(report *r, const char *fmt, ...)
+{
+	GETTER_PROLOGUE;
+	if (v && !json_is_string(v) && !json_is_null(v))
+		failed(r, KG_EINVAL, "%s: key '%s': expected a string or null", r->file, path);
+	return json_is_string(v) ? json_string_value(v) : NULL;
+}
+
+static double num(report *r, const char *fmt, ...) KG_PRINTF(2, 3);
+static double num(report *r, const char *fmt, ...)
+{
+	GETTER_PROLOGUE;
+	if (v && !json_is_number(v))
+		failed(r, KG_EINVAL, "%s: key '%s': expected a number", r->file, path);
+	return json_is_number(v) ? json_number_value(v) : NAN;
+}
+
+/* A number or null (NaN). */
+static double opt_num(report *r, const char *fmt, ...) KG_PRINTF(2, 3);
+static double opt_num(report *r, const char *fmt, ...)
+{
+	GETTER_PROLOGUE;
+	if (v && !json_is_number(v) && !json_is_null(v))
+		failed(r, KG_EINVAL, "%s: key '%s': expected a number or null", r->file, path);
+	return json_is_number(v) ? json_number_value(v) : NAN;
+}
+
+static int flag(report *r, const char *fmt, ...) KG_PRINTF(2, 3);
+static int flag(report *r, const char *fmt, ...)
+{
+	GETTER_PROLOGUE;
+	if (v && !json_is_boolean(v))
+		failed(r, KG_EINVAL, "%s: key '%s': expected true or false", r->file, path);
+	return json_is_true(v);
+}
+
+/* An array (its size in *n; 0 when missing). */
+static json_t *arr(report *r, int *n, const char *fmt, ...) KG_PRINTF(3, 4);
+static json_t *arr(report *r, int *n, const char *fmt, ...)
+{
+	GETTER_PROLOGUE;
+	if (v && !json_is_array(v))
+		failed(r, KG_EINVAL, "%s: key '%s': expected an array", r->file, path);
+	*n = json_is_array(v) ? (int)json_array_size(v) : 0;
+	return json_is_array(v) ? v : NULL;
+}
+
+/* A spectrum on the 61-band grid into out, or null (returns NULL). */
+static const double *spectrum(report *r, double out[KG_NBANDS], const char *fmt, ...)
+	KG_PRINTF(3, 4);
+static const double *spectrum(report *r, double out[KG_NBANDS], const char *fmt, ...)
+{
+	GETTER_PROLOGUE;
+	if (!v || json_is_null(v))
+		return NULL;
+	if (!json_is_array(v) || json_array_size(v) != KG_NBANDS) {
+		failed(r, KG_EINVAL, "%s: key '%s': expected null or an array of %d reflectances "
+		       "(400-700 nm every 5 nm)", r->file, path, KG_NBANDS);
+		return NULL;
+	}
+	for (int b = 0; b < KG_NBANDS; b++) {
+		json_t *x = json_array_get(v, b);
+		if (!json_is_number(x)) {
+			failed(r, KG_EINVAL, "%s: key '%s[%d]': expected a number", r->file, path, b);
+			return NULL;
+		}
+		out[b] = json_number_value(x);
+	}
+	return out;
+}
+
+/* ---- HTML pieces ------------------------------------------------------------------ */
+
+#define text(r, s) report_put_text((r)->fp, (s))
+#define textf(r, ...) report_put_textf((r)->fp, __VA_ARGS__)
+
+static void html(report *r, const char *fmt, ...) KG_PRINTF(2, 3);
+static void html(report *r, const char *fmt, ...)
+{
+	va_list ap;
+	va_start(ap, fmt);
+	vfprintf(r->fp, fmt, ap);
+	va_end(ap);
+}
+
+/* A number with `digits` decimals, or an em dash for a missing value. */
+static void put_num(report *r, double v, int digits)
+{
+	if (isfinite(v))
+		html(r, "%.*f", digits, v);
+	else
+		html(r, "&mdash;");
+}
+
+static void put_verdict(report *r, int pass, const char *yes, const char *no)
+{
+	html(r, "<span class=\"%s\">%s</span>", pass ? "pass" : "fail", pass ? yes : no);
+}
+
+/* Any JSON value as text: devices and parameters carry keys the report does not know. */
+static void put_json(report *r, const json_t *v)
+{
+	if (json_is_string(v)) {
+		text(r, json_string_value(v));
+	} else if (json_is_integer(v)) {
+		html(r, "%" JSON_INTEGER_FORMAT, json_integer_value(v));
+	} else if (json_is_real(v)) {
+		html(r, "%.6g", json_real_value(v));
+	} else if (json_is_true(v) || json_is_false(v)) {
+		html(r, "%s", json_is_true(v) ? "true" : "false");
+	} else if (json_is_array(v)) {
+		size_t i;
+		json_t *x;
+		if (json_array_size(v) == 0)
+			html(r, "(empty list)");
+		json_array_foreach(v, i, x) {
+			if (i)
+				html(r, ", ");
+			put_json(r, x);
+		}
+	} else if (json_is_object(v)) {
+		const char *k;
+		json_t *x;
+		int first = 1;
+		json_object_foreach((json_t *)v, k, x) {
+			html(r, "%s", first ? "" : "; ");
+			text(r, k);
+			html(r, ": ");
+			put_json(r, x);
+			first = 0;
+		}
+	} else {
+		html(r, "<span class=\"none\">none</span>");
+	}
+}
+
+/* A row of a two-column key/value table; the value is escaped text or "none". */
+static void row(report *r, const char *key, const char *value)
+{
+	html(r, "<tr><th scope=\"row\">");
+	text(r, key);
+	html(r, "</th><td>");
+	if (value)
+		text(r, value);
+	else
+		html(r, "<span class=\"none\">none</span>");
+	html(r, "</td></tr>\n");
+}
+
+static void rowf(report *r, const char *key, const char *fmt, ...) KG_PRINTF(3, 4);
+static void rowf(report *r, const char *key, const char *fmt, ...)
+{
+	char buf[1024];
+	va_list ap;
+	va_start(ap, fmt);
+	vsnprintf(buf, sizeof(buf), fmt, ap);
+	va_end(ap);
+	row(r, key, buf);
+}
+
+/* A PNG of OUTDIR (path relative to it, or absolute) inlined, or a sentence saying
+ * why it is not there. */
+static void put_image_file(report *r, const char *rel, const char *alt, const char *cls)
+{
+	char *path = rel[0] == '/' ? strdup(rel) : kg_path_join(r->outdir, rel);
+	char *data = NULL;
+	size_t len = 0;
+	kg_err e = {{0}};
+	int ret = path ? kg_read_file(path, &data, &len, &e) : KG_ENOMEM;
+	if (!ret)
+		ret = report_put_png(r->fp, (unsigned char *)data, len, alt, cls, rel, &e);
+	if (ret) {
+		html(r, "<p class=\"missing\">");
+		textf(r, "%s: not shown: %s", alt, ret == KG_ENOENT ? "the file is missing" : e.msg);
+		html(r, " (");
+		text(r, rel);
+		html(r, ")</p>");
+	}
+	free(data);
+	free(path);
+}
+
+/* The files of an object capture the page does not show (cube, label map, scene):
+ * named, and said to be missing when they are. */
+static void put_file_list(report *r, int i)
+{
+	static const struct {
+		const char *key, *label;
+	} files[] = {
+		{"cube", "reflectance cube"},
+		{"labels", "label map"},
+		{"scene", "render scene"},
+	};
+	html(r, "<p>Files:");
+	for (size_t k = 0; k < sizeof(files) / sizeof(files[0]); k++) {
+		const char *rel = str(r, "objects[%d].%s", i, files[k].key);
+		char *path = rel[0] == '/' ? strdup(rel) : kg_path_join(r->outdir, rel);
+		html(r, "%s %s <code>", k ? "," : "", files[k].label);
+		text(r, rel);
+		html(r, "</code>%s", path && access(path, F_OK) == 0
+		                         ? "" : " <span class=\"fail\">missing</span>");
+		free(path);
+	}
+	html(r, ".</p>\n");
+}
+
+static void put_figure(report *r, const report_panel *panels, int n, int cols,
+                       const char *title, const char *solid, const char *dashed,
+                       const char *caption)
+{
+	unsigned char *png = NULL;
+	size_t len = 0;
+	kg_err e = {{0}};
+	html(r, "<figure>");
+	int ret = report_figure_spectra(panels, n, cols, title, solid, dashed, &png, &len, &e);
+	if (!ret)
+		ret = report_put_png(r->fp, png, len, title, "fig", "figure", &e);
+	if (ret) {
+		html(r, "<p class=\"missing\">");
+		textf(r, "figure not drawn: %s", e.msg);
+		html(r, "</p>");
+	}
+	html(r, "<figcaption>");
+	text(r, caption);
+	html(r, "</figcaption></figure>\n");
+	free(png);
+}
+
+/* A list of warning strings (an array at key path `key`), or "none". */
+static int put_warning_list(report *r, const char *key, const char *scope)
+{
+	int n;
+	json_t *w = arr(r, &n, "%s", key);
+	if (n == 0) {
+		html(r, "<p>none</p>\n");
+		return 0;
+	}
+	html(r, "<ul class=\"warnings\">\n");
+	for (int i = 0; i < n; i++) {
+		html(r, "<li>");
+		if (scope) {
+			html(r, "<span class=\"scope\">");
+			text(r, scope);
+			html(r, "</span> ");
+		}
+		json_t *x = json_array_get(w, i);
+		if (json_is_string(x))
+			text(r, json_string_value(x));
+		else
+			failed(r, KG_EINVAL, "%s: key '%s[%d]': expected a string", r->file, key, i);
+		html(r, "</li>\n");
+	}
+	html(r, "</ul>\n");
+	return n;
+}
+
+/* ---- the numbers behind the verdicts ------------------------------------------- */
+
+static int summarise(report *r)
+{
+	int n;
+	arr(r, &n, "calibration.patches");
+	double *d50 = malloc(sizeof(double) * (n + 1)), *d65 = malloc(sizeof(double) * (n + 1));
+	if (!d50 || !d65) {
+		free(d50);
+		free(d65);
+		return failed(r, KG_ENOMEM, "%s: out of memory", r->file);
+	}
+	int have = 0;
+	for (int i = 0; i < n; i++) {
+		d50[i] = opt_num(r, "calibration.patches[%d].de00_d50", i);
+		d65[i] = opt_num(r, "calibration.patches[%d].de00_d65", i);
+		have += isfinite(d50[i]);
+	}
+	kg_err e;
+	if (!r->ret && have) {
+		if (kg_de_summarise(d50, n, &r->d50, &e) || kg_de_summarise(d65, n, &r->d65, &e))
+			failed(r, KG_EINVAL, "%s: calibration.patches: %s", r->file, e.msg);
+		else
+			r->graded = 1;
+	}
+	free(d50);
+	free(d65);
+
+	/* Accepted: the relative residual within the --max-residual limit and at least
+	 * --min-tags tags found; a calibration outside them was used only when forced. */
+	int ntags;
+	arr(r, &ntags, "calibration.tags_used");
+	double residual = num(r, "calibration.residual_relative");
+	double limit = num(r, "parameters.max_residual");
+	double min_tags = num(r, "parameters.min_tags");
+	r->accepted = residual <= limit && ntags >= min_tags;
+	r->forced = flag(r, "parameters.force");
+
+	int nobj, nw;
+	arr(r, &nw, "warnings");
+	r->warnings = nw;
+	arr(r, &nobj, "objects");
+	for (int i = 0; i < nobj; i++) {
+		arr(r, &nw, "objects[%d].warnings", i);
+		r->warnings += nw;
+	}
+	return r->ret;
+}
+
+/* ---- sections ------------------------------------------------------------------ */
+
+static void section_begin(report *r, const char *id, const char *title)
+{
+	html(r, "<section id=\"%s\">\n<h2>%s</h2>\n", id, title);
+}
+
+static void section_end(report *r)
+{
+	html(r, "</section>\n");
+}
+
+static void section_summary(report *r)
+{
+	int nobj;
+	json_t *objects = arr(r, &nobj, "objects");
+	int skipped = 0;
+	for (int i = 0; i < nobj && objects; i++)
+		skipped += flag(r, "objects[%d].skipped", i);
+	section_begin(r, "summary", "Summary");
+	html(r, "<table class=\"kv\">\n");
+	row(r, "Session", str(r, "session.path"));
+	row(r, "Processed (UTC)", str(r, "created"));
+	rowf(r, "Software", "%s %s", str(r, "software.name"), str(r, "software.version"));
+	if (skipped)
+		rowf(r, "Objects", "%d object capture%s (%d unchanged since the last run, shown "
+		     "from that run's files)", nobj, nobj == 1 ? "" : "s", skipped);
+	else
+		rowf(r, "Objects", "%d object capture%s", nobj, nobj == 1 ? "" : "s");
+	html(r, "<tr><th scope=\"row\">Warnings</th><td>%ld (<a href=\"#warnings\">list</a>)"
+	        "</td></tr>\n</table>\n", r->warnings);
+
+	html(r, "<h3>Verdicts</h3>\n<ul class=\"verdicts\">\n<li>Calibration: ");
+	if (r->accepted)
+		put_verdict(r, 1, "accepted", "");
+	else
+		put_verdict(r, 0, "", r->forced ? "outside its limits, used because forced"
+		                                : "not accepted");
+	html(r, " (relative residual ");
+	put_num(r, num(r, "calibration.residual_relative"), 4);
+	html(r, ", limit ");
+	put_num(r, num(r, "parameters.max_residual"), 4);
+	html(r, ")</li>\n");
+	if (r->graded) {
+		html(r, "<li>FADGI 4-star colour accuracy: ");
+		put_verdict(r, kg_grade_fadgi4(&r->d50), "pass", "fail");
+		html(r, " (mean &Delta;E<sub>00</sub> %.2f, 90th percentile %.2f, under D50)</li>\n",
+		     r->d50.mean, r->d50.p90);
+		html(r, "<li>ISO 19264-1 level A colour accuracy: ");
+		put_verdict(r, kg_grade_iso19264_a(&r->d50), "pass", "fail");
+		html(r, " (mean &Delta;E<sub>00</sub> %.2f, maximum %.2f, under D50)</li>\n",
+		     r->d50.mean, r->d50.max);
+	} else {
+		html(r, "<li>FADGI 4-star and ISO 19264-1 level A: <span class=\"fail\">not "
+		        "graded</span>: no patch has both a measured and an estimated spectrum"
+		        "</li>\n");
+	}
+	html(r, "</ul>\n");
+	section_end(r);
+}
+
+static void section_calibration(report *r)
+{
+	section_begin(r, "calibration", "Calibration");
+	const char *overlay = opt_str(r, "calibration.overlay");
+	html(r, "<figure>");
+	if (overlay)
+		put_image_file(r, overlay, "chart overlay", "photo");
+	else
+		html(r, "<p class=\"missing\">no chart overlay was written</p>");
+	html(r, "<figcaption>The site chart as detected: patch sampling areas and tags "
+	        "drawn over the chart photograph.</figcaption></figure>\n");
+
+	int ntags, npatches;
+	json_t *tags = arr(r, &ntags, "calibration.tags_used");
+	json_t *patches = arr(r, &npatches, "calibration.patches");
+	html(r, "<table class=\"kv\">\n");
+	row(r, "Calibration file", str(r, "calibration.file"));
+	row(r, "Chart capture", str(r, "calibration.chart_capture"));
+	row(r, "Chart layout", str(r, "calibration.layout"));
+	row(r, "Detector", str(r, "calibration.detector"));
+	html(r, "<tr><th scope=\"row\">Tags used</th><td>");
+	if (ntags) {
+		put_json(r, tags);
+		html(r, " (%d)", ntags);
+	} else {
+		html(r, "none");
+	}
+	html(r, "</td></tr>\n");
+	html(r, "<tr><th scope=\"row\">Homography RMS</th><td>");
+	put_num(r, num(r, "calibration.homography_rms_px"), 2);
+	html(r, " px</td></tr>\n");
+	row(r, "Chart spectra", opt_str(r, "calibration.spectra_source"));
+	html(r, "<tr><th scope=\"row\">Condition number of M</th><td>");
+	put_num(r, num(r, "calibration.cond_M"), 2);
+	html(r, "</td></tr>\n<tr><th scope=\"row\">Condition number of M2</th><td>");
+	put_num(r, num(r, "calibration.cond_M2"), 2);
+	html(r, "</td></tr>\n<tr><th scope=\"row\">Relative residual</th><td>");
+	put_num(r, num(r, "calibration.residual_relative"), 4);
+	html(r, " (limit ");
+	put_num(r, num(r, "parameters.max_residual"), 4);
+	html(r, ")</td></tr>\n</table>\n");
+
+	html(r, "<h3>M2: site camera RGB to reference camera RGB</h3>\n"
+	        "<p>3 &times; 3, dimensionless (linear camera values on a 0..1 scale); rows: "
+	        "the reference camera's R, G, B; columns: the site camera's R, G, B.</p>\n"
+	        "<table class=\"matrix\">\n");
+	int nm2;
+	json_t *m2 = arr(r, &nm2, "calibration.M2");
+	if (m2 && nm2 != 9)
+		failed(r, KG_EINVAL, "%s: key 'calibration.M2': expected 9 numbers (row-major), "
+		       "got %d", r->file, nm2);
+	for (int i = 0; i < 3; i++) {
+		html(r, "<tr>");
+		for (int j = 0; j < 3; j++) {
+			html(r, "<td>");
+			put_num(r, nm2 == 9 ? num(r, "calibration.M2[%d]", 3 * i + j) : NAN, 4);
+			html(r, "</td>");
+		}
+		html(r, "</tr>\n");
+	}
+	html(r, "</table>\n");
+
+	int used = 0, flagged = 0;
+	for (int i = 0; i < npatches && patches; i++) {
+		int u = flag(r, "calibration.patches[%d].used", i);
+		used += u;
+		flagged += !u || num(r, "calibration.patches[%d].flags", i) != 0;
+	}
+	html(r, "<h3>Patches</h3>\n<p>%d of %d patches used; %d flagged.</p>\n", used, npatches,
+	     flagged);
+	if (flagged) {
+		html(r, "<table><thead><tr><th>patch</th><th>name</th><th>used</th>"
+		        "<th>flags</th><th>reason</th></tr></thead><tbody>\n");
+		for (int i = 0; i < npatches; i++) {
+			int u = flag(r, "calibration.patches[%d].used", i);
+			double f = num(r, "calibration.patches[%d].flags", i);
+			if (u && f == 0)
+				continue;
+			const char *why = str(r, "calibration.patches[%d].warning", i);
+			html(r, "<tr><td>");
+			text(r, str(r, "calibration.patches[%d].id", i));
+			html(r, "</td><td>");
+			text(r, str(r, "calibration.patches[%d].name", i));
+			html(r, "</td><td>%s</td><td>0x%lx</td><td>", u ? "yes" : "no",
+			     isfinite(f) && f >= 0 ? (unsigned long)f : 0UL);
+			if (why[0])
+				text(r, why);
+			else
+				html(r, "<span class=\"none\">no reason recorded</span>");
+			html(r, "</td></tr>\n");
+		}
+		html(r, "</tbody></table>\n");
+	}
+	section_end(r);
+}
+
+static void summary_rows(report *r, const char *label, int digits, double d50, double d65)
+{
+	html(r, "<tr class=\"aggregate\"><th colspan=\"4\" scope=\"row\">%s</th><td>", label);
+	put_num(r, d50, digits);
+	html(r, "</td><td>");
+	put_num(r, d65, digits);
+	html(r, "</td><td colspan=\"2\"></td></tr>\n");
+}
+
+static void grade_row(report *r, const char *standard, const char *criterion,
+                      const char *rule, double value, int pass)
+{
+	html(r, "<tr><td>%s</td><td>%s</td><td>%s</td><td>", standard, criterion, rule);
+	put_num(r, value, 2);
+	html(r, "</td><td>");
+	put_verdict(r, pass, "pass", "fail");
+	html(r, "</td></tr>\n");
+}
+
+static void section_color_accuracy(report *r)
+{
+	section_begin(r, "color-accuracy", "Colour accuracy");
+	int n;
+	arr(r, &n, "calibration.patches");
+	html(r, "<p>Each chart patch's spectrum estimated from the site camera (s = B M M2 "
+	        "&rho;) against the spectrum the spectrophotometer measured, as CIEDE2000 "
+	        "colour differences &Delta;E<sub>00</sub> (CIE 1931 2&deg; observer) under "
+	        "the illuminants D50 and D65. &Delta;L* (tone) and &Delta;E(a*b*) = "
+	        "&radic;(&Delta;a*&sup2; + &Delta;b*&sup2;) (white balance) are under D50. "
+	        "All differences are in CIELAB units (dimensionless). The 90th percentile is "
+	        "the nearest rank: the &lceil;0.9&nbsp;n&rceil;-th smallest value.</p>\n");
+	html(r, "<table class=\"num\"><thead><tr><th>patch</th><th>name</th><th>used</th>"
+	        "<th>neutral</th><th>&Delta;E<sub>00</sub> D50</th>"
+	        "<th>&Delta;E<sub>00</sub> D65</th><th>&Delta;L* D50</th>"
+	        "<th>&Delta;E(a*b*) D50</th></tr></thead><tbody>\n");
+	int nneutral = 0;
+	double dab_sum = 0, dab_max = 0, dl_sum = 0, dl_max = 0;
+	for (int i = 0; i < n; i++) {
+		int neutral = flag(r, "calibration.patches[%d].neutral", i);
+		double dl = opt_num(r, "calibration.patches[%d].dL", i);
+		double dab = opt_num(r, "calibration.patches[%d].dab", i);
+		html(r, "<tr><td>");
+		text(r, str(r, "calibration.patches[%d].id", i));
+		html(r, "</td><td class=\"name\">");
+		text(r, str(r, "calibration.patches[%d].name", i));
+		html(r, "</td><td>%s</td><td>%s</td><td>",
+		     flag(r, "calibration.patches[%d].used", i) ? "yes" : "no", neutral ? "yes" : "");
+		put_num(r, opt_num(r, "calibration.patches[%d].de00_d50", i), 2);
+		html(r, "</td><td>");
+		put_num(r, opt_num(r, "calibration.patches[%d].de00_d65", i), 2);
+		html(r, "</td><td>");
+		put_num(r, dl, 2);
+		html(r, "</td><td>");
+		put_num(r, dab, 2);
+		html(r, "</td></tr>\n");
+		if (neutral && isfinite(dl) && isfinite(dab)) {
+			nneutral++;
+			dab_sum += dab;
+			dab_max = fmax(dab_max, dab);
+			dl_sum += fabs(dl);
+			dl_max = fmax(dl_max, fabs(dl));
+		}
+	}
+	html(r, "</tbody><tfoot>\n");
+	if (r->graded) {
+		summary_rows(r, "mean", 2, r->d50.mean, r->d65.mean);
+		summary_rows(r, "90th percentile (nearest rank)", 2, r->d50.p90, r->d65.p90);
+		summary_rows(r, "maximum", 2, r->d50.max, r->d65.max);
+	}
+	html(r, "</tfoot></table>\n");
+
+	html(r, "<h3>Grades</h3>\n");
+	if (r->graded) {
+		html(r, "<p>Graded on &Delta;E<sub>00</sub> under D50 over the %d patches with a "
+		        "value.</p>\n<table><thead><tr><th>standard</th><th>criterion</th>"
+		        "<th>requirement</th><th>value</th><th>verdict</th></tr></thead><tbody>\n",
+		     r->d50.n);
+		grade_row(r, "FADGI 4-star", "mean &Delta;E<sub>00</sub>", "&lt; 2", r->d50.mean,
+		          r->d50.mean < KG_FADGI4_MEAN_BELOW);
+		grade_row(r, "FADGI 4-star", "90th percentile &Delta;E<sub>00</sub>", "&lt; 4",
+		          r->d50.p90, r->d50.p90 < KG_FADGI4_P90_BELOW);
+		grade_row(r, "ISO 19264-1 level A", "mean &Delta;E<sub>00</sub>", "&le; 4",
+		          r->d50.mean, r->d50.mean <= KG_ISO19264_A_MEAN_AT_MOST);
+		grade_row(r, "ISO 19264-1 level A", "maximum &Delta;E<sub>00</sub>", "&le; 10",
+		          r->d50.max, r->d50.max <= KG_ISO19264_A_MAX_AT_MOST);
+		html(r, "</tbody></table>\n<ul class=\"verdicts\"><li>FADGI 4-star: ");
+		put_verdict(r, kg_grade_fadgi4(&r->d50), "pass", "fail");
+		html(r, "</li><li>ISO 19264-1 level A: ");
+		put_verdict(r, kg_grade_iso19264_a(&r->d50), "pass", "fail");
+		html(r, "</li></ul>\n");
+	} else {
+		html(r, "<p class=\"missing\">Not graded: no patch has a colour difference (the "
+		        "chart's measured spectra or the estimates are missing).</p>\n");
+	}
+
+	html(r, "<h3>White balance and tone (neutral patches)</h3>\n");
+	if (nneutral)
+		html(r, "<p>%d neutral patch%s: white balance &Delta;E(a*b*) mean %.2f, maximum "
+		        "%.2f; tone |&Delta;L*| mean %.2f, maximum %.2f (under D50; reported, not "
+		        "graded here).</p>\n", nneutral, nneutral == 1 ? "" : "es",
+		     dab_sum / nneutral, dab_max, dl_sum / nneutral, dl_max);
+	else
+		html(r, "<p class=\"missing\">No neutral patch has &Delta;L* and &Delta;E(a*b*) "
+		        "values.</p>\n");
+
+	report_panel *panels = calloc(n > 0 ? n : 1, sizeof(*panels));
+	double (*spectra)[2][KG_NBANDS] = calloc(n > 0 ? n : 1, sizeof(*spectra));
+	char (*titles)[64] = calloc(n > 0 ? n : 1, sizeof(*titles));
+	if (!panels || !spectra || !titles) {
+		failed(r, KG_ENOMEM, "%s: out of memory", r->file);
+	} else if (n > 0) {
+		for (int i = 0; i < n; i++) {
+			snprintf(titles[i], sizeof(titles[i]), "%s %s",
+			         str(r, "calibration.patches[%d].id", i),
+			         str(r, "calibration.patches[%d].name", i));
+			panels[i].title = titles[i];
+			panels[i].solid = spectrum(r, spectra[i][0], "calibration.patches[%d].measured", i);
+			panels[i].dashed = spectrum(r, spectra[i][1], "calibration.patches[%d].estimated", i);
+			panels[i].note = !panels[i].solid && !panels[i].dashed ? "no spectra"
+			                 : !panels[i].solid ? "not measured"
+			                 : !panels[i].dashed ? "not estimated" : NULL;
+		}
+		if (!r->ret)
+			put_figure(r, panels, n, 4, "Chart patches: estimated against measured reflectance",
+			           "measured (spectrophotometer)", "estimated (site camera)",
+			           "Reflectance (0..1) against wavelength (400-700 nm) for every chart "
+			           "patch; each panel has its own scale.");
+	}
+	free(panels);
+	free(spectra);
+	free(titles);
+	section_end(r);
+}
+
+static void put_object(report *r, int i)
+{
+	const char *capture = str(r, "objects[%d].capture", i);
+	html(r, "<article class=\"object\" id=\"object-%d\">\n<h3>", i + 1);
+	text(r, capture);
+	html(r, "</h3>\n");
+	if (flag(r, "objects[%d].skipped", i))
+		html(r, "<p class=\"note\">Unchanged since the last run: not processed again; shown "
+		        "from the files that run wrote.</p>\n");
+	double pixels = num(r, "objects[%d].pixels", i);
+	html(r, "<p>");
+	textf(r, "%.0f x %.0f pixels (%.0f), folder %s.",
+	      num(r, "objects[%d].width", i), num(r, "objects[%d].height", i), pixels,
+	      str(r, "objects[%d].dir", i));
+	html(r, "</p>\n");
+	put_file_list(r, i);
+	html(r, "<div class=\"images\">\n<figure>");
+	put_image_file(r, str(r, "objects[%d].photo", i), "photograph", "photo");
+	html(r, "<figcaption>Photograph (site camera, display sRGB).</figcaption></figure>\n"
+	        "<figure>");
+	put_image_file(r, str(r, "objects[%d].labels_png", i), "label map", "map");
+	html(r, "<figcaption>Label map; colours as in the legend below.</figcaption></figure>\n"
+	        "<figure>");
+	put_image_file(r, str(r, "objects[%d].confidence_png", i), "confidence map", "map");
+	html(r, "<figcaption>Confidence map (margin to the runner-up material; brighter is "
+	        "more certain).</figcaption></figure>\n</div>\n");
+
+	int nclasses;
+	arr(r, &nclasses, "objects[%d].classes", i);
+	html(r, "<table class=\"num legend\"><caption>Materials: legend, pixel counts and "
+	        "fractions of the image</caption><thead><tr><th></th><th>class</th>"
+	        "<th>pixels</th><th>fraction (%%)</th></tr></thead><tbody>\n");
+	for (int c = 0; c < nclasses; c++) {
+		double rgb[3];
+		for (int k = 0; k < 3; k++)
+			rgb[k] = fmin(fmax(num(r, "objects[%d].classes[%d].colour[%d]", i, c, k), 0), 255);
+		html(r, "<tr><td><span class=\"swatch\" style=\"background:rgb(%d,%d,%d)\"></span>"
+		        "</td><td class=\"name\">", (int)rgb[0], (int)rgb[1], (int)rgb[2]);
+		text(r, str(r, "objects[%d].classes[%d].name", i, c));
+		html(r, "</td><td>");
+		put_num(r, num(r, "objects[%d].classes[%d].pixels", i, c), 0);
+		html(r, "</td><td>");
+		put_num(r, 100 * num(r, "objects[%d].classes[%d].fraction", i, c), 2);
+		html(r, "</td></tr>\n");
+	}
+	static const struct {
+		const char *key, *label;
+	} rest[] = {
+		{"unknown_fraction", "unknown (no declared material explains the pixel)"},
+		{"background_fraction", "background"},
+		{"unclassified_fraction", "unclassified (not estimated: clipped or dark)"},
+	};
+	for (size_t k = 0; k < sizeof(rest) / sizeof(rest[0]); k++) {
+		double f = num(r, "objects[%d].%s", i, rest[k].key);
+		html(r, "<tr class=\"aggregate\"><td></td><td class=\"name\">%s</td><td>",
+		     rest[k].label);
+		put_num(r, f * pixels, 0);
+		html(r, "</td><td>");
+		put_num(r, 100 * f, 2);
+		html(r, "</td></tr>\n");
+	}
+	html(r, "</tbody></table>\n");
+
+	report_panel *panels = calloc(nclasses > 0 ? nclasses : 1, sizeof(*panels));
+	double (*spectra)[2][KG_NBANDS] = calloc(nclasses > 0 ? nclasses : 1, sizeof(*spectra));
+	if (!panels || !spectra) {
+		failed(r, KG_ENOMEM, "%s: out of memory", r->file);
+	} else if (nclasses == 0) {
+		html(r, "<p class=\"missing\">No material classes: no spectra figure.</p>\n");
+	} else {
+		for (int c = 0; c < nclasses; c++) {
+			panels[c].title = str(r, "objects[%d].classes[%d].name", i, c);
+			panels[c].solid = spectrum(r, spectra[c][0],
+			                           "objects[%d].classes[%d].model_spectrum", i, c);
+			panels[c].dashed = spectrum(r, spectra[c][1],
+			                            "objects[%d].classes[%d].mean_spectrum", i, c);
+			panels[c].note = !panels[c].solid && !panels[c].dashed ? "no spectra"
+			                 : !panels[c].solid ? "no library model"
+			                 : !panels[c].dashed ? "no estimate" : NULL;
+		}
+		if (!r->ret)
+			put_figure(r, panels, nclasses, 4, "Mean estimated reflectance against the "
+			           "library model per material", "library model", "estimated, mean",
+			           "Reflectance (0..1) against wavelength (400-700 nm) of each "
+			           "material's pixels (mean of the estimates) and of its library model "
+			           "(cf. the paper's Figs. 11-12); each panel has its own scale.");
+	}
+	free(panels);
+	free(spectra);
+
+	const char *render = opt_str(r, "objects[%d].render", i);
+	html(r, "<h4>Render of the scene</h4>\n");
+	if (render) {
+		html(r, "<figure>");
+		put_image_file(r, render, "render", "photo");
+		html(r, "<figcaption>");
+		textf(r, "%s rendered as it is (spectral, white-balanced to the scene's light).",
+		      str(r, "objects[%d].scene", i));
+		html(r, "</figcaption></figure>\n");
+	} else {
+		html(r, "<p class=\"missing\">not rendered: built without Embree</p>\n");
+	}
+	html(r, "<h4>Warnings</h4>\n");
+	char key[64];
+	snprintf(key, sizeof(key), "objects[%d].warnings", i);
+	put_warning_list(r, key, NULL);
+	html(r, "</article>\n");
+}
+
+static void section_objects(report *r)
+{
+	section_begin(r, "objects", "Objects");
+	int n;
+	arr(r, &n, "objects");
+	if (n == 0)
+		html(r, "<p>No object captures in this session.</p>\n");
+	for (int i = 0; i < n && !r->ret; i++)
+		put_object(r, i);
+	section_end(r);
+}
+
+/* scale: the object's exposure relative to the chart's, NAN for the chart itself. */
+static void acquisition_row(report *r, const char *who, const char *prefix, double scale)
+{
+	html(r, "<tr><td>");
+	text(r, who);
+	html(r, "</td><td>");
+	put_num(r, num(r, "%s.exposure_us", prefix), 0);
+	html(r, "</td><td>");
+	put_num(r, num(r, "%s.gain", prefix), 2);
+	html(r, "</td><td>");
+	put_num(r, num(r, "%s.frames", prefix), 0);
+	html(r, "</td><td>");
+	if (isfinite(scale))
+		html(r, "%.4g", scale);
+	else
+		html(r, "1 (chart)");
+	html(r, "</td><td>");
+	const char *dark = opt_str(r, "%s.dark", prefix), *flat = opt_str(r, "%s.flat", prefix);
+	text(r, dark ? dark : "none");
+	html(r, "</td><td>");
+	text(r, flat ? flat : "none");
+	html(r, "</td></tr>\n");
+}
+
+static void put_devices(report *r, const char *kind, const char *title)
+{
+	int n;
+	json_t *list = arr(r, &n, "devices.%s", kind);
+	html(r, "<h3>%s</h3>\n", title);
+	if (n == 0)
+		html(r, "<p>none recorded</p>\n");
+	for (int i = 0; i < n; i++) {
+		json_t *d = json_array_get(list, i);
+		if (!json_is_object(d)) {
+			failed(r, KG_EINVAL, "%s: key 'devices.%s[%d]': expected an object", r->file,
+			       kind, i);
+			return;
+		}
+		html(r, "<table class=\"kv\">\n");
+		const char *k;
+		json_t *v;
+		json_object_foreach(d, k, v) {
+			html(r, "<tr><th scope=\"row\">");
+			text(r, k);
+			html(r, "</th><td>");
+			put_json(r, v);
+			html(r, "</td></tr>\n");
+		}
+		html(r, "</table>\n");
+	}
+}
+
+static void section_provenance(report *r)
+{
+	section_begin(r, "provenance", "Provenance");
+	html(r, "<table class=\"kv\">\n");
+	row(r, "Session", str(r, "session.path"));
+	row(r, "Session manifest sha256", str(r, "session.manifest_sha256"));
+	row(r, "Processed (UTC)", str(r, "created"));
+	rowf(r, "Software", "%s %s", str(r, "software.name"), str(r, "software.version"));
+	row(r, "Record", "process.json (kogei-process/1)");
+	html(r, "<tr><th scope=\"row\">Condition numbers</th><td>M ");
+	put_num(r, num(r, "calibration.cond_M"), 2);
+	html(r, ", M2 ");
+	put_num(r, num(r, "calibration.cond_M2"), 2);
+	html(r, "</td></tr>\n</table>\n");
+
+	put_devices(r, "cameras", "Cameras");
+	put_devices(r, "spectrometers", "Spectrometers");
+
+	html(r, "<h3>Acquisition</h3>\n<table class=\"num\"><thead><tr><th>capture</th>"
+	        "<th>exposure (&micro;s)</th><th>gain (");
+	text(r, str(r, "calibration.gain_unit"));
+	html(r, ")</th><th>frames averaged</th><th>exposure scale (&times; chart)</th><th>dark</th><th>flat</th></tr></thead>"
+	        "<tbody>\n");
+	acquisition_row(r, str(r, "calibration.chart_capture"), "calibration", NAN);
+	int n;
+	arr(r, &n, "objects");
+	for (int i = 0; i < n && !r->ret; i++) {
+		char prefix[32];
+		snprintf(prefix, sizeof(prefix), "objects[%d]", i);
+		acquisition_row(r, str(r, "objects[%d].capture", i), prefix,
+		                num(r, "objects[%d].exposure_scale", i));
+	}
+	html(r, "</tbody></table>\n");
+
+	html(r, "<h3>Input files</h3>\n<table class=\"files\"><thead><tr><th>role</th>"
+	        "<th>path</th><th>sha256</th></tr></thead><tbody>\n");
+	arr(r, &n, "inputs");
+	for (int i = 0; i < n; i++) {
+		html(r, "<tr><td>");
+		text(r, str(r, "inputs[%d].role", i));
+		html(r, "</td><td class=\"path\">");
+		text(r, str(r, "inputs[%d].path", i));
+		html(r, "</td><td class=\"hash\">");
+		text(r, str(r, "inputs[%d].sha256", i));
+		html(r, "</td></tr>\n");
+	}
+	html(r, "</tbody></table>\n");
+
+	html(r, "<h3>Parameters</h3>\n<table class=\"kv\">\n");
+	json_t *params = kg_json_find(r->root, "parameters");
+	if (!json_is_object(params)) {
+		failed(r, KG_EINVAL, "%s: key 'parameters': expected an object", r->file);
+	} else {
+		const char *k;
+		json_t *v;
+		json_object_foreach(params, k, v) {
+			html(r, "<tr><th scope=\"row\">");
+			text(r, k);
+			html(r, "</th><td>");
+			put_json(r, v);
+			html(r, "</td></tr>\n");
+		}
+	}
+	html(r, "</table>\n");
+	section_end(r);
+}
+
+static void section_warnings(report *r)
+{
+	section_begin(r, "warnings", "Warnings");
+	if (r->warnings == 0) {
+		html(r, "<p>none</p>\n");
+	} else {
+		html(r, "<h3>Session</h3>\n");
+		put_warning_list(r, "warnings", NULL);
+		int n;
+		arr(r, &n, "objects");
+		for (int i = 0; i < n; i++) {
+			char key[64];
+			snprintf(key, sizeof(key), "objects[%d].warnings", i);
+			html(r, "<h3>");
+			text(r, str(r, "objects[%d].capture", i));
+			html(r, "</h3>\n");
+			put_warning_list(r, key, NULL);
+		}
+	}
+	section_end(r);
+}
+
+static const char style[] =
+	"body{font-family:'DejaVu Sans',Verdana,Arial,sans-serif;font-size:15px;line-height:1.45;"
+	"color:#1a1a1a;background:#fff;max-width:1180px;margin:0 auto;padding:24px 28px}"
+	"h1{font-size:26px;margin:0 0 4px}h2{font-size:21px;border-bottom:2px solid #444;"
+	"padding-bottom:4px;margin:34px 0 12px}h3{font-size:17px;margin:22px 0 8px}"
+	"h4{font-size:15px;margin:16px 0 6px}.sub{color:#555;margin:0}"
+	"nav{margin:12px 0 0;font-size:14px}nav a{margin-right:14px;color:#234}"
+	"table{border-collapse:collapse;margin:8px 0 14px;font-size:14px}"
+	"th,td{border:1px solid #bbb;padding:3px 8px;text-align:left;vertical-align:top}"
+	"thead th{background:#eee}table.kv th{background:#f5f5f5;font-weight:600;width:16em}"
+	"table.num td{text-align:right;font-variant-numeric:tabular-nums}"
+	"table.num td.name,table.num td:first-child{text-align:left}table.matrix td{text-align:right;min-width:6em;"
+	"font-variant-numeric:tabular-nums}caption{caption-side:top;text-align:left;"
+	"color:#444;padding:2px 0 4px}tr.aggregate th,tr.aggregate td{background:#f5f5f5}"
+	"td.hash,td.path{font-family:'DejaVu Sans Mono',monospace;font-size:12px;"
+	"word-break:break-all}.pass{color:#fff;background:#1b7a36;padding:1px 7px;"
+	"border-radius:3px;font-weight:600}.fail{color:#fff;background:#b3261e;"
+	"padding:1px 7px;border-radius:3px;font-weight:600}.none{color:#777}"
+	".missing{color:#7a4b00;background:#fff6e0;border-left:4px solid #e0a000;"
+	"padding:4px 8px}.note{background:#eef4ff;border-left:4px solid #4a78c2;"
+	"padding:4px 8px}ul.verdicts li{margin:3px 0}ul.warnings li{margin:2px 0}"
+	"figure{margin:10px 0 16px}figcaption{font-size:13px;color:#444;margin-top:4px}"
+	"img{max-width:100%;height:auto;border:1px solid #ccc}img.photo{min-width:min(100%,480px)}"
+	".images img{width:100%}img.map{image-rendering:pixelated}"
+	".images{display:flex;flex-wrap:wrap;gap:14px}.images figure{flex:1 1 320px;margin:0}"
+	".swatch{display:inline-block;width:18px;height:14px;border:1px solid #333;"
+	"vertical-align:middle}article.object{border-top:1px solid #ccc;margin-top:18px}"
+	"code{font-family:'DejaVu Sans Mono',monospace;font-size:13px}"
+	"footer{margin-top:36px;color:#666;font-size:12px;border-top:1px solid #ccc;"
+	"padding-top:6px}"
+	"@media print{body{max-width:none;padding:0;font-size:11pt}nav{display:none}"
+	"section,article.object{break-before:page}section#summary{break-before:auto}"
+	"figure,table,tr{break-inside:avoid}.pass,.fail{border:1px solid #000}}";
+
+static void write_page(report *r)
+{
+	html(r, "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n"
+	        "<meta http-equiv=\"Content-Security-Policy\" content=\"default-src 'none'; "
+	        "img-src data:; style-src 'unsafe-inline'\">\n"
+	        "<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">\n"
+	        "<title>Spectral measurement report: ");
+	text(r, str(r, "session.path"));
+	html(r, "</title>\n<style>%s</style>\n</head>\n<body>\n<header>\n"
+	        "<h1>Spectral measurement report</h1>\n<p class=\"sub\">", style);
+	textf(r, "Session %s, processed %s by %s %s", str(r, "session.path"), str(r, "created"),
+	      str(r, "software.name"), str(r, "software.version"));
+	html(r, "</p>\n<nav><a href=\"#summary\">Summary</a><a href=\"#calibration\">"
+	        "Calibration</a><a href=\"#color-accuracy\">Colour accuracy</a>"
+	        "<a href=\"#objects\">Objects</a><a href=\"#provenance\">Provenance</a>"
+	        "<a href=\"#warnings\">Warnings</a></nav>\n</header>\n");
+	section_summary(r);
+	section_calibration(r);
+	section_color_accuracy(r);
+	section_objects(r);
+	section_provenance(r);
+	section_warnings(r);
+	html(r, "<footer>");
+	textf(r, "Written by %s %s from process.json; every figure and image is contained in "
+	      "this file.", str(r, "software.name"), str(r, "software.version"));
+	html(r, "</footer>\n</body>\n</html>\n");
+}
+
+int kg_report_write(const char *outdir, kg_err *err)
+{
+	kg_check_arg(outdir, err);
+	kg_err local;
+	report r = {.outdir = outdir, .err = err ? err : &local};
+	char *out = kg_path_join(outdir, "report.html");
+	r.file = kg_path_join(outdir, "process.json");
+	if (!out || !r.file) {
+		free(out);
+		free(r.file);
+		return kg_fail(err, KG_ENOMEM, "out of memory");
+	}
+	int ret = kg_json_load(r.file, &r.root, r.err);
+	if (!ret) {
+		const char *format = str(&r, "format");
+		if (!r.ret && strcmp(format, "kogei-process/1") != 0)
+			failed(&r, KG_EINVAL, "%s: key 'format': expected \"kogei-process/1\"",
+			       r.file);
+		ret = r.ret ? r.ret : summarise(&r);
+	}
+	kg_outfile o = {0};
+	if (!ret)
+		ret = kg_outfile_open(&o, out, 0, r.err);
+	if (!ret) {
+		r.fp = o.fp;
+		write_page(&r);
+		ret = r.ret;
+		if (!ret && ferror(o.fp))
+			ret = kg_fail(err, KG_EIO, "%s: write failed", out);
+		if (ret)
+			kg_outfile_abort(&o);
+		else
+			ret = kg_outfile_commit(&o, r.err);
+	}
+	json_decref(r.root);
+	free(r.file);
+	free(out);
+	return ret;
+}

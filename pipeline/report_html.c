@@ -1,0 +1,74 @@
+/* HTML text escaping and inline PNG images for the report. */
+#include <stdarg.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "report_private.h"
+
+void report_put_text(FILE *fp, const char *s)
+{
+	for (; s && *s; s++) {
+		switch (*s) {
+		case '&': fputs("&amp;", fp); break;
+		case '<': fputs("&lt;", fp); break;
+		case '>': fputs("&gt;", fp); break;
+		case '"': fputs("&quot;", fp); break;
+		case '\'': fputs("&#39;", fp); break;
+		default: fputc(*s, fp);
+		}
+	}
+}
+
+void report_put_textf(FILE *fp, const char *fmt, ...)
+{
+	char buf[2048];
+	va_list ap;
+	va_start(ap, fmt);
+	vsnprintf(buf, sizeof(buf), fmt, ap);
+	va_end(ap);
+	report_put_text(fp, buf);
+}
+
+static void put_base64(FILE *fp, const unsigned char *p, size_t len)
+{
+	static const char digits[] =
+		"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+	size_t i = 0;
+	for (; i + 3 <= len; i += 3) {
+		uint32_t v = (uint32_t)p[i] << 16 | (uint32_t)p[i + 1] << 8 | p[i + 2];
+		fputc(digits[v >> 18], fp);
+		fputc(digits[v >> 12 & 63], fp);
+		fputc(digits[v >> 6 & 63], fp);
+		fputc(digits[v & 63], fp);
+	}
+	if (i < len) {
+		uint32_t v = (uint32_t)p[i] << 16 | (i + 1 < len ? (uint32_t)p[i + 1] << 8 : 0);
+		fputc(digits[v >> 18], fp);
+		fputc(digits[v >> 12 & 63], fp);
+		fputc(i + 1 < len ? digits[v >> 6 & 63] : '=', fp);
+		fputc('=', fp);
+	}
+}
+
+static uint32_t be32(const unsigned char *p)
+{
+	return (uint32_t)p[0] << 24 | (uint32_t)p[1] << 16 | (uint32_t)p[2] << 8 | p[3];
+}
+
+int report_put_png(FILE *fp, const unsigned char *png, size_t len, const char *alt,
+                   const char *cls, const char *what, kg_err *err)
+{
+	static const unsigned char signature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
+	/* The signature, then the IHDR chunk: length, "IHDR", width, height. */
+	if (len < 24 || memcmp(png, signature, 8) != 0 || memcmp(png + 12, "IHDR", 4) != 0)
+		return kg_fail(err, KG_EINVAL, "%s: expected a PNG file", what);
+	uint32_t width = be32(png + 16), height = be32(png + 20);
+	fprintf(fp, "<img class=\"%s\" width=\"%u\" height=\"%u\" alt=\"", cls ? cls : "fig",
+	        (unsigned)width, (unsigned)height);
+	report_put_text(fp, alt);
+	fputs("\" src=\"data:image/png;base64,", fp);
+	put_base64(fp, png, len);
+	fputs("\">", fp);
+	return 0;
+}

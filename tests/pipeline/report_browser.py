@@ -1,0 +1,185 @@
+#!/usr/bin/env python3
+"""Check an operator's report in a running headless Chromium over the Chrome
+DevTools Protocol (called by report_browser.sh, which starts and stops Chromium).
+
+usage: report_browser.py DevToolsActivePort REPORT.html SHOT.png MAX_HEIGHT
+"""
+import base64
+import json
+import os
+import struct
+import sys
+import time
+import zlib
+
+try:
+    import websocket
+except ImportError:
+    print("SKIP: python3-websocket is not installed")
+    sys.exit(77)
+
+SECTIONS = ["summary", "calibration", "color-accuracy", "objects", "provenance",
+            "warnings"]
+failures = []
+
+
+def fail(msg):
+    failures.append(msg)
+    print("FAIL: " + msg, file=sys.stderr)
+
+
+class Cdp:
+    def __init__(self, url):
+        self.ws = websocket.create_connection(url, timeout=30, suppress_origin=True)
+        self.next_id = 0
+        self.events = []
+
+    def call(self, method, params=None, session=None, timeout=30):
+        self.next_id += 1
+        msg = {"id": self.next_id, "method": method, "params": params or {}}
+        if session:
+            msg["sessionId"] = session
+        self.ws.send(json.dumps(msg))
+        self.ws.settimeout(timeout)
+        deadline = time.time() + timeout
+        while time.time() < deadline:
+            reply = json.loads(self.ws.recv())
+            if reply.get("id") == self.next_id:
+                if "error" in reply:
+                    raise RuntimeError("%s: %s" % (method, reply["error"]))
+                return reply.get("result", {})
+            if "method" in reply:
+                self.events.append(reply)
+        raise RuntimeError("%s: no reply in %d s" % (method, timeout))
+
+    def wait_event(self, name, timeout=30):
+        for e in self.events:
+            if e["method"] == name:
+                return e
+        deadline = time.time() + timeout
+        while time.time() < deadline:
+            self.ws.settimeout(max(0.1, deadline - time.time()))
+            try:
+                e = json.loads(self.ws.recv())
+            except websocket.WebSocketTimeoutException:
+                break
+            if "method" in e:
+                self.events.append(e)
+                if e["method"] == name:
+                    return e
+        return None
+
+    def drain(self, seconds):
+        self.wait_event("kogei.never", seconds)
+
+
+def png_decoded_size(data):
+    """Width, height of a PNG after checking its pixel data inflate to the size the
+    header promises (8-bit RGB or RGBA, not interlaced)."""
+    if data[:8] != b"\x89PNG\r\n\x1a\n":
+        raise ValueError("not a PNG")
+    pos, idat, width = 8, b"", None
+    while pos < len(data):
+        length, kind = struct.unpack(">I4s", data[pos:pos + 8])
+        body = data[pos + 8:pos + 8 + length]
+        if kind == b"IHDR":
+            width, height, depth, colour, _, _, interlace = struct.unpack(">IIBBBBB", body)
+            channels = {2: 3, 6: 4}.get(colour)
+            if depth != 8 or channels is None or interlace:
+                raise ValueError("unexpected PNG kind %d/%d/%d" % (depth, colour, interlace))
+        elif kind == b"IDAT":
+            idat += body
+        pos += 12 + length
+    raw = zlib.decompress(idat)
+    if width is None or len(raw) != height * (1 + width * channels):
+        raise ValueError("pixel data of %d bytes for %sx%s" % (len(raw), width, height))
+    return width, height
+
+
+def main():
+    port_file, report, shot, max_height = sys.argv[1:5]
+    max_height = int(max_height)
+    with open(port_file) as f:
+        port, path = f.read().split()[:2]
+    cdp = Cdp("ws://127.0.0.1:%s%s" % (port, path))
+    target = cdp.call("Target.createTarget", {"url": "about:blank"})["targetId"]
+    session = cdp.call("Target.attachToTarget",
+                       {"targetId": target, "flatten": True})["sessionId"]
+    for domain in ("Page", "Network", "Log", "Runtime"):
+        cdp.call(domain + ".enable", session=session)
+    cdp.call("Emulation.setDeviceMetricsOverride",
+             {"width": 1280, "height": 900, "deviceScaleFactor": 1, "mobile": False},
+             session=session)
+    cdp.events.clear()
+    url = "file://" + os.path.abspath(report)
+    nav = cdp.call("Page.navigate", {"url": url}, session=session)
+    if nav.get("errorText"):
+        fail("navigation: " + nav["errorText"])
+    if not cdp.wait_event("Page.loadEventFired", 60):
+        fail("the page did not finish loading in 60 s")
+    cdp.drain(0.5)
+
+    for e in cdp.events:
+        m, p = e["method"], e.get("params", {})
+        if m == "Network.requestWillBeSent":
+            u = p["request"]["url"]
+            if not (u.startswith("data:") or u.startswith("file:")):
+                fail("request to %s" % u[:120])
+        elif m == "Network.loadingFailed":
+            fail("request failed: %s (%s)" % (p.get("errorText"), p.get("requestId")))
+        elif m == "Log.entryAdded" and p["entry"]["level"] == "error":
+            fail("console: %s" % p["entry"].get("text", "")[:300])
+        elif m == "Runtime.consoleAPICalled" and p["type"] in ("error", "assert"):
+            fail("console.%s: %s" % (p["type"], json.dumps(p.get("args"))[:300]))
+        elif m == "Runtime.exceptionThrown":
+            fail("exception: %s" % json.dumps(p.get("exceptionDetails"))[:300])
+
+    probe = """JSON.stringify({
+      headings: Array.from(document.querySelectorAll('section h2')).map(
+        h => [h.parentElement.id, h.textContent]),
+      images: Array.from(document.images).map(i => ({alt: i.alt,
+        data: i.src.startsWith('data:image/png;base64,'), complete: i.complete,
+        w: i.naturalWidth, h: i.naturalHeight})),
+      width: document.documentElement.scrollWidth,
+      height: document.documentElement.scrollHeight})"""
+    result = cdp.call("Runtime.evaluate", {"expression": probe, "returnByValue": True},
+                      session=session)
+    page = json.loads(result["result"]["value"])
+    ids = [h[0] for h in page["headings"]]
+    for s in SECTIONS:
+        if s not in ids:
+            fail("no <h2> in section %s (found %s)" % (s, ids))
+    if not page["images"]:
+        fail("no images in the page")
+    for i, img in enumerate(page["images"]):
+        if not img["data"]:
+            fail("image %d (%s) is not an inline PNG" % (i, img["alt"]))
+        if not img["complete"] or img["w"] <= 0 or img["h"] <= 0:
+            fail("image %d (%s) did not decode" % (i, img["alt"]))
+
+    width, height = 1280, page["height"]
+    if max_height > 0:
+        height = min(height, max_height)
+    height = min(height, 16000)
+    shot_reply = cdp.call("Page.captureScreenshot", {
+        "format": "png", "captureBeyondViewport": True,
+        "clip": {"x": 0, "y": 0, "width": width, "height": height, "scale": 1}},
+        session=session, timeout=60)
+    data = base64.b64decode(shot_reply["data"])
+    with open(shot, "wb") as f:
+        f.write(data)
+    try:
+        w, h = png_decoded_size(data)
+        if (w, h) != (width, height):
+            fail("screenshot is %dx%d, expected %dx%d" % (w, h, width, height))
+    except (ValueError, zlib.error) as e:
+        fail("screenshot %s: %s" % (shot, e))
+    cdp.call("Target.closeTarget", {"targetId": target})
+    print("%s: %d sections, %d images, page %dx%d, screenshot %s %dx%d: %s" % (
+        report, len(ids), len(page["images"]), page["width"], page["height"], shot,
+        width, height, "FAIL" if failures else "ok"))
+    return 1 if failures else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

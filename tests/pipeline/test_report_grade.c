@@ -1,0 +1,119 @@
+/* The colour accuracy aggregates and grades of the report (kg_pipeline.h) on small
+ * hand-checked vectors, boundaries included. */
+#include "kg_pipeline.h"
+#include "kg_test.h"
+
+static kg_de_summary summarise(const double *v, int n)
+{
+	kg_de_summary s = {0};
+	kg_err err;
+	int ret = kg_de_summarise(v, n, &s, &err);
+	CHECK(ret == 0, "kg_de_summarise: %s", err.msg);
+	return s;
+}
+
+static void test_aggregates(void)
+{
+	/* 1..10 shuffled: mean 5.5, nearest rank ceil(0.9 * 10) = 9 -> 9, max 10. */
+	const double ten[10] = {7, 3, 10, 1, 9, 2, 8, 5, 4, 6};
+	kg_de_summary s = summarise(ten, 10);
+	CHECK(s.n == 10, "n %d", s.n);
+	CHECK_NEAR(s.mean, 5.5, 0, "mean of 1..10");
+	CHECK_NEAR(s.p90, 9, 0, "p90 of 1..10 (rank 9)");
+	CHECK_NEAR(s.max, 10, 0, "max of 1..10");
+
+	/* 24 patches 0.5, 0.6, ..., 2.8: rank ceil(21.6) = 22 -> 0.5 + 2.1 = 2.6. */
+	double chart[24];
+	for (int i = 0; i < 24; i++)
+		chart[i] = 0.5 + 0.1 * i;
+	s = summarise(chart, 24);
+	CHECK_NEAR(s.p90, 0.5 + 0.1 * 21, 1e-15, "p90 of 24 patches (rank 22)");
+	CHECK_NEAR(s.mean, 1.65, 1e-12, "mean of 24 patches");
+	CHECK_NEAR(s.max, 2.8, 1e-15, "max of 24 patches");
+
+	/* One value: every statistic is that value. Eleven: rank ceil(9.9) = 10. */
+	const double one[1] = {3.25};
+	s = summarise(one, 1);
+	CHECK(s.mean == 3.25 && s.p90 == 3.25 && s.max == 3.25, "one value: %g %g %g", s.mean,
+	      s.p90, s.max);
+	const double eleven[11] = {11, 10, 9, 8, 7, 6, 5, 4, 3, 2, 1};
+	s = summarise(eleven, 11);
+	CHECK_NEAR(s.p90, 10, 0, "p90 of 1..11 (rank 10)");
+
+	/* NaN marks a patch without a value: skipped, not counted. */
+	const double gaps[4] = {1, NAN, 3, NAN};
+	s = summarise(gaps, 4);
+	CHECK(s.n == 2, "n with gaps %d", s.n);
+	CHECK_NEAR(s.mean, 2, 0, "mean with gaps");
+	CHECK_NEAR(s.p90, 3, 0, "p90 with gaps (rank 2 of 2)");
+
+	/* Refusals: nothing to summarise, negative, infinite. */
+	kg_err err;
+	kg_de_summary t;
+	const double none[2] = {NAN, NAN}, negative[2] = {1, -0.5}, inf[2] = {1, INFINITY};
+	CHECK(kg_de_summarise(none, 2, &t, &err) == KG_EINVAL, "all NaN accepted");
+	CHECK(kg_de_summarise(none, 0, &t, &err) == KG_EINVAL, "empty accepted");
+	CHECK(kg_de_summarise(negative, 2, &t, &err) == KG_EINVAL, "negative accepted");
+	CHECK(kg_de_summarise(inf, 2, &t, &err) == KG_EINVAL, "infinity accepted");
+}
+
+static void test_fadgi(void)
+{
+	/* mean < 2 and p90 < 4, both strict. */
+	const double pass[4] = {1, 1.5, 2, 3.9};      /* mean 2.1: fails on the mean */
+	kg_de_summary s = summarise(pass, 4);
+	CHECK(!kg_grade_fadgi4(&s), "mean 2.1 passed FADGI");
+	const double exact[2] = {1, 3};               /* mean exactly 2.0 */
+	s = summarise(exact, 2);
+	CHECK(s.mean == 2.0, "mean %g", s.mean);
+	CHECK(!kg_grade_fadgi4(&s), "mean exactly 2 passed FADGI's < 2");
+	const double below[2] = {1, 2.998};           /* mean 1.999, p90 2.998 */
+	s = summarise(below, 2);
+	CHECK(kg_grade_fadgi4(&s), "mean 1.999, p90 2.998 failed FADGI");
+	/* Ten values, mean 1.2, p90 (rank 9) exactly 4: fails on the percentile. */
+	const double p90_four[10] = {0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 4, 4};
+	s = summarise(p90_four, 10);
+	CHECK(s.p90 == 4 && s.mean < 2, "p90 %g mean %g", s.p90, s.mean);
+	CHECK(!kg_grade_fadgi4(&s), "p90 exactly 4 passed FADGI's < 4");
+	/* The same with the top value alone large: p90 is rank 9, 0.5, below the 9.5. */
+	const double one_outlier[10] = {0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 9.5};
+	s = summarise(one_outlier, 10);
+	CHECK(s.p90 == 0.5 && s.mean == 1.4, "p90 %g mean %g", s.p90, s.mean);
+	CHECK(kg_grade_fadgi4(&s), "one outlier beyond the 90th percentile failed FADGI");
+	kg_de_summary empty = {0};
+	CHECK(!kg_grade_fadgi4(&empty), "no values passed FADGI");
+}
+
+static void test_iso(void)
+{
+	/* mean <= 4 and max <= 10, both inclusive. */
+	const double max_ten[4] = {1, 1, 1, 10};      /* mean 3.25, max exactly 10 */
+	kg_de_summary s = summarise(max_ten, 4);
+	CHECK(s.max == 10, "max %g", s.max);
+	CHECK(kg_grade_iso19264_a(&s), "max exactly 10 failed ISO's <= 10");
+	const double mean_four[2] = {3, 5};           /* mean exactly 4 */
+	s = summarise(mean_four, 2);
+	CHECK(s.mean == 4, "mean %g", s.mean);
+	CHECK(kg_grade_iso19264_a(&s), "mean exactly 4 failed ISO's <= 4");
+	const double over_max[3] = {1, 1, 10.01};
+	s = summarise(over_max, 3);
+	CHECK(!kg_grade_iso19264_a(&s), "max 10.01 passed ISO");
+	const double over_mean[2] = {4, 4.02};        /* mean 4.01 */
+	s = summarise(over_mean, 2);
+	CHECK(!kg_grade_iso19264_a(&s), "mean 4.01 passed ISO");
+	/* Passing ISO but not FADGI: mean 3, max 9. */
+	const double between[3] = {0, 0, 9};
+	s = summarise(between, 3);
+	CHECK(kg_grade_iso19264_a(&s) && !kg_grade_fadgi4(&s), "mean 3, max 9: ISO %d FADGI %d",
+	      kg_grade_iso19264_a(&s), kg_grade_fadgi4(&s));
+	kg_de_summary empty = {0};
+	CHECK(!kg_grade_iso19264_a(&empty), "no values passed ISO");
+}
+
+int main(void)
+{
+	test_aggregates();
+	test_fadgi();
+	test_iso();
+	return kg_test_done("report-grade");
+}

@@ -1,0 +1,191 @@
+/* kg_report_write on a synthetic OUTDIR (report_fixture.h): the page is
+ * self-contained, has every section, shows the per-patch numbers and the grades,
+ * escapes text from process.json, states missing pieces, and refuses a record with
+ * a required key missing (naming the file and the key) without touching the page.
+ * argv[1]: the kogei program, for `kogei report` exit statuses. */
+#include <string.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include "kg_pipeline.h"
+#include "kg_test.h"
+#include "report_fixture.h"
+
+static char *read_text(const char *path)
+{
+	char *buf = NULL;
+	size_t len;
+	kg_err err;
+	if (kg_read_file(path, &buf, &len, &err)) {
+		CHECK(0, "%s", err.msg);
+		return NULL;
+	}
+	return buf;
+}
+
+static int contains(const char *page, const char *s)
+{
+	return strstr(page, s) != NULL;
+}
+
+static void check_self_contained(const char *page)
+{
+	CHECK(!strcasestr(page, "http://") && !strcasestr(page, "https://"),
+	      "the page names a web address");
+	CHECK(!strcasestr(page, "<script"), "the page holds a script element");
+	CHECK(!strcasestr(page, "url("), "the style refers to a resource");
+	int images = 0;
+	for (const char *p = page; (p = strstr(p, "src=\"")); p += 5) {
+		images++;
+		CHECK(strncmp(p + 5, "data:image/png;base64,", 22) == 0,
+		      "src that is not a data: PNG: %.60s", p);
+	}
+	/* The overlay, 2 x (photo, labels, confidence), one render, the chart's figure and
+	 * the two objects' material figures, less the deleted confidence map. */
+	CHECK(images == 1 + 6 + 1 + 1 + 2 - 1, "%d images inlined", images);
+	for (const char *p = page; (p = strstr(p, "href=\"")); p += 6)
+		CHECK(p[6] == '#', "href that leaves the page: %.60s", p);
+}
+
+static void check_content(const char *page)
+{
+	static const char *const sections[] = {"summary", "calibration", "color-accuracy",
+	                                       "objects", "provenance", "warnings"};
+	for (size_t i = 0; i < sizeof(sections) / sizeof(sections[0]); i++) {
+		char want[64];
+		snprintf(want, sizeof(want), "<section id=\"%s\">\n<h2>", sections[i]);
+		CHECK(contains(page, want), "no section %s", sections[i]);
+	}
+	/* Every patch with a value, in the table; the last patch has none. */
+	for (int i = 0; i < FIXTURE_PATCHES - 1; i++) {
+		char d50[32], d65[32];
+		snprintf(d50, sizeof(d50), "<td>%.2f</td>", 0.5 + 0.1 * i);
+		snprintf(d65, sizeof(d65), "<td>%.2f</td>", 0.55 + 0.1 * i);
+		CHECK(contains(page, d50) && contains(page, d65), "patch %d: %s %s missing", i, d50,
+		      d65);
+		CHECK(contains(page, fixture_patch_names[i]), "patch name %s missing",
+		      fixture_patch_names[i]);
+	}
+	/* 23 values 0.50 .. 2.70: mean 1.60, nearest rank ceil(20.7) = 21 -> 2.50, max 2.70. */
+	CHECK(contains(page, "mean</th><td>1.60</td><td>1.65</td>"), "mean row");
+	CHECK(contains(page, "(nearest rank)</th><td>2.50</td><td>2.55</td>"), "p90 row");
+	CHECK(contains(page, "maximum</th><td>2.70</td><td>2.75</td>"), "maximum row");
+	CHECK(contains(page, "FADGI 4-star colour accuracy: <span class=\"pass\">pass</span>"),
+	      "FADGI verdict");
+	CHECK(contains(page, "ISO 19264-1 level A colour accuracy: <span class=\"pass\">pass"),
+	      "ISO verdict");
+	CHECK(contains(page, "Calibration: <span class=\"pass\">accepted</span>"),
+	      "calibration verdict");
+	CHECK(contains(page, "clipped in green (12% of its pixels)"), "flagged patch reason");
+	CHECK(contains(page, "<td>1.0123</td>") && contains(page, "<td>-0.0055</td>"), "M2");
+	CHECK(contains(page, "fcde2b2edba56bf408601fb721fe9b5c338d10ee429ea04fae5511b68fbf8fb9"),
+	      "input sha256");
+	CHECK(contains(page, "SIMSPEC-01") && contains(page, "SIM-0002"), "device serials");
+	/* Text from JSON is escaped, wherever it goes. */
+	CHECK(!contains(page, FIXTURE_SCRIPT), "the warning went into the page unescaped");
+	CHECK(contains(page, "&lt;script&gt;alert(&#39;x&#39;)&lt;/script&gt; &amp; "
+	                     "&quot;quoted&quot;"), "escaped warning missing");
+	CHECK(contains(page, "the flat field is 40 days old") &&
+	      contains(page, "3.1% of the pixels are unknown"), "warnings missing");
+	CHECK(contains(page, "3 (<a href=\"#warnings\">list</a>)"), "total warnings");
+	/* Missing pieces are stated. */
+	CHECK(contains(page, "not rendered: built without Embree"), "no render stated");
+	CHECK(contains(page, "confidence map: not shown: the file is missing"),
+	      "missing confidence map not stated");
+	CHECK(contains(page, "Unchanged since the last run"), "skipped object not noted");
+	/* The fixture writes no scene.json: named and said to be missing, twice. */
+	CHECK(contains(page, "reflectance cube <code>object-0001/cube.hdr</code>, label map"),
+	      "cube listed as present");
+	const char *scene = "render scene <code>object-0002/scene.json</code> "
+	                    "<span class=\"fail\">missing</span>";
+	CHECK(contains(page, scene), "missing scene.json not stated");
+	CHECK(contains(page, "<td>gold</td><td>300</td><td>9.77</td>") ||
+	      contains(page, "gold</td><td>300</td><td>9.77</td>"), "class pixels and fraction");
+}
+
+static int run(const char *kogei, const char *outdir)
+{
+	pid_t pid = fork();
+	if (pid == 0) {
+		execl(kogei, kogei, "report", outdir, (char *)NULL);
+		_exit(127);
+	}
+	int status = 0;
+	waitpid(pid, &status, 0);
+	return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+/* Remove a key from process.json and expect the refusal to name it. */
+static void check_refusal(const char *kogei, const char *outdir, const char *object,
+                          const char *key, const char *named)
+{
+	char *path = kg_path_join(outdir, "process.json");
+	json_t *root = NULL;
+	kg_err err;
+	CHECK(kg_json_load(path, &root, &err) == 0, "%s", err.msg);
+	json_t *holder = object ? kg_json_find(root, object) : root;
+	json_t *saved = json_incref(json_object_get(holder, key));
+	json_object_del(holder, key);
+	CHECK(kg_json_write(root, path, &err) == 0, "%s", err.msg);
+
+	char *page_path = kg_path_join(outdir, "report.html");
+	char *before = read_text(page_path);
+	int ret = kg_report_write(outdir, &err);
+	CHECK(ret == KG_EINVAL, "missing %s: returned %d", named, ret);
+	CHECK(strstr(err.msg, "process.json") && strstr(err.msg, named),
+	      "message does not name the file and %s: %s", named, err.msg);
+	char *after = read_text(page_path);
+	CHECK(before && after && strcmp(before, after) == 0, "the old page was touched");
+	if (kogei)
+		CHECK(run(kogei, outdir) == 1, "kogei report: missing %s: not exit 1", named);
+
+	json_object_set_new(holder, key, saved);
+	CHECK(kg_json_write(root, path, &err) == 0, "%s", err.msg);
+	json_decref(root);
+	free(before);
+	free(after);
+	free(page_path);
+	free(path);
+}
+
+int main(int argc, char **argv)
+{
+	const char *kogei = argc > 1 ? argv[1] : NULL;
+	char outdir[] = "/tmp/kg_report_XXXXXX";
+	if (!mkdtemp(outdir)) {
+		perror("mkdtemp");
+		return 1;
+	}
+	CHECK(fixture_write(outdir) == 0, "fixture");
+	char *conf = kg_path_join(outdir, "object-0001/confidence.png");
+	CHECK(unlink(conf) == 0, "unlink %s", conf);
+	free(conf);
+
+	kg_err err = {{0}};
+	int ret = kg_report_write(outdir, &err);
+	CHECK(ret == 0, "kg_report_write: %s", err.msg);
+	char *page_path = kg_path_join(outdir, "report.html");
+	char *page = ret ? NULL : read_text(page_path);
+	if (page) {
+		check_self_contained(page);
+		check_content(page);
+	}
+	free(page);
+	free(page_path);
+	if (kogei)
+		CHECK(run(kogei, outdir) == 0, "kogei report on the fixture failed");
+
+	check_refusal(kogei, outdir, "calibration", "cond_M2", "calibration.cond_M2");
+	check_refusal(kogei, outdir, NULL, "warnings", "'warnings'");
+	check_refusal(kogei, outdir, "objects[1]", "classes", "objects[1].classes");
+	check_refusal(kogei, outdir, "calibration.patches[5]", "de00_d50",
+	              "calibration.patches[5].de00_d50");
+
+	char cmd[128];
+	snprintf(cmd, sizeof(cmd), "rm -rf '%s'", outdir);
+	if (kg_test_failures == 0 && system(cmd) != 0)
+		fprintf(stderr, "could not remove %s\n", outdir);
+	else if (kg_test_failures)
+		fprintf(stderr, "left %s for inspection\n", outdir);
+	return kg_test_done("report-html");
+}
