@@ -260,7 +260,8 @@ static int drop_flagged(const kg_patchset *site, const char *what, int *idx_ref,
 		}
 		if (!(cam->flagged_ids[cam->nflagged] = strdup(ref->field_ids[idx_ref[i]])))
 			return kg_fail(err, KG_ENOMEM, "out of memory");
-		cam->flagged_flags[cam->nflagged++] = (unsigned)f;
+		/* Detection writes small whole numbers; anything else still counts as flagged. */
+		cam->flagged_flags[cam->nflagged++] = f < 65536 ? (unsigned)f : 0xffffu;
 	}
 	*k = kept;
 	if (kept >= 3)

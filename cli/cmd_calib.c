@@ -45,7 +45,7 @@ static const char usage_camera[] =
 	"  channel scaled to unit RMS above C, default 100: e.g. neutral patches only), a\n"
 	"  relative residual ||rho0 - M2 rho_r|| / ||rho0|| above R (default 0.10: good\n"
 	"  charts of another camera leave 1.5-3.4 %, patches read in the wrong order or no\n"
-	"  chart in view 60 % and more), and a chart of exactly 3 usable patches, whose\n"
+	"  chart in view 55 % and more), and a chart of exactly 3 usable patches, whose\n"
 	"  residual is 0 whatever was photographed, unless --force. --exclude leaves\n"
 	"  patches out.\n"
 	"  --method sets the default method of CAM.json (default: the reference's).\n"

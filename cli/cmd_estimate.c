@@ -348,7 +348,7 @@ int kg_cmd_classify(int argc, char **argv)
 		{"angle", required_argument, NULL, 'a'},
 		{"method", required_argument, NULL, 'm'},
 		{"variance", required_argument, NULL, 'V'},
-		{"frames", required_argument, NULL, 'F'},
+		{"frames", required_argument, NULL, 'N'},
 		{"mask", required_argument, NULL, 'K'},
 		{"background-level", required_argument, NULL, 'L'},
 		{"unknown-threshold", required_argument, NULL, 'U'},
@@ -372,7 +372,7 @@ int kg_cmd_classify(int argc, char **argv)
 		case 'm': method = optarg; break;
 		case 'V': variance = optarg; break;
 		case 'K': mask = optarg; break;
-		case 'F':
+		case 'N':
 			if (parse_int(optarg, 1, 1 << 20, &copt.frames))
 				return kg_cli_usage_error(usage_classify, "--frames %s: expected 1 or more",
 				                          optarg);

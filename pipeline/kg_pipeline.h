@@ -33,11 +33,12 @@
 
 #include <stdio.h>
 
+#include "kg_calib.h"
 #include "kg_core.h"
 
 #define KG_PROCESS_FORMAT "kogei-process/1"
-/* Default for kg_process_options.max_residual (see docs/process.md). */
-#define KG_PROCESS_MAX_RESIDUAL 0.05
+/* Default for kg_process_options.max_residual: calib/'s (docs/calib-camera.md). */
+#define KG_PROCESS_MAX_RESIDUAL KG_CALIB_MAX_RESIDUAL
 
 typedef struct kg_process_options {
 	const char *session;       /* the session directory */

@@ -381,6 +381,40 @@ int proc_preview_png(const kg_image *rgb, const char *path, int max_side, kg_err
 	return ret;
 }
 
+/* The devices: the session's cameras, and the spectrophotometer that measured the
+ * chart, from the keywords of its spectra file (kogei measure writes them). */
+static json_t *devices_json(const proc *p)
+{
+	json_t *d = json_deep_copy(json_object_get(p->manifest, "devices"));
+	if (!json_is_object(d)) {
+		json_decref(d);
+		d = json_object();
+	}
+	if (!json_is_array(json_object_get(d, "cameras")))
+		json_object_set_new(d, "cameras", json_array());
+	if (json_is_array(json_object_get(d, "spectrometers")))
+		return d;
+	json_t *list = json_array();
+	const char *path = json_string_value(kg_json_find(p->calibration, "spectra_source"));
+	kg_cgats *cg = NULL;
+	kg_err e = {{0}};
+	if (path && kg_cgats_read(path, &cg, &e) == 0 && cg->ntables > 0) {
+		static const char *const keys[] = {"INSTRUMENT", "SERIAL_NUMBER", "INTEGRATION_TIME_US",
+		                                   "SCANS_AVERAGED", "WHITE_REFERENCE",
+		                                   "MEASUREMENT_MODE", "CREATED"};
+		json_t *o = json_pack("{s:s}", "spectra", path);
+		for (size_t k = 0; k < sizeof(keys) / sizeof(keys[0]); k++) {
+			const char *v = kg_cgats_keyword(cg->tables[0], keys[k]);
+			if (v)
+				json_object_set_new(o, keys[k], json_string(v));
+		}
+		json_array_append_new(list, o);
+	}
+	kg_cgats_free(&cg);
+	json_object_set_new(d, "spectrometers", list);
+	return d;
+}
+
 /* ---- the run ----------------------------------------------------------------------- */
 
 static void proc_free(proc *p)
@@ -439,6 +473,7 @@ static int load_previous(proc *p)
 		kg_err e = {{0}};
 		json_t *prev = NULL;
 		if (kg_json_load(path, &prev, &e) == 0) {
+			kg_inputs_forget(path); /* our own record: rewritten at the end */
 			const char *f = json_string_value(json_object_get(prev, "format"));
 			if (f && !strcmp(f, KG_PROCESS_FORMAT))
 				p->previous = prev;
@@ -511,13 +546,13 @@ int kg_process_run(const kg_process_options *o, kg_process_summary *summary, kg_
 	if (!ret) {
 		char created[32];
 		iso_time(created, sizeof(created));
-		root = json_pack("{s:s, s:s, s:{s:s, s:s}, s:{s:s, s:s}, s:o, s:O, s:O, s:O, s:O, "
+		root = json_pack("{s:s, s:s, s:{s:s, s:s}, s:{s:s, s:s}, s:o, s:O, s:o, s:O, s:O, "
 		                 "s:O, s:O}",
 		                 "format", KG_PROCESS_FORMAT, "created", created, "software", "name",
 		                 "kogei", "version", KG_VERSION, "session", "path", o->session,
 		                 "manifest_sha256", p.manifest_sha, "parameters",
 		                 parameters_json(o, p.library_path), "inputs", p.inputs, "devices",
-		                 json_object_get(p.manifest, "devices"), "calibration", p.calibration,
+		                 devices_json(&p), "calibration", p.calibration,
 		                 "calibration_key", p.calib_key, "objects", objects, "warnings",
 		                 p.warnings);
 		if (!root)

@@ -58,11 +58,6 @@ static const proc_capture *choose_chart(proc *p)
 	return c;
 }
 
-static double gmean3(const double v[3])
-{
-	return (v[0] + v[1] + v[2]) / 3.0;
-}
-
 /* The Lab of a reflectance under an illuminant's weights. */
 static kg_lab lab_of(const kg_xyz_weights *w, kg_xyz white, const kg_spectrum *s)
 {
@@ -284,36 +279,14 @@ int proc_calibrate(proc *p)
 	kg_camera_options_default(&copt);
 	copt.exclude = (const char *const *)flagged;
 	copt.nexclude = nflagged;
+	copt.max_residual = o->max_residual;
+	copt.force = o->force;
 	if ((ret = kg_camera_fit(p->ref, ps, &copt, &cam, err))) {
 		kg_err_prefix(err, "capture %s: site calibration: ", p->chart->name);
 		goto done;
 	}
-	if (cam->k <= 3 && !o->force) {
-		ret = kg_fail(err, KG_EINVAL, "capture %s: M2 rests on %d patches, which it fits "
-		              "exactly (residual 0): the calibration cannot be checked; use a chart "
-		              "with more patches, or --force to accept it unchecked",
-		              p->chart->name, cam->k);
-		goto done;
-	}
 	if (cam->k <= 3)
 		proc_warn(p, NULL, "M2 rests on %d patches and cannot be checked (--force)", cam->k);
-	if (!(cam->residual_relative <= o->max_residual)) {
-		int worst = 0;
-		double wv = -1;
-		for (int k = 0; k < cam->k; k++) {
-			double e = fabs(cam->residual[k][0]) + fabs(cam->residual[k][1]) +
-			           fabs(cam->residual[k][2]);
-			if (e > wv)
-				wv = e, worst = k;
-		}
-		ret = kg_fail(err, KG_EINVAL, "capture %s: M2 residual %.1f %% of the reference "
-		              "values, above the limit %.1f %% (--max-residual): the patches found "
-		              "do not behave as chart %s; worst patch %s (reference %.3f, site mapped "
-		              "off by %.3f on average)",
-		              p->chart->name, 100 * cam->residual_relative, 100 * o->max_residual,
-		              p->layout->name, cam->ids[worst], gmean3(cam->rho0[worst]), wv / 3);
-		goto done;
-	}
 	p->cam = cam;
 	cam = NULL;
 	if ((ret = measured_spectra(p, &measured)))

@@ -295,15 +295,28 @@ static int process_into(proc *p, const proc_capture *c, const char *dir, double 
 		ret = kg_camera_kernel(p->cam, KG_METHOD_PCA, 0, &kclass, pre_c, &pre_c_needed, err);
 	}
 	kg_classify_result cres = {0};
+	kg_image *mask = NULL;
+	if (!ret && p->o->mask)
+		ret = kg_image_read(p->o->mask, &mask, err);
 	if (!ret) {
 		kg_classify_info info = {.calib = "camera.json", .materials = p->library_path,
-		                         .method = "pca", .image = c->name};
+		                         .method = "pca", .image = c->name,
+		                         .variance = img.variance ? "the capture's variance" : NULL,
+		                         .mask = p->o->mask};
+		kg_classify_options copt;
+		kg_classify_options_init(&copt);
+		copt.variance = img.variance; /* already of the mean, normalised */
+		copt.frames = 1;
+		copt.residual_relative = p->cam->residual_relative;
+		copt.mask = mask;
 		opt.pre = pre_c_needed ? pre_c : NULL;
 		opt.description = NULL;
-		proc_progress(p, "%s: classifying among %d materials", c->name, set->n);
-		ret = kg_classify_image(kclass, set, KG_EST_DIST_PLAIN, img.rgb, &opt, &info, labels,
-		                        &cres, err);
+		proc_progress(p, "%s: classifying among %d materials (%s)", c->name, set->n,
+		              img.variance ? "noise from the capture's variance" : "noise model");
+		ret = kg_classify_image_opts(kclass, set, img.rgb, &opt, &copt, &info, labels, &cres,
+		                             err);
 	}
+	kg_image_free(&mask);
 	kg_classify_result_free(&cres);
 	const char *fallback = set->names[set->n - 1];
 	if (!ret)

@@ -802,9 +802,9 @@ static void acquisition_row(report *r, const char *who, const char *prefix, doub
 	html(r, "<tr><td>");
 	text(r, who);
 	html(r, "</td><td>");
-	put_num(r, num(r, "%s.exposure_us", prefix), 0);
+	put_num(r, opt_num(r, "%s.exposure_us", prefix), 0);
 	html(r, "</td><td>");
-	put_num(r, num(r, "%s.gain", prefix), 2);
+	put_num(r, opt_num(r, "%s.gain", prefix), 2);
 	html(r, "</td><td>");
 	put_num(r, num(r, "%s.frames", prefix), 0);
 	html(r, "</td><td>");

@@ -28,7 +28,7 @@ static void bad_options(void)
 		{"--kind", "photo", "--kind"},       {"--format", "mono9", "--format"},
 		{"--bogus", NULL, "--bogus"},        {"--target", "0.5", "--target"},
 		{"--exposure", "fast", "--exposure"}, {"--max-dropped", "-1", "--max-dropped"},
-		{"--timeout-ms", "0", "--timeout-ms"}, {"--layout", "x.json", "--layout"},
+		{"--timeout-ms", "0", "--timeout-ms"},
 	};
 	for (size_t i = 0; i < sizeof(cases) / sizeof(cases[0]); i++) {
 		int rc = acq_run("acquire", "--camera", "sim:", "--out", s, "--kind",
@@ -39,7 +39,12 @@ static void bad_options(void)
 		CHECK(contains(acq_errtext, cases[i].needle), "%s: the message does not name it: %s",
 		      cases[i].a, acq_errtext);
 	}
-	int rc = acq_run("acquire", "--camera", "sim:", "--kind", "chart", NULL);
+	/* --layout names the chart of a chart capture (or the helper's); not an object's */
+	int rc = acq_run("acquire", "--camera", "sim:", "--out", s, "--kind", "object", "--layout",
+	                 "x.json", NULL);
+	CHECK(rc == 2 && contains(acq_errtext, "--layout"), "--layout with an object: exit %d: %s",
+	      rc, acq_errtext);
+	rc = acq_run("acquire", "--camera", "sim:", "--kind", "chart", NULL);
 	CHECK(rc == 2 && contains(acq_errtext, "--out"), "missing --out: exit %d: %s", rc,
 	      acq_errtext);
 	rc = acq_run("acquire", "--out", s, "--kind", "dark", "--camera", "sim:", "--dark",

@@ -18,6 +18,24 @@
 
 enum { CYCLES = 6, THREADS = 4, ROUNDS = 20 };
 
+/* LTTng-UST, which libcamera links where it is installed (Debian pulls it in with other
+ * packages), starts its listener threads ("<name>-ust") once per process, when the
+ * first camera manager loads: they are the tracer's, not the manager's, and not counted. */
+static int tracer_thread(const char *tid)
+{
+	char path[320], comm[32] = "";
+	snprintf(path, sizeof(path), "/proc/self/task/%s/comm", tid);
+	FILE *fp = fopen(path, "r");
+	if (!fp)
+		return 0;
+	if (!fgets(comm, sizeof(comm), fp))
+		comm[0] = '\0';
+	fclose(fp);
+	comm[strcspn(comm, "\n")] = '\0';
+	size_t n = strlen(comm);
+	return n >= 4 && !strcmp(comm + n - 4, "-ust");
+}
+
 static int count_entries(const char *dir)
 {
 	DIR *d = opendir(dir);
@@ -25,8 +43,9 @@ static int count_entries(const char *dir)
 		return -1;
 	int n = 0;
 	struct dirent *e;
+	int tasks = !strcmp(dir, "/proc/self/task");
 	while ((e = readdir(d)))
-		n += e->d_name[0] != '.';
+		n += e->d_name[0] != '.' && !(tasks && tracer_thread(e->d_name));
 	closedir(d);
 	return n - (!strcmp(dir, "/proc/self/fd")); /* the DIR's own descriptor */
 }

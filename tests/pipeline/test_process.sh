@@ -86,6 +86,13 @@ print("half/full reflectance ratio per band: %.4f .. %.4f" % (r.min(), r.max()))
 assert np.all(np.abs(r - 1) < 0.01), r
 PY
 
+# The report as a person sees it: headless Chromium loads it with nothing failing,
+# every section present and every image decoded (skipped without chromium).
+sh "$(dirname "$0")/report_browser.sh" "$O/report.html" "$T/report.png" >"$T/out" 2>"$T/err"
+rc=$?
+if [ $rc = 77 ]; then echo "note: report in Chromium skipped: $(cat "$T/err")"
+elif [ $rc != 0 ]; then echo "FAIL: the report in Chromium"; cat "$T/out" "$T/err"; fail=1; fi
+
 # Scenes render as written.
 if [ "$HAVE_EMBREE" = 1 ]; then
 	check "process rendered object-full" test -s "$O/object-full/render.png"

@@ -126,10 +126,12 @@ static void check_refusal(const char *kogei, const char *outdir, const char *obj
 	json_t *holder = object ? kg_json_find(root, object) : root;
 	json_t *saved = json_incref(json_object_get(holder, key));
 	json_object_del(holder, key);
+	kg_inputs_reset(); /* each step below is a job of its own */
 	CHECK(kg_json_write(root, path, &err) == 0, "%s", err.msg);
 
 	char *page_path = kg_path_join(outdir, "report.html");
 	char *before = read_text(page_path);
+	kg_inputs_reset();
 	int ret = kg_report_write(outdir, &err);
 	CHECK(ret == KG_EINVAL, "missing %s: returned %d", named, ret);
 	CHECK(strstr(err.msg, "process.json") && strstr(err.msg, named),
@@ -140,6 +142,7 @@ static void check_refusal(const char *kogei, const char *outdir, const char *obj
 		CHECK(run(kogei, outdir) == 1, "kogei report: missing %s: not exit 1", named);
 
 	json_object_set_new(holder, key, saved);
+	kg_inputs_reset();
 	CHECK(kg_json_write(root, path, &err) == 0, "%s", err.msg);
 	json_decref(root);
 	free(before);
