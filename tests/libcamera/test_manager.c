@@ -9,6 +9,7 @@
 #include <pthread.h>
 #include <stdio.h>
 #include <string.h>
+#include <time.h>
 
 #include "kg_camera.h"
 #include "kg_test.h"
@@ -100,7 +101,12 @@ int main(void)
 		kg_lc_manager_unref();
 		CHECK(kg_lc_manager_refs() == 0, "cycle %d: %d references after the last release",
 		      cycle, kg_lc_manager_refs());
+		/* a stopped thread leaves /proc/self/task when it has exited: give it a second */
 		int threads = count_entries("/proc/self/task");
+		for (int wait = 0; wait < 100 && threads != threads0; wait++) {
+			nanosleep(&(struct timespec){.tv_nsec = 10000000}, NULL);
+			threads = count_entries("/proc/self/task");
+		}
 		CHECK(threads == threads0, "cycle %d: %d threads after stop, %d before", cycle, threads,
 		      threads0);
 		/* libcamera keeps what it opens once per process (its log stream, ...): the
