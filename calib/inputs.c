@@ -79,6 +79,13 @@ int calib_sources_copy(const kg_calib_source *src, int n, kg_calib_source **out,
 	return 0;
 }
 
+int kg_reference_add_source(kg_reference *ref, const char *role, const char *path,
+                            kg_err *err)
+{
+	kg_check_arg(ref && role && path, err);
+	return calib_source_add(&ref->sources, &ref->nsources, role, path, err);
+}
+
 /* Append a source: its sha256 and, for a CGATS file, its keywords (devices,
  * illuminant, dates as the instrument wrote them). */
 int calib_source_add(kg_calib_source **sources, int *n, const char *role,

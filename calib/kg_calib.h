@@ -188,6 +188,10 @@ int kg_reference_fit_files(const char *spectra_path, const char *rgb_path,
                            const char *field_rgb_path, const kg_reference_options *opt,
                            kg_reference **out, kg_err *err);
 void kg_reference_free(kg_reference **ref);
+/* Record where a reference fitted in memory (kg_reference_fit) came from: role
+ * ("spectra", "rgb", ...), path, its sha256 and, for CGATS, its keywords. */
+int kg_reference_add_source(kg_reference *ref, const char *role, const char *path,
+                            kg_err *err);
 
 /* "format": "kogei-reference/1"; the keys are listed at the top of calib/json.c. */
 int kg_reference_save(const kg_reference *ref, const char *path, kg_err *err);

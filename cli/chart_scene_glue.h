@@ -1,6 +1,6 @@
 /* Chart layouts (calib/) as chart scenes (sim/): the one conversion from a
- * kg_chart_layout to the plain geometry kg_sim_chart_render draws, shared by
- * `kogei sim chart` (cli/cmd_sim_chart.c) and `kogei demo` (cli/cmd_demo.c). */
+ * kg_chart_layout to the plain geometry kg_sim_chart_render draws, used by
+ * `kogei sim chart` (cli/cmd_sim_chart.c). */
 #ifndef KG_CLI_CHART_SCENE_GLUE_H
 #define KG_CLI_CHART_SCENE_GLUE_H
 

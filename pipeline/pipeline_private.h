@@ -14,6 +14,8 @@ typedef struct proc_capture {
 	const json_t *camera;     /* its devices.cameras entry, or NULL */
 	double exposure_us;       /* NAN when not recorded */
 	double gain_linear;       /* 10^(dB / 20); NAN when not recorded or not in dB */
+	double gain;              /* as recorded, in gain_unit; NAN when not recorded */
+	const char *gain_unit;
 	long frames;
 	const char *pixfmt, *cfa;
 	long bits, width, height;

@@ -109,6 +109,8 @@ static int read_captures(proc *p)
 		c->exposure_us = json_is_number(e) && json_number_value(e) > 0 ? json_number_value(e)
 		                                                               : NAN;
 		c->gain_linear = NAN;
+		c->gain = json_is_number(g) ? json_number_value(g) : NAN;
+		c->gain_unit = unit;
 		if (json_is_number(g) && unit && !strcmp(unit, "dB"))
 			c->gain_linear = pow(10.0, json_number_value(g) / 20.0);
 		c->frames = (long)json_number_value(kg_json_find(s, "frames"));

@@ -64,6 +64,14 @@ static kg_lab lab_of(const kg_xyz_weights *w, kg_xyz white, const kg_spectrum *s
 	return kg_xyz_to_lab(kg_xyz_from_weights(w, s), white);
 }
 
+/* Three values; null where not finite (a rejected patch has none). */
+static json_t *triple_json(const double v[3])
+{
+	if (!isfinite(v[0]) || !isfinite(v[1]) || !isfinite(v[2]))
+		return json_null();
+	return json_pack("[fff]", v[0], v[1], v[2]);
+}
+
 static json_t *spectrum_json(const kg_spectrum *s)
 {
 	json_t *a = json_array();
@@ -98,9 +106,10 @@ static int patches_json(proc *p, const kg_chart_result *res, const kg_patchset *
 		for (int k = 0; k < p->cam->k; k++)
 			if (!strcmp(p->cam->ids[k], s->id))
 				used = 1;
-		json_t *e = json_pack("{s:s, s:s, s:[fff], s:i, s:b, s:s}", "id", s->id, "name",
-		                      lp->name, "rgb", s->rgb[0], s->rgb[1], s->rgb[2], "flags",
-		                      (int)s->flags, "used", used, "warning", s->warning);
+		json_t *e = json_pack("{s:s, s:s, s:o, s:o, s:I, s:i, s:b, s:s}", "id", s->id, "name",
+		                      lp->name, "rgb", triple_json(s->rgb), "sd", triple_json(s->sd),
+		                      "pixels", (json_int_t)s->pixels, "flags", (int)s->flags, "used",
+		                      used, "warning", s->warning);
 		int mi = measured ? kg_patchset_find(measured, s->id) : -1;
 		if (mi < 0 && measured && lp->alias[0])
 			mi = kg_patchset_find(measured, lp->alias);
@@ -266,6 +275,8 @@ int proc_calibrate(proc *p)
 			ret = kg_calib_pair(spectra, ps, &train, err);
 		if (!ret)
 			ret = kg_reference_fit(train, ps, &ropt, &p->ref, err);
+		if (!ret)
+			ret = kg_reference_add_source(p->ref, "spectra", o->spectra, err);
 		if (ret) {
 			kg_err_prefix(err, "capture %s with %s: reference calibration: ", p->chart->name,
 			              o->spectra);
@@ -342,6 +353,8 @@ int proc_calibrate(proc *p)
 	for (int i = 0; i < nflagged; i++)
 		json_array_append_new(fl, json_string(flagged[i]));
 	json_object_set_new(p->calibration, "patches_flagged", fl);
+	json_object_set_new(p->calibration, "decimate", json_integer(res->decimate));
+	json_object_set_new(p->calibration, "detect_seconds", json_real(res->total_seconds));
 	if (!o->reference)
 		json_object_set_new(p->calibration, "reference_file", json_string("reference.json"));
 	/* What the calibration rests on: the inputs read so far and the parameters. */

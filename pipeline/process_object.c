@@ -53,20 +53,33 @@ static int check_camera(proc *p, const proc_capture *c, json_t *warnings)
 	return 0;
 }
 
+/* The chart's gain over c's, as a factor on the signal: from dB, or 1 when both
+ * record the same value in the same other unit (a replayed camera's "recorded"); NAN
+ * when it cannot be known. */
+static double gain_ratio(const proc_capture *chart, const proc_capture *c)
+{
+	if (isfinite(chart->gain_linear) && isfinite(c->gain_linear))
+		return chart->gain_linear / c->gain_linear;
+	if (isfinite(chart->gain) && chart->gain == c->gain && chart->gain_unit && c->gain_unit &&
+	    !strcmp(chart->gain_unit, c->gain_unit))
+		return 1.0;
+	return NAN;
+}
+
 /* Camera values of c relative to the chart capture's: (t g)_chart / (t g)_object. */
 static int exposure_scale(proc *p, const proc_capture *c, json_t *warnings, double *scale)
 {
 	const proc_capture *k = p->chart;
-	double a = k->exposure_us * k->gain_linear, b = c->exposure_us * c->gain_linear;
-	if (isfinite(a) && isfinite(b) && a > 0 && b > 0) {
-		*scale = a / b;
+	double t = k->exposure_us / c->exposure_us, g = gain_ratio(k, c);
+	if (isfinite(t) && t > 0 && isfinite(g) && g > 0) {
+		*scale = t * g;
 		return 0;
 	}
 	if (!p->o->assume_same_exposure)
 		return kg_fail(p->err, KG_EINVAL, "capture %s: exposure time or gain (in dB) not "
 		               "recorded for it or for the chart capture %s, so its values cannot be "
 		               "normalised to the chart's; --assume-same-exposure if they were equal",
-		               isfinite(b) ? k->name : c->name, k->name);
+		               isfinite(c->exposure_us) ? k->name : c->name, k->name);
 	*scale = 1;
 	proc_warn(p, warnings, "capture %s: exposure unknown, assumed equal to the chart "
 	          "capture's (--assume-same-exposure)", c->name);
@@ -469,9 +482,11 @@ int proc_objects(proc *p, json_t *objects, kg_process_summary *sum)
 		json_object_set_new(object, "frames", json_integer(c->frames));
 		json_object_set_new(object, "exposure_scale", json_real(scale));
 		if (fabs(scale - 1) > 1e-9)
-			proc_progress(p, "%s: exposure %.6g us x gain %.4g against the chart's %.6g us x "
-			              "%.4g: values scaled by %.6g", c->name, c->exposure_us,
-			              c->gain_linear, p->chart->exposure_us, p->chart->gain_linear, scale);
+			proc_progress(p, "%s: exposure %.6g us, gain %.4g %s against the chart's %.6g us, "
+			              "%.4g %s: values scaled by %.6g", c->name, c->exposure_us, c->gain,
+			              c->gain_unit ? c->gain_unit : "", p->chart->exposure_us,
+			              p->chart->gain, p->chart->gain_unit ? p->chart->gain_unit : "",
+			              scale);
 		char tmp[4200];
 		snprintf(tmp, sizeof(tmp), "%s/.%s.partial-%ld", p->o->outdir, c->name, (long)getpid());
 		remove_tree(tmp);

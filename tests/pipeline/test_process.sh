@@ -4,11 +4,12 @@
 # layout, too few usable patches, an uncheckable 3-patch chart, an M2 residual above
 # the limit, unknown exposure, another camera, the session as output; re-runs that
 # skip unchanged objects; the scenes render; exposure normalisation within 1 %.
-# usage: test_process.sh KOGEI SOURCE_ROOT HAVE_EMBREE
+# usage: test_process.sh KOGEI SOURCE_ROOT HAVE_EMBREE HAVE_TAGS_AND_DEMOSAIC
 set -u
 KOGEI=$1
 FIX=$2/fixtures
 HAVE_EMBREE=${3:-0}
+[ "${4:-1}" = 1 ] || { echo "SKIP: built without libapriltag or OpenCV (chart tags, demosaicing)"; exit 77; }
 [ -r /usr/share/colord/ref/CIE-TCS.sp ] || { echo "SKIP: colord-data missing"; exit 77; }
 PY=/usr/bin/python3; [ -x "$PY" ] || PY=python3
 "$PY" -c 'import numpy' 2>/dev/null ||

@@ -8,7 +8,7 @@
 #include <string.h>
 #include <time.h>
 
-#include "demo.h"
+#include "demo_private.h"
 #include "kg_render.h"
 
 #define SKY_W 512

@@ -1,7 +1,8 @@
 /* `kogei demo`: the bundled session (fixtures/demo/session, recorded by
  * fixtures/demo/make_session.sh) replayed through the replay: camera with acquire/, as
- * `kogei acquire --camera replay:SESSION#CAPTURE` would, into DIR/session. The demo
- * then works on the averaged images, not on renderings. */
+ * `kogei acquire --camera replay:SESSION#CAPTURE` would: the reference camera's chart
+ * into DIR/lab-session, the site camera's chart and object into DIR/site-session,
+ * which kogei process then takes as recorded sessions. */
 #include <ftw.h>
 #include <math.h>
 #include <stdio.h>
@@ -10,7 +11,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-#include "demo.h"
+#include "demo_private.h"
 #include "kg_acquire.h"
 
 static int remove_entry(const char *path, const struct stat *st, int flag, struct FTW *ftw)
@@ -82,6 +83,7 @@ static int options_from(const char *file, const json_t *cap, kg_capture_options 
 	o->format.offset_x = (int)ox;
 	o->format.offset_y = (int)oy;
 	o->dark = "none"; /* the bundle has no darks; its captures were taken without */
+	o->chart_layout = json_string_value(json_object_get(cap, "chart_layout"));
 	return 0;
 }
 
@@ -96,14 +98,15 @@ int demo_session_replay(demo_ctx *d, demo_photos *out)
 {
 	static const char *const names[3] = {DEMO_CAPTURE_REFERENCE, DEMO_CAPTURE_SITE,
 	                                     DEMO_CAPTURE_OBJECT};
+	static const char *const into[3] = {"lab-session", "site-session", "site-session"};
 	kg_image **slots[3] = {&out->reference_chart, &out->site_chart, &out->object};
 	memset(out, 0, sizeof(*out));
 	char *bundle = kg_data_path(DEMO_SESSION);
 	char *bundle_manifest = bundle ? kg_path_join(bundle, KG_SESSION_MANIFEST) : NULL;
-	char *dir = demo_path(d, "session");
+	char *lab = demo_path(d, into[0]), *site = demo_path(d, into[1]);
 	json_t *recorded = NULL;
-	kg_session *s = NULL;
-	int ret = bundle_manifest && dir ? 0 : kg_fail(&d->err, KG_ENOMEM, "out of memory");
+	kg_session *sessions[2] = {NULL, NULL};
+	int ret = bundle_manifest && lab && site ? 0 : kg_fail(&d->err, KG_ENOMEM, "out of memory");
 	if (!ret && access(bundle_manifest, R_OK) != 0)
 		ret = kg_fail(&d->err, KG_ENOENT,
 		              "%s: the bundled demo session is missing (fixtures/demo/session; "
@@ -111,11 +114,14 @@ int demo_session_replay(demo_ctx *d, demo_photos *out)
 		              bundle_manifest);
 	if (!ret)
 		ret = kg_json_load(bundle_manifest, &recorded, &d->err);
-	if (!ret)
+	for (int k = 0; k < 2 && !ret; k++) {
+		const char *dir = k ? site : lab;
 		ret = clear_previous(dir, &d->err);
-	if (!ret)
-		ret = kg_session_open(dir, &s, &d->err);
+		if (!ret)
+			ret = kg_session_open(dir, &sessions[k], &d->err);
+	}
 	for (int i = 0; i < 3 && !ret; i++) {
+		kg_session *s = sessions[i ? 1 : 0];
 		const json_t *cap = NULL, *c;
 		size_t k;
 		json_array_foreach(json_object_get(recorded, "captures"), k, c)
@@ -161,7 +167,7 @@ int demo_session_replay(demo_ctx *d, demo_photos *out)
 		           ? "bit-identical to the recording's"
 		           : "differs from the recording's (another kogei version wrote it)");
 		char rel[128];
-		snprintf(rel, sizeof(rel), "session/captures/%s/%s.tif", names[i],
+		snprintf(rel, sizeof(rel), "%s/captures/%s/%s.tif", into[i], names[i],
 		         res.rgb ? "rgb" : "mean");
 		char *path = demo_path(d, rel);
 		if (path)
@@ -181,10 +187,12 @@ int demo_session_replay(demo_ctx *d, demo_photos *out)
 	}
 	if (ret)
 		demo_photos_free(out);
-	kg_session_free(&s);
+	kg_session_free(&sessions[0]);
+	kg_session_free(&sessions[1]);
 	json_decref(recorded);
 	free(bundle);
 	free(bundle_manifest);
-	free(dir);
+	free(lab);
+	free(site);
 	return ret;
 }

@@ -8,7 +8,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "demo.h"
+#include "demo_private.h"
 #include "kg_config.h"
 
 /* How one material of the object came out. */
@@ -29,6 +29,7 @@ typedef struct report {
 	material_eval *m;
 	long *confusion;    /* n x (n + 1): true row, predicted column, last = unclassified */
 	long pixels, correct, unclassified;
+	long mixed;         /* sample pixels at a border, mixed by demosaicing: not judged */
 	int width, height;
 	float *cube;        /* width * height * 61, BIP */
 	kg_illuminant *d65;
@@ -66,7 +67,7 @@ static void srgb_d65(const report *r, const kg_spectrum *s, double rgb[3])
 /* The whole cube in BIP, after checking it is the 61-band cube of the object. */
 static int read_cube(demo_ctx *d, report *r)
 {
-	char *path = demo_path(d, "cube.hdr");
+	char *path = demo_path(d, "site/" DEMO_CAPTURE_OBJECT "/cube.hdr");
 	kg_envi *e = NULL;
 	int ret = kg_envi_open(path, &e, &d->err);
 	if (!ret && (e->meta.bands != KG_NBANDS || e->meta.samples != r->width ||
@@ -88,7 +89,7 @@ static int read_cube(demo_ctx *d, report *r)
 static int read_labels(demo_ctx *d, report *r, float **labels, int **class_to_material,
                        int *nclasses)
 {
-	char *path = demo_path(d, "labels.hdr");
+	char *path = demo_path(d, "site/" DEMO_CAPTURE_OBJECT "/labels.hdr");
 	kg_envi *e = NULL;
 	int ret = kg_envi_open(path, &e, &d->err);
 	if (!ret && (e->meta.bands != 1 || e->meta.samples != r->width ||
@@ -146,6 +147,20 @@ static int evaluate(demo_ctx *d, report *r)
 		int t = s->label[i] - 1;
 		if (t < 0)
 			continue;
+		/* A pixel at a sample's border is mixed with its surroundings by the
+		 * demosaicing (bilinear: its 3 x 3 neighbourhood): no single material is its
+		 * truth. Counted apart, not judged. */
+		int x = (int)(i % r->width), y = (int)(i / r->width), mixed = 0;
+		for (int dy = -1; dy <= 1 && !mixed; dy++)
+			for (int dx = -1; dx <= 1 && !mixed; dx++) {
+				int xx = x + dx, yy = y + dy;
+				mixed = xx < 0 || yy < 0 || xx >= r->width || yy >= r->height ||
+				        s->sample[(long)yy * r->width + xx] != s->sample[i];
+			}
+		if (mixed) {
+			r->mixed++;
+			continue;
+		}
 		material_eval *m = &r->m[t];
 		int c = (int)labels[i];
 		int p = c >= 0 && c < nclasses ? class_to_material[c] : r->n;
@@ -405,41 +420,44 @@ static void write_summary(demo_ctx *d, const report *r, FILE *fp)
 	            "(S - D) / (W - D) x 0.99 resampled to 400-700 nm every 5 nm.\n",
 	        DEMO_CHART_SPECTRA, sr->npatches, DEMO_SPECTRO, sr->model, sr->serial,
 	        sr->integration_us / 1e3, sr->scans);
-	fprintf(fp, "0. **The session** (`session/`): the bundled recording "
-	            "`fixtures/%s` (raw frames from the simulated sensor, recorded by "
+	fprintf(fp, "0. **The sessions** (`lab-session/`, `site-session/`): the bundled "
+	            "recording `fixtures/%s` (raw frames from the simulated sensor, recorded by "
 	            "`fixtures/demo/make_session.sh` with `kogei acquire`) replayed through the "
 	            "`replay:` camera and averaged again by acquire/; each capture's mean is "
-	            "checked against the sha256 the recording's manifest holds.\n",
+	            "checked against the sha256 the recording's manifest holds. Both are then "
+	            "processed as `kogei process` processes a session.\n",
 	        DEMO_SESSION);
-	fprintf(fp, "2. **Reference calibration** (calib reference -> `reference.json`): the %d "
+	fprintf(fp, "2. **Reference calibration** (`kogei process lab-session --spectra` -> "
+	            "`lab/reference.json`): the %d "
 	            "CIE 13.3 test colour samples of `%s` (colord-data), mounted in the AprilTag "
 	            "frame `%s` (`fixtures/%s`), photographed by the model camera `%s` under %s "
 	            "(the session's capture `%s`: tilt %g deg, blur %g px, vignetting %g, noise "
 	            "%s (full well:read noise:bits), seed %llu); the chart found by its tags and "
-	            "sampled (`reference_chart_overlay.png`, `reference_chart.cgats`); S: the "
+	            "sampled (`lab/chart_overlay.png`); S: the "
 	            "measured spectra of `%s`.\n",
 	        d->npatches, DEMO_CHART, d->layout_name, DEMO_CHART_LAYOUT,
 	        DEMO_REFERENCE_CAMERA, DEMO_REFERENCE_ILLUMINANT, DEMO_CAPTURE_REFERENCE,
 	        rs->tilt_deg, rs->blur_px, rs->vignetting, rs->noise,
 	        (unsigned long long)rs->seed, DEMO_CHART_SPECTRA);
-	fprintf(fp, "3. **Site calibration** (calib camera -> `camera.json`): the same chart "
+	fprintf(fp, "3. **Site calibration** (`kogei process site-session --reference "
+	            "lab/reference.json` -> `site/camera.json`): the same chart "
 	            "photographed by another model camera, `%s`, under CIE %s "
 	            "(the session's capture `" DEMO_CAPTURE_SITE "`: tilt %g deg, rotated %g deg, blur %g px, vignetting %g, "
 	            "noise %s, seed %llu), found and sampled the same way "
-	            "(`site_chart_overlay.png`, `site_chart.cgats`).\n",
+	            "(`site/chart_overlay.png`).\n",
 	        DEMO_SITE_CAMERA, DEMO_SITE_ILLUMINANT, ss->tilt_deg, ss->rotate_deg, ss->blur_px,
 	        ss->vignetting, ss->noise, (unsigned long long)ss->seed);
 	fprintf(fp, "4. **Object** (the session's capture `" DEMO_CAPTURE_OBJECT "`, as "
 	            "`object.tif`; truth in `object_truth.hdr` and "
 	            "`object_truth_labels.hdr`): one %dx%d px sample of each of the %d materials "
 	            "of the default library, seen in the specular direction at %g deg incidence "
-	            "by the site camera under CIE %s, noise %s, seed %d. Pixels between the "
-	            "samples are no data (NaN).\n",
+	            "by the site camera under CIE %s, noise %s, seed %d, on a black ground "
+	            "(classified as background).\n",
 	        DEMO_TILE, DEMO_TILE, r->n, DEMO_ANGLE_DEG, DEMO_SITE_ILLUMINANT, DEMO_SITE_NOISE,
 	        DEMO_SEED_OBJECT);
-	fprintf(fp, "5. **Estimate** (`cube.hdr`/`.img`, ENVI float32 BSQ, 61 bands 400-700 nm) "
-	            "and **classify** (`labels.hdr`, `labels.json`, `labels.png`) with the C APIs "
-	            "of calib/ and estimate/.\n\n");
+	fprintf(fp, "5. **Estimate** (`site/object/cube.hdr`, ENVI float32 BSQ, 61 bands "
+	            "400-700 nm) and **classify** (`site/object/labels.hdr`, `.json`, `.png`), "
+	            "the scene and the operator's report `site/report.html`, by kogei process.\n\n");
 
 	fprintf(fp, "## Chart spectra (spectrophotometer)\n\n");
 	fprintf(fp, "The spectra the calibration uses, as measured, against the tabulated "
@@ -490,8 +508,8 @@ static void write_summary(demo_ctx *d, const report *r, FILE *fp)
 	            "site chart rho_r %.3g (unit-RMS channels %.3g); residual %.2f %% of "
 	            "||rho0||.\n",
 	        d->cond_m2, cam->cond, cam->cond_equilibrated, 100.0 * cam->residual_relative);
-	fprintf(fp, "- Cube: %ld sample pixels estimated, %llu pixels flagged no data, %llu "
-	            "with negative bands clamped to 0.\n\n",
+	fprintf(fp, "- Cube: %ld sample pixels judged against the truth; of all pixels %llu "
+	            "flagged no data, %llu with negative bands clamped to 0.\n\n",
 	        r->pixels, (unsigned long long)d->est_stats.nonfinite,
 	        (unsigned long long)d->est_stats.clamped_pixels);
 
@@ -505,9 +523,11 @@ static void write_summary(demo_ctx *d, const report *r, FILE *fp)
 	}
 	fprintf(fp, "\n## Classification\n\n");
 	fprintf(fp, "Classification accuracy: **%.2f %%** (%ld of %ld sample pixels), plain "
-	            "distance among the %d materials of the library at %g deg.\n\n",
+	            "distance among the %d materials of the library at %g deg; the %ld pixels "
+	            "at the samples' borders, which the demosaicing of the raw frames mixes "
+	            "with the black ground, are not judged.\n\n",
 	        r->pixels ? 100.0 * r->correct / r->pixels : 0.0, r->correct, r->pixels, r->n,
-	        DEMO_ANGLE_DEG);
+	        DEMO_ANGLE_DEG, r->mixed);
 	fprintf(fp, "Confusion matrix (rows: true material, columns: predicted, numbered as "
 	            "above%s):\n\n",
 	        r->unclassified ? "; u: unclassified" : "");
@@ -529,12 +549,12 @@ static void write_summary(demo_ctx *d, const report *r, FILE *fp)
 	}
 	fprintf(fp, "\n## Files\n\n"
 	            "`spectra_by_material.png` (estimated against true spectra), `confusion.png`, "
-	            "`object_d65.png` (camera image, true and estimated colour), `cube.hdr`, "
-	            "`labels.hdr`/`.json`/`.png`, `reference.json`, `camera.json`, the chart's "
-	            "measured spectra `chart_spectra.cgats`, the session replayed (`session/`, "
-	            "with the averaged chart photographs in `session/captures/`), what detection found "
-	            "in them (`reference_chart_overlay.png`, `site_chart_overlay.png`) and the "
-	            "chart readings `reference_chart.cgats` and `site_chart.cgats`, and the library's "
+	            "`object_d65.png` (camera image, true and estimated colour); `lab/` and "
+	            "`site/`, what kogei process wrote for each session (`reference.json`, "
+	            "`camera.json`, `chart_overlay.png`, `process.json`, `report.html`, and "
+	            "`site/object/` with the cube, the labels, the scene and its render); the "
+	            "chart's measured spectra `chart_spectra.cgats`; the sessions replayed "
+	            "(`lab-session/`, `site-session/`); the library's "
 	            "`fig7_shibuichi-nami.csv`/`.png` and `materials_d65.png`. See docs/demo.md.\n");
 }
 

@@ -1,9 +1,9 @@
-/* Private to `kogei demo` (cli/cmd_demo.c runs the session, cli/demo_report.c judges
+/* Private to `kogei demo` (pipeline/demo.c runs the sessions, demo_report.c judges
  * it): what the session produced and what the report needs to describe it. */
-#ifndef KG_CLI_DEMO_H
-#define KG_CLI_DEMO_H
+#ifndef KG_PIPELINE_DEMO_PRIVATE_H
+#define KG_PIPELINE_DEMO_PRIVATE_H
 
-#include "cli.h"
+#include "kg_pipeline.h"
 #include "kg_calib.h"
 #include "kg_sim.h"
 
@@ -18,6 +18,8 @@
 #define DEMO_WHITE_LEVEL 0.9
 #define DEMO_ANGLE_DEG 30.0 /* incidence of the object's samples (specular view) */
 #define DEMO_TILE 40         /* pixels per sample side in the object image */
+#define DEMO_OBJECT_WIDTH 800 /* the object's photograph: the site camera's sensor */
+#define DEMO_OBJECT_HEIGHT 600
 /* The chart: the 15 samples in a printed AprilTag frame (fixtures/demo/README.md),
  * photographed, found by its tags and sampled (kg_chart_detect). */
 #define DEMO_CHART_LAYOUT "demo/cie-tcs-frame.json"
@@ -48,10 +50,9 @@
 
 /* The demo's photographs as a recorded session (fixtures/demo/session, recorded by
  * fixtures/demo/make_session.sh): replayed through the replay: camera with acquire/
- * into DIR/session (cli/demo_session.c), one capture each. The charts come back as the
- * demosaiced RGB mean, or without OpenCV as the raw Bayer mean with its CFA attached
- * (kg_chart_detect demosaics it); the object as its RGB mean, 0 (not NaN) off the
- * samples. */
+ * into DIR/lab-session and DIR/site-session (demo_session.c), one capture each, which
+ * kg_process_run then processes. photos keep the demosaiced RGB means (or without
+ * OpenCV the raw Bayer means with their CFA attached) for the truth comparison. */
 #define DEMO_SESSION "demo/session"
 #define DEMO_CAPTURE_REFERENCE "reference-chart"
 #define DEMO_CAPTURE_SITE "site-chart"
@@ -138,7 +139,7 @@ void demo_wrote(demo_ctx *d, const char *path, const char *what);
  * Fig. 13 (the five shibuichi, gold, copper, urushi) into render/<material>.png and
  * the labelled contact sheet render_fig13.png, with the scene (render_scene.json) and
  * its environment (render_sky.tif); skipped with a message without Embree
- * (cli/demo_render.c). */
+ * (demo_render.c). */
 int demo_render(demo_ctx *d);
 
 /* Read the cube and the label map back, compare them with the scene's ground truth
