@@ -11,7 +11,8 @@
 static const char usage_process[] =
 	"kogei process SESSION (--reference REF.json | --spectra CHART.cgats) -o OUTDIR\n"
 	"              [--spectra CHART.cgats] [--materials LIB] [--only a,b,c] [--layout L]\n"
-	"              [--chart CAPTURE] [--mesh M.ply] [--angle DEG] [--min-tags N]\n"
+	"              [--chart CAPTURE] [--mesh M.ply] [--mask MASK.png] [--angle DEG]\n"
+	"              [--min-tags N]\n"
 	"              [--max-residual R] [--force] [--assume-same-exposure] [--no-render]\n"
 	"              [--threads N] [--quiet]";
 
@@ -40,6 +41,8 @@ static const char help_process[] =
 	"  --chart CAPTURE       the capture that shows the chart (default: the latest chart)\n"
 	"  --mesh M.ply          the object's mesh in the chart's frame (metres) for the\n"
 	"                        scenes (default: a plane in the chart's plane)\n"
+	"  --mask MASK.png       grey PNG or TIFF of the objects' size: 0 = background\n"
+	"                        (kept out of the labels), non-zero = object\n"
 	"  --angle DEG           incidence of the library's spectra (default 30)\n"
 	"  --min-tags N          at least N tags place the chart, and no tagless fallback\n"
 	"                        (default: 2 tags, or OpenCV mcc for a ColorChecker 24)\n"
@@ -82,7 +85,7 @@ int kg_cmd_process(int argc, char **argv)
 		return KG_EXIT_OK;
 	}
 	enum { O_REF = 256, O_SPECTRA, O_MAT, O_ONLY, O_LAYOUT, O_CHART, O_MESH, O_ANGLE,
-	       O_MINTAGS, O_MAXRES, O_FORCE, O_SAME, O_NORENDER, O_THREADS, O_QUIET };
+	       O_MINTAGS, O_MAXRES, O_FORCE, O_SAME, O_NORENDER, O_THREADS, O_QUIET, O_MASK };
 	static const struct option longopts[] = {
 		{"reference", required_argument, NULL, O_REF},
 		{"spectra", required_argument, NULL, O_SPECTRA},
@@ -91,6 +94,7 @@ int kg_cmd_process(int argc, char **argv)
 		{"layout", required_argument, NULL, O_LAYOUT},
 		{"chart", required_argument, NULL, O_CHART},
 		{"mesh", required_argument, NULL, O_MESH},
+		{"mask", required_argument, NULL, O_MASK},
 		{"angle", required_argument, NULL, O_ANGLE},
 		{"min-tags", required_argument, NULL, O_MINTAGS},
 		{"max-residual", required_argument, NULL, O_MAXRES},
@@ -121,6 +125,7 @@ int kg_cmd_process(int argc, char **argv)
 		case O_LAYOUT: o.layout = optarg; break;
 		case O_CHART: o.chart = optarg; break;
 		case O_MESH: o.mesh = optarg; break;
+		case O_MASK: o.mask = optarg; break;
 		case O_ANGLE:
 			o.angle_deg = strtod(optarg, &end);
 			if (*end || !(o.angle_deg >= 0 && o.angle_deg < 90))

@@ -156,6 +156,27 @@ static double cond_of(int rows, int cols, const double *m, kg_err *err)
 	return c;
 }
 
+/* camera.json's camera: the chart capture's, from the session's manifest. */
+static void chart_identity(const proc *p, kg_camera_identity *id)
+{
+	const proc_capture *c = p->chart;
+	memset(id, 0, sizeof(*id));
+	const char *b = json_string_value(json_object_get(c->camera, "backend"));
+	const char *m = json_string_value(json_object_get(c->camera, "model"));
+	const char *s = json_string_value(json_object_get(c->camera, "serial"));
+	if (!b || !m || !s)
+		return;
+	id->known = 1;
+	snprintf(id->backend, sizeof(id->backend), "%s", b);
+	snprintf(id->model, sizeof(id->model), "%s", m);
+	snprintf(id->serial, sizeof(id->serial), "%s", s);
+	snprintf(id->pixfmt, sizeof(id->pixfmt), "%s", c->pixfmt ? c->pixfmt : "");
+	id->white_level = c->bits > 0 && c->bits < 31 ? (1L << c->bits) - 1 : 0;
+	const char *dm = json_string_value(kg_json_find(c->j, "demosaic.algorithm"));
+	snprintf(id->demosaic, sizeof(id->demosaic), "%s", dm ? dm : "none");
+	snprintf(id->capture, sizeof(id->capture), "%s", c->name);
+}
+
 /* The chart's measured spectra for the report: --spectra, else the reference's. */
 static int measured_spectra(proc *p, kg_patchset **out)
 {
@@ -298,6 +319,7 @@ int proc_calibrate(proc *p)
 	}
 	if (cam->k <= 3)
 		proc_warn(p, NULL, "M2 rests on %d patches and cannot be checked (--force)", cam->k);
+	chart_identity(p, &cam->identity);
 	p->cam = cam;
 	cam = NULL;
 	if ((ret = measured_spectra(p, &measured)))

@@ -169,6 +169,12 @@ expect_refusal "$T/r6" "site-2" "$KOGEI" process "$C" --reference "$O/reference.
 check "another camera: both named" grep -q "site-1" "$T/err"
 expect_exit 0 "$KOGEI" process "$C" --reference "$O/reference.json" -o "$T/r6" --force \
 	--no-render --quiet
+# camera.json records the chart's camera: estimate refuses another camera's image.
+expect_exit 0 "$KOGEI" estimate --calib "$O/camera.json" "$S/captures/object-full/rgb.tif" \
+	-o "$T/same.hdr"
+expect_exit 1 "$KOGEI" estimate --calib "$O/camera.json" "$C/captures/object-other/rgb.tif" \
+	-o "$T/other.hdr"
+check "estimate: another camera named" grep -q "site-2" "$T/err"
 # The session itself as the output.
 expect_exit 1 "$KOGEI" process "$S" --reference "$O/reference.json" -o "$S"
 check "session as output refused" grep -q "session directory" "$T/err"
