@@ -330,7 +330,7 @@ static int verify_file(const kg_session *s, const json_t *entry, const char *whe
 	if (!file || !sha)
 		return kg_fail(err, KG_EINVAL, "%s: %s: expected \"file\" and \"sha256\"",
 		               s->manifest_path, where);
-	if (file[0] == '/' || strstr(file, ".."))
+	if (!kg_relpath_is_safe(file, KG_CAPTURE_NAME_MAX))
 		return kg_fail(err, KG_EINVAL, "%s: %s: file '%s': expected a path inside the session",
 		               s->manifest_path, where, file);
 	char *p = kg_session_path(s, file);
