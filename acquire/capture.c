@@ -1,5 +1,6 @@
 /* One capture: camera settings, the exposure helper, N frames averaged, dark and flat,
  * statistics, demosaicing, outputs and the manifest entry (kg_acquire.h). */
+#include <errno.h>
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -82,7 +83,9 @@ static void note(const cap_ctx *c, const char *fmt, ...)
 	c->o->note(c->o->note_user, msg);
 }
 
-/* A camera call's result: stream and device errors make the capture a device failure. */
+/* A camera call's result: stream and device errors make the capture a device failure
+ * (a full disk, KG_ENOSPC, is not one: the recording or an output could not be
+ * written). */
 static int cam(cap_ctx *c, int ret)
 {
 	if (ret == KG_EIO || ret == KG_ETIMEDOUT || ret == KG_ENODEV)
@@ -545,6 +548,55 @@ static json_t *stream_json(const kg_stream_stats *s)
 	                 "missing_packets", (json_int_t)s->missing_packets);
 }
 
+/* ---- the recording's camera file ----------------------------------------------------- */
+
+/* frames/camera.json as it was before this capture's recording rewrote it (NULL when
+ * there was none), so a failed capture can put it back. */
+typedef struct saved_file {
+	char *path;
+	char *data;
+	size_t len;
+} saved_file;
+
+static void save_file(saved_file *f, const kg_session *s, const char *rel)
+{
+	memset(f, 0, sizeof(*f));
+	f->path = kg_session_path(s, rel);
+	struct stat st;
+	if (f->path && stat(f->path, &st) == 0 && kg_read_file(f->path, &f->data, &f->len, NULL))
+		f->data = NULL;
+	kg_inputs_forget(f->path); /* rewritten by the recorder */
+}
+
+static void restore_file(cap_ctx *c, saved_file *f)
+{
+	char *now = NULL;
+	size_t len = 0;
+	if (f->data && (kg_read_file(f->path, &now, &len, NULL) || len != f->len ||
+	                memcmp(now, f->data, len))) {
+		kg_inputs_forget(f->path);
+		kg_outfile o;
+		kg_err e = {{0}};
+		int ret = kg_outfile_open(&o, f->path, 0, &e);
+		if (!ret && fwrite(f->data, 1, f->len, o.fp) != f->len) {
+			kg_outfile_abort(&o);
+			ret = kg_fail_write(&e, errno, f->path, "write failed");
+		} else if (!ret)
+			ret = kg_outfile_commit(&o, &e);
+		if (ret)
+			note(c, "%s: could not put the recording's camera file back: %s", c->res->name,
+			     e.msg);
+	}
+	kg_inputs_forget(f->path);
+	free(now);
+}
+
+static void saved_file_free(saved_file *f)
+{
+	free(f->path);
+	free(f->data);
+}
+
 /* ---- the capture --------------------------------------------------------------------- */
 
 static int setup_camera(cap_ctx *c, kg_err *err)
@@ -714,6 +766,7 @@ int kg_capture_run(kg_session *s, kg_camera *camera, const kg_capture_options *o
 	json_t *demosaic = NULL;
 	char started[32], ended[32];
 	int wrote = 0, recorded = 0;
+	saved_file camera_file = {0};
 	if (!c.frames || !c.steps) {
 		ret = kg_fail(err, KG_ENOMEM, "out of memory");
 		goto done;
@@ -721,6 +774,7 @@ int kg_capture_run(kg_session *s, kg_camera *camera, const kg_capture_options *o
 	if ((ret = setup_camera(&c, err)))
 		goto done;
 	if (o->record) {
+		save_file(&camera_file, s, "frames/camera.json");
 		if ((ret = cam(&c, kg_camera_record_start(camera, kg_session_dir(s), err))))
 			goto done;
 		c.recording = 1;
@@ -838,7 +892,9 @@ done:
 		if (kg_camera_recording_discard(kg_session_dir(s), res->name, &e2))
 			note(&c, "%s: could not take the failed capture's frames back out: %s",
 			     res->name, e2.msg);
+		restore_file(&c, &camera_file);
 	}
+	saved_file_free(&camera_file);
 	json_decref(demosaic);
 	json_decref(c.frames);
 	json_decref(c.steps);

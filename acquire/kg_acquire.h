@@ -98,8 +98,23 @@ const char *kg_demosaic_algorithm(void);
 
 typedef struct kg_session kg_session;
 
+/* Validate a session's manifest root, read from file (DIR/session.json), and the
+ * session around it: the format; devices.cameras entries (strings, sizes, unique ids);
+ * every capture's name (1 to KG_CAPTURE_NAME_MAX - 1 of [A-Za-z0-9._-], not starting
+ * with '.', unique), kind, camera id, times, settings (exposure_us > 0 or null, gain a
+ * number or null, frames >= 1, format: a known pixfmt, bits 1..32, width and height
+ * >= 1, offsets >= 0), its frames (frames/<name>/...), exposure-helper steps and
+ * outputs (captures/<name>/..., a "mean" among them) as {file, sha256} entries whose
+ * file is a relative path that cannot leave the session and names a regular file in
+ * it; corrections.dark / .flat null or an earlier capture of that kind; then the
+ * recording (kg_camera_recording_validate). KG_EINVAL naming file, the key and what
+ * was expected. Every reader of a session calls it: kg_session_open,
+ * kg_session_image_identify, replay: (the recording part), kogei process. */
+int kg_session_manifest_validate(const char *file, const json_t *root, kg_err *err);
+
 /* Open a session directory, creating it (and a new manifest in memory) when absent;
- * an existing manifest is read and captures are appended. A directory that holds
+ * an existing manifest is read, validated (kg_session_manifest_validate) and captures
+ * are appended; a recording without a manifest is validated too. A directory that holds
  * anything other than a session's files is refused. The session is locked (flock on
  * DIR/.lock) until kg_session_free: a second writer gets KG_EINVAL naming the lock. */
 int kg_session_open(const char *dir, kg_session **out, kg_err *err);
@@ -130,7 +145,7 @@ typedef struct kg_session_image {
  * holding a session.json of format kogei-session/1. KG_ENOENT when the file is not
  * in a session's captures/ (an image from elsewhere: its camera is unknown);
  * KG_EINVAL, naming the manifest and the key, when the manifest does not list the
- * capture (an unfinished one) or its camera. */
+ * capture (an unfinished one) or its camera, or fails kg_session_manifest_validate. */
 int kg_session_image_identify(const char *image_path, kg_session_image *out, kg_err *err);
 
 /* sha256 of a file as 64 lower-case hex digits. */

@@ -48,17 +48,7 @@ int kg_sync_dir(const char *path, kg_err *err)
 	return 0;
 }
 
-int kg_capture_name_ok(const char *s)
-{
-	size_t n = strlen(s);
-	if (!n || n >= KG_CAPTURE_NAME_MAX || s[0] == '.')
-		return 0;
-	for (size_t i = 0; i < n; i++)
-		if (!((s[i] >= 'a' && s[i] <= 'z') || (s[i] >= 'A' && s[i] <= 'Z') ||
-		      (s[i] >= '0' && s[i] <= '9') || s[i] == '.' || s[i] == '_' || s[i] == '-'))
-			return 0;
-	return 1;
-}
+int kg_capture_name_ok(const char *s) { return kg_name_is_safe(s, KG_CAPTURE_NAME_MAX); }
 
 int kg_file_sha256(const char *path, char hex[65], kg_err *err)
 {
@@ -152,32 +142,7 @@ static int load_manifest(kg_session *s, kg_err *err)
 	if (ret)
 		return ret;
 	kg_inputs_forget(f); /* the session's own, rewritten after every capture */
-	const char *format;
-	json_t *v;
-	if ((ret = kg_json_get_string(f, s->root, "format", &format, err)))
-		return ret;
-	if (strcmp(format, KG_SESSION_FORMAT))
-		return kg_fail(err, KG_EINVAL, "%s: format '%s': expected \"%s\"", f, format,
-		               KG_SESSION_FORMAT);
-	if ((ret = kg_json_get(f, s->root, "captures", &v, err)))
-		return ret;
-	if (!json_is_array(v))
-		return kg_fail(err, KG_EINVAL, "%s: captures: expected an array", f);
-	if ((ret = kg_json_get(f, s->root, "devices.cameras", &v, err)))
-		return ret;
-	if (!json_is_array(v))
-		return kg_fail(err, KG_EINVAL, "%s: devices.cameras: expected an array", f);
-	size_t i;
-	json_t *c;
-	json_array_foreach(json_object_get(s->root, "captures"), i, c)
-	{
-		const char *name;
-		char path[64];
-		snprintf(path, sizeof(path), "captures[%zu].name", i);
-		if ((ret = kg_json_get_string(f, s->root, path, &name, err)))
-			return ret;
-	}
-	return 0;
+	return kg_session_manifest_validate(f, s->root, err);
 }
 
 static json_t *new_manifest(void)
@@ -224,6 +189,8 @@ int kg_session_open(const char *dir, kg_session **out, kg_err *err)
 			ret = load_manifest(s, err);
 		else if (!(s->root = new_manifest()))
 			ret = kg_fail(err, KG_ENOMEM, "%s: out of memory", dir);
+		else /* frames of a first capture that never finished */
+			ret = kg_camera_recording_validate(dir, err);
 	}
 	free(lock);
 	if (ret) {
@@ -363,7 +330,7 @@ static int verify_file(const kg_session *s, const json_t *entry, const char *whe
 	if (!file || !sha)
 		return kg_fail(err, KG_EINVAL, "%s: %s: expected \"file\" and \"sha256\"",
 		               s->manifest_path, where);
-	if (file[0] == '/' || strstr(file, ".."))
+	if (!kg_relpath_is_safe(file, KG_CAPTURE_NAME_MAX))
 		return kg_fail(err, KG_EINVAL, "%s: %s: file '%s': expected a path inside the session",
 		               s->manifest_path, where, file);
 	char *p = kg_session_path(s, file);

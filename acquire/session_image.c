@@ -9,8 +9,9 @@
 
 #include "acquire_private.h"
 
-/* 1 when dir/session.json exists and its format is kogei-session/1. */
-static int is_session(const char *dir, json_t **root)
+/* 1 when dir/session.json exists and its format is kogei-session/1; *ret is the
+ * validation's result (kg_session_manifest_validate) of such a manifest. */
+static int is_session(const char *dir, json_t **root, int *ret, kg_err *err)
 {
 	char path[PATH_MAX + 16];
 	struct stat st;
@@ -27,6 +28,7 @@ static int is_session(const char *dir, json_t **root)
 		return 0;
 	}
 	*root = r;
+	*ret = kg_session_manifest_validate(path, r, err);
 	return 1;
 }
 
@@ -48,16 +50,20 @@ int kg_session_image_identify(const char *image_path, kg_session_image *out, kg_
 	char dir[PATH_MAX];
 	snprintf(dir, sizeof(dir), "%s", full);
 	const char *rel = NULL;
+	int ret = 0;
 	for (char *slash; !root && (slash = strrchr(dir, '/')) != NULL;) {
 		*slash = 0;
-		if (is_session(dir[0] ? dir : "/", &root))
+		if (is_session(dir[0] ? dir : "/", &root, &ret, err))
 			rel = full + (slash - dir) + 1;
+	}
+	if (ret) {
+		json_decref(root);
+		return ret;
 	}
 	if (!root)
 		return kg_fail(err, KG_ENOENT, "%s: not inside a kogei session (no %s of format "
 		               "%s in any directory above it)", image_path, KG_SESSION_MANIFEST,
 		               KG_SESSION_FORMAT);
-	int ret = 0;
 	char name[KG_CAPTURE_NAME_MAX] = "";
 	const char *file = NULL;
 	if (strncmp(rel, "captures/", 9) == 0) {

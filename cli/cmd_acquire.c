@@ -134,12 +134,12 @@ static int parse_roi(const char *text, kg_frame_format *f)
 	return 0;
 }
 
-/* Exit code for a camera or session error. */
+/* Exit code for a camera or session error (a full disk, KG_ENOSPC, is never the
+ * camera's). */
 static int exit_for(const kg_err *err, int code, int device)
 {
 	fprintf(stderr, "kogei: %s\n", err->msg[0] ? err->msg : "failed");
-	(void)code;
-	return device ? KG_EXIT_DEVICE : KG_EXIT_INPUT;
+	return device && code != KG_ENOSPC ? KG_EXIT_DEVICE : KG_EXIT_INPUT;
 }
 
 static void print_summary(const kg_capture_result *r, const kg_capture_options *o,
@@ -264,6 +264,11 @@ int kg_cmd_acquire(int argc, char **argv)
 		return kg_cli_usage_error(usage_acquire, "--kind chart|object|dark|flat is required");
 	if (kg_capture_kind_parse(kind, &o.kind, &err))
 		return kg_cli_usage_error(usage_acquire, "--kind: %s", err.msg);
+	if (o.name && !kg_name_is_safe(o.name, KG_CAPTURE_NAME_MAX))
+		return kg_cli_usage_error(usage_acquire,
+		                          "--name '%s': expected 1 to %d letters, digits, '.', '_' or "
+		                          "'-', not starting with '.'",
+		                          o.name, KG_CAPTURE_NAME_MAX - 1);
 	if (have_target && !o.auto_exposure)
 		return kg_cli_usage_error(usage_acquire, "--target: only with --exposure auto");
 	if (layout && !o.auto_exposure && o.kind != KG_CAPTURE_CHART)

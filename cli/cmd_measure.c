@@ -55,12 +55,15 @@ typedef struct measure_ctx {
 	int white_age_warned;
 } measure_ctx;
 
-/* Errors from the device layer: bad input stays 1, everything else is the device. */
+/* Errors from the device layer: bad input and a reading that cannot be measured as
+ * set up (KG_ERANGE: saturated, outside the nonlinearity's range) are 1, everything
+ * else is the device. */
 static int device_exit(const kg_err *err, int code)
 {
 	kg_cli_error(err, code);
-	return code == KG_EINVAL || code == KG_ENOENT || code == KG_ENOMEM ? KG_EXIT_INPUT
-	                                                                    : KG_EXIT_DEVICE;
+	return code == KG_EINVAL || code == KG_ENOENT || code == KG_ENOMEM || code == KG_ERANGE
+	               ? KG_EXIT_INPUT
+	               : KG_EXIT_DEVICE;
 }
 
 /* Ask the operator; returns 'm' (measure), 'r', 'w' or 'q' (also at end of input). */

@@ -18,6 +18,9 @@
 #define KG_ENOTSUP (-ENOTSUP)
 #define KG_ETIMEDOUT (-ETIMEDOUT)
 #define KG_ENODEV (-ENODEV)
+/* A write failed because the disk (or the quota) is full: the user's to fix, not a
+ * device failure. */
+#define KG_ENOSPC (-ENOSPC)
 
 typedef struct kg_err {
 	char msg[1024];

@@ -119,7 +119,7 @@ int kg_outfile_open(kg_outfile *o, const char *path, int allow_stdout, kg_err *e
 		free(o->tmp_path);
 		o->tmp_path = NULL;
 		kg_outfile_abort(o);
-		return kg_fail(err, KG_EIO, "%s: cannot create: %s", path, strerror(e));
+		return kg_fail_write(err, e, path, "cannot create");
 	}
 	fchmod(fd, 0644);
 	o->fp = fdopen(fd, "wb");
@@ -144,9 +144,9 @@ int kg_outfile_commit(kg_outfile *o, kg_err *err)
 		return ret;
 	}
 	if (fflush(o->fp) != 0 || ferror(o->fp) || fsync(fileno(o->fp)) != 0)
-		ret = kg_fail(err, KG_EIO, "%s: write failed: %s", o->path, strerror(errno));
+		ret = kg_fail_write(err, errno, o->path, "write failed");
 	if (fclose(o->fp) != 0 && ret == 0)
-		ret = kg_fail(err, KG_EIO, "%s: write failed: %s", o->path, strerror(errno));
+		ret = kg_fail_write(err, errno, o->path, "write failed");
 	o->fp = NULL;
 	if (ret == 0)
 		ret = kg_inputs_check_output(o->path, err);
@@ -233,6 +233,47 @@ int kg_mkdir_p(const char *path, kg_err *err)
 	}
 	free(p);
 	return 0;
+}
+
+int kg_fail_write(kg_err *err, int errnum, const char *path, const char *what)
+{
+	if (errnum == ENOSPC || errnum == EDQUOT)
+		return kg_fail(err, KG_ENOSPC,
+		               "%s: %s: %s (ENOSPC): the disk is full; free space or write elsewhere",
+		               path, what, strerror(errnum));
+	return kg_fail(err, KG_EIO, "%s: %s: %s", path, what, strerror(errnum));
+}
+
+int kg_name_is_safe(const char *s, size_t max_len)
+{
+	size_t n = s ? strlen(s) : 0;
+	if (!n || n >= max_len || s[0] == '.')
+		return 0;
+	for (size_t i = 0; i < n; i++)
+		if (!((s[i] >= 'a' && s[i] <= 'z') || (s[i] >= 'A' && s[i] <= 'Z') ||
+		      (s[i] >= '0' && s[i] <= '9') || s[i] == '.' || s[i] == '_' || s[i] == '-'))
+			return 0;
+	return 1;
+}
+
+int kg_relpath_is_safe(const char *rel, size_t max_len)
+{
+	if (!rel || !*rel)
+		return 0;
+	char part[256];
+	for (const char *p = rel;;) {
+		const char *slash = strchr(p, '/');
+		size_t n = slash ? (size_t)(slash - p) : strlen(p);
+		if (n >= sizeof(part) || n >= max_len)
+			return 0;
+		memcpy(part, p, n);
+		part[n] = 0;
+		if (!kg_name_is_safe(part, max_len))
+			return 0;
+		if (!slash)
+			return 1;
+		p = slash + 1;
+	}
 }
 
 char *kg_path_join(const char *dir, const char *name)

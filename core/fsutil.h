@@ -66,6 +66,18 @@ typedef struct kg_data_name {
  * newly allocated. */
 int kg_data_resolve(const char *arg, const char *what, const kg_data_name *table, int n,
                     char **path, kg_err *err);
+/* A name that stays one path component everywhere (capture names, recorded frame
+ * folders): 1 to max_len - 1 characters of [A-Za-z0-9._-], not starting with '.'. */
+int kg_name_is_safe(const char *name, size_t max_len);
+/* A relative path that cannot leave the directory it is relative to: components
+ * separated by single '/', each a kg_name_is_safe name of at most max_len - 1
+ * characters (so no "", ".", ".." component, no absolute path, no backslash). */
+int kg_relpath_is_safe(const char *rel, size_t max_len);
+/* A failed write of path as an error: KG_ENOSPC, with a message naming ENOSPC, when
+ * errnum says the disk (or the quota) is full; KG_EIO otherwise. what names the step
+ * ("write failed", "cannot create"). Returns the code. */
+int kg_fail_write(kg_err *err, int errnum, const char *path, const char *what);
+
 /* Join dir and name into a newly allocated path. */
 char *kg_path_join(const char *dir, const char *name);
 

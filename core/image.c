@@ -376,6 +376,7 @@ int kg_image_write_tiff(const kg_image *img, const char *path, int bits, kg_err 
 		ok = TIFFSetField(tif, TIFFTAG_CFAREPEATPATTERNDIM, dim) &&
 		     TIFFSetField(tif, TIFFTAG_CFAPATTERN, (uint16_t)n, pat);
 	}
+	errno = 0;
 	for (int y = 0; ok && y < img->height; y++) {
 		const float *src = img->data + (size_t)y * W * C;
 		size_t n = W * C;
@@ -393,7 +394,10 @@ int kg_image_write_tiff(const kg_image *img, const char *path, int bits, kg_err 
 	TIFFClose(tif);
 	free(row);
 	if (!ok) {
+		int e = errno; /* libtiff's write() failure, e.g. ENOSPC */
 		kg_outfile_abort(&o);
+		if (e == ENOSPC || e == EDQUOT)
+			return kg_fail_write(err, e, path, "cannot write TIFF");
 		return kg_fail(err, KG_EIO, "%s: cannot write TIFF: %s", path, tiff_why(&msg));
 	}
 	return kg_outfile_commit(&o, err);

@@ -289,9 +289,13 @@ int kg_json_write(const json_t *root, const char *path, kg_err *err)
 	int ret = kg_outfile_open(&o, path, 1, err);
 	if (ret)
 		return ret;
+	errno = 0;
 	if (json_dumpf(root, o.fp, JSON_INDENT(2) | JSON_REAL_PRECISION(17)) != 0 ||
 	    fputc('\n', o.fp) == EOF) {
+		int e = errno;
 		kg_outfile_abort(&o);
+		if (e == ENOSPC || e == EDQUOT)
+			return kg_fail_write(err, e, path, "cannot write JSON");
 		return kg_fail(err, KG_EIO, "%s: cannot write JSON (invalid value or write error)",
 		               path);
 	}

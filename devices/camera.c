@@ -432,8 +432,9 @@ int kg_camera_pop(kg_camera *c, int timeout_ms, kg_frame *frame, kg_err *err)
 	if (frame->status == KG_FRAME_OK)
 		c->counts.completed++;
 	if (c->rec && (ret = kg_frame_recorder_write(c->rec, frame, err))) {
+		/* the recording's disk failed, not the camera: its message stands alone */
 		c->drv->push(c->state, frame, NULL);
-		return prefixed(c, err, ret);
+		return ret;
 	}
 	return 0;
 }

@@ -37,6 +37,27 @@ typedef struct kg_camera_driver {
 	void (*stats)(void *state, kg_stream_stats *out);
 } kg_camera_driver;
 
+/* One line of a recording's index (camera_recording.c reads them; replay serves them). */
+typedef struct kg_rec_frame {
+	char *file;  /* relative to the session folder: frames/<capture>/<n>.raw */
+	char *capture;
+	char sha256[65];
+	kg_frame_format fmt;
+	size_t bytes;
+	uint64_t sequence;
+	double timestamp, exposure_us, gain; /* NAN when recorded as null */
+	int status;
+	int line; /* in index.jsonl */
+} kg_rec_frame;
+/* Parse and check line lineno of index_path (types, ranges, a safe capture name, a file
+ * frames/<capture>/<name> that cannot leave that folder). */
+int kg_rec_parse_line(const char *index_path, const char *text, int lineno, kg_rec_frame *fr,
+                      kg_err *err);
+void kg_rec_frame_clear(kg_rec_frame *fr);
+/* frames_dir/camera.json: the identity (into info, may be NULL) and the format at start. */
+int kg_rec_read_camera(const char *frames_dir, kg_camera_info *info, kg_frame_format *fmt0,
+                       kg_err *err);
+
 extern const kg_camera_driver kg_camera_sim_driver;
 extern const kg_camera_driver kg_camera_replay_driver;
 #if HAVE_V4L2

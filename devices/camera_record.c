@@ -123,17 +123,7 @@ static int fsync_dir(const char *path, kg_err *err)
 
 /* Names that stay one path component on every filesystem: [A-Za-z0-9._-], not
  * starting with a dot. */
-static int capture_name_ok(const char *s)
-{
-	size_t n = strlen(s);
-	if (!n || n >= CAPTURE_MAX || s[0] == '.')
-		return 0;
-	for (size_t i = 0; i < n; i++)
-		if (!((s[i] >= 'a' && s[i] <= 'z') || (s[i] >= 'A' && s[i] <= 'Z') ||
-		      (s[i] >= '0' && s[i] <= '9') || s[i] == '.' || s[i] == '_' || s[i] == '-'))
-			return 0;
-	return 1;
-}
+static int capture_name_ok(const char *s) { return kg_name_is_safe(s, CAPTURE_MAX); }
 
 /* Cut a partial last line (a writer killed mid-line) so appends start on a fresh
  * line. */
@@ -298,12 +288,12 @@ static int write_frame_file(const char *path, const void *data, size_t size, kg_
 	memcpy(tmp + n, ".tmp", 5);
 	int fd = open(tmp, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
 	if (fd < 0)
-		ret = kg_fail(err, KG_EIO, "%s: cannot create: %s", tmp, strerror(errno));
+		ret = kg_fail_write(err, errno, tmp, "cannot create");
 	else if (size && write_all(fd, data, size) != 0) {
-		ret = kg_fail(err, KG_EIO, "%s: write failed: %s", tmp, strerror(errno));
+		ret = kg_fail_write(err, errno, tmp, "write failed");
 		close(fd);
 	} else if (close(fd) != 0)
-		ret = kg_fail(err, KG_EIO, "%s: close failed: %s", tmp, strerror(errno));
+		ret = kg_fail_write(err, errno, tmp, "close failed");
 	else if (rename(tmp, path) != 0)
 		ret = kg_fail(err, KG_EIO, "%s: cannot rename into place: %s", path,
 		              strerror(errno));
@@ -367,8 +357,9 @@ int kg_frame_recorder_write(kg_frame_recorder *r, const kg_frame *f, kg_err *err
 		/* Take a partial line back so the next append starts cleanly. */
 		if (ftruncate(r->index_fd, r->index_size) != 0)
 			e = errno;
-		ret = kg_fail(err, KG_EIO, "%s: cannot append the line of %s: %s", r->index_path,
-		              name, strerror(e));
+		char what[CAPTURE_MAX + 64];
+		snprintf(what, sizeof(what), "cannot append the line of %s", name);
+		ret = kg_fail_write(err, e, r->index_path, what);
 	} else {
 		r->index_size += (off_t)(len + 1);
 		r->next++;

@@ -4,9 +4,11 @@
  * URI replay:SESSION_DIR[#CAPTURE]. SESSION_DIR holds frames/index.jsonl (the frames
  * folder itself is accepted too); #CAPTURE serves only that capture's frames.
  *
- * Frames come back in the order recorded, with their recorded format, sequence,
- * timestamp, status and settings; each file's size and sha256 are checked against its
- * index line, and a mismatch is KG_EIO naming the file. exposure_us and gain read back
+ * The recording is validated at open (kg_camera_recording_validate: every line, and
+ * every file there with its recorded size; KG_EINVAL naming the line). Frames come
+ * back in the order recorded, with their recorded format, sequence, timestamp, status
+ * and settings; each file's size and sha256 are checked again as it is served, and a
+ * mismatch is KG_EIO naming the file. exposure_us and gain read back
  * as the next frame was recorded with. Setting one of them to another value is
  * accepted (it reads back as set), but the next pop then fails (KG_EINVAL) naming the
  * frame, the recorded and the requested value: a replay cannot re-expose. The end of
@@ -19,26 +21,13 @@
 
 #include "camera_driver.h"
 
-#define REC_FORMAT "kogei-camera-recording/1"
 #define REPLAY_MAX_BUFFERS 64
 #define REPLAY_DEFAULT_BUFFERS 4
-
-typedef struct rep_frame {
-	char *file;  /* relative to the session folder: frames/<capture>/<n>.raw */
-	char *capture;
-	char sha256[65];
-	kg_frame_format fmt;
-	size_t bytes;
-	uint64_t sequence;
-	double timestamp, exposure_us, gain; /* NAN when recorded as null */
-	int status;
-	int line; /* in index.jsonl */
-} rep_frame;
 
 typedef struct replay_cam {
 	char *base;       /* the session folder */
 	char *index_path; /* for messages */
-	rep_frame *frames;
+	kg_rec_frame *frames;
 	int nframes, next;
 	kg_frame_format fmt0; /* camera.json: the format when recording started */
 	double want_exposure, want_gain, want_fps; /* NAN: nothing set */
@@ -72,82 +61,6 @@ static int is_file(const char *path)
 
 /* ---- reading the recording ------------------------------------------------------- */
 
-static double number_or_nan(const json_t *o, const char *key)
-{
-	const json_t *v = json_object_get(o, key);
-	return json_is_number(v) ? json_number_value(v) : NAN;
-}
-
-/* A file named by the index must stay inside frames/: no "..", no absolute path. */
-static int safe_frame_path(const char *p)
-{
-	if (strncmp(p, "frames/", 7) || strstr(p, "/../") || strstr(p, "/./") ||
-	    !strcmp(p + strlen(p) - 3, "/..") || strchr(p, '\\'))
-		return 0;
-	return 1;
-}
-
-static int parse_line(replay_cam *s, char *text, int lineno, rep_frame *fr, kg_err *err)
-{
-	char where[64];
-	snprintf(where, sizeof(where), "line %d", lineno);
-	json_error_t je;
-	json_t *o = json_loads(text, JSON_REJECT_DUPLICATES, &je);
-	if (!json_is_object(o)) {
-		json_decref(o);
-		return kg_fail(err, KG_EINVAL, "%s: line %d: expected one JSON object (%s)",
-		               s->index_path, lineno, je.text);
-	}
-	/* Messages from the JSON getters name "<index>: line N". */
-	char file[4200];
-	snprintf(file, sizeof(file), "%s: %s", s->index_path, where);
-	const char *path, *capture, *sha;
-	json_t *fmt;
-	long status;
-	json_int_t bytes, seq;
-	int ret;
-	if ((ret = kg_json_get_string(file, o, "capture", &capture, err)) ||
-	    (ret = kg_json_get_string(file, o, "file", &path, err)) ||
-	    (ret = kg_json_get_string(file, o, "sha256", &sha, err)) ||
-	    (ret = kg_json_get(file, o, "format", &fmt, err)) ||
-	    (ret = kg_frame_format_from_json(file, fmt, &fr->fmt, err)) ||
-	    (ret = kg_json_get_int(file, o, "status", 0, 2, &status, err)))
-		goto done;
-	const json_t *jb = json_object_get(o, "bytes"), *js = json_object_get(o, "sequence");
-	if (!json_is_integer(jb) || !json_is_integer(js) ||
-	    (bytes = json_integer_value(jb)) < 0 || (seq = json_integer_value(js)) < 0) {
-		ret = kg_fail(err, KG_EINVAL, "%s: bytes and sequence: expected whole numbers >= 0",
-		              file);
-		goto done;
-	}
-	if (strlen(sha) != 64 || strspn(sha, "0123456789abcdef") != 64) {
-		ret = kg_fail(err, KG_EINVAL, "%s: sha256 '%s': expected 64 hex digits", file, sha);
-		goto done;
-	}
-	if (!safe_frame_path(path)) {
-		ret = kg_fail(err, KG_EINVAL, "%s: file '%s': expected frames/<capture>/<n>.raw",
-		              file, path);
-		goto done;
-	}
-	fr->file = strdup(path);
-	fr->capture = strdup(capture);
-	if (!fr->file || !fr->capture) {
-		ret = kg_fail(err, KG_ENOMEM, "%s: out of memory", file);
-		goto done;
-	}
-	memcpy(fr->sha256, sha, 65);
-	fr->bytes = (size_t)bytes;
-	fr->sequence = (uint64_t)seq;
-	fr->status = (int)status;
-	fr->timestamp = number_or_nan(o, "timestamp");
-	fr->exposure_us = number_or_nan(o, "exposure_us");
-	fr->gain = number_or_nan(o, "gain");
-	fr->line = lineno;
-done:
-	json_decref(o);
-	return ret;
-}
-
 /* Every complete line of the index (a last line without its newline is a write that
  * was cut off, and is ignored), keeping only `capture`'s frames when one is named. */
 static int read_index(replay_cam *s, const char *capture, kg_err *err)
@@ -168,7 +81,7 @@ static int read_index(replay_cam *s, const char *capture, kg_err *err)
 			continue;
 		if (s->nframes == cap) {
 			int nc = cap ? 2 * cap : 64;
-			rep_frame *f = realloc(s->frames, sizeof(*f) * (size_t)nc);
+			kg_rec_frame *f = realloc(s->frames, sizeof(*f) * (size_t)nc);
 			if (!f) {
 				ret = kg_fail(err, KG_ENOMEM, "%s: out of memory", s->index_path);
 				break;
@@ -176,14 +89,10 @@ static int read_index(replay_cam *s, const char *capture, kg_err *err)
 			s->frames = f;
 			cap = nc;
 		}
-		rep_frame *fr = &s->frames[s->nframes];
+		kg_rec_frame *fr = &s->frames[s->nframes];
 		memset(fr, 0, sizeof(*fr));
-		ret = parse_line(s, line, lineno, fr, err);
-		if (ret) {
-			free(fr->file);
-			free(fr->capture);
+		if ((ret = kg_rec_parse_line(s->index_path, line, lineno, fr, err)))
 			break;
-		}
 		if (capture && strcmp(capture, fr->capture)) {
 			size_t n = strlen(fr->capture);
 			if (!seen || !strstr(seen, fr->capture)) {
@@ -194,8 +103,7 @@ static int read_index(replay_cam *s, const char *capture, kg_err *err)
 					seen = ns;
 				}
 			}
-			free(fr->file);
-			free(fr->capture);
+			kg_rec_frame_clear(fr);
 			continue;
 		}
 		s->nframes++;
@@ -205,37 +113,6 @@ static int read_index(replay_cam *s, const char *capture, kg_err *err)
 		              s->index_path, capture, seen ? seen : "none");
 	free(seen);
 	free(buf);
-	return ret;
-}
-
-static int read_camera_json(replay_cam *s, const char *frames_dir, kg_camera_info *info,
-                            kg_err *err)
-{
-	char *path = kg_path_join(frames_dir, "camera.json");
-	json_t *root = NULL;
-	const char *format, *vendor, *model, *serial;
-	long w, h;
-	json_t *fmt;
-	int ret = path ? kg_json_load(path, &root, err) : KG_ENOMEM;
-	if (!ret && !(ret = kg_json_get_string(path, root, "format", &format, err)) &&
-	    strcmp(format, REC_FORMAT))
-		ret = kg_fail(err, KG_EINVAL, "%s: format '%s': expected %s", path, format,
-		              REC_FORMAT);
-	if (!ret && !(ret = kg_json_get_string(path, root, "camera.vendor", &vendor, err)) &&
-	    !(ret = kg_json_get_string(path, root, "camera.model", &model, err)) &&
-	    !(ret = kg_json_get_string(path, root, "camera.serial", &serial, err)) &&
-	    !(ret = kg_json_get_int(path, root, "camera.sensor_width", 0, 1L << 20, &w, err)) &&
-	    !(ret = kg_json_get_int(path, root, "camera.sensor_height", 0, 1L << 20, &h, err)) &&
-	    !(ret = kg_json_get(path, root, "frame_format", &fmt, err)) &&
-	    !(ret = kg_frame_format_from_json(path, fmt, &s->fmt0, err))) {
-		snprintf(info->vendor, sizeof(info->vendor), "%s", vendor);
-		snprintf(info->model, sizeof(info->model), "%s", model);
-		snprintf(info->serial, sizeof(info->serial), "%s", serial);
-		info->sensor_width = (int)w;
-		info->sensor_height = (int)h;
-	}
-	json_decref(root);
-	free(path);
 	return ret;
 }
 
@@ -275,7 +152,9 @@ static int replay_open(const char *target, void **state, kg_camera_info *info, k
 	if (!ret && (!s->index_path || !s->base || !frames))
 		ret = kg_fail(err, KG_ENOMEM, "out of memory");
 	if (!ret)
-		ret = read_camera_json(s, frames, info, err);
+		ret = kg_camera_recording_validate(s->base, err);
+	if (!ret)
+		ret = kg_rec_read_camera(frames, info, &s->fmt0, err);
 	if (!ret)
 		ret = read_index(s, capture && *capture ? capture : NULL, err);
 	free(frames);
@@ -292,7 +171,7 @@ static int replay_open(const char *target, void **state, kg_camera_info *info, k
 /* ---- features -------------------------------------------------------------------- */
 
 /* The frame the next pop serves, or the last one once the recording has ended. */
-static const rep_frame *upcoming(const replay_cam *s)
+static const kg_rec_frame *upcoming(const replay_cam *s)
 {
 	if (!s->nframes)
 		return NULL;
@@ -328,7 +207,7 @@ static int replay_feature_info(void *state, kg_feature f, kg_feature_info *o, kg
 static int replay_get(void *state, kg_feature f, double *v, kg_err *err)
 {
 	replay_cam *s = state;
-	const rep_frame *fr = upcoming(s);
+	const kg_rec_frame *fr = upcoming(s);
 	switch (f) {
 	case KG_FEAT_EXPOSURE_US:
 	case KG_FEAT_GAIN: {
@@ -374,7 +253,7 @@ static int replay_get_format(void *state, kg_frame_format *out, kg_err *err)
 {
 	(void)err;
 	const replay_cam *s = state;
-	const rep_frame *fr = upcoming(s);
+	const kg_rec_frame *fr = upcoming(s);
 	*out = fr ? fr->fmt : s->fmt0;
 	return 0;
 }
@@ -429,7 +308,7 @@ static int replay_stop(void *state, kg_err *err)
 }
 
 /* A frame is served only with the settings it was recorded with. */
-static int check_setting(const rep_frame *fr, const char *name, double want, double rec,
+static int check_setting(const kg_rec_frame *fr, const char *name, double want, double rec,
                          kg_err *err)
 {
 	if (isnan(rec) || same_setting(want, rec))
@@ -447,7 +326,7 @@ static int replay_pop(void *state, int timeout_ms, kg_frame *frame, kg_err *err)
 	if (s->next >= s->nframes)
 		return kg_fail(err, KG_EIO, "recording ended after %d frames (%s)", s->nframes,
 		               s->index_path);
-	const rep_frame *fr = &s->frames[s->next];
+	const kg_rec_frame *fr = &s->frames[s->next];
 	int ret = check_setting(fr, "exposure_us", s->want_exposure, fr->exposure_us, err);
 	if (!ret)
 		ret = check_setting(fr, "gain", s->want_gain, fr->gain, err);

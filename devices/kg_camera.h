@@ -185,6 +185,15 @@ int kg_camera_record_stop(kg_camera *c, kg_err *err);
  * session without a recording is left alone. */
 int kg_camera_recording_discard(const char *session_dir, const char *capture, kg_err *err);
 
+/* Check a session's recording before anything uses it: frames/camera.json and every
+ * complete line of frames/index.jsonl (types and ranges; capture names of 1 to 63 of
+ * [A-Za-z0-9._-], not starting with '.'; each file frames/<capture>/<name>, a regular
+ * file inside the session whose size is the line's bytes; the sha256 is checked when
+ * replay serves the frame). A session without frames/index.jsonl passes. KG_EINVAL
+ * naming the file, the line and the field. replay: runs it at open, and so does every
+ * reader of a session (kg_session_open, kg_session_manifest_validate). */
+int kg_camera_recording_validate(const char *session_dir, kg_err *err);
+
 /* The recording (devices/camera_record.c owns it):
  *   frames/camera.json            identity (kg_camera_info) and the format at start;
  *                                 written to a temporary name and renamed

@@ -69,9 +69,12 @@ enum {
 };
 /* out[p] = corrected raw[p]: electrical dark first, then nonlinearity
  * c / (k0 + k1 c + ... + kn c^n) on the dark-subtracted count c. A correction the
- * device cannot give (no dark pixels, order < 0) is skipped. In-place is allowed. */
-void kg_spectro_correct(const kg_spectro_info *info, unsigned flags, const double *raw,
-                        double *out);
+ * device cannot give (no dark pixels, order < 0) is skipped. A correction factor
+ * k0 + ... + kn c^n that is zero or negative (a count outside the range the
+ * coefficients were fitted to, or bad coefficients) is KG_ERANGE naming the pixel,
+ * its wavelength, the count and the factor. In-place is allowed. */
+int kg_spectro_correct(const kg_spectro_info *info, unsigned flags, const double *raw,
+                       double *out, kg_err *err);
 
 /* Backends built into this binary, for `kogei devices`. */
 int kg_spectro_backend_count(void);
@@ -88,6 +91,7 @@ typedef struct kg_spectro_reading {
 	int scans;
 	uint32_t integration_us;
 	int saturated;     /* pixels within 400-700 nm that saturated in any scan */
+	double saturated_nm[2]; /* the wavelength range of those pixels (when saturated) */
 	double peak;       /* highest raw count seen within 400-700 nm */
 	double when;       /* seconds since the epoch when the reading finished */
 } kg_spectro_reading;
@@ -137,14 +141,16 @@ typedef struct kg_measure_session {
 	kg_spectrum white_refl;     /* the white standard's certified reflectance */
 	const char *white_ref_path; /* its file; NULL for flat 0.99 */
 	kg_spectro_reading dark, white; /* the current references */
-	kg_measure_warn_fn warn;    /* saturated or dropped pixels; NULL: not reported */
+	kg_measure_warn_fn warn;    /* pixels without white signal; NULL: not reported */
 	void *warn_user;
 } kg_measure_session;
 
 /* Free the references (not the spectrometer). */
 void kg_measure_session_clear(kg_measure_session *m);
 /* Point the instrument at `target` ("dark", "white" or a sample id) and acquire with
- * m->acq into *out; warns, naming `what`, when pixels saturated. */
+ * m->acq into *out. A reading with pixels at full scale within 400-700 nm is refused
+ * (KG_ERANGE, naming `what`, the wavelength range of the saturated pixels and the
+ * integration time to shorten): its counts there, and so its reflectance, are wrong. */
 int kg_measure_reading(kg_measure_session *m, const char *target, const char *what,
                        kg_spectro_reading *out, kg_err *err);
 /* A sample's reflectance against m->dark and m->white (both measured); warns when

@@ -36,10 +36,17 @@ int kg_measure_reading(kg_measure_session *m, const char *target, const char *wh
 	int r = kg_spectro_set_target(m->spectro, target, err);
 	if (!r)
 		r = kg_spectro_acquire(m->spectro, &m->acq, out, err);
-	if (!r && out->saturated)
-		warn(m, "%s: %d pixels saturated (peak %.0f of %.0f counts): shorten the "
-		        "integration time", what ? what : target, out->saturated, out->peak,
-		     kg_spectro_get_info(m->spectro)->saturation);
+	if (!r && out->saturated) {
+		const kg_spectro_info *info = kg_spectro_get_info(m->spectro);
+		r = kg_fail(err, KG_ERANGE,
+		            "%s: %d pixels saturated at %.1f-%.1f nm (peak %.0f of %.0f counts): the "
+		            "reading is refused, its counts there are wrong; shorten the integration "
+		            "time (--integration, now %g ms) or reduce the light",
+		            what ? what : target, out->saturated, out->saturated_nm[0],
+		            out->saturated_nm[1], out->peak, info->saturation,
+		            info->integration_us / 1000.0);
+		kg_spectro_reading_clear(out);
+	}
 	return r;
 }
 

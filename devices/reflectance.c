@@ -61,7 +61,8 @@ int kg_spectro_acquire(kg_spectro *s, const kg_acquire_options *o, kg_spectro_re
 					out->peak = raw[p];
 			}
 		}
-		kg_spectro_correct(info, o->corrections, raw, raw);
+		if ((r = kg_spectro_correct(info, o->corrections, raw, raw, err)) != 0)
+			break;
 		for (int p = 0; p < n; p++)
 			sum[p] += raw[p];
 	}
@@ -72,7 +73,12 @@ int kg_spectro_acquire(kg_spectro *s, const kg_acquire_options *o, kg_spectro_re
 		for (int p = 0; p < n; p++) {
 			out->wl[p] = kg_spectro_wavelength(info, p);
 			sum[p] /= o->scans;
-			out->saturated += sat[p];
+			if (sat[p]) {
+				if (!out->saturated++)
+					out->saturated_nm[0] = out->saturated_nm[1] = out->wl[p];
+				out->saturated_nm[0] = fmin(out->saturated_nm[0], out->wl[p]);
+				out->saturated_nm[1] = fmax(out->saturated_nm[1], out->wl[p]);
+			}
 		}
 		if (o->boxcar > 0)
 			kg_boxcar(sum, out->counts, n, o->boxcar);

@@ -155,8 +155,8 @@ double kg_spectro_wavelength(const kg_spectro_info *info, int pixel)
 	return c[0] + p * (c[1] + p * (c[2] + p * c[3]));
 }
 
-void kg_spectro_correct(const kg_spectro_info *info, unsigned flags, const double *raw,
-                        double *out)
+int kg_spectro_correct(const kg_spectro_info *info, unsigned flags, const double *raw,
+                       double *out, kg_err *err)
 {
 	int n = info->npixels;
 	double dark = 0;
@@ -170,14 +170,20 @@ void kg_spectro_correct(const kg_spectro_info *info, unsigned flags, const doubl
 	for (int p = 0; p < n; p++) {
 		double c = raw[p] - dark;
 		if (nl >= 0) {
-			/* Horner on k0..kn; a factor that is not positive (a count far outside
-			 * the calibrated range) leaves the count uncorrected. */
-			double f = info->nl_coeffs[nl];
+			double f = info->nl_coeffs[nl]; /* Horner on k0..kn */
 			for (int k = nl - 1; k >= 0; k--)
 				f = f * c + info->nl_coeffs[k];
-			if (f > 0)
-				c /= f;
+			if (!(f > 0))
+				return kg_fail(err, KG_ERANGE,
+				               "%s %s: nonlinearity correction factor %g at pixel %d (%.1f nm, "
+				               "%.0f counts above the dark): expected > 0; the device's "
+				               "nonlinearity coefficients do not cover this count (check its "
+				               "calibration, or measure with --no-nonlinearity)",
+				               info->model, info->serial, f, p, kg_spectro_wavelength(info, p),
+				               c);
+			c /= f;
 		}
 		out[p] = c;
 	}
+	return 0;
 }

@@ -11,7 +11,12 @@
  *                   14 nonlinearity order)
  *   0x09            request a spectrum: 16-bit LE pixels then the sync byte 0x69
  *   0xFE            status, 16 bytes; byte 14 is 0x80 on a high-speed link
- * Every transfer has a timeout; nothing waits forever. */
+ * Every transfer has a timeout; nothing waits forever. Two habits of these FPGA units
+ * are handled here: the first scan after the integration time changes was taken at
+ * the old time, so it is read and thrown away; and a spectrum a crashed run requested
+ * but never read is still queued on the spectrum endpoint, so open drains the
+ * spectrum endpoint(s) (reads until nothing comes within DRAIN_TIMEOUT_MS) before the
+ * first command. */
 #include <libusb.h>
 #include <math.h>
 #include <stdlib.h>
@@ -31,6 +36,8 @@ enum {
 	STATUS_REPLY = 16,
 	COMMAND_TIMEOUT_MS = 1000,
 	SPECTRUM_EXTRA_MS = 1000, /* beyond the integration time */
+	DRAIN_TIMEOUT_MS = 50,    /* a queued spectrum is already there: it comes at once */
+	DRAIN_MAX_PACKETS = 8,    /* more than a crashed run can have left */
 };
 
 
@@ -40,7 +47,8 @@ typedef struct ocean_state {
 	const ocean_model *model;
 	char serial[32];
 	int high_speed;
-	uint32_t integration_us;
+	uint32_t integration_us;  /* 0 until set: the device's own is not trusted */
+	int stale_scan;           /* the next scan was taken at the previous time */
 	unsigned char *packet;
 } ocean_state;
 
@@ -165,6 +173,26 @@ static void ocean_close(void *state)
 	free(o);
 }
 
+/* Read and drop whatever is queued on ep (len bytes a packet). Nothing queued shows as
+ * a timeout; a transfer that completes with no data (a replayed timed-out URB) also
+ * ends the drain. An unplugged device is an error. */
+static int drain(ocean_state *o, unsigned ep, int len, kg_err *err)
+{
+	for (int n = 0; n < DRAIN_MAX_PACKETS; n++) {
+		int got = 0;
+		int rc = libusb_bulk_transfer(o->h, (unsigned char)ep, o->packet, len, &got,
+		                              DRAIN_TIMEOUT_MS);
+		if (rc == LIBUSB_ERROR_NO_DEVICE)
+			return usb_fail(o, rc, "draining the spectrum endpoint", ep, err);
+		if (rc == LIBUSB_ERROR_TIMEOUT || got == 0)
+			return 0;
+	}
+	return kg_fail(err, KG_EIO,
+	               "usbspec %s: endpoint 0x%02x still delivers data after %d packets were "
+	               "drained at open: the device is streaming; power-cycle it",
+	               o->model->name, ep, DRAIN_MAX_PACKETS);
+}
+
 /* Claim, initialise and read the serial of one candidate device. */
 static int ocean_start(ocean_state *o, libusb_device *dev, kg_err *err)
 {
@@ -183,7 +211,15 @@ static int ocean_start(ocean_state *o, libusb_device *dev, kg_err *err)
 	static const unsigned char init[1] = {0x01}, status[1] = {0xFE};
 	unsigned char reply[STATUS_REPLY];
 	char text[16];
-	int got, r = send_command(o, init, 1, "initialisation", err);
+	int bytes = o->model->npixels * 2 + 1;
+	int got, r = o->model->split_high_speed
+	                 ? drain(o, EP_SPECTRUM_FIRST, SPLIT_BYTES, err)
+	                 : 0;
+	if (!r)
+		r = drain(o, EP_SPECTRUM,
+		          o->model->split_high_speed ? bytes - SPLIT_BYTES : bytes, err);
+	if (!r)
+		r = send_command(o, init, 1, "initialisation", err);
 	if (!r)
 		r = send_command(o, status, 1, "status query", err);
 	if (!r)
@@ -223,8 +259,10 @@ static int ocean_open(const char *target, void **state, kg_err *err)
 		               target, vid, pid);
 
 	ocean_state *o = calloc(1, sizeof(*o));
-	if (!o)
+	if (!o || !(o->packet = malloc((size_t)model->npixels * 2 + 1))) {
+		free(o);
 		return KG_ENOMEM;
+	}
 	o->model = model;
 	snprintf(o->serial, sizeof(o->serial), "?");
 	int rc = libusb_init(&o->ctx);
@@ -264,8 +302,6 @@ static int ocean_open(const char *target, void **state, kg_err *err)
 			kg_fail(err, KG_ENODEV, "usbspec:%s: no %s (%04x:%04x) attached", target,
 			        model->name, vid, pid);
 	}
-	if (!r && !(o->packet = malloc((size_t)model->npixels * 2 + 1)))
-		r = KG_ENOMEM;
 	if (r) {
 		ocean_close(o);
 		return r;
@@ -334,14 +370,16 @@ static int ocean_set_integration(void *state, uint32_t us, kg_err *err)
 	unsigned char cmd[5] = {0x02, (unsigned char)us, (unsigned char)(us >> 8),
 	                        (unsigned char)(us >> 16), (unsigned char)(us >> 24)};
 	int r = send_command(o, cmd, 5, "setting the integration time", err);
+	if (!r && us != o->integration_us)
+		o->stale_scan = 1;
 	if (!r)
 		o->integration_us = us;
 	return r;
 }
 
-static int ocean_read_raw(void *state, double *counts, kg_err *err)
+/* Request one spectrum and read it into o->packet, checked (length, sync byte). */
+static int read_packet(ocean_state *o, kg_err *err)
 {
-	ocean_state *o = state;
 	static const unsigned char request[1] = {0x09};
 	int bytes = o->model->npixels * 2 + 1, got = 0, first = 0;
 	unsigned timeout = o->integration_us / 1000 + SPECTRUM_EXTRA_MS;
@@ -367,6 +405,19 @@ static int ocean_read_raw(void *state, double *counts, kg_err *err)
 		               "usbspec %s %s: spectrum ends with 0x%02x, expected the sync byte "
 		               "0x%02x: the transfer is out of step", o->model->name, o->serial,
 		               o->packet[bytes - 1], SYNC_BYTE);
+	return 0;
+}
+
+static int ocean_read_raw(void *state, double *counts, kg_err *err)
+{
+	ocean_state *o = state;
+	int r = 0;
+	if (o->stale_scan && !(r = read_packet(o, err))) /* taken at the old time: dropped */
+		o->stale_scan = 0;
+	if (!r)
+		r = read_packet(o, err);
+	if (r)
+		return r;
 	for (int p = 0; p < o->model->npixels; p++)
 		counts[p] = o->packet[2 * p] | (o->packet[2 * p + 1] << 8);
 	return 0;

@@ -21,8 +21,13 @@ for a in "$@"; do
 	args="$args '$a'"
 done
 export ASAN_OPTIONS="${ASAN_OPTIONS:+$ASAN_OPTIONS:}verify_asan_link_order=0"
+# KOGEI_TEST_PRELOAD: a shim in front of libusb for kogei only (hold_transfer_preload).
+preload=""
+# It is added after umockdev's own preload, which umockdev-run has set by then.
+[ -n "${KOGEI_TEST_PRELOAD:-}" ] &&
+	preload="sh -c 'LD_PRELOAD=\"\$LD_PRELOAD:\$0\" exec \"\$@\"' '${KOGEI_TEST_PRELOAD}'"
 eval timeout 15 umockdev-run --device "'$fix/device'" \
-	--ioctl "/dev/bus/usb/001/002='$fix/capture.ioctl'" -- "'$kogei'" measure $args \
+	--ioctl "/dev/bus/usb/001/002='$fix/capture.ioctl'" -- $preload "'$kogei'" measure $args \
 	>"$tmp/log" 2>&1 </dev/null
 rc=$?
 cat "$tmp/log"

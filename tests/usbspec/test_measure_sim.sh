@@ -43,7 +43,11 @@ check "resume: reflectance within 0.01 of the spectra" '[ $? -eq 0 ]'
 
 "$kogei" measure --spectro "sim:$spectra" --single --integration 3000 --yes \
 	-o "$tmp/sat.cgats" 2>"$tmp/log"
-check "saturation warned" 'grep -q "pixels saturated" "$tmp/log"'
+rc=$?
+check "saturation refused: exit 1 (got $rc), no file" '[ $rc -eq 1 ] && [ ! -e "$tmp/sat.cgats" ]'
+check "saturation refused: the range and the remedy" \
+	'grep -q "white reference: [0-9]* pixels saturated at [0-9.]*-[0-9.]* nm" "$tmp/log" &&
+	 grep -q "shorten the integration time (--integration, now 3000 ms)" "$tmp/log"'
 
 "$kogei" measure --spectro "sim:$spectra" --single --id NOPE --yes -o "$tmp/x.cgats" 2>"$tmp/log"
 check "unknown sample: exit 1" '[ $? -eq 1 ] && [ ! -e "$tmp/x.cgats" ]'

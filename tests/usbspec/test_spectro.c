@@ -26,13 +26,27 @@ static void test_math(void)
 	kg_spectro_info info = {.npixels = 6, .dark_first = 0, .dark_last = 1, .nl_order = 1,
 	                        .nl_coeffs = {1.0, -1e-3}};
 	double raw[6] = {10, 12, 111, 211, 311, 11}, out[6];
-	kg_spectro_correct(&info, KG_CORRECT_ELECTRICAL_DARK | KG_CORRECT_NONLINEARITY, raw, out);
+	kg_spectro_correct(&info, KG_CORRECT_ELECTRICAL_DARK | KG_CORRECT_NONLINEARITY, raw, out, NULL);
 	CHECK_NEAR(out[2], 100 / (1 - 0.1), 1e-9, "dark + nonlinearity");
 	CHECK_NEAR(out[4], 300 / (1 - 0.3), 1e-9, "dark + nonlinearity");
-	kg_spectro_correct(&info, KG_CORRECT_ELECTRICAL_DARK, raw, out);
+	kg_spectro_correct(&info, KG_CORRECT_ELECTRICAL_DARK, raw, out, NULL);
 	CHECK_NEAR(out[3], 200, 1e-12, "dark only");
-	kg_spectro_correct(&info, 0, raw, out);
+	kg_spectro_correct(&info, 0, raw, out, NULL);
 	CHECK_NEAR(out[3], 211, 1e-12, "no correction");
+	/* A factor that is not positive is an error, not a count left uncorrected. */
+	kg_spectro_info bad = {.npixels = 6, .dark_first = 0, .dark_last = 1, .nl_order = 1,
+	                       .nl_coeffs = {1.0, -4e-3}, .model = "M", .serial = "S1"};
+	kg_err nerr = {{0}};
+	CHECK(kg_spectro_correct(&bad, KG_CORRECT_ELECTRICAL_DARK | KG_CORRECT_NONLINEARITY, raw,
+	                         out, &nerr) == KG_ERANGE &&
+	          strstr(nerr.msg, "nonlinearity correction factor -0.2 at pixel 4"),
+	      "nonlinearity factor <= 0: %s", nerr.msg);
+	bad.nl_coeffs[0] = 0;
+	bad.nl_coeffs[1] = 0;
+	CHECK(kg_spectro_correct(&bad, KG_CORRECT_NONLINEARITY, raw, out, &nerr) == KG_ERANGE,
+	      "nonlinearity factor 0");
+	CHECK(kg_spectro_correct(&bad, KG_CORRECT_ELECTRICAL_DARK, raw, out, &nerr) == 0,
+	      "no nonlinearity asked for: %s", nerr.msg);
 
 	double in[5] = {0, 0, 3, 0, 0}, sm[5];
 	kg_boxcar(in, sm, 5, 1);
@@ -123,6 +137,13 @@ static void test_sim(const char *spectra)
 	      "%s", err.msg);
 	CHECK(x.saturated > 100, "saturated %d", x.saturated);
 	kg_spectro_reading_clear(&x);
+	/* ... and a measurement refuses it, naming where it saturated. */
+	kg_measure_session m = {.spectro = s, .acq = o};
+	CHECK(kg_measure_reading(&m, "white", "white reference", &x, &err) == KG_ERANGE &&
+	          strstr(err.msg, "white reference: ") && strstr(err.msg, " nm (peak 65535") &&
+	          strstr(err.msg, "shorten the integration time"),
+	      "saturated white accepted: %s", err.msg);
+	CHECK(x.counts == NULL, "a refused reading is cleared");
 	kg_spectro_reading_clear(&d);
 	kg_spectro_reading_clear(&w);
 	kg_patchset_free(&ps);
