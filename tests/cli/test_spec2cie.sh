@@ -1,9 +1,9 @@
 #!/bin/sh
 # kogei and ArgyllCMS's spec2cie read each other's spectral CGATS unchanged and agree on
 # XYZ within 0.01 (and 0.01 dE76) on the Y = 100 scale:
-# - colord's reflectance reference (ref/CIE-TCS.sp, 360-830 nm): `kogei spectra xyz`
-#   integrating the file's whole range, under D65 and A (spec2cie -i D65|A; it needs
-#   MEAS_TYPE, which the colord file lacks, so a copy gets that one line);
+# - colord's reflectance references (ref/*.sp: CIE-TCS.sp, 360-830 nm): `kogei spectra
+#   xyz` integrating the file's whole range, under D65 and A (spec2cie -i D65|A; it
+#   needs MEAS_TYPE, which the colord files lack, so a copy gets that one line);
 # - a kogei file: `kogei measure` output goes to spec2cie as written, against
 #   `kogei spectra xyz --range observer` (spec2cie holds end values over 360-830 nm);
 # - Argyll files: spec2cie's SPECT output (percent, no SPECTRAL_NORM) and Argyll's own
@@ -26,14 +26,22 @@ compare() { # what, scale, kogei xyz, spec2cie output
 	awk -v tol=0.01 -v scale="$2" -v what="$1" -f "$here/compare_spec2cie.awk" "$3" "$4" || fail=1
 }
 
-# colord's reflectances (fractions; spec2cie takes them as percent: scale 100).
-awk 'NR == 1 { print; print "MEAS_TYPE \"REFLECTIVE\""; next } { print }' "$tcs" >"$T/tcs.sp"
-for ill in D65 A; do
-	run spec2cie -n -i $ill "$T/tcs.sp" "$T/tcs_$ill.sp"
-	run "$KOGEI" spectra xyz "$tcs" --illuminant $ill -o "$T/k_tcs_$ill.cgats"
-	grep -q 'INTEGRATION_RANGE_NM "360-830"' "$T/k_tcs_$ill.cgats" ||
-		{ echo "FAIL: CIE-TCS.sp under $ill: INTEGRATION_RANGE_NM is not 360-830"; fail=1; }
-	compare "colord CIE-TCS.sp under $ill, file range" 100 "$T/k_tcs_$ill.cgats" "$T/tcs_$ill.sp"
+# colord's reflectances: every ref/*.sp that is not a power distribution (fractions;
+# spec2cie takes them as percent: scale 100).
+for sp in /usr/share/colord/ref/*.sp; do
+	grep -q -i -E 'Spectral Power|MEAS_TYPE.*EMISSION' "$sp" && continue
+	b=$(basename "$sp" .sp)
+	awk 'NR == 1 { print; print "MEAS_TYPE \"REFLECTIVE\""; next } { print }' "$sp" >"$T/$b.sp"
+	first=$(awk '$1 == "SPECTRAL_START_NM" { gsub(/"/, "", $2); print $2 + 0 }' "$sp")
+	last=$(awk '$1 == "SPECTRAL_END_NM" { gsub(/"/, "", $2); print $2 + 0 }' "$sp")
+	for ill in D65 A; do
+		run spec2cie -n -i $ill "$T/$b.sp" "$T/${b}_$ill.sp"
+		run "$KOGEI" spectra xyz "$sp" --illuminant $ill -o "$T/k_${b}_$ill.cgats"
+		grep -q "INTEGRATION_RANGE_NM \"$first-$last\"" "$T/k_${b}_$ill.cgats" ||
+			{ echo "FAIL: $b.sp under $ill: INTEGRATION_RANGE_NM is not $first-$last"; fail=1; }
+		compare "colord $b.sp under $ill, file range $first-$last nm" 100 \
+			"$T/k_${b}_$ill.cgats" "$T/${b}_$ill.sp"
+	done
 done
 
 # A kogei file, as `kogei measure` writes it, straight into spec2cie.
