@@ -179,6 +179,82 @@ static void format_number(char *buf, size_t size, double v)
 	}
 }
 
+/* Decimal text of v x 10^shift, exact in decimal: the shortest digits that read back
+ * as v, with the decimal point moved. Always holds a '.' or an exponent, as ArgyllCMS
+ * types a column of bare integers as integers and then refuses it as spectral data.
+ * parse_number_shifted(text, -shift) gives v back bit for bit. */
+static void format_number_shifted(char *buf, size_t size, double v, int shift)
+{
+	char e[40];
+	for (int prec = 14; prec <= 16; prec++) {
+		snprintf(e, sizeof(e), "%.*e", prec, v);
+		if (strtod(e, NULL) == v)
+			break;
+	}
+	/* e is [-]d.ddd...e[+-]xx */
+	const char *p = e;
+	int neg = *p == '-';
+	p += neg;
+	char digits[24];
+	int nd = 0;
+	for (; *p && *p != 'e'; p++)
+		if (isdigit((unsigned char)*p))
+			digits[nd++] = *p;
+	while (nd > 1 && digits[nd - 1] == '0')
+		nd--;
+	digits[nd] = '\0';
+	int exp10 = atoi(p + 1) + (v == 0.0 ? 0 : shift);
+	if (exp10 < -6 || exp10 > 20) {
+		snprintf(buf, size, "%s%c.%se%d", neg ? "-" : "", digits[0],
+		         nd > 1 ? digits + 1 : "0", exp10);
+		return;
+	}
+	char out[64];
+	int m = 0;
+	if (neg)
+		out[m++] = '-';
+	if (exp10 < 0) {
+		out[m++] = '0';
+		out[m++] = '.';
+		for (int i = 0; i < -exp10 - 1; i++)
+			out[m++] = '0';
+		for (int i = 0; i < nd; i++)
+			out[m++] = digits[i];
+	} else {
+		for (int i = 0; i <= exp10; i++)
+			out[m++] = i < nd ? digits[i] : '0';
+		out[m++] = '.';
+		if (nd > exp10 + 1)
+			for (int i = exp10 + 1; i < nd; i++)
+				out[m++] = digits[i];
+		else
+			out[m++] = '0';
+	}
+	out[m] = '\0';
+	snprintf(buf, size, "%s", out);
+}
+
+/* A finite decimal number times 10^shift, rounded once: the decimal exponent is moved
+ * in the text before conversion, so that text written by format_number_shifted(v, s)
+ * reads back as exactly v with shift -s (a division would round a second time). */
+static int parse_number_shifted(const char *text, int shift, double *out)
+{
+	double v;
+	if (kg_cgats_parse_number(text, &v) != 0)
+		return KG_EINVAL;
+	const char *e = strpbrk(text, "eE");
+	size_t mlen = e ? (size_t)(e - text) : strlen(text);
+	long exp10 = e ? strtol(e + 1, NULL, 10) : 0;
+	char buf[128];
+	if (shift == 0 || mlen > 64 || exp10 < -100000 || exp10 > 100000) {
+		*out = shift ? v * pow(10.0, shift) : v;
+		return isfinite(*out) ? 0 : KG_EINVAL;
+	}
+	snprintf(buf, sizeof(buf), "%.*se%ld", (int)mlen, text, exp10 + shift);
+	*out = strtod(buf, NULL);
+	return isfinite(*out) ? 0 : KG_EINVAL;
+}
+
 static const char *not_a_number_hint(const char *text)
 {
 	char low[8] = { 0 };
@@ -614,18 +690,82 @@ int kg_cgats_number(const kg_cgats_table *t, int set, int field, double *out,
 	               "'%.40s'%s", t->path, set + 1, t->fields[field], c, not_a_number_hint(c));
 }
 
-/* Wavelength in a SPEC_<nm> name. colord writes picometres (SPEC_300000 = 300 nm). */
+/* Wavelength in a SPEC_<nm> name: 1 and *nm for a spectral field, 0 for a field of
+ * another kind, -1 for a SPEC_ name without a finite positive wavelength (SPEC_abc,
+ * SPEC_Inf, SPEC_), which must not be passed over: dropping a band would interpolate
+ * across the gap. colord writes picometres (SPEC_300000 = 300 nm). */
 static int spec_name_nm(const char *name, double *nm)
 {
 	if (strncmp(name, "SPEC_", 5) != 0)
 		return 0;
 	double v;
-	if (kg_cgats_parse_number(name + 5, &v) != 0 || v <= 0)
-		return 0;
+	if (kg_cgats_parse_number(name + 5, &v) != 0 || !(v > 0))
+		return -1;
 	if (v >= 10000)
 		v /= 1000;
 	*nm = v;
 	return 1;
+}
+
+/* The spectral keywords a table gives (each may be absent). */
+typedef struct spectral_keywords {
+	int have_start, have_end, have_bands;
+	double start, end, bands;
+} spectral_keywords;
+
+static int read_spectral_keywords(const kg_cgats_table *t, spectral_keywords *k,
+                                  kg_err *err)
+{
+	static const char *const names[3] = { "SPECTRAL_START_NM", "SPECTRAL_END_NM",
+		                                  "SPECTRAL_BANDS" };
+	int *have[3] = { &k->have_start, &k->have_end, &k->have_bands };
+	double *val[3] = { &k->start, &k->end, &k->bands };
+	for (int i = 0; i < 3; i++) {
+		int r = kg_cgats_keyword_number(t, names[i], val[i], err);
+		if (r == KG_ENOENT)
+			continue;
+		if (r != 0)
+			return r;
+		*have[i] = 1;
+	}
+	if (k->have_bands && (k->bands != floor(k->bands) || k->bands < 1))
+		return kg_fail(err, KG_EINVAL, "%s: keyword SPECTRAL_BANDS: expected a positive "
+		               "whole number, found %g", t->path, k->bands);
+	return 0;
+}
+
+/* Field names and keywords must describe the same wavelengths: ArgyllCMS finds its
+ * fields by the names the keyword grid rounds to (spec2cie refuses GTIPlus.sp, whose
+ * keywords say 80 bands to 750 nm over 40 fields to 730 nm), so a disagreement means
+ * one of the two is wrong. Names may be rounded (Argyll's 3.33 nm steps): 1 nm. */
+static int check_spectral_keywords(const kg_cgats_table *t, const spectral_keywords *k,
+                                   const int *idx, const double *w, int count, kg_err *err)
+{
+	const double tol = 1.0;
+	if (k->have_bands && k->bands != count)
+		return kg_fail(err, KG_EINVAL, "%s: keyword SPECTRAL_BANDS is %g but the table has "
+		               "%d SPEC_<nm> fields (%.60s ... %.60s): expected one field per band",
+		               t->path, k->bands, count, t->fields[idx[0]], t->fields[idx[count - 1]]);
+	if (k->have_start && fabs(k->start - w[0]) > tol)
+		return kg_fail(err, KG_EINVAL, "%s: keyword SPECTRAL_START_NM is %g but the first "
+		               "spectral field is %.60s (%g nm): expected them to agree within 1 nm",
+		               t->path, k->start, t->fields[idx[0]], w[0]);
+	if (k->have_end && fabs(k->end - w[count - 1]) > tol)
+		return kg_fail(err, KG_EINVAL, "%s: keyword SPECTRAL_END_NM is %g but the last "
+		               "spectral field is %.60s (%g nm): expected them to agree within 1 nm",
+		               t->path, k->end, t->fields[idx[count - 1]], w[count - 1]);
+	if (!(k->have_start && k->have_end && k->have_bands) || count < 2)
+		return 0;
+	for (int i = 0; i < count; i++) {
+		double at = k->start + (k->end - k->start) * i / (count - 1);
+		if (fabs(at - w[i]) > tol)
+			return kg_fail(err, KG_EINVAL, "%s: field %.60s (%g nm) is spectral field %d, "
+			               "where SPECTRAL_START_NM %g, SPECTRAL_END_NM %g and "
+			               "SPECTRAL_BANDS %g put %g nm: expected the fields in the "
+			               "keywords' order and spacing", t->path, t->fields[idx[i]], w[i],
+			               i + 1, k->start, k->end, k->bands, at);
+	}
+	return 0;
 }
 
 int kg_cgats_spectral_fields(const kg_cgats_table *t, int **fields, double **wl, int *n,
@@ -637,8 +777,13 @@ int kg_cgats_spectral_fields(const kg_cgats_table *t, int **fields, double **wl,
 	*n = 0;
 	int count = 0;
 	double nm;
-	for (int i = 0; i < t->nfields; i++)
-		count += spec_name_nm(t->fields[i], &nm);
+	for (int i = 0; i < t->nfields; i++) {
+		int kind = spec_name_nm(t->fields[i], &nm);
+		if (kind < 0)
+			return kg_fail(err, KG_EINVAL, "%s: field %.60s: expected SPEC_<nm> with a "
+			               "finite wavelength in nm (e.g. SPEC_550)", t->path, t->fields[i]);
+		count += kind;
+	}
 	if (count == 0)
 		return 0;
 	int *idx = malloc(sizeof(*idx) * (size_t)count);
@@ -648,33 +793,33 @@ int kg_cgats_spectral_fields(const kg_cgats_table *t, int **fields, double **wl,
 		free(w);
 		return kg_fail(err, KG_ENOMEM, "%s: out of memory", t->path);
 	}
-	int k = 0;
+	int k = 0, r = 0;
 	for (int i = 0; i < t->nfields; i++)
-		if (spec_name_nm(t->fields[i], &w[k]))
+		if (spec_name_nm(t->fields[i], &w[k]) > 0)
 			idx[k++] = i;
-	for (int i = 1; i < count; i++)
-		if (!(w[i] > w[i - 1])) {
-			int f = idx[i], prev = idx[i - 1];
-			free(idx);
-			free(w);
-			return kg_fail(err, KG_EINVAL, "%s: field %.60s: spectral fields must increase in "
-			               "wavelength, found it after %.60s", t->path, t->fields[f],
-			               t->fields[prev]);
-		}
-	/* The keyword grid is exact where names are rounded (Argyll's 3.33 nm steps), but
-	 * some files' keywords disagree with their fields: trust it only when it matches. */
-	double start, end, bands;
-	if (count >= 2 && kg_cgats_keyword_number(t, "SPECTRAL_START_NM", &start, NULL) == 0 &&
-	    kg_cgats_keyword_number(t, "SPECTRAL_END_NM", &end, NULL) == 0 &&
-	    kg_cgats_keyword_number(t, "SPECTRAL_BANDS", &bands, NULL) == 0 && bands == count &&
-	    end > start) {
-		int agree = 1;
-		for (int i = 0; i < count && agree; i++)
-			agree = fabs(start + (end - start) * i / (count - 1) - w[i]) <= 1.0;
-		if (agree)
-			for (int i = 0; i < count; i++)
-				w[i] = start + (end - start) * i / (count - 1);
+	for (int i = 1; i < count && r == 0; i++) {
+		const char *f = t->fields[idx[i]], *prev = t->fields[idx[i - 1]];
+		if (w[i] == w[i - 1])
+			r = kg_fail(err, KG_EINVAL, "%s: fields %.60s and %.60s both hold %g nm: "
+			            "expected each wavelength once", t->path, prev, f, w[i]);
+		else if (w[i] < w[i - 1])
+			r = kg_fail(err, KG_EINVAL, "%s: field %.60s: spectral fields must increase in "
+			            "wavelength, found it after %.60s", t->path, f, prev);
 	}
+	spectral_keywords kw = { 0 };
+	if (r == 0)
+		r = read_spectral_keywords(t, &kw, err);
+	if (r == 0)
+		r = check_spectral_keywords(t, &kw, idx, w, count, err);
+	if (r != 0) {
+		free(idx);
+		free(w);
+		return r;
+	}
+	/* The keyword grid is exact where the names are rounded (3.33 nm steps). */
+	if (kw.have_start && kw.have_end && kw.have_bands && count >= 2)
+		for (int i = 0; i < count; i++)
+			w[i] = kw.start + (kw.end - kw.start) * i / (count - 1);
 	*fields = idx;
 	*wl = w;
 	*n = count;
@@ -1136,18 +1281,28 @@ static int read_triplet(const kg_cgats_table *t, const char *const names[3],
 	return 0;
 }
 
-/* The factor that brings a table's spectral values to fractions (reflectance 0..1):
- *  1. KG_PATCH_KEEP_SCALE: 1.
- *  2. SPECTRAL_NORM present: 1/SPECTRAL_NORM (Argyll stores value x norm; reflectance
- *     files use 100, colord CMFs 1, Argyll illuminants arbitrary).
- *  3. No SPECTRAL_NORM and the table is a spectral power or matching-function table
- *     (type SPECT or CMF, as colord's illuminants, which peak above 2): 1.
- *  4. Otherwise (e.g. Argyll .ti3 CTI3 tables, which omit the keyword and store
- *     percent): 1/100 when any value exceeds 1.5 (no reflectance does), else 1. */
-static int spectral_scale(const kg_cgats_table *t, const int *fields, int nspec,
-                          unsigned flags, double *scale, kg_err *err)
+/* How a table's stored spectral values become fractions (reflectance 0..1): value x
+ * 10^shift / norm. The rule, whatever the file-type identifier (CGATS.17, SPECT,
+ * CTI3, ...):
+ *  1. KG_PATCH_KEEP_SCALE: as stored.
+ *  2. SPECTRAL_NORM present: divided by it (ArgyllCMS stores fraction x norm: its
+ *     reflectance and transmittance files use 100, its illuminants any level; colord's
+ *     matching functions 1). A power of ten moves the decimal point instead.
+ *  3. MEAS_TYPE EMISSION or AMBIENT (a spectral power distribution: no percent
+ *     convention applies): as stored.
+ *  4. Otherwise percent when any value exceeds 1.5 (no reflectance does): ArgyllCMS
+ *     writes measured spectra in percent without SPECTRAL_NORM (chartread's .ti3
+ *     CTI3 tables, spec2cie's SPECT output), and spec2cie reads every reflective value
+ *     as percent; colord's CIE-TCS.sp holds fractions, also without the keyword. */
+typedef struct spectral_norm {
+	int shift;   /* decimal exponent applied in the text */
+	double norm; /* then divided by this */
+} spectral_norm;
+
+static int spectral_norm_of(const kg_cgats_table *t, const int *fields, int nspec,
+                            unsigned flags, spectral_norm *sn, kg_err *err)
 {
-	*scale = 1.0;
+	*sn = (spectral_norm){ 0, 1.0 };
 	if (flags & KG_PATCH_KEEP_SCALE)
 		return 0;
 	double norm;
@@ -1156,12 +1311,18 @@ static int spectral_scale(const kg_cgats_table *t, const int *fields, int nspec,
 		if (!(norm > 0))
 			return kg_fail(err, KG_EINVAL, "%s: keyword SPECTRAL_NORM: expected a positive "
 			               "number, found %g", t->path, norm);
-		*scale = 1.0 / norm;
+		for (int k = 0; k <= 6; k++)
+			if (norm == pow(10.0, k)) {
+				sn->shift = -k;
+				return 0;
+			}
+		sn->norm = norm;
 		return 0;
 	}
 	if (r != KG_ENOENT)
 		return r;
-	if (strcmp(t->type, "SPECT") == 0 || strcmp(t->type, "CMF") == 0)
+	const char *meas = kg_cgats_keyword(t, "MEAS_TYPE");
+	if (meas && (strcmp(meas, "EMISSION") == 0 || strcmp(meas, "AMBIENT") == 0))
 		return 0;
 	for (int s = 0; s < t->nsets; s++)
 		for (int k = 0; k < nspec; k++) {
@@ -1169,10 +1330,51 @@ static int spectral_scale(const kg_cgats_table *t, const int *fields, int nspec,
 			if ((r = kg_cgats_number(t, s, fields[k], &v, err)) != 0)
 				return r;
 			if (v > 1.5) {
-				*scale = 0.01;
+				sn->shift = -2;
 				return 0;
 			}
 		}
+	return 0;
+}
+
+int kg_cgats_spectra(const kg_cgats_table *t, unsigned flags, double **wl,
+                     double **values, int *n, double *scale, kg_err *err)
+{
+	kg_check_arg(t && wl && values && n, err);
+	*values = NULL;
+	int *fields = NULL, nspec = 0;
+	int r = kg_cgats_spectral_fields(t, &fields, wl, &nspec, err);
+	*n = nspec;
+	if (r != 0 || nspec == 0)
+		return r;
+	spectral_norm sn;
+	double *v = NULL;
+	r = spectral_norm_of(t, fields, nspec, flags, &sn, err);
+	if (r == 0 && !(v = malloc(sizeof(*v) * (size_t)nspec * (size_t)(t->nsets ? t->nsets : 1))))
+		r = kg_fail(err, KG_ENOMEM, "%s: out of memory", t->path);
+	for (int s = 0; s < t->nsets && r == 0; s++)
+		for (int k = 0; k < nspec && r == 0; k++) {
+			double *dst = &v[(size_t)s * nspec + k];
+			if ((r = kg_cgats_number(t, s, fields[k], dst, err)) != 0)
+				break;
+			/* The cell is a valid finite number: only an overflow can fail here. */
+			if (parse_number_shifted(kg_cgats_cell(t, s, fields[k]), sn.shift, dst) != 0)
+				r = kg_fail(err, KG_ERANGE, "%s: line %d: field %.60s: value out of range "
+				            "once scaled", t->path, t->set_lines[s], t->fields[fields[k]]);
+			else
+				*dst /= sn.norm;
+		}
+	free(fields);
+	if (r != 0) {
+		free(v);
+		free(*wl);
+		*wl = NULL;
+		*n = 0;
+		return r;
+	}
+	*values = v;
+	if (scale)
+		*scale = pow(10.0, sn.shift) / sn.norm;
 	return 0;
 }
 
@@ -1181,31 +1383,28 @@ static int read_spectra(const kg_cgats_table *t, kg_patchset *ps, unsigned flags
 {
 	int *fields = NULL, nspec = 0;
 	double *wl = NULL, *val = NULL;
-	int r = kg_cgats_spectral_fields(t, &fields, &wl, &nspec, err);
+	int r = kg_cgats_spectra(t, flags, &wl, &val, &nspec, &ps->spectral_scale, err);
 	if (r != 0 || nspec == 0)
 		return r;
-	r = spectral_scale(t, fields, nspec, flags, &ps->spectral_scale, err);
-	if (r == 0 && !(ps->spectra = calloc((size_t)t->nsets, sizeof(*ps->spectra))))
-		r = kg_fail(err, KG_ENOMEM, "%s: out of memory", t->path);
-	if (r == 0 && !(val = malloc(sizeof(*val) * (size_t)nspec)))
+	if (!(ps->spectra = calloc((size_t)t->nsets, sizeof(*ps->spectra))))
 		r = kg_fail(err, KG_ENOMEM, "%s: out of memory", t->path);
 	for (int s = 0; s < t->nsets && r == 0; s++) {
-		for (int k = 0; k < nspec && r == 0; k++)
-			if ((r = kg_cgats_number(t, s, fields[k], &val[k], err)) == 0)
-				val[k] *= ps->spectral_scale;
-		if (r == 0) {
-			char what[256];
-			if (t->set_lines[s] > 0)
-				snprintf(what, sizeof(what), "%s: line %d: sample %.40s", t->path,
-				         t->set_lines[s], ps->ids[s]);
-			else
-				snprintf(what, sizeof(what), "%s: sample %.40s", t->path, ps->ids[s]);
-			r = kg_spectrum_resample(wl, val, nspec, flags, what, &ps->spectra[s], err);
-		}
+		char what[256];
+		if (t->set_lines[s] > 0)
+			snprintf(what, sizeof(what), "%s: line %d: sample %.40s", t->path,
+			         t->set_lines[s], ps->ids[s]);
+		else
+			snprintf(what, sizeof(what), "%s: sample %.40s", t->path, ps->ids[s]);
+		r = kg_spectrum_resample(wl, val + (size_t)s * nspec, nspec, flags, what,
+		                         &ps->spectra[s], err);
 	}
-	for (int k = 0; k < nspec; k++)
-		used[fields[k]] = 1;
 	free(val);
+	free(wl);
+	wl = NULL;
+	/* The fields were checked above: this only finds which ones to mark. */
+	if (r == 0 && (r = kg_cgats_spectral_fields(t, &fields, &wl, &nspec, err)) == 0)
+		for (int k = 0; k < nspec; k++)
+			used[fields[k]] = 1;
 	free(fields);
 	free(wl);
 	return r;
@@ -1377,33 +1576,37 @@ int kg_patchset_to_cgats(const kg_patchset *ps, unsigned fields,
 		goto done;
 	}
 
-	if ((r = kg_cgats_new("CGATS.17", &cg, err)) != 0)
+	/* spec2cie takes only SPECT and CTI3 tables, and a SPECT table needs MEAS_TYPE. */
+	int spectral = (fields & KG_PATCH_SPECTRA) != 0;
+	if ((r = kg_cgats_new(spectral ? "SPECT" : "CGATS.17", &cg, err)) != 0)
 		goto done;
 	t = cg->tables[0];
-	int has_originator = 0;
+	int has_originator = 0, has_meas_type = 0;
 	for (int k = 0; keywords && keywords[k]; k += 2) {
 		if (!keywords[k + 1]) {
 			r = kg_fail(err, KG_EINVAL, "keyword %s: no value given", keywords[k]);
 			goto done;
 		}
 		has_originator |= strcmp(keywords[k], "ORIGINATOR") == 0;
+		has_meas_type |= strcmp(keywords[k], "MEAS_TYPE") == 0;
 		if ((r = kg_cgats_set_keyword(t, keywords[k], keywords[k + 1], err)) != 0)
 			goto done;
 	}
 	if (!has_originator && (r = kg_cgats_set_keyword(t, "ORIGINATOR", "kogei", err)) != 0)
 		goto done;
-	if (fields & KG_PATCH_SPECTRA) {
-		if ((r = kg_cgats_set_keyword_number(t, "SPECTRAL_START_NM", KG_LAMBDA_MIN, err)) ||
+	if (spectral) {
+		if ((!has_meas_type && (r = kg_cgats_set_keyword(t, "MEAS_TYPE", "REFLECTIVE", err))) ||
+		    (r = kg_cgats_set_keyword_number(t, "SPECTRAL_START_NM", KG_LAMBDA_MIN, err)) ||
 		    (r = kg_cgats_set_keyword_number(t, "SPECTRAL_END_NM", KG_LAMBDA_MAX, err)) ||
 		    (r = kg_cgats_set_keyword_number(t, "SPECTRAL_BANDS", KG_NBANDS, err)) ||
-		    (r = kg_cgats_set_keyword_number(t, "SPECTRAL_NORM", 1.0, err)))
+		    (r = kg_cgats_set_keyword_number(t, "SPECTRAL_NORM", 100.0, err)))
 			goto done;
 	}
 	if ((r = kg_cgats_set_fields(t, (const char *const *)names, nf, err)) != 0)
 		goto done;
 	for (int i = 0; i < ps->n; i++) {
 		int m = 0;
-		if (fields & KG_PATCH_SPECTRA)
+		if (spectral)
 			for (int b = 0; b < KG_NBANDS; b++)
 				row[m++] = ps->spectra[i].v[b];
 		double(*const arrays[3])[3] = { ps->rgb, ps->xyz, ps->lab };
@@ -1418,6 +1621,14 @@ int kg_patchset_to_cgats(const kg_patchset *ps, unsigned fields,
 			kg_err_prefix(err, "patch %s", ps->ids[i]);
 			goto done;
 		}
+		/* Spectra in percent: the same digits with the point moved (exact). */
+		for (int b = 0; spectral && b < KG_NBANDS && r == 0; b++) {
+			char text[64];
+			format_number_shifted(text, sizeof(text), row[b], 2);
+			r = kg_cgats_set_cell(t, t->nsets - 1, 1 + b, text, err);
+		}
+		if (r != 0)
+			goto done;
 	}
 done:
 	if (names)

@@ -74,11 +74,22 @@ int kg_cgats_number(const kg_cgats_table *t, int set, int field, double *out,
 int kg_cgats_parse_number(const char *text, double *out);
 /* The spectral fields of a table: indices of the SPEC_<nm> fields (in field order)
  * and their wavelengths in nm. Names written in picometres by colord (SPEC_300000)
- * are understood; when SPECTRAL_START_NM/END_NM/BANDS agree with the field names
- * (within 1 nm) the exact keyword grid is used (Argyll rounds 3.33 nm steps in the
- * names). *n = 0 and NULL arrays when there are none. Caller frees both arrays. */
+ * are understood. Refused (KG_EINVAL, naming the file and the field): a SPEC_ name
+ * without a finite positive wavelength (SPEC_abc, SPEC_Inf, SPEC_), a wavelength
+ * given twice, fields out of order, and SPECTRAL_START_NM / SPECTRAL_END_NM /
+ * SPECTRAL_BANDS that disagree with the fields (by more than 1 nm, or in the count);
+ * when all three are given the exact keyword grid is used (Argyll rounds 3.33 nm
+ * steps in the names). *n = 0 and NULL arrays when there are none. Caller frees both
+ * arrays. */
 int kg_cgats_spectral_fields(const kg_cgats_table *t, int **fields, double **wl, int *n,
                              kg_err *err);
+/* The spectra of a table at the file's own wavelengths (kg_cgats_spectral_fields),
+ * brought to fractions by the rule of the patch sets (see KG_PATCH_KEEP_SCALE, which
+ * `flags` may hold): *wl (n nm), *values (nsets x n, row-major) and, if scale is not
+ * NULL, the factor applied. *n = 0 and NULL arrays when there are none. Caller frees
+ * both arrays. */
+int kg_cgats_spectra(const kg_cgats_table *t, unsigned flags, double **wl,
+                     double **values, int *n, double *scale, kg_err *err);
 
 /* --- building and writing --- */
 
@@ -123,8 +134,12 @@ enum {
 	KG_PATCH_EXTRA = 1 << 4,   /* the extra numeric columns */
 };
 
-/* Extra flag for kg_patchset_from_cgats/read, combinable with KG_RESAMPLE_*:
- * take spectral values as stored (no SPECTRAL_NORM or percent scaling). */
+/* Extra flag for kg_patchset_from_cgats/read and kg_cgats_spectra, combinable with
+ * KG_RESAMPLE_*: take spectral values as stored. Without it, whatever the file-type
+ * identifier: values are divided by SPECTRAL_NORM when the table has it; else kept
+ * when MEAS_TYPE is EMISSION or AMBIENT; else read as percent when any exceeds 1.5
+ * (ArgyllCMS's measured spectra, which carry no SPECTRAL_NORM), as fractions
+ * otherwise (colord's CIE-TCS.sp). */
 #define KG_PATCH_KEEP_SCALE (1u << 8)
 
 typedef struct kg_patchset {
@@ -155,9 +170,14 @@ int kg_patchset_from_table(const kg_cgats_table *t, unsigned flags, kg_patchset 
                            kg_err *err);
 /* kg_cgats_read + kg_patchset_from_cgats. */
 int kg_patchset_read(const char *path, unsigned flags, kg_patchset **out, kg_err *err);
-/* A CGATS.17 table with SAMPLE_ID and the columns named by `fields` (each must be
- * present). Spectra carry SPECTRAL_START_NM/END_NM/BANDS and SPECTRAL_NORM 1.
- * `keywords` is NULL or a NULL-terminated list of name, value pairs. */
+/* A table with SAMPLE_ID and the columns named by `fields` (each must be present),
+ * of type CGATS.17, or SPECT when it carries spectra: those are written as ArgyllCMS
+ * writes reflectance, in percent with SPECTRAL_NORM 100, MEAS_TYPE REFLECTIVE (unless
+ * `keywords` gives another) and SPECTRAL_START_NM/END_NM/BANDS, every value with a
+ * decimal point, so that spec2cie reads the file unchanged. The percent values are
+ * the fractions' shortest decimal digits with the point moved, so the reader gives
+ * the same doubles back. `keywords` is NULL or a NULL-terminated list of name, value
+ * pairs. */
 int kg_patchset_to_cgats(const kg_patchset *ps, unsigned fields,
                          const char *const *keywords, kg_cgats **out, kg_err *err);
 /* kg_patchset_to_cgats + kg_cgats_write ("-" = standard output). */

@@ -446,20 +446,35 @@ static void illuminant_samples(const kg_illuminant *ill, double *grid_wl,
 	*n = KG_NBANDS;
 }
 
-int kg_samples_to_xyz(const double *wl, const double *v, int n, const kg_illuminant *ill,
-                      kg_xyz *out, kg_err *err)
+int kg_samples_to_xyz_range(const double *wl, const double *v, int n,
+                            const kg_illuminant *ill, double lo_nm, double hi_nm,
+                            kg_xyz *out, kg_err *err)
 {
 	kg_check_arg(out, err);
 	int ret = check_samples(wl, v, n, "spectrum", err);
 	if (ret)
 		return ret;
+	/* The 1 nm rows of the CMF table inside lo..hi (a hair of slack for limits such
+	 * as 380.0000001 that stand for a whole nanometre). */
+	const double slack = 1e-6;
+	int first = (int)ceil(lo_nm - slack) - KG_CMF_FIRST_NM;
+	int last = (int)floor(hi_nm + slack) - KG_CMF_FIRST_NM;
+	if (first < 0)
+		first = 0;
+	if (last > KG_CMF_COUNT - 1)
+		last = KG_CMF_COUNT - 1;
+	if (!(isfinite(lo_nm) && isfinite(hi_nm)) || last <= first)
+		return kg_fail(err, KG_ERANGE,
+		               "integration range %g-%g nm: expected at least 2 nm inside the "
+		               "observer's %d-%d nm",
+		               lo_nm, hi_nm, KG_CMF_FIRST_NM, KG_CMF_LAST_NM);
 	double grid_wl[KG_NBANDS];
 	const double *iwl = NULL, *iv = NULL;
 	int in = 0;
 	if (ill)
 		illuminant_samples(ill, grid_wl, &iwl, &iv, &in);
 	double t[3] = {0.0, 0.0, 0.0}, lum = 0.0;
-	for (int j = 0; j < KG_CMF_COUNT; j++) {
+	for (int j = first; j <= last; j++) {
 		double nm = KG_CMF_FIRST_NM + j;
 		double s = ill ? sample_at(iwl, iv, in, nm) : 1.0;
 		double sv = s * sample_at(wl, v, n, nm);
@@ -472,13 +487,29 @@ int kg_samples_to_xyz(const double *wl, const double *v, int n, const kg_illumin
 		if (!(lum > 0.0))
 			return kg_fail(err, KG_EINVAL,
 			               "illuminant %s: expected positive luminance over %d-%d nm",
-			               ill->name, KG_CMF_FIRST_NM, KG_CMF_LAST_NM);
+			               ill->name, KG_CMF_FIRST_NM + first, KG_CMF_FIRST_NM + last);
 		k = 100.0 / lum;
 	} else {
 		k = KG_KM * 1.0; /* 1 nm steps */
 	}
 	*out = (kg_xyz){k * t[0], k * t[1], k * t[2]};
 	return 0;
+}
+
+int kg_samples_to_xyz(const double *wl, const double *v, int n, const kg_illuminant *ill,
+                      kg_xyz *out, kg_err *err)
+{
+	return kg_samples_to_xyz_range(wl, v, n, ill, KG_CMF_FIRST_NM, KG_CMF_LAST_NM, out,
+	                               err);
+}
+
+kg_xyz kg_illuminant_white_range(const kg_illuminant *ill, double lo_nm, double hi_nm)
+{
+	const double wl[2] = {KG_CMF_FIRST_NM, KG_CMF_LAST_NM}, one[2] = {1.0, 1.0};
+	kg_xyz w;
+	if (!ill || kg_samples_to_xyz_range(wl, one, 2, ill, lo_nm, hi_nm, &w, NULL) != 0)
+		return (kg_xyz){NAN, NAN, NAN};
+	return w;
 }
 
 kg_xyz kg_illuminant_white_full(const kg_illuminant *ill)

@@ -138,6 +138,19 @@ int kg_samples_to_xyz(const double *wl, const double *v, int n, const kg_illumin
 /* White point (Y = 100) of an illuminant from its full-range samples by the
  * integration of kg_samples_to_xyz (the grid spectrum when it has none). */
 kg_xyz kg_illuminant_white_full(const kg_illuminant *ill);
+/* kg_samples_to_xyz over lo_nm..hi_nm only: the 1 nm rows of the CMF table within
+ * both those limits and 360-830 nm, the normalisation (sum S ybar) over the same rows.
+ * This is CIE 15 practice for data that cover less than the observer: integrate over
+ * the wavelengths the data give, the illuminant interpolated to them, rather than
+ * extend the data. KG_ERANGE when fewer than 2 nm remain. kg_samples_to_xyz is the
+ * range 360-830. */
+int kg_samples_to_xyz_range(const double *wl, const double *v, int n,
+                            const kg_illuminant *ill, double lo_nm, double hi_nm,
+                            kg_xyz *out, kg_err *err);
+/* The perfect diffuser's XYZ (Y = 100) under `ill` over lo_nm..hi_nm, by
+ * kg_samples_to_xyz_range: the white that CIELAB of those XYZ refers to. NaN when the
+ * range is empty. */
+kg_xyz kg_illuminant_white_range(const kg_illuminant *ill, double lo_nm, double hi_nm);
 
 /* --- colour spaces --- */
 

@@ -74,6 +74,23 @@ check "unknown illuminant explained" grep -qi "illuminant" "$T/err"
 sed 's/SPECTRAL_START_NM 380/SPECTRAL_START_NM 480/; s/SPEC_380 //; s/^white 1 /white /; s/^grey 0.18 /grey /; s/NUMBER_OF_FIELDS 6/NUMBER_OF_FIELDS 5/; s/SPECTRAL_BANDS 5/SPECTRAL_BANDS 4/' "$T/white.cgats" >"$T/short.cgats"
 expect_exit 1 "$KOGEI" spectra xyz "$T/short.cgats"
 check "short range refused with the range" grep -q "480" "$T/err"
+# The integration range: the file's own by default, the paper's grid on request.
+expect_exit 0 "$KOGEI" spectra xyz "$T/white.cgats" -o "$T/xyz.cgats"
+check "default range is the file's" grep -q 'INTEGRATION_RANGE_NM "380-780"' "$T/xyz.cgats"
+check "default step 1 nm" grep -q 'INTEGRATION_STEP_NM "1"' "$T/xyz.cgats"
+expect_exit 0 "$KOGEI" spectra xyz "$T/white.cgats" --range paper -o "$T/xyz.cgats"
+check "paper range named" grep -q 'INTEGRATION_RANGE_NM "400-700"' "$T/xyz.cgats"
+check "paper step 5 nm" grep -q 'INTEGRATION_STEP_NM "5"' "$T/xyz.cgats"
+expect_exit 1 "$KOGEI" spectra xyz "$T/white.cgats" --range 300-700 -o "$T/xyz2.cgats"
+check "range beyond the data refused with the data's range" grep -q "380-780" "$T/err"
+expect_exit 2 "$KOGEI" spectra xyz "$T/white.cgats" --range 700-400
+# A SPEC_ field without a wavelength is refused, not skipped and interpolated across.
+for name in SPEC_abc SPEC_Inf SPEC_; do
+	sed "s/SPEC_580 /$name /" "$T/white.cgats" >"$T/badname.cgats"
+	expect_exit 1 "$KOGEI" spectra xyz "$T/badname.cgats" -o "$T/badname_out.cgats"
+	check "$name refused naming file and field" grep -q "badname.cgats: field $name: expected SPEC_<nm> with a finite wavelength" "$T/err"
+	check "$name: no output" test ! -e "$T/badname_out.cgats"
+done
 
 # model: the Fig. 7 table.
 expect_exit 0 "$KOGEI" model --material gold --angles 0:90:10 -o "$T/gold.csv" --plot "$T/gold.png"

@@ -196,10 +196,121 @@ static void test_patchsets(void)
 	kg_cgats_free(&cg);
 }
 
+/* A 400-700 nm table every 100 nm with the given field names, keywords and values. */
+#define SPEC4(keywords, names, row)                                                     \
+	"CGATS.17\n" keywords "BEGIN_DATA_FORMAT\nSAMPLE_ID " names "\nEND_DATA_FORMAT\n"      \
+	"BEGIN_DATA\nP1 " row "\nEND_DATA\n"
+
+/* Spectral fields are never passed over or reordered: a band dropped or misplaced
+ * would be interpolated across and change XYZ without a word. */
+static void test_spectral_fields(void)
+{
+	PATCHSET_FAILS("SPEC_ without a number",
+	               SPEC4("", "SPEC_400 SPEC_500 SPEC_abc SPEC_700", "0.1 0.2 0.3 0.4"), 0,
+	               KG_EINVAL, "bad.cgats", "field SPEC_abc", "SPEC_<nm>",
+	               "finite wavelength in nm");
+	PATCHSET_FAILS("SPEC_Inf", SPEC4("", "SPEC_400 SPEC_500 SPEC_Inf SPEC_700", "0.1 0.2 0.3 0.4"),
+	               0, KG_EINVAL, "field SPEC_Inf", "finite wavelength");
+	PATCHSET_FAILS("SPEC_ alone", SPEC4("", "SPEC_400 SPEC_ SPEC_600 SPEC_700", "0.1 0.2 0.3 0.4"),
+	               0, KG_EINVAL, "field SPEC_:", "finite wavelength");
+	PATCHSET_FAILS("SPEC_0", SPEC4("", "SPEC_0 SPEC_400 SPEC_600 SPEC_700", "0.1 0.2 0.3 0.4"),
+	               0, KG_EINVAL, "field SPEC_0:", "finite wavelength");
+	PATCHSET_FAILS("duplicate wavelength",
+	               SPEC4("", "SPEC_400 SPEC_500 SPEC_500.0 SPEC_700", "0.1 0.2 0.3 0.4"), 0,
+	               KG_EINVAL, "SPEC_500 and SPEC_500.0", "500 nm", "each wavelength once");
+	PATCHSET_FAILS("duplicate in picometres",
+	               SPEC4("", "SPEC_400 SPEC_500 SPEC_500000 SPEC_700", "0.1 0.2 0.3 0.4"), 0,
+	               KG_EINVAL, "SPEC_500 and SPEC_500000", "each wavelength once");
+	PATCHSET_FAILS("fields out of step with the keywords",
+	               SPEC4("SPECTRAL_START_NM 400\nSPECTRAL_END_NM 700\nSPECTRAL_BANDS 4\n",
+	                     "SPEC_400 SPEC_450 SPEC_600 SPEC_700", "0.1 0.2 0.3 0.4"),
+	               0, KG_EINVAL, "field SPEC_450", "500 nm", "keywords' order and spacing");
+	PATCHSET_FAILS("SPECTRAL_BANDS disagrees",
+	               SPEC4("SPECTRAL_BANDS 5\n", "SPEC_400 SPEC_500 SPEC_600 SPEC_700",
+	                     "0.1 0.2 0.3 0.4"),
+	               0, KG_EINVAL, "SPECTRAL_BANDS is 5", "4 SPEC_<nm> fields");
+	PATCHSET_FAILS("SPECTRAL_START_NM disagrees",
+	               SPEC4("SPECTRAL_START_NM 380\n", "SPEC_400 SPEC_500 SPEC_600 SPEC_700",
+	                     "0.1 0.2 0.3 0.4"),
+	               0, KG_EINVAL, "SPECTRAL_START_NM is 380", "SPEC_400");
+	PATCHSET_FAILS("SPECTRAL_END_NM disagrees",
+	               SPEC4("SPECTRAL_END_NM 730\n", "SPEC_400 SPEC_500 SPEC_600 SPEC_700",
+	                     "0.1 0.2 0.3 0.4"),
+	               0, KG_EINVAL, "SPECTRAL_END_NM is 730", "SPEC_700");
+	PATCHSET_FAILS("SPECTRAL_BANDS not a number",
+	               SPEC4("SPECTRAL_BANDS \"many\"\n", "SPEC_400 SPEC_500 SPEC_600 SPEC_700",
+	                     "0.1 0.2 0.3 0.4"),
+	               0, KG_EINVAL, "SPECTRAL_BANDS", "expected a number");
+	/* Agreeing keywords, rounded names (within 1 nm): accepted, the keyword grid used. */
+	kg_err err = { { 0 } };
+	kg_cgats *cg = NULL;
+	const char *ok = SPEC4("SPECTRAL_START_NM 400\nSPECTRAL_END_NM 700\nSPECTRAL_BANDS 4\n",
+	                       "SPEC_400 SPEC_500 SPEC_600 SPEC_700", "0.1 0.2 0.3 0.4");
+	CHECK(kg_cgats_parse(ok, strlen(ok), "ok.cgats", &cg, &err) == 0, "%s", err.msg);
+	kg_patchset *ps = NULL;
+	CHECK(cg && kg_patchset_from_cgats(cg, 0, &ps, &err) == 0, "agreeing keywords: %s",
+	      err.msg);
+	kg_patchset_free(&ps);
+	kg_cgats_free(&cg);
+}
+
+/* Which scale a table's spectral values are on, whatever its type identifier. */
+static void expect_scale(const char *what, const char *text, double scale, double at700)
+{
+	kg_err err = { { 0 } };
+	kg_cgats *cg = NULL;
+	kg_patchset *ps = NULL;
+	CHECK(kg_cgats_parse(text, strlen(text), what, &cg, &err) == 0, "%s: %s", what, err.msg);
+	CHECK(cg && kg_patchset_from_cgats(cg, 0, &ps, &err) == 0, "%s: %s", what, err.msg);
+	if (ps) {
+		CHECK(ps->spectral_scale == scale, "%s: scale %g, expected %g", what,
+		      ps->spectral_scale, scale);
+		CHECK(ps->spectra[0].v[60] == at700, "%s: 700 nm %.17g, expected %.17g", what,
+		      ps->spectra[0].v[60], at700);
+	}
+	kg_patchset_free(&ps);
+	kg_cgats_free(&cg);
+}
+
+#define SCALED(type, keywords, row)                                                     \
+	type "\n" keywords "BEGIN_DATA_FORMAT\nSAMPLE_ID SPEC_400 SPEC_500 SPEC_600 SPEC_700\n" \
+	"END_DATA_FORMAT\nBEGIN_DATA\nP1 " row "\nEND_DATA\n"
+
+static void test_spectral_scale(void)
+{
+	/* spec2cie's output of a percent file: SPECT, MEAS_TYPE, no SPECTRAL_NORM. */
+	expect_scale("argyll SPECT in percent",
+	             SCALED("SPECT", "MEAS_TYPE \"REFLECTIVE\"\n", "12.0 35.5 60.25 91.5"), 0.01,
+	             0.915);
+	expect_scale("SPECT in percent, no MEAS_TYPE",
+	             SCALED("SPECT", "", "12.0 35.5 60.25 91.5"), 0.01, 0.915);
+	expect_scale("CGATS.17 in percent", SCALED("CGATS.17", "", "12 35.5 60.25 91.5"), 0.01,
+	             0.915);
+	/* colord CIE-TCS.sp style: SPECT, no SPECTRAL_NORM, fractions. */
+	expect_scale("SPECT in fractions", SCALED("SPECT", "", "0.12 0.355 0.6025 0.915"), 1.0,
+	             0.915);
+	/* SPECTRAL_NORM wins over the values, whatever the type. */
+	expect_scale("CGATS.17 with SPECTRAL_NORM 100",
+	             SCALED("CGATS.17", "SPECTRAL_NORM \"100\"\n", "0.12 0.355 0.6025 0.915"),
+	             0.01, 0.00915);
+	expect_scale("CTI3 with SPECTRAL_NORM 50",
+	             SCALED("CTI3", "SPECTRAL_NORM \"50\"\n", "6 17.75 30.125 45.75"), 0.02,
+	             45.75 / 50);
+	expect_scale("SPECT with SPECTRAL_NORM 1",
+	             SCALED("SPECT", "SPECTRAL_NORM 1\n", "12 35.5 60.25 91.5"), 1.0, 91.5);
+	/* An emission spectrum has no percent convention. */
+	expect_scale("emission", SCALED("SPECT", "MEAS_TYPE \"EMISSION\"\n", "12 35.5 60.25 91.5"),
+	             1.0, 91.5);
+	PATCHSET_FAILS("SPECTRAL_NORM 0", SCALED("SPECT", "SPECTRAL_NORM 0\n", "1 2 3 4"), 0,
+	               KG_EINVAL, "SPECTRAL_NORM", "positive");
+}
+
 int main(void)
 {
 	test_structure();
 	test_numbers();
 	test_patchsets();
+	test_spectral_fields();
+	test_spectral_scale();
 	return kg_test_done("cgats-malformed");
 }

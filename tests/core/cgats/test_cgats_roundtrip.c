@@ -119,7 +119,7 @@ static void test_patchset_roundtrip(void)
 	if (back) {
 		CHECK(back->n == 3 && back->spectra && back->rgb && !back->xyz && !back->lab,
 		      "columns present");
-		CHECK(back->spectral_scale == 1.0, "SPECTRAL_NORM 1 read as scale 1");
+		CHECK(back->spectral_scale == 0.01, "written in percent, SPECTRAL_NORM 100");
 		CHECK(back->nextra == 2 && kg_patchset_extra_index(back, "SPREAD") == 1, "extras");
 		for (int i = 0; i < 3 && back->n == 3; i++) {
 			CHECK(!strcmp(ps->ids[i], back->ids[i]), "id %s", back->ids[i]);
@@ -150,6 +150,71 @@ static void test_patchset_roundtrip(void)
 	CHECK(ps == NULL, "free nulls the pointer");
 }
 
+/* Spectra are written in percent for ArgyllCMS (SPECT, MEAS_TYPE REFLECTIVE,
+ * SPECTRAL_NORM 100, a decimal point in every value) and still read back bit for bit:
+ * awkward doubles, values whose x100 or /100 in binary would round, tiny, negative,
+ * huge and zero. */
+static void test_percent_exact(void)
+{
+	enum { N = 40 };
+	kg_err err = { { 0 } };
+	kg_patchset *ps = NULL, *back = NULL;
+	CHECK(kg_patchset_new(N, KG_PATCH_SPECTRA, &ps, &err) == 0, "%s", err.msg);
+	if (!ps)
+		return;
+	const double special[] = { 0.0, -0.0, 1.0, 0.1, 0.07, 0.57, 1.0 / 3.0, 2.0 / 3.0,
+		                       0.123456789012345678, 1e-300, 5e-324, -1e-12, -0.015,
+		                       1e300, 123456.789, 0.9274505, 1.15, 0.29, 0.58, 0.285 };
+	const int nspecial = sizeof(special) / sizeof(special[0]);
+	unsigned long long x = 88172645463325252ull;
+	for (int i = 0; i < N; i++)
+		for (int b = 0; b < KG_NBANDS; b++) {
+			int k = i * KG_NBANDS + b;
+			x ^= x << 13;
+			x ^= x >> 7;
+			x ^= x << 17;
+			ps->spectra[i].v[b] = k < nspecial ? special[k] : (double)(x >> 11) / 0x1p53 * 1.2;
+		}
+	char *path = kg_path_join(tmpdir, "percent.sp");
+	CHECK(kg_patchset_write(path, ps, KG_PATCH_SPECTRA, NULL, &err) == 0, "%s", err.msg);
+	kg_cgats *cg = NULL;
+	CHECK(kg_cgats_read(path, &cg, &err) == 0, "%s", err.msg);
+	if (cg) {
+		const kg_cgats_table *t = cg->tables[0];
+		const char *meas = kg_cgats_keyword(t, "MEAS_TYPE");
+		const char *norm = kg_cgats_keyword(t, "SPECTRAL_NORM");
+		CHECK(!strcmp(t->type, "SPECT"), "type %s, expected SPECT", t->type);
+		CHECK(meas && !strcmp(meas, "REFLECTIVE"), "MEAS_TYPE REFLECTIVE");
+		CHECK(norm && !strcmp(norm, "100"), "SPECTRAL_NORM 100");
+		int f = kg_cgats_field(t, "SPEC_700");
+		const char *c = kg_cgats_cell(t, 0, kg_cgats_field(t, "SPEC_400"));
+		CHECK(c && !strcmp(c, "0.0"), "0 written as 0.0, found %s", c ? c : "(none)");
+		c = kg_cgats_cell(t, 0, kg_cgats_field(t, "SPEC_420"));
+		CHECK(c && !strcmp(c, "7.0"), "0.07 written as 7.0, found %s", c ? c : "(none)");
+		for (int s = 0; s < t->nsets && f >= 0; s++)
+			for (int k = 1; k < t->nfields; k++) {
+				c = kg_cgats_cell(t, s, k);
+				CHECK(strpbrk(c, ".e"), "set %d field %s: '%s' has no decimal point", s + 1,
+				      t->fields[k], c);
+			}
+	}
+	kg_cgats_free(&cg);
+	CHECK(kg_patchset_read(path, 0, &back, &err) == 0, "%s", err.msg);
+	int exact = 0;
+	for (int i = 0; back && i < N; i++)
+		for (int b = 0; b < KG_NBANDS; b++) {
+			double a = ps->spectra[i].v[b], r = back->spectra[i].v[b];
+			int same = a == r; /* -0 comes back as 0 from the grid interpolation */
+			exact += same;
+			CHECK(same, "patch %d band %d: wrote %.17g, read %.17g", i + 1, b, a, r);
+		}
+	printf("percent round trip: %d of %d values exact\n", exact, N * KG_NBANDS);
+	unlink(path);
+	free(path);
+	kg_patchset_free(&ps);
+	kg_patchset_free(&back);
+}
+
 int main(void)
 {
 	if (!mkdtemp(tmpdir)) {
@@ -158,6 +223,7 @@ int main(void)
 	}
 	test_table_roundtrip();
 	test_patchset_roundtrip();
+	test_percent_exact();
 	rmdir(tmpdir);
 	return kg_test_done("cgats-roundtrip");
 }

@@ -379,6 +379,51 @@ static void test_integration(void)
 	kg_illuminant_free(&d65);
 }
 
+/* Integration over part of the observer's range: the rows inside the limits, the
+ * normalisation over the same rows. */
+static void test_integration_range(void)
+{
+	kg_err err = {{0}};
+	kg_illuminant *d65 = named("D65");
+	double wl[31], v[31];
+	for (int i = 0; i < 31; i++) {
+		wl[i] = 400.0 + 10 * i;
+		v[i] = 0.05 + 0.9 * i / 30.0;
+	}
+	kg_xyz full, all, part;
+	CHECK(kg_samples_to_xyz(wl, v, 31, d65, &full, &err) == 0, "%s", err.msg);
+	CHECK(kg_samples_to_xyz_range(wl, v, 31, d65, 360, 830, &all, &err) == 0, "%s",
+	      err.msg);
+	CHECK(full.X == all.X && full.Y == all.Y && full.Z == all.Z,
+	      "360-830 is kg_samples_to_xyz");
+	CHECK(kg_samples_to_xyz_range(wl, v, 31, d65, 400, 700, &part, &err) == 0, "%s",
+	      err.msg);
+	/* By hand: the same sums over rows 400..700 only. */
+	kg_xyz hand = {0, 0, 0};
+	double lum = 0.0;
+	for (int nm = 400; nm <= 700; nm++) {
+		const double *c = kg_cie1931_cmf[nm - KG_CMF_FIRST_NM];
+		double s = kg_samples_interp(d65->wl, d65->v, d65->nsamples, nm);
+		double r = kg_samples_interp(wl, v, 31, nm);
+		hand.X += s * r * c[0];
+		hand.Y += s * r * c[1];
+		hand.Z += s * r * c[2];
+		lum += s * c[1];
+	}
+	CHECK_NEAR(part.X, 100 * hand.X / lum, 1e-9, "400-700 X by hand");
+	CHECK_NEAR(part.Y, 100 * hand.Y / lum, 1e-9, "400-700 Y by hand");
+	CHECK_NEAR(part.Z, 100 * hand.Z / lum, 1e-9, "400-700 Z by hand");
+	CHECK(fabs(part.X - full.X) > 0.05, "held ends beyond 700 nm change X: %g vs %g",
+	      part.X, full.X);
+	kg_xyz w = kg_illuminant_white_range(d65, 400, 700);
+	CHECK_NEAR(w.Y, 100.0, 1e-12, "white over 400-700 has Y = 100");
+	CHECK(kg_samples_to_xyz_range(wl, v, 31, d65, 900, 950, &part, &err) == KG_ERANGE &&
+	          strstr(err.msg, "900-950"),
+	      "a range outside the observer refused: %s", err.msg);
+	CHECK(isnan(kg_illuminant_white_range(d65, 700, 400).Y), "empty range: NaN white");
+	kg_illuminant_free(&d65);
+}
+
 int main(void)
 {
 	test_ciede2000();
@@ -387,5 +432,6 @@ int main(void)
 	test_srgb();
 	test_illuminants();
 	test_integration();
+	test_integration_range();
 	return kg_test_done("colorimetry_formulas");
 }
