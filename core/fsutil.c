@@ -197,31 +197,10 @@ static long tmp_name_pid(const char *name)
 	return pid > 0 && end[0] == '.' && strlen(end + 1) == 6 ? pid : 0;
 }
 
-/* Remove the temporaries of dead processes in dir, once per directory and process
- * (a writer of many files in one directory pays for one scan). */
+/* Remove the temporaries of dead processes in dir (a scan of its entries, at every
+ * open: output directories hold few files). */
 static void sweep_stale(const char *dir)
 {
-	static pthread_mutex_t lock = PTHREAD_MUTEX_INITIALIZER;
-	static struct {
-		dev_t dev;
-		ino_t ino;
-	} swept[64];
-	static unsigned next; /* the oldest entry is forgotten first */
-	struct stat st;
-	if (stat(dir, &st) != 0)
-		return;
-	pthread_mutex_lock(&lock);
-	int seen = 0;
-	for (unsigned i = 0; i < (next < 64 ? next : 64) && !seen; i++)
-		seen = swept[i].dev == st.st_dev && swept[i].ino == st.st_ino;
-	if (!seen) {
-		swept[next % 64].dev = st.st_dev;
-		swept[next % 64].ino = st.st_ino;
-		next++;
-	}
-	pthread_mutex_unlock(&lock);
-	if (seen)
-		return;
 	DIR *d = opendir(dir);
 	if (!d)
 		return;
