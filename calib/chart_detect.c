@@ -9,6 +9,7 @@
  * Pixel coordinates: (0, 0) is the top-left corner of the top-left pixel, so pixel
  * (i, j) has its centre at (i + 0.5, j + 0.5). libapriltag reports corners with
  * pixel centres at integers; they are shifted by half a pixel on the way in. */
+#include <limits.h>
 #include <math.h>
 #include <stdarg.h>
 #include <stdint.h>
@@ -24,8 +25,11 @@
 
 #if KG_HAVE_MCC
 #include "chart_mcc.h"
+#define MCC_MIN_SIDE 100L
 #endif
 #if HAVE_APRILTAG
+/* The largest side libapriltag's segmentation takes after decimation. */
+#define APRILTAG_MAX_SIDE 32767L
 #include <apriltag/apriltag.h>
 #include <apriltag/tag16h5.h>
 #include <apriltag/tag25h9.h>
@@ -343,6 +347,21 @@ static double now_seconds(void)
 }
 
 /* ---- input images ------------------------------------------------------------ */
+
+/* Every stage states the image sides it supports, and an image outside them is refused
+ * before the stage runs: a corrupted width or height field in a TIFF or PNG must end
+ * in a message, not in a crash or an assertion inside a library. */
+static int check_sides(int width, int height, long min_side, long max_side, const char *stage,
+                       const char *hint, kg_err *err)
+{
+	if (width >= min_side && height >= min_side && width <= max_side && height <= max_side)
+		return 0;
+	if (max_side >= INT_MAX)
+		return kg_fail(err, KG_EINVAL, "image %d x %d px: %s needs at least %ld px per side%s",
+		               width, height, stage, min_side, hint ? hint : "");
+	return kg_fail(err, KG_EINVAL, "image %d x %d px: %s needs %ld to %ld px per side%s",
+	               width, height, stage, min_side, max_side, hint ? hint : "");
+}
 
 /* Bilinear demosaic of a CFA frame of R, G and B letters: each missing colour is the
  * mean of the 3 x 3 neighbours that carry it (edges clamped). */
@@ -1055,11 +1074,25 @@ static int detect_with_tags(const layout_view *L, const work_image *wi,
 	if (!g)
 		return kg_fail(err, KG_ENOMEM, "out of memory");
 	long npix = (long)wi->width * wi->height;
+	int big = wi->width > wi->height ? wi->width : wi->height;
 	int decimate = opt->decimate > 0 ? opt->decimate : npix < 4000000 ? 2 : 4;
+	while (opt->decimate == 0 && big > APRILTAG_MAX_SIDE * (long)decimate)
+		decimate *= 2; /* automatic decimation keeps within libapriltag's coordinates */
 	const char *family = opt->family ? opt->family : L->family ? L->family : "tag36h11";
 	r->decimate = decimate;
-	int ret = run_apriltag(g, wi->width, wi->height, family, decimate,
-	                       opt->threads > 0 ? opt->threads : 1, r, err);
+	/* libapriltag decimates a side s to 1 + (s - 1) / d pixels; below 3 it reads out of
+	 * bounds, and its segmentation keeps doubled coordinates in 16 bits (it asserts a
+	 * side < 32768). */
+	char stage[96];
+	snprintf(stage, sizeof(stage), "the tag detector (libapriltag, decimate %d)", decimate);
+	int ret = check_sides(wi->width, wi->height, 2L * decimate + 1,
+	                      APRILTAG_MAX_SIDE * (long)decimate, stage,
+	                      opt->decimate && big > APRILTAG_MAX_SIDE * (long)decimate
+	                          ? "; a larger --decimate takes larger images" : NULL,
+	                      err);
+	if (!ret)
+		ret = run_apriltag(g, wi->width, wi->height, family, decimate,
+		                   opt->threads > 0 ? opt->threads : 1, r, err);
 	free(g);
 	r->tag_seconds = now_seconds() - t0;
 	if (ret)
@@ -1305,9 +1338,15 @@ static int detect_tagless(const kg_chart_layout *l, const layout_view *L, const 
 		return kg_fail(err, KG_ENOTSUP, "layout %s is not a ColorChecker 24 (24 patches "
 		               "A01..D06): the tagless detector (OpenCV mcc) finds only that chart",
 		               l->name);
+	/* mcc keeps only contours of at least 100 px (its minContourLengthAllowed), i.e.
+	 * patches of 25 px: a ColorChecker 24 of 4 x 6 patches spans 100 px or more. */
+	int ret = check_sides(wi->width, wi->height, MCC_MIN_SIDE, INT_MAX,
+	                      "the tagless detector (OpenCV mcc)", NULL, err);
+	if (ret)
+		return ret;
 	double t0 = now_seconds(), box_px[4][2], box_mm[4][2], cost = 0;
-	int ret = kg_mcc_find_colorchecker(wi->data, wi->width, wi->height, wi->channels,
-	                                   white_level(wi), opt->threads, box_px, &cost, err);
+	ret = kg_mcc_find_colorchecker(wi->data, wi->width, wi->height, wi->channels,
+	                               white_level(wi), opt->threads, box_px, &cost, err);
 	r->tag_seconds += now_seconds() - t0;
 	if (ret)
 		return ret;
@@ -1442,9 +1481,14 @@ int kg_chart_detect(const kg_chart_layout *l, const kg_image *img,
 		opt.min_tags = 2;
 	if (l->npatches < 1)
 		return kg_fail(err, KG_EINVAL, "layout %s has no patches", l->name);
+	/* the sampler's pixel indexing, for images that did not come from core's readers */
+	int ret = check_sides(img->width, img->height, 1, INT_MAX, "chart detection",
+	                      NULL, err);
+	if (ret)
+		return ret;
 	layout_view L;
 	layout_arrays arrays;
-	int ret = make_view(l, &L, &arrays, err);
+	ret = make_view(l, &L, &arrays, err);
 	if (ret)
 		return ret;
 	work_image wi;

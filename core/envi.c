@@ -295,8 +295,9 @@ struct kg_envi_writer {
 	enum kg_envi_interleave interleave;
 	float scale;
 	size_t tsize;
-	char *header, *hdr_path, *data_path, *tmp_path;
-	int fd;
+	char *header, *hdr_path, *data_path;
+	kg_atomicfile data; /* the data file under construction */
+	int fd;          /* data.fd */
 	unsigned char *done; /* one flag per line */
 	float *fbuf;         /* a block in file order */
 	void *bbuf;          /* the same block converted to the file's type */
@@ -305,14 +306,10 @@ struct kg_envi_writer {
 
 static void writer_free(kg_envi_writer *w)
 {
-	if (w->fd >= 0)
-		close(w->fd);
-	if (w->tmp_path)
-		unlink(w->tmp_path);
+	kg_atomicfile_abort(&w->data);
 	free(w->header);
 	free(w->hdr_path);
 	free(w->data_path);
-	free(w->tmp_path);
 	free(w->done);
 	free(w->fbuf);
 	free(w->bbuf);
@@ -327,7 +324,7 @@ int kg_envi_writer_open(const char *path, const kg_envi_meta *meta, kg_envi_writ
 	kg_envi_writer *w = calloc(1, sizeof(*w));
 	if (!w)
 		return kg_fail(err, KG_ENOMEM, "%s: out of memory", path);
-	w->fd = -1;
+	w->fd = w->data.fd = w->data.slot = -1;
 	int ret = render_header(meta, &w->header, err);
 	if (ret) {
 		kg_err_prefix(err, "%s", path);
@@ -352,22 +349,14 @@ int kg_envi_writer_open(const char *path, const kg_envi_meta *meta, kg_envi_writ
 	}
 	total *= (unsigned long long)w->bands * w->tsize;
 	w->done = calloc((size_t)w->lines, 1);
-	size_t n = strlen(w->data_path) + 16;
-	w->tmp_path = malloc(n);
-	if (!w->done || !w->tmp_path) {
+	if (!w->done) {
 		ret = kg_fail(err, KG_ENOMEM, "%s: out of memory", path);
 		goto fail;
 	}
-	snprintf(w->tmp_path, n, "%s.tmp.XXXXXX", w->data_path);
-	w->fd = mkostemp(w->tmp_path, O_CLOEXEC);
-	if (w->fd < 0) {
-		int e = errno;
-		free(w->tmp_path);
-		w->tmp_path = NULL;
-		ret = kg_fail(err, KG_EIO, "%s: cannot create: %s", w->data_path, strerror(e));
+	if ((ret = kg_atomicfile_open(&w->data, w->data_path, err)))
 		goto fail;
-	}
-	if (fchmod(w->fd, 0644) != 0 || ftruncate(w->fd, (off_t)total) != 0) {
+	w->fd = w->data.fd;
+	if (ftruncate(w->fd, (off_t)total) != 0) {
 		ret = kg_fail(err, KG_EIO, "%s: cannot size the data file to %llu bytes: %s",
 		              w->data_path, total, strerror(errno));
 		goto fail;
@@ -556,12 +545,10 @@ int kg_envi_writer_finish(kg_envi_writer **wp, kg_err *err)
 			              y, e);
 			goto out;
 		}
-	if (fsync(w->fd) != 0 || close(w->fd) != 0) {
-		w->fd = -1;
+	if (fsync(w->fd) != 0) {
 		ret = kg_fail(err, KG_EIO, "%s: write failed: %s", w->data_path, strerror(errno));
 		goto out;
 	}
-	w->fd = -1;
 	kg_outfile hdr;
 	if ((ret = kg_outfile_open(&hdr, w->hdr_path, 0, err)))
 		goto out;
@@ -570,18 +557,11 @@ int kg_envi_writer_finish(kg_envi_writer **wp, kg_err *err)
 		ret = kg_fail(err, KG_EIO, "%s: write failed: %s", w->hdr_path, strerror(errno));
 		goto out;
 	}
-	if ((ret = kg_inputs_check_output(w->data_path, err))) {
+	w->fd = -1; /* closed by the commit */
+	if ((ret = kg_atomicfile_commit(&w->data, err))) {
 		kg_outfile_abort(&hdr);
 		goto out;
 	}
-	if (rename(w->tmp_path, w->data_path) != 0) {
-		kg_outfile_abort(&hdr);
-		ret = kg_fail(err, KG_EIO, "%s: cannot rename into place: %s", w->data_path,
-		              strerror(errno));
-		goto out;
-	}
-	free(w->tmp_path);
-	w->tmp_path = NULL;
 	if ((ret = kg_outfile_commit(&hdr, err)))
 		unlink(w->data_path);
 out:

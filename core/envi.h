@@ -64,8 +64,9 @@ int kg_envi_format_list(const double *v, int n, char **out, kg_err *err);
 
 typedef struct kg_envi_writer kg_envi_writer;
 
-/* Start a cube: the data go to a temporary file of the final size; nothing appears
- * under the final names until kg_envi_writer_finish. The header is validated here. */
+/* Start a cube: the data go to a temporary file of the final size (a kg_atomicfile, so an
+ * interrupted or killed writer leaves nothing behind); nothing appears under the final
+ * names until kg_envi_writer_finish. The header is validated here. */
 int kg_envi_writer_open(const char *path, const kg_envi_meta *meta, kg_envi_writer **out,
                         kg_err *err);
 /* Write lines y0 .. y1-1, all bands, from float data in the given layout (rows count

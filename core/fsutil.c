@@ -1,9 +1,15 @@
+#include <dirent.h>
 #include <errno.h>
+#include <fcntl.h>
 #include <pthread.h>
 #include <sched.h>
+#include <signal.h>
+#include <stdatomic.h>
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <time.h>
 #include <unistd.h>
 
 #include "fsutil.h"
@@ -89,9 +95,293 @@ void kg_inputs_reset(void)
 	pthread_mutex_unlock(&inputs.lock);
 }
 
+/* ---- temporaries ------------------------------------------------------------------ */
+
+#define TMP_TAG ".kogei-tmp."
+
+/* The named temporaries of this process that a signal must not leave behind. A fixed
+ * table of atomic pointers, so that the handler reads it without locks or allocation;
+ * a temporary that finds the table full is still removed by its writer's abort, and
+ * after a signal by the next writer in its directory (the sweep below). */
+enum { LIVE_MAX = 64 };
+static char *_Atomic live_tmp[LIVE_MAX];
+static pthread_once_t handlers_once = PTHREAD_ONCE_INIT;
+static const int cleanup_signals[] = {SIGINT, SIGTERM, SIGHUP};
+
+static void on_fatal_signal(int sig)
+{
+	int saved = errno;
+	for (int i = 0; i < LIVE_MAX; i++) {
+		char *p = atomic_load(&live_tmp[i]);
+		if (p)
+			unlink(p);
+	}
+	errno = saved;
+	/* SA_RESETHAND has restored the default action; the signal is blocked until the
+	 * handler returns and then ends the process as it would have. */
+	raise(sig);
+}
+
+static void install_handlers(void)
+{
+	for (size_t i = 0; i < sizeof(cleanup_signals) / sizeof(cleanup_signals[0]); i++) {
+		struct sigaction old, sa;
+		if (sigaction(cleanup_signals[i], NULL, &old) != 0 ||
+		    (old.sa_flags & SA_SIGINFO) || old.sa_handler != SIG_DFL)
+			continue; /* ignored, or the front end's own handler */
+		memset(&sa, 0, sizeof(sa));
+		sa.sa_handler = on_fatal_signal;
+		sa.sa_flags = SA_RESETHAND;
+		sigemptyset(&sa.sa_mask);
+		sigaction(cleanup_signals[i], &sa, NULL);
+	}
+}
+
+static int live_add(char *path)
+{
+	pthread_once(&handlers_once, install_handlers);
+	for (int i = 0; i < LIVE_MAX; i++) {
+		char *expected = NULL;
+		if (atomic_compare_exchange_strong(&live_tmp[i], &expected, path))
+			return i;
+	}
+	return -1;
+}
+
+static void live_remove(int slot)
+{
+	if (slot >= 0)
+		atomic_store(&live_tmp[slot], NULL);
+}
+
+/* "<dir>/.<base>.kogei-tmp.<pid>.<6 characters>" for path (caller frees). */
+static char *tmp_name(const char *path)
+{
+	static _Atomic uint64_t counter;
+	static const char chars[] = "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789";
+	const char *slash = strrchr(path, '/');
+	size_t dirlen = slash ? (size_t)(slash - path) + 1 : 0;
+	size_t n = strlen(path) + sizeof(TMP_TAG) + 32;
+	char *s = malloc(n);
+	if (!s)
+		return NULL;
+	struct timespec ts;
+	clock_gettime(CLOCK_REALTIME, &ts);
+	uint64_t x = (uint64_t)ts.tv_nsec ^ ((uint64_t)ts.tv_sec << 30) ^
+	             ((uint64_t)getpid() << 16) ^ (atomic_fetch_add(&counter, 1) * 0x9E3779B97F4A7C15ULL);
+	char suffix[7];
+	for (int i = 0; i < 6; i++) {
+		x ^= x >> 33;
+		x *= 0xff51afd7ed558ccdULL;
+		x ^= x >> 29;
+		suffix[i] = chars[x % (sizeof(chars) - 1)];
+	}
+	suffix[6] = '\0';
+	snprintf(s, n, "%.*s.%s" TMP_TAG "%ld.%s", (int)dirlen, path, path + dirlen,
+	         (long)getpid(), suffix);
+	return s;
+}
+
+/* The pid in a name of tmp_name's pattern, or 0 when name is not one. */
+static long tmp_name_pid(const char *name)
+{
+	if (name[0] != '.')
+		return 0;
+	const char *tag = NULL;
+	for (const char *p = strstr(name, TMP_TAG); p; p = strstr(p + 1, TMP_TAG))
+		tag = p;
+	if (!tag)
+		return 0;
+	char *end;
+	long pid = strtol(tag + strlen(TMP_TAG), &end, 10);
+	return pid > 0 && end[0] == '.' && strlen(end + 1) == 6 ? pid : 0;
+}
+
+/* Remove the temporaries of dead processes in dir (a scan of its entries, at every
+ * open: output directories hold few files). */
+static void sweep_stale(const char *dir)
+{
+	DIR *d = opendir(dir);
+	if (!d)
+		return;
+	for (struct dirent *e; (e = readdir(d));) {
+		long pid = tmp_name_pid(e->d_name);
+		struct stat fs;
+		if (pid && pid != (long)getpid() && kill((pid_t)pid, 0) != 0 && errno == ESRCH &&
+		    fstatat(dirfd(d), e->d_name, &fs, AT_SYMLINK_NOFOLLOW) == 0 && S_ISREG(fs.st_mode))
+			unlinkat(dirfd(d), e->d_name, 0);
+	}
+	closedir(d);
+}
+
+static char *dir_of(const char *path)
+{
+	const char *slash = strrchr(path, '/');
+	if (!slash)
+		return strdup(".");
+	if (slash == path)
+		return strdup("/");
+	return strndup(path, (size_t)(slash - path));
+}
+
+/* A file of kogei's own pattern beside path, created exclusively (fallback). */
+static int open_named(kg_atomicfile *t)
+{
+	for (int tries = 0; tries < 100; tries++) {
+		char *name = tmp_name(t->path);
+		if (!name) {
+			errno = ENOMEM;
+			return -1;
+		}
+		t->slot = live_add(name);
+		int fd = open(name, O_RDWR | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
+		if (fd >= 0) {
+			t->tmp_path = name;
+			return fd;
+		}
+		int e = errno;
+		live_remove(t->slot);
+		t->slot = -1;
+		free(name);
+		if (e != EEXIST) {
+			errno = e;
+			return -1;
+		}
+	}
+	errno = EEXIST;
+	return -1;
+}
+
+int kg_atomicfile_open(kg_atomicfile *t, const char *path, kg_err *err)
+{
+	kg_check_arg(t && path, err);
+	*t = (kg_atomicfile){.fd = -1, .slot = -1};
+	if (!*path)
+		return kg_fail(err, KG_EINVAL, "no output file given");
+	int ret = kg_inputs_check_output(path, err);
+	if (ret)
+		return ret;
+	char *dir = dir_of(path);
+	t->path = strdup(path);
+	if (!dir || !t->path) {
+		free(dir);
+		kg_atomicfile_abort(t);
+		return kg_fail(err, KG_ENOMEM, "%s: out of memory", path);
+	}
+	sweep_stale(dir);
+	const char *mode = getenv("KOGEI_TMPFILE");
+	int fd = -1;
+	if (!mode || strcmp(mode, "named") != 0) {
+		fd = open(dir, O_TMPFILE | O_RDWR | O_CLOEXEC, 0644);
+		/* no O_TMPFILE here: an old kernel (EISDIR) or file system (EOPNOTSUPP) */
+		if (fd < 0 && errno != EOPNOTSUPP && errno != EISDIR && errno != EINVAL &&
+		    errno != ENOSYS) {
+			int e = errno;
+			free(dir);
+			kg_atomicfile_abort(t);
+			return kg_fail_write(err, e, path, "cannot create");
+		}
+	}
+	free(dir);
+	if (fd < 0 && (fd = open_named(t)) < 0) {
+		int e = errno;
+		kg_atomicfile_abort(t);
+		return kg_fail_write(err, e, path, "cannot create");
+	}
+	t->fd = fd;
+	fchmod(fd, 0644); /* as a new file of the user's, whatever the umask */
+	return 0;
+}
+
+/* Give the anonymous file fd the name `name` (EEXIST if it is taken). */
+static int link_anonymous(int fd, const char *name)
+{
+	if (linkat(fd, "", AT_FDCWD, name, AT_EMPTY_PATH) == 0)
+		return 0;
+	if (errno != ENOENT && errno != EPERM)
+		return -1;
+	char proc[64]; /* AT_EMPTY_PATH needs CAP_DAC_READ_SEARCH; /proc does not */
+	snprintf(proc, sizeof(proc), "/proc/self/fd/%d", fd);
+	return linkat(AT_FDCWD, proc, AT_FDCWD, name, AT_SYMLINK_FOLLOW);
+}
+
+/* Name the anonymous file with a hidden unique name (held in t->tmp_path). */
+static int name_anonymous(kg_atomicfile *t)
+{
+	for (int tries = 0; tries < 100; tries++) {
+		char *name = tmp_name(t->path);
+		if (!name) {
+			errno = ENOMEM;
+			return -1;
+		}
+		t->slot = live_add(name);
+		if (link_anonymous(t->fd, name) == 0) {
+			t->tmp_path = name;
+			return 0;
+		}
+		int e = errno;
+		live_remove(t->slot);
+		t->slot = -1;
+		free(name);
+		if (e != EEXIST) {
+			errno = e;
+			return -1;
+		}
+	}
+	errno = EEXIST;
+	return -1;
+}
+
+int kg_atomicfile_commit(kg_atomicfile *t, kg_err *err)
+{
+	kg_check_arg(t && t->path, err);
+	int ret = 0;
+	if (t->fd < 0)
+		ret = kg_fail(err, KG_EINVAL, "%s: output file not open", t->path);
+	if (ret == 0 && !t->tmp_path && name_anonymous(t) != 0)
+		ret = kg_fail(err, KG_EIO, "%s: cannot link the finished file: %s", t->path,
+		              strerror(errno));
+	if (t->fd >= 0 && close(t->fd) != 0 && ret == 0)
+		ret = kg_fail_write(err, errno, t->path, "write failed");
+	t->fd = -1;
+	if (ret == 0)
+		ret = kg_inputs_check_output(t->path, err);
+	if (ret == 0 && rename(t->tmp_path, t->path) != 0)
+		ret = kg_fail(err, KG_EIO, "%s: cannot rename into place: %s", t->path,
+		              strerror(errno));
+	if (ret == 0) {
+		live_remove(t->slot);
+		t->slot = -1;
+		free(t->tmp_path);
+		t->tmp_path = NULL;
+	}
+	kg_atomicfile_abort(t);
+	return ret;
+}
+
+void kg_atomicfile_abort(kg_atomicfile *t)
+{
+	if (!t)
+		return;
+	if (t->fd >= 0)
+		close(t->fd);
+	t->fd = -1;
+	if (t->tmp_path)
+		unlink(t->tmp_path);
+	live_remove(t->slot);
+	t->slot = -1;
+	free(t->tmp_path);
+	free(t->path);
+	t->tmp_path = NULL;
+	t->path = NULL;
+}
+
+/* ---- kg_outfile -------------------------------------------------------------------- */
+
 int kg_outfile_open(kg_outfile *o, const char *path, int allow_stdout, kg_err *err)
 {
 	memset(o, 0, sizeof(*o));
+	o->tmp.fd = o->tmp.slot = -1;
 	if (!path || !*path)
 		return kg_fail(err, KG_EINVAL, "no output file given");
 	if (strcmp(path, "-") == 0) {
@@ -102,31 +392,19 @@ int kg_outfile_open(kg_outfile *o, const char *path, int allow_stdout, kg_err *e
 		o->path = strdup(path);
 		return o->path ? 0 : KG_ENOMEM;
 	}
-	int ret = kg_inputs_check_output(path, err);
+	int ret = kg_atomicfile_open(&o->tmp, path, err);
 	if (ret)
 		return ret;
 	o->path = strdup(path);
-	size_t n = strlen(path) + 32;
-	o->tmp_path = malloc(n);
-	if (!o->path || !o->tmp_path) {
+	if (!o->path) {
 		kg_outfile_abort(o);
 		return kg_fail(err, KG_ENOMEM, "%s: out of memory", path);
 	}
-	snprintf(o->tmp_path, n, "%s.tmp.XXXXXX", path);
-	int fd = mkstemp(o->tmp_path);
-	if (fd < 0) {
-		int e = errno;
-		free(o->tmp_path);
-		o->tmp_path = NULL;
-		kg_outfile_abort(o);
-		return kg_fail_write(err, e, path, "cannot create");
-	}
-	fchmod(fd, 0644);
-	o->fp = fdopen(fd, "wb");
+	o->fp = fdopen(o->tmp.fd, "w+b");
 	if (!o->fp) {
-		close(fd);
+		int e = errno;
 		kg_outfile_abort(o);
-		return kg_fail(err, KG_EIO, "%s: cannot open: %s", path, strerror(errno));
+		return kg_fail(err, KG_EIO, "%s: cannot open: %s", path, strerror(e));
 	}
 	return 0;
 }
@@ -145,32 +423,27 @@ int kg_outfile_commit(kg_outfile *o, kg_err *err)
 	}
 	if (fflush(o->fp) != 0 || ferror(o->fp) || fsync(fileno(o->fp)) != 0)
 		ret = kg_fail_write(err, errno, o->path, "write failed");
-	if (fclose(o->fp) != 0 && ret == 0)
+	/* the stream gives up its descriptor; kg_atomicfile_commit closes it */
+	o->tmp.fd = dup(fileno(o->fp));
+	if (o->tmp.fd < 0 && ret == 0)
 		ret = kg_fail_write(err, errno, o->path, "write failed");
+	fclose(o->fp);
 	o->fp = NULL;
 	if (ret == 0)
-		ret = kg_inputs_check_output(o->path, err);
-	if (ret == 0 && rename(o->tmp_path, o->path) != 0)
-		ret = kg_fail(err, KG_EIO, "%s: cannot rename into place: %s", o->path,
-		              strerror(errno));
-	if (ret == 0) {
-		free(o->tmp_path);
-		o->tmp_path = NULL;
-	}
+		ret = kg_atomicfile_commit(&o->tmp, err);
 	kg_outfile_abort(o);
 	return ret;
 }
 
 void kg_outfile_abort(kg_outfile *o)
 {
-	if (o->fp && o->fp != stdout)
+	if (o->fp && o->fp != stdout) {
 		fclose(o->fp);
+		o->tmp.fd = -1; /* closed with the stream */
+	}
 	o->fp = NULL;
-	if (o->tmp_path)
-		unlink(o->tmp_path);
-	free(o->tmp_path);
+	kg_atomicfile_abort(&o->tmp);
 	free(o->path);
-	o->tmp_path = NULL;
 	o->path = NULL;
 }
 

@@ -1,5 +1,18 @@
-/* Files written atomically: data goes to a temporary name beside the target and is
- * renamed over it only when complete, so a reader never sees a half-written file.
+/* Files written atomically: data go to a file that has no name until it is complete
+ * and is then put in place under its final name in one rename, so a reader never sees
+ * a half-written file and an interrupted writer leaves nothing behind.
+ *
+ * Temporaries (kg_atomicfile, under kg_outfile and the ENVI writer): on Linux the data go
+ * to an anonymous file (open(dir, O_TMPFILE)) that vanishes with the process however
+ * it ends, SIGKILL included; when complete it is linked to a hidden unique name beside
+ * the target and renamed over it. Where the file system has no O_TMPFILE, or
+ * KOGEI_TMPFILE=named asks for it (tests), the data go to a hidden name of kogei's own
+ * pattern, ".<name>.kogei-tmp.<pid>.<6 characters>", which a handler of SIGINT, SIGTERM
+ * and SIGHUP removes before the signal takes its default course (handlers installed
+ * once, only where the signal still has its default action; a front end that handles a
+ * signal itself aborts its writers). Temporaries of that pattern whose process is gone
+ * (killed with SIGKILL, or a crash) are removed when a writer next opens a file in
+ * their directory.
  *
  * No command overwrites what it reads. Every reader in core (kg_read_file, and through
  * it the CGATS, CSV and layout readers; kg_json_load; the TIFF and PNG readers; both
@@ -19,10 +32,29 @@
 
 #include "error.h"
 
+/* A file under construction: fd is open for reading and writing; nothing appears
+ * under path until kg_atomicfile_commit. */
+typedef struct kg_atomicfile {
+	int fd;         /* -1 when closed */
+	char *path;     /* final name */
+	char *tmp_path; /* the named temporary (fallback), NULL while anonymous */
+	int slot;       /* its entry in the registry of live temporaries, -1 if none */
+} kg_atomicfile;
+
+/* Start a file that will be named path (permissions 0644). Checks path against the
+ * inputs and first removes the dead processes' temporaries in its directory. */
+int kg_atomicfile_open(kg_atomicfile *t, const char *path, kg_err *err);
+/* Close fd (the caller has written and, if it wants durability, fsynced it) and put
+ * the file in place under path, replacing any file of that name. On failure nothing
+ * is left behind. Either way t is cleared. */
+int kg_atomicfile_commit(kg_atomicfile *t, kg_err *err);
+/* Abandon: close and remove the temporary. Safe on a cleared or committed t. */
+void kg_atomicfile_abort(kg_atomicfile *t);
+
 typedef struct kg_outfile {
 	FILE *fp;
 	char *path;     /* final name; "-" means standard output */
-	char *tmp_path; /* temporary name, NULL for standard output */
+	kg_atomicfile tmp; /* the file under construction (fd -1 for standard output) */
 } kg_outfile;
 
 /* Open path for writing (binary). "-" writes to stdout when allow_stdout is set. */

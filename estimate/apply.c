@@ -42,11 +42,13 @@ void kg_est_stats_format(const kg_est_stats *s, char *buf, size_t size)
 	double n = s->pixels ? (double)s->pixels : 1.0;
 	snprintf(buf, size,
 	         "pixels %llu, clipped %llu (%.3f %%), non-finite %llu (%.3f %%), "
-	         "clamped %llu (%.3f %%)",
+	         "clamped %llu (%.3f %%), flagged %llu (%.3f %%)",
 	         (unsigned long long)s->pixels, (unsigned long long)s->clipped,
 	         100.0 * (double)s->clipped / n, (unsigned long long)s->nonfinite,
 	         100.0 * (double)s->nonfinite / n, (unsigned long long)s->clamped_pixels,
-	         100.0 * (double)s->clamped_pixels / n);
+	         100.0 * (double)s->clamped_pixels / n,
+	         (unsigned long long)(s->clipped + s->nonfinite),
+	         100.0 * (double)(s->clipped + s->nonfinite) / n);
 }
 
 /* ---- input ----------------------------------------------------------------------- */
@@ -70,6 +72,28 @@ static int is_identity(const double *m)
 	return 1;
 }
 
+/* An image of which no pixel can be estimated (every one flagged: clipped or
+ * non-finite, on the camera's own values) is refused before anything is written: a
+ * cube of NaN is not a result. The scan ends at the first pixel that can be estimated,
+ * so an ordinary image costs a few reads. */
+static int check_estimable(const kg_image *img, float clip, const char *what, kg_err *err)
+{
+	size_t n = (size_t)img->width * (size_t)img->height, clipped = 0;
+	for (size_t i = 0; i < n; i++) {
+		const float *p = img->data + 3 * i;
+		if (!(isfinite(p[0]) && isfinite(p[1]) && isfinite(p[2])))
+			continue;
+		if (!(p[0] >= clip || p[1] >= clip || p[2] >= clip))
+			return 0;
+		clipped++;
+	}
+	return kg_fail(err, KG_EINVAL,
+	               "%s: no pixel can be estimated: all %zu pixels of the %d x %d image are "
+	               "flagged (%zu clipped, a channel >= the clip level %g; %zu non-finite, a "
+	               "channel NaN or Inf); nothing written",
+	               what, n, img->width, img->height, clipped, (double)clip, n - clipped);
+}
+
 static int input_prepare(const kg_image *img, const kg_apply_options *opt, const char *what,
                          apply_input *in, kg_err *err)
 {
@@ -84,6 +108,9 @@ static int input_prepare(const kg_image *img, const kg_apply_options *opt, const
 		               img->channels == 1 ? "; a raw Bayer frame must be demosaiced first" : "");
 	if (isnan(opt->clip_level))
 		return kg_fail(err, KG_EINVAL, "%s: clip level: expected a number, not NaN", what);
+	int rc = check_estimable(img, opt->clip_level, what, err);
+	if (rc)
+		return rc;
 	in->rgb = img->data;
 	in->clip = opt->clip_level;
 	if (!opt->pre || is_identity(opt->pre))

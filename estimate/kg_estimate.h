@@ -314,8 +314,9 @@ int kg_apply_side_path(const char *out_path, const char *suffix, char **out, kg_
 /* Estimate a 3-channel image (kg_image_read, 0..1 scale) into the cube out_hdr in
  * format (F32_BSQ, F32_BIP, F16_BSQ, F16_BIP or WEIGHTS; weights need a kernel with
  * a basis) plus its mask file. Refused (KG_EINVAL): an image that is not 3-channel
- * (a raw Bayer frame needs demosaicing first; the message says so). stats may be
- * NULL. */
+ * (a raw Bayer frame needs demosaicing first; the message says so), and an image of
+ * which every pixel is flagged (clipped or non-finite: the message gives the counts),
+ * before anything is written. stats may be NULL. */
 int kg_estimate_image(const kg_est_kernel *k, const kg_image *img, kg_est_format format,
                       const kg_apply_options *opt, const char *out_hdr,
                       kg_est_stats *stats, kg_err *err);
@@ -325,7 +326,9 @@ int kg_estimate_image(const kg_est_kernel *k, const kg_image *img, kg_est_format
  * KG_EINVAL when the kernel has no basis. */
 int kg_est_kernel_basis(const kg_est_kernel *k, double *basis, double *mean, kg_err *err);
 
-/* "pixels N, clipped N (p %), non-finite N (p %), clamped N (p %)" into buf. */
+/* "pixels N, clipped N (p %), non-finite N (p %), clamped N (p %), flagged N (p %)"
+ * into buf; flagged (clipped or non-finite) pixels are NaN in a cube and unclassified
+ * in a label map. */
 void kg_est_stats_format(const kg_est_stats *s, char *buf, size_t size);
 
 /* The materials a scene declares, with their spectra. */
@@ -433,7 +436,7 @@ void kg_classify_options_init(kg_classify_options *o);
  * side files (see above). The unknown test needs a linear kernel (pca), not a LUT.
  * Refused (KG_EINVAL, naming both sizes or the bad value): a variance image or mask
  * that does not match the image, a variance that is negative or not finite, bad
- * option values. res (may be NULL) receives the summary; free it with
+ * option values, an image of which every pixel is flagged. res (may be NULL) receives the summary; free it with
  * kg_classify_result_free. Needs memory for 5 bytes per pixel beside the image
  * (labels and margins, for the exact median and percentile). */
 int kg_classify_image_opts(const kg_est_kernel *k, const kg_est_material_set *set,
