@@ -532,6 +532,8 @@ int kg_process_run(const kg_process_options *o, kg_process_summary *summary, kg_
 			              KG_SESSION_FORMAT);
 	}
 	if (!ret)
+		ret = kg_session_manifest_validate(p.manifest_path, p.manifest, err);
+	if (!ret)
 		ret = kg_file_sha256(p.manifest_path, p.manifest_sha, err);
 	if (!ret)
 		ret = read_captures(&p);
