@@ -286,9 +286,16 @@ int proc_capture_image(proc *p, const proc_capture *c, double scale, proc_image 
 			mean = NULL;
 		} else if (mean->cfa) {
 			double step;
-			ret = kg_demosaic(mean, &out->rgb, &step, p->err);
-			if (ret)
-				kg_err_prefix(p->err, "capture %s: demosaicing: ", c->name);
+			kg_err e = {{0}};
+			ret = kg_demosaic(mean, &out->rgb, &step, &e);
+			if (ret == KG_ENOTSUP && c->kind == KG_CAPTURE_CHART) {
+				/* chart detection demosaics a mosaic itself (bilinear) */
+				out->rgb = mean;
+				mean = NULL;
+				ret = 0;
+			} else if (ret) {
+				kg_fail(p->err, ret, "capture %s: %s", c->name, e.msg);
+			}
 		} else {
 			ret = kg_fail(p->err, KG_EINVAL, "capture %s: a grey (1-channel) image without a "
 			              "CFA pattern cannot give colour: expected RGB or raw Bayer", c->name);
@@ -309,7 +316,8 @@ int proc_capture_image(proc *p, const proc_capture *c, double scale, proc_image 
 	                    var->height != out->rgb->height))
 		kg_image_free(&var);
 	if (!ret) {
-		size_t n = (size_t)out->rgb->width * (size_t)out->rgb->height * 3;
+		size_t n = (size_t)out->rgb->width * (size_t)out->rgb->height *
+		           (size_t)out->rgb->channels;
 		double frames = c->frames > 0 ? (double)c->frames : 1.0;
 		if (scale != 1.0)
 			for (size_t i = 0; i < n; i++)
