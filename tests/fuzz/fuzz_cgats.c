@@ -1,10 +1,7 @@
 /* Fuzz target for the CGATS reader, patch-set extraction and the CSV reader.
  *
- * Built with libFuzzer (meson -Dfuzzing=true, clang) it is a plain
- * LLVMFuzzerTestOneInput. Otherwise (KG_FUZZ_STANDALONE) a main() runs the target over
- * every file named on the command line and over a few thousand deterministic mutations
- * of each (byte flips, CGATS words, deletions, duplications, truncations, over-long
- * lines), so the ordinary test run walks the error paths under the sanitizers.
+ * Run by the shared fuzz driver (fuzz_driver.h) with CGATS words and over-long lines
+ * as its mutations; an input the CGATS reader refuses counts as refused.
  *
  * Invariants checked on every input: a refusal always carries a message, a success
  * leaves a consistent table, and everything is freed (the sanitizers see leaks). */
@@ -15,16 +12,11 @@
 
 #include "cgats.h"
 #include "csv.h"
-#include "fsutil.h"
-
-int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
+#include "fuzz_driver.h"
 
 static void require(int cond, const char *what)
 {
-	if (!cond) {
-		fprintf(stderr, "fuzz-cgats: invariant broken: %s\n", what);
-		abort();
-	}
+	kg_fuzz_require("fuzz-cgats", cond, what);
 }
 
 static void check_refusal(int r, const kg_err *err)
@@ -73,11 +65,12 @@ static void exercise_table(const kg_cgats_table *t)
 	}
 }
 
-int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
+static int fuzz_cgats_run(const uint8_t *data, size_t size)
 {
 	kg_err err = { { 0 } };
 	kg_cgats *cg = NULL;
 	int r = kg_cgats_parse((const char *)data, size, "fuzz.cgats", &cg, &err);
+	int refused = r != 0;
 	if (r != 0) {
 		check_refusal(r, &err);
 		require(cg == NULL, "no result on failure");
@@ -101,52 +94,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 					check_refusal(r, &cerr);
 	}
 	kg_csv_free(&csv);
-	return 0;
-}
-
-#ifdef KG_FUZZ_STANDALONE
-
-/* Deterministic xorshift64 so every run tries the same inputs. */
-static uint64_t rng_state;
-
-static uint64_t rng(void)
-{
-	rng_state ^= rng_state << 13;
-	rng_state ^= rng_state >> 7;
-	rng_state ^= rng_state << 17;
-	return rng_state;
-}
-
-static size_t below(size_t n)
-{
-	return n ? (size_t)(rng() % n) : 0;
-}
-
-typedef struct buffer {
-	uint8_t *p;
-	size_t len, cap;
-} buffer;
-
-static void reserve(buffer *b, size_t extra)
-{
-	if (b->len + extra <= b->cap)
-		return;
-	size_t cap = (b->len + extra) * 2;
-	uint8_t *p = realloc(b->p, cap);
-	if (!p) {
-		fprintf(stderr, "fuzz-cgats: out of memory\n");
-		exit(1);
-	}
-	b->p = p;
-	b->cap = cap;
-}
-
-static void insert(buffer *b, size_t at, const void *src, size_t n)
-{
-	reserve(b, n);
-	memmove(b->p + at + n, b->p + at, b->len - at);
-	memcpy(b->p + at, src, n);
-	b->len += n;
+	return refused;
 }
 
 static const char *const words[] = {
@@ -158,99 +106,14 @@ static const char *const words[] = {
 	"\nCGATS.17\n", "\r\n", "\xff\xfe",
 };
 
-static void mutate(buffer *b)
-{
-	int steps = 1 + (int)below(4);
-	for (int s = 0; s < steps; s++) {
-		switch (below(8)) {
-		case 0: /* flip a bit */
-			if (b->len)
-				b->p[below(b->len)] ^= (uint8_t)(1u << below(8));
-			break;
-		case 1: /* overwrite a byte with a structural character */
-			if (b->len)
-				b->p[below(b->len)] = (uint8_t)"\n\t \"#0-.eE\0"[below(11)];
-			break;
-		case 2: { /* insert a CGATS word */
-			const char *w = words[below(sizeof(words) / sizeof(words[0]))];
-			insert(b, below(b->len + 1), w, strlen(w));
-			break;
-		}
-		case 3: { /* delete a range */
-			size_t at = below(b->len + 1), n = below(b->len - at + 1);
-			n = n > 64 ? 64 : n;
-			memmove(b->p + at, b->p + at + n, b->len - at - n);
-			b->len -= n;
-			break;
-		}
-		case 4: { /* duplicate a range (repeats lines, sets, tables) */
-			size_t at = below(b->len + 1), n = below(b->len - at + 1);
-			n = n > 256 ? 256 : n;
-			uint8_t tmp[256];
-			memcpy(tmp, b->p + at, n);
-			insert(b, below(b->len + 1), tmp, n);
-			break;
-		}
-		case 5: /* truncate */
-			b->len = below(b->len + 1);
-			break;
-		case 6: /* an over-long line, now and then */
-			if (below(64) == 0) {
-				size_t n = (size_t)KG_CGATS_MAX_LINE + 1 + below(16);
-				reserve(b, n);
-				size_t at = below(b->len + 1);
-				memmove(b->p + at + n, b->p + at, b->len - at);
-				memset(b->p + at, 'x', n);
-				b->len += n;
-			}
-			break;
-		default: /* swap two bytes */
-			if (b->len >= 2) {
-				size_t i = below(b->len), j = below(b->len);
-				uint8_t t = b->p[i];
-				b->p[i] = b->p[j];
-				b->p[j] = t;
-			}
-			break;
-		}
-	}
-}
+static const kg_fuzz_target fuzz_cgats = {
+	.name = "fuzz-cgats",
+	.run = fuzz_cgats_run,
+	.words = words,
+	.nwords = sizeof(words) / sizeof(words[0]),
+	.structural = "\n\t \"#0-.eE",
+	.long_line = KG_CGATS_MAX_LINE,
+	.mutations = 3000,
+};
 
-#define MUTATIONS_PER_FILE 3000
-
-int main(int argc, char **argv)
-{
-	if (argc < 2) {
-		fprintf(stderr, "usage: %s FILE...\n", argv[0]);
-		return 2;
-	}
-	long runs = 0;
-	for (int i = 1; i < argc; i++) {
-		char *seed;
-		size_t len;
-		kg_err err = { { 0 } };
-		if (kg_read_file(argv[i], &seed, &len, &err) != 0) {
-			fprintf(stderr, "fuzz-cgats: %s\n", err.msg);
-			return 1;
-		}
-		LLVMFuzzerTestOneInput((const uint8_t *)seed, len);
-		runs++;
-		rng_state = 0x9E3779B97F4A7C15ull ^ ((uint64_t)i * 0x2545F4914F6CDD1Dull);
-		buffer b = { 0 };
-		for (int m = 0; m < MUTATIONS_PER_FILE; m++) {
-			b.len = 0;
-			reserve(&b, len + 1);
-			memcpy(b.p, seed, len);
-			b.len = len;
-			mutate(&b);
-			LLVMFuzzerTestOneInput(b.p, b.len);
-			runs++;
-		}
-		free(b.p);
-		free(seed);
-	}
-	printf("fuzz-cgats: %ld inputs from %d seed files, no crash\n", runs, argc - 1);
-	return 0;
-}
-
-#endif
+KG_FUZZ_TARGET(fuzz_cgats)
