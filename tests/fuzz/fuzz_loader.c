@@ -1,0 +1,227 @@
+/* Fuzz targets for the loaders that take a path: the material library, chart layouts,
+ * scenes, session manifests, camera recordings and images. One binary per loader:
+ * KG_FUZZ_LOADER names its entry in the table below. Each input is written to a file
+ * in the driver's per-run directory and loaded from there.
+ *
+ * The session loaders run inside a copy of fixtures/demo/session (KG_FUZZ_SESSION)
+ * whose frame and capture files are sparse files of the recorded sizes (the
+ * validators check sizes, not contents); the input replaces one file of it.
+ *
+ * Invariants checked on every input: a refusal is a negative code with a terminated,
+ * non-empty message, and no object; a success gives an object, and everything is freed
+ * (the sanitizers see leaks). */
+#define _XOPEN_SOURCE 700
+#include <fcntl.h>
+#include <ftw.h>
+#include <jansson.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "fuzz_driver.h"
+#include "image.h"
+#include "json.h"
+#include "kg_acquire.h"
+#include "kg_calib.h"
+#include "kg_optics.h"
+#include "kg_render.h"
+
+static const char target_name[] = "fuzz-" KG_FUZZ_LOADER;
+
+static void require(int cond, const char *what)
+{
+	kg_fuzz_require(target_name, cond, what);
+}
+
+/* Each loader returns its code and frees what it made; obj says whether it made one. */
+static int load_material(const char *path, int *obj, kg_err *err)
+{
+	kg_material_library *lib = NULL;
+	int r = kg_material_library_load(path, &lib, err);
+	*obj = lib != NULL;
+	kg_material_library_free(&lib);
+	return r;
+}
+
+static int load_chart_layout(const char *path, int *obj, kg_err *err)
+{
+	kg_chart_layout *l = NULL;
+	int r = kg_chart_layout_load(path, &l, err);
+	*obj = l != NULL;
+	kg_chart_layout_free(&l);
+	return r;
+}
+
+static int load_scene(const char *path, int *obj, kg_err *err)
+{
+	kg_scene *s = NULL;
+	int r = kg_scene_load(path, &s, err);
+	*obj = s != NULL;
+	kg_scene_free(&s);
+	return r;
+}
+
+static int load_image(const char *path, int *obj, kg_err *err)
+{
+	kg_image *img = NULL;
+	int r = kg_image_read(path, &img, err);
+	*obj = img != NULL;
+	kg_image_free(&img);
+	return r;
+}
+
+static int load_session(const char *path, int *obj, kg_err *err)
+{
+	json_t *root = NULL;
+	int r = kg_json_load(path, &root, err);
+	if (r == 0)
+		r = kg_session_manifest_validate(path, root, err);
+	json_decref(root);
+	*obj = r == 0;
+	return r;
+}
+
+static int load_recording(const char *path, int *obj, kg_err *err)
+{
+	(void)path;
+	char dir[256];
+	snprintf(dir, sizeof(dir), "%s/session", kg_fuzz_dir());
+	int r = kg_camera_recording_validate(dir, err);
+	*obj = r == 0;
+	return r;
+}
+
+typedef struct loader {
+	const char *name;
+	const char *leaf; /* where the input goes in the per-run directory */
+	int session;      /* the leaf lies inside the copied session */
+	int (*load)(const char *path, int *obj, kg_err *err);
+} loader;
+
+static const loader loaders[] = {
+	{ "material", "materials.json", 0, load_material },
+	{ "chart-layout", "layout.json", 0, load_chart_layout },
+	{ "scene", "scene.json", 0, load_scene },
+	{ "image", "image", 0, load_image },
+	{ "session", "session/session.json", 1, load_session },
+	{ "recording-index", "session/frames/index.jsonl", 1, load_recording },
+	{ "recording-camera", "session/frames/camera.json", 1, load_recording },
+};
+
+/* ---- the session copy -------------------------------------------------------------- */
+
+static int copy_entry(const char *path, const struct stat *st, int flag, struct FTW *ftw)
+{
+	(void)ftw;
+	char dst[4096];
+	snprintf(dst, sizeof(dst), "%s/session%s", kg_fuzz_dir(), path + strlen(KG_FUZZ_SESSION));
+	if (flag == FTW_D)
+		return mkdir(dst, 0700) == 0 ? 0 : -1;
+	if (flag != FTW_F)
+		return 0;
+	const char *ext = strrchr(path, '.');
+	if (ext && (strcmp(ext, ".json") == 0 || strcmp(ext, ".jsonl") == 0)) {
+		char *text;
+		size_t len;
+		kg_err err = { { 0 } };
+		if (kg_read_file(path, &text, &len, &err) != 0)
+			return -1;
+		kg_fuzz_write(dst + strlen(kg_fuzz_dir()) + 1, (const uint8_t *)text, len);
+		free(text);
+		return 0;
+	}
+	int fd = open(dst, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0600);
+	int ok = fd >= 0 && ftruncate(fd, st->st_size) == 0;
+	if (fd >= 0)
+		close(fd);
+	return ok ? 0 : -1;
+}
+
+/* The manifest's capture outputs (captures/<name>/...) are made by the demo's script,
+ * not stored: each becomes an empty file. */
+static void touch_files(const json_t *j)
+{
+	const char *key;
+	const json_t *v;
+	size_t i;
+	if (json_is_object(j)) {
+		json_object_foreach((json_t *)j, key, v) {
+			if (strcmp(key, "file") == 0 && json_is_string(v)) {
+				char leaf[512], path[1024];
+				snprintf(leaf, sizeof(leaf), "session/%s", json_string_value(v));
+				snprintf(path, sizeof(path), "%s/%s", kg_fuzz_dir(), leaf);
+				if (access(path, F_OK) != 0 && strncmp(json_string_value(v), "captures/", 9) == 0)
+					kg_fuzz_write(leaf, (const uint8_t *)"", 0);
+			} else
+				touch_files(v);
+		}
+	} else if (json_is_array(j))
+		json_array_foreach(j, i, v) touch_files(v);
+}
+
+static void copy_session(void)
+{
+	kg_err err = { { 0 } };
+	json_t *root = NULL;
+	if (nftw(KG_FUZZ_SESSION, copy_entry, 16, FTW_PHYS) != 0 ||
+	    kg_json_load(KG_FUZZ_SESSION "/session.json", &root, &err) != 0) {
+		fprintf(stderr, "%s: cannot copy %s %s\n", target_name, KG_FUZZ_SESSION, err.msg);
+		exit(1);
+	}
+	touch_files(root);
+	json_decref(root);
+}
+
+/* ---- the target ------------------------------------------------------------------------ */
+
+static const loader *chosen(void)
+{
+	static const loader *l;
+	if (!l) {
+		for (size_t i = 0; i < sizeof(loaders) / sizeof(loaders[0]); i++)
+			if (strcmp(loaders[i].name, KG_FUZZ_LOADER) == 0)
+				l = &loaders[i];
+		require(l != NULL, "KG_FUZZ_LOADER names a loader");
+		if (l->session)
+			copy_session();
+	}
+	return l;
+}
+
+static int fuzz_loader_run(const uint8_t *data, size_t size)
+{
+	const loader *l = chosen();
+	const char *path = kg_fuzz_write(l->leaf, data, size);
+	kg_err err = { { 0 } };
+	int obj = 0;
+	int r = l->load(path, &obj, &err);
+	if (r != 0) {
+		require(r < 0, "a refusal is a negative code");
+		require(!obj, "no object on failure");
+		require(memchr(err.msg, '\0', sizeof(err.msg)) != NULL, "message is terminated");
+		require(err.msg[0] != '\0', "a refusal has a message");
+	} else
+		require(obj, "an object on success");
+	return r != 0;
+}
+
+static const char *const words[] = {
+	"{", "}", "[", "]", ",", ":", "\"", "\\u0000", "\\", "null", "true", "false", "0",
+	"-1", "1e999", "-0", "1.5", "4294967296", "9223372036854775808", "\"\"",
+	"\"x\": 1", "\"format\": ", "\"file\": \"../x\"", "\"name\": ", "\"id\": ", "\n",
+	"\"/etc/passwd\"", "\"a/../../b\"", "[[[[[[[[", "\xff", "IHDR", "IDAT", "IEND",
+	"II*", "MM",
+};
+
+static const kg_fuzz_target fuzz_loader = {
+	.name = target_name,
+	.run = fuzz_loader_run,
+	.words = words,
+	.nwords = sizeof(words) / sizeof(words[0]),
+	.structural = "{}[],:\"\\ -.e0\n\xff",
+	.mutations = 500,
+};
+
+KG_FUZZ_TARGET(fuzz_loader)
