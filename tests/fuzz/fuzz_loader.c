@@ -21,6 +21,7 @@
 #include <unistd.h>
 
 #include "fuzz_driver.h"
+#include "envi.h"
 #include "image.h"
 #include "json.h"
 #include "kg_acquire.h"
@@ -60,6 +61,54 @@ static int load_scene(const char *path, int *obj, kg_err *err)
 	int r = kg_scene_load(path, &s, err);
 	*obj = s != NULL;
 	kg_scene_free(&s);
+	return r;
+}
+
+static int load_camera(const char *path, int *obj, kg_err *err)
+{
+	kg_camera_calib *cam = NULL;
+	int r = kg_camera_load(path, &cam, err);
+	*obj = cam != NULL;
+	kg_camera_calib_free(&cam);
+	return r;
+}
+
+static int load_reference(const char *path, int *obj, kg_err *err)
+{
+	kg_reference *ref = NULL;
+	int r = kg_reference_load(path, &ref, err);
+	*obj = ref != NULL;
+	kg_reference_free(&ref);
+	return r;
+}
+
+/* The header is the input; its data file (cube.img) is a sparse file large enough
+ * for the seeds, so the reader reads a corner window of it too. */
+#define ENVI_DATA_BYTES (128ll << 20)
+
+static int load_envi(const char *path, int *obj, kg_err *err)
+{
+	static int data_made;
+	if (!data_made) {
+		char data[256];
+		snprintf(data, sizeof(data), "%s/cube.img", kg_fuzz_dir());
+		int fd = open(data, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0600);
+		require(fd >= 0 && ftruncate(fd, ENVI_DATA_BYTES) == 0, "the ENVI data file is made");
+		close(fd);
+		data_made = 1;
+	}
+	kg_envi *e = NULL;
+	int r = kg_envi_open(path, &e, err);
+	*obj = e != NULL;
+	if (r == 0) {
+		int w = e->meta.samples < 4 ? e->meta.samples : 4;
+		int h = e->meta.lines < 4 ? e->meta.lines : 4;
+		float *px = malloc((size_t)w * (size_t)h * (size_t)e->meta.bands * sizeof(float));
+		require(px != NULL, "memory for a window");
+		r = kg_envi_read(e, 0, 0, w, h, KG_LAYOUT_BIP, px, err);
+		free(px);
+	}
+	kg_envi_close(&e);
 	return r;
 }
 
@@ -105,6 +154,9 @@ static const loader loaders[] = {
 	{ "chart-layout", "layout.json", 0, load_chart_layout },
 	{ "scene", "scene.json", 0, load_scene },
 	{ "image", "image", 0, load_image },
+	{ "camera", "camera.json", 0, load_camera },
+	{ "reference", "reference.json", 0, load_reference },
+	{ "envi", "cube.hdr", 0, load_envi },
 	{ "session", "session/session.json", 1, load_session },
 	{ "recording-index", "session/frames/index.jsonl", 1, load_recording },
 	{ "recording-camera", "session/frames/camera.json", 1, load_recording },
