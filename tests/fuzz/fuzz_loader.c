@@ -152,6 +152,7 @@ typedef struct loader {
 static const loader loaders[] = {
 	{ "material", "materials.json", 0, load_material },
 	{ "chart-layout", "layout.json", 0, load_chart_layout },
+	{ "chart-cht", "layout.cht", 0, load_chart_layout },
 	{ "scene", "scene.json", 0, load_scene },
 	{ "image", "image", 0, load_image },
 	{ "camera", "camera.json", 0, load_camera },
@@ -264,7 +265,8 @@ static const char *const words[] = {
 	"-1", "1e999", "-0", "1.5", "4294967296", "9223372036854775808", "\"\"",
 	"\"x\": 1", "\"format\": ", "\"file\": \"../x\"", "\"name\": ", "\"id\": ", "\n",
 	"\"/etc/passwd\"", "\"a/../../b\"", "[[[[[[[[", "\xff", "IHDR", "IDAT", "IEND",
-	"II*", "MM",
+	"II*", "MM", "BOXES ", "BOX_SHRINK ", "X ", "Y ", "D ", "\nEXPECTED XYZ ",
+	"_ ",
 };
 
 static const kg_fuzz_target fuzz_loader = {
