@@ -28,6 +28,7 @@
 #include "kg_calib.h"
 #include "kg_optics.h"
 #include "kg_render.h"
+#include "mjpeg.h"
 
 static const char target_name[] = "fuzz-" KG_FUZZ_LOADER;
 
@@ -142,25 +143,39 @@ static int load_recording(const char *path, int *obj, kg_err *err)
 	return r;
 }
 
+/* MJPEG frames come from memory, not files: the frame size is the seed's
+ * (tests/fuzz/corpus_loaders/chart_48x36.jpg). */
+static int decode_mjpeg(const uint8_t *data, size_t size, int *obj, kg_err *err)
+{
+	uint8_t *rgb = malloc(48 * 36 * 3);
+	require(rgb != NULL, "memory for a frame");
+	int r = kg_mjpeg_decode(data, size, 48, 36, rgb, err);
+	free(rgb);
+	*obj = r == 0;
+	return r;
+}
+
 typedef struct loader {
 	const char *name;
 	const char *leaf; /* where the input goes in the per-run directory */
 	int session;      /* the leaf lies inside the copied session */
 	int (*load)(const char *path, int *obj, kg_err *err);
+	int (*decode)(const uint8_t *data, size_t size, int *obj, kg_err *err); /* no leaf */
 } loader;
 
 static const loader loaders[] = {
-	{ "material", "materials.json", 0, load_material },
-	{ "chart-layout", "layout.json", 0, load_chart_layout },
-	{ "chart-cht", "layout.cht", 0, load_chart_layout },
-	{ "scene", "scene.json", 0, load_scene },
-	{ "image", "image", 0, load_image },
-	{ "camera", "camera.json", 0, load_camera },
-	{ "reference", "reference.json", 0, load_reference },
-	{ "envi", "cube.hdr", 0, load_envi },
-	{ "session", "session/session.json", 1, load_session },
-	{ "recording-index", "session/frames/index.jsonl", 1, load_recording },
-	{ "recording-camera", "session/frames/camera.json", 1, load_recording },
+	{ "material", "materials.json", 0, load_material, NULL },
+	{ "chart-layout", "layout.json", 0, load_chart_layout, NULL },
+	{ "chart-cht", "layout.cht", 0, load_chart_layout, NULL },
+	{ "scene", "scene.json", 0, load_scene, NULL },
+	{ "image", "image", 0, load_image, NULL },
+	{ "camera", "camera.json", 0, load_camera, NULL },
+	{ "reference", "reference.json", 0, load_reference, NULL },
+	{ "envi", "cube.hdr", 0, load_envi, NULL },
+	{ "session", "session/session.json", 1, load_session, NULL },
+	{ "recording-index", "session/frames/index.jsonl", 1, load_recording, NULL },
+	{ "recording-camera", "session/frames/camera.json", 1, load_recording, NULL },
+	{ "mjpeg", NULL, 0, NULL, decode_mjpeg },
 };
 
 /* ---- the session copy -------------------------------------------------------------- */
@@ -246,10 +261,10 @@ static const loader *chosen(void)
 static int fuzz_loader_run(const uint8_t *data, size_t size)
 {
 	const loader *l = chosen();
-	const char *path = kg_fuzz_write(l->leaf, data, size);
 	kg_err err = { { 0 } };
 	int obj = 0;
-	int r = l->load(path, &obj, &err);
+	int r = l->leaf ? l->load(kg_fuzz_write(l->leaf, data, size), &obj, &err)
+	                : l->decode(data, size, &obj, &err);
 	if (r != 0) {
 		require(r < 0, "a refusal is a negative code");
 		require(!obj, "no object on failure");
@@ -266,7 +281,7 @@ static const char *const words[] = {
 	"\"x\": 1", "\"format\": ", "\"file\": \"../x\"", "\"name\": ", "\"id\": ", "\n",
 	"\"/etc/passwd\"", "\"a/../../b\"", "[[[[[[[[", "\xff", "IHDR", "IDAT", "IEND",
 	"II*", "MM", "BOXES ", "BOX_SHRINK ", "X ", "Y ", "D ", "\nEXPECTED XYZ ",
-	"_ ",
+	"_ ", "\xff\xd8", "\xff\xd9", "\xff\xc0", "\xff\xc4", "\xff\xda", "\xff\xdb",
 };
 
 static const kg_fuzz_target fuzz_loader = {
