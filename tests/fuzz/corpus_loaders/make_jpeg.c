@@ -1,11 +1,12 @@
 /* Encodes a 16-bit RGB TIFF's top 8 bits as a baseline JPEG (libjpeg, quality 90): the
  * seed of fuzz-mjpeg. Not built by meson; see README.md.
  *   cc make_jpeg.c -ltiff -ljpeg -o make_jpeg && ./make_jpeg IN.tif OUT.jpg */
-#include <jpeglib.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <tiffio.h>
+
+#include <jpeglib.h> /* after stdio.h: it uses FILE and size_t */
 
 int main(int argc, char **argv)
 {
