@@ -199,7 +199,7 @@ static long tmp_name_pid(const char *name)
 
 /* Remove the temporaries of dead processes in dir (a scan of its entries, at every
  * open: output directories hold few files). */
-static void sweep_stale(const char *dir)
+void kg_atomicfile_sweep(const char *dir)
 {
 	DIR *d = opendir(dir);
 	if (!d)
@@ -224,8 +224,10 @@ static char *dir_of(const char *path)
 	return strndup(path, (size_t)(slash - path));
 }
 
-/* A file of kogei's own pattern beside path, created exclusively (fallback). */
-static int open_named(kg_atomicfile *t)
+/* Try unique hidden names of kogei's pattern beside t->path until attempt(t, name)
+ * succeeds (returns >= 0, taken as the result; the name stays in t->tmp_path) or fails
+ * otherwise than with EEXIST. -1 with errno on failure. */
+static int with_unique_name(kg_atomicfile *t, int (*attempt)(kg_atomicfile *t, const char *name))
 {
 	for (int tries = 0; tries < 100; tries++) {
 		char *name = tmp_name(t->path);
@@ -234,10 +236,10 @@ static int open_named(kg_atomicfile *t)
 			return -1;
 		}
 		t->slot = live_add(name);
-		int fd = open(name, O_RDWR | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
-		if (fd >= 0) {
+		int r = attempt(t, name);
+		if (r >= 0) {
 			t->tmp_path = name;
-			return fd;
+			return r;
 		}
 		int e = errno;
 		live_remove(t->slot);
@@ -252,7 +254,18 @@ static int open_named(kg_atomicfile *t)
 	return -1;
 }
 
+static int create_exclusive(kg_atomicfile *t, const char *name)
+{
+	(void)t;
+	return open(name, O_RDWR | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
+}
+
 int kg_atomicfile_open(kg_atomicfile *t, const char *path, kg_err *err)
+{
+	return kg_atomicfile_open_flags(t, path, 0, err);
+}
+
+int kg_atomicfile_open_flags(kg_atomicfile *t, const char *path, unsigned flags, kg_err *err)
 {
 	kg_check_arg(t && path, err);
 	*t = (kg_atomicfile){.fd = -1, .slot = -1};
@@ -268,7 +281,8 @@ int kg_atomicfile_open(kg_atomicfile *t, const char *path, kg_err *err)
 		kg_atomicfile_abort(t);
 		return kg_fail(err, KG_ENOMEM, "%s: out of memory", path);
 	}
-	sweep_stale(dir);
+	if (!(flags & KG_ATOMICFILE_NO_SWEEP))
+		kg_atomicfile_sweep(dir);
 	const char *mode = getenv("KOGEI_TMPFILE");
 	int fd = -1;
 	if (!mode || strcmp(mode, "named") != 0) {
@@ -283,7 +297,7 @@ int kg_atomicfile_open(kg_atomicfile *t, const char *path, kg_err *err)
 		}
 	}
 	free(dir);
-	if (fd < 0 && (fd = open_named(t)) < 0) {
+	if (fd < 0 && (fd = with_unique_name(t, create_exclusive)) < 0) {
 		int e = errno;
 		kg_atomicfile_abort(t);
 		return kg_fail_write(err, e, path, "cannot create");
@@ -305,31 +319,10 @@ static int link_anonymous(int fd, const char *name)
 	return linkat(AT_FDCWD, proc, AT_FDCWD, name, AT_SYMLINK_FOLLOW);
 }
 
-/* Name the anonymous file with a hidden unique name (held in t->tmp_path). */
-static int name_anonymous(kg_atomicfile *t)
+/* Give the anonymous file t->fd the hidden name `name` (0, or -1 with errno). */
+static int name_anonymous(kg_atomicfile *t, const char *name)
 {
-	for (int tries = 0; tries < 100; tries++) {
-		char *name = tmp_name(t->path);
-		if (!name) {
-			errno = ENOMEM;
-			return -1;
-		}
-		t->slot = live_add(name);
-		if (link_anonymous(t->fd, name) == 0) {
-			t->tmp_path = name;
-			return 0;
-		}
-		int e = errno;
-		live_remove(t->slot);
-		t->slot = -1;
-		free(name);
-		if (e != EEXIST) {
-			errno = e;
-			return -1;
-		}
-	}
-	errno = EEXIST;
-	return -1;
+	return link_anonymous(t->fd, name);
 }
 
 int kg_atomicfile_commit(kg_atomicfile *t, kg_err *err)
@@ -338,7 +331,7 @@ int kg_atomicfile_commit(kg_atomicfile *t, kg_err *err)
 	int ret = 0;
 	if (t->fd < 0)
 		ret = kg_fail(err, KG_EINVAL, "%s: output file not open", t->path);
-	if (ret == 0 && !t->tmp_path && name_anonymous(t) != 0)
+	if (ret == 0 && !t->tmp_path && with_unique_name(t, name_anonymous) != 0)
 		ret = kg_fail(err, KG_EIO, "%s: cannot link the finished file: %s", t->path,
 		              strerror(errno));
 	if (t->fd >= 0 && close(t->fd) != 0 && ret == 0)

@@ -44,6 +44,13 @@ typedef struct kg_atomicfile {
 /* Start a file that will be named path (permissions 0644). Checks path against the
  * inputs and first removes the dead processes' temporaries in its directory. */
 int kg_atomicfile_open(kg_atomicfile *t, const char *path, kg_err *err);
+/* kg_atomicfile_open with flags: KG_ATOMICFILE_NO_SWEEP leaves the directory's stale
+ * temporaries alone (a writer of many files in one directory, such as a frame recorder,
+ * sweeps once with kg_atomicfile_sweep instead of at every file). */
+enum { KG_ATOMICFILE_NO_SWEEP = 1u << 0 };
+int kg_atomicfile_open_flags(kg_atomicfile *t, const char *path, unsigned flags, kg_err *err);
+/* Remove the temporaries of kogei's pattern in dir whose process is gone. */
+void kg_atomicfile_sweep(const char *dir);
 /* Close fd (the caller has written and, if it wants durability, fsynced it) and put
  * the file in place under path, replacing any file of that name. On failure nothing
  * is left behind. Either way t is cleared. */

@@ -239,6 +239,7 @@ static int capture_begin(kg_frame_recorder *r, kg_err *err)
 		return ret;
 	}
 	r->next = 1;
+	kg_atomicfile_sweep(r->capture_dir);
 	DIR *d = opendir(r->capture_dir);
 	for (struct dirent *e; d && (e = readdir(d));) {
 		char *end;
@@ -270,37 +271,25 @@ static json_t *json_number_or_null(double v)
 	return isfinite(v) ? json_real(v) : json_null();
 }
 
-/* The frame's bytes to path.tmp, then renamed into place. Not fsynced: what a killed
- * process wrote is in the page cache and survives it; kg_frame_recorder_sync makes
- * everything durable against power loss (at every capture boundary, before a
- * manifest names the frames, and at close), so the frame rate is not bounded by one
- * fsync per frame. */
+/* The frame's bytes to a file with no name (kg_atomicfile) that is put in place when
+ * complete, so a killed recorder leaves no partial frame and no temporary. Not fsynced:
+ * what a killed process wrote is in the page cache and survives it;
+ * kg_frame_recorder_sync makes everything durable against power loss (at every capture
+ * boundary, before a manifest names the frames, and at close), so the frame rate is not
+ * bounded by one fsync per frame. The folder's stale temporaries are swept once, when
+ * the capture begins. */
 static int write_frame_file(const char *path, const void *data, size_t size, kg_err *err)
 {
-	int ret = kg_inputs_check_output(path, err);
+	kg_atomicfile t;
+	int ret = kg_atomicfile_open_flags(&t, path, KG_ATOMICFILE_NO_SWEEP, err);
 	if (ret)
 		return ret;
-	size_t n = strlen(path);
-	char *tmp = malloc(n + 5);
-	if (!tmp)
-		return kg_fail(err, KG_ENOMEM, "%s: out of memory", path);
-	memcpy(tmp, path, n);
-	memcpy(tmp + n, ".tmp", 5);
-	int fd = open(tmp, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-	if (fd < 0)
-		ret = kg_fail_write(err, errno, tmp, "cannot create");
-	else if (size && write_all(fd, data, size) != 0) {
-		ret = kg_fail_write(err, errno, tmp, "write failed");
-		close(fd);
-	} else if (close(fd) != 0)
-		ret = kg_fail_write(err, errno, tmp, "close failed");
-	else if (rename(tmp, path) != 0)
-		ret = kg_fail(err, KG_EIO, "%s: cannot rename into place: %s", path,
-		              strerror(errno));
-	if (ret)
-		unlink(tmp);
-	free(tmp);
-	return ret;
+	if (size && write_all(t.fd, data, size) != 0) {
+		ret = kg_fail_write(err, errno, path, "write failed");
+		kg_atomicfile_abort(&t);
+		return ret;
+	}
+	return kg_atomicfile_commit(&t, err);
 }
 
 int kg_frame_recorder_sync(kg_frame_recorder *r, kg_err *err)

@@ -6,6 +6,9 @@
  * and every capture completed
  * before must still be there. Finally the session takes another capture, and a
  * completed capture of it replays bit-identically. */
+#include <dirent.h>
+#include <sys/stat.h>
+
 #include "acq_test.h"
 #include "kg_core.h"
 
@@ -45,6 +48,32 @@ static int kill_after(char *const *args, double delay)
 	int st;
 	waitpid(pid, &st, 0);
 	return WIFSIGNALED(st) && WTERMSIG(st) == SIGKILL;
+}
+
+/* Files anywhere under dir whose name is a temporary: the old ".tmp" suffix or
+ * kogei's named pattern. Frames and outputs are written through files with no name
+ * (O_TMPFILE), so a SIGKILL mid-write leaves none. */
+static int temporaries(const char *dir, char *first, size_t len)
+{
+	DIR *d = opendir(dir);
+	int n = 0;
+	for (struct dirent *e; d && (e = readdir(d));) {
+		if (!strcmp(e->d_name, ".") || !strcmp(e->d_name, ".."))
+			continue;
+		char p[4600];
+		snprintf(p, sizeof(p), "%s/%s", dir, e->d_name);
+		struct stat st;
+		if (lstat(p, &st) == 0 && S_ISDIR(st.st_mode))
+			n += temporaries(p, first, len);
+		else if (strstr(e->d_name, ".tmp") || strstr(e->d_name, "kogei-tmp")) {
+			if (!n && !*first)
+				snprintf(first, len, "%s", p);
+			n++;
+		}
+	}
+	if (d)
+		closedir(d);
+	return n;
 }
 
 /* Lines of frames/index.jsonl: every frame recorded so far. */
@@ -115,6 +144,9 @@ int main(int argc, char **argv)
 		CHECK(n == had || n == had + 1, "%s: %d captures, had %d", when, n, had);
 		killed_complete += n == had + 1;
 	}
+	char first[4600] = "";
+	int ntmp = temporaries(s, first, sizeof(first));
+	CHECK(ntmp == 0, "%d temporaries left behind by the kills (%s)", ntmp, first);
 	printf("short capture: %.3f s; 10 kills at 0.3..1.2 of that, %d after the manifest\n",
 	       full, killed_complete);
 
