@@ -51,6 +51,8 @@ typedef struct proc {
 	double chart_H[9];        /* chart mm -> chart capture px */
 	int chart_width, chart_height;
 	char *library_path;
+	kg_material_library *lib; /* the materials (--materials) */
+	kg_est_material_set *set; /* those declared (--only) */
 	json_t *previous;         /* the last run's process.json, or NULL */
 } proc;
 

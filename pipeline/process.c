@@ -2,11 +2,13 @@
  * (kg_pipeline.h). This file reads the session and its images and runs the steps;
  * process_calib.c finds the chart and calibrates, process_object.c does each object. */
 #include <errno.h>
+#include <fcntl.h>
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/file.h>
 #include <sys/stat.h>
 #include <time.h>
 #include <unistd.h>
@@ -441,6 +443,8 @@ static void proc_free(proc *p)
 	json_decref(p->calibration);
 	json_decref(p->calib_key);
 	free(p->library_path);
+	kg_est_material_set_free(&p->set);
+	kg_material_library_free(&p->lib);
 	json_decref(p->previous);
 }
 
@@ -501,8 +505,11 @@ static int load_previous(proc *p)
 	return 0;
 }
 
-/* OUTDIR may be new, empty, or a previous run's; nothing else is overwritten. */
-static int check_outdir(proc *p)
+/* OUTDIR may be new, empty, or a previous run's; nothing else is overwritten. It is
+ * created, then locked for the run (flock on the directory itself, so nothing is left
+ * in it): a second kogei process into the same OUTDIR is refused while the first runs.
+ * *lock_fd holds the lock until the caller closes it. */
+static int check_outdir(proc *p, int *lock_fd)
 {
 	struct stat st;
 	if (stat(p->o->outdir, &st) == 0 && !S_ISDIR(st.st_mode))
@@ -511,6 +518,17 @@ static int check_outdir(proc *p)
 	if (stat(p->o->session, &ss) == 0 && stat(p->o->outdir, &st) == 0 &&
 	    ss.st_dev == st.st_dev && ss.st_ino == st.st_ino)
 		return kg_fail(p->err, KG_EINVAL, "%s: is the session directory: choose another -o",
+		               p->o->outdir);
+	int ret = kg_mkdir_p(p->o->outdir, p->err);
+	if (ret)
+		return ret;
+	*lock_fd = open(p->o->outdir, O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+	if (*lock_fd < 0)
+		return kg_fail(p->err, KG_EIO, "%s: cannot open: %s", p->o->outdir, strerror(errno));
+	if (flock(*lock_fd, LOCK_EX | LOCK_NB) != 0)
+		return kg_fail(p->err, errno == EWOULDBLOCK ? KG_EINVAL : KG_EIO,
+		               "%s: in use by another kogei process (the folder is locked); wait "
+		               "for it to finish or choose another -o",
 		               p->o->outdir);
 	return load_previous(p);
 }
@@ -545,10 +563,9 @@ int kg_process_run(const kg_process_options *o, kg_process_summary *summary, kg_
 		ret = kg_file_sha256(p.manifest_path, p.manifest_sha, err);
 	if (!ret)
 		ret = read_captures(&p);
+	int lock_fd = -1;
 	if (!ret)
-		ret = check_outdir(&p);
-	if (!ret)
-		ret = kg_mkdir_p(o->outdir, err);
+		ret = check_outdir(&p, &lock_fd);
 	if (!ret) {
 		proc_progress(&p, "session %s: %d captures", o->session, p.ncaps);
 		ret = proc_calibrate(&p);
@@ -591,5 +608,7 @@ int kg_process_run(const kg_process_options *o, kg_process_summary *summary, kg_
 	json_decref(root);
 	json_decref(objects);
 	proc_free(&p);
+	if (lock_fd >= 0)
+		close(lock_fd);
 	return ret;
 }

@@ -398,10 +398,62 @@ static int commit_dir(proc *p, const char *tmp, const char *final, const char *n
 	return 0;
 }
 
+/* The material library (a file or a bundled name) and the declared set, into p. */
+static int load_materials(proc *p)
+{
+	const char *mat = p->o->materials ? p->o->materials : "default";
+	if (access(mat, R_OK) == 0) {
+		p->library_path = strdup(mat);
+	} else {
+		char rel[256];
+		snprintf(rel, sizeof(rel), "materials/%s.json", mat);
+		p->library_path = kg_data_path(rel);
+		if (p->library_path && access(p->library_path, R_OK) != 0) {
+			free(p->library_path);
+			p->library_path = NULL;
+		}
+		if (!p->library_path)
+			return kg_fail(p->err, KG_ENOENT, "material library '%s': no such file and not a "
+			               "bundled library (default)", mat);
+	}
+	int ret = proc_input(p, "materials", p->library_path, NULL);
+	if (!ret)
+		ret = kg_material_library_load(p->library_path, &p->lib, p->err);
+	if (!ret)
+		ret = kg_est_material_set_new(p->lib, p->library_path, p->o->only, p->o->nonly,
+		                              p->o->angle_deg, &p->set, p->err);
+	return ret;
+}
+
+/* --mask: readable, and of every object capture's size. */
+static int check_mask(proc *p)
+{
+	if (!p->o->mask)
+		return 0;
+	kg_image *mask = NULL;
+	int ret = kg_image_read(p->o->mask, &mask, p->err);
+	for (int i = 0; i < p->ncaps && !ret; i++) {
+		const proc_capture *c = &p->caps[i];
+		if (c->kind == KG_CAPTURE_OBJECT && (mask->width != c->width || mask->height != c->height))
+			ret = kg_fail(p->err, KG_EINVAL, "%s: the mask is %dx%d, capture %s is %ldx%ld: "
+			              "expected a mask of the objects' size", p->o->mask, mask->width,
+			              mask->height, c->name, c->width, c->height);
+	}
+	kg_image_free(&mask);
+	return ret;
+}
+
+/* Everything about the objects that can refuse the run, checked before anything is
+ * written: the materials, the mask, each object's camera and exposure. */
 int proc_objects_precheck(proc *p)
 {
+	int ret = load_materials(p);
+	if (!ret)
+		ret = check_mask(p);
+	if (ret)
+		return ret;
 	json_t *scratch = json_array();
-	int ret = scratch ? 0 : kg_fail(p->err, KG_ENOMEM, "out of memory");
+	ret = scratch ? 0 : kg_fail(p->err, KG_ENOMEM, "out of memory");
 	for (int i = 0; i < p->ncaps && !ret; i++) {
 		const proc_capture *c = &p->caps[i];
 		double scale;
@@ -418,30 +470,8 @@ int proc_objects_precheck(proc *p)
 
 int proc_objects(proc *p, json_t *objects, kg_process_summary *sum)
 {
-	kg_material_library *lib = NULL;
-	kg_est_material_set *set = NULL;
-	const char *mat = p->o->materials ? p->o->materials : "default";
+	const kg_est_material_set *set = p->set;
 	int ret = 0;
-	if (access(mat, R_OK) == 0) {
-		p->library_path = strdup(mat);
-	} else {
-		char rel[256];
-		snprintf(rel, sizeof(rel), "materials/%s.json", mat);
-		p->library_path = kg_data_path(rel);
-		if (p->library_path && access(p->library_path, R_OK) != 0) {
-			free(p->library_path);
-			p->library_path = NULL;
-		}
-		if (!p->library_path)
-			return kg_fail(p->err, KG_ENOENT, "material library '%s': no such file and not a "
-			               "bundled library (default)", mat);
-	}
-	ret = proc_input(p, "materials", p->library_path, NULL);
-	if (!ret)
-		ret = kg_material_library_load(p->library_path, &lib, p->err);
-	if (!ret)
-		ret = kg_est_material_set_new(lib, p->library_path, p->o->only, p->o->nonly,
-		                              p->o->angle_deg, &set, p->err);
 	for (int i = 0; i < p->ncaps && !ret; i++) {
 		const proc_capture *c = &p->caps[i];
 		if (c->kind != KG_CAPTURE_OBJECT)
@@ -513,7 +543,5 @@ int proc_objects(proc *p, json_t *objects, kg_process_summary *sum)
 	if (!ret && sum->objects == 0)
 		proc_warn(p, NULL, "the session has no object capture: only the calibration was "
 		          "written");
-	kg_est_material_set_free(&set);
-	kg_material_library_free(&lib);
 	return ret;
 }

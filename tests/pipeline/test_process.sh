@@ -110,6 +110,62 @@ check "later object: only it processed" grep -q "4 object(s), 1 processed, 3 unc
 expect_exit 0 "$KOGEI" process "$S" --spectra "$T/chart.cgats" -o "$O" --quiet --angle 40
 check "changed parameters: all processed" grep -q "4 object(s), 4 processed, 0 unchanged" "$T/out"
 
+# --mask: pixels at 0 in the mask are background, whatever they show; a mask of
+# another size is refused, naming it.
+W=$(sed -n 's/^samples *= *//p' "$O/object-full/labels.hdr")
+H=$(sed -n 's/^lines *= *//p' "$O/object-full/labels.hdr")
+# The mask takes out the left part of what the last run (--angle 40) labelled as
+# materials: every column left of the material pixels' median column.
+"$PY" - "$O/object-full" "$W" "$H" "$T/mask.png" "$T/mask-small.png" "$T/cut" <<'PY'
+import json, struct, sys, zlib
+import numpy as np
+d, w, h = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
+def png(path, a):
+    raw = b"".join(b"\0" + bytes(r) for r in a.astype(np.uint8))
+    def chunk(t, x):
+        return struct.pack(">I", len(x)) + t + x + struct.pack(">I", zlib.crc32(t + x))
+    ihdr = struct.pack(">IIBBBBB", a.shape[1], a.shape[0], 8, 0, 0, 0, 0)  # 8-bit grey
+    open(path, "wb").write(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) +
+                           chunk(b"IDAT", zlib.compress(raw)) + chunk(b"IEND", b""))
+cls = {c["name"]: c["label"] for c in json.load(open(d + "/labels.json"))["classes"]}
+lab = np.fromfile(d + "/labels.img", dtype=np.uint8).reshape(h, w)
+material = (lab > 0) & (lab != cls["unknown"]) & (lab != cls["background"])
+cut = int(np.median(np.nonzero(material)[1]))
+assert material[:, :cut].sum() > 1000, material[:, :cut].sum()
+m = np.full((h, w), 255)
+m[:, :cut] = 0
+png(sys.argv[4], m)
+png(sys.argv[5], np.full((h, w // 2), 255))
+open(sys.argv[6], "w").write("%d %d\n" % (cut, material[:, :cut].sum()))
+PY
+expect_exit 0 "$KOGEI" process "$S" --spectra "$T/chart.cgats" -o "$T/masked" --angle 40 \
+	--mask "$T/mask.png" --no-render --quiet
+check "--mask: background where it is 0, the labels elsewhere as without it" "$PY" - \
+	"$T/masked" "$O" "$W" "$H" "$T/cut" <<'PY'
+import json, sys, numpy as np
+masked, plain, w, h = sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4])
+cut, had = map(int, open(sys.argv[5]).read().split())
+def labels(d):
+    return np.fromfile(f"{d}/object-full/labels.img", dtype=np.uint8).reshape(h, w)
+cls = {c["name"]: c["label"] for c in json.load(open(masked + "/object-full/labels.json"))["classes"]}
+m, p = labels(masked), labels(plain)
+assert np.all(m[:, :cut] == cls["background"]), np.unique(m[:, :cut])
+same = np.mean(m[:, cut:] == p[:, cut:])
+print("mask: %d material pixels taken out; the rest %.4f as without the mask" % (had, same))
+assert same > 0.99, same
+obj = {o["capture"]: o for o in json.load(open(masked + "/process.json"))["objects"]}["object-full"]
+assert obj["background_fraction"] >= cut / w - 1e-9, obj["background_fraction"]
+assert json.load(open(masked + "/process.json"))["parameters"]["mask"].endswith("mask.png")
+PY
+expect_refusal "$T/masked2" "mask-small.png" "$KOGEI" process "$S" --spectra "$T/chart.cgats" \
+	-o "$T/masked2" --mask "$T/mask-small.png" --no-render
+# One run at a time into an OUTDIR: a second kogei process is refused while it is locked.
+exec 9<"$O"
+flock -n 9 || { echo "FAIL: cannot lock $O for the test"; fail=1; }
+expect_exit 1 "$KOGEI" process "$S" --spectra "$T/chart.cgats" -o "$O" --quiet
+check "a locked OUTDIR is refused" grep -q "in use by another kogei process" "$T/err"
+exec 9<&-
+
 # ---- the site session against the lab's reference ----------------------------------
 expect_exit 0 "$KOGEI" process "$S" --reference "$O/reference.json" --spectra "$T/chart.cgats" \
 	-o "$T/site" --no-render --quiet
