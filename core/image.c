@@ -80,28 +80,6 @@ static void add_note(kg_image *img, const char *s)
 	snprintf(img->note + n, sizeof(img->note) - n, "%s%s", n ? "; " : "", s);
 }
 
-int kg_image_read(const char *path, kg_image **out, kg_err *err)
-{
-	kg_check_arg(path && out, err);
-	*out = NULL;
-	unsigned char magic[8] = {0};
-	FILE *fp = fopen(path, "rb");
-	if (!fp)
-		return kg_fail(err, errno == ENOENT ? KG_ENOENT : KG_EIO, "%s: cannot open: %s", path,
-		               strerror(errno));
-	kg_inputs_add(path, fileno(fp));
-	size_t n = fread(magic, 1, sizeof(magic), fp);
-	fclose(fp);
-	if (n >= 8 && png_sig_cmp(magic, 0, 8) == 0)
-		return kg_image_read_png(path, out, err);
-	if (n >= 4 && ((magic[0] == 'I' && magic[1] == 'I' && (magic[2] == 42 || magic[2] == 43) &&
-	                magic[3] == 0) ||
-	               (magic[0] == 'M' && magic[1] == 'M' && magic[2] == 0 &&
-	                (magic[3] == 42 || magic[3] == 43))))
-		return kg_image_read_tiff(path, out, err);
-	return kg_fail(err, KG_EINVAL, "%s: unknown image format: expected a TIFF or PNG file", path);
-}
-
 int kg_image_write(const kg_image *img, const char *path, int bits, kg_err *err)
 {
 	kg_check_arg(img && path, err);
@@ -186,95 +164,127 @@ static int read_cfa(TIFF *tif, kg_image *img)
 	return kg_image_set_cfa(img, s, dim[0], dim[1], NULL);
 }
 
-/* Decode the TIFF's pixel data into img, chunk (strip or tile) by chunk. */
-static int tiff_pixels(TIFF *tif, const char *path, kg_image *img, int spp, int bits,
-                       int is_float, int separate, int invert, struct tiff_msg *msg, kg_err *err)
+/* ---- reading a band of rows at a time ----------------------------------------------- */
+
+/* A reader holds at most one strip or row of tiles (TIFF) or one row (PNG) of decoded
+ * samples besides the caller's buffer, so memory does not grow with the image (an
+ * interlaced PNG, whose rows come in seven passes, is the exception: it is decoded
+ * whole when opened). */
+struct png_job {
+	png_structp png;
+	png_infop info;
+	FILE *fp;
+	unsigned char *pixels;
+	png_bytep *rows;
+	char msg[256];
+};
+
+struct kg_image_rows {
+	kg_image *head; /* the description: size, channels, bits, CFA, note; no pixels */
+	char *path;
+	int y;          /* the next row to deliver */
+	/* TIFF */
+	TIFF *tif;
+	struct tiff_msg msg;
+	int spp, separate, invert, tiled;
+	uint32_t tw, th;
+	tmsize_t chunk_size;
+	unsigned char *chunk; /* one encoded strip or tile, decoded by libtiff */
+	float *band;          /* rows [band_y0, band_y0 + th) of the image, channels interleaved */
+	long band_y0;
+	/* PNG */
+	struct png_job pj;
+	int png_depth, interlaced;
+	size_t rowbytes;
+	unsigned char *png_row;
+	float *lut; /* code value -> linear 0..1 */
+};
+
+static int rows_new(const char *path, kg_image_rows **out, kg_err *err)
 {
-	uint32_t w = (uint32_t)img->width, h = (uint32_t)img->height, tw, th;
-	int tiled = TIFFIsTiled(tif);
-	tmsize_t size;
-	if (tiled) {
-		if (!TIFFGetField(tif, TIFFTAG_TILEWIDTH, &tw) || !TIFFGetField(tif, TIFFTAG_TILELENGTH, &th) ||
-		    tw < 1 || th < 1 || tw > MAX_SIDE || th > MAX_SIDE)
-			return kg_fail(err, KG_EINVAL, "%s: tile size missing or invalid", path);
-		size = TIFFTileSize(tif);
-	} else {
-		uint32_t rps = h;
-		TIFFGetFieldDefaulted(tif, TIFFTAG_ROWSPERSTRIP, &rps);
-		tw = w;
-		th = rps < 1 || rps > h ? h : rps;
-		size = TIFFStripSize(tif);
+	kg_image_rows *r = calloc(1, sizeof(*r));
+	if (r)
+		r->head = calloc(1, sizeof(*r->head));
+	if (r && r->head)
+		r->path = strdup(path);
+	if (!r || !r->head || !r->path) {
+		if (r)
+			free(r->head);
+		free(r);
+		return kg_fail(err, KG_ENOMEM, "%s: out of memory", path);
 	}
-	int spc = separate ? 1 : spp; /* samples per pixel within one chunk */
-	size_t bps = (size_t)bits / 8;
-	if (size <= 0)
-		return kg_fail(err, KG_EINVAL, "%s: strip or tile size invalid: %s", path, tiff_why(msg));
-	unsigned char *buf = _TIFFmalloc(size);
-	if (!buf)
-		return kg_fail(err, KG_ENOMEM, "%s: out of memory for a %lld-byte %s", path,
-		               (long long)size, tiled ? "tile" : "strip");
-	int nplanes = separate ? (spp < img->channels ? spp : img->channels) : 1;
-	int C = img->channels, ret = 0;
-	float full = bits == 8 ? 255.0f : 65535.0f;
-	for (int p = 0; p < nplanes && !ret; p++)
-		for (uint32_t cy = 0; cy < h && !ret; cy += th)
-			for (uint32_t cx = 0; cx < w && !ret; cx += tw) {
-				tmsize_t got;
-				if (tiled)
-					got = TIFFReadEncodedTile(tif, TIFFComputeTile(tif, cx, cy, 0, (uint16_t)p), buf,
-					                          size);
-				else
-					got = TIFFReadEncodedStrip(tif, TIFFComputeStrip(tif, cy, (uint16_t)p), buf,
-					                           size);
-				uint32_t rows = h - cy < th ? h - cy : th, cols = w - cx < tw ? w - cx : tw;
-				size_t need = (((size_t)rows - 1) * tw + cols) * (size_t)spc * bps;
-				if (got < 0 || (size_t)got < need) {
-					ret = kg_fail(err, KG_EINVAL, "%s: %s at row %u: %s", path,
-					              tiled ? "tile" : "strip", cy,
-					              got < 0 ? tiff_why(msg) : "data truncated");
-					break;
-				}
-				for (uint32_t r = 0; r < rows; r++) {
-					const unsigned char *src = buf + (size_t)r * tw * spc * bps;
-					float *dst = img->data + (((size_t)(cy + r) * w) + cx) * C;
-					for (uint32_t c = 0; c < cols; c++)
-						for (int s = 0; s < (separate ? 1 : C); s++) {
-							size_t i = (size_t)c * spc + s;
-							float v;
-							if (is_float)
-								memcpy(&v, src + i * 4, 4);
-							else if (bits == 8)
-								v = src[i] / full;
-							else {
-								uint16_t u;
-								memcpy(&u, src + i * 2, 2);
-								v = u / full;
-							}
-							dst[(size_t)c * C + (separate ? p : s)] = invert ? 1.0f - v : v;
-						}
-				}
-			}
-	_TIFFfree(buf);
-	return ret;
+	r->band_y0 = -1;
+	*out = r;
+	return 0;
 }
 
-int kg_image_read_tiff(const char *path, kg_image **out, kg_err *err)
+/* Decode the band of TIFF rows that starts at row cy (a multiple of th). */
+static int tiff_band(kg_image_rows *r, uint32_t cy, kg_err *err)
 {
-	kg_check_arg(path && out, err);
-	*out = NULL;
+	const kg_image *img = r->head;
+	uint32_t w = (uint32_t)img->width, h = (uint32_t)img->height, tw = r->tw, th = r->th;
+	int C = img->channels, bits = img->bits, is_float = img->is_float;
+	int spc = r->separate ? 1 : r->spp; /* samples per pixel within one chunk */
+	size_t bps = (size_t)bits / 8;
+	int nplanes = r->separate ? (r->spp < C ? r->spp : C) : 1;
+	float full = bits == 8 ? 255.0f : 65535.0f;
+	uint32_t rows = h - cy < th ? h - cy : th;
+	for (int p = 0; p < nplanes; p++)
+		for (uint32_t cx = 0; cx < w; cx += tw) {
+			tmsize_t got;
+			if (r->tiled)
+				got = TIFFReadEncodedTile(r->tif, TIFFComputeTile(r->tif, cx, cy, 0, (uint16_t)p),
+				                          r->chunk, r->chunk_size);
+			else
+				got = TIFFReadEncodedStrip(r->tif, TIFFComputeStrip(r->tif, cy, (uint16_t)p),
+				                           r->chunk, r->chunk_size);
+			uint32_t cols = w - cx < tw ? w - cx : tw;
+			size_t need = (((size_t)rows - 1) * tw + cols) * (size_t)spc * bps;
+			if (got < 0 || (size_t)got < need)
+				return kg_fail(err, KG_EINVAL, "%s: %s at row %u: %s", r->path,
+				               r->tiled ? "tile" : "strip", cy,
+				               got < 0 ? tiff_why(&r->msg) : "data truncated");
+			for (uint32_t y = 0; y < rows; y++) {
+				const unsigned char *src = r->chunk + (size_t)y * tw * spc * bps;
+				float *dst = r->band + ((size_t)y * w + cx) * C;
+				for (uint32_t c = 0; c < cols; c++)
+					for (int s = 0; s < (r->separate ? 1 : C); s++) {
+						size_t i = (size_t)c * spc + s;
+						float v;
+						if (is_float)
+							memcpy(&v, src + i * 4, 4);
+						else if (bits == 8)
+							v = src[i] / full;
+						else {
+							uint16_t u;
+							memcpy(&u, src + i * 2, 2);
+							v = u / full;
+						}
+						dst[(size_t)c * C + (r->separate ? p : s)] = r->invert ? 1.0f - v : v;
+					}
+			}
+		}
+	r->band_y0 = cy;
+	return 0;
+}
+
+static int tiff_rows_open(kg_image_rows *r, kg_err *err)
+{
+	const char *path = r->path;
 	int fd = open(path, O_RDONLY | O_CLOEXEC);
 	if (fd < 0)
 		return kg_fail(err, errno == ENOENT ? KG_ENOENT : KG_EIO, "%s: cannot open: %s", path,
 		               strerror(errno));
 	kg_inputs_add(path, fd);
-	struct tiff_msg msg = {{0}};
-	TIFF *tif = tiff_open_fd(fd, path, "r", &msg);
-	if (!tif) {
+	r->tif = tiff_open_fd(fd, path, "r", &r->msg);
+	if (!r->tif) {
 		close(fd);
-		return kg_fail(err, KG_EINVAL, "%s: not a readable TIFF file: %s", path, tiff_why(&msg));
+		return kg_fail(err, KG_EINVAL, "%s: not a readable TIFF file: %s", path,
+		               tiff_why(&r->msg));
 	}
-	kg_image *img = NULL;
-	int ret = 0;
+	TIFF *tif = r->tif;
+	kg_image *img = r->head;
+	int ret;
 	uint32_t w = 0, h = 0;
 	uint16_t spp = 1, bits = 1, fmt = SAMPLEFORMAT_UINT, planar = PLANARCONFIG_CONTIG, photo;
 	TIFFGetField(tif, TIFFTAG_IMAGEWIDTH, &w);
@@ -286,46 +296,74 @@ int kg_image_read_tiff(const char *path, kg_image **out, kg_err *err)
 	if (!TIFFGetField(tif, TIFFTAG_PHOTOMETRIC, &photo))
 		photo = spp >= 3 ? PHOTOMETRIC_RGB : PHOTOMETRIC_MINISBLACK;
 	if ((ret = check_dims(path, w, h, err)))
-		goto done;
+		return ret;
 	int is_float = fmt == SAMPLEFORMAT_IEEEFP;
-	if (fmt != SAMPLEFORMAT_UINT && fmt != SAMPLEFORMAT_IEEEFP && fmt != SAMPLEFORMAT_VOID) {
-		ret = kg_fail(err, KG_ENOTSUP, "%s: %s samples not supported: expected unsigned integer or "
-		              "float", path, fmt == SAMPLEFORMAT_INT ? "signed integer" : "complex");
-		goto done;
-	}
-	if (is_float ? bits != 32 : (bits != 8 && bits != 16)) {
-		ret = kg_fail(err, KG_ENOTSUP, "%s: %u-bit %s samples not supported: expected 8, 16 or "
-		              "32-bit float", path, bits, is_float ? "float" : "integer");
-		goto done;
-	}
+	if (fmt != SAMPLEFORMAT_UINT && fmt != SAMPLEFORMAT_IEEEFP && fmt != SAMPLEFORMAT_VOID)
+		return kg_fail(err, KG_ENOTSUP, "%s: %s samples not supported: expected unsigned "
+		               "integer or float", path,
+		               fmt == SAMPLEFORMAT_INT ? "signed integer" : "complex");
+	if (is_float ? bits != 32 : (bits != 8 && bits != 16))
+		return kg_fail(err, KG_ENOTSUP, "%s: %u-bit %s samples not supported: expected 8, 16 "
+		               "or 32-bit float", path, bits, is_float ? "float" : "integer");
 	int channels;
 	if (photo == PHOTOMETRIC_RGB && spp >= 3)
 		channels = 3;
 	else if ((photo == PHOTOMETRIC_MINISBLACK || photo == PHOTOMETRIC_MINISWHITE ||
 	          photo == PHOTOMETRIC_CFA) && spp >= 1)
 		channels = 1;
-	else {
-		ret = kg_fail(err, KG_ENOTSUP, "%s: photometric interpretation %u with %u samples per "
-		              "pixel not supported: expected grey, RGB or CFA", path, photo, spp);
-		goto done;
-	}
-	if ((ret = kg_image_new((int)w, (int)h, channels, &img, err)))
-		goto done;
+	else
+		return kg_fail(err, KG_ENOTSUP, "%s: photometric interpretation %u with %u samples "
+		               "per pixel not supported: expected grey, RGB or CFA", path, photo, spp);
+	img->width = (int)w;
+	img->height = (int)h;
+	img->channels = channels;
 	img->bits = bits;
 	img->is_float = is_float;
 	if (spp > channels)
 		add_note(img, "extra samples (alpha) dropped");
-	if ((ret = tiff_pixels(tif, path, img, spp, bits, is_float, planar == PLANARCONFIG_SEPARATE,
-	                       photo == PHOTOMETRIC_MINISWHITE, &msg, err)))
-		goto done;
-	if ((ret = read_cfa(tif, img)))
-		goto done;
-	*out = img;
-	img = NULL;
-done:
-	kg_image_free(&img);
-	TIFFClose(tif);
-	return ret;
+	r->spp = spp;
+	r->separate = planar == PLANARCONFIG_SEPARATE;
+	r->invert = photo == PHOTOMETRIC_MINISWHITE;
+	r->tiled = TIFFIsTiled(tif);
+	if (r->tiled) {
+		if (!TIFFGetField(tif, TIFFTAG_TILEWIDTH, &r->tw) ||
+		    !TIFFGetField(tif, TIFFTAG_TILELENGTH, &r->th) || r->tw < 1 || r->th < 1 ||
+		    r->tw > MAX_SIDE || r->th > MAX_SIDE)
+			return kg_fail(err, KG_EINVAL, "%s: tile size missing or invalid", path);
+		r->chunk_size = TIFFTileSize(tif);
+	} else {
+		uint32_t rps = h;
+		TIFFGetFieldDefaulted(tif, TIFFTAG_ROWSPERSTRIP, &rps);
+		r->tw = w;
+		r->th = rps < 1 || rps > h ? h : rps;
+		r->chunk_size = TIFFStripSize(tif);
+	}
+	if (r->chunk_size <= 0)
+		return kg_fail(err, KG_EINVAL, "%s: strip or tile size invalid: %s", path,
+		               tiff_why(&r->msg));
+	uint32_t band_rows = r->th < h ? r->th : h;
+	r->chunk = _TIFFmalloc(r->chunk_size);
+	r->band = malloc((size_t)band_rows * w * channels * sizeof(float));
+	if (!r->chunk || !r->band)
+		return kg_fail(err, KG_ENOMEM, "%s: out of memory for a %lld-byte %s", path,
+		               (long long)r->chunk_size, r->tiled ? "tile" : "strip");
+	return read_cfa(tif, img);
+}
+
+static int tiff_rows_read(kg_image_rows *r, int rows, float *out, kg_err *err)
+{
+	size_t row_floats = (size_t)r->head->width * r->head->channels;
+	for (int i = 0; i < rows; i++, r->y++) {
+		uint32_t cy = (uint32_t)r->y / r->th * r->th;
+		if (r->band_y0 != (long)cy) {
+			int ret = tiff_band(r, cy, err);
+			if (ret)
+				return ret;
+		}
+		memcpy(out + (size_t)i * row_floats,
+		       r->band + (size_t)(r->y - cy) * row_floats, row_floats * sizeof(float));
+	}
+	return 0;
 }
 
 int kg_image_write_tiff(const kg_image *img, const char *path, int bits, kg_err *err)
@@ -405,17 +443,6 @@ int kg_image_write_tiff(const kg_image *img, const char *path, int bits, kg_err 
 
 /* ---- PNG ------------------------------------------------------------------------- */
 
-/* State of one libpng call, kept outside the function that calls setjmp so nothing
- * it holds is lost to longjmp. */
-struct png_job {
-	png_structp png;
-	png_infop info;
-	FILE *fp;
-	unsigned char *pixels;
-	png_bytep *rows;
-	char msg[256];
-};
-
 static void png_error_fn(png_structp png, png_const_charp text)
 {
 	struct png_job *j = png_get_error_ptr(png);
@@ -430,10 +457,13 @@ static float srgb_to_linear(float v)
 	return v <= 0.04045f ? v / 12.92f : powf((v + 0.055f) / 1.055f, 2.4f);
 }
 
-/* Everything between png_read_info and the samples; returns -1 after a libpng error
- * (message in j->msg) or a kg code. */
-static int png_read_body(struct png_job *j, const char *path, kg_image **out, kg_err *err)
+/* Everything from png_read_info to the first row; returns -1 after a libpng error
+ * (message in j->msg) or a kg code. An interlaced file is decoded whole here. */
+static int png_rows_body(kg_image_rows *r, kg_err *err)
 {
+	struct png_job *j = &r->pj;
+	const char *path = r->path;
+	kg_image *img = r->head;
 	if (setjmp(png_jmpbuf(j->png)))
 		return -1;
 	png_init_io(j->png, j->fp);
@@ -454,29 +484,22 @@ static int png_read_body(struct png_job *j, const char *path, kg_image **out, kg
 		png_set_strip_alpha(j->png);
 		note = ct & PNG_COLOR_MASK_ALPHA ? "alpha channel dropped" : "transparency dropped";
 	}
-	png_set_interlace_handling(j->png);
+	r->interlaced = png_set_interlace_handling(j->png) > 1;
 	png_read_update_info(j->png, j->info);
 	int channels = png_get_channels(j->png, j->info), out_depth = png_get_bit_depth(j->png, j->info);
-	size_t rowbytes = png_get_rowbytes(j->png, j->info);
+	r->rowbytes = png_get_rowbytes(j->png, j->info);
 	if ((channels != 1 && channels != 3) || (out_depth != 8 && out_depth != 16) ||
-	    rowbytes < (size_t)w * channels * (out_depth / 8))
+	    r->rowbytes < (size_t)w * channels * (out_depth / 8))
 		return kg_fail(err, KG_ENOTSUP, "%s: PNG colour type %d, %d-bit: not supported", path, ct,
 		               depth);
-	kg_image *img;
-	if ((ret = kg_image_new((int)w, (int)h, channels, &img, err)))
-		return ret;
-	*out = img; /* the caller frees it on failure */
+	img->width = (int)w;
+	img->height = (int)h;
+	img->channels = channels;
 	img->bits = depth;
 	img->is_float = 0;
+	r->png_depth = out_depth;
 	if (note)
 		add_note(img, note);
-	j->pixels = malloc(rowbytes * h);
-	j->rows = malloc(h * sizeof(png_bytep));
-	if (!j->pixels || !j->rows)
-		return kg_fail(err, KG_ENOMEM, "%s: out of memory", path);
-	for (png_uint_32 y = 0; y < h; y++)
-		j->rows[y] = j->pixels + (size_t)y * rowbytes;
-	png_read_image(j->png, j->rows);
 
 	/* The transfer curve the file declares. */
 	int srgb = png_get_valid(j->png, j->info, PNG_INFO_sRGB) != 0;
@@ -495,25 +518,71 @@ static int png_read_body(struct png_job *j, const char *path, kg_image **out, kg
 	}
 	/* A table per code value keeps the curve cheap and exact per code. */
 	size_t levels = out_depth == 16 ? 65536 : 256;
-	float *lut = malloc(levels * sizeof(float));
-	if (!lut)
+	r->lut = malloc(levels * sizeof(float));
+	if (!r->lut)
 		return kg_fail(err, KG_ENOMEM, "%s: out of memory", path);
 	for (size_t i = 0; i < levels; i++) {
 		float v = (float)i / (float)(levels - 1);
-		lut[i] = curve == 1 ? srgb_to_linear(v) : curve == 2 ? powf(v, (float)(1.0 / gamma)) : v;
+		r->lut[i] = curve == 1 ? srgb_to_linear(v) : curve == 2 ? powf(v, (float)(1.0 / gamma)) : v;
 	}
-	size_t n = (size_t)w * channels;
-	for (png_uint_32 y = 0; y < h; y++) {
-		const unsigned char *s = j->rows[y];
-		float *d = img->data + (size_t)y * n;
-		if (out_depth == 16)
-			for (size_t i = 0; i < n; i++)
-				d[i] = lut[(s[2 * i] << 8) | s[2 * i + 1]];
+	if (!r->interlaced) {
+		r->png_row = malloc(r->rowbytes);
+		return r->png_row ? 0 : kg_fail(err, KG_ENOMEM, "%s: out of memory", path);
+	}
+	j->pixels = malloc(r->rowbytes * h);
+	j->rows = malloc(h * sizeof(png_bytep));
+	if (!j->pixels || !j->rows)
+		return kg_fail(err, KG_ENOMEM, "%s: out of memory for an interlaced PNG of %u x %u",
+		               path, (unsigned)w, (unsigned)h);
+	for (png_uint_32 y = 0; y < h; y++)
+		j->rows[y] = j->pixels + (size_t)y * r->rowbytes;
+	png_read_image(j->png, j->rows);
+	return 0;
+}
+
+static int png_rows_open(kg_image_rows *r, kg_err *err)
+{
+	struct png_job *j = &r->pj;
+	j->fp = fopen(r->path, "rb");
+	if (!j->fp)
+		return kg_fail(err, errno == ENOENT ? KG_ENOENT : KG_EIO, "%s: cannot open: %s",
+		               r->path, strerror(errno));
+	kg_inputs_add(r->path, fileno(j->fp));
+	j->png = png_create_read_struct(PNG_LIBPNG_VER_STRING, j, png_error_fn, png_warning_fn);
+	j->info = j->png ? png_create_info_struct(j->png) : NULL;
+	if (!j->info)
+		return kg_fail(err, KG_ENOMEM, "%s: out of memory", r->path);
+	int ret = png_rows_body(r, err);
+	if (ret == -1)
+		ret = kg_fail(err, KG_EINVAL, "%s: not a readable PNG file: %s", r->path, j->msg);
+	return ret;
+}
+
+/* One row from libpng into r->png_row; -1 after a libpng error. */
+static int png_next_row(kg_image_rows *r)
+{
+	if (setjmp(png_jmpbuf(r->pj.png)))
+		return -1;
+	png_read_row(r->pj.png, r->png_row, NULL);
+	return 0;
+}
+
+static int png_rows_read(kg_image_rows *r, int rows, float *out, kg_err *err)
+{
+	size_t n = (size_t)r->head->width * r->head->channels;
+	for (int i = 0; i < rows; i++, r->y++) {
+		const unsigned char *s = r->interlaced ? r->pj.rows[r->y] : r->png_row;
+		if (!r->interlaced && png_next_row(r) != 0)
+			return kg_fail(err, KG_EINVAL, "%s: not a readable PNG file: row %d: %s", r->path,
+			               r->y, r->pj.msg);
+		float *d = out + (size_t)i * n;
+		if (r->png_depth == 16)
+			for (size_t k = 0; k < n; k++)
+				d[k] = r->lut[(s[2 * k] << 8) | s[2 * k + 1]];
 		else
-			for (size_t i = 0; i < n; i++)
-				d[i] = lut[s[i]];
+			for (size_t k = 0; k < n; k++)
+				d[k] = r->lut[s[k]];
 	}
-	free(lut);
 	return 0;
 }
 
@@ -529,28 +598,131 @@ static void png_job_end(struct png_job *j, int reading)
 	free(j->rows);
 }
 
-int kg_image_read_png(const char *path, kg_image **out, kg_err *err)
+/* ---- the row reader and the whole-image readers on it ------------------------------ */
+
+enum image_kind { KIND_TIFF = 1, KIND_PNG };
+
+static int image_kind(const char *path, kg_err *err)
+{
+	unsigned char magic[8] = {0};
+	FILE *fp = fopen(path, "rb");
+	if (!fp)
+		return kg_fail(err, errno == ENOENT ? KG_ENOENT : KG_EIO, "%s: cannot open: %s", path,
+		               strerror(errno));
+	kg_inputs_add(path, fileno(fp));
+	size_t n = fread(magic, 1, sizeof(magic), fp);
+	fclose(fp);
+	if (n >= 8 && png_sig_cmp(magic, 0, 8) == 0)
+		return KIND_PNG;
+	if (n >= 4 && ((magic[0] == 'I' && magic[1] == 'I' && (magic[2] == 42 || magic[2] == 43) &&
+	                magic[3] == 0) ||
+	               (magic[0] == 'M' && magic[1] == 'M' && magic[2] == 0 &&
+	                (magic[3] == 42 || magic[3] == 43))))
+		return KIND_TIFF;
+	return kg_fail(err, KG_EINVAL, "%s: unknown image format: expected a TIFF or PNG file", path);
+}
+
+static int rows_open_kind(const char *path, int kind, kg_image_rows **out, kg_err *err)
 {
 	kg_check_arg(path && out, err);
 	*out = NULL;
-	struct png_job j = {0};
-	j.fp = fopen(path, "rb");
-	if (!j.fp)
-		return kg_fail(err, errno == ENOENT ? KG_ENOENT : KG_EIO, "%s: cannot open: %s", path,
-		               strerror(errno));
-	kg_inputs_add(path, fileno(j.fp));
-	int ret;
-	j.png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &j, png_error_fn, png_warning_fn);
-	j.info = j.png ? png_create_info_struct(j.png) : NULL;
-	if (!j.info)
-		ret = kg_fail(err, KG_ENOMEM, "%s: out of memory", path);
-	else if ((ret = png_read_body(&j, path, out, err)) == -1)
-		ret = kg_fail(err, KG_EINVAL, "%s: not a readable PNG file: %s", path, j.msg);
+	kg_image_rows *r;
+	int ret = rows_new(path, &r, err);
 	if (ret)
-		kg_image_free(out);
-	png_job_end(&j, 1);
-	fclose(j.fp);
+		return ret;
+	ret = kind == KIND_PNG ? png_rows_open(r, err) : tiff_rows_open(r, err);
+	if (ret)
+		kg_image_rows_free(&r);
+	*out = r;
 	return ret;
+}
+
+int kg_image_rows_open(const char *path, kg_image_rows **out, kg_err *err)
+{
+	kg_check_arg(path && out, err);
+	*out = NULL;
+	int kind = image_kind(path, err);
+	return kind < 0 ? kind : rows_open_kind(path, kind, out, err);
+}
+
+const kg_image *kg_image_rows_header(const kg_image_rows *r)
+{
+	return r->head;
+}
+
+int kg_image_rows_read(kg_image_rows *r, int rows, float *out, kg_err *err)
+{
+	kg_check_arg(r && out && rows >= 0, err);
+	if (rows > r->head->height - r->y)
+		return kg_fail(err, KG_EINVAL, "%s: rows %d to %d asked of an image of %d rows",
+		               r->path, r->y, r->y + rows - 1, r->head->height);
+	return r->tif ? tiff_rows_read(r, rows, out, err) : png_rows_read(r, rows, out, err);
+}
+
+void kg_image_rows_free(kg_image_rows **pr)
+{
+	if (!pr || !*pr)
+		return;
+	kg_image_rows *r = *pr;
+	if (r->tif)
+		TIFFClose(r->tif);
+	if (r->chunk)
+		_TIFFfree(r->chunk);
+	free(r->band);
+	png_job_end(&r->pj, 1);
+	if (r->pj.fp)
+		fclose(r->pj.fp);
+	free(r->png_row);
+	free(r->lut);
+	kg_image_free(&r->head);
+	free(r->path);
+	free(r);
+	*pr = NULL;
+}
+
+/* The whole image through the row reader. */
+static int read_whole(const char *path, int kind, kg_image **out, kg_err *err)
+{
+	kg_check_arg(path && out, err);
+	*out = NULL;
+	kg_image_rows *r;
+	int ret = rows_open_kind(path, kind, &r, err);
+	if (ret)
+		return ret;
+	const kg_image *h = r->head;
+	kg_image *img = NULL;
+	ret = kg_image_new(h->width, h->height, h->channels, &img, err);
+	if (!ret && h->cfa)
+		ret = kg_image_set_cfa(img, h->cfa, h->cfa_rows, h->cfa_cols, err);
+	if (!ret) {
+		img->bits = h->bits;
+		img->is_float = h->is_float;
+		memcpy(img->note, h->note, sizeof(img->note));
+		ret = kg_image_rows_read(r, h->height, img->data, err);
+	}
+	kg_image_rows_free(&r);
+	if (ret)
+		kg_image_free(&img);
+	*out = img;
+	return ret;
+}
+
+int kg_image_read(const char *path, kg_image **out, kg_err *err)
+{
+	kg_check_arg(path && out, err);
+	*out = NULL;
+	int kind = image_kind(path, err);
+	return kind < 0 ? kind : read_whole(path, kind, out, err);
+}
+
+int kg_image_read_tiff(const char *path, kg_image **out, kg_err *err)
+{
+	return read_whole(path, KIND_TIFF, out, err);
+}
+
+int kg_image_read_png(const char *path, kg_image **out, kg_err *err)
+{
+	return read_whole(path, KIND_PNG, out, err);
 }
 
 /* Write rows of 8- or 16-bit samples prepared by the caller in j->rows. */
@@ -635,4 +807,38 @@ int kg_png_write_rgb8(const char *path, const unsigned char *rgb, int width, int
 	kg_check_arg(path && rgb, err);
 	int ret = check_dims(path, width, height, err);
 	return ret ? ret : png_write_any(path, NULL, rgb, width, height, 3, 8, err);
+}
+
+/* ---- row sources ----------------------------------------------------------------- */
+
+static int image_source_read(void *user, int y0, int rows, float *out, kg_err *err)
+{
+	const kg_image *img = user;
+	size_t n = (size_t)img->width * img->channels;
+	if (y0 < 0 || rows < 0 || rows > img->height - y0)
+		return kg_fail(err, KG_EINVAL, "image rows %d to %d: outside its %d rows", y0,
+		               y0 + rows - 1, img->height);
+	memcpy(out, img->data + (size_t)y0 * n, (size_t)rows * n * sizeof(float));
+	return 0;
+}
+
+void kg_row_source_of_image(const kg_image *img, kg_row_source *s)
+{
+	*s = (kg_row_source){img->width, img->height, img->channels, image_source_read,
+	                     (void *)img};
+}
+
+static int rows_source_read(void *user, int y0, int rows, float *out, kg_err *err)
+{
+	kg_image_rows *r = user;
+	if (y0 != r->y)
+		return kg_fail(err, KG_EINVAL, "%s: row %d asked, the next is %d: a file is read "
+		               "top to bottom once", r->path, y0, r->y);
+	return kg_image_rows_read(r, rows, out, err);
+}
+
+void kg_row_source_of_rows(kg_image_rows *r, kg_row_source *s)
+{
+	*s = (kg_row_source){r->head->width, r->head->height, r->head->channels, rows_source_read,
+	                     r};
 }

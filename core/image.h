@@ -39,6 +39,31 @@ int kg_image_read_tiff(const char *path, kg_image **out, kg_err *err);
 /* PNG: 1..16-bit grey or RGB, palettes expanded, alpha dropped with a note. */
 int kg_image_read_png(const char *path, kg_image **out, kg_err *err);
 
+/* Reading an image a band of rows at a time, top to bottom, for images too large to
+ * hold whole: besides the caller's rows the reader holds one TIFF strip or row of
+ * tiles, or one PNG row (an interlaced PNG is decoded whole when opened). Values are
+ * those kg_image_read gives. */
+typedef struct kg_image_rows kg_image_rows;
+int kg_image_rows_open(const char *path, kg_image_rows **out, kg_err *err);
+/* What the file holds: size, channels, bits, CFA and note; data is NULL. */
+const kg_image *kg_image_rows_header(const kg_image_rows *r);
+/* The next `rows` rows (width * channels floats each) into out. */
+int kg_image_rows_read(kg_image_rows *r, int rows, float *out, kg_err *err);
+void kg_image_rows_free(kg_image_rows **r);
+
+/* Rows of an image from anywhere (a file, memory, a correction chain), for consumers
+ * that go through an image once, top to bottom: read() is called with y0 increasing,
+ * each row once, and fills rows * width * channels floats. */
+typedef struct kg_row_source {
+	int width, height, channels;
+	int (*read)(void *user, int y0, int rows, float *out, kg_err *err);
+	void *user;
+} kg_row_source;
+/* A source over an image in memory, or over an open row reader (which it does not
+ * own). */
+void kg_row_source_of_image(const kg_image *img, kg_row_source *s);
+void kg_row_source_of_rows(kg_image_rows *r, kg_row_source *s);
+
 /* Write with a sample depth of 8, 16 (integer, values clamped to 0..1 and rounded;
  * NaN becomes 0) or 32 (TIFF only, float, values as they are). kg_image_write picks
  * the format from the extension (.tif, .tiff, .png). */

@@ -163,6 +163,41 @@ static int write_tiff(const struct tiff_spec *t, int w, int h)
 	return ok ? 0 : -1;
 }
 
+/* The row reader gives the whole reader's values bit for bit, read in bands of uneven
+ * heights (1, 2, 3, ... rows), through a row source too; reading past the end is
+ * refused. */
+static void check_rows(const char *name, const kg_image *whole)
+{
+	kg_image_rows *r = NULL;
+	kg_err err = {{0}};
+	CHECK(kg_image_rows_open(io_path(name), &r, &err) == 0, "%s: rows: %s", name, err.msg);
+	if (!r)
+		return;
+	const kg_image *h = kg_image_rows_header(r);
+	CHECK(h->width == whole->width && h->height == whole->height &&
+	      h->channels == whole->channels && h->bits == whole->bits && !h->data &&
+	      !strcmp(h->note, whole->note), "%s: rows header", name);
+	kg_row_source src;
+	kg_row_source_of_rows(r, &src);
+	size_t n = (size_t)whole->width * whole->channels;
+	float *buf = malloc((size_t)whole->height * n * sizeof(float));
+	int y = 0, step = 1, ok = 1;
+	while (y < whole->height && ok) {
+		int rows = step < whole->height - y ? step : whole->height - y;
+		ok = src.read(src.user, y, rows, buf + (size_t)y * n, &err) == 0;
+		y += rows;
+		step++;
+	}
+	CHECK(ok, "%s: rows read: %s", name, err.msg);
+	CHECK(ok && memcmp(buf, whole->data, (size_t)whole->height * n * sizeof(float)) == 0,
+	      "%s: rows differ from the whole image", name);
+	CHECK(kg_image_rows_read(r, 1, buf, &err) == KG_EINVAL && strstr(err.msg, name),
+	      "%s: a row past the end refused: %s", name, err.msg);
+	free(buf);
+	kg_image_rows_free(&r);
+	CHECK(r == NULL, "%s: freed", name);
+}
+
 static void test_tiff_layouts(void)
 {
 	const struct tiff_spec specs[] = {
@@ -199,6 +234,7 @@ static void test_tiff_layouts(void)
 				for (int s = 0; s < C; s++)
 					bad += fabsf(img->data[(y * w + x) * C + s] - tiff_expected(t, x, y, s)) > 1e-7f;
 		CHECK(bad == 0, "%s: %d samples differ", t->name, bad);
+		check_rows(t->name, img);
 		kg_image_free(&img);
 	}
 }
@@ -295,6 +331,32 @@ static int write_png_raw(const char *name, int w, int h, int color_type, int dep
 	return 0;
 }
 
+/* 16-bit RGB rows (w * 6 bytes each) to a PNG, interlaced (Adam7) or not. */
+static int write_png16(const char *name, int w, int h, unsigned char *px, int interlace)
+{
+	FILE *f = fopen(io_path(name), "wb");
+	png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, NULL, NULL, NULL);
+	png_infop info = png_create_info_struct(png);
+	png_bytep *rows = malloc((size_t)h * sizeof(png_bytep));
+	for (int y = 0; y < h; y++)
+		rows[y] = px + (size_t)y * w * 6;
+	int ok = 0;
+	if (setjmp(png_jmpbuf(png)) == 0) {
+		png_init_io(png, f);
+		png_set_IHDR(png, info, (png_uint_32)w, (png_uint_32)h, 16, PNG_COLOR_TYPE_RGB,
+		             interlace ? PNG_INTERLACE_ADAM7 : PNG_INTERLACE_NONE,
+		             PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
+		png_write_info(png, info);
+		png_write_image(png, rows);
+		png_write_end(png, NULL);
+		ok = 1;
+	}
+	png_destroy_write_struct(&png, &info);
+	free(rows);
+	fclose(f);
+	return ok ? 0 : -1;
+}
+
 static void test_png_kinds(void)
 {
 	/* RGBA 8-bit: alpha dropped with a note. */
@@ -358,6 +420,25 @@ static void test_png_kinds(void)
 		CHECK_NEAR(img->data[2], 1.0, 1e-6, "sRGB 255 -> 1");
 	}
 	kg_image_free(&img);
+	/* 16-bit RGB, plain and Adam7-interlaced: the row reader as the whole reader. */
+	for (int interlace = 0; interlace < 2; interlace++) {
+		const char *name = interlace ? "adam7.png" : "rows16.png";
+		const int w = 13, h = 11;
+		unsigned char *px = malloc((size_t)w * h * 6);
+		for (int i = 0; i < w * h * 3; i++) {
+			px[2 * i] = (unsigned char)(i * 37);
+			px[2 * i + 1] = (unsigned char)(i * 11 + interlace);
+		}
+		CHECK(write_png16(name, w, h, px, interlace) == 0, "%s: libpng write", name);
+		CHECK(kg_image_read(io_path(name), &img, &err) == 0, "read %s: %s", name, err.msg);
+		if (img) {
+			CHECK(fabs(img->data[5] - ((px[10] << 8) | px[11]) / 65535.0) < 1e-7,
+			      "%s: sample 5", name);
+			check_rows(name, img);
+		}
+		kg_image_free(&img);
+		free(px);
+	}
 	CHECK(kg_png_write_rgb8(io_path("no.png"), rgb, 0, 1, &err) == KG_EINVAL, "zero width refused");
 	kg_image *one = make_image(1);
 	CHECK(kg_image_write_png(one, io_path("f.png"), 32, &err) == KG_EINVAL &&
