@@ -173,22 +173,27 @@ static int common_option(int c, const char *usage, kg_apply_options *opt, int *q
 	{"force", no_argument, NULL, 'F'},                                                \
 	{"output", required_argument, NULL, 'o'}, {"help", no_argument, NULL, 'h'}
 
-static int load_image(const char *path, kg_image **img, kg_err *err)
+/* An input image opened to be read a band of rows at a time (memory stays bounded
+ * whatever its size), with the channels the command needs: 3 for the photograph and
+ * its variance, 1 for a mask. */
+static int open_image(const char *path, int channels, kg_image_rows **rows,
+                      kg_row_source *src, kg_err *err)
 {
-	int rc = kg_image_read(path, img, err);
+	int rc = kg_image_rows_open(path, rows, err);
 	if (rc)
 		return rc;
-	if ((*img)->channels != 3) {
+	const kg_image *h = kg_image_rows_header(*rows);
+	if (channels == 3 && h->channels != 3) {
 		rc = kg_fail(err, KG_EINVAL,
 		             "%s: %d channel%s%s: expected a 3-channel linear RGB image%s", path,
-		             (*img)->channels, (*img)->channels == 1 ? "" : "s",
-		             (*img)->cfa ? " (a raw CFA frame)" : "",
-		             (*img)->channels == 1
-		                 ? "; a raw Bayer frame must be demosaiced to RGB first"
-		                 : "");
-		kg_image_free(img);
+		             h->channels, h->channels == 1 ? "" : "s", h->cfa ? " (a raw CFA frame)" : "",
+		             h->channels == 1 ? "; a raw Bayer frame must be demosaiced to RGB first"
+		                              : "");
+		kg_image_rows_free(rows);
+		return rc;
 	}
-	return rc;
+	kg_row_source_of_rows(*rows, src);
+	return 0;
 }
 
 int kg_cmd_estimate(int argc, char **argv)
@@ -264,7 +269,8 @@ int kg_cmd_estimate(int argc, char **argv)
 
 	const char *image = argv[optind];
 	kg_camera_calib *cam = NULL;
-	kg_image *img = NULL;
+	kg_image_rows *img = NULL;
+	kg_row_source src;
 	kg_est_kernel *k = NULL;
 	double pre[9];
 	int pre_needed = 0;
@@ -280,7 +286,7 @@ int kg_cmd_estimate(int argc, char **argv)
 		             "method %s gives spectra only",
 		             calib, lut ? "lut" : kg_method_name(m == KG_METHOD_AUTO ? cam->method : m));
 	if (!rc)
-		rc = load_image(image, &img, &err);
+		rc = open_image(image, 3, &img, &src, &err);
 	if (!rc) {
 		char desc[256];
 		snprintf(desc, sizeof(desc), "kogei estimate: %s, method %s%s, calibration %s",
@@ -292,7 +298,7 @@ int kg_cmd_estimate(int argc, char **argv)
 		opt.description = desc;
 		opt.pre = pre_needed ? pre : NULL;
 		opt.progress = quiet ? NULL : stderr;
-		rc = kg_estimate_image(k, img, fmt, &opt, out, &stats, &err);
+		rc = kg_estimate_rows(k, &src, fmt, &opt, out, &stats, &err);
 	}
 	if (!rc) {
 		if (!quiet) {
@@ -307,7 +313,7 @@ int kg_cmd_estimate(int argc, char **argv)
 		free(mask);
 	}
 	kg_est_kernel_free(&k);
-	kg_image_free(&img);
+	kg_image_rows_free(&img);
 	kg_camera_calib_free(&cam);
 	return rc ? kg_cli_error(&err, rc) : KG_EXIT_OK;
 }
@@ -454,7 +460,8 @@ int kg_cmd_classify(int argc, char **argv)
 	kg_camera_calib *cam = NULL;
 	kg_material_library *lib = NULL;
 	kg_est_material_set *set = NULL;
-	kg_image *img = NULL, *var_img = NULL, *mask_img = NULL;
+	kg_image_rows *img = NULL, *var_img = NULL, *mask_img = NULL;
+	kg_row_source src, var_src, mask_src;
 	kg_est_kernel *k = NULL;
 	double pre[9];
 	kg_classify_result res = {0};
@@ -469,11 +476,11 @@ int kg_cmd_classify(int argc, char **argv)
 		rc = kg_est_material_set_new(lib, library, (const char *const *)names, nnames, angle,
 		                             &set, &err);
 	if (!rc)
-		rc = load_image(image, &img, &err);
-	if (!rc && variance && (rc = kg_image_read(variance, &var_img, &err)) == 0)
-		copt.variance = var_img;
-	if (!rc && mask && (rc = kg_image_read(mask, &mask_img, &err)) == 0)
-		copt.mask = mask_img;
+		rc = open_image(image, 3, &img, &src, &err);
+	if (!rc && variance && (rc = open_image(variance, 0, &var_img, &var_src, &err)) == 0)
+		copt.variance = &var_src;
+	if (!rc && mask && (rc = open_image(mask, 0, &mask_img, &mask_src, &err)) == 0)
+		copt.mask = &mask_src;
 	if (!rc) {
 		kg_classify_info info = {calib, library, kg_method_name(m), image, variance, mask};
 		opt.progress = quiet ? NULL : stderr;
@@ -485,7 +492,7 @@ int kg_cmd_classify(int argc, char **argv)
 			             "--unknown-threshold none)",
 			             calib, cam->residual_relative);
 		else
-			rc = kg_classify_image_opts(k, set, img, &opt, &copt, &info, out, &res, &err);
+			rc = kg_classify_rows(k, set, &src, &opt, &copt, &info, out, &res, &err);
 	}
 	if (!rc) {
 		if (!quiet) {
@@ -528,9 +535,9 @@ int kg_cmd_classify(int argc, char **argv)
 	}
 	kg_classify_result_free(&res);
 	kg_est_kernel_free(&k);
-	kg_image_free(&img);
-	kg_image_free(&var_img);
-	kg_image_free(&mask_img);
+	kg_image_rows_free(&img);
+	kg_image_rows_free(&var_img);
+	kg_image_rows_free(&mask_img);
 	kg_est_material_set_free(&set);
 	kg_material_library_free(&lib);
 	kg_camera_calib_free(&cam);

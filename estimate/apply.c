@@ -53,16 +53,50 @@ void kg_est_stats_format(const kg_est_stats *s, char *buf, size_t size)
 
 /* ---- input ----------------------------------------------------------------------- */
 
-/* The pixels the kernel sees, and the clip level that makes the framework flag the
- * right ones. Without pre these are the image's own. With pre, a transformed copy:
- * the clip test belongs to the camera's values, so a pixel clipped before the
- * transform is marked with FLT_MAX (finite, and at the job's clip level FLT_MAX)
+/* Each block's input is pulled from row sources as the run reaches it (the job's
+ * fill), so no image is ever held whole. Per block of n pixels the slot holds planes:
+ *   kin   3n  what the kernel sees
+ *   raw   3n  the image's own values, when a pre map makes kin differ from them
+ *   var   3n  the variance of single frames (classify, when given)
+ *   mask   n  0 = background (classify, when given)
+ * With pre the clip test belongs to the camera's values, so a pixel clipped before
+ * the transform is marked with FLT_MAX (finite, and at the job's clip level FLT_MAX)
  * and NaN/Inf inputs stay non-finite. */
-typedef struct apply_input {
-	const float *rgb;
-	float *owned;
-	float clip;
-} apply_input;
+typedef struct feed {
+	const kg_row_source *src, *var, *mask;
+	const char *what, *var_name;
+	double pre[9];
+	int has_pre;
+	float clip;     /* on the image's values */
+	float job_clip; /* what the framework tests kin against */
+} feed;
+
+typedef struct planes {
+	const float *kin, *raw, *var, *mask;
+} planes;
+
+static size_t feed_floats_per_pixel(const feed *f)
+{
+	return 3 + (f->has_pre ? 3 : 0) + (f->var ? 3 : 0) + (f->mask ? 1 : 0);
+}
+
+static planes feed_planes(const feed *f, const void *in, size_t n)
+{
+	const float *p = in;
+	planes pl = {p, p, NULL, NULL};
+	p += 3 * n;
+	if (f->has_pre) {
+		pl.raw = p;
+		p += 3 * n;
+	}
+	if (f->var) {
+		pl.var = p;
+		p += 3 * n;
+	}
+	if (f->mask)
+		pl.mask = p;
+	return pl;
+}
 
 static int is_identity(const double *m)
 {
@@ -72,61 +106,64 @@ static int is_identity(const double *m)
 	return 1;
 }
 
-/* An image of which no pixel can be estimated (every one flagged: clipped or
- * non-finite, on the camera's own values) is refused before anything is written: a
- * cube of NaN is not a result. The scan ends at the first pixel that can be estimated,
- * so an ordinary image costs a few reads. */
-static int check_estimable(const kg_image *img, float clip, const char *what, kg_err *err)
+static int feed_init(feed *f, const kg_row_source *src, const kg_apply_options *opt,
+                     const char *what, kg_err *err)
 {
-	size_t n = (size_t)img->width * (size_t)img->height, clipped = 0;
-	for (size_t i = 0; i < n; i++) {
-		const float *p = img->data + 3 * i;
-		if (!(isfinite(p[0]) && isfinite(p[1]) && isfinite(p[2])))
-			continue;
-		if (!(p[0] >= clip || p[1] >= clip || p[2] >= clip))
-			return 0;
-		clipped++;
-	}
-	return kg_fail(err, KG_EINVAL,
-	               "%s: no pixel can be estimated: all %zu pixels of the %d x %d image are "
-	               "flagged (%zu clipped, a channel >= the clip level %g; %zu non-finite, a "
-	               "channel NaN or Inf); nothing written",
-	               what, n, img->width, img->height, clipped, (double)clip, n - clipped);
-}
-
-static int input_prepare(const kg_image *img, const kg_apply_options *opt, const char *what,
-                         apply_input *in, kg_err *err)
-{
-	memset(in, 0, sizeof(*in));
-	if (!img || !img->data || img->width < 1 || img->height < 1)
+	memset(f, 0, sizeof(*f));
+	if (!src || !src->read || src->width < 1 || src->height < 1)
 		return kg_fail(err, KG_EINVAL, "%s: no image data", what);
-	if (img->channels != 3)
+	if (src->channels != 3)
 		return kg_fail(err, KG_EINVAL,
-		               "%s: the image has %d channel%s%s: expected 3 (linear RGB)%s", what,
-		               img->channels, img->channels == 1 ? "" : "s",
-		               img->cfa ? " (a raw CFA frame)" : "",
-		               img->channels == 1 ? "; a raw Bayer frame must be demosaiced first" : "");
+		               "%s: the image has %d channel%s: expected 3 (linear RGB)%s", what,
+		               src->channels, src->channels == 1 ? "" : "s",
+		               src->channels == 1 ? "; a raw Bayer frame must be demosaiced first" : "");
 	if (isnan(opt->clip_level))
 		return kg_fail(err, KG_EINVAL, "%s: clip level: expected a number, not NaN", what);
-	int rc = check_estimable(img, opt->clip_level, what, err);
-	if (rc)
-		return rc;
-	in->rgb = img->data;
-	in->clip = opt->clip_level;
+	f->src = src;
+	f->what = what;
+	f->clip = f->job_clip = opt->clip_level;
 	if (!opt->pre || is_identity(opt->pre))
 		return 0;
 	for (int i = 0; i < 9; i++)
 		if (!isfinite(opt->pre[i]))
 			return kg_fail(err, KG_EINVAL, "%s: pre-transform: expected finite values", what);
-	size_t n = (size_t)img->width * (size_t)img->height;
-	float *t = malloc(n * 3 * sizeof(float));
-	if (!t)
-		return kg_fail(err, KG_ENOMEM, "%s: out of memory for %zu pixels", what, n);
-	const double *P = opt->pre;
-	const float clip = opt->clip_level;
+	memcpy(f->pre, opt->pre, sizeof(f->pre));
+	f->has_pre = 1;
+	f->job_clip = isinf(opt->clip_level) ? INFINITY : FLT_MAX;
+	return 0;
+}
+
+/* The job's fill: the block's rows from each source, the pre map, and the variance
+ * checked as it arrives (the outputs are not yet in place, so a bad value still
+ * leaves nothing written). */
+static int feed_fill(void *user, int y0, int rows, void *in, kg_err *err)
+{
+	const feed *f = user;
+	size_t W = (size_t)f->src->width, n = (size_t)rows * W;
+	planes pl = feed_planes(f, in, n);
+	float *kin = (float *)pl.kin;
+	int rc = f->src->read(f->src->user, y0, rows, (float *)pl.raw, err);
+	if (!rc && f->var)
+		rc = f->var->read(f->var->user, y0, rows, (float *)pl.var, err);
+	if (!rc && f->mask)
+		rc = f->mask->read(f->mask->user, y0, rows, (float *)pl.mask, err);
+	if (rc)
+		return rc;
+	if (f->var)
+		for (size_t i = 0; i < 3 * n; i++)
+			if (!(pl.var[i] >= 0 && isfinite(pl.var[i])))
+				return kg_fail(err, KG_EINVAL,
+				               "%s: %s: pixel (%zu, %zu) channel %zu is %g: expected a "
+				               "finite variance >= 0",
+				               f->what, f->var_name, i / 3 % W, (size_t)y0 + i / 3 / W, i % 3,
+				               pl.var[i]);
+	if (!f->has_pre)
+		return 0;
+	const double *P = f->pre;
+	const float clip = f->clip;
 	for (size_t i = 0; i < n; i++) {
-		const float *p = img->data + 3 * i;
-		float *q = t + 3 * i;
+		const float *p = pl.raw + 3 * i;
+		float *q = kin + 3 * i;
 		int finite = isfinite(p[0]) && isfinite(p[1]) && isfinite(p[2]);
 		if (finite && (p[0] >= clip || p[1] >= clip || p[2] >= clip)) {
 			q[0] = q[1] = q[2] = FLT_MAX;
@@ -135,10 +172,32 @@ static int input_prepare(const kg_image *img, const kg_apply_options *opt, const
 		for (int r = 0; r < 3; r++)
 			q[r] = (float)(P[3 * r] * p[0] + P[3 * r + 1] * p[1] + P[3 * r + 2] * p[2]);
 	}
-	in->rgb = t;
-	in->owned = t;
-	in->clip = isinf(opt->clip_level) ? INFINITY : FLT_MAX;
 	return 0;
+}
+
+static void feed_job(feed *f, kg_est_job *job)
+{
+	job->clip_level = f->job_clip;
+	job->fill = feed_fill;
+	job->fill_user = f;
+	job->in_bytes = feed_floats_per_pixel(f) * sizeof(float);
+}
+
+/* An image of which no pixel can be estimated (every one flagged: clipped or
+ * non-finite, on the camera's own values) is refused: a cube of NaN is not a result.
+ * The run's counts tell, and the outputs, not yet in place, are dropped. */
+static int check_estimable(const kg_est_stats *st, const feed *f, const char *what,
+                           kg_err *err)
+{
+	if (st->clipped + st->nonfinite < st->pixels)
+		return 0;
+	return kg_fail(err, KG_EINVAL,
+	               "%s: no pixel can be estimated: all %llu pixels of the %d x %d image are "
+	               "flagged (%llu clipped, a channel >= the clip level %g; %llu non-finite, a "
+	               "channel NaN or Inf); nothing written",
+	               what, (unsigned long long)st->pixels, f->src->width, f->src->height,
+	               (unsigned long long)st->clipped, (double)f->clip,
+	               (unsigned long long)st->nonfinite);
 }
 
 /* ---- progress -------------------------------------------------------------------- */
@@ -158,14 +217,14 @@ static double now_seconds(void)
 }
 
 static void progress_init(progress *p, const kg_apply_options *opt, const char *what,
-                          const kg_image *img)
+                          int width, int height)
 {
 	memset(p, 0, sizeof(*p));
-	if (opt->progress && (long)img->width * img->height >= KG_APPLY_PROGRESS_PIXELS)
+	if (opt->progress && (long)width * height >= KG_APPLY_PROGRESS_PIXELS)
 		p->fp = opt->progress;
 	p->what = what;
-	p->width = img->width;
-	p->height = img->height;
+	p->width = width;
+	p->height = height;
 	p->start = p->last = now_seconds();
 }
 
@@ -276,15 +335,15 @@ static const char mask_description[] =
 	"channel >= the clip level; 4 = negative reflectance clamped to 0. A pixel with "
 	"bit 1 or 2 set was not estimated (NaN in the cube; unclassified in a label map)";
 
-static int open_mask(const char *out_hdr, const kg_image *img, char **mask_path,
+static int open_mask(const char *out_hdr, int width, int height, char **mask_path,
                      kg_envi_writer **w, kg_err *err)
 {
 	int rc = kg_apply_side_path(out_hdr, "_mask.hdr", mask_path, err);
 	if (rc)
 		return rc;
 	kg_envi_meta m = {0};
-	m.samples = img->width;
-	m.lines = img->height;
+	m.samples = width;
+	m.lines = height;
 	m.bands = 1;
 	m.data_type = KG_ENVI_U8;
 	m.interleave = KG_ENVI_BSQ;
@@ -379,11 +438,36 @@ static const char *format_name(kg_est_format f)
 	}
 }
 
+/* An image in memory: its CFA, if any, makes the message about channels clearer. */
+static int check_image(const kg_image *img, const char *what, kg_err *err)
+{
+	if (img && img->data && img->channels == 1 && img->cfa)
+		return kg_fail(err, KG_EINVAL,
+		               "%s: the image has 1 channel (a raw CFA frame): expected 3 (linear "
+		               "RGB); a raw Bayer frame must be demosaiced first", what);
+	if (!img || !img->data || img->width < 1 || img->height < 1)
+		return kg_fail(err, KG_EINVAL, "%s: no image data", what);
+	return 0;
+}
+
 int kg_estimate_image(const kg_est_kernel *k, const kg_image *img, kg_est_format format,
                       const kg_apply_options *opt, const char *out_hdr, kg_est_stats *stats,
                       kg_err *err)
 {
 	kg_check_arg(k && img && out_hdr, err);
+	int rc = check_image(img, "estimate", err);
+	if (rc)
+		return rc;
+	kg_row_source src;
+	kg_row_source_of_image(img, &src);
+	return kg_estimate_rows(k, &src, format, opt, out_hdr, stats, err);
+}
+
+int kg_estimate_rows(const kg_est_kernel *k, const kg_row_source *src, kg_est_format format,
+                     const kg_apply_options *opt, const char *out_hdr, kg_est_stats *stats,
+                     kg_err *err)
+{
+	kg_check_arg(k && src && out_hdr, err);
 	kg_apply_options dflt;
 	if (!opt) {
 		kg_apply_options_init(&dflt);
@@ -400,10 +484,13 @@ int kg_estimate_image(const kg_est_kernel *k, const kg_image *img, kg_est_format
 		               "this kernel gives spectra only",
 		               out_hdr);
 
-	apply_input in;
-	int rc = input_prepare(img, opt, "estimate", &in, err);
+	feed in;
+	int rc = feed_init(&in, src, opt, "estimate", err);
 	if (rc)
 		return rc;
+	kg_est_stats local;
+	if (!stats)
+		stats = &local;
 
 	char *owned[3] = {NULL, NULL, NULL};
 	char *mask_path = NULL;
@@ -416,8 +503,8 @@ int kg_estimate_image(const kg_est_kernel *k, const kg_image *img, kg_est_format
 	char band_text[KG_EST_MAX_K][16];
 	kg_envi_pair extra[4];
 	kg_envi_meta m = {0};
-	m.samples = img->width;
-	m.lines = img->height;
+	m.samples = src->width;
+	m.lines = src->height;
 	m.bands = kg_est_format_bands(k, format);
 	m.interleave = (format == KG_EST_F32_BSQ || format == KG_EST_F16_BSQ) ? KG_ENVI_BSQ
 	                                                                      : KG_ENVI_BIP;
@@ -444,24 +531,27 @@ int kg_estimate_image(const kg_est_kernel *k, const kg_image *img, kg_est_format
 
 	if ((rc = kg_envi_writer_open(out_hdr, &m, &ws[0], err)))
 		goto out;
-	if ((rc = open_mask(out_hdr, img, &mask_path, &ws[1], err)))
+	if ((rc = open_mask(out_hdr, src->width, src->height, &mask_path, &ws[1], err)))
 		goto out;
 	paths[1] = mask_path;
 
 	kg_est_job job;
 	kg_est_job_init(&job, k, format);
-	job.clip_level = in.clip;
+	feed_job(&in, &job);
 	job.threads = opt->threads;
 	job.block_rows = opt->block_rows;
 	job.isa = opt->isa;
 	sink.cube = ws[0];
 	sink.mask = ws[1];
-	progress_init(&sink.prog, opt, "estimate", img);
-	rc = kg_est_run_stream(&job, in.rgb, img->width, img->height, est_sink_fn, &sink, stats, err);
+	progress_init(&sink.prog, opt, "estimate", src->width, src->height);
+	rc = kg_est_run_stream(&job, NULL, src->width, src->height, est_sink_fn, &sink, stats,
+	                       err);
 	if (rc) {
 		kg_err_prefix(err, "%s (%s): ", out_hdr, format_name(format));
 		goto out;
 	}
+	if ((rc = check_estimable(stats, &in, "estimate", err)))
+		goto out;
 	rc = finish_all(ws, paths, 2, &done, err);
 
 out:
@@ -473,7 +563,6 @@ out:
 	free(mask_path);
 	for (int i = 0; i < 3; i++)
 		free(owned[i]);
-	free(in.owned);
 	return rc;
 }
 
@@ -631,10 +720,6 @@ static void label_colour(const kg_est_material_set *set, int label, unsigned cha
 typedef struct refusal {
 	const kg_est_kernel *k;
 	const kg_est_classifier *cls;
-	const float *raw;  /* the image's values, before pre */
-	const float *kin;  /* what the kernel saw (after pre) */
-	const float *var;  /* variance of single frames, 3 per pixel, or NULL */
-	const float *mask; /* 1 per pixel, or NULL */
 	double inv_frames, noise_rel2, noise_floor2, resid2;
 	double g[KG_EST_MAX_K * 3]; /* A_w P: K x 3 */
 	double threshold;           /* +Inf: no unknown test */
@@ -642,10 +727,13 @@ typedef struct refusal {
 	uint8_t unknown, background;
 } refusal;
 
-static void refuse_pixel(const refusal *r, size_t i, uint8_t *label, float *conf)
+/* Pixel i of a block whose input planes are pl (raw: the image's values, before pre;
+ * kin: what the kernel saw; var and mask when given). */
+static void refuse_pixel(const refusal *r, const planes *pl, size_t i, uint8_t *label,
+                         float *conf)
 {
-	const float *px = r->raw + 3 * i;
-	if (r->mask && r->mask[i] == 0.0f) {
+	const float *px = pl->raw + 3 * i;
+	if (pl->mask && pl->mask[i] == 0.0f) {
 		*label = r->background;
 		*conf = NAN;
 		return;
@@ -661,11 +749,11 @@ static void refuse_pixel(const refusal *r, size_t i, uint8_t *label, float *conf
 		return;
 	const int k = r->cls->k;
 	float w[KG_EST_MAX_K];
-	kg_est_kernel_eval(r->k, r->kin + 3 * i, INFINITY, 1, w);
+	kg_est_kernel_eval(r->k, pl->kin + 3 * i, INFINITY, 1, w);
 	double var[3];
 	for (int c = 0; c < 3; c++) {
 		double rho = px[c] > 0.0f ? px[c] : 0.0;
-		double noise = r->var ? r->var[3 * i + c] * r->inv_frames
+		double noise = pl->var ? pl->var[3 * i + c] * r->inv_frames
 		                      : r->noise_floor2 + r->noise_rel2 * rho * rho;
 		var[c] = noise + r->resid2 * rho * rho;
 	}
@@ -681,32 +769,83 @@ static void refuse_pixel(const refusal *r, size_t i, uint8_t *label, float *conf
 	}
 }
 
+/* Exact order statistics of each class's margins in bounded memory. Margins map to
+ * 32-bit keys that sort as the floats do; the sink counts each class's keys by their
+ * high 16 bits (pass 1); the ranks wanted then lie in known buckets, whose low 16
+ * bits a second pass over the written confidence file counts. */
+#define HIST_BINS 65536
+#define MAX_TARGETS 3 /* the median's one or two ranks, the 5th percentile's */
+
+static uint32_t order_key(float v)
+{
+	uint32_t u;
+	memcpy(&u, &v, 4);
+	return u & 0x80000000u ? ~u : u | 0x80000000u;
+}
+
+static float key_value(uint32_t k)
+{
+	uint32_t u = k & 0x80000000u ? k & 0x7fffffffu : ~k;
+	float v;
+	memcpy(&v, &u, 4);
+	return v;
+}
+
+typedef struct class_stats {
+	uint64_t count;
+	double margin_sum;
+	double rgb_sum[3]; /* what the kernel saw, for the mean spectrum */
+	uint32_t *hi;      /* HIST_BINS counts of the keys' high halves, once it has pixels */
+	int ntargets;
+	uint64_t rank[MAX_TARGETS];  /* 0-based ranks wanted */
+	uint32_t bucket[MAX_TARGETS];
+	uint64_t below[MAX_TARGETS]; /* keys in lower buckets */
+	uint32_t *lo[MAX_TARGETS];   /* the bucket's low halves (pass 2) */
+	float value[MAX_TARGETS];
+} class_stats;
+
 typedef struct cls_sink {
 	kg_envi_writer *labels, *conf, *mask;
 	staging stage;
 	progress prog;
-	uint8_t *label_map; /* whole image */
-	float *margin;      /* whole image */
-	double (*rgb_sum)[3];
-	const float *rgb;
+	const feed *in;
 	const refusal *refuse;
 	int nmaterials;
+	uint64_t count[KG_EST_MAX_MATERIALS + 3]; /* per label */
+	class_stats *cs;   /* per material, index label - 1 */
+	uint8_t *preview;  /* pw x ph labels, nearest sample */
+	int pw, ph, next_py;
+	int height;
 } cls_sink;
 
 static int cls_sink_fn(void *user, const kg_est_block *b, kg_err *err)
 {
 	cls_sink *s = user;
-	size_t n = (size_t)b->rows * b->width, at = (size_t)b->y0 * b->width;
-	uint8_t *lab = s->label_map + at;
-	float *conf = s->margin + at;
-	memcpy(lab, b->data, n);
-	memcpy(conf, b->confidence, n * sizeof(float));
-	const float *p = s->rgb + 3 * at;
+	size_t n = (size_t)b->rows * b->width;
+	uint8_t *lab = (uint8_t *)b->data;
+	float *conf = (float *)b->confidence;
+	planes pl = feed_planes(s->in, b->input, n);
 	for (size_t i = 0; i < n; i++) {
-		refuse_pixel(s->refuse, at + i, &lab[i], &conf[i]);
-		if (lab[i] != KG_EST_LABEL_NONE && lab[i] <= s->nmaterials)
-			for (int c = 0; c < 3; c++)
-				s->rgb_sum[lab[i]][c] += p[3 * i + c];
+		refuse_pixel(s->refuse, &pl, i, &lab[i], &conf[i]);
+		s->count[lab[i]]++;
+		if (lab[i] == KG_EST_LABEL_NONE || lab[i] > s->nmaterials)
+			continue;
+		class_stats *c = &s->cs[lab[i] - 1];
+		if (!c->hi && !(c->hi = calloc(HIST_BINS, sizeof(uint32_t))))
+			return kg_fail(err, KG_ENOMEM, "classify: out of memory for the margins");
+		c->hi[order_key(conf[i]) >> 16]++;
+		c->count++;
+		c->margin_sum += conf[i];
+		for (int ch = 0; ch < 3; ch++)
+			c->rgb_sum[ch] += pl.kin[3 * i + ch];
+	}
+	for (; s->next_py < s->ph; s->next_py++) {
+		int sy = (int)((long)s->next_py * s->height / s->ph);
+		if (sy >= b->y0 + b->rows)
+			break;
+		const uint8_t *row = lab + (size_t)(sy - b->y0) * b->width;
+		for (int x = 0; x < s->pw; x++)
+			s->preview[(size_t)s->next_py * s->pw + x] = row[(long)x * b->width / s->pw];
 	}
 	int rc = put_bytes(s->labels, &s->stage, b, lab, err);
 	if (!rc)
@@ -717,42 +856,116 @@ static int cls_sink_fn(void *user, const kg_est_block *b, kg_err *err)
 	return rc;
 }
 
-static int cmp_float(const void *a, const void *b)
+/* The ranks wanted of each class, and the buckets of pass 1 they fall in. */
+static void stats_targets(class_stats *c)
 {
-	float x = *(const float *)a, y = *(const float *)b;
-	return (x > y) - (x < y);
+	uint64_t m = c->count;
+	c->ntargets = 0;
+	if (m % 2)
+		c->rank[c->ntargets++] = m / 2;
+	else {
+		c->rank[c->ntargets++] = m / 2 - 1;
+		c->rank[c->ntargets++] = m / 2;
+	}
+	uint64_t p5 = (uint64_t)ceil(0.05 * (double)m);
+	c->rank[c->ntargets++] = p5 ? p5 - 1 : 0;
+	for (int t = 0; t < c->ntargets; t++) {
+		uint64_t below = 0;
+		uint32_t bin = 0;
+		while (below + c->hi[bin] <= c->rank[t])
+			below += c->hi[bin++];
+		c->bucket[t] = bin;
+		c->below[t] = below;
+	}
 }
 
-/* Counts, mean spectra and margin statistics per class. */
+/* Pass 2: the low halves of the keys in the wanted buckets, from the files just
+ * written (labels after the refusals, margins), read back in bands of rows. */
+static int margin_pass(cls_sink *s, const char *labels_hdr, const char *conf_hdr, int width,
+                       int height, kg_err *err)
+{
+	for (int j = 0; j < s->nmaterials; j++) {
+		class_stats *c = &s->cs[j];
+		if (!c->count)
+			continue;
+		stats_targets(c);
+		for (int t = 0; t < c->ntargets; t++)
+			if (!(c->lo[t] = calloc(HIST_BINS, sizeof(uint32_t))))
+				return kg_fail(err, KG_ENOMEM, "classify: out of memory for the margins");
+	}
+	kg_envi *el = NULL, *ec = NULL;
+	int band = (int)(((size_t)1 << 20) / (size_t)width);
+	band = band < 1 ? 1 : band > height ? height : band;
+	float *lab = malloc(sizeof(float) * (size_t)band * width);
+	float *conf = malloc(sizeof(float) * (size_t)band * width);
+	int rc = lab && conf ? 0 : kg_fail(err, KG_ENOMEM, "classify: out of memory");
+	if (!rc)
+		rc = kg_envi_open(labels_hdr, &el, err);
+	if (!rc)
+		rc = kg_envi_open(conf_hdr, &ec, err);
+	for (int y = 0; y < height && !rc; y += band) {
+		int rows = height - y < band ? height - y : band;
+		rc = kg_envi_read(el, 0, y, width, rows, KG_LAYOUT_BIP, lab, err);
+		if (!rc)
+			rc = kg_envi_read(ec, 0, y, width, rows, KG_LAYOUT_BIP, conf, err);
+		size_t n = (size_t)rows * width;
+		for (size_t i = 0; i < n && !rc; i++) {
+			int l = (int)lab[i];
+			if (l < 1 || l > s->nmaterials)
+				continue;
+			class_stats *c = &s->cs[l - 1];
+			uint32_t key = order_key(conf[i]);
+			for (int t = 0; t < c->ntargets; t++)
+				if (key >> 16 == c->bucket[t])
+					c->lo[t][key & 0xffffu]++;
+		}
+	}
+	kg_envi_close(&el);
+	kg_envi_close(&ec);
+	free(lab);
+	free(conf);
+	for (int j = 0; j < s->nmaterials && !rc; j++) {
+		class_stats *c = &s->cs[j];
+		for (int t = 0; t < c->ntargets && c->count; t++) {
+			uint64_t below = c->below[t];
+			uint32_t bin = 0;
+			while (bin < HIST_BINS - 1 && below + c->lo[t][bin] <= c->rank[t])
+				below += c->lo[t][bin++];
+			c->value[t] = key_value(c->bucket[t] << 16 | bin);
+		}
+	}
+	return rc;
+}
+
+static void cls_sink_free(cls_sink *s)
+{
+	for (int j = 0; s->cs && j < s->nmaterials; j++) {
+		free(s->cs[j].hi);
+		for (int t = 0; t < MAX_TARGETS; t++)
+			free(s->cs[j].lo[t]);
+	}
+	free(s->cs);
+	free(s->preview);
+	free(s->stage.v);
+}
+
+/* Counts, mean spectra and margin statistics per class (after margin_pass). */
 static int summarise(const kg_est_kernel *k, const kg_est_material_set *set, const cls_sink *s,
                      size_t npix, kg_classify_result *res, kg_err *err)
 {
 	int n = set->n;
 	res->nclasses = n;
 	res->classes = calloc((size_t)n, sizeof(*res->classes));
-	uint64_t *count = calloc((size_t)n + 3, sizeof(uint64_t));
-	if (!res->classes || !count) {
-		free(count);
+	if (!res->classes)
 		return kg_fail(err, KG_ENOMEM, "out of memory");
-	}
-	for (size_t i = 0; i < npix; i++)
-		count[s->label_map[i]]++;
-	res->unclassified = count[0];
-	res->unknown = count[label_unknown(set)];
-	res->background = count[label_background(set)];
-	uint64_t largest = 0;
-	for (int j = 1; j <= n; j++)
-		largest = count[j] > largest ? count[j] : largest;
-	float *buf = malloc(sizeof(float) * (largest ? largest : 1));
-	if (!buf) {
-		free(count);
-		return kg_fail(err, KG_ENOMEM, "out of memory for %llu margins",
-		               (unsigned long long)largest);
-	}
+	res->unclassified = s->count[0];
+	res->unknown = s->count[label_unknown(set)];
+	res->background = s->count[label_background(set)];
 	for (int j = 0; j < n; j++) {
 		kg_class_summary *c = &res->classes[j];
+		const class_stats *cs = &s->cs[j];
 		snprintf(c->name, sizeof(c->name), "%s", set->names[j]);
-		c->pixels = count[j + 1];
+		c->pixels = cs->count;
 		c->fraction = npix ? (double)c->pixels / (double)npix : 0.0;
 		if (!c->pixels) {
 			for (int l = 0; l < KG_NBANDS; l++)
@@ -762,25 +975,15 @@ static int summarise(const kg_est_kernel *k, const kg_est_material_set *set, con
 		}
 		float mean_rgb[3], spec[KG_NBANDS];
 		for (int ch = 0; ch < 3; ch++)
-			mean_rgb[ch] = (float)(s->rgb_sum[j + 1][ch] / (double)c->pixels);
+			mean_rgb[ch] = (float)(cs->rgb_sum[ch] / (double)c->pixels);
 		kg_est_kernel_eval(k, mean_rgb, INFINITY, 0, spec);
 		for (int l = 0; l < KG_NBANDS; l++)
 			c->mean_spectrum[l] = spec[l];
-		size_t m = 0;
-		double sum = 0;
-		for (size_t i = 0; i < npix; i++)
-			if (s->label_map[i] == j + 1) {
-				buf[m++] = s->margin[i];
-				sum += s->margin[i];
-			}
-		qsort(buf, m, sizeof(float), cmp_float);
-		c->margin_mean = sum / (double)m;
-		c->margin_median = m % 2 ? buf[m / 2] : 0.5 * ((double)buf[m / 2 - 1] + buf[m / 2]);
-		size_t rank = (size_t)ceil(0.05 * (double)m);
-		c->margin_p5 = buf[rank ? rank - 1 : 0];
+		c->margin_mean = cs->margin_sum / (double)c->pixels;
+		c->margin_median = cs->ntargets == 3 ? 0.5 * ((double)cs->value[0] + cs->value[1])
+		                                     : cs->value[0];
+		c->margin_p5 = cs->value[cs->ntargets - 1];
 	}
-	free(buf);
-	free(count);
 	return 0;
 }
 
@@ -858,7 +1061,7 @@ static json_t *refusal_class(const kg_est_material_set *set, int label, uint64_t
 }
 
 static int write_json(const char *path, const kg_est_material_set *set,
-                      const kg_classify_options *copt, const kg_image *img,
+                      const kg_classify_options *copt, const kg_row_source *img,
                       const kg_apply_options *opt, const kg_classify_info *info,
                       const char *const files[4], const kg_classify_result *res, kg_err *err)
 {
@@ -949,14 +1152,20 @@ static int write_json(const char *path, const kg_est_material_set *set,
 /* The label map with class colours (flagged pixels grey, unknown magenta, background
  * near-black), at most 720 pixels on its longer side (nearest sample), and a legend
  * with each class's share. */
-static int write_preview(const char *path, const kg_est_material_set *set,
-                         const uint8_t *labels, int width, int height,
-                         const kg_classify_result *res, kg_err *err)
+static void preview_size(int width, int height, int *pw, int *ph)
 {
 	double scale = 720.0 / (width > height ? width : height);
-	int pw = (int)lround(width * scale), ph = (int)lround(height * scale);
-	pw = pw < 1 ? 1 : pw;
-	ph = ph < 1 ? 1 : ph;
+	*pw = (int)lround(width * scale);
+	*ph = (int)lround(height * scale);
+	*pw = *pw < 1 ? 1 : *pw;
+	*ph = *ph < 1 ? 1 : *ph;
+}
+
+/* labels: the pw x ph nearest samples the sink kept (preview_size). */
+static int write_preview(const char *path, const kg_est_material_set *set,
+                         const uint8_t *labels, int pw, int ph,
+                         const kg_classify_result *res, kg_err *err)
+{
 	const int margin = 10, legend_w = 260, entry_h = 20;
 	const int nlabels = set->n + 3;
 	int legend_h = entry_h * nlabels + 2 * margin;
@@ -966,26 +1175,18 @@ static int write_preview(const char *path, const kg_est_material_set *set,
 	if (rc)
 		return rc;
 	unsigned char (*pal)[3] = malloc(sizeof(*pal) * 256);
-	int *src_x = malloc(sizeof(int) * pw);
-	if (!pal || !src_x) {
-		free(pal);
-		free(src_x);
+	if (!pal) {
 		kg_plot_free(&p);
 		return kg_fail(err, KG_ENOMEM, "out of memory");
 	}
 	for (int l = 0; l < 256; l++)
 		label_colour(set, l < nlabels ? l : 0, pal[l]);
-	for (int x = 0; x < pw; x++) {
-		int sx = (int)((long)x * width / pw);
-		src_x[x] = sx < width ? sx : width - 1;
-	}
 	for (int y = 0; y < ph; y++) {
-		int sy = (int)((long)y * height / ph);
-		const uint8_t *row = labels + (size_t)(sy < height ? sy : height - 1) * width;
+		const uint8_t *row = labels + (size_t)y * pw;
 		for (int x0 = 0; x0 < pw;) {
-			uint8_t l = row[src_x[x0]];
+			uint8_t l = row[x0];
 			int x1 = x0 + 1;
-			while (x1 < pw && row[src_x[x1]] == l)
+			while (x1 < pw && row[x1] == l)
 				x1++;
 			double c[3] = {pal[l][0] / 255.0, pal[l][1] / 255.0, pal[l][2] / 255.0};
 			kg_plot_fill_rect(p, margin + x0, margin + y, x1 - x0, 1, c);
@@ -1008,7 +1209,6 @@ static int write_preview(const char *path, const kg_est_material_set *set,
 		             j ? label_name(set, j) : "flagged (unclassified)", frac);
 	}
 	free(pal);
-	free(src_x);
 	rc = kg_plot_save_png(p, path, err);
 	kg_plot_free(&p);
 	if (rc)
@@ -1028,7 +1228,17 @@ void kg_classify_options_init(kg_classify_options *o)
 	o->background_level = 0.01;
 }
 
-static int check_options(const kg_classify_options *o, const kg_image *img,
+static const char *side_name_variance(const kg_classify_info *info)
+{
+	return info && info->variance ? info->variance : "the variance image";
+}
+
+static const char *side_name_mask(const kg_classify_info *info)
+{
+	return info && info->mask ? info->mask : "the mask";
+}
+
+static int check_options(const kg_classify_options *o, const kg_row_source *img,
                          const kg_classify_info *info, const char *what, kg_err *err)
 {
 	if (o->frames < 1)
@@ -1051,51 +1261,34 @@ static int check_options(const kg_classify_options *o, const kg_image *img,
 	if (o->distance != KG_EST_DIST_PLAIN && o->distance != KG_EST_DIST_SCALE_FREE)
 		return kg_fail(err, KG_EINVAL, "%s: distance %d: expected plain or scale-free", what,
 		               (int)o->distance);
-	const kg_image *side[2] = {o->variance, o->mask};
-	const char *side_name[2] = {info && info->variance ? info->variance : "the variance image",
-	                            info && info->mask ? info->mask : "the mask"};
+	const kg_row_source *side[2] = {o->variance, o->mask};
 	const int side_channels[2] = {3, 1};
 	for (int s = 0; s < 2; s++) {
-		const kg_image *v = side[s];
+		const kg_row_source *v = side[s];
 		if (!v)
 			continue;
-		if (!v->data || v->width != img->width || v->height != img->height)
+		const char *name = s ? side_name_mask(info) : side_name_variance(info);
+		if (!v->read || v->width != img->width || v->height != img->height)
 			return kg_fail(err, KG_EINVAL,
 			               "%s: %s is %d x %d pixels: expected the image's size, %d x %d",
-			               what, side_name[s], v->width, v->height, img->width, img->height);
+			               what, name, v->width, v->height, img->width, img->height);
 		if (v->channels != side_channels[s])
 			return kg_fail(err, KG_EINVAL, "%s: %s has %d channel%s: expected %d (%s)", what,
-			               side_name[s], v->channels, v->channels == 1 ? "" : "s",
-			               side_channels[s],
+			               name, v->channels, v->channels == 1 ? "" : "s", side_channels[s],
 			               s ? "grey: 0 = background, non-zero = object"
 			                 : "one variance per channel of the image");
-	}
-	if (o->variance) {
-		size_t n = (size_t)img->width * (size_t)img->height * 3;
-		for (size_t i = 0; i < n; i++)
-			if (!(o->variance->data[i] >= 0 && isfinite(o->variance->data[i])))
-				return kg_fail(err, KG_EINVAL,
-				               "%s: %s: pixel (%zu, %zu) channel %zu is %g: "
-				               "expected a finite variance >= 0",
-				               what, side_name[0], i / 3 % (size_t)img->width, i / 3 / (size_t)img->width,
-				               i % 3, o->variance->data[i]);
 	}
 	return 0;
 }
 
 /* The refusal stage's constants; dof and threshold also go to the result. */
 static int refusal_init(refusal *r, const kg_est_kernel *k, const kg_est_classifier *cls,
-                        const kg_est_material_set *set, const kg_image *img,
-                        const apply_input *in, const kg_apply_options *opt,
+                        const kg_est_material_set *set, const kg_apply_options *opt,
                         const kg_classify_options *o, kg_classify_result *res, kg_err *err)
 {
 	memset(r, 0, sizeof(*r));
 	r->k = k;
 	r->cls = cls;
-	r->raw = img->data;
-	r->kin = in->rgb;
-	r->var = o->variance ? o->variance->data : NULL;
-	r->mask = o->mask ? o->mask->data : NULL;
 	r->inv_frames = 1.0 / o->frames;
 	r->noise_rel2 = o->noise_relative * o->noise_relative;
 	r->noise_floor2 = o->noise_floor * o->noise_floor;
@@ -1146,6 +1339,22 @@ int kg_classify_image_opts(const kg_est_kernel *k, const kg_est_material_set *se
                            const char *out_hdr, kg_classify_result *res, kg_err *err)
 {
 	kg_check_arg(k && set && img && out_hdr, err);
+	if (res)
+		memset(res, 0, sizeof(*res));
+	int rc = check_image(img, "classify", err);
+	if (rc)
+		return rc;
+	kg_row_source src;
+	kg_row_source_of_image(img, &src);
+	return kg_classify_rows(k, set, &src, opt, copt, info, out_hdr, res, err);
+}
+
+int kg_classify_rows(const kg_est_kernel *k, const kg_est_material_set *set,
+                     const kg_row_source *src, const kg_apply_options *opt,
+                     const kg_classify_options *copt, const kg_classify_info *info,
+                     const char *out_hdr, kg_classify_result *res, kg_err *err)
+{
+	kg_check_arg(k && set && src && out_hdr, err);
 	kg_apply_options dflt;
 	if (!opt) {
 		kg_apply_options_init(&dflt);
@@ -1169,14 +1378,15 @@ int kg_classify_image_opts(const kg_est_kernel *k, const kg_est_material_set *se
 		return kg_fail(err, KG_EINVAL, "%s: %d materials: expected 1 to %d", out_hdr, set->n,
 		               KG_EST_MAX_MATERIALS);
 
-	apply_input in;
-	int rc = input_prepare(img, opt, "classify", &in, err);
+	feed in;
+	int rc = feed_init(&in, src, opt, "classify", err);
+	if (!rc)
+		rc = check_options(copt, src, info, "classify", err);
 	if (rc)
 		return rc;
-	if ((rc = check_options(copt, img, info, "classify", err))) {
-		free(in.owned);
-		return rc;
-	}
+	in.var = copt->variance;
+	in.var_name = side_name_variance(info);
+	in.mask = copt->mask;
 	refusal refuse;
 	kg_est_classifier *cls = NULL;
 	kg_envi_writer *ws[3] = {NULL, NULL, NULL};
@@ -1186,10 +1396,11 @@ int kg_classify_image_opts(const kg_est_kernel *k, const kg_est_material_set *se
 	unsigned char *lookup = NULL;
 	cls_sink sink = {0};
 	written done = {0};
-	size_t npix = (size_t)img->width * (size_t)img->height;
+	const int W = src->width, H = src->height;
+	size_t npix = (size_t)W * (size_t)H;
 
 	if ((rc = kg_est_classifier_new(k, set->materials, set->n, distance, &cls, err)) ||
-	    (rc = refusal_init(&refuse, k, cls, set, img, &in, opt, copt, &local, err)))
+	    (rc = refusal_init(&refuse, k, cls, set, opt, copt, &local, err)))
 		goto out;
 	if ((rc = kg_apply_side_path(out_hdr, "_confidence.hdr", &conf_path, err)) ||
 	    (rc = kg_apply_side_path(out_hdr, ".json", &json_path, err)) ||
@@ -1200,11 +1411,11 @@ int kg_classify_image_opts(const kg_est_kernel *k, const kg_est_material_set *se
 	const int nlabels = set->n + 3;
 	names = calloc((size_t)nlabels, sizeof(char *));
 	lookup = malloc(3 * (size_t)nlabels);
-	sink.label_map = malloc(npix);
-	sink.margin = malloc(npix * sizeof(float));
-	sink.rgb_sum = calloc((size_t)nlabels, sizeof(*sink.rgb_sum));
-	if (!names || !lookup || !sink.label_map || !sink.margin || !sink.rgb_sum) {
-		rc = kg_fail(err, KG_ENOMEM, "classify: out of memory for %zu pixels", npix);
+	preview_size(W, H, &sink.pw, &sink.ph);
+	sink.preview = malloc((size_t)sink.pw * sink.ph);
+	sink.cs = calloc((size_t)set->n, sizeof(*sink.cs));
+	if (!names || !lookup || !sink.preview || !sink.cs) {
+		rc = kg_fail(err, KG_ENOMEM, "classify: out of memory");
 		goto out;
 	}
 	for (int l = 0; l < nlabels; l++) {
@@ -1213,8 +1424,8 @@ int kg_classify_image_opts(const kg_est_kernel *k, const kg_est_material_set *se
 	}
 
 	kg_envi_meta m = {0};
-	m.samples = img->width;
-	m.lines = img->height;
+	m.samples = W;
+	m.lines = H;
 	m.bands = 1;
 	m.data_type = KG_ENVI_U8;
 	m.interleave = KG_ENVI_BSQ;
@@ -1228,8 +1439,8 @@ int kg_classify_image_opts(const kg_est_kernel *k, const kg_est_material_set *se
 	if ((rc = kg_envi_writer_open(out_hdr, &m, &ws[0], err)))
 		goto out;
 	kg_envi_meta mc = {0};
-	mc.samples = img->width;
-	mc.lines = img->height;
+	mc.samples = W;
+	mc.lines = H;
 	mc.bands = 1;
 	mc.data_type = KG_ENVI_F32;
 	mc.interleave = KG_ENVI_BSQ;
@@ -1241,40 +1452,42 @@ int kg_classify_image_opts(const kg_est_kernel *k, const kg_est_material_set *se
 	if ((rc = kg_envi_writer_open(conf_path, &mc, &ws[1], err)))
 		goto out;
 	paths[1] = conf_path;
-	if ((rc = open_mask(out_hdr, img, &mask_path, &ws[2], err)))
+	if ((rc = open_mask(out_hdr, W, H, &mask_path, &ws[2], err)))
 		goto out;
 	paths[2] = mask_path;
 
 	kg_est_job job;
 	kg_est_job_init(&job, k, KG_EST_LABELS);
+	feed_job(&in, &job);
 	job.classifier = cls;
-	job.clip_level = in.clip;
 	job.threads = opt->threads;
 	job.block_rows = opt->block_rows;
 	job.isa = opt->isa;
 	sink.labels = ws[0];
 	sink.conf = ws[1];
 	sink.mask = ws[2];
-	sink.rgb = in.rgb;
+	sink.in = &in;
 	sink.refuse = &refuse;
 	sink.nmaterials = set->n;
-	progress_init(&sink.prog, opt, "classify", img);
-	rc = kg_est_run_stream(&job, in.rgb, img->width, img->height, cls_sink_fn, &sink,
-	                       &local.stats, err);
+	sink.height = H;
+	progress_init(&sink.prog, opt, "classify", W, H);
+	rc = kg_est_run_stream(&job, NULL, W, H, cls_sink_fn, &sink, &local.stats, err);
 	if (rc) {
 		kg_err_prefix(err, "%s: ", out_hdr);
 		goto out;
 	}
-	if ((rc = summarise(k, set, &sink, npix, &local, err)))
+	if ((rc = check_estimable(&local.stats, &in, "classify", err)))
 		goto out;
 	if ((rc = finish_all(ws, paths, 3, &done, err)))
 		goto out;
+	if ((rc = margin_pass(&sink, out_hdr, conf_path, W, H, err)) ||
+	    (rc = summarise(k, set, &sink, npix, &local, err)))
+		goto out;
 	const char *files[4] = {out_hdr, conf_path, mask_path, png_path};
-	if ((rc = write_json(json_path, set, copt, img, opt, info, files, &local, err)))
+	if ((rc = write_json(json_path, set, copt, src, opt, info, files, &local, err)))
 		goto out;
 	written_add(&done, json_path);
-	if ((rc = write_preview(png_path, set, sink.label_map, img->width, img->height, &local,
-	                        err)))
+	if ((rc = write_preview(png_path, set, sink.preview, sink.pw, sink.ph, &local, err)))
 		goto out;
 	written_add(&done, png_path);
 
@@ -1288,16 +1501,12 @@ out:
 	else
 		kg_classify_result_free(&local);
 	kg_est_classifier_free(&cls);
-	free(sink.stage.v);
-	free(sink.label_map);
-	free(sink.margin);
-	free(sink.rgb_sum);
+	cls_sink_free(&sink);
 	free(names);
 	free(lookup);
 	free(conf_path);
 	free(mask_path);
 	free(json_path);
 	free(png_path);
-	free(in.owned);
 	return rc;
 }

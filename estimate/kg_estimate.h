@@ -193,6 +193,15 @@ typedef struct kg_est_job {
 	int block_rows;   /* rows per block; 0: about 4 MiB of output per block */
 	kg_est_isa isa;
 	kg_est_stores stores;
+	/* Stream mode only: each block's input is pulled from fill instead of read from
+	 * rgb (which may then be NULL). fill is called for one block at a time, in row
+	 * order, so a file can be read top to bottom once; it fills `in` (in_bytes per
+	 * pixel times the block's pixels) and leaves the kernel's RGB, 3 floats per pixel,
+	 * at its start. The rest is the caller's: the sink gets the whole of it as
+	 * block->input. A fill error stops the run and is returned. */
+	int (*fill)(void *user, int y0, int rows, void *in, kg_err *err);
+	void *fill_user;
+	size_t in_bytes; /* per pixel, >= 12; 0: 12 */
 } kg_est_job;
 
 /* Defaults: clip_level 0.999 (of the 0..1 full scale; callers set the level their
@@ -233,6 +242,7 @@ typedef struct kg_est_block {
 	const void *data;
 	const float *confidence; /* labels only */
 	const uint8_t *mask;
+	const void *input; /* what the job's fill wrote for this block, or NULL */
 } kg_est_block;
 
 typedef int (*kg_est_sink_fn)(void *user, const kg_est_block *block, kg_err *err);
@@ -320,6 +330,12 @@ int kg_apply_side_path(const char *out_path, const char *suffix, char **out, kg_
 int kg_estimate_image(const kg_est_kernel *k, const kg_image *img, kg_est_format format,
                       const kg_apply_options *opt, const char *out_hdr,
                       kg_est_stats *stats, kg_err *err);
+/* The same from rows (a file read top to bottom, a correction chain): memory stays
+ * bounded whatever the image's size. The all-flagged refusal comes after the run,
+ * with the outputs dropped before they get their names. */
+int kg_estimate_rows(const kg_est_kernel *k, const kg_row_source *src, kg_est_format format,
+                     const kg_apply_options *opt, const char *out_hdr,
+                     kg_est_stats *stats, kg_err *err);
 
 /* The basis of a kernel (61 x K, row-major) and its mean (61 values, zeros when it
  * has none), i.e. what a consumer of a weights cube needs for s = mean + B w.
@@ -414,14 +430,14 @@ typedef struct kg_classify_info {
  * the same code after either). */
 typedef struct kg_classify_options {
 	kg_est_distance distance;
-	const kg_image *variance; /* 3 channels, or NULL: the noise model below */
+	const kg_row_source *variance; /* 3 channels, or NULL: the noise model below */
 	int frames;               /* frames averaged into the image, >= 1 */
 	double noise_relative;    /* noise model without a variance image */
 	double noise_floor;
 	double residual_relative; /* calibration model error, >= 0 */
 	double unknown_threshold; /* > 0; 0: the 99.9 % point; INFINITY: no unknown test */
 	double background_level;  /* 0..1; 0: no low-signal test */
-	const kg_image *mask;     /* 1 channel, the image's size; 0 = background, or NULL */
+	const kg_row_source *mask; /* 1 channel, the image's size; 0 = background, or NULL */
 } kg_classify_options;
 
 /* Defaults: distance plain, no variance (the noise model: noise_relative 0.01 and
@@ -436,13 +452,21 @@ void kg_classify_options_init(kg_classify_options *o);
  * side files (see above). The unknown test needs a linear kernel (pca), not a LUT.
  * Refused (KG_EINVAL, naming both sizes or the bad value): a variance image or mask
  * that does not match the image, a variance that is negative or not finite, bad
- * option values, an image of which every pixel is flagged. res (may be NULL) receives the summary; free it with
- * kg_classify_result_free. Needs memory for 5 bytes per pixel beside the image
- * (labels and margins, for the exact median and percentile). */
+ * option values, an image of which every pixel is flagged. res (may be NULL) receives
+ * the summary; free it with kg_classify_result_free. Memory does not grow with the
+ * image: the margins' exact median and 5th percentile come from a histogram of their
+ * high 16 bits kept while classifying and a second pass over the written confidence
+ * file for the low bits. */
 int kg_classify_image_opts(const kg_est_kernel *k, const kg_est_material_set *set,
                            const kg_image *img, const kg_apply_options *opt,
                            const kg_classify_options *copt, const kg_classify_info *info,
                            const char *out_hdr, kg_classify_result *res, kg_err *err);
+/* The same from rows (see kg_estimate_rows); the variance and mask of copt are row
+ * sources read alongside. */
+int kg_classify_rows(const kg_est_kernel *k, const kg_est_material_set *set,
+                     const kg_row_source *src, const kg_apply_options *opt,
+                     const kg_classify_options *copt, const kg_classify_info *info,
+                     const char *out_hdr, kg_classify_result *res, kg_err *err);
 
 /* kg_classify_image_opts with the distance given and nothing refused: no unknown
  * test, no background level, no mask (the classes unknown and background exist in

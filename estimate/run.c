@@ -19,6 +19,7 @@
 #define MAX_THREADS 256
 
 typedef struct slot {
+	void *in; /* the block's input when the job pulls it (fill) */
 	void *data;
 	float *conf;
 	uint8_t *mask;
@@ -34,6 +35,11 @@ typedef struct run_state {
 	const kg_est_dest *dest; /* memory mode */
 	slot *slots;             /* stream mode */
 	int nslots;
+	int (*fill)(void *user, int y0, int rows, void *in, kg_err *err);
+	void *fill_user;
+	size_t in_bytes;
+	int fill_rc; /* the first fill error, its message in fill_err */
+	kg_err fill_err;
 	pthread_mutex_t mu;
 	pthread_cond_t cv_space, cv_done;
 	int next, consumed, abort;
@@ -58,12 +64,33 @@ void kg_est_job_init(kg_est_job *job, const kg_est_kernel *k, kg_est_format form
 
 static int is_bsq(kg_est_format f) { return f == KG_EST_F32_BSQ || f == KG_EST_F16_BSQ; }
 
+static int block_rows_of(const run_state *r, int b)
+{
+	int y0 = b * r->block_rows;
+	return r->height - y0 < r->block_rows ? r->height - y0 : r->block_rows;
+}
+
+/* Pull block b's input into its slot (the caller keeps the blocks in row order).
+ * A failure is kept for the run and stops it. */
+static int fill_block(run_state *r, int b)
+{
+	if (!r->fill || r->fill_rc)
+		return r->fill_rc;
+	int rc = r->fill(r->fill_user, b * r->block_rows, block_rows_of(r, b),
+	                 r->slots[b % r->nslots].in, &r->fill_err);
+	if (rc) {
+		r->fill_rc = rc > 0 ? KG_EIO : rc;
+		r->abort = 1;
+	}
+	return r->fill_rc;
+}
+
 static void compute_block(run_state *r, worker *w, int b)
 {
 	size_t y0 = (size_t)b * r->block_rows;
-	size_t rows = (size_t)r->height - y0 < (size_t)r->block_rows ? (size_t)r->height - y0
-	                                                              : (size_t)r->block_rows;
+	size_t rows = (size_t)block_rows_of(r, b);
 	size_t W = (size_t)r->width, n = rows * W, first = y0 * W;
+	const float *in = r->fill ? (const float *)r->slots[b % r->nslots].in : r->rgb + 3 * first;
 	est_dst d;
 	if (r->slots) {
 		slot *s = &r->slots[b % r->nslots];
@@ -75,7 +102,7 @@ static void compute_block(run_state *r, worker *w, int b)
 		              r->dest->confidence ? r->dest->confidence + first : NULL,
 		              r->dest->mask ? r->dest->mask + first : NULL};
 	}
-	r->fn(&r->plan, &w->scratch, r->rgb + 3 * first, n, &d, &w->counts);
+	r->fn(&r->plan, &w->scratch, in, n, &d, &w->counts);
 }
 
 static void *worker_main(void *arg)
@@ -92,6 +119,13 @@ static void *worker_main(void *arg)
 			break;
 		}
 		int b = r->next++;
+		/* pulled under the lock: blocks are claimed, and so read, in row order */
+		if (fill_block(r, b)) {
+			pthread_cond_broadcast(&r->cv_done);
+			pthread_cond_broadcast(&r->cv_space);
+			pthread_mutex_unlock(&r->mu);
+			break;
+		}
 		pthread_mutex_unlock(&r->mu);
 		compute_block(r, w, b);
 		if (r->slots) {
@@ -120,7 +154,9 @@ static int same_doubles(const double *a, const double *b, size_t n)
 static int prepare(const kg_est_job *job, const float *rgb, int width, int height, int stream,
                    run_state *r, int *threads, kg_err *err)
 {
-	kg_check_arg(job && job->kernel && rgb, err);
+	kg_check_arg(job && job->kernel && (rgb || (stream && job->fill)), err);
+	kg_check_arg(!job->fill || stream, err);
+	kg_check_arg(!job->fill || !job->in_bytes || job->in_bytes >= 3 * sizeof(float), err);
 	const kg_est_kernel *k = job->kernel;
 	if (width <= 0 || height <= 0 || (size_t)width > SIZE_MAX / 64 / (size_t)height / 3)
 		return kg_fail(err, KG_EINVAL, "estimate: image %dx%d: expected a positive size",
@@ -158,6 +194,9 @@ static int prepare(const kg_est_job *job, const float *rgb, int width, int heigh
 	r->plan.clip = job->clip_level;
 	r->fn = dsp.block[est_kind(k)][job->format];
 	r->rgb = rgb;
+	r->fill = job->fill;
+	r->fill_user = job->fill_user;
+	r->in_bytes = job->fill ? (job->in_bytes ? job->in_bytes : 3 * sizeof(float)) : 0;
 	r->width = width;
 	r->height = height;
 	r->bands = kg_est_format_bands(k, job->format);
@@ -166,7 +205,7 @@ static int prepare(const kg_est_job *job, const float *rgb, int width, int heigh
 	int nt = job->threads ? (job->threads > MAX_THREADS ? MAX_THREADS : job->threads)
 	                      : default_threads();
 	/* a block's buffers: output, plus mask and confidence in stream mode */
-	size_t px_bytes = (size_t)r->bands * r->elem +
+	size_t px_bytes = (size_t)r->bands * r->elem + r->in_bytes +
 	                  (stream ? 1 + (job->format == KG_EST_LABELS ? sizeof(float) : 0) : 0);
 	size_t row_bytes = (size_t)width * px_bytes;
 	size_t rows = job->block_rows ? (size_t)job->block_rows
@@ -266,6 +305,7 @@ static void slots_free(slot *s, int n)
 	if (!s)
 		return;
 	for (int i = 0; i < n; i++) {
+		free(s[i].in);
 		free(s[i].data);
 		free(s[i].conf);
 		free(s[i].mask);
@@ -286,7 +326,10 @@ static slot *slots_new(const run_state *r, int n)
 		s[i].mask = malloc(px);
 		if (r->plan.format == KG_EST_LABELS)
 			s[i].conf = malloc(px * sizeof(float));
-		if (!s[i].data || !s[i].mask || (r->plan.format == KG_EST_LABELS && !s[i].conf)) {
+		if (r->fill)
+			s[i].in = malloc(px * r->in_bytes);
+		if (!s[i].data || !s[i].mask || (r->plan.format == KG_EST_LABELS && !s[i].conf) ||
+		    (r->fill && !s[i].in)) {
 			slots_free(s, n);
 			return NULL;
 		}
@@ -329,17 +372,25 @@ int kg_est_run_stream(const kg_est_job *job, const float *rgb, int width, int he
 	rc = 0;
 	for (int b = 0; b < r.nblocks && rc == 0; b++) {
 		slot *s = &r.slots[b % r.nslots];
+		int fill_rc;
 		if (!started) {
-			compute_block(&r, &w[0], b);
+			if (!(fill_rc = fill_block(&r, b)))
+				compute_block(&r, &w[0], b);
 		} else {
 			pthread_mutex_lock(&r.mu);
-			while (s->block != b)
+			while (s->block != b && !r.fill_rc)
 				pthread_cond_wait(&r.cv_done, &r.mu);
+			fill_rc = s->block == b ? 0 : r.fill_rc;
 			pthread_mutex_unlock(&r.mu);
 		}
-		int y0 = b * r.block_rows;
-		int rows = height - y0 < r.block_rows ? height - y0 : r.block_rows;
-		kg_est_block blk = {y0, rows, width, r.bands, job->format, s->data, s->conf, s->mask};
+		if (fill_rc) {
+			rc = fill_rc;
+			if (err)
+				*err = r.fill_err;
+			break;
+		}
+		kg_est_block blk = {b * r.block_rows, block_rows_of(&r, b), width, r.bands,
+		                    job->format, s->data, s->conf, s->mask, s->in};
 		rc = sink(user, &blk, err);
 		pthread_mutex_lock(&r.mu);
 		r.consumed = b + 1;

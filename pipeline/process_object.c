@@ -318,10 +318,17 @@ static int process_into(proc *p, const proc_capture *c, const char *dir, double 
 		                         .mask = p->o->mask};
 		kg_classify_options copt;
 		kg_classify_options_init(&copt);
-		copt.variance = img.variance; /* already of the mean, normalised */
+		kg_row_source var_src, mask_src;
+		if (img.variance) {
+			kg_row_source_of_image(img.variance, &var_src);
+			copt.variance = &var_src; /* already of the mean, normalised */
+		}
 		copt.frames = 1;
 		copt.residual_relative = p->cam->residual_relative;
-		copt.mask = mask;
+		if (mask) {
+			kg_row_source_of_image(mask, &mask_src);
+			copt.mask = &mask_src;
+		}
 		opt.pre = pre_c_needed ? pre_c : NULL;
 		opt.description = NULL;
 		proc_progress(p, "%s: classifying among %d materials (%s)", c->name, set->n,

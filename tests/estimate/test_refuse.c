@@ -121,6 +121,12 @@ static const char *path(const char *name)
 	return p;
 }
 
+static int cmp_float(const void *a, const void *b)
+{
+	float x = *(const float *)a, y = *(const float *)b;
+	return (x > y) - (x < y);
+}
+
 static int same_file(const char *a, const char *b)
 {
 	FILE *fa = fopen(a, "rb"), *fb = fopen(b, "rb");
@@ -149,6 +155,36 @@ static uint8_t *read_bytes(const char *p, size_t n)
 	if (f)
 		fclose(f);
 	return b;
+}
+
+/* The margins' median and 5th percentile of each class, from all of them sorted,
+ * equal the summary's (kept in bounded memory by a two-pass histogram). Returns the
+ * number of classes with pixels. */
+static int check_margins(const kg_classify_result *res, const uint8_t *lab, const float *conf,
+                         int npix)
+{
+	int nonempty = 0;
+	for (int j = 0; lab && conf && j < res->nclasses; j++) {
+		float *v = malloc(sizeof(float) * npix);
+		size_t m = 0;
+		for (int i = 0; i < npix; i++)
+			if (lab[i] == j + 1)
+				v[m++] = conf[i];
+		CHECK(m == res->classes[j].pixels, "class %d: %zu pixels in the map, %llu counted", j,
+		      m, (unsigned long long)res->classes[j].pixels);
+		if (m) {
+			nonempty++;
+			qsort(v, m, sizeof(float), cmp_float);
+			double median = m % 2 ? v[m / 2] : 0.5 * ((double)v[m / 2 - 1] + v[m / 2]);
+			size_t rank = (size_t)ceil(0.05 * (double)m);
+			double p5 = v[rank ? rank - 1 : 0];
+			CHECK(res->classes[j].margin_median == median && res->classes[j].margin_p5 == p5,
+			      "class %d (%zu pixels): median %.9g p5 %.9g, sorted %.9g %.9g", j, m,
+			      res->classes[j].margin_median, res->classes[j].margin_p5, median, p5);
+		}
+		free(v);
+	}
+	return nonempty;
 }
 
 static void remove_outputs(const char *stem)
@@ -200,11 +236,15 @@ static void check_image(const fx_kernels *ks)
 	kg_apply_options_init(&opt);
 	kg_classify_options copt;
 	kg_classify_options_init(&copt);
-	copt.variance = var;
+	kg_row_source var_src, mask_src, small_src;
+	kg_row_source_of_image(var, &var_src);
+	kg_row_source_of_image(mask, &mask_src);
+	kg_row_source_of_image(small, &small_src);
+	copt.variance = &var_src;
 	copt.frames = 4;
 	copt.residual_relative = 0.01;
-	copt.mask = mask;
-	kg_classify_result res = {0};
+	copt.mask = &mask_src;
+	kg_classify_result res = {0}, first = {0};
 	uint64_t unknown_total = 0;
 	int have_avx2 = 1;
 	for (int s = 0; s < 4; s++) {
@@ -225,6 +265,8 @@ static void check_image(const fx_kernels *ks)
 			printf("synthetic: %llu unknown, %llu background, %llu unclassified of %d\n",
 			       (unsigned long long)res.unknown, (unsigned long long)res.background,
 			       (unsigned long long)res.unclassified, W * H);
+			first = res;
+			memset(&res, 0, sizeof(res));
 		}
 		kg_classify_result_free(&res);
 	}
@@ -263,19 +305,36 @@ static void check_image(const fx_kernels *ks)
 	}
 	CHECK((uint64_t)unknown == unknown_total, "%ld unknown in the map, %llu in the result",
 	      unknown, (unsigned long long)unknown_total);
+	check_margins(&first, lab, conf, W * H);
+	kg_classify_result_free(&first);
 	CHECK(wrong == 0, "%ld pixels with the wrong label or confidence", wrong);
 	free(lab);
 	free(conf);
+	/* Without refusals every unflagged pixel gets a material: the margins' order
+	 * statistics over thousands of pixels per class. */
+	rc = kg_classify_image(ks->pca, &set, KG_EST_DIST_PLAIN, img, &opt, NULL, path("plain.hdr"),
+	                       &res, &err);
+	CHECK(rc == 0, "plain: %s", err.msg);
+	snprintf(p, sizeof(p), "%s.img", path("plain"));
+	lab = read_bytes(p, (size_t)W * H);
+	snprintf(p, sizeof(p), "%s_confidence.img", path("plain"));
+	conf = (float *)read_bytes(p, sizeof(float) * W * H);
+	int nonempty = lab && conf ? check_margins(&res, lab, conf, W * H) : -1;
+	CHECK(nonempty >= 2, "plain: %d materials with pixels, expected 2 or more", nonempty);
+	kg_classify_result_free(&res);
+	free(lab);
+	free(conf);
+	remove_outputs("plain");
 
 	/* Refusals. */
 	kg_classify_options bad = copt;
-	bad.mask = small;
+	bad.mask = &small_src;
 	rc = kg_classify_image_opts(ks->pca, &set, img, &opt, &bad, NULL, path("bad.hdr"), NULL,
 	                            &err);
 	CHECK(rc == KG_EINVAL && strstr(err.msg, "60 x 37") && strstr(err.msg, "61 x 37"),
 	      "wrong-size mask: %d %s", rc, err.msg);
 	bad = copt;
-	bad.variance = mask;
+	bad.variance = &mask_src;
 	rc = kg_classify_image_opts(ks->pca, &set, img, &opt, &bad, NULL, path("bad.hdr"), NULL,
 	                            &err);
 	CHECK(rc == KG_EINVAL && strstr(err.msg, "channel"), "1-channel variance: %d %s", rc,
