@@ -276,7 +276,9 @@ static int tiff_rows_open(kg_image_rows *r, kg_err *err)
 		return kg_fail(err, errno == ENOENT ? KG_ENOENT : KG_EIO, "%s: cannot open: %s", path,
 		               strerror(errno));
 	kg_inputs_add(path, fd);
-	r->tif = tiff_open_fd(fd, path, "r", &r->msg);
+	/* "m": read(), not a map of the whole file, which would count as resident as
+	 * the file is read (the memory bound is for the process, not only the heap) */
+	r->tif = tiff_open_fd(fd, path, "rm", &r->msg);
 	if (!r->tif) {
 		close(fd);
 		return kg_fail(err, KG_EINVAL, "%s: not a readable TIFF file: %s", path,
