@@ -24,20 +24,29 @@ int kg_demosaic(const kg_image *mosaic, kg_image **rgb, double *step, kg_err *er
 {
 	kg_check_arg(mosaic && rgb, err);
 	*rgb = NULL;
-	if (mosaic->channels != 1 || !mosaic->cfa || mosaic->cfa_rows != 2 ||
-	    mosaic->cfa_cols != 2)
-		return kg_fail(err, KG_EINVAL,
-		               "demosaic: expected a 1-channel mosaic with a 2x2 CFA pattern");
-#if KG_HAVE_DEMOSAIC
 	size_t n = (size_t)mosaic->width * (size_t)mosaic->height;
 	double lo = INFINITY, hi = -INFINITY;
-	for (size_t i = 0; i < n; i++)
+	for (size_t i = 0; mosaic->data && i < n; i++)
 		if (isfinite(mosaic->data[i])) {
 			lo = fmin(lo, mosaic->data[i]);
 			hi = fmax(hi, mosaic->data[i]);
 		}
 	if (!(lo <= hi))
 		lo = hi = 0;
+	return kg_demosaic_range(mosaic, lo, hi, rgb, step, err);
+}
+
+int kg_demosaic_range(const kg_image *mosaic, double lo, double hi, kg_image **rgb,
+                      double *step, kg_err *err)
+{
+	kg_check_arg(mosaic && rgb, err);
+	*rgb = NULL;
+	if (mosaic->channels != 1 || !mosaic->cfa || mosaic->cfa_rows != 2 ||
+	    mosaic->cfa_cols != 2)
+		return kg_fail(err, KG_EINVAL,
+		               "demosaic: expected a 1-channel mosaic with a 2x2 CFA pattern");
+#if KG_HAVE_DEMOSAIC
+	size_t n = (size_t)mosaic->width * (size_t)mosaic->height;
 	double range = hi > lo ? hi - lo : 1.0;
 	uint16_t *in = malloc(n * sizeof(uint16_t));
 	uint16_t *out = malloc(3 * n * sizeof(uint16_t));
@@ -47,7 +56,8 @@ int kg_demosaic(const kg_image *mosaic, kg_image **rgb, double *step, kg_err *er
 	if (!ret) {
 		for (size_t i = 0; i < n; i++) {
 			float v = mosaic->data[i];
-			in[i] = isfinite(v) ? (uint16_t)lrint((v - lo) / range * 65535.0) : 0;
+			double q = isfinite(v) ? (v - lo) / range * 65535.0 : 0.0;
+			in[i] = (uint16_t)lrint(fmin(fmax(q, 0.0), 65535.0));
 		}
 		ret = kg_cv_demosaic_u16(in, mosaic->width, mosaic->height, mosaic->cfa, out, err);
 	}
@@ -68,6 +78,8 @@ int kg_demosaic(const kg_image *mosaic, kg_image **rgb, double *step, kg_err *er
 	free(out);
 	return ret;
 #else
+	(void)lo;
+	(void)hi;
 	(void)step;
 	return kg_fail(err, KG_ENOTSUP,
 	               "demosaic: kogei was built without OpenCV; the raw mosaic is kept");

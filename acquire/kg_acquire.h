@@ -92,6 +92,11 @@ int kg_bright_level(const kg_image *img, int radius, double percentile, double *
  * that scaling goes to *step). KG_ENOTSUP when kogei was built without OpenCV.
  * kg_demosaic_algorithm() names the method, or NULL without OpenCV. */
 int kg_demosaic(const kg_image *mosaic, kg_image **rgb, double *step, kg_err *err);
+/* The same with the 16-bit scaling over [lo, hi] given: a band of rows of a larger
+ * mosaic, scaled over the whole mosaic's range and cut at least 2 rows inside the band,
+ * demosaics exactly as the whole would (bilinear: each output reads a 3 x 3 window). */
+int kg_demosaic_range(const kg_image *mosaic, double lo, double hi, kg_image **rgb,
+                      double *step, kg_err *err);
 const char *kg_demosaic_algorithm(void);
 
 /* ==== Sessions ======================================================================= */

@@ -66,8 +66,32 @@ void proc_progress(proc *p, const char *fmt, ...) KG_PRINTF(2, 3);
 int proc_input(proc *p, const char *role, const char *path, const char *expected);
 
 /* The capture's image, corrected, normalised by scale (exposure x gain relative to
- * the chart's; 1 for the chart itself). */
+ * the chart's; 1 for the chart itself), whole in memory (capture_rows.c). */
 int proc_capture_image(proc *p, const proc_capture *c, double scale, proc_image *out);
+
+/* The same read a band of rows at a time (capture_rows.c): a source is planned once
+ * (files, the flat's means, a mosaic's range), then read in passes from the top, each
+ * a kg_row_source of the image (variance 0) or of its variance (variance 1). A mosaic
+ * is demosaiced unless kogei has no demosaicing and keep_mosaic is set (the chart:
+ * detection demosaics itself); otherwise that is an error. */
+typedef struct proc_image_info {
+	int width, height, channels;
+	int has_variance;
+	char dark[KG_CAPTURE_NAME_MAX], flat[KG_CAPTURE_NAME_MAX]; /* applied, "" none */
+	int dark_by_process, flat_by_process; /* 1: applied here, not by acquire */
+} proc_image_info;
+typedef struct proc_source proc_source;
+typedef struct proc_pass proc_pass;
+int proc_source_open(proc *p, const proc_capture *c, double scale, int keep_mosaic,
+                     proc_source **out, proc_image_info *info);
+void proc_source_free(proc_source **s);
+int proc_pass_open(proc_source *s, int variance, proc_pass **out, kg_row_source *src);
+void proc_pass_free(proc_pass **pp);
+
+/* The session's latest dark for c (same camera, format, exposure and gain) and flat
+ * (same camera and format), or NULL. */
+const proc_capture *proc_matching_dark(const proc *p, const proc_capture *c);
+const proc_capture *proc_matching_flat(const proc *p, const proc_capture *c);
 void proc_image_clear(proc_image *img);
 
 /* Chart capture -> chart found, calibrations fitted and written (process_calib.c). */

@@ -136,29 +136,6 @@ void proc_image_clear(proc_image *img)
 	memset(img, 0, sizeof(*img));
 }
 
-/* A capture's output (mean, variance, rgb): read, its sha256 checked and recorded. */
-static int read_output(proc *p, const proc_capture *c, const char *key, kg_image **out)
-{
-	char where[96];
-	snprintf(where, sizeof(where), "outputs.%s.file", key);
-	const char *rel = json_string_value(kg_json_find(c->j, where));
-	snprintf(where, sizeof(where), "outputs.%s.sha256", key);
-	const char *sha = json_string_value(kg_json_find(c->j, where));
-	*out = NULL;
-	if (!rel)
-		return KG_ENOENT;
-	char *path = kg_path_join(p->o->session, rel);
-	char role[128];
-	snprintf(role, sizeof(role), "capture %s %s", c->name, key);
-	int ret = path ? proc_input(p, role, path, sha) : kg_fail(p->err, KG_ENOMEM, "out of memory");
-	if (!ret)
-		ret = kg_image_read(path, out, p->err);
-	if (ret)
-		kg_err_prefix(p->err, "capture %s: ", c->name);
-	free(path);
-	return ret;
-}
-
 static int same_format(const proc_capture *a, const proc_capture *b)
 {
 	return a->pixfmt && b->pixfmt && !strcmp(a->pixfmt, b->pixfmt) && a->bits == b->bits &&
@@ -181,7 +158,7 @@ int proc_same_camera(const proc_capture *a, const proc_capture *b)
 }
 
 /* The latest dark of the session for c: same camera, format, exposure and gain. */
-static const proc_capture *matching_dark(const proc *p, const proc_capture *c)
+const proc_capture *proc_matching_dark(const proc *p, const proc_capture *c)
 {
 	const proc_capture *best = NULL;
 	for (int i = 0; i < p->ncaps; i++) {
@@ -195,7 +172,7 @@ static const proc_capture *matching_dark(const proc *p, const proc_capture *c)
 	return best;
 }
 
-static const proc_capture *matching_flat(const proc *p, const proc_capture *c)
+const proc_capture *proc_matching_flat(const proc *p, const proc_capture *c)
 {
 	const proc_capture *best = NULL;
 	for (int i = 0; i < p->ncaps; i++)
@@ -203,139 +180,6 @@ static const proc_capture *matching_flat(const proc *p, const proc_capture *c)
 		    same_format(&p->caps[i], c))
 			best = &p->caps[i];
 	return best;
-}
-
-/* A capture's mean with the dark subtracted where acquire did not and the session
- * holds a matching one (*dark: its name, "" when none was used). */
-static int dark_corrected_mean(proc *p, const proc_capture *c, kg_image **mean, char *dark,
-                               int *by_process)
-{
-	int ret = read_output(p, c, "mean", mean);
-	if (ret)
-		return ret == KG_ENOENT ? kg_fail(p->err, KG_EINVAL, "%s: capture %s has no "
-		                                  "outputs.mean", p->manifest_path, c->name)
-		                        : ret;
-	dark[0] = '\0';
-	*by_process = 0;
-	if (c->dark) {
-		snprintf(dark, KG_CAPTURE_NAME_MAX, "%s", c->dark);
-		return 0;
-	}
-	const proc_capture *d = c->kind == KG_CAPTURE_DARK ? NULL : matching_dark(p, c);
-	if (!d)
-		return 0;
-	kg_image *dm = NULL;
-	if (!(ret = read_output(p, d, "mean", &dm)))
-		ret = kg_correct_dark(*mean, dm, p->err);
-	kg_image_free(&dm);
-	if (ret) {
-		kg_err_prefix(p->err, "capture %s, dark %s: ", c->name, d->name);
-		return ret;
-	}
-	snprintf(dark, KG_CAPTURE_NAME_MAX, "%s", d->name);
-	*by_process = 1;
-	return 0;
-}
-
-int proc_capture_image(proc *p, const proc_capture *c, double scale, proc_image *out)
-{
-	memset(out, 0, sizeof(*out));
-	kg_image *mean = NULL, *var = NULL, *flat = NULL;
-	int ret = 0;
-	/* acquire's own demosaiced RGB when it applied every correction there is */
-	const proc_capture *fc = c->flat ? NULL : matching_flat(p, c);
-	int needs_dark = !c->dark && matching_dark(p, c);
-	int rgb_ok = json_object_get(json_object_get(c->j, "outputs"), "rgb") && !needs_dark && !fc;
-	if (rgb_ok) {
-		ret = read_output(p, c, "rgb", &out->rgb);
-		if (c->dark)
-			snprintf(out->dark, sizeof(out->dark), "%s", c->dark);
-		if (c->flat)
-			snprintf(out->flat, sizeof(out->flat), "%s", c->flat);
-	} else {
-		ret = dark_corrected_mean(p, c, &mean, out->dark, &out->dark_by_process);
-		if (c->flat)
-			snprintf(out->flat, sizeof(out->flat), "%s", c->flat);
-	}
-	if (!ret) {
-		int r2 = read_output(p, c, "variance", &var);
-		if (r2 && r2 != KG_ENOENT)
-			ret = r2;
-	}
-	if (!ret && fc && mean) {
-		char fdark[KG_CAPTURE_NAME_MAX];
-		int fby;
-		ret = dark_corrected_mean(p, fc, &flat, fdark, &fby);
-		long invalid = 0;
-		if (!ret)
-			ret = kg_correct_flat(mean, var, flat, &invalid, p->err);
-		if (ret)
-			kg_err_prefix(p->err, "capture %s, flat %s: ", c->name, fc->name);
-		else {
-			snprintf(out->flat, sizeof(out->flat), "%s", fc->name);
-			out->flat_by_process = 1;
-			if (invalid)
-				proc_warn(p, NULL, "capture %s: %ld samples where the flat %s is not valid "
-				          "are left out (NaN)", c->name, invalid, fc->name);
-			if (!fdark[0])
-				proc_warn(p, NULL, "flat %s has no dark subtracted (no matching dark in the "
-				          "session)", fc->name);
-		}
-	}
-	if (!ret && mean) {
-		if (mean->channels == 3) {
-			out->rgb = mean;
-			mean = NULL;
-		} else if (mean->cfa) {
-			double step;
-			kg_err e = {{0}};
-			ret = kg_demosaic(mean, &out->rgb, &step, &e);
-			if (ret == KG_ENOTSUP && c->kind == KG_CAPTURE_CHART) {
-				/* chart detection demosaics a mosaic itself (bilinear) */
-				out->rgb = mean;
-				mean = NULL;
-				ret = 0;
-			} else if (ret) {
-				kg_fail(p->err, ret, "capture %s: %s", c->name, e.msg);
-			}
-		} else {
-			ret = kg_fail(p->err, KG_EINVAL, "capture %s: a grey (1-channel) image without a "
-			              "CFA pattern cannot give colour: expected RGB or raw Bayer", c->name);
-		}
-	}
-	/* The variance follows the image into RGB: a mosaic's by the same demosaicing */
-	if (!ret && var && var->channels == 1 && var->cfa) {
-		kg_image *v3 = NULL;
-		double step;
-		if (kg_demosaic(var, &v3, &step, p->err) == 0) {
-			kg_image_free(&var);
-			var = v3;
-		} else {
-			kg_image_free(&var);
-		}
-	}
-	if (!ret && var && (var->channels != 3 || var->width != out->rgb->width ||
-	                    var->height != out->rgb->height))
-		kg_image_free(&var);
-	if (!ret) {
-		size_t n = (size_t)out->rgb->width * (size_t)out->rgb->height *
-		           (size_t)out->rgb->channels;
-		double frames = c->frames > 0 ? (double)c->frames : 1.0;
-		if (scale != 1.0)
-			for (size_t i = 0; i < n; i++)
-				out->rgb->data[i] = (float)(out->rgb->data[i] * scale);
-		if (var)
-			for (size_t i = 0; i < n; i++)
-				var->data[i] = (float)(var->data[i] * scale * scale / frames);
-		out->variance = var;
-		var = NULL;
-	}
-	kg_image_free(&mean);
-	kg_image_free(&var);
-	kg_image_free(&flat);
-	if (ret)
-		proc_image_clear(out);
-	return ret;
 }
 
 /* ---- previews -------------------------------------------------------------------- */
