@@ -259,11 +259,60 @@ static void test_demosaic(void)
 	}
 }
 
+/* Bands of a mosaic, demosaiced over the whole mosaic's range and cut 4 rows inside
+ * (as kogei process reads a capture, pipeline/capture_rows.c), give the whole mosaic's
+ * values bit for bit, NaN samples included, for bands of many heights. */
+static void test_demosaic_bands(void)
+{
+	if (!kg_demosaic_algorithm())
+		return;
+	const int W = 37, H = 53, M = 4;
+	kg_image *m = NULL, *whole = NULL;
+	kg_err err = {{0}};
+	kg_image_new(W, H, 1, &m, &err);
+	kg_image_set_cfa(m, "GRBG", 2, 2, &err);
+	uint64_t st = 12345;
+	for (int i = 0; i < W * H; i++) {
+		st = st * 6364136223846793005ULL + 1442695040888963407ULL;
+		m->data[i] = (float)((st >> 11) * (1.0 / 9007199254740992.0)) * 0.8f + 0.05f;
+	}
+	m->data[5 * W + 7] = NAN;
+	CHECK(kg_demosaic(m, &whole, NULL, &err) == 0, "whole: %s", err.msg);
+	double lo = INFINITY, hi = -INFINITY;
+	for (int i = 0; i < W * H; i++)
+		if (isfinite(m->data[i]))
+			lo = fmin(lo, m->data[i]), hi = fmax(hi, m->data[i]);
+	int differ = 0, bands = 0;
+	for (int rows = 1; rows <= 9 && whole; rows++)
+		for (int y0 = 0; y0 < H; y0 += rows, bands++) {
+			int n = H - y0 < rows ? H - y0 : rows;
+			int a = y0 - M < 0 ? 0 : y0 - M;
+			a -= a % 2;
+			int b = y0 + n + M > H ? H : y0 + n + M;
+			kg_image band = *m;
+			band.height = b - a;
+			band.data = m->data + (size_t)a * W;
+			kg_image *rgb = NULL;
+			CHECK(kg_demosaic_range(&band, lo, hi, &rgb, NULL, &err) == 0, "band: %s", err.msg);
+			for (int i = 0; rgb && i < n * W * 3; i++) {
+				float x = rgb->data[(size_t)(y0 - a) * W * 3 + i];
+				float y = whole->data[(size_t)y0 * W * 3 + i];
+				differ += !(x == y || (isnan(x) && isnan(y)));
+			}
+			kg_image_free(&rgb);
+		}
+	CHECK(differ == 0, "%d samples of %d bands differ from the whole mosaic's", differ, bands);
+	printf("demosaic in bands: %d bands of 1 to 9 rows, %d samples differ\n", bands, differ);
+	kg_image_free(&m);
+	kg_image_free(&whole);
+}
+
 int main(void)
 {
 	test_dark_flat();
 	test_stats();
 	test_bright_level();
 	test_demosaic();
+	test_demosaic_bands();
 	return kg_test_done("acquire-correct");
 }
