@@ -116,5 +116,11 @@ int proc_same_camera(const proc_capture *a, const proc_capture *b);
 /* An sRGB preview of a linear image (the 99.5th percentile at 0.9), at most max_side
  * pixels on its longer side. */
 int proc_preview_png(const kg_image *rgb, const char *path, int max_side, kg_err *err);
+/* The same built as an image's rows pass (rows given top to bottom, each once). */
+typedef struct proc_preview proc_preview;
+int proc_preview_new(int width, int height, int max_side, proc_preview **out, kg_err *err);
+void proc_preview_rows(proc_preview *pv, int y0, int rows, const float *rgb);
+int proc_preview_write(proc_preview *pv, const char *path, kg_err *err);
+void proc_preview_free(proc_preview **pv);
 
 #endif

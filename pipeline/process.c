@@ -184,31 +184,75 @@ const proc_capture *proc_matching_flat(const proc *p, const proc_capture *c)
 
 /* ---- previews -------------------------------------------------------------------- */
 
-int proc_preview_png(const kg_image *rgb, const char *path, int max_side, kg_err *err)
+/* The photograph's preview, built as its rows pass: every step-th pixel of every
+ * step-th row (step the smallest that fits max_side), and, for the white point, every
+ * stride-th sample of the image's samples in file order, up to PREVIEW_SAMPLES. */
+#define PREVIEW_SAMPLES 65536
+
+struct proc_preview {
+	int w, h, step, ow, oh;
+	float *px;        /* ow x oh x 3 */
+	float *samp;
+	int nsamp;
+	size_t stride, next_sample; /* the next sample index to take */
+};
+
+int proc_preview_new(int width, int height, int max_side, proc_preview **out, kg_err *err)
 {
-	int w = rgb->width, h = rgb->height, step = 1;
-	while ((w + step - 1) / step > max_side || (h + step - 1) / step > max_side)
-		step++;
-	int ow = (w + step - 1) / step, oh = (h + step - 1) / step;
-	size_t n = (size_t)w * (size_t)h * 3;
-	/* white point: the 99.5th percentile of a sample of the finite values */
-	int nsamp = 0, cap = 65536;
-	float *samp = malloc(sizeof(float) * (size_t)cap);
-	unsigned char *out = malloc((size_t)ow * (size_t)oh * 3);
-	if (!samp || !out) {
-		free(samp);
-		free(out);
+	*out = NULL;
+	proc_preview *pv = calloc(1, sizeof(*pv));
+	if (!pv)
+		return kg_fail(err, KG_ENOMEM, "out of memory");
+	pv->w = width;
+	pv->h = height;
+	pv->step = 1;
+	while ((width + pv->step - 1) / pv->step > max_side ||
+	       (height + pv->step - 1) / pv->step > max_side)
+		pv->step++;
+	pv->ow = (width + pv->step - 1) / pv->step;
+	pv->oh = (height + pv->step - 1) / pv->step;
+	pv->px = malloc(sizeof(float) * 3 * (size_t)pv->ow * (size_t)pv->oh);
+	pv->samp = malloc(sizeof(float) * PREVIEW_SAMPLES);
+	pv->stride = (size_t)width * (size_t)height * 3 / PREVIEW_SAMPLES + 1;
+	if (!pv->px || !pv->samp) {
+		proc_preview_free(&pv);
 		return kg_fail(err, KG_ENOMEM, "out of memory");
 	}
-	size_t stride = n / (size_t)cap + 1;
-	for (size_t i = 0; i < n && nsamp < cap; i += stride)
-		if (isfinite(rgb->data[i]))
-			samp[nsamp++] = rgb->data[i];
+	*out = pv;
+	return 0;
+}
+
+void proc_preview_free(proc_preview **pv)
+{
+	if (pv && *pv) {
+		free((*pv)->px);
+		free((*pv)->samp);
+		free(*pv);
+		*pv = NULL;
+	}
+}
+
+void proc_preview_rows(proc_preview *pv, int y0, int rows, const float *rgb)
+{
+	size_t row = (size_t)pv->w * 3, first = (size_t)y0 * row, end = first + rows * row;
+	for (; pv->nsamp < PREVIEW_SAMPLES && pv->next_sample < end; pv->next_sample += pv->stride)
+		if (isfinite(rgb[pv->next_sample - first]))
+			pv->samp[pv->nsamp++] = rgb[pv->next_sample - first];
+	for (int y = y0 + (pv->step - y0 % pv->step) % pv->step; y < y0 + rows; y += pv->step)
+		for (int x = 0; x < pv->ow; x++)
+			memcpy(pv->px + ((size_t)(y / pv->step) * pv->ow + x) * 3,
+			       rgb + (size_t)(y - y0) * row + (size_t)x * pv->step * 3, 3 * sizeof(float));
+}
+
+int proc_preview_write(proc_preview *pv, const char *path, kg_err *err)
+{
+	/* white point: the 99.5th percentile of the samples */
 	double white = 1.0;
+	float *samp = pv->samp;
+	int nsamp = pv->nsamp;
 	if (nsamp > 0) {
 		int k = (int)(0.995 * (nsamp - 1));
-		/* partial selection by sorting: small sample */
-		for (int i = 1; i < nsamp; i++) {
+		for (int i = 1; i < nsamp; i++) { /* insertion sort: a small sample */
 			float v = samp[i];
 			int j = i;
 			while (j > 0 && samp[j - 1] > v) {
@@ -219,21 +263,35 @@ int proc_preview_png(const kg_image *rgb, const char *path, int max_side, kg_err
 		}
 		white = samp[k] > 1e-6 ? samp[k] / 0.9 : 1.0;
 	}
-	for (int y = 0; y < oh; y++)
-		for (int x = 0; x < ow; x++) {
-			const float *px = rgb->data + ((size_t)y * step * (size_t)w + (size_t)x * step) * 3;
-			unsigned char *o = out + ((size_t)y * ow + x) * 3;
-			if (!isfinite(px[0]) || !isfinite(px[1]) || !isfinite(px[2])) {
-				o[0] = 128, o[1] = 0, o[2] = 128;
-				continue;
-			}
-			kg_rgb c = {fmin(fmax(px[0] / white, 0), 1), fmin(fmax(px[1] / white, 0), 1),
-			            fmin(fmax(px[2] / white, 0), 1)};
-			kg_rgb_to_u8(kg_srgb_encode(c), o);
+	size_t n = (size_t)pv->ow * (size_t)pv->oh;
+	unsigned char *out = malloc(n * 3);
+	if (!out)
+		return kg_fail(err, KG_ENOMEM, "out of memory");
+	for (size_t i = 0; i < n; i++) {
+		const float *px = pv->px + 3 * i;
+		unsigned char *o = out + 3 * i;
+		if (!isfinite(px[0]) || !isfinite(px[1]) || !isfinite(px[2])) {
+			o[0] = 128, o[1] = 0, o[2] = 128;
+			continue;
 		}
-	int ret = kg_png_write_rgb8(path, out, ow, oh, err);
-	free(samp);
+		kg_rgb c = {fmin(fmax(px[0] / white, 0), 1), fmin(fmax(px[1] / white, 0), 1),
+		            fmin(fmax(px[2] / white, 0), 1)};
+		kg_rgb_to_u8(kg_srgb_encode(c), o);
+	}
+	int ret = kg_png_write_rgb8(path, out, pv->ow, pv->oh, err);
 	free(out);
+	return ret;
+}
+
+int proc_preview_png(const kg_image *rgb, const char *path, int max_side, kg_err *err)
+{
+	proc_preview *pv = NULL;
+	int ret = proc_preview_new(rgb->width, rgb->height, max_side, &pv, err);
+	if (!ret) {
+		proc_preview_rows(pv, 0, rgb->height, rgb->data);
+		ret = proc_preview_write(pv, path, err);
+	}
+	proc_preview_free(&pv);
 	return ret;
 }
 

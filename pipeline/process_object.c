@@ -116,57 +116,101 @@ static const json_t *previous_object(const proc *p, const char *name)
 	return NULL;
 }
 
-/* The confidence band as a grey image: 0 black, the 95th percentile and up white,
- * not classified (NaN) dark red. */
-static int confidence_png(const char *hdr, const char *png, kg_err *err)
+/* Bands of rows of a one-band cube, to a function. */
+static int envi_bands(const kg_envi *e, float *buf, int band,
+                      int (*fn)(void *user, int y0, int rows, const float *v), void *user,
+                      kg_err *err)
+{
+	int w = e->meta.samples, h = e->meta.lines, ret = 0;
+	for (int y = 0; y < h && !ret; y += band) {
+		int rows = h - y < band ? h - y : band;
+		ret = kg_envi_read(e, 0, y, w, rows, KG_LAYOUT_BIP, buf, err);
+		if (!ret)
+			ret = fn(user, y, rows, buf);
+	}
+	return ret;
+}
+
+typedef struct conf_scan {
+	int w, pass;
+	float lo, hi;
+	long m, bins[1024];
+	int step, ow;
+	double top;
+	unsigned char *out;
+} conf_scan;
+
+static int conf_band(void *user, int y0, int rows, const float *v)
+{
+	conf_scan *c = user;
+	size_t n = (size_t)rows * c->w;
+	if (c->pass == 0) {
+		for (size_t i = 0; i < n; i++)
+			if (isfinite(v[i])) {
+				c->lo = c->m ? fminf(c->lo, v[i]) : v[i];
+				c->hi = c->m ? fmaxf(c->hi, v[i]) : v[i];
+				c->m++;
+			}
+	} else if (c->pass == 1) {
+		for (size_t i = 0; i < n; i++)
+			if (isfinite(v[i]))
+				c->bins[c->hi > c->lo ? (int)((v[i] - c->lo) / (c->hi - c->lo) * 1023) : 0]++;
+	} else {
+		for (int y = y0 + (c->step - y0 % c->step) % c->step; y < y0 + rows; y += c->step)
+			for (int x = 0; x < c->ow; x++) {
+				float f = v[(size_t)(y - y0) * c->w + (size_t)x * c->step];
+				unsigned char *o = c->out + ((size_t)(y / c->step) * c->ow + x) * 3;
+				if (!isfinite(f)) {
+					o[0] = 96, o[1] = 16, o[2] = 16;
+					continue;
+				}
+				double t = fmin(fmax(f / c->top, 0), 1);
+				o[0] = o[1] = o[2] = (unsigned char)lround(255 * t);
+			}
+	}
+	return 0;
+}
+
+/* The confidence band as a grey image at most max_side pixels on its longer side
+ * (every step-th pixel, as the photograph's preview): 0 black, the 95th percentile
+ * and up white, not classified (NaN) dark red. Three passes over the band's file:
+ * its range, a 1024-bin count over the range for the percentile, the image. */
+static int confidence_png(const char *hdr, const char *png, int max_side, kg_err *err)
 {
 	kg_envi *e = NULL;
 	int ret = kg_envi_open(hdr, &e, err);
 	if (ret)
 		return ret;
 	int w = e->meta.samples, h = e->meta.lines;
-	size_t n = (size_t)w * (size_t)h;
-	float *v = malloc(sizeof(float) * n), *sorted = malloc(sizeof(float) * n);
-	unsigned char *rgb = malloc(3 * n);
-	if (!v || !sorted || !rgb)
+	conf_scan c = {.w = w, .step = 1};
+	while ((w + c.step - 1) / c.step > max_side || (h + c.step - 1) / c.step > max_side)
+		c.step++;
+	c.ow = (w + c.step - 1) / c.step;
+	int oh = (h + c.step - 1) / c.step;
+	int band = (int)((1u << 20) / (unsigned)w) + 1;
+	float *v = malloc(sizeof(float) * (size_t)w * (size_t)band);
+	c.out = malloc(3 * (size_t)c.ow * (size_t)oh);
+	if (!v || !c.out)
 		ret = kg_fail(err, KG_ENOMEM, "out of memory");
-	if (!ret)
-		ret = kg_envi_read(e, 0, 0, w, h, KG_LAYOUT_BIP, v, err);
-	if (!ret) {
-		size_t m = 0;
-		for (size_t i = 0; i < n; i++)
-			if (isfinite(v[i]))
-				sorted[m++] = v[i];
-		double top = 1;
-		if (m) {
-			/* the 95th percentile by a counting pass over 1024 bins of the range */
-			float lo = sorted[0], hi = sorted[0];
-			for (size_t i = 1; i < m; i++)
-				lo = fminf(lo, sorted[i]), hi = fmaxf(hi, sorted[i]);
-			long bins[1024] = {0};
-			for (size_t i = 0; i < m; i++)
-				bins[hi > lo ? (int)((sorted[i] - lo) / (hi - lo) * 1023) : 0]++;
-			long acc = 0;
-			int b = 0;
-			while (b < 1023 && (acc += bins[b]) < (long)(0.95 * (double)m))
-				b++;
-			top = lo + (hi - lo) * (b + 1) / 1024.0;
-			if (!(top > 0))
-				top = hi > 0 ? hi : 1;
-		}
-		for (size_t i = 0; i < n; i++) {
-			if (!isfinite(v[i])) {
-				rgb[3 * i] = 96, rgb[3 * i + 1] = 16, rgb[3 * i + 2] = 16;
-				continue;
+	for (c.pass = 0; c.pass < 3 && !ret; c.pass++) {
+		ret = envi_bands(e, v, band, conf_band, &c, err);
+		if (c.pass == 1) {
+			c.top = 1;
+			if (c.m) {
+				long acc = 0;
+				int b = 0;
+				while (b < 1023 && (acc += c.bins[b]) < (long)(0.95 * (double)c.m))
+					b++;
+				c.top = c.lo + (c.hi - c.lo) * (b + 1) / 1024.0;
+				if (!(c.top > 0))
+					c.top = c.hi > 0 ? c.hi : 1;
 			}
-			double t = fmin(fmax(v[i] / top, 0), 1);
-			rgb[3 * i] = rgb[3 * i + 1] = rgb[3 * i + 2] = (unsigned char)lround(255 * t);
 		}
-		ret = kg_png_write_rgb8(png, rgb, w, h, err);
 	}
+	if (!ret)
+		ret = kg_png_write_rgb8(png, c.out, c.ow, oh, err);
 	free(v);
-	free(sorted);
-	free(rgb);
+	free(c.out);
 	kg_envi_close(&e);
 	return ret;
 }
@@ -253,14 +297,120 @@ static int classes_json(proc *p, const char *labels_json, const kg_est_material_
 }
 
 /* One object into dir (a temporary folder). */
+/* A source whose rows also go to the photograph's preview as they pass. */
+typedef struct preview_tap {
+	kg_row_source in;
+	proc_preview *pv;
+} preview_tap;
+
+static int tap_read(void *user, int y0, int rows, float *out, kg_err *err)
+{
+	preview_tap *t = user;
+	int ret = t->in.read(t->in.user, y0, rows, out, err);
+	if (!ret)
+		proc_preview_rows(t->pv, y0, rows, out);
+	return ret;
+}
+
+/* Estimate the capture into the cube, the photograph's preview built on the way. */
+static int estimate_pass(proc *p, const proc_capture *c, proc_source *src,
+                         const proc_image_info *info, const kg_apply_options *opt,
+                         const char *cube, const char *photo, json_t *object)
+{
+	kg_err *err = p->err;
+	kg_est_kernel *kern = NULL;
+	double pre[9];
+	int pre_needed = 0;
+	proc_pass *pass = NULL;
+	preview_tap tap = {0};
+	kg_row_source rows;
+	kg_apply_options o = *opt;
+	int ret = kg_camera_kernel(p->cam, KG_METHOD_AUTO, 0, &kern, pre, &pre_needed, err);
+	if (!ret)
+		ret = proc_preview_new(info->width, info->height, 1200, &tap.pv, err);
+	if (!ret)
+		ret = proc_pass_open(src, 0, &pass, &tap.in);
+	kg_est_stats stats;
+	if (!ret) {
+		rows = (kg_row_source){tap.in.width, tap.in.height, tap.in.channels, tap_read, &tap};
+		o.pre = pre_needed ? pre : NULL;
+		proc_progress(p, "%s: estimating %dx%d pixels (%s)", c->name, info->width, info->height,
+		              kg_method_name(p->cam->method));
+		ret = kg_estimate_rows(kern, &rows, KG_EST_F32_BSQ, &o, cube, &stats, err);
+	}
+	if (!ret)
+		ret = proc_preview_write(tap.pv, photo, err);
+	if (!ret) {
+		char line[256];
+		kg_est_stats_format(&stats, line, sizeof(line));
+		proc_progress(p, "%s: cube written: %s", c->name, line);
+		json_object_set_new(object, "estimate", json_pack("{s:I, s:I, s:I, s:I}", "pixels",
+		                    (json_int_t)stats.pixels, "nonfinite", (json_int_t)stats.nonfinite,
+		                    "clipped", (json_int_t)stats.clipped, "clamped",
+		                    (json_int_t)stats.clamped_pixels));
+	}
+	proc_pass_free(&pass);
+	proc_preview_free(&tap.pv);
+	kg_est_kernel_free(&kern);
+	return ret;
+}
+
+/* Classify the capture, with its variance and the mask read alongside. */
+static int classify_pass(proc *p, const proc_capture *c, proc_source *src,
+                         const proc_image_info *info, const kg_apply_options *opt,
+                         const kg_est_material_set *set, const char *labels)
+{
+	kg_err *err = p->err;
+	kg_est_kernel *kclass = NULL;
+	double pre[9];
+	int pre_needed = 0;
+	proc_pass *img_pass = NULL, *var_pass = NULL;
+	kg_image_rows *mask = NULL;
+	kg_row_source img_src, var_src, mask_src;
+	kg_classify_options copt;
+	kg_classify_options_init(&copt);
+	copt.frames = 1; /* the variance is already of the mean, normalised */
+	copt.residual_relative = p->cam->residual_relative;
+	kg_apply_options o = *opt;
+	o.description = NULL;
+	/* classification works in the PCA weights */
+	int ret = kg_camera_kernel(p->cam, KG_METHOD_PCA, 0, &kclass, pre, &pre_needed, err);
+	if (!ret)
+		ret = proc_pass_open(src, 0, &img_pass, &img_src);
+	if (!ret && info->has_variance && !(ret = proc_pass_open(src, 1, &var_pass, &var_src)))
+		copt.variance = &var_src;
+	if (!ret && p->o->mask && !(ret = kg_image_rows_open(p->o->mask, &mask, err))) {
+		kg_row_source_of_rows(mask, &mask_src);
+		copt.mask = &mask_src;
+	}
+	if (!ret) {
+		kg_classify_info cinfo = {.calib = "camera.json", .materials = p->library_path,
+		                          .method = "pca", .image = c->name,
+		                          .variance = info->has_variance ? "the capture's variance" : NULL,
+		                          .mask = p->o->mask};
+		o.pre = pre_needed ? pre : NULL;
+		proc_progress(p, "%s: classifying among %d materials (%s)", c->name, set->n,
+		              info->has_variance ? "noise from the capture's variance" : "noise model");
+		kg_classify_result cres = {0};
+		ret = kg_classify_rows(kclass, set, &img_src, &o, &copt, &cinfo, labels, &cres, err);
+		kg_classify_result_free(&cres);
+	}
+	kg_image_rows_free(&mask);
+	proc_pass_free(&var_pass);
+	proc_pass_free(&img_pass);
+	kg_est_kernel_free(&kclass);
+	return ret;
+}
+
+/* One object into dir (a temporary folder). Its image is read a band of rows at a
+ * time, once for the cube and the photograph's preview and once for the labels, so
+ * memory does not grow with the image. */
 static int process_into(proc *p, const proc_capture *c, const char *dir, double scale,
                         const kg_est_material_set *set, json_t *object)
 {
 	kg_err *err = p->err;
-	proc_image img = {0};
-	kg_est_kernel *kern = NULL, *kclass = NULL;
-	double pre[9], pre_c[9];
-	int pre_needed = 0, pre_c_needed = 0;
+	proc_source *src = NULL;
+	proc_image_info info;
 	char *cube = kg_path_join(dir, "cube.hdr"), *labels = kg_path_join(dir, "labels.hdr");
 	char *ljson = kg_path_join(dir, "labels.json"), *photo = kg_path_join(dir, "photo.png");
 	char *conf = kg_path_join(dir, "labels_confidence.hdr");
@@ -270,13 +420,12 @@ static int process_into(proc *p, const proc_capture *c, const char *dir, double 
 	int ret = cube && labels && ljson && photo && conf && confpng && scene && render && class_map
 	              ? 0 : kg_fail(err, KG_ENOMEM, "out of memory");
 	if (!ret)
-		ret = proc_capture_image(p, c, scale, &img);
+		ret = proc_source_open(p, c, scale, 0, &src, &info);
 	if (!ret) {
-		json_object_set_new(object, "width", json_integer(img.rgb->width));
-		json_object_set_new(object, "height", json_integer(img.rgb->height));
-		json_object_set_new(object, "dark", img.dark[0] ? json_string(img.dark) : json_null());
-		json_object_set_new(object, "flat", img.flat[0] ? json_string(img.flat) : json_null());
-		ret = proc_preview_png(img.rgb, photo, 1200, err);
+		json_object_set_new(object, "width", json_integer(info.width));
+		json_object_set_new(object, "height", json_integer(info.height));
+		json_object_set_new(object, "dark", info.dark[0] ? json_string(info.dark) : json_null());
+		json_object_set_new(object, "flat", info.flat[0] ? json_string(info.flat) : json_null());
 	}
 	kg_apply_options opt;
 	kg_apply_options_init(&opt);
@@ -288,64 +437,17 @@ static int process_into(proc *p, const proc_capture *c, const char *dir, double 
 	snprintf(desc, sizeof(desc), "kogei process: reflectance of capture %s", c->name);
 	opt.description = desc;
 	if (!ret)
-		ret = kg_camera_kernel(p->cam, KG_METHOD_AUTO, 0, &kern, pre, &pre_needed, err);
-	kg_est_stats stats;
-	if (!ret) {
-		opt.pre = pre_needed ? pre : NULL;
-		proc_progress(p, "%s: estimating %dx%d pixels (%s)", c->name, img.rgb->width,
-		              img.rgb->height, kg_method_name(p->cam->method));
-		ret = kg_estimate_image(kern, img.rgb, KG_EST_F32_BSQ, &opt, cube, &stats, err);
-	}
-	if (!ret) {
-		char line[256];
-		kg_est_stats_format(&stats, line, sizeof(line));
-		proc_progress(p, "%s: cube written: %s", c->name, line);
-		json_object_set_new(object, "estimate", json_pack("{s:I, s:I, s:I, s:I}", "pixels",
-		                    (json_int_t)stats.pixels, "nonfinite", (json_int_t)stats.nonfinite,
-		                    "clipped", (json_int_t)stats.clipped, "clamped",
-		                    (json_int_t)stats.clamped_pixels));
-		/* classification works in the PCA weights */
-		ret = kg_camera_kernel(p->cam, KG_METHOD_PCA, 0, &kclass, pre_c, &pre_c_needed, err);
-	}
-	kg_classify_result cres = {0};
-	kg_image *mask = NULL;
-	if (!ret && p->o->mask)
-		ret = kg_image_read(p->o->mask, &mask, err);
-	if (!ret) {
-		kg_classify_info info = {.calib = "camera.json", .materials = p->library_path,
-		                         .method = "pca", .image = c->name,
-		                         .variance = img.variance ? "the capture's variance" : NULL,
-		                         .mask = p->o->mask};
-		kg_classify_options copt;
-		kg_classify_options_init(&copt);
-		kg_row_source var_src, mask_src;
-		if (img.variance) {
-			kg_row_source_of_image(img.variance, &var_src);
-			copt.variance = &var_src; /* already of the mean, normalised */
-		}
-		copt.frames = 1;
-		copt.residual_relative = p->cam->residual_relative;
-		if (mask) {
-			kg_row_source_of_image(mask, &mask_src);
-			copt.mask = &mask_src;
-		}
-		opt.pre = pre_c_needed ? pre_c : NULL;
-		opt.description = NULL;
-		proc_progress(p, "%s: classifying among %d materials (%s)", c->name, set->n,
-		              img.variance ? "noise from the capture's variance" : "noise model");
-		ret = kg_classify_image_opts(kclass, set, img.rgb, &opt, &copt, &info, labels, &cres,
-		                             err);
-	}
-	kg_image_free(&mask);
-	kg_classify_result_free(&cres);
+		ret = estimate_pass(p, c, src, &info, &opt, cube, photo, object);
+	if (!ret)
+		ret = classify_pass(p, c, src, &info, &opt, set, labels);
 	const char *fallback = set->names[set->n - 1];
 	if (!ret)
 		ret = classes_json(p, ljson, set, object, class_map, fallback);
 	if (!ret)
-		ret = confidence_png(conf, confpng, err);
+		ret = confidence_png(conf, confpng, 1200, err);
 	if (!ret)
-		ret = proc_scene_write(p, scene, "labels.hdr", img.rgb->width, img.rgb->height,
-		                       class_map, fallback, object);
+		ret = proc_scene_write(p, scene, "labels.hdr", info.width, info.height, class_map,
+		                       fallback, object);
 	if (!ret && p->o->render && kg_render_available()) {
 		proc_progress(p, "%s: rendering scene.json", c->name);
 		ret = render_scene(p, scene, render);
@@ -354,9 +456,7 @@ static int process_into(proc *p, const proc_capture *c, const char *dir, double 
 	}
 	if (ret)
 		kg_err_prefix(err, "capture %s: ", c->name);
-	proc_image_clear(&img);
-	kg_est_kernel_free(&kern);
-	kg_est_kernel_free(&kclass);
+	proc_source_free(&src);
 	json_decref(class_map);
 	free(cube);
 	free(labels);
@@ -437,8 +537,9 @@ static int check_mask(proc *p)
 {
 	if (!p->o->mask)
 		return 0;
-	kg_image *mask = NULL;
-	int ret = kg_image_read(p->o->mask, &mask, p->err);
+	kg_image_rows *rows = NULL;
+	int ret = kg_image_rows_open(p->o->mask, &rows, p->err);
+	const kg_image *mask = ret ? NULL : kg_image_rows_header(rows);
 	for (int i = 0; i < p->ncaps && !ret; i++) {
 		const proc_capture *c = &p->caps[i];
 		if (c->kind == KG_CAPTURE_OBJECT && (mask->width != c->width || mask->height != c->height))
@@ -446,7 +547,7 @@ static int check_mask(proc *p)
 			              "expected a mask of the objects' size", p->o->mask, mask->width,
 			              mask->height, c->name, c->width, c->height);
 	}
-	kg_image_free(&mask);
+	kg_image_rows_free(&rows);
 	return ret;
 }
 

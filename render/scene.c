@@ -343,26 +343,34 @@ static int load_label_map(kg_scene *s, const json_t *root, kg_err *err)
 		ret = kg_fail(err, KG_EINVAL, "%s: %s: %d classes: expected at most 256", s->path,
 		              lm->path, m->classes);
 	size_t npix = (size_t)m->samples * (size_t)m->lines;
+	/* read in bands of about 4 MB: only the byte map stays */
+	int band = (int)((1u << 20) / (unsigned)(m->samples > 0 ? m->samples : 1)) + 1;
 	if (!ret) {
 		lm->width = lm->view.width = m->samples;
 		lm->height = lm->view.height = m->lines;
 		lm->nclasses = m->classes;
-		data = malloc(sizeof(float) * npix);
+		data = malloc(sizeof(float) * (size_t)m->samples * (size_t)band);
 		lm->labels = malloc(npix);
 		lm->class_mat = malloc(sizeof(int) * (size_t)m->classes);
 		if (!data || !lm->labels || !lm->class_mat)
 			ret = kg_fail(err, KG_ENOMEM, "out of memory");
 	}
-	if (!ret && (ret = kg_envi_read(e, 0, 0, m->samples, m->lines, KG_LAYOUT_BIP, data,
-	                                err)))
-		kg_err_prefix(err, "%s: key 'materials.label_map.file'", s->path);
-	for (size_t i = 0; !ret && i < npix; i++) {
-		if (!(data[i] >= 0.0f && data[i] < (float)m->classes) || data[i] != floorf(data[i]))
-			ret = kg_fail(err, KG_EINVAL, "%s: %s: pixel (%zu, %zu) holds %g: expected a "
-			              "class from 0 to %d", s->path, lm->path, i % (size_t)m->samples,
-			              i / (size_t)m->samples, (double)data[i], m->classes - 1);
-		else
-			lm->labels[i] = (uint8_t)data[i];
+	for (int y0 = 0; !ret && y0 < m->lines; y0 += band) {
+		int rows = m->lines - y0 < band ? m->lines - y0 : band;
+		if ((ret = kg_envi_read(e, 0, y0, m->samples, rows, KG_LAYOUT_BIP, data, err))) {
+			kg_err_prefix(err, "%s: key 'materials.label_map.file'", s->path);
+			break;
+		}
+		size_t first = (size_t)y0 * (size_t)m->samples, n = (size_t)rows * (size_t)m->samples;
+		for (size_t k = 0; !ret && k < n; k++) {
+			size_t i = first + k;
+			if (!(data[k] >= 0.0f && data[k] < (float)m->classes) || data[k] != floorf(data[k]))
+				ret = kg_fail(err, KG_EINVAL, "%s: %s: pixel (%zu, %zu) holds %g: expected a "
+				              "class from 0 to %d", s->path, lm->path, i % (size_t)m->samples,
+				              i / (size_t)m->samples, (double)data[k], m->classes - 1);
+			else
+				lm->labels[i] = (uint8_t)data[k];
+		}
 	}
 	json_t *classes = json_object_get(obj, "classes");
 	if (!ret && classes && !json_is_object(classes))
