@@ -14,6 +14,7 @@ static const char usage_process[] =
 	"              [--chart CAPTURE] [--mesh M.ply] [--mask MASK.png] [--angle DEG]\n"
 	"              [--min-tags N]\n"
 	"              [--max-residual R] [--force] [--assume-same-exposure] [--no-render]\n"
+	"              [--cube f32|f16|weights|none]\n"
 	"              [--threads N] [--quiet]";
 
 static const char help_process[] =
@@ -54,6 +55,9 @@ static const char help_process[] =
 	"  --assume-same-exposure  captures without exposure settings are taken as the\n"
 	"                        chart's (else refused)\n"
 	"  --no-render           write scene.json but do not render it\n"
+	"  --cube FORMAT         each object's cube.hdr: f32 (default), f16 (half the size),\n"
+	"                        weights (the K PCA weights with their basis: s = mean + B w,\n"
+	"                        1/20 of f32) or none (labels only)\n"
 	"  --threads N           worker threads (default: all)\n"
 	"  --quiet               no progress on standard error\n"
 	"\n"
@@ -85,7 +89,7 @@ int kg_cmd_process(int argc, char **argv)
 		return KG_EXIT_OK;
 	}
 	enum { O_REF = 256, O_SPECTRA, O_MAT, O_ONLY, O_LAYOUT, O_CHART, O_MESH, O_ANGLE,
-	       O_MINTAGS, O_MAXRES, O_FORCE, O_SAME, O_NORENDER, O_THREADS, O_QUIET, O_MASK };
+	       O_MINTAGS, O_MAXRES, O_FORCE, O_SAME, O_NORENDER, O_THREADS, O_QUIET, O_MASK, O_CUBE };
 	static const struct option longopts[] = {
 		{"reference", required_argument, NULL, O_REF},
 		{"spectra", required_argument, NULL, O_SPECTRA},
@@ -95,6 +99,7 @@ int kg_cmd_process(int argc, char **argv)
 		{"chart", required_argument, NULL, O_CHART},
 		{"mesh", required_argument, NULL, O_MESH},
 		{"mask", required_argument, NULL, O_MASK},
+		{"cube", required_argument, NULL, O_CUBE},
 		{"angle", required_argument, NULL, O_ANGLE},
 		{"min-tags", required_argument, NULL, O_MINTAGS},
 		{"max-residual", required_argument, NULL, O_MAXRES},
@@ -126,6 +131,13 @@ int kg_cmd_process(int argc, char **argv)
 		case O_CHART: o.chart = optarg; break;
 		case O_MESH: o.mesh = optarg; break;
 		case O_MASK: o.mask = optarg; break;
+		case O_CUBE:
+			if (strcmp(optarg, "f32") && strcmp(optarg, "f16") && strcmp(optarg, "weights") &&
+			    strcmp(optarg, "none"))
+				return kg_cli_usage_error(usage_process,
+				                          "--cube %s: expected f32, f16, weights or none", optarg);
+			o.cube = optarg;
+			break;
 		case O_ANGLE:
 			o.angle_deg = strtod(optarg, &end);
 			if (*end || !(o.angle_deg >= 0 && o.angle_deg < 90))

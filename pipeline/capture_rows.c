@@ -570,24 +570,61 @@ void proc_pass_free(proc_pass **pp)
 	*pp = NULL;
 }
 
-/* The whole capture in memory (the chart's frame, which detection needs whole). */
-int proc_capture_image(proc *p, const proc_capture *c, double scale, proc_image *out)
+/* Rows [y0, y0 + bin) of an RGB source binned bin x bin into one output row of
+ * ceil(width / bin) pixels: the mean of each block, except that a channel clipped
+ * (>= clip) anywhere in the block keeps the block's largest value, so the binned pixel
+ * is still seen as clipped, and a NaN anywhere makes it NaN. */
+static void bin_row(const float *rows, int width, int nrows, int bin, float clip, float *out)
+{
+	int ow = (width + bin - 1) / bin;
+	for (int X = 0; X < ow; X++)
+		for (int c = 0; c < 3; c++) {
+			double sum = 0;
+			float top = -INFINITY;
+			int n = 0, nan = 0;
+			for (int r = 0; r < nrows; r++)
+				for (int x = X * bin; x < (X + 1) * bin && x < width; x++) {
+					float v = rows[((size_t)r * width + x) * 3 + c];
+					nan |= isnan(v);
+					sum += v;
+					top = fmaxf(top, v);
+					n++;
+				}
+			out[(size_t)X * 3 + c] = nan ? NAN : top >= clip ? top : (float)(sum / n);
+		}
+}
+
+/* The whole capture in memory; bin > 1 bins an RGB image (bin_row). */
+static int read_capture(proc *p, const proc_capture *c, double scale, int bin, float clip,
+                        proc_image *out)
 {
 	memset(out, 0, sizeof(*out));
 	proc_source *s = NULL;
 	proc_image_info info;
 	int ret = proc_source_open(p, c, scale, c->kind == KG_CAPTURE_CHART, &s, &info);
-	for (int v = 0; v < 1 + info.has_variance && !ret; v++) {
+	if (!ret && info.channels != 3)
+		bin = 1;
+	for (int v = 0; v < 1 + (bin == 1 && info.has_variance) && !ret; v++) {
 		proc_pass *pp = NULL;
 		kg_row_source src;
 		kg_image **dst = v ? &out->variance : &out->rgb;
+		float *rows = NULL;
 		ret = proc_pass_open(s, v, &pp, &src);
+		int ow = (src.width + bin - 1) / bin, oh = (src.height + bin - 1) / bin;
 		if (!ret)
-			ret = kg_image_new(src.width, src.height, src.channels, dst, p->err);
+			ret = kg_image_new(ow, oh, src.channels, dst, p->err);
 		if (!ret && src.channels == 1 && s->img.cfa[0])
 			ret = kg_image_set_cfa(*dst, s->img.cfa, s->img.cfa_rows, s->img.cfa_cols, p->err);
-		if (!ret)
+		if (!ret && bin == 1)
 			ret = src.read(src.user, 0, src.height, (*dst)->data, p->err);
+		if (!ret && bin > 1 && !(rows = malloc(sizeof(float) * 3 * (size_t)src.width * bin)))
+			ret = kg_fail(p->err, KG_ENOMEM, "out of memory");
+		for (int Y = 0; !ret && bin > 1 && Y < oh; Y++) {
+			int n = src.height - Y * bin < bin ? src.height - Y * bin : bin;
+			if (!(ret = src.read(src.user, Y * bin, n, rows, p->err)))
+				bin_row(rows, src.width, n, bin, clip, (*dst)->data + (size_t)Y * ow * 3);
+		}
+		free(rows);
 		if (ret)
 			kg_err_prefix(p->err, "capture %s: ", c->name);
 		proc_pass_free(&pp);
@@ -599,5 +636,23 @@ int proc_capture_image(proc *p, const proc_capture *c, double scale, proc_image 
 	proc_source_free(&s);
 	if (ret)
 		proc_image_clear(out);
+	return ret;
+}
+
+int proc_capture_image(proc *p, const proc_capture *c, double scale, proc_image *out)
+{
+	return read_capture(p, c, scale, 1, INFINITY, out);
+}
+
+int proc_chart_image(proc *p, const proc_capture *c, long max_pixels, float clip,
+                     proc_image *out, int *bin)
+{
+	long px = c->width * c->height;
+	*bin = 1;
+	while (px > 0 && (px + (long)*bin * *bin - 1) / ((long)*bin * *bin) > max_pixels)
+		(*bin)++;
+	int ret = read_capture(p, c, 1.0, *bin, clip, out);
+	if (!ret && out->rgb->channels != 3)
+		*bin = 1; /* a mosaic kept whole (no demosaicing in this build) */
 	return ret;
 }

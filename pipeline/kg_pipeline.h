@@ -60,6 +60,8 @@ typedef struct kg_process_options {
 	int force;                 /* accept a 3-patch chart and another camera */
 	int assume_same_exposure;  /* accept captures whose exposure is unknown */
 	int render;                /* render each scene.json to render.png (when Embree) */
+	const char *cube;          /* per object cube: "f32" (the default), "f16", "weights"
+	                            * (the K PCA weights and their basis) or "none" */
 	int threads;               /* 0: all */
 	FILE *progress;            /* progress lines, or NULL */
 	const char *command;       /* how it was invoked, for process.json (may be NULL) */

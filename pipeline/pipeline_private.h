@@ -68,6 +68,12 @@ int proc_input(proc *p, const char *role, const char *path, const char *expected
 /* The capture's image, corrected, normalised by scale (exposure x gain relative to
  * the chart's; 1 for the chart itself), whole in memory (capture_rows.c). */
 int proc_capture_image(proc *p, const proc_capture *c, double scale, proc_image *out);
+/* The chart capture in memory, binned bin x bin (the smallest bin that leaves at most
+ * max_pixels) where it is larger: block means, except that a channel reaching clip
+ * anywhere in a block keeps its largest value (still clipped), and NaN stays NaN. No
+ * variance. A mosaic kept whole where kogei has no demosaicing is not binned. */
+int proc_chart_image(proc *p, const proc_capture *c, long max_pixels, float clip,
+                     proc_image *out, int *bin);
 
 /* The same read a band of rows at a time (capture_rows.c): a source is planned once
  * (files, the flat's means, a mosaic's range), then read in passes from the top, each
@@ -100,6 +106,9 @@ int proc_calibrate(proc *p);
 /* Refuse, before anything is written, objects from another camera (unless force) or
  * of unknown exposure (unless assume_same_exposure). */
 int proc_objects_precheck(proc *p);
+/* The cube of each object (--cube): its name, and its format (0 when none). */
+const char *proc_cube_name(const proc *p);
+int proc_cube_format(const proc *p, kg_est_format *format);
 /* Every object capture (process_object.c); objects is the process.json list. */
 int proc_objects(proc *p, json_t *objects, kg_process_summary *sum);
 

@@ -22,6 +22,7 @@ void kg_process_options_default(kg_process_options *o)
 	o->max_residual = KG_PROCESS_MAX_RESIDUAL;
 	o->angle_deg = 30.0;
 	o->render = 1;
+	o->cube = "f32";
 }
 
 void proc_progress(proc *p, const char *fmt, ...)
@@ -363,13 +364,13 @@ static json_t *parameters_json(const kg_process_options *o, const char *material
 		for (int i = 0; i < o->nonly; i++)
 			json_array_append_new(only, json_string(o->only[i]));
 	}
-	return json_pack("{s:o, s:o, s:s, s:o, s:o, s:o, s:o, s:f, s:i, s:b, s:b, s:f, s:o}",
+	return json_pack("{s:o, s:o, s:s, s:o, s:o, s:o, s:o, s:f, s:i, s:b, s:b, s:f, s:o, s:s}",
 	                 "reference", jstr_or_null(o->reference), "spectra", jstr_or_null(o->spectra),
 	                 "materials", materials, "only", only, "layout", jstr_or_null(o->layout),
 	                 "mesh", jstr_or_null(o->mesh), "mask", jstr_or_null(o->mask),
 	                 "max_residual", o->max_residual, "min_tags", o->min_tags, "force", o->force,
 	                 "assume_same_exposure", o->assume_same_exposure, "angle_deg", o->angle_deg,
-	                 "chart", jstr_or_null(o->chart));
+	                 "chart", jstr_or_null(o->chart), "cube", o->cube ? o->cube : "f32");
 }
 
 static void iso_time(char *buf, size_t n)
@@ -438,6 +439,10 @@ static int check_outdir(proc *p, int *lock_fd)
 int kg_process_run(const kg_process_options *o, kg_process_summary *summary, kg_err *err)
 {
 	kg_check_arg(o && o->session && o->outdir && (o->reference || o->spectra), err);
+	if (o->cube && strcmp(o->cube, "f32") && strcmp(o->cube, "f16") &&
+	    strcmp(o->cube, "weights") && strcmp(o->cube, "none"))
+		return kg_fail(err, KG_EINVAL, "cube format '%s': expected f32, f16, weights or none",
+		               o->cube);
 	struct timespec t0, t1;
 	clock_gettime(CLOCK_MONOTONIC, &t0);
 	kg_process_summary sum = {0};

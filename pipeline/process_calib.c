@@ -11,6 +11,10 @@
 #include "kg_sim.h"
 #include "pipeline_private.h"
 
+/* The largest chart frame detected and sampled as it is (32 Mpix, 384 MB as float
+ * RGB); larger ones are binned (proc_chart_image). */
+#define CHART_MAX_PIXELS (32L << 20)
+
 /* A layout by path, else by bundled name (fixtures/charts/NAME.json, or the demo's). */
 static char *resolve_layout(const char *name)
 {
@@ -238,12 +242,21 @@ int proc_calibrate(proc *p)
 		goto done;
 
 	proc_progress(p, "chart: capture %s, layout %s", p->chart->name, p->layout->name);
-	if ((ret = proc_capture_image(p, p->chart, 1.0, &img)))
-		goto done;
-	p->chart_width = img.rgb->width;
-	p->chart_height = img.rgb->height;
 	kg_chart_detect_options dopt;
 	kg_chart_detect_options_default(&dopt);
+	/* A frame above CHART_MAX_PIXELS is binned for detection and sampling, so memory
+	 * stays bounded; its homography is then scaled back to the frame's pixels. The
+	 * clip level is the detector's for a float image (full scale). */
+	int bin = 1;
+	if ((ret = proc_chart_image(p, p->chart, CHART_MAX_PIXELS, 1.0f, &img, &bin)))
+		goto done;
+	p->chart_width = bin > 1 ? (int)p->chart->width : img.rgb->width;
+	p->chart_height = bin > 1 ? (int)p->chart->height : img.rgb->height;
+	if (bin > 1)
+		proc_warn(p, NULL, "chart: capture %s of %ldx%ld pixels binned %dx%d (%dx%d) to find "
+		          "and sample the chart; patch values are means of the bins", p->chart->name,
+		          p->chart->width, p->chart->height, bin, bin, img.rgb->width,
+		          img.rgb->height);
 	if (o->min_tags > 0)
 		dopt.min_tags = o->min_tags;
 	if (o->threads > 0)
@@ -253,6 +266,8 @@ int proc_calibrate(proc *p)
 		goto done;
 	}
 	memcpy(p->chart_H, res->H, sizeof(p->chart_H));
+	for (int k = 0; k < 6; k++) /* binned px -> the frame's px: x and y rows times bin */
+		p->chart_H[k] *= bin;
 	for (int i = 0; i < res->nwarnings; i++)
 		proc_warn(p, NULL, "chart: %s", res->warnings[i]);
 	if ((ret = kg_chart_result_patchset(res, &ps, err)))

@@ -86,18 +86,31 @@ static int exposure_scale(proc *p, const proc_capture *c, json_t *warnings, doub
 	return 0;
 }
 
+const char *proc_cube_name(const proc *p)
+{
+	return p->o->cube ? p->o->cube : "f32";
+}
+
+int proc_cube_format(const proc *p, kg_est_format *format)
+{
+	const char *name = proc_cube_name(p);
+	*format = !strcmp(name, "f16") ? KG_EST_F16_BSQ
+	          : !strcmp(name, "weights") ? KG_EST_WEIGHTS : KG_EST_F32_BSQ;
+	return strcmp(name, "none") != 0;
+}
+
 /* What an object's result depends on; equal keys mean the files can be kept. */
 static json_t *object_key(proc *p, const proc_capture *c)
 {
 	return json_pack("{s:O, s:s, s:O, s:O, s:o, s:s}", "calibration", p->calib_key, "capture",
 	                 c->name, "outputs", json_object_get(c->j, "outputs"), "corrections",
 	                 json_object_get(c->j, "corrections"), "parameters",
-	                 json_pack("{s:s, s:f, s:o, s:o, s:b, s:b}", "materials", p->library_path,
+	                 json_pack("{s:s, s:f, s:o, s:o, s:b, s:b, s:s}", "materials", p->library_path,
 	                           "angle_deg", p->o->angle_deg, "mesh",
 	                           p->o->mesh ? json_string(p->o->mesh) : json_null(), "mask",
 	                           p->o->mask ? json_string(p->o->mask) : json_null(), "render",
 	                           p->o->render, "assume_same_exposure",
-	                           p->o->assume_same_exposure),
+	                           p->o->assume_same_exposure, "cube", proc_cube_name(p)),
 	                 "session", json_string_value(json_object_get(p->manifest, "created"))
 	                                ? json_string_value(json_object_get(p->manifest, "created"))
 	                                : "");
@@ -312,53 +325,56 @@ static int tap_read(void *user, int y0, int rows, float *out, kg_err *err)
 	return ret;
 }
 
-/* Estimate the capture into the cube, the photograph's preview built on the way. */
+static void stats_json(proc *p, const proc_capture *c, const kg_est_stats *stats,
+                       const char *what, json_t *object)
+{
+	char line[256];
+	kg_est_stats_format(stats, line, sizeof(line));
+	proc_progress(p, "%s: %s: %s", c->name, what, line);
+	json_object_set_new(object, "estimate", json_pack("{s:I, s:I, s:I, s:I}", "pixels",
+	                    (json_int_t)stats->pixels, "nonfinite", (json_int_t)stats->nonfinite,
+	                    "clipped", (json_int_t)stats->clipped, "clamped",
+	                    (json_int_t)stats->clamped_pixels));
+}
+
+/* Estimate the capture into the cube (--cube f32, f16 or weights). */
 static int estimate_pass(proc *p, const proc_capture *c, proc_source *src,
                          const proc_image_info *info, const kg_apply_options *opt,
-                         const char *cube, const char *photo, json_t *object)
+                         kg_est_format format, const char *cube, json_t *object)
 {
 	kg_err *err = p->err;
 	kg_est_kernel *kern = NULL;
 	double pre[9];
 	int pre_needed = 0;
 	proc_pass *pass = NULL;
-	preview_tap tap = {0};
 	kg_row_source rows;
 	kg_apply_options o = *opt;
-	int ret = kg_camera_kernel(p->cam, KG_METHOD_AUTO, 0, &kern, pre, &pre_needed, err);
+	/* weights are the PCA kernel's; the spectra the calibration's own method */
+	int ret = kg_camera_kernel(p->cam, format == KG_EST_WEIGHTS ? KG_METHOD_PCA : KG_METHOD_AUTO,
+	                           0, &kern, pre, &pre_needed, err);
 	if (!ret)
-		ret = proc_preview_new(info->width, info->height, 1200, &tap.pv, err);
-	if (!ret)
-		ret = proc_pass_open(src, 0, &pass, &tap.in);
+		ret = proc_pass_open(src, 0, &pass, &rows);
 	kg_est_stats stats;
 	if (!ret) {
-		rows = (kg_row_source){tap.in.width, tap.in.height, tap.in.channels, tap_read, &tap};
 		o.pre = pre_needed ? pre : NULL;
-		proc_progress(p, "%s: estimating %dx%d pixels (%s)", c->name, info->width, info->height,
-		              kg_method_name(p->cam->method));
-		ret = kg_estimate_rows(kern, &rows, KG_EST_F32_BSQ, &o, cube, &stats, err);
+		proc_progress(p, "%s: estimating %dx%d pixels (%s, %s)", c->name, info->width,
+		              info->height, format == KG_EST_WEIGHTS ? "pca" : kg_method_name(p->cam->method),
+		              proc_cube_name(p));
+		ret = kg_estimate_rows(kern, &rows, format, &o, cube, &stats, err);
 	}
 	if (!ret)
-		ret = proc_preview_write(tap.pv, photo, err);
-	if (!ret) {
-		char line[256];
-		kg_est_stats_format(&stats, line, sizeof(line));
-		proc_progress(p, "%s: cube written: %s", c->name, line);
-		json_object_set_new(object, "estimate", json_pack("{s:I, s:I, s:I, s:I}", "pixels",
-		                    (json_int_t)stats.pixels, "nonfinite", (json_int_t)stats.nonfinite,
-		                    "clipped", (json_int_t)stats.clipped, "clamped",
-		                    (json_int_t)stats.clamped_pixels));
-	}
+		stats_json(p, c, &stats, "cube written", object);
 	proc_pass_free(&pass);
-	proc_preview_free(&tap.pv);
 	kg_est_kernel_free(&kern);
 	return ret;
 }
 
-/* Classify the capture, with its variance and the mask read alongside. */
+/* Classify the capture, with its variance and the mask read alongside, and the
+ * photograph's preview built on the way. */
 static int classify_pass(proc *p, const proc_capture *c, proc_source *src,
                          const proc_image_info *info, const kg_apply_options *opt,
-                         const kg_est_material_set *set, const char *labels)
+                         const kg_est_material_set *set, const char *labels,
+                         const char *photo, json_t *object)
 {
 	kg_err *err = p->err;
 	kg_est_kernel *kclass = NULL;
@@ -367,6 +383,7 @@ static int classify_pass(proc *p, const proc_capture *c, proc_source *src,
 	proc_pass *img_pass = NULL, *var_pass = NULL;
 	kg_image_rows *mask = NULL;
 	kg_row_source img_src, var_src, mask_src;
+	preview_tap tap = {0};
 	kg_classify_options copt;
 	kg_classify_options_init(&copt);
 	copt.frames = 1; /* the variance is already of the mean, normalised */
@@ -376,7 +393,9 @@ static int classify_pass(proc *p, const proc_capture *c, proc_source *src,
 	/* classification works in the PCA weights */
 	int ret = kg_camera_kernel(p->cam, KG_METHOD_PCA, 0, &kclass, pre, &pre_needed, err);
 	if (!ret)
-		ret = proc_pass_open(src, 0, &img_pass, &img_src);
+		ret = proc_preview_new(info->width, info->height, 1200, &tap.pv, err);
+	if (!ret && !(ret = proc_pass_open(src, 0, &img_pass, &tap.in)))
+		img_src = (kg_row_source){tap.in.width, tap.in.height, tap.in.channels, tap_read, &tap};
 	if (!ret && info->has_variance && !(ret = proc_pass_open(src, 1, &var_pass, &var_src)))
 		copt.variance = &var_src;
 	if (!ret && p->o->mask && !(ret = kg_image_rows_open(p->o->mask, &mask, err))) {
@@ -393,8 +412,13 @@ static int classify_pass(proc *p, const proc_capture *c, proc_source *src,
 		              info->has_variance ? "noise from the capture's variance" : "noise model");
 		kg_classify_result cres = {0};
 		ret = kg_classify_rows(kclass, set, &img_src, &o, &copt, &cinfo, labels, &cres, err);
+		if (!ret && !json_object_get(object, "estimate")) /* no cube: the labels' counts */
+			stats_json(p, c, &cres.stats, "labels written", object);
 		kg_classify_result_free(&cres);
 	}
+	if (!ret)
+		ret = proc_preview_write(tap.pv, photo, err);
+	proc_preview_free(&tap.pv);
 	kg_image_rows_free(&mask);
 	proc_pass_free(&var_pass);
 	proc_pass_free(&img_pass);
@@ -436,10 +460,11 @@ static int process_into(proc *p, const proc_capture *c, const char *dir, double 
 	char desc[256];
 	snprintf(desc, sizeof(desc), "kogei process: reflectance of capture %s", c->name);
 	opt.description = desc;
+	kg_est_format format;
+	if (!ret && proc_cube_format(p, &format))
+		ret = estimate_pass(p, c, src, &info, &opt, format, cube, object);
 	if (!ret)
-		ret = estimate_pass(p, c, src, &info, &opt, cube, photo, object);
-	if (!ret)
-		ret = classify_pass(p, c, src, &info, &opt, set, labels);
+		ret = classify_pass(p, c, src, &info, &opt, set, labels, photo, object);
 	const char *fallback = set->names[set->n - 1];
 	if (!ret)
 		ret = classes_json(p, ljson, set, object, class_map, fallback);
@@ -469,7 +494,7 @@ static int process_into(proc *p, const proc_capture *c, const char *dir, double 
 	return ret;
 }
 
-static void set_paths(json_t *object, const char *name, int rendered)
+static void set_paths(json_t *object, const char *name, int rendered, int cube)
 {
 	static const char *const keys[][2] = {
 		{"photo", "photo.png"},         {"cube", "cube.hdr"},
@@ -484,6 +509,8 @@ static void set_paths(json_t *object, const char *name, int rendered)
 	}
 	snprintf(rel, sizeof(rel), "%s/render.png", name);
 	json_object_set_new(object, "render", rendered ? json_string(rel) : json_null());
+	if (!cube)
+		json_object_set_new(object, "cube", json_null());
 }
 
 /* Move dir into place as OUTDIR/name, replacing a previous run's folder. */
@@ -639,7 +666,9 @@ int proc_objects(proc *p, json_t *objects, kg_process_summary *sum)
 		if (ret)
 			remove_tree(tmp);
 		else {
-			set_paths(object, c->name, p->o->render && kg_render_available());
+			kg_est_format format;
+			set_paths(object, c->name, p->o->render && kg_render_available(),
+			          proc_cube_format(p, &format));
 			json_array_append(objects, object);
 			sum->processed++;
 			proc_progress(p, "%s: done", c->name);

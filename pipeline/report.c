@@ -274,7 +274,11 @@ static void put_file_list(report *r, int i)
 	};
 	html(r, "<p>Files:");
 	for (size_t k = 0; k < sizeof(files) / sizeof(files[0]); k++) {
-		const char *rel = str(r, "objects[%d].%s", i, files[k].key);
+		const char *rel = opt_str(r, "objects[%d].%s", i, files[k].key);
+		if (!rel || !rel[0]) { /* not written (--cube none) */
+			html(r, "%s no %s", k ? "," : "", files[k].label);
+			continue;
+		}
 		char *path = rel[0] == '/' ? strdup(rel) : kg_path_join(r->outdir, rel);
 		html(r, "%s %s <code>", k ? "," : "", files[k].label);
 		text(r, rel);

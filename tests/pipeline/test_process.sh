@@ -159,6 +159,38 @@ assert json.load(open(masked + "/process.json"))["parameters"]["mask"].endswith(
 PY
 expect_refusal "$T/masked2" "mask-small.png" "$KOGEI" process "$S" --spectra "$T/chart.cgats" \
 	-o "$T/masked2" --mask "$T/mask-small.png" --no-render
+# --cube: weights (K bands and their basis, the same labels), none (labels only; the
+# report says so and still loads); a changed cube format reprocesses.
+expect_exit 0 "$KOGEI" process "$S" --spectra "$T/chart.cgats" -o "$T/weights" --angle 40 \
+	--cube weights --no-render --quiet
+expect_exit 0 "$KOGEI" process "$S" --spectra "$T/chart.cgats" -o "$T/nocube" --angle 40 \
+	--cube none --no-render --quiet
+check "--cube weights and none: bands, files, labels as with f32" "$PY" - "$T/weights" \
+	"$T/nocube" "$O" <<'PY'
+import json, os, sys, numpy as np
+weights, nocube, plain = sys.argv[1:4]
+hdr = open(weights + "/object-full/cube.hdr").read()
+bands = int([l for l in hdr.splitlines() if l.replace(" ", "").startswith("bands=")][0].split("=")[1])
+assert 2 <= bands <= 10 and "kogei basis" in hdr, bands
+assert os.path.getsize(weights + "/object-full/cube.img") % (4 * bands) == 0
+assert not os.path.exists(nocube + "/object-full/cube.hdr")
+obj = {o["capture"]: o for o in json.load(open(nocube + "/process.json"))["objects"]}
+assert obj["object-full"]["cube"] is None and obj["object-full"]["estimate"]["pixels"] > 0
+assert json.load(open(nocube + "/process.json"))["parameters"]["cube"] == "none"
+for d in (weights, nocube):
+    a = np.fromfile(d + "/object-full/labels.img", dtype=np.uint8)
+    b = np.fromfile(plain + "/object-full/labels.img", dtype=np.uint8)
+    assert np.array_equal(a, b), (d, np.mean(a != b))
+print("cube: weights with %d bands; none: labels only; labels identical to f32's" % bands)
+PY
+check "--cube none: the report says there is no cube" grep -q "no reflectance cube" \
+	"$T/nocube/report.html"
+expect_exit 0 "$KOGEI" process "$S" --spectra "$T/chart.cgats" -o "$T/nocube" --angle 40 \
+	--cube f16 --no-render --quiet
+check "changed cube format: all processed" grep -q "4 processed, 0 unchanged" "$T/out"
+expect_exit 2 "$KOGEI" process "$S" --spectra "$T/chart.cgats" -o "$T/bad" --cube f64
+check "--cube f64 refused" grep -q "expected f32, f16, weights or none" "$T/err"
+
 # One run at a time into an OUTDIR: a second kogei process is refused while it is locked.
 exec 9<"$O"
 flock -n 9 || { echo "FAIL: cannot lock $O for the test"; fail=1; }
