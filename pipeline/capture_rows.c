@@ -467,8 +467,10 @@ int proc_source_open(proc *p, const proc_capture *c, double scale, int keep_mosa
 			ret = open_rows(im->flat, im, "the flat", &r, p->err);
 			kg_image_rows_free(&r);
 		}
-		if (!ret)
+		if (!ret) {
+			proc_progress(p, "%s: the flat %s's colour means (two passes)", c->name, fc->name);
 			ret = plan_flat(im, p->err);
+		}
 		if (ret) {
 			kg_err_prefix(p->err, "capture %s, flat %s: ", c->name, fc->name);
 		} else {
@@ -491,8 +493,12 @@ int proc_source_open(proc *p, const proc_capture *c, double scale, int keep_mosa
 			              "CFA pattern cannot give colour: expected RGB or raw Bayer", c->name);
 		}
 	}
-	if (!ret && (im->demosaic || im->flat))
+	if (!ret && (im->demosaic || im->flat)) {
+		proc_progress(p, "%s: a first pass over the corrected image (%s%s)", c->name,
+		              im->flat ? "invalid flat samples" : "",
+		              im->demosaic ? (im->flat ? ", the mosaic's range" : "the mosaic's range") : "");
 		ret = plan_range(im, p->err);
+	}
 	if (!ret && im->invalid)
 		proc_warn(p, NULL, "capture %s: %ld samples where the flat %s is not valid are left "
 		          "out (NaN)", c->name, im->invalid, fc ? fc->name : "");
