@@ -677,6 +677,8 @@ static int fit_reference(const kg_patchset *train, const kg_patchset *field,
 	}
 
 	ret = record_charts(ref, train, field, err);
+	if (!ret && (ret = kg_response_fit(train, &ref->response, err)))
+		kg_err_prefix(err, "%s: ", set_name(train, "training chart"));
 	if (ret)
 		goto error;
 	patch_diagnostics(ref, train, d65);

@@ -18,6 +18,9 @@
  *   training {patches, ids, rho (m x 3), rmse, gfc, de00_d65, projection_rmse,
  *     weight_residual, mean_rmse, mean_de00_d65, max_de00_d65, condition_number_rho},
  *   field {ids, rho0 (3 x k), condition_number},
+ *   response {source, patches, F (3 x 61), lambda, loo_rmse (3 each), loo_relative}:
+ *     the reference camera's spectral response (response.c), null or absent in older
+ *     files,
  *   devices {role: INSTRUMENTATION|DEVICE|CAMERA|... keyword}, illuminant,
  *   sources [{role, path, sha256, keywords {...}}].
  *
@@ -32,6 +35,7 @@
  *     left out},
  *   camera {backend, model, serial, pixfmt, white_level, demosaic, capture}: the site
  *     camera, null when unknown (files without the key load as unknown),
+ *   response: the reference's, as above,
  *   devices, sources. */
 #include <math.h>
 #include <stdlib.h>
@@ -241,6 +245,21 @@ static void put_pca(jw *w, json_t *root, int K, int centred, const double *B,
 	put(w, root, "M", jmat(w, M, K, 3, 3, 1));
 }
 
+/* The reference camera's response, or null. */
+static json_t *jresponse(jw *w, const kg_response *r)
+{
+	if (!r->available)
+		return json_null();
+	json_t *o = json_object();
+	put(w, o, "source", json_string(r->source));
+	put(w, o, "patches", json_integer(r->patches));
+	put(w, o, "F", jmat(w, &r->F[0][0], 3, NB, NB, 1));
+	put(w, o, "lambda", jrow(w, r->lambda, 3, 1));
+	put(w, o, "loo_rmse", jrow(w, r->loo_rmse, 3, 1));
+	put(w, o, "loo_relative", jnum(r->loo_relative));
+	return o;
+}
+
 int kg_reference_save(const kg_reference *ref, const char *path, kg_err *err)
 {
 	kg_check_arg(ref && path, err);
@@ -299,6 +318,7 @@ int kg_reference_save(const kg_reference *ref, const char *path, kg_err *err)
 	put(&w, field, "rho0", jmat(&w, &ref->rho0[0][0], 3, ref->k, 1, 3));
 	put(&w, field, "condition_number", jnum(ref->cond_rho0));
 	put(&w, root, "field", field);
+	put(&w, root, "response", jresponse(&w, &ref->response));
 
 	put(&w, root, "devices", jdevices(&w, ref->sources, ref->nsources));
 	const char *ill = source_keyword(ref->sources, ref->nsources, NULL, illuminant_keywords);
@@ -358,6 +378,7 @@ int kg_camera_save(const kg_camera_calib *cam, const char *path, kg_err *err)
 			w.bad = 1;
 	put(&w, fit, "flagged", flagged);
 	put(&w, root, "site", fit);
+	put(&w, root, "response", jresponse(&w, &cam->response));
 	const kg_camera_identity *id = &cam->identity;
 	put(&w, root, "camera",
 	    id->known ? json_pack("{s:s, s:s, s:s, s:s, s:I, s:s, s:s}", "backend", id->backend,
@@ -620,12 +641,47 @@ static int get_sources(const char *file, const json_t *root, kg_calib_source **o
 	return 0;
 }
 
+/* "response": absent or null (a file from before it existed) leaves it unavailable. */
+static int get_response(const char *file, const json_t *root, kg_response *r, kg_err *err)
+{
+	memset(r, 0, sizeof(*r));
+	json_t *o = json_object_get(root, "response");
+	if (!o || json_is_null(o))
+		return 0;
+	const char *src = NULL;
+	double patches = 0;
+	int ret = kg_json_get_string(file, root, "response.source", &src, err);
+	if (!ret)
+		ret = kg_json_get_number(file, root, "response.patches", &patches, err);
+	if (!ret)
+		ret = get_mat(file, root, "response.F", 3, NB, &r->F[0][0], NB, 1, err);
+	if (!ret)
+		ret = get_row(file, root, "response.lambda", 3, r->lambda, err);
+	if (!ret)
+		ret = get_row(file, root, "response.loo_rmse", 3, r->loo_rmse, err);
+	if (!ret)
+		ret = get_num_or_null(file, root, "response.loo_relative", &r->loo_relative, err);
+	if (ret)
+		return ret;
+	for (int c = 0; c < 3; c++)
+		for (int l = 0; l < NB; l++)
+			if (!isfinite(r->F[c][l]))
+				return kg_fail(err, KG_EINVAL, "%s: response.F[%d][%d]: expected a finite "
+				               "number", file, c, l);
+	snprintf(r->source, sizeof(r->source), "%s", src);
+	r->patches = (int)patches;
+	r->available = 1;
+	return 0;
+}
+
 static int load_reference(const char *file, const json_t *root, kg_reference *ref,
                           kg_err *err)
 {
 	int ret = check_header(file, root, REFERENCE_FORMAT, err);
 	if (!ret)
 		ret = get_method(file, root, &ref->method, err);
+	if (!ret)
+		ret = get_response(file, root, &ref->response, err);
 	if (!ret)
 		ret = get_pca(file, root, &ref->K, &ref->centred, ref->B, ref->mean, ref->M,
 		              ref->rgb_mean, err);
@@ -818,6 +874,8 @@ static int load_camera(const char *file, const json_t *root, kg_camera_calib *ca
 	int ret = check_header(file, root, CAMERA_FORMAT, err);
 	if (!ret)
 		ret = get_method(file, root, &cam->method, err);
+	if (!ret)
+		ret = get_response(file, root, &cam->response, err);
 	if (!ret)
 		ret = get_pca(file, root, &cam->K, &cam->centred, cam->B, cam->mean, cam->M,
 		              cam->rgb_mean, err);

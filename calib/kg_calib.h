@@ -93,6 +93,28 @@ typedef struct kg_spectral_map {
 void kg_spectral_map_apply(const kg_spectral_map *map, const double rgb[3],
                            kg_spectrum *out);
 
+/* ---- the reference camera's spectral response (response.c) --------------------- */
+
+/* The reading of a reflectance s under the chart's light, rho_c = sum_l F[c][l] s(l):
+ * sensitivity times light per channel, learned from the training chart as the
+ * smoothest response that fits it (a second-difference penalty whose weight per
+ * channel minimises the leave-one-out error). It predicts, in the reference camera's
+ * space, the reading of materials the chart does not hold. */
+typedef struct kg_response {
+	int available;          /* 0: none (a file from before it existed) */
+	char source[16];        /* "chart" */
+	double F[3][KG_NBANDS];
+	double lambda[3];       /* the penalty weight chosen per channel */
+	double loo_rmse[3];     /* leave-one-out RMSE of the chart's readings, per channel */
+	double loo_relative;    /* the same over all channels, relative to the readings */
+	int patches;            /* of the chart it was learned from */
+} kg_response;
+
+/* Learn the response from a chart's spectra and readings (3 or more patches). */
+int kg_response_fit(const kg_patchset *train, kg_response *out, kg_err *err);
+/* A reflectance's reading (61 values in, 3 out). */
+void kg_response_apply(const kg_response *r, const double *spectrum, double rgb[3]);
+
 /* ---- reference calibration --------------------------------------------------- */
 
 typedef struct kg_reference_options {
@@ -164,6 +186,8 @@ typedef struct kg_reference {
 	char **field_ids;
 	double (*rho0)[3];         /* k x 3 (written 3 x k in JSON) */
 	double cond_rho0;
+
+	kg_response response;      /* the reference camera's, from the training chart */
 
 	int nsources;
 	kg_calib_source *sources;
@@ -311,6 +335,7 @@ typedef struct kg_camera_calib {
 	unsigned *flagged_flags;  /* their FLAGS (KG_CHART_FLAG_*) */
 
 	kg_camera_identity identity; /* the site camera */
+	kg_response response;        /* the reference camera's (from the reference) */
 
 	int nsources;
 	kg_calib_source *sources; /* "reference", "site_rgb" */

@@ -409,6 +409,7 @@ int kg_camera_fit(const kg_reference *ref, const kg_patchset *site,
 	memcpy(cam->M, ref->M, sizeof(cam->M));
 	memcpy(cam->rgb_mean, ref->rgb_mean, sizeof(cam->rgb_mean));
 	cam->method = ref->method;
+	cam->response = ref->response;
 	for (int j = 0; j < KG_METHOD_COUNT; j++)
 		site_map_from(&ref->maps[j], cam->M2, &cam->maps[j]);
 	calib_camera_derive(cam);
