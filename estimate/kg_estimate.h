@@ -258,6 +258,42 @@ int kg_est_run_stream(const kg_est_job *job, const float *rgb, int width, int he
 uint16_t kg_f16_from_f32(float f);
 float kg_f32_from_f16(uint16_t h);
 
+/* ==== Camera-space matching (camspace.c) ==========================================
+ *
+ * Materials matched where the camera measures, not in the 61-band estimate: each
+ * declared material's reading is predicted in the reference camera's space from its
+ * spectral response F (3 x 61; calib's kg_response, learned from the chart) and the
+ * material's reflectance over a grid of incidence angles; a pixel in that space (the
+ * site reading through M2) with its covariance takes the material, angle and intensity
+ * of the least noise-weighted distance (camspace.c says how). */
+typedef struct kg_cs_model {
+	int n, nangles;
+	char (*names)[KG_MATERIAL_NAME_MAX];
+	double *angle_deg; /* nangles, increasing */
+	double *mu;        /* n x nangles x 3: the predicted readings at intensity 1 */
+	double lo, hi;     /* the intensity range searched */
+} kg_cs_model;
+
+/* F row-major (3 x 61); angles a0 to a1 degrees every step; intensities lo to hi. */
+int kg_cs_model_new(const double *F, const kg_material *const *mats, int n, double a0,
+                    double a1, double step, double lo, double hi, kg_cs_model **out,
+                    kg_err *err);
+void kg_cs_model_free(kg_cs_model **m);
+
+typedef struct kg_cs_result {
+	int best;                  /* material index */
+	double d2_best, d2_second; /* noise-weighted squared distances */
+	double angle_deg, scale;   /* the best material's fitted angle and intensity */
+	double posterior;          /* of the best, equal priors */
+	double d2_each[KG_EST_MAX_MATERIALS];
+} kg_cs_result;
+
+/* Match one pixel x (reference camera's space) with covariance cov (3 x 3, row-major,
+ * positive definite). KG_EINVAL (no result) for a covariance that is not positive
+ * definite or a non-finite pixel. */
+int kg_cs_match(const kg_cs_model *m, const double x[3], const double cov[9],
+                kg_cs_result *out);
+
 /* ==== Images to files: cubes, masks and label maps (apply.c) =====================
  *
  * The glue between a kernel and the station's file formats. It knows nothing

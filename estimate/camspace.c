@@ -1,0 +1,145 @@
+/* Camera-space material matching with a noise model.
+ *
+ * Each declared material's reading is predicted in the reference camera's space,
+ * mu(m, theta) = F R_m(theta), F the reference camera's spectral response (3 x 61,
+ * calib's kg_response) and R_m the material's reflectance at incidence theta (optics:
+ * the Fresnel colour shift of the paper's Fig. 7), on a grid of angles. A pixel x (the
+ * site reading mapped through M2) with covariance C is matched over the materials,
+ * the angles and an intensity a in [lo, hi] (the unknown geometry scales the whole
+ * reading): with C = L L^T, y = L^-1 x and v = L^-1 mu, the noise-weighted
+ * (Mahalanobis) distance is
+ *   d2(m) = min over theta, a of |y - a v|^2,  a = clamp(v.y / v.v, lo, hi)
+ * (a quadratic in a, so the clamped minimiser is exact). The material of least d2 is
+ * the label; with equal priors and the profile likelihood exp(-d2 / 2), its posterior
+ * is 1 / sum_m exp(-(d2(m) - d2(best)) / 2). */
+#include <stdlib.h>
+
+#include "est_private.h"
+
+void kg_cs_model_free(kg_cs_model **pm)
+{
+	if (!pm || !*pm)
+		return;
+	free((*pm)->names);
+	free((*pm)->angle_deg);
+	free((*pm)->mu);
+	free(*pm);
+	*pm = NULL;
+}
+
+int kg_cs_model_new(const double *F, const kg_material *const *mats, int n, double a0,
+                    double a1, double step, double lo, double hi, kg_cs_model **out,
+                    kg_err *err)
+{
+	kg_check_arg(F && mats && out, err);
+	*out = NULL;
+	if (n < 1 || n > KG_EST_MAX_MATERIALS)
+		return kg_fail(err, KG_EINVAL, "camera-space model: %d materials: expected 1 to %d",
+		               n, KG_EST_MAX_MATERIALS);
+	if (!(a0 >= 0 && a1 >= a0 && a1 < 90 && step > 0))
+		return kg_fail(err, KG_EINVAL, "camera-space model: angles %g to %g every %g degrees: "
+		               "expected 0 <= from <= to < 90 and a positive step", a0, a1, step);
+	if (!(lo > 0 && hi >= lo && isfinite(hi)))
+		return kg_fail(err, KG_EINVAL, "camera-space model: intensity %g to %g: expected "
+		               "0 < low <= high", lo, hi);
+	int na = (int)floor((a1 - a0) / step + 1e-9) + 1;
+	kg_cs_model *m = calloc(1, sizeof(*m));
+	if (m) {
+		m->names = calloc((size_t)n, sizeof(*m->names));
+		m->angle_deg = malloc(sizeof(double) * (size_t)na);
+		m->mu = malloc(sizeof(double) * 3 * (size_t)n * (size_t)na);
+	}
+	if (!m || !m->names || !m->angle_deg || !m->mu) {
+		kg_cs_model_free(&m);
+		return kg_fail(err, KG_ENOMEM, "out of memory");
+	}
+	m->n = n;
+	m->nangles = na;
+	m->lo = lo;
+	m->hi = hi;
+	int ret = 0;
+	for (int k = 0; k < na; k++)
+		m->angle_deg[k] = a0 + step * k;
+	for (int j = 0; j < n && !ret; j++) {
+		snprintf(m->names[j], sizeof(m->names[j]), "%s", mats[j]->name);
+		for (int k = 0; k < na && !ret; k++) {
+			kg_spectrum r;
+			if ((ret = kg_material_reflectance(mats[j], m->angle_deg[k] * M_PI / 180.0, &r,
+			                                   err)))
+				break;
+			double *mu = m->mu + 3 * ((size_t)j * na + k);
+			for (int c = 0; c < 3; c++) {
+				double s = 0;
+				for (int l = 0; l < KG_NBANDS; l++)
+					s += F[c * KG_NBANDS + l] * r.v[l];
+				mu[c] = s;
+			}
+		}
+	}
+	if (ret) {
+		kg_cs_model_free(&m);
+		return ret;
+	}
+	*out = m;
+	return 0;
+}
+
+/* y = L^-1 x for the lower Cholesky factor L (row-major 3 x 3). */
+static void forward(const double L[9], const double x[3], double y[3])
+{
+	y[0] = x[0] / L[0];
+	y[1] = (x[1] - L[3] * y[0]) / L[4];
+	y[2] = (x[2] - L[6] * y[0] - L[7] * y[1]) / L[8];
+}
+
+int kg_cs_match(const kg_cs_model *m, const double x[3], const double cov[9],
+                kg_cs_result *out)
+{
+	/* C = L L^T; a covariance that is not positive definite gives no match */
+	double L[9] = {0};
+	L[0] = sqrt(cov[0]);
+	L[3] = cov[3] / L[0];
+	L[6] = cov[6] / L[0];
+	L[4] = sqrt(cov[4] - L[3] * L[3]);
+	L[7] = (cov[7] - L[6] * L[3]) / L[4];
+	L[8] = sqrt(cov[8] - L[6] * L[6] - L[7] * L[7]);
+	if (!(L[0] > 0 && L[4] > 0 && L[8] > 0) || !isfinite(x[0] + x[1] + x[2]))
+		return KG_EINVAL;
+	double y[3];
+	forward(L, x, y);
+	double best = INFINITY, second = INFINITY, sum = 0;
+	out->best = -1;
+	for (int j = 0; j < m->n; j++) {
+		double dj = INFINITY, aj = NAN, thj = NAN;
+		for (int k = 0; k < m->nangles; k++) {
+			double v[3];
+			forward(L, m->mu + 3 * ((size_t)j * m->nangles + k), v);
+			double vv = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+			double a = vv > 0 ? (v[0] * y[0] + v[1] * y[1] + v[2] * y[2]) / vv : m->lo;
+			a = a < m->lo ? m->lo : a > m->hi ? m->hi : a;
+			double e0 = y[0] - a * v[0], e1 = y[1] - a * v[1], e2 = y[2] - a * v[2];
+			double d = e0 * e0 + e1 * e1 + e2 * e2;
+			if (d < dj) {
+				dj = d;
+				aj = a;
+				thj = m->angle_deg[k];
+			}
+		}
+		if (dj < best) {
+			second = best;
+			best = dj;
+			out->best = j;
+			out->scale = aj;
+			out->angle_deg = thj;
+		} else if (dj < second) {
+			second = dj;
+		}
+		out->d2_each[j] = dj;
+	}
+	for (int j = 0; j < m->n; j++)
+		sum += exp(-0.5 * (out->d2_each[j] - best));
+	out->d2_best = best;
+	out->d2_second = second;
+	out->posterior = 1.0 / sum;
+	return 0;
+}
