@@ -15,6 +15,7 @@
 
 #include "kg_calib.h"
 #include "kg_test.h"
+#include "kg_test_camera.h"
 
 static char path_buf[8192];
 
@@ -30,26 +31,7 @@ typedef struct camera_sim {
 
 static int camera_init(camera_sim *cam, const char *dir, const char *name, kg_err *err)
 {
-	static const char *const cols[3] = {"r", "g", "b"};
-	kg_spectrum sens[3];
-	int ret = kg_csv_read_column_spectra(ref_path(dir, name), cols, 3, 0, sens, err);
-	if (ret)
-		return ret;
-	kg_illuminant *d65 = NULL;
-	ret = kg_illuminant_by_name("D65", &d65, err);
-	if (ret)
-		return ret;
-	/* Exposure: the perfect diffuser gives 0.9 in the brightest channel. */
-	kg_spectrum one = kg_spectrum_const(1.0);
-	double top = 0;
-	for (int c = 0; c < 3; c++) {
-		cam->weight[c] = kg_spectrum_mul(&sens[c], &d65->spd);
-		top = fmax(top, kg_spectrum_dot(&cam->weight[c], &one));
-	}
-	for (int c = 0; c < 3; c++)
-		cam->weight[c] = kg_spectrum_scale(&cam->weight[c], 0.9 / top);
-	kg_illuminant_free(&d65);
-	return 0;
+	return kg_test_camera_weights(dir, name, "D65", cam->weight, err);
 }
 
 /* Spectra from a reference CSV with the camera's RGB. */

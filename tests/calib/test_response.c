@@ -18,6 +18,7 @@
 
 #include "kg_calib.h"
 #include "kg_test.h"
+#include "kg_test_camera.h"
 
 static char path_buf[8192];
 
@@ -25,30 +26,6 @@ static const char *ref_path(const char *dir, const char *name)
 {
 	snprintf(path_buf, sizeof(path_buf), "%s/%s", dir, name);
 	return path_buf;
-}
-
-/* Channel weights: sensitivity x D65, scaled so the perfect diffuser gives 0.9 at
- * most. */
-static int camera_weights(const char *dir, const char *name, kg_spectrum w[3], kg_err *err)
-{
-	static const char *const cols[3] = {"r", "g", "b"};
-	kg_spectrum sens[3];
-	int ret = kg_csv_read_column_spectra(ref_path(dir, name), cols, 3, 0, sens, err);
-	kg_illuminant *d65 = NULL;
-	if (!ret)
-		ret = kg_illuminant_by_name("D65", &d65, err);
-	if (ret)
-		return ret;
-	kg_spectrum one = kg_spectrum_const(1.0);
-	double top = 0;
-	for (int c = 0; c < 3; c++) {
-		w[c] = kg_spectrum_mul(&sens[c], &d65->spd);
-		top = fmax(top, kg_spectrum_dot(&w[c], &one));
-	}
-	for (int c = 0; c < 3; c++)
-		w[c] = kg_spectrum_scale(&w[c], 0.9 / top);
-	kg_illuminant_free(&d65);
-	return 0;
 }
 
 static kg_patchset *with_rgb(const char *dir, const char *name, const kg_spectrum w[3])
@@ -72,19 +49,6 @@ static kg_patchset *with_rgb(const char *dir, const char *name, const kg_spectru
 	return ps;
 }
 
-/* A standard normal deviate (Box-Muller on a fixed xorshift stream). */
-static double gauss(uint64_t *st)
-{
-	double u[2];
-	for (int k = 0; k < 2; k++) {
-		*st ^= *st << 13;
-		*st ^= *st >> 7;
-		*st ^= *st << 17;
-		u[k] = ((*st >> 11) + 0.5) / 9007199254740992.0;
-	}
-	return sqrt(-2 * log(u[0])) * cos(2 * M_PI * u[1]);
-}
-
 /* noise: the chart's readings get this relative Gaussian noise (0: none); the bounds
  * are for that case. */
 static void check_camera(const char *dir, const char *camera, const kg_material_library *lib,
@@ -92,12 +56,12 @@ static void check_camera(const char *dir, const char *camera, const kg_material_
 {
 	kg_spectrum w[3];
 	kg_err err = {{0}};
-	CHECK(camera_weights(dir, camera, w, &err) == 0, "%s: %s", camera, err.msg);
+	CHECK(kg_test_camera_weights(dir, camera, "D65", w, &err) == 0, "%s: %s", camera, err.msg);
 	kg_patchset *cc = with_rgb(dir, "charts/colorchecker24_babelcolor_avg.csv", w);
 	uint64_t st = 0x9E3779B97F4A7C15ULL;
 	for (int i = 0; cc && i < cc->n; i++)
 		for (int c = 0; c < 3; c++)
-			cc->rgb[i][c] *= 1 + noise * gauss(&st);
+			cc->rgb[i][c] *= 1 + noise * kg_test_gauss(&st);
 	kg_patchset *munsell = with_rgb(dir, "reflectance/munsell_matt_uef1269_5nm.csv", w);
 	kg_response r;
 	int ret = cc && munsell ? kg_response_fit(cc, &r, &err) : -1;
@@ -153,7 +117,7 @@ static void check_files(const char *dir)
 {
 	kg_spectrum w[3];
 	kg_err err = {{0}};
-	if (camera_weights(dir, "cameras/Nikon_D5100.csv", w, &err))
+	if (kg_test_camera_weights(dir, "cameras/Nikon_D5100.csv", "D65", w, &err))
 		return;
 	kg_patchset *cc = with_rgb(dir, "charts/colorchecker24_babelcolor_avg.csv", w);
 	kg_reference_options opt;

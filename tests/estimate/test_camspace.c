@@ -15,50 +15,16 @@
 
 #include "kg_estimate.h"
 #include "kg_test.h"
+#include "kg_test_camera.h"
 
-static double gauss(uint64_t *st)
-{
-	double u[2];
-	for (int k = 0; k < 2; k++) {
-		*st ^= *st << 13;
-		*st ^= *st >> 7;
-		*st ^= *st << 17;
-		u[k] = ((*st >> 11) + 0.5) / 9007199254740992.0;
-	}
-	return sqrt(-2 * log(u[0])) * cos(2 * M_PI * u[1]);
-}
-
-static double uniform(uint64_t *st)
-{
-	*st ^= *st << 13;
-	*st ^= *st >> 7;
-	*st ^= *st << 17;
-	return ((*st >> 11) + 0.5) / 9007199254740992.0;
-}
-
+/* F (3 x 61, row-major): the camera's weights. */
 static int response(const char *dir, double F[3 * KG_NBANDS], kg_err *err)
 {
-	static const char *const cols[3] = {"r", "g", "b"};
-	char path[4200];
-	snprintf(path, sizeof(path), "%s/cameras/Nikon_D5100.csv", dir);
-	kg_spectrum sens[3];
-	kg_illuminant *d65 = NULL;
-	int ret = kg_csv_read_column_spectra(path, cols, 3, 0, sens, err);
-	if (!ret)
-		ret = kg_illuminant_by_name("D65", &d65, err);
-	if (ret)
-		return ret;
-	kg_spectrum one = kg_spectrum_const(1.0);
-	double top = 0;
-	for (int c = 0; c < 3; c++) {
-		kg_spectrum w = kg_spectrum_mul(&sens[c], &d65->spd);
-		top = fmax(top, kg_spectrum_dot(&w, &one));
-		memcpy(F + c * KG_NBANDS, w.v, sizeof(w.v));
-	}
-	for (int i = 0; i < 3 * KG_NBANDS; i++)
-		F[i] *= 0.9 / top;
-	kg_illuminant_free(&d65);
-	return 0;
+	kg_spectrum w[3];
+	int ret = kg_test_camera_weights(dir, "cameras/Nikon_D5100.csv", "D65", w, err);
+	for (int c = 0; !ret && c < 3; c++)
+		memcpy(F + c * KG_NBANDS, w[c].v, sizeof(w[c].v));
+	return ret;
 }
 
 static int index_of(const kg_cs_model *m, const char *name)
@@ -126,12 +92,12 @@ int main(void)
 	int gold = index_of(m, "gold"), silver = index_of(m, "silver"), urushi = index_of(m, "urushi");
 	CHECK(gold >= 0 && silver >= 0 && urushi >= 0, "the library names gold, silver, urushi");
 	for (int i = 0; i < N; i++) {
-		int j = (int)(uniform(&st) * n), k = (int)(uniform(&st) * m->nangles);
-		double a = 0.3 + 0.7 * uniform(&st);
+		int j = (int)(kg_test_uniform(&st) * n), k = (int)(kg_test_uniform(&st) * m->nangles);
+		double a = 0.3 + 0.7 * kg_test_uniform(&st);
 		const double *mu = m->mu + 3 * ((size_t)j * m->nangles + k);
 		double x[3];
 		for (int c = 0; c < 3; c++)
-			x[c] = a * mu[c] + sigma * gauss(&st);
+			x[c] = a * mu[c] + sigma * kg_test_gauss(&st);
 		if (kg_cs_match(m, x, cov, &r))
 			continue;
 		right += r.best == j;
