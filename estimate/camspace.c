@@ -143,3 +143,95 @@ int kg_cs_match(const kg_cs_model *m, const double x[3], const double cov[9],
 	out->posterior = 1.0 / sum;
 	return 0;
 }
+
+/* ---- separability ------------------------------------------------------------------ */
+
+/* The least |a u - b v| over b in [lo, hi] for a fixed a u (whitened vectors). */
+static double ray_distance(const double au[3], const double v[3], double lo, double hi)
+{
+	double vv = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+	double b = vv > 0 ? (au[0] * v[0] + au[1] * v[1] + au[2] * v[2]) / vv : lo;
+	b = b < lo ? lo : b > hi ? hi : b;
+	double e0 = au[0] - b * v[0], e1 = au[1] - b * v[1], e2 = au[2] - b * v[2];
+	return sqrt(e0 * e0 + e1 * e1 + e2 * e2);
+}
+
+/* The pixels a region must pool for a decision between two materials at whitened
+ * distance d to err 1 % of the time: the pooled mean's distance grows as sqrt(N) d,
+ * and two Gaussians at distance D are mistaken with probability Phi(-D / 2), so
+ * N = (2 z / d)^2, z = 2.3263 the 99 % point of the standard normal. */
+#define Z99 2.3263478740408408
+
+double kg_cs_pixels_for(double d)
+{
+	return d > 0 ? ceil((2 * Z99 / d) * (2 * Z99 / d)) : INFINITY;
+}
+
+int kg_cs_separability(const kg_cs_model *m, const double cov[9], double level, double *d,
+                       kg_err *err)
+{
+	kg_check_arg(m && cov && d, err);
+	double L[9] = {0};
+	L[0] = sqrt(cov[0]);
+	L[3] = cov[3] / L[0];
+	L[6] = cov[6] / L[0];
+	L[4] = sqrt(cov[4] - L[3] * L[3]);
+	L[7] = (cov[7] - L[6] * L[3]) / L[4];
+	L[8] = sqrt(cov[8] - L[6] * L[6] - L[7] * L[7]);
+	if (!(L[0] > 0 && L[4] > 0 && L[8] > 0))
+		return kg_fail(err, KG_EINVAL, "separability: the covariance is not positive definite");
+	if (!(level >= m->lo && level <= m->hi))
+		return kg_fail(err, KG_EINVAL, "separability: level %g outside the intensity range "
+		               "%g to %g", level, m->lo, m->hi);
+	const int n = m->n, na = m->nangles;
+	double *v = malloc(sizeof(double) * 3 * (size_t)n * (size_t)na);
+	if (!v)
+		return kg_fail(err, KG_ENOMEM, "out of memory");
+	for (int i = 0; i < n * na; i++)
+		forward(L, m->mu + 3 * (size_t)i, v + 3 * (size_t)i);
+	for (int i = 0; i < n; i++)
+		d[(size_t)i * n + i] = 0;
+	/* d(i, j): over i's angles at the given level, the nearest reading of j (any angle,
+	 * any intensity); the pair's separability is the smaller of d(i, j) and d(j, i). */
+	for (int i = 0; i < n; i++)
+		for (int j = 0; j < n; j++) {
+			if (i == j)
+				continue;
+			double best = INFINITY;
+			for (int k = 0; k < na; k++) {
+				const double *u = v + 3 * ((size_t)i * na + k);
+				double au[3] = {level * u[0], level * u[1], level * u[2]};
+				for (int q = 0; q < na; q++)
+					best = fmin(best, ray_distance(au, v + 3 * ((size_t)j * na + q), m->lo,
+					                               m->hi));
+			}
+			d[(size_t)i * n + j] = best;
+		}
+	for (int i = 0; i < n; i++)
+		for (int j = i + 1; j < n; j++) {
+			double s = fmin(d[(size_t)i * n + j], d[(size_t)j * n + i]);
+			d[(size_t)i * n + j] = d[(size_t)j * n + i] = s;
+		}
+	free(v);
+	return 0;
+}
+
+int kg_cs_merge_groups(const double *d, int n, double dmin, int *group)
+{
+	/* connected components of the pairs closer than dmin */
+	for (int i = 0; i < n; i++)
+		group[i] = i;
+	for (int changed = 1; changed;) {
+		changed = 0;
+		for (int i = 0; i < n; i++)
+			for (int j = 0; j < n; j++)
+				if (i != j && d[(size_t)i * n + j] < dmin && group[j] < group[i]) {
+					group[i] = group[j];
+					changed = 1;
+				}
+	}
+	int ngroups = 0;
+	for (int i = 0; i < n; i++)
+		ngroups += group[i] == i;
+	return ngroups;
+}

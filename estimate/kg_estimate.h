@@ -294,6 +294,24 @@ typedef struct kg_cs_result {
 int kg_cs_match(const kg_cs_model *m, const double x[3], const double cov[9],
                 kg_cs_result *out);
 
+/* Separability of the model's materials at noise cov, for a reading at intensity
+ * level: d[i * n + j] (n x n, symmetric, 0 on the diagonal) is the least
+ * noise-weighted distance between i and j over every angle and intensity, i.e. the
+ * smaller over the two of: over the one's angles at `level`, the nearest reading of the
+ * other. A single pixel tells them apart with error Phi(-d / 2). */
+int kg_cs_separability(const kg_cs_model *m, const double cov[9], double level, double *d,
+                       kg_err *err);
+/* Pixels a region must pool to tell two materials at distance d apart with 1 % error:
+ * ceil((2 z / d)^2), z the standard normal's 99 % point; +Inf for d = 0. */
+double kg_cs_pixels_for(double d);
+/* The classes a single pixel can support: materials joined when some pair of them is
+ * closer than dmin (connected components); group[i] is the smallest index of i's
+ * class. Returns the number of classes. KG_CS_MERGE_DISTANCE, one noise sigma, joins
+ * pairs a single pixel confuses at least 31 % of the time (Phi(-1/2)); pairs up to
+ * 2 z_99 = 4.65 apart still need pooled pixels (kg_cs_pixels_for) for a 1 % error. */
+#define KG_CS_MERGE_DISTANCE 1.0
+int kg_cs_merge_groups(const double *d, int n, double dmin, int *group);
+
 /* ==== Images to files: cubes, masks and label maps (apply.c) =====================
  *
  * The glue between a kernel and the station's file formats. It knows nothing

@@ -121,6 +121,59 @@ int main(void)
 	      acc);
 	CHECK(far_confused == 0, "gold, silver or urushi confused with one another %ld times",
 	      far_confused);
+
+	/* Separability at that noise, for readings at intensity 0.65. */
+	double *d = malloc(sizeof(double) * n * n);
+	int group[KG_EST_MAX_MATERIALS];
+	CHECK(kg_cs_separability(m, cov, 0.65, d, &err) == 0, "%s", err.msg);
+	int ngroups = kg_cs_merge_groups(d, n, KG_CS_MERGE_DISTANCE, group), asym = 0;
+	printf("separability at sigma %.3f, intensity 0.65 (pairs a pixel cannot tell apart "
+	       "with 1 %% error):\n", sigma);
+	for (int i = 0; i < n; i++)
+		for (int j = 0; j < n; j++) {
+			asym += d[i * n + j] != d[j * n + i];
+			if (i < j && kg_cs_pixels_for(d[i * n + j]) > 1)
+				printf("  %-26s %-26s d %.3f, %.0f pixels for 1 %% error\n", m->names[i],
+				       m->names[j], d[i * n + j], kg_cs_pixels_for(d[i * n + j]));
+		}
+	printf("  %d classes of %d materials joined below d = %g:", ngroups, n, KG_CS_MERGE_DISTANCE);
+	for (int i = 0; i < n; i++)
+		if (group[i] == i) {
+			printf(" ");
+			for (int j = i, first = 1; j < n; j++)
+				if (group[j] == i) {
+					printf("%s%s", first ? "" : "|", m->names[j]);
+					first = 0;
+				}
+		}
+	printf("\n");
+	CHECK(asym == 0, "the distance table is symmetric");
+	int copper = index_of(m, "copper"), shakudo = index_of(m, "shakudo");
+	CHECK(copper >= 0 && shakudo >= 0 && group[copper] == group[shakudo],
+	      "copper and shakudo are one class at 40 dB");
+	CHECK(group[gold] == gold && group[silver] == silver && group[urushi] == urushi,
+	      "gold, silver and urushi stay classes of their own");
+	/* the pooling rule: at d = 0.59, 63 pixels (2 z / d)^2 = 62.2 */
+	CHECK(kg_cs_pixels_for(0.59) == 63 && kg_cs_pixels_for(10) == 1 &&
+	      isinf(kg_cs_pixels_for(0)), "pixels for a 1 %% error");
+	/* Merged classes are what the data support: over the same readings, the label's
+	 * class is right far more often than the label. */
+	st = 12345;
+	long class_right = 0;
+	for (int i = 0; i < N; i++) {
+		int j = (int)(kg_test_uniform(&st) * n), k = (int)(kg_test_uniform(&st) * m->nangles);
+		double a = 0.3 + 0.7 * kg_test_uniform(&st);
+		const double *mu = m->mu + 3 * ((size_t)j * m->nangles + k);
+		double x[3];
+		for (int c = 0; c < 3; c++)
+			x[c] = a * mu[c] + sigma * kg_test_gauss(&st);
+		if (kg_cs_match(m, x, cov, &r) == 0)
+			class_right += group[r.best] == group[j];
+	}
+	double class_acc = (double)class_right / N;
+	printf("  accuracy over the %d classes: %.4f (materials: %.4f)\n", ngroups, class_acc, acc);
+	CHECK(class_acc > acc, "merging makes the labels more often right");
+	free(d);
 	kg_cs_model_free(&m);
 	kg_material_library_free(&lib);
 	return kg_test_done("estimate-camspace");
