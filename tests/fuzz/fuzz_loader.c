@@ -113,10 +113,10 @@ static int load_envi(const char *path, int *obj, kg_err *err)
 	return r;
 }
 
-/* Images up to this many pixels are read whole (kg_image_read); larger ones through the
- * row reader for their first rows only: decoding a legitimately large image is slow,
- * not a fault, and would starve the fuzzer of inputs. */
-#define FUZZ_IMAGE_WHOLE_PIXELS (1L << 20)
+/* Images up to this many pixels (64 Kpix) are read whole (kg_image_read); larger ones
+ * through the row reader for their first rows only: decoding a legitimately large
+ * image is slow, not a fault, and would starve the fuzzer of inputs. */
+#define FUZZ_IMAGE_WHOLE_PIXELS (1L << 16)
 
 static int load_image(const char *path, int *obj, kg_err *err)
 {
