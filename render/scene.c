@@ -7,6 +7,8 @@
 
 #include "render_private.h"
 
+#define SCENE_MAX_ICOSPHERE_LEVEL 8
+
 #define SCENE_FORMAT "kogei-scene/1"
 #define MAX_SIZE 16384      /* pixels per side */
 #define MAX_SPP 1000000
@@ -535,7 +537,9 @@ static int load_part(kg_scene *s, const json_t *root, const char *path, kg_mesh 
 		double half;
 		if (strcmp(g, "icosphere") == 0) {
 			snprintf(key, sizeof(key), "%s.level", path);
-			ret = opt_int(s->path, root, key, 4, 0, 10, &v, err);
+			/* at most level 8 (1,310,720 triangles): a one-line scene must not ask
+			 * for a 21-million-triangle mesh; larger meshes come from PLY files */
+			ret = opt_int(s->path, root, key, 4, 0, SCENE_MAX_ICOSPHERE_LEVEL, &v, err);
 			if (!ret)
 				ret = kg_mesh_icosphere((unsigned)v, out, err);
 		} else if (strcmp(g, "plane") == 0) {
