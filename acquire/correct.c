@@ -6,9 +6,6 @@
 
 #include "kg_acquire.h"
 
-/* A flat sample below this fraction of its colour's mean is not usable (dust, a dead
- * pixel, the edge of the illumination). */
-#define FLAT_VALID_FRACTION 0.05
 
 static int same_size(const kg_image *a, const kg_image *b, const char *what, kg_err *err)
 {
@@ -36,18 +33,23 @@ int kg_correct_dark(kg_image *mean, const kg_image *dark, kg_err *err)
 	return 0;
 }
 
-/* The colour class of sample i: its channel for RGB, its CFA letter for a mosaic
- * (R 0, G 1, B 2, others 3), 0 for mono. */
+int kg_colour_class(int channels, const char *cfa, int cfa_rows, int cfa_cols, int channel,
+                    size_t x, size_t y)
+{
+	if (channels > 1)
+		return channel;
+	if (!cfa)
+		return 0;
+	char l = cfa[(y % (size_t)cfa_rows) * (size_t)cfa_cols + x % (size_t)cfa_cols];
+	return l == 'R' ? 0 : l == 'G' ? 1 : l == 'B' ? 2 : 3;
+}
+
+/* The colour class of sample i of img. */
 static int colour_class(const kg_image *img, size_t i)
 {
-	if (img->channels > 1)
-		return (int)(i % (size_t)img->channels);
-	if (!img->cfa)
-		return 0;
-	size_t x = i % (size_t)img->width, y = i / (size_t)img->width;
-	char l = img->cfa[(y % (size_t)img->cfa_rows) * (size_t)img->cfa_cols +
-	                  x % (size_t)img->cfa_cols];
-	return l == 'R' ? 0 : l == 'G' ? 1 : l == 'B' ? 2 : 3;
+	size_t C = (size_t)img->channels, p = i / C;
+	return kg_colour_class(img->channels, img->cfa, img->cfa_rows, img->cfa_cols, (int)(i % C),
+	                       p % (size_t)img->width, p / (size_t)img->width);
 }
 
 int kg_correct_flat(kg_image *mean, kg_image *variance, const kg_image *flat, long *invalid,
@@ -72,7 +74,7 @@ int kg_correct_flat(kg_image *mean, kg_image *variance, const kg_image *flat, lo
 		}
 	}
 	for (int c = 0; c < 4; c++) {
-		cut[c] = count[c] ? FLAT_VALID_FRACTION * sum[c] / (double)count[c] : INFINITY;
+		cut[c] = count[c] ? KG_FLAT_VALID_FRACTION * sum[c] / (double)count[c] : INFINITY;
 		sum[c] = 0;
 		count[c] = 0;
 	}

@@ -68,6 +68,14 @@ int kg_correct_dark(kg_image *mean, const kg_image *dark, kg_err *err);
  * Samples where the flat is not valid become NaN; *invalid (may be NULL) counts them. */
 int kg_correct_flat(kg_image *mean, kg_image *variance, const kg_image *flat, long *invalid,
                     kg_err *err);
+/* A flat sample below this fraction of its colour's mean is not usable (dust, a dead
+ * pixel, the edge of the illumination). */
+#define KG_FLAT_VALID_FRACTION 0.05
+/* The colour class the flat normalises sample `channel` of pixel (x, y) by: the channel
+ * of an image of several, the CFA letter of a mosaic (R 0, G 1, B 2, others 3; cfa of
+ * rows x cols letters), 0 for mono (cfa NULL). */
+int kg_colour_class(int channels, const char *cfa, int cfa_rows, int cfa_cols, int channel,
+                    size_t x, size_t y);
 
 typedef struct kg_image_stats {
 	double min, max;

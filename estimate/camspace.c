@@ -84,6 +84,19 @@ int kg_cs_model_new(const double *F, const kg_material *const *mats, int n, doub
 	return 0;
 }
 
+/* C = L L^T, L lower triangular (row-major 3 x 3); 0 when C is not positive definite. */
+static int cholesky(const double cov[9], double L[9])
+{
+	memset(L, 0, 9 * sizeof(double));
+	L[0] = sqrt(cov[0]);
+	L[3] = cov[3] / L[0];
+	L[6] = cov[6] / L[0];
+	L[4] = sqrt(cov[4] - L[3] * L[3]);
+	L[7] = (cov[7] - L[6] * L[3]) / L[4];
+	L[8] = sqrt(cov[8] - L[6] * L[6] - L[7] * L[7]);
+	return L[0] > 0 && L[4] > 0 && L[8] > 0;
+}
+
 /* y = L^-1 x for the lower Cholesky factor L (row-major 3 x 3). */
 static void forward(const double L[9], const double x[3], double y[3])
 {
@@ -95,15 +108,8 @@ static void forward(const double L[9], const double x[3], double y[3])
 int kg_cs_match(const kg_cs_model *m, const double x[3], const double cov[9],
                 kg_cs_result *out)
 {
-	/* C = L L^T; a covariance that is not positive definite gives no match */
-	double L[9] = {0};
-	L[0] = sqrt(cov[0]);
-	L[3] = cov[3] / L[0];
-	L[6] = cov[6] / L[0];
-	L[4] = sqrt(cov[4] - L[3] * L[3]);
-	L[7] = (cov[7] - L[6] * L[3]) / L[4];
-	L[8] = sqrt(cov[8] - L[6] * L[6] - L[7] * L[7]);
-	if (!(L[0] > 0 && L[4] > 0 && L[8] > 0) || !isfinite(x[0] + x[1] + x[2]))
+	double L[9];
+	if (!cholesky(cov, L) || !isfinite(x[0] + x[1] + x[2]))
 		return KG_EINVAL;
 	double y[3];
 	forward(L, x, y);
@@ -171,14 +177,8 @@ int kg_cs_separability(const kg_cs_model *m, const double cov[9], double level, 
                        kg_err *err)
 {
 	kg_check_arg(m && cov && d, err);
-	double L[9] = {0};
-	L[0] = sqrt(cov[0]);
-	L[3] = cov[3] / L[0];
-	L[6] = cov[6] / L[0];
-	L[4] = sqrt(cov[4] - L[3] * L[3]);
-	L[7] = (cov[7] - L[6] * L[3]) / L[4];
-	L[8] = sqrt(cov[8] - L[6] * L[6] - L[7] * L[7]);
-	if (!(L[0] > 0 && L[4] > 0 && L[8] > 0))
+	double L[9];
+	if (!cholesky(cov, L))
 		return kg_fail(err, KG_EINVAL, "separability: the covariance is not positive definite");
 	if (!(level >= m->lo && level <= m->hi))
 		return kg_fail(err, KG_EINVAL, "separability: level %g outside the intensity range "

@@ -18,7 +18,6 @@
 #include "pipeline_private.h"
 
 #define DEMOSAIC_MARGIN 4 /* rows, even: beyond the bilinear 3 x 3 window */
-#define FLAT_VALID_FRACTION 0.05 /* as kg_correct_flat */
 
 typedef struct plane {
 	char *path;                 /* the mean, acquire's RGB, or the variance */
@@ -68,17 +67,13 @@ static void plane_clear(plane *pl)
 	memset(pl, 0, sizeof(*pl));
 }
 
-/* The colour class of sample i of a band starting at row y0 (as kg_correct_flat): its
- * channel for RGB, its CFA letter for a mosaic (R 0, G 1, B 2, others 3), 0 for mono. */
+/* The colour class of sample i of a band starting at row y0 (kg_colour_class). */
 static int colour_class(const plane *pl, int y0, size_t i)
 {
-	if (pl->channels > 1)
-		return (int)(i % (size_t)pl->channels);
-	if (!pl->cfa[0])
-		return 0;
-	size_t x = i % (size_t)pl->width, y = (size_t)y0 + i / (size_t)pl->width;
-	char l = pl->cfa[(y % (size_t)pl->cfa_rows) * (size_t)pl->cfa_cols + x % (size_t)pl->cfa_cols];
-	return l == 'R' ? 0 : l == 'G' ? 1 : l == 'B' ? 2 : 3;
+	size_t C = (size_t)pl->channels, p = i / C;
+	return kg_colour_class(pl->channels, pl->cfa[0] ? pl->cfa : NULL, pl->cfa_rows,
+	                       pl->cfa_cols, (int)(i % C), p % (size_t)pl->width,
+	                       (size_t)y0 + p / (size_t)pl->width);
 }
 
 static int open_rows(const char *path, const plane *like, const char *what,
@@ -200,7 +195,7 @@ static int pass_open(const plane *pl, int raw, int with_main, pass *ps, kg_err *
 }
 
 /* The flat's colour means over its positive samples, then over the valid ones (above
- * FLAT_VALID_FRACTION of the first): two passes, summed in file order as
+ * KG_FLAT_VALID_FRACTION of the first): two passes, summed in file order as
  * kg_correct_flat sums them. */
 static int plan_flat(plane *pl, kg_err *err)
 {
@@ -230,7 +225,7 @@ static int plan_flat(plane *pl, kg_err *err)
 		pass_close(&ps);
 		for (int c = 0; c < 4 && !ret; c++) {
 			if (round == 0)
-				pl->cut[c] = count[c] ? FLAT_VALID_FRACTION * sum[c] / (double)count[c]
+				pl->cut[c] = count[c] ? KG_FLAT_VALID_FRACTION * sum[c] / (double)count[c]
 				                      : INFINITY;
 			else
 				pl->norm[c] = sum[c] / (double)count[c];
