@@ -12,7 +12,7 @@
 #include <time.h>
 #include <unistd.h>
 
-#include "est_private.h"
+#include "apply_private.h"
 
 void kg_apply_options_init(kg_apply_options *o)
 {
@@ -62,25 +62,12 @@ void kg_est_stats_format(const kg_est_stats *s, char *buf, size_t size)
  * With pre the clip test belongs to the camera's values, so a pixel clipped before
  * the transform is marked with FLT_MAX (finite, and at the job's clip level FLT_MAX)
  * and NaN/Inf inputs stay non-finite. */
-typedef struct feed {
-	const kg_row_source *src, *var, *mask;
-	const char *what, *var_name;
-	double pre[9];
-	int has_pre;
-	float clip;     /* on the image's values */
-	float job_clip; /* what the framework tests kin against */
-} feed;
-
-typedef struct planes {
-	const float *kin, *raw, *var, *mask;
-} planes;
-
 static size_t feed_floats_per_pixel(const feed *f)
 {
 	return 3 + (f->has_pre ? 3 : 0) + (f->var ? 3 : 0) + (f->mask ? 1 : 0);
 }
 
-static planes feed_planes(const feed *f, const void *in, size_t n)
+planes ap_feed_planes(const feed *f, const void *in, size_t n)
 {
 	const float *p = in;
 	planes pl = {p, p, NULL, NULL};
@@ -106,7 +93,7 @@ static int is_identity(const double *m)
 	return 1;
 }
 
-static int feed_init(feed *f, const kg_row_source *src, const kg_apply_options *opt,
+int ap_feed_init(feed *f, const kg_row_source *src, const kg_apply_options *opt,
                      const char *what, kg_err *err)
 {
 	memset(f, 0, sizeof(*f));
@@ -136,11 +123,11 @@ static int feed_init(feed *f, const kg_row_source *src, const kg_apply_options *
 /* The job's fill: the block's rows from each source, the pre map, and the variance
  * checked as it arrives (the outputs are not yet in place, so a bad value still
  * leaves nothing written). */
-static int feed_fill(void *user, int y0, int rows, void *in, kg_err *err)
+int ap_feed_fill(void *user, int y0, int rows, void *in, kg_err *err)
 {
 	const feed *f = user;
 	size_t W = (size_t)f->src->width, n = (size_t)rows * W;
-	planes pl = feed_planes(f, in, n);
+	planes pl = ap_feed_planes(f, in, n);
 	float *kin = (float *)pl.kin;
 	int rc = f->src->read(f->src->user, y0, rows, (float *)pl.raw, err);
 	if (!rc && f->var)
@@ -175,10 +162,10 @@ static int feed_fill(void *user, int y0, int rows, void *in, kg_err *err)
 	return 0;
 }
 
-static void feed_job(feed *f, kg_est_job *job)
+void ap_feed_job(feed *f, kg_est_job *job)
 {
 	job->clip_level = f->job_clip;
-	job->fill = feed_fill;
+	job->fill = ap_feed_fill;
 	job->fill_user = f;
 	job->in_bytes = feed_floats_per_pixel(f) * sizeof(float);
 }
@@ -186,7 +173,7 @@ static void feed_job(feed *f, kg_est_job *job)
 /* An image of which no pixel can be estimated (every one flagged: clipped or
  * non-finite, on the camera's own values) is refused: a cube of NaN is not a result.
  * The run's counts tell, and the outputs, not yet in place, are dropped. */
-static int check_estimable(const kg_est_stats *st, const feed *f, const char *what,
+int ap_check_estimable(const kg_est_stats *st, const feed *f, const char *what,
                            kg_err *err)
 {
 	if (st->clipped + st->nonfinite < st->pixels)
@@ -202,21 +189,14 @@ static int check_estimable(const kg_est_stats *st, const feed *f, const char *wh
 
 /* ---- progress -------------------------------------------------------------------- */
 
-typedef struct progress {
-	FILE *fp;
-	const char *what;
-	int height, width;
-	double start, last;
-} progress;
-
-static double now_seconds(void)
+double ap_now_seconds(void)
 {
 	struct timespec ts;
 	clock_gettime(CLOCK_MONOTONIC, &ts);
 	return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
-static void progress_init(progress *p, const kg_apply_options *opt, const char *what,
+void ap_progress_init(progress *p, const kg_apply_options *opt, const char *what,
                           int width, int height)
 {
 	memset(p, 0, sizeof(*p));
@@ -225,14 +205,14 @@ static void progress_init(progress *p, const kg_apply_options *opt, const char *
 	p->what = what;
 	p->width = width;
 	p->height = height;
-	p->start = p->last = now_seconds();
+	p->start = p->last = ap_now_seconds();
 }
 
-static void progress_rows(progress *p, int rows_done)
+void ap_progress_rows(progress *p, int rows_done)
 {
 	if (!p->fp)
 		return;
-	double t = now_seconds();
+	double t = ap_now_seconds();
 	if (rows_done < p->height && t - p->last < 1.0)
 		return;
 	p->last = t;
@@ -246,29 +226,24 @@ static void progress_rows(progress *p, int rows_done)
 /* ---- files written by a call ----------------------------------------------------- */
 
 /* Final names of files already in place, removed again if a later step fails. */
-typedef struct written {
-	char *paths[16];
-	int n;
-} written;
-
-static void written_add(written *w, const char *path)
+void ap_written_add(written *w, const char *path)
 {
 	if (w->n < 16)
 		w->paths[w->n++] = strdup(path);
 }
 
-static void written_add_envi(written *w, const char *path)
+void ap_written_add_envi(written *w, const char *path)
 {
 	char *hdr = NULL, *data = NULL;
 	if (kg_envi_paths(path, &hdr, &data, NULL) == 0) {
-		written_add(w, data);
-		written_add(w, hdr);
+		ap_written_add(w, data);
+		ap_written_add(w, hdr);
 	}
 	free(hdr);
 	free(data);
 }
 
-static void written_clear(written *w, int remove)
+void ap_written_clear(written *w, int remove)
 {
 	for (int i = 0; i < w->n; i++) {
 		if (remove && w->paths[i])
@@ -279,7 +254,7 @@ static void written_clear(written *w, int remove)
 }
 
 /* Finish the writers in order; any failure removes what was finished before. */
-static int finish_all(kg_envi_writer **ws, const char *const *paths, int n, written *done,
+int ap_finish_all(kg_envi_writer **ws, const char *const *paths, int n, written *done,
                       kg_err *err)
 {
 	int rc = 0;
@@ -292,19 +267,14 @@ static int finish_all(kg_envi_writer **ws, const char *const *paths, int n, writ
 		if (rc)
 			kg_err_prefix(err, "%s: ", paths[i]);
 		else
-			written_add_envi(done, paths[i]);
+			ap_written_add_envi(done, paths[i]);
 	}
 	return rc;
 }
 
 /* A float staging buffer for blocks that are not float32 (f16 bits, masks, labels);
  * the ENVI writer converts the values (exact integers) to the file's type. */
-typedef struct staging {
-	float *v;
-	size_t cap;
-} staging;
-
-static float *staging_get(staging *s, size_t n, kg_err *err)
+float *ap_staging_get(staging *s, size_t n, kg_err *err)
 {
 	if (n > s->cap) {
 		float *v = realloc(s->v, n * sizeof(float));
@@ -318,11 +288,11 @@ static float *staging_get(staging *s, size_t n, kg_err *err)
 	return s->v;
 }
 
-static int put_bytes(kg_envi_writer *w, staging *s, const kg_est_block *b, const uint8_t *src,
+int ap_put_bytes(kg_envi_writer *w, staging *s, const kg_est_block *b, const uint8_t *src,
                      kg_err *err)
 {
 	size_t n = (size_t)b->rows * b->width;
-	float *v = staging_get(s, n, err);
+	float *v = ap_staging_get(s, n, err);
 	if (!v)
 		return KG_ENOMEM;
 	for (size_t i = 0; i < n; i++)
@@ -335,7 +305,7 @@ static const char mask_description[] =
 	"channel >= the clip level; 4 = negative reflectance clamped to 0. A pixel with "
 	"bit 1 or 2 set was not estimated (NaN in the cube; unclassified in a label map)";
 
-static int open_mask(const char *out_hdr, int width, int height, char **mask_path,
+int ap_open_mask(const char *out_hdr, int width, int height, char **mask_path,
                      kg_envi_writer **w, kg_err *err)
 {
 	int rc = kg_apply_side_path(out_hdr, "_mask.hdr", mask_path, err);
@@ -373,7 +343,7 @@ static int est_sink_fn(void *user, const kg_est_block *b, kg_err *err)
 		rc = kg_envi_writer_put(s->cube, b->y0, b->y0 + b->rows, KG_LAYOUT_BIP, b->data, err);
 		break;
 	default: { /* f16: the bit patterns, as exact integers */
-		float *v = staging_get(&s->stage, n, err);
+		float *v = ap_staging_get(&s->stage, n, err);
 		if (!v)
 			return KG_ENOMEM;
 		const uint16_t *h = b->data;
@@ -385,8 +355,8 @@ static int est_sink_fn(void *user, const kg_est_block *b, kg_err *err)
 	}
 	}
 	if (!rc)
-		rc = put_bytes(s->mask, &s->stage, b, b->mask, err);
-	progress_rows(&s->prog, b->y0 + b->rows);
+		rc = ap_put_bytes(s->mask, &s->stage, b, b->mask, err);
+	ap_progress_rows(&s->prog, b->y0 + b->rows);
 	return rc;
 }
 
@@ -485,7 +455,7 @@ int kg_estimate_rows(const kg_est_kernel *k, const kg_row_source *src, kg_est_fo
 		               out_hdr);
 
 	feed in;
-	int rc = feed_init(&in, src, opt, "estimate", err);
+	int rc = ap_feed_init(&in, src, opt, "estimate", err);
 	if (rc)
 		return rc;
 	kg_est_stats local;
@@ -531,34 +501,34 @@ int kg_estimate_rows(const kg_est_kernel *k, const kg_row_source *src, kg_est_fo
 
 	if ((rc = kg_envi_writer_open(out_hdr, &m, &ws[0], err)))
 		goto out;
-	if ((rc = open_mask(out_hdr, src->width, src->height, &mask_path, &ws[1], err)))
+	if ((rc = ap_open_mask(out_hdr, src->width, src->height, &mask_path, &ws[1], err)))
 		goto out;
 	paths[1] = mask_path;
 
 	kg_est_job job;
 	kg_est_job_init(&job, k, format);
-	feed_job(&in, &job);
+	ap_feed_job(&in, &job);
 	job.threads = opt->threads;
 	job.block_rows = opt->block_rows;
 	job.isa = opt->isa;
 	sink.cube = ws[0];
 	sink.mask = ws[1];
-	progress_init(&sink.prog, opt, "estimate", src->width, src->height);
+	ap_progress_init(&sink.prog, opt, "estimate", src->width, src->height);
 	rc = kg_est_run_stream(&job, NULL, src->width, src->height, est_sink_fn, &sink, stats,
 	                       err);
 	if (rc) {
 		kg_err_prefix(err, "%s (%s): ", out_hdr, format_name(format));
 		goto out;
 	}
-	if ((rc = check_estimable(stats, &in, "estimate", err)))
+	if ((rc = ap_check_estimable(stats, &in, "estimate", err)))
 		goto out;
-	rc = finish_all(ws, paths, 2, &done, err);
+	rc = ap_finish_all(ws, paths, 2, &done, err);
 
 out:
 	for (int i = 0; i < 2; i++)
 		if (ws[i])
 			kg_envi_writer_abort(&ws[i]);
-	written_clear(&done, rc != 0);
+	ap_written_clear(&done, rc != 0);
 	free(sink.stage.v);
 	free(mask_path);
 	for (int i = 0; i < 3; i++)
@@ -663,7 +633,7 @@ void kg_classify_result_free(kg_classify_result *r)
 /* Distinct colours for the classes: K. L. Kelly's (1965) colours of maximum
  * contrast without white, black and grey (grey marks flagged pixels), then hues
  * spaced by the golden angle. */
-static void class_colour(int j, unsigned char rgb[3])
+void ap_class_colour(int j, unsigned char rgb[3])
 {
 	static const unsigned char kelly[19][3] = {
 		{0xF3, 0xC3, 0x00}, {0x87, 0x56, 0x92}, {0xF3, 0x84, 0x00}, {0xA1, 0xCA, 0xF1},
@@ -689,30 +659,30 @@ static const unsigned char unknown_magenta[3] = {255, 0, 255};
 static const unsigned char background_dark[3] = {24, 24, 24};
 
 /* Labels of the two refusal classes after the n materials. */
-static int label_unknown(const kg_est_material_set *set) { return set->n + 1; }
-static int label_background(const kg_est_material_set *set) { return set->n + 2; }
+int ap_label_unknown(const kg_est_material_set *set) { return set->n + 1; }
+int ap_label_background(const kg_est_material_set *set) { return set->n + 2; }
 
-static const char *label_name(const kg_est_material_set *set, int label)
+const char *ap_label_name(const kg_est_material_set *set, int label)
 {
 	if (label == KG_EST_LABEL_NONE)
 		return "unclassified";
-	if (label == label_unknown(set))
+	if (label == ap_label_unknown(set))
 		return "unknown";
-	if (label == label_background(set))
+	if (label == ap_label_background(set))
 		return "background";
 	return set->names[label - 1];
 }
 
-static void label_colour(const kg_est_material_set *set, int label, unsigned char rgb[3])
+void ap_label_colour(const kg_est_material_set *set, int label, unsigned char rgb[3])
 {
 	if (label == KG_EST_LABEL_NONE)
 		memcpy(rgb, flagged_grey, 3);
-	else if (label == label_unknown(set))
+	else if (label == ap_label_unknown(set))
 		memcpy(rgb, unknown_magenta, 3);
-	else if (label == label_background(set))
+	else if (label == ap_label_background(set))
 		memcpy(rgb, background_dark, 3);
 	else
-		class_colour(label - 1, rgb);
+		ap_class_colour(label - 1, rgb);
 }
 
 /* The refusal stage (kg_classify_options), applied to every block after the label
@@ -773,36 +743,20 @@ static void refuse_pixel(const refusal *r, const planes *pl, size_t i, uint8_t *
  * 32-bit keys that sort as the floats do; the sink counts each class's keys by their
  * high 16 bits (pass 1); the ranks wanted then lie in known buckets, whose low 16
  * bits a second pass over the written confidence file counts. */
-#define HIST_BINS 65536
-#define MAX_TARGETS 3 /* the median's one or two ranks, the 5th percentile's */
-
-static uint32_t order_key(float v)
+uint32_t ap_order_key(float v)
 {
 	uint32_t u;
 	memcpy(&u, &v, 4);
 	return u & 0x80000000u ? ~u : u | 0x80000000u;
 }
 
-static float key_value(uint32_t k)
+float ap_key_value(uint32_t k)
 {
 	uint32_t u = k & 0x80000000u ? k & 0x7fffffffu : ~k;
 	float v;
 	memcpy(&v, &u, 4);
 	return v;
 }
-
-typedef struct class_stats {
-	uint64_t count;
-	double margin_sum;
-	double rgb_sum[3]; /* what the kernel saw, for the mean spectrum */
-	uint32_t *hi;      /* HIST_BINS counts of the keys' high halves, once it has pixels */
-	int ntargets;
-	uint64_t rank[MAX_TARGETS];  /* 0-based ranks wanted */
-	uint32_t bucket[MAX_TARGETS];
-	uint64_t below[MAX_TARGETS]; /* keys in lower buckets */
-	uint32_t *lo[MAX_TARGETS];   /* the bucket's low halves (pass 2) */
-	float value[MAX_TARGETS];
-} class_stats;
 
 typedef struct cls_sink {
 	kg_envi_writer *labels, *conf, *mask;
@@ -824,7 +778,7 @@ static int cls_sink_fn(void *user, const kg_est_block *b, kg_err *err)
 	size_t n = (size_t)b->rows * b->width;
 	uint8_t *lab = (uint8_t *)b->data;
 	float *conf = (float *)b->confidence;
-	planes pl = feed_planes(s->in, b->input, n);
+	planes pl = ap_feed_planes(s->in, b->input, n);
 	for (size_t i = 0; i < n; i++) {
 		refuse_pixel(s->refuse, &pl, i, &lab[i], &conf[i]);
 		s->count[lab[i]]++;
@@ -833,7 +787,7 @@ static int cls_sink_fn(void *user, const kg_est_block *b, kg_err *err)
 		class_stats *c = &s->cs[lab[i] - 1];
 		if (!c->hi && !(c->hi = calloc(HIST_BINS, sizeof(uint32_t))))
 			return kg_fail(err, KG_ENOMEM, "classify: out of memory for the margins");
-		c->hi[order_key(conf[i]) >> 16]++;
+		c->hi[ap_order_key(conf[i]) >> 16]++;
 		c->count++;
 		c->margin_sum += conf[i];
 		for (int ch = 0; ch < 3; ch++)
@@ -847,17 +801,17 @@ static int cls_sink_fn(void *user, const kg_est_block *b, kg_err *err)
 		for (int x = 0; x < s->pw; x++)
 			s->preview[(size_t)s->next_py * s->pw + x] = row[(long)x * b->width / s->pw];
 	}
-	int rc = put_bytes(s->labels, &s->stage, b, lab, err);
+	int rc = ap_put_bytes(s->labels, &s->stage, b, lab, err);
 	if (!rc)
 		rc = kg_envi_writer_put(s->conf, b->y0, b->y0 + b->rows, KG_LAYOUT_BIP, conf, err);
 	if (!rc)
-		rc = put_bytes(s->mask, &s->stage, b, b->mask, err);
-	progress_rows(&s->prog, b->y0 + b->rows);
+		rc = ap_put_bytes(s->mask, &s->stage, b, b->mask, err);
+	ap_progress_rows(&s->prog, b->y0 + b->rows);
 	return rc;
 }
 
 /* The ranks wanted of each class, and the buckets of pass 1 they fall in. */
-static void stats_targets(class_stats *c)
+void ap_stats_targets(class_stats *c)
 {
 	uint64_t m = c->count;
 	c->ntargets = 0;
@@ -881,14 +835,14 @@ static void stats_targets(class_stats *c)
 
 /* Pass 2: the low halves of the keys in the wanted buckets, from the files just
  * written (labels after the refusals, margins), read back in bands of rows. */
-static int margin_pass(cls_sink *s, const char *labels_hdr, const char *conf_hdr, int width,
-                       int height, kg_err *err)
+int ap_margin_pass(class_stats *cs, int nclasses, const char *labels_hdr, const char *conf_hdr,
+                   int bands, int width, int height, kg_err *err)
 {
-	for (int j = 0; j < s->nmaterials; j++) {
-		class_stats *c = &s->cs[j];
+	for (int j = 0; j < nclasses; j++) {
+		class_stats *c = &cs[j];
 		if (!c->count)
 			continue;
-		stats_targets(c);
+		ap_stats_targets(c);
 		for (int t = 0; t < c->ntargets; t++)
 			if (!(c->lo[t] = calloc(HIST_BINS, sizeof(uint32_t))))
 				return kg_fail(err, KG_ENOMEM, "classify: out of memory for the margins");
@@ -897,7 +851,7 @@ static int margin_pass(cls_sink *s, const char *labels_hdr, const char *conf_hdr
 	int band = (int)(((size_t)1 << 20) / (size_t)width);
 	band = band < 1 ? 1 : band > height ? height : band;
 	float *lab = malloc(sizeof(float) * (size_t)band * width);
-	float *conf = malloc(sizeof(float) * (size_t)band * width);
+	float *conf = malloc(sizeof(float) * (size_t)band * width * (size_t)bands);
 	int rc = lab && conf ? 0 : kg_fail(err, KG_ENOMEM, "classify: out of memory");
 	if (!rc)
 		rc = kg_envi_open(labels_hdr, &el, err);
@@ -911,10 +865,10 @@ static int margin_pass(cls_sink *s, const char *labels_hdr, const char *conf_hdr
 		size_t n = (size_t)rows * width;
 		for (size_t i = 0; i < n && !rc; i++) {
 			int l = (int)lab[i];
-			if (l < 1 || l > s->nmaterials)
+			if (l < 1 || l > nclasses)
 				continue;
-			class_stats *c = &s->cs[l - 1];
-			uint32_t key = order_key(conf[i]);
+			class_stats *c = &cs[l - 1];
+			uint32_t key = ap_order_key(conf[i * (size_t)bands]);
 			for (int t = 0; t < c->ntargets; t++)
 				if (key >> 16 == c->bucket[t])
 					c->lo[t][key & 0xffffu]++;
@@ -924,14 +878,14 @@ static int margin_pass(cls_sink *s, const char *labels_hdr, const char *conf_hdr
 	kg_envi_close(&ec);
 	free(lab);
 	free(conf);
-	for (int j = 0; j < s->nmaterials && !rc; j++) {
-		class_stats *c = &s->cs[j];
+	for (int j = 0; j < nclasses && !rc; j++) {
+		class_stats *c = &cs[j];
 		for (int t = 0; t < c->ntargets && c->count; t++) {
 			uint64_t below = c->below[t];
 			uint32_t bin = 0;
 			while (bin < HIST_BINS - 1 && below + c->lo[t][bin] <= c->rank[t])
 				below += c->lo[t][bin++];
-			c->value[t] = key_value(c->bucket[t] << 16 | bin);
+			c->value[t] = ap_key_value(c->bucket[t] << 16 | bin);
 		}
 	}
 	return rc;
@@ -949,21 +903,21 @@ static void cls_sink_free(cls_sink *s)
 	free(s->stage.v);
 }
 
-/* Counts, mean spectra and margin statistics per class (after margin_pass). */
-static int summarise(const kg_est_kernel *k, const kg_est_material_set *set, const cls_sink *s,
-                     size_t npix, kg_classify_result *res, kg_err *err)
+/* Counts, mean spectra and margin statistics per class (after ap_margin_pass). */
+int ap_summarise(const kg_est_kernel *k, const kg_est_material_set *set, const uint64_t *count,
+                 const class_stats *cstats, size_t npix, kg_classify_result *res, kg_err *err)
 {
 	int n = set->n;
 	res->nclasses = n;
 	res->classes = calloc((size_t)n, sizeof(*res->classes));
 	if (!res->classes)
 		return kg_fail(err, KG_ENOMEM, "out of memory");
-	res->unclassified = s->count[0];
-	res->unknown = s->count[label_unknown(set)];
-	res->background = s->count[label_background(set)];
+	res->unclassified = count[0];
+	res->unknown = count[ap_label_unknown(set)];
+	res->background = count[ap_label_background(set)];
 	for (int j = 0; j < n; j++) {
 		kg_class_summary *c = &res->classes[j];
-		const class_stats *cs = &s->cs[j];
+		const class_stats *cs = &cstats[j];
 		snprintf(c->name, sizeof(c->name), "%s", set->names[j]);
 		c->pixels = cs->count;
 		c->fraction = npix ? (double)c->pixels / (double)npix : 0.0;
@@ -976,9 +930,10 @@ static int summarise(const kg_est_kernel *k, const kg_est_material_set *set, con
 		float mean_rgb[3], spec[KG_NBANDS];
 		for (int ch = 0; ch < 3; ch++)
 			mean_rgb[ch] = (float)(cs->rgb_sum[ch] / (double)c->pixels);
-		kg_est_kernel_eval(k, mean_rgb, INFINITY, 0, spec);
+		if (k)
+			kg_est_kernel_eval(k, mean_rgb, INFINITY, 0, spec);
 		for (int l = 0; l < KG_NBANDS; l++)
-			c->mean_spectrum[l] = spec[l];
+			c->mean_spectrum[l] = k ? spec[l] : NAN;
 		c->margin_mean = cs->margin_sum / (double)c->pixels;
 		c->margin_median = cs->ntargets == 3 ? 0.5 * ((double)cs->value[0] + cs->value[1])
 		                                     : cs->value[0];
@@ -988,7 +943,7 @@ static int summarise(const kg_est_kernel *k, const kg_est_material_set *set, con
 }
 
 /* A number, or null where JSON has none (NaN, +-Inf). */
-static json_t *json_num(double v)
+json_t *ap_json_num(double v)
 {
 	return isfinite(v) ? json_real(v) : json_null();
 }
@@ -1022,7 +977,7 @@ static json_t *refusal_json(const kg_classify_options *copt, const kg_classify_i
 	                                "distance's part outside the basis, sigma_w the noise "
 	                                "and calibration error propagated through the weight "
 	                                "matrix"));
-	json_object_set_new(u, "threshold", json_num(res->unknown_threshold));
+	json_object_set_new(u, "threshold", ap_json_num(res->unknown_threshold));
 	json_object_set_new(u, "dof", json_integer(res->dof));
 	json_object_set_new(u, "probability",
 	                    on && copt->unknown_threshold == 0 ? json_real(0.999) : json_null());
@@ -1044,14 +999,14 @@ static json_t *refusal_json(const kg_classify_options *copt, const kg_classify_i
 	return r;
 }
 
-static json_t *refusal_class(const kg_est_material_set *set, int label, uint64_t pixels,
+json_t *ap_refusal_class(const kg_est_material_set *set, int label, uint64_t pixels,
                              uint64_t total)
 {
 	unsigned char col[3];
-	label_colour(set, label, col);
+	ap_label_colour(set, label, col);
 	json_t *o = json_object();
 	json_object_set_new(o, "label", json_integer(label));
-	json_object_set_new(o, "name", json_string(label_name(set, label)));
+	json_object_set_new(o, "name", json_string(ap_label_name(set, label)));
 	json_object_set_new(o, "pixels", json_integer((json_int_t)pixels));
 	json_object_set_new(o, "fraction", json_real(total ? (double)pixels / (double)total : 0.0));
 	json_object_set_new(o, "colour", json_pack("[iii]", col[0], col[1], col[2]));
@@ -1082,7 +1037,7 @@ static int write_json(const char *path, const kg_est_material_set *set,
 		json_object_set_new(root, keys[i], vals[i] ? json_string(vals[i]) : json_null());
 	json_object_set_new(root, "distance", json_string(distance_name(copt->distance)));
 	json_object_set_new(root, "angle_deg", json_real(set->angle_deg));
-	json_object_set_new(root, "clip_level", json_num(opt->clip_level));
+	json_object_set_new(root, "clip_level", ap_json_num(opt->clip_level));
 	json_object_set_new(root, "width", json_integer(img->width));
 	json_object_set_new(root, "height", json_integer(img->height));
 	json_object_set_new(root, "pixels", json_integer((json_int_t)res->stats.pixels));
@@ -1117,7 +1072,7 @@ static int write_json(const char *path, const kg_est_material_set *set,
 		const kg_class_summary *c = &res->classes[j];
 		json_t *o = json_object();
 		unsigned char col[3];
-		label_colour(set, j + 1, col);
+		ap_label_colour(set, j + 1, col);
 		json_object_set_new(o, "label", json_integer(j + 1));
 		json_object_set_new(o, "name", json_string(c->name));
 		json_object_set_new(o, "pixels", json_integer((json_int_t)c->pixels));
@@ -1127,19 +1082,19 @@ static int write_json(const char *path, const kg_est_material_set *set,
 		if (c->pixels) {
 			ms = json_array();
 			for (int l = 0; l < KG_NBANDS; l++)
-				json_array_append_new(ms, json_num(c->mean_spectrum[l]));
+				json_array_append_new(ms, ap_json_num(c->mean_spectrum[l]));
 		}
 		json_object_set_new(o, "mean_spectrum", ms);
 		json_t *conf = json_object();
-		json_object_set_new(conf, "mean", json_num(c->margin_mean));
-		json_object_set_new(conf, "median", json_num(c->margin_median));
-		json_object_set_new(conf, "p5", json_num(c->margin_p5));
+		json_object_set_new(conf, "mean", ap_json_num(c->margin_mean));
+		json_object_set_new(conf, "median", ap_json_num(c->margin_median));
+		json_object_set_new(conf, "p5", ap_json_num(c->margin_p5));
 		json_object_set_new(o, "confidence", conf);
 		json_array_append_new(classes, o);
 	}
-	json_array_append_new(classes, refusal_class(set, label_unknown(set), res->unknown,
+	json_array_append_new(classes, ap_refusal_class(set, ap_label_unknown(set), res->unknown,
 	                                             res->stats.pixels));
-	json_array_append_new(classes, refusal_class(set, label_background(set), res->background,
+	json_array_append_new(classes, ap_refusal_class(set, ap_label_background(set), res->background,
 	                                             res->stats.pixels));
 	json_object_set_new(root, "classes", classes);
 	int rc = kg_json_write(root, path, err);
@@ -1152,7 +1107,7 @@ static int write_json(const char *path, const kg_est_material_set *set,
 /* The label map with class colours (flagged pixels grey, unknown magenta, background
  * near-black), at most 720 pixels on its longer side (nearest sample), and a legend
  * with each class's share. */
-static void preview_size(int width, int height, int *pw, int *ph)
+void ap_preview_size(int width, int height, int *pw, int *ph)
 {
 	double scale = 720.0 / (width > height ? width : height);
 	*pw = (int)lround(width * scale);
@@ -1161,8 +1116,8 @@ static void preview_size(int width, int height, int *pw, int *ph)
 	*ph = *ph < 1 ? 1 : *ph;
 }
 
-/* labels: the pw x ph nearest samples the sink kept (preview_size). */
-static int write_preview(const char *path, const kg_est_material_set *set,
+/* labels: the pw x ph nearest samples the sink kept (ap_preview_size). */
+int ap_write_preview(const char *path, const kg_est_material_set *set,
                          const uint8_t *labels, int pw, int ph,
                          const kg_classify_result *res, kg_err *err)
 {
@@ -1180,7 +1135,7 @@ static int write_preview(const char *path, const kg_est_material_set *set,
 		return kg_fail(err, KG_ENOMEM, "out of memory");
 	}
 	for (int l = 0; l < 256; l++)
-		label_colour(set, l < nlabels ? l : 0, pal[l]);
+		ap_label_colour(set, l < nlabels ? l : 0, pal[l]);
 	for (int y = 0; y < ph; y++) {
 		const uint8_t *row = labels + (size_t)y * pw;
 		for (int x0 = 0; x0 < pw;) {
@@ -1200,13 +1155,13 @@ static int write_preview(const char *path, const kg_est_material_set *set,
 		double c[3] = {pal[j][0] / 255.0, pal[j][1] / 255.0, pal[j][2] / 255.0};
 		kg_plot_fill_rect(p, lx, y + 3, 14, 14, c);
 		uint64_t count = j == 0                        ? res->unclassified
-		                 : j == label_unknown(set)     ? res->unknown
-		                 : j == label_background(set)  ? res->background
+		                 : j == ap_label_unknown(set)     ? res->unknown
+		                 : j == ap_label_background(set)  ? res->background
 		                                               : res->classes[j - 1].pixels;
 		double frac =
 			res->stats.pixels ? 100.0 * (double)count / (double)res->stats.pixels : 0.0;
 		kg_plot_text(p, lx + 20, y + 15, 12, KG_ALIGN_LEFT, black, "%s  %.1f %%",
-		             j ? label_name(set, j) : "flagged (unclassified)", frac);
+		             j ? ap_label_name(set, j) : "flagged (unclassified)", frac);
 	}
 	free(pal);
 	rc = kg_plot_save_png(p, path, err);
@@ -1294,8 +1249,8 @@ static int refusal_init(refusal *r, const kg_est_kernel *k, const kg_est_classif
 	r->noise_floor2 = o->noise_floor * o->noise_floor;
 	r->resid2 = o->residual_relative * o->residual_relative;
 	r->background_level = (float)o->background_level;
-	r->unknown = (uint8_t)label_unknown(set);
-	r->background = (uint8_t)label_background(set);
+	r->unknown = (uint8_t)ap_label_unknown(set);
+	r->background = (uint8_t)ap_label_background(set);
 	res->dof = kg_est_classifier_dof(cls);
 	r->threshold = o->unknown_threshold > 0 ? o->unknown_threshold
 	                                        : kg_chi2_quantile(0.999, res->dof);
@@ -1379,7 +1334,7 @@ int kg_classify_rows(const kg_est_kernel *k, const kg_est_material_set *set,
 		               KG_EST_MAX_MATERIALS);
 
 	feed in;
-	int rc = feed_init(&in, src, opt, "classify", err);
+	int rc = ap_feed_init(&in, src, opt, "classify", err);
 	if (!rc)
 		rc = check_options(copt, src, info, "classify", err);
 	if (rc)
@@ -1411,7 +1366,7 @@ int kg_classify_rows(const kg_est_kernel *k, const kg_est_material_set *set,
 	const int nlabels = set->n + 3;
 	names = calloc((size_t)nlabels, sizeof(char *));
 	lookup = malloc(3 * (size_t)nlabels);
-	preview_size(W, H, &sink.pw, &sink.ph);
+	ap_preview_size(W, H, &sink.pw, &sink.ph);
 	sink.preview = malloc((size_t)sink.pw * sink.ph);
 	sink.cs = calloc((size_t)set->n, sizeof(*sink.cs));
 	if (!names || !lookup || !sink.preview || !sink.cs) {
@@ -1419,8 +1374,8 @@ int kg_classify_rows(const kg_est_kernel *k, const kg_est_material_set *set,
 		goto out;
 	}
 	for (int l = 0; l < nlabels; l++) {
-		names[l] = label_name(set, l);
-		label_colour(set, l, lookup + 3 * l);
+		names[l] = ap_label_name(set, l);
+		ap_label_colour(set, l, lookup + 3 * l);
 	}
 
 	kg_envi_meta m = {0};
@@ -1452,13 +1407,13 @@ int kg_classify_rows(const kg_est_kernel *k, const kg_est_material_set *set,
 	if ((rc = kg_envi_writer_open(conf_path, &mc, &ws[1], err)))
 		goto out;
 	paths[1] = conf_path;
-	if ((rc = open_mask(out_hdr, W, H, &mask_path, &ws[2], err)))
+	if ((rc = ap_open_mask(out_hdr, W, H, &mask_path, &ws[2], err)))
 		goto out;
 	paths[2] = mask_path;
 
 	kg_est_job job;
 	kg_est_job_init(&job, k, KG_EST_LABELS);
-	feed_job(&in, &job);
+	ap_feed_job(&in, &job);
 	job.classifier = cls;
 	job.threads = opt->threads;
 	job.block_rows = opt->block_rows;
@@ -1470,32 +1425,32 @@ int kg_classify_rows(const kg_est_kernel *k, const kg_est_material_set *set,
 	sink.refuse = &refuse;
 	sink.nmaterials = set->n;
 	sink.height = H;
-	progress_init(&sink.prog, opt, "classify", W, H);
+	ap_progress_init(&sink.prog, opt, "classify", W, H);
 	rc = kg_est_run_stream(&job, NULL, W, H, cls_sink_fn, &sink, &local.stats, err);
 	if (rc) {
 		kg_err_prefix(err, "%s: ", out_hdr);
 		goto out;
 	}
-	if ((rc = check_estimable(&local.stats, &in, "classify", err)))
+	if ((rc = ap_check_estimable(&local.stats, &in, "classify", err)))
 		goto out;
-	if ((rc = finish_all(ws, paths, 3, &done, err)))
+	if ((rc = ap_finish_all(ws, paths, 3, &done, err)))
 		goto out;
-	if ((rc = margin_pass(&sink, out_hdr, conf_path, W, H, err)) ||
-	    (rc = summarise(k, set, &sink, npix, &local, err)))
+	if ((rc = ap_margin_pass(sink.cs, sink.nmaterials, out_hdr, conf_path, 1, W, H, err)) ||
+	    (rc = ap_summarise(k, set, sink.count, sink.cs, npix, &local, err)))
 		goto out;
 	const char *files[4] = {out_hdr, conf_path, mask_path, png_path};
 	if ((rc = write_json(json_path, set, copt, src, opt, info, files, &local, err)))
 		goto out;
-	written_add(&done, json_path);
-	if ((rc = write_preview(png_path, set, sink.preview, sink.pw, sink.ph, &local, err)))
+	ap_written_add(&done, json_path);
+	if ((rc = ap_write_preview(png_path, set, sink.preview, sink.pw, sink.ph, &local, err)))
 		goto out;
-	written_add(&done, png_path);
+	ap_written_add(&done, png_path);
 
 out:
 	for (int i = 0; i < 3; i++)
 		if (ws[i])
 			kg_envi_writer_abort(&ws[i]);
-	written_clear(&done, rc != 0);
+	ap_written_clear(&done, rc != 0);
 	if (rc == 0 && res)
 		*res = local;
 	else

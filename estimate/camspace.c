@@ -23,6 +23,8 @@ void kg_cs_model_free(kg_cs_model **pm)
 	free((*pm)->names);
 	free((*pm)->angle_deg);
 	free((*pm)->mu);
+	free((*pm)->muf);
+	free((*pm)->anglef);
 	free(*pm);
 	*pm = NULL;
 }
@@ -48,8 +50,10 @@ int kg_cs_model_new(const double *F, const kg_material *const *mats, int n, doub
 		m->names = calloc((size_t)n, sizeof(*m->names));
 		m->angle_deg = malloc(sizeof(double) * (size_t)na);
 		m->mu = malloc(sizeof(double) * 3 * (size_t)n * (size_t)na);
+		m->muf = malloc(sizeof(float) * 3 * (size_t)n * (size_t)na);
+		m->anglef = malloc(sizeof(float) * (size_t)na);
 	}
-	if (!m || !m->names || !m->angle_deg || !m->mu) {
+	if (!m || !m->names || !m->angle_deg || !m->mu || !m->muf || !m->anglef) {
 		kg_cs_model_free(&m);
 		return kg_fail(err, KG_ENOMEM, "out of memory");
 	}
@@ -80,6 +84,10 @@ int kg_cs_model_new(const double *F, const kg_material *const *mats, int n, doub
 		kg_cs_model_free(&m);
 		return ret;
 	}
+	for (size_t i = 0; i < 3 * (size_t)n * (size_t)na; i++)
+		m->muf[i] = (float)m->mu[i];
+	for (int k = 0; k < na; k++)
+		m->anglef[k] = (float)m->angle_deg[k];
 	*out = m;
 	return 0;
 }
@@ -148,6 +156,89 @@ int kg_cs_match(const kg_cs_model *m, const double x[3], const double cov[9],
 	out->d2_second = second;
 	out->posterior = 1.0 / sum;
 	return 0;
+}
+
+/* One pixel in float: the Cholesky factor of its covariance, the whitened reading, then
+ * every material at every angle with the clamped intensity. The optimised kernel must
+ * repeat exactly these operations in this order. */
+static void match_one(const kg_cs_model *m, const float *x, const float *c, size_t i,
+                      const kg_cs_block *out)
+{
+	float l0 = sqrtf(c[0]);
+	float l3 = c[1] / l0, l6 = c[2] / l0;
+	float l4 = sqrtf(c[3] - l3 * l3);
+	float l7 = (c[4] - l6 * l3) / l4;
+	float l8 = sqrtf(c[5] - l6 * l6 - l7 * l7);
+	if (!(l0 > 0.0f && l4 > 0.0f && l8 > 0.0f) || !isfinite(x[0] + x[1] + x[2])) {
+		out->best[i] = KG_CS_NO_MATCH;
+		if (out->d2best)
+			out->d2best[i] = NAN;
+		if (out->d2second)
+			out->d2second[i] = NAN;
+		if (out->angle_deg)
+			out->angle_deg[i] = NAN;
+		if (out->scale)
+			out->scale[i] = NAN;
+		if (out->d2)
+			for (int j = 0; j < m->n; j++)
+				out->d2[i * (size_t)m->n + j] = NAN;
+		return;
+	}
+	float i0 = 1.0f / l0, i4 = 1.0f / l4, i8 = 1.0f / l8;
+	float y0 = x[0] * i0;
+	float y1 = (x[1] - l3 * y0) * i4;
+	float y2 = (x[2] - l6 * y0 - l7 * y1) * i8;
+	const float lo = (float)m->lo, hi = (float)m->hi;
+	float best = INFINITY, second = INFINITY, best_a = NAN, best_t = NAN;
+	int bj = 0;
+	const float *mu = m->muf;
+	for (int j = 0; j < m->n; j++) {
+		float dj = INFINITY, aj = NAN, tj = NAN;
+		for (int k = 0; k < m->nangles; k++, mu += 3) {
+			float v0 = mu[0] * i0;
+			float v1 = (mu[1] - l3 * v0) * i4;
+			float v2 = (mu[2] - l6 * v0 - l7 * v1) * i8;
+			float vv = v0 * v0 + v1 * v1 + v2 * v2;
+			float vy = v0 * y0 + v1 * y1 + v2 * y2;
+			float a = vy / vv;
+			a = a > lo ? a : lo;
+			a = a < hi ? a : hi;
+			float e0 = y0 - a * v0, e1 = y1 - a * v1, e2 = y2 - a * v2;
+			float d = e0 * e0 + e1 * e1 + e2 * e2;
+			if (d < dj) {
+				dj = d;
+				aj = a;
+				tj = m->anglef[k];
+			}
+		}
+		if (out->d2)
+			out->d2[i * (size_t)m->n + j] = dj;
+		if (dj < best) {
+			second = best;
+			best = dj;
+			bj = j;
+			best_a = aj;
+			best_t = tj;
+		} else if (dj < second) {
+			second = dj;
+		}
+	}
+	out->best[i] = (uint8_t)bj;
+	if (out->d2best)
+		out->d2best[i] = best;
+	if (out->d2second)
+		out->d2second[i] = second;
+	if (out->angle_deg)
+		out->angle_deg[i] = best_t;
+	if (out->scale)
+		out->scale[i] = best_a;
+}
+
+void kg_cs_match_block(const kg_cs_model *m, const float *x, const float *cov, size_t n,
+                       const kg_cs_block *out)
+{
+	for (size_t i = 0; i < n; i++)
+		match_one(m, x + 3 * i, cov + 6 * i, i, out);
 }
 
 /* ---- separability ------------------------------------------------------------------ */

@@ -202,6 +202,14 @@ typedef struct kg_est_job {
 	int (*fill)(void *user, int y0, int rows, void *in, kg_err *err);
 	void *fill_user;
 	size_t in_bytes; /* per pixel, >= 12; 0: 12 */
+	/* Labels format in stream mode only: instead of the kernel and classifier (kernel
+	 * may then be NULL), the caller's per-block function runs in the worker threads on
+	 * what fill wrote (`in`, n pixels), writing each pixel's label, confidence and mask
+	 * byte and counting the pixels it flagged; anything else it computes it may leave in
+	 * `in`, which the sink gets as block->input. */
+	void (*compute)(void *user, void *in, size_t n, uint8_t *labels, float *conf,
+	                uint8_t *mask, uint64_t *nonfinite, uint64_t *clipped);
+	void *compute_user;
 } kg_est_job;
 
 /* Defaults: clip_level 0.999 (of the 0..1 full scale; callers set the level their
@@ -271,6 +279,8 @@ typedef struct kg_cs_model {
 	char (*names)[KG_MATERIAL_NAME_MAX];
 	double *angle_deg; /* nangles, increasing */
 	double *mu;        /* n x nangles x 3: the predicted readings at intensity 1 */
+	float *muf;        /* the same in float, for the block kernel */
+	float *anglef;
 	double lo, hi;     /* the intensity range searched */
 } kg_cs_model;
 
@@ -293,6 +303,22 @@ typedef struct kg_cs_result {
  * definite or a non-finite pixel. */
 int kg_cs_match(const kg_cs_model *m, const double x[3], const double cov[9],
                 kg_cs_result *out);
+
+/* What kg_cs_match_block writes per pixel; all but best may be NULL. */
+#define KG_CS_NO_MATCH 255
+typedef struct kg_cs_block {
+	uint8_t *best;     /* material index, KG_CS_NO_MATCH: non-finite x or covariance not
+	                      positive definite */
+	float *d2best, *d2second;
+	float *angle_deg, *scale; /* the best material's */
+	float *d2;         /* n x model->n: every material's distance */
+} kg_cs_block;
+
+/* kg_cs_match for n pixels in float (the reference implementation of the block kernel):
+ * x 3 values per pixel, cov 6 per pixel (c00 c01 c02 c11 c12 c22). Up to 254
+ * materials. */
+void kg_cs_match_block(const kg_cs_model *m, const float *x, const float *cov, size_t n,
+                       const kg_cs_block *out);
 
 /* Separability of the model's materials at noise cov, for a reading at intensity
  * level: d[i * n + j] (n x n, symmetric, 0 on the diagonal) is the least

@@ -38,6 +38,9 @@ typedef struct run_state {
 	int (*fill)(void *user, int y0, int rows, void *in, kg_err *err);
 	void *fill_user;
 	size_t in_bytes;
+	void (*compute)(void *user, void *in, size_t n, uint8_t *labels, float *conf,
+	                uint8_t *mask, uint64_t *nonfinite, uint64_t *clipped);
+	void *compute_user;
 	int fill_rc; /* the first fill error, its message in fill_err */
 	kg_err fill_err;
 	pthread_mutex_t mu;
@@ -102,7 +105,11 @@ static void compute_block(run_state *r, worker *w, int b)
 		              r->dest->confidence ? r->dest->confidence + first : NULL,
 		              r->dest->mask ? r->dest->mask + first : NULL};
 	}
-	r->fn(&r->plan, &w->scratch, in, n, &d, &w->counts);
+	if (r->compute)
+		r->compute(r->compute_user, r->slots[b % r->nslots].in, n, d.data, d.conf, d.mask,
+		           &w->counts.nonfinite, &w->counts.clipped);
+	else
+		r->fn(&r->plan, &w->scratch, in, n, &d, &w->counts);
 }
 
 static void *worker_main(void *arg)
@@ -154,7 +161,8 @@ static int same_doubles(const double *a, const double *b, size_t n)
 static int prepare(const kg_est_job *job, const float *rgb, int width, int height, int stream,
                    run_state *r, int *threads, kg_err *err)
 {
-	kg_check_arg(job && job->kernel && (rgb || (stream && job->fill)), err);
+	kg_check_arg(job && (job->kernel || job->compute) && (rgb || (stream && job->fill)), err);
+	kg_check_arg(!job->compute || (stream && job->fill && job->format == KG_EST_LABELS), err);
 	kg_check_arg(!job->fill || stream, err);
 	kg_check_arg(!job->fill || !job->in_bytes || job->in_bytes >= 3 * sizeof(float), err);
 	const kg_est_kernel *k = job->kernel;
@@ -163,11 +171,13 @@ static int prepare(const kg_est_job *job, const float *rgb, int width, int heigh
 		               width, height);
 	if ((int)job->format < 0 || job->format >= KG_EST_NFORMATS)
 		return kg_fail(err, KG_EINVAL, "estimate: output format %d: unknown", (int)job->format);
-	if ((job->format == KG_EST_WEIGHTS || job->format == KG_EST_LABELS) && !k->k)
+	if (job->compute)
+		; /* the caller's function makes the labels */
+	else if ((job->format == KG_EST_WEIGHTS || job->format == KG_EST_LABELS) && !k->k)
 		return kg_fail(err, KG_EINVAL,
 		               "estimate: %s output needs a kernel with a K-dimensional basis",
 		               job->format == KG_EST_WEIGHTS ? "weights" : "label");
-	if (job->format == KG_EST_LABELS) {
+	if (job->format == KG_EST_LABELS && !job->compute) {
 		const kg_est_classifier *c = job->classifier;
 		if (!c)
 			return kg_fail(err, KG_EINVAL, "estimate: label output: no classifier given");
@@ -188,18 +198,21 @@ static int prepare(const kg_est_job *job, const float *rgb, int width, int heigh
 	memset(r, 0, sizeof(*r));
 	r->plan.k = k;
 	r->plan.format = job->format;
-	r->plan.map = (job->format == KG_EST_WEIGHTS || job->format == KG_EST_LABELS) ? &k->wts
+	r->plan.map = !k ? NULL
+	              : (job->format == KG_EST_WEIGHTS || job->format == KG_EST_LABELS) ? &k->wts
 	                                                                                : &k->spec;
 	r->plan.cls = job->format == KG_EST_LABELS ? job->classifier : NULL;
 	r->plan.clip = job->clip_level;
-	r->fn = dsp.block[est_kind(k)][job->format];
+	r->fn = k ? dsp.block[est_kind(k)][job->format] : NULL;
+	r->compute = job->compute;
+	r->compute_user = job->compute_user;
 	r->rgb = rgb;
 	r->fill = job->fill;
 	r->fill_user = job->fill_user;
 	r->in_bytes = job->fill ? (job->in_bytes ? job->in_bytes : 3 * sizeof(float)) : 0;
 	r->width = width;
 	r->height = height;
-	r->bands = kg_est_format_bands(k, job->format);
+	r->bands = job->compute ? 1 : kg_est_format_bands(k, job->format);
 	r->elem = kg_est_format_elem_size(job->format);
 
 	int nt = job->threads ? (job->threads > MAX_THREADS ? MAX_THREADS : job->threads)

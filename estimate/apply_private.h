@@ -1,0 +1,94 @@
+/* Inside estimate/: what apply.c (images to files) shares with labels_cam.c (camera-space
+ * label maps): the input feed, progress, the files of a call, the margin statistics and
+ * the label map's colours and preview. Not included from outside estimate/. */
+#ifndef KG_APPLY_PRIVATE_H
+#define KG_APPLY_PRIVATE_H
+
+#include <jansson.h>
+#include <stdio.h>
+
+#include "est_private.h"
+#include "kg_core.h"
+
+typedef struct feed {
+	const kg_row_source *src, *var, *mask;
+	const char *what, *var_name;
+	double pre[9];
+	int has_pre;
+	float clip;     /* on the image's values */
+	float job_clip; /* what the framework tests kin against */
+} feed;
+
+typedef struct planes {
+	const float *kin, *raw, *var, *mask;
+} planes;
+
+typedef struct progress {
+	FILE *fp;
+	const char *what;
+	int height, width;
+	double start, last;
+} progress;
+
+typedef struct written {
+	char *paths[16];
+	int n;
+} written;
+
+typedef struct staging {
+	float *v;
+	size_t cap;
+} staging;
+
+#define HIST_BINS 65536
+#define MAX_TARGETS 3 /* the median's one or two ranks, the 5th percentile's */
+
+typedef struct class_stats {
+	uint64_t count;
+	double margin_sum;
+	double rgb_sum[3]; /* what the kernel saw, for the mean spectrum */
+	uint32_t *hi;      /* HIST_BINS counts of the keys' high halves, once it has pixels */
+	int ntargets;
+	uint64_t rank[MAX_TARGETS];  /* 0-based ranks wanted */
+	uint32_t bucket[MAX_TARGETS];
+	uint64_t below[MAX_TARGETS]; /* keys in lower buckets */
+	uint32_t *lo[MAX_TARGETS];   /* the bucket's low halves (pass 2) */
+	float value[MAX_TARGETS];
+} class_stats;
+
+planes ap_feed_planes(const feed *f, const void *in, size_t n);
+int ap_feed_init(feed *f, const kg_row_source *src, const kg_apply_options *opt, const char *what, kg_err *err);
+int ap_feed_fill(void *user, int y0, int rows, void *in, kg_err *err);
+void ap_feed_job(feed *f, kg_est_job *job);
+int ap_check_estimable(const kg_est_stats *st, const feed *f, const char *what, kg_err *err);
+double ap_now_seconds(void);
+void ap_progress_init(progress *p, const kg_apply_options *opt, const char *what, int width, int height);
+void ap_progress_rows(progress *p, int rows_done);
+void ap_written_add(written *w, const char *path);
+void ap_written_add_envi(written *w, const char *path);
+void ap_written_clear(written *w, int remove);
+int ap_finish_all(kg_envi_writer **ws, const char *const *paths, int n, written *done, kg_err *err);
+float *ap_staging_get(staging *s, size_t n, kg_err *err);
+int ap_put_bytes(kg_envi_writer *w, staging *s, const kg_est_block *b, const uint8_t *src, kg_err *err);
+int ap_open_mask(const char *out_hdr, int width, int height, char **mask_path, kg_envi_writer **w, kg_err *err);
+void ap_class_colour(int j, unsigned char rgb[3]);
+int ap_label_unknown(const kg_est_material_set *set);
+int ap_label_background(const kg_est_material_set *set);
+
+const char *ap_label_name(const kg_est_material_set *set, int label);
+void ap_label_colour(const kg_est_material_set *set, int label, unsigned char rgb[3]);
+uint32_t ap_order_key(float v);
+float ap_key_value(uint32_t k);
+void ap_stats_targets(class_stats *c);
+/* Pass 2 of the margins' order statistics (cs: nclasses entries, label j + 1): the
+ * margins are band 0 of conf_hdr's `bands` bands. */
+int ap_margin_pass(class_stats *cs, int nclasses, const char *labels_hdr, const char *conf_hdr, int bands, int width, int height, kg_err *err);
+/* Counts, mean spectra (from the mean RGB through k; NaN without k) and margin
+ * statistics per class, after ap_margin_pass. count: per label. */
+int ap_summarise(const kg_est_kernel *k, const kg_est_material_set *set, const uint64_t *count, const class_stats *cstats, size_t npix, kg_classify_result *res, kg_err *err);
+json_t *ap_json_num(double v);
+json_t *ap_refusal_class(const kg_est_material_set *set, int label, uint64_t pixels, uint64_t total);
+void ap_preview_size(int width, int height, int *pw, int *ph);
+int ap_write_preview(const char *path, const kg_est_material_set *set, const uint8_t *labels, int pw, int ph, const kg_classify_result *res, kg_err *err);
+
+#endif
