@@ -485,3 +485,24 @@ int kg_camera_site_map(const kg_camera_calib *cam, kg_method m, const kg_site_ma
 	*out = &cam->maps[m];
 	return 0;
 }
+
+void kg_camera_residual_cov(const kg_camera_calib *cam, double R[9])
+{
+	memset(R, 0, 9 * sizeof(double));
+	int used = 0;
+	for (int i = 0; cam && i < cam->k; i++) {
+		const double *r = cam->residual[i], *x = cam->rho0[i];
+		double l2 = (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]) / 3.0;
+		if (!(l2 > 0) || !isfinite(r[0] + r[1] + r[2]))
+			continue;
+		for (int a = 0; a < 3; a++)
+			for (int b = 0; b < 3; b++)
+				R[3 * a + b] += r[a] * r[b] / l2;
+		used++;
+	}
+	/* the residual of k patches fitted with 9 parameters: k - 3 degrees of freedom
+	 * per channel */
+	int dof = used > 3 ? used - 3 : 0;
+	for (int e = 0; e < 9; e++)
+		R[e] = dof ? R[e] / dof : 0.0;
+}

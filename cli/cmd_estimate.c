@@ -60,14 +60,42 @@ static const char help_estimate[] =
 
 static const char usage_classify[] =
 	"kogei classify --calib CAM.json --materials LIB.json IMAGE -o LABELS.hdr\n"
-	"               [--only a,b,c] [--distance plain|scale-free] [--angle DEG]\n"
-	"               [--method pca] [--variance VAR.tif] [--frames N] [--mask MASK.png]\n"
+	"               [--only a,b,c] [--method camera|eq11] [--angles A:B[:STEP]]\n"
+	"               [--intensity LO:HI] [--merge-distance D|none] [--regions MAP.png]\n"
+	"               [--no-regions] [--distance plain|scale-free] [--angle DEG]\n"
+	"               [--variance VAR.tif] [--frames N] [--mask MASK.png]\n"
 	"               [--background-level L|none] [--unknown-threshold T|none]\n"
 	"               [--threads N] [--block-rows N] [--clip-level V] [--force] [--quiet]";
 
 static const char help_classify[] =
 	"\n"
-	"Material labels (the paper's eq. 11): each pixel gets the material j minimising\n"
+	"Material labels. The default method, camera, matches each pixel where the camera\n"
+	"measured it: its reading mapped through M2 into the reference camera's space is\n"
+	"compared with every declared material's predicted reading (the reference camera's\n"
+	"spectral response times the material's reflectance at each incidence angle of\n"
+	"--angles, times any intensity in --intensity: the unknown geometry), weighted by\n"
+	"the pixel's own noise (its variance, or the noise model, through M2, plus the\n"
+	"calibration's residual covariance). Before classifying, every pair of materials\n"
+	"is measured at the capture's noise; a pair that a single pixel cannot tell apart\n"
+	"(distance below --merge-distance, default 1 noise sigma) becomes one compound\n"
+	"class 'a|b': the label map holds no distinction the data cannot support. Pixels\n"
+	"are then grouped into regions (connected pixels of one class, or --regions) and\n"
+	"each region is decided on its pixels' pooled likelihood, which resolves a\n"
+	"compound class where the region has enough pixels.\n"
+	"\n"
+	"  --method M           camera (default) or eq11 (the paper's eq. 11 on the pca\n"
+	"                       estimate, for comparison; 'pca' is the same)\n"
+	"  --angles A:B[:STEP]  incidence angles searched, degrees (default 0:70:5)\n"
+	"  --intensity LO:HI    intensities searched, relative to the material seen at\n"
+	"                       the chart's exposure (default 0.3:1)\n"
+	"  --merge-distance D   join pairs closer than D noise sigmas (default 1); 'none':\n"
+	"                       keep every material apart\n"
+	"  --regions MAP.png    grey map of region numbers (0 = none, 1-65535) of the\n"
+	"                       image's size: decide these regions instead of connected\n"
+	"                       components\n"
+	"  --no-regions         per-pixel labels only\n"
+	"\n"
+	"With --method eq11 each pixel gets the material j minimising\n"
 	"||C_j - s||^2 over the declared materials, where C_j is the library reflectance\n"
 	"at --angle. Because s = mean + B w lies in the span of the pca basis, this is\n"
 	"computed from the K weights w alone:\n"
@@ -75,21 +103,24 @@ static const char help_classify[] =
 	"A pixel that j does not explain within the noise is 'unknown', and a dark or\n"
 	"masked-out one 'background', rather than the nearest material.\n"
 	"\n"
-	"  --calib CAM.json     site calibration; its pca map is used (other methods have\n"
-	"                       no K-dimensional basis and are refused)\n"
+	"  --calib CAM.json     site calibration (with the reference camera's response for\n"
+	"                       the camera method); eq11 uses its pca map\n"
 	"  --materials LIB      material library (kogei-materials/1 JSON, or \"default\",\n"
 	"                       the bundled library)\n"
 	"  --only a,b,c         classify among these library materials only (the scene's\n"
 	"                       declared set), in this order; default: all of them\n"
-	"  --distance D         plain (default) or scale-free: min over a >= 0 of\n"
+	"  --distance D         eq11: plain (default) or scale-free: min over a >= 0 of\n"
 	"                       ||a C_j - s||^2, for specular levels that vary with geometry\n"
-	"  --angle DEG          incidence angle of the material spectra, 0-90 (default 0)\n"
+	"  --angle DEG          eq11: incidence angle of the material spectra, 0-90\n"
+	"                       (default 0)\n"
 	"  --variance VAR.tif   per-pixel variance of the single frames (3 channels, the\n"
 	"                       image's size; acquire records it as variance.tif)\n"
 	"  --frames N           frames averaged into IMAGE (default 1): the mean's\n"
 	"                       variance is VAR / N\n"
 	"  --unknown-threshold T  a pixel whose best material does not explain it is\n"
-	"                       'unknown': chi2 > T, where chi2 weighs its residual in\n"
+	"                       'unknown'. camera: its d2 > T, default the 99.9 % point of\n"
+	"                       chi-square with 2 degrees of freedom (13.82). eq11:\n"
+	"                       chi2 > T, where chi2 weighs its residual in\n"
 	"                       the K weights by the noise (VAR / N, or without --variance\n"
 	"                       a model: sigma = 0.002 + 1 % of the level, in quadrature)\n"
 	"                       plus the calibration's relative residual times the level\n"
@@ -103,13 +134,18 @@ static const char help_classify[] =
 	"                       non-zero = object; background wins over every other label\n"
 	"  -o LABELS.hdr        ENVI classification file (LABELS.hdr + LABELS.img;\n"
 	"                       class 0 'unclassified' = flagged pixels, then the\n"
-	"                       materials, then 'unknown' and 'background'), and beside\n"
+	"                       classes, then 'unknown' and 'background'), and beside\n"
 	"                       it LABELS.json (classes, pixel counts, mean spectra,\n"
 	"                       confidence, the noise model and bounds used), LABELS.png\n"
 	"                       (preview; flagged grey, unknown magenta, background dark),\n"
 	"                       LABELS_confidence.hdr (float32: the margin to the\n"
-	"                       runner-up; NaN for unknown and background) and\n"
-	"                       LABELS_mask.hdr (pixel flags)\n"
+	"                       runner-up; camera: 4 bands, margin, posterior, fitted\n"
+	"                       angle and intensity; NaN for unknown and background),\n"
+	"                       LABELS_mask.hdr (pixel flags), and with regions\n"
+	"                       LABELS_regions.hdr (uint32 region numbers) and\n"
+	"                       LABELS_regions.csv (region, pixels, class, decided\n"
+	"                       label, posterior); LABELS.json also holds the\n"
+	"                       separability table and the merges\n"
 	"  --threads, --block-rows, --clip-level, --force, --quiet   as for kogei estimate\n"
 	"                       (an image of another camera is refused unless --force)\n"
 	"\n"
@@ -124,6 +160,25 @@ static int parse_int(const char *text, int lo, int hi, int *out)
 		return -1;
 	*out = (int)v;
 	return 0;
+}
+
+/* "a:b[:c]" into up to max numbers; returns how many, or -1. */
+static int parse_doubles(const char *text, double *v, int max)
+{
+	int n = 0;
+	const char *p = text;
+	for (;;) {
+		char *end = NULL;
+		double x = strtod(p, &end);
+		if (!end || end == p || n == max || !isfinite(x))
+			return -1;
+		v[n++] = x;
+		if (*end == '\0')
+			return n;
+		if (*end != ':')
+			return -1;
+		p = end + 1;
+	}
 }
 
 static int parse_clip(const char *text, float *out)
@@ -338,9 +393,12 @@ static int split_names(char *text, char **names, int max, int *n)
 int kg_cmd_classify(int argc, char **argv)
 {
 	const char *calib = NULL, *out = NULL, *library = NULL, *distance = "plain";
-	const char *method = "pca", *variance = NULL, *mask = NULL;
+	const char *method = "camera", *variance = NULL, *mask = NULL, *regions = NULL;
 	char *only = NULL;
 	double angle = 0;
+	int no_regions = 0, distance_given = 0, angle_given = 0;
+	kg_classify_camera ccam;
+	kg_classify_camera_init(&ccam);
 	int quiet = 0, force = 0;
 	kg_apply_options opt;
 	kg_apply_options_init(&opt);
@@ -358,6 +416,11 @@ int kg_cmd_classify(int argc, char **argv)
 		{"mask", required_argument, NULL, 'K'},
 		{"background-level", required_argument, NULL, 'L'},
 		{"unknown-threshold", required_argument, NULL, 'U'},
+		{"angles", required_argument, NULL, 'A'},
+		{"intensity", required_argument, NULL, 'I'},
+		{"merge-distance", required_argument, NULL, 'D'},
+		{"regions", required_argument, NULL, 'R'},
+		{"no-regions", no_argument, NULL, 'n'},
 		{0, 0, 0, 0},
 	};
 	int c;
@@ -374,9 +437,42 @@ int kg_cmd_classify(int argc, char **argv)
 		case 'o': out = optarg; break;
 		case 'M': library = optarg; break;
 		case 'y': only = optarg; break;
-		case 'd': distance = optarg; break;
+		case 'd': distance = optarg; distance_given = 1; break;
 		case 'm': method = optarg; break;
 		case 'V': variance = optarg; break;
+		case 'R': regions = optarg; break;
+		case 'n': no_regions = 1; break;
+		case 'A': {
+			double v[3] = {0, 0, 5};
+			int nv = parse_doubles(optarg, v, 3);
+			if (nv < 2 || !(v[0] >= 0 && v[1] >= v[0] && v[1] < 90 && v[2] > 0))
+				return kg_cli_usage_error(usage_classify, "--angles %s: expected FROM:TO[:STEP] "
+				                          "degrees, 0 <= FROM <= TO < 90, STEP > 0", optarg);
+			ccam.angle_from = v[0];
+			ccam.angle_to = v[1];
+			ccam.angle_step = v[2];
+			break;
+		}
+		case 'I': {
+			double v[2];
+			if (parse_doubles(optarg, v, 2) != 2 || !(v[0] > 0 && v[1] >= v[0] && isfinite(v[1])))
+				return kg_cli_usage_error(usage_classify, "--intensity %s: expected LO:HI with "
+				                          "0 < LO <= HI", optarg);
+			ccam.intensity_lo = v[0];
+			ccam.intensity_hi = v[1];
+			break;
+		}
+		case 'D':
+			if (strcmp(optarg, "none") == 0) {
+				ccam.merge_distance = -1;
+				break;
+			}
+			ccam.merge_distance = strtod(optarg, &end);
+			if (!end || end == optarg || *end || !(ccam.merge_distance > 0) ||
+			    !isfinite(ccam.merge_distance))
+				return kg_cli_usage_error(usage_classify, "--merge-distance %s: expected a "
+				                          "number > 0 or none", optarg);
+			break;
 		case 'K': mask = optarg; break;
 		case 'N':
 			if (parse_int(optarg, 1, 1 << 20, &copt.frames))
@@ -410,6 +506,7 @@ int kg_cmd_classify(int argc, char **argv)
 				                          optarg);
 			break;
 		case 'a':
+			angle_given = 1;
 			angle = strtod(optarg, &end);
 			if (!end || end == optarg || *end || !(angle >= 0 && angle <= 90))
 				return kg_cli_usage_error(usage_classify, "--angle %s: expected 0 to 90 degrees",
@@ -437,15 +534,26 @@ int kg_cmd_classify(int argc, char **argv)
 		return kg_cli_usage_error(usage_classify, "--distance %s: expected plain or scale-free",
 		                          distance);
 	kg_err err = {{0}};
-	kg_method m;
-	if (kg_method_parse(method, &m, &err))
-		return kg_cli_usage_error(usage_classify, "--method: %s", err.msg);
-	if (m != KG_METHOD_PCA)
-		return kg_cli_error(&err, kg_fail(&err, KG_EINVAL,
-		                                  "--method %s: classification works on the K weights of "
-		                                  "a basis (the paper's eq. 11) and only pca has "
-		                                  "one; use --method pca",
-		                                  method));
+	kg_method m = KG_METHOD_PCA;
+	int camera = strcmp(method, "camera") == 0;
+	if (!camera && strcmp(method, "eq11") != 0) {
+		if (kg_method_parse(method, &m, &err))
+			return kg_cli_usage_error(usage_classify, "--method %s: expected camera or eq11",
+			                          method);
+		if (m != KG_METHOD_PCA)
+			return kg_cli_error(&err, kg_fail(&err, KG_EINVAL,
+			                                  "--method %s: expected camera (the default) or "
+			                                  "eq11 (the paper's eq. 11 on the K weights of the "
+			                                  "pca map; 'pca' is the same)",
+			                                  method));
+	}
+	if (camera && (distance_given || angle_given))
+		return kg_cli_usage_error(usage_classify, "--distance and --angle belong to --method "
+		                          "eq11; the camera method fits the angle and the intensity "
+		                          "(--angles, --intensity)");
+	if (!camera && (regions || no_regions))
+		return kg_cli_usage_error(usage_classify, "--regions and --no-regions belong to the "
+		                          "camera method");
 	char *only_copy = only ? strdup(only) : NULL;
 	char *names[KG_EST_MAX_MATERIALS + 1];
 	int nnames = 0;
@@ -461,7 +569,8 @@ int kg_cmd_classify(int argc, char **argv)
 	kg_material_library *lib = NULL;
 	kg_est_material_set *set = NULL;
 	kg_image_rows *img = NULL, *var_img = NULL, *mask_img = NULL;
-	kg_row_source src, var_src, mask_src;
+	kg_image_rows *survey_img = NULL, *survey_var = NULL, *region_img = NULL;
+	kg_row_source src, var_src, mask_src, survey_src, survey_var_src, region_src;
 	kg_est_kernel *k = NULL;
 	double pre[9];
 	kg_classify_result res = {0};
@@ -481,7 +590,33 @@ int kg_cmd_classify(int argc, char **argv)
 		copt.variance = &var_src;
 	if (!rc && mask && (rc = open_image(mask, 0, &mask_img, &mask_src, &err)) == 0)
 		copt.mask = &mask_src;
-	if (!rc) {
+	if (!rc && camera && !cam->response.available)
+		rc = kg_fail(&err, KG_EINVAL,
+		             "%s: response: the calibration holds no reference camera response, which "
+		             "the camera method needs (recalibrate the reference and the site with "
+		             "this version), or classify with --method eq11",
+		             calib);
+	if (!rc && camera) {
+		rc = open_image(image, 3, &survey_img, &survey_src, &err);
+		if (!rc && variance && !(rc = open_image(variance, 0, &survey_var, &survey_var_src, &err)))
+			ccam.survey_variance = &survey_var_src;
+		ccam.survey = &survey_src;
+		if (!rc && regions && !(rc = open_image(regions, 0, &region_img, &region_src, &err))) {
+			ccam.region_map = &region_src;
+			ccam.region_map_name = regions;
+		}
+		ccam.regions = !no_regions;
+	}
+	if (!rc && camera) {
+		kg_classify_info info = {calib, library, "camera", image, variance, mask};
+		opt.progress = quiet ? NULL : stderr;
+		ccam.response = &cam->response.F[0][0];
+		snprintf(ccam.response_source, sizeof(ccam.response_source), "%s",
+		         cam->response.source);
+		memcpy(ccam.site_to_ref, cam->M2, sizeof(ccam.site_to_ref));
+		kg_camera_residual_cov(cam, ccam.calib_cov);
+		rc = kg_classify_camera_rows(k, set, &ccam, &src, &opt, &copt, &info, out, &res, &err);
+	} else if (!rc) {
 		kg_classify_info info = {calib, library, kg_method_name(m), image, variance, mask};
 		opt.progress = quiet ? NULL : stderr;
 		copt.residual_relative = isinf(copt.unknown_threshold) ? 0 : cam->residual_relative;
@@ -520,13 +655,20 @@ int kg_cmd_classify(int argc, char **argv)
 		if (kg_apply_side_path(out, ".json", &json, &err) == 0 &&
 		    kg_apply_side_path(out, ".png", &png, &err) == 0 &&
 		    kg_apply_side_path(out, "_confidence.hdr", &conf, &err) == 0)
-			printf("wrote %s, %s, %s and %s (%s distance, %d materials at %g degrees)\n", out,
-			       json, png, conf, distance, set->n, angle);
+		{
+			if (camera)
+				printf("wrote %s, %s, %s and %s (camera space, %d materials in %d classes, "
+				       "%d regions)\n", out, json, png, conf, set->n, res.nclasses,
+				       res.nregions);
+			else
+				printf("wrote %s, %s, %s and %s (%s distance, %d materials at %g degrees)\n",
+				       out, json, png, conf, distance, set->n, angle);
+		}
 		if (!quiet && isfinite(res.unknown_threshold))
 			fprintf(stderr,
-			        "classify: unknown above chi2 %.4g (%d degrees of freedom), noise from %s, "
+			        "classify: unknown above %s %.4g (%d degrees of freedom), noise from %s, "
 			        "calibration residual %.4g relative\n",
-			        res.unknown_threshold, res.dof,
+			        camera ? "d2" : "chi2", res.unknown_threshold, res.dof,
 			        variance ? variance : "the default model (no --variance)",
 			        cam->residual_relative);
 		free(json);
@@ -538,6 +680,9 @@ int kg_cmd_classify(int argc, char **argv)
 	kg_image_rows_free(&img);
 	kg_image_rows_free(&var_img);
 	kg_image_rows_free(&mask_img);
+	kg_image_rows_free(&survey_img);
+	kg_image_rows_free(&survey_var);
+	kg_image_rows_free(&region_img);
 	kg_est_material_set_free(&set);
 	kg_material_library_free(&lib);
 	kg_camera_calib_free(&cam);

@@ -186,9 +186,10 @@ static int render_header(const kg_envi_meta *m, char **text, kg_err *err)
 		return kg_fail(err, KG_EINVAL, "ENVI header: %d samples x %d lines x %d bands: expected "
 		               "positive dimensions", m->samples, m->lines, m->bands);
 	if (m->data_type != KG_ENVI_U8 && m->data_type != KG_ENVI_I16 &&
-	    m->data_type != KG_ENVI_F32 && m->data_type != KG_ENVI_U16)
+	    m->data_type != KG_ENVI_F32 && m->data_type != KG_ENVI_U16 &&
+	    m->data_type != KG_ENVI_U32)
 		return kg_fail(err, KG_EINVAL, "ENVI header: data type %d: expected 1 (uint8), 2 (int16), "
-		               "4 (float32) or 12 (uint16)", (int)m->data_type);
+		               "4 (float32), 12 (uint16) or 13 (uint32)", (int)m->data_type);
 	if (m->interleave != KG_ENVI_BSQ && m->interleave != KG_ENVI_BIL &&
 	    m->interleave != KG_ENVI_BIP)
 		return kg_fail(err, KG_EINVAL, "ENVI header: interleave %d: expected bsq, bil or bip",
@@ -452,6 +453,10 @@ static void to_type(void *dst, const float *src, size_t n, enum kg_envi_type t)
 	case KG_ENVI_U16:
 		for (size_t i = 0; i < n; i++)
 			((uint16_t *)dst)[i] = (uint16_t)round_clamp(src[i], 0.0f, 65535.0f);
+		break;
+	case KG_ENVI_U32: /* from float: exact up to 2^24 */
+		for (size_t i = 0; i < n; i++)
+			((uint32_t *)dst)[i] = (uint32_t)round_clamp(src[i], 0.0f, 16777216.0f);
 		break;
 	default:
 		break;

@@ -14,7 +14,8 @@
 
 #include "error.h"
 
-/* ENVI "data type" codes. The writer supports U8, I16, F32 and U16; the reader all. */
+/* ENVI "data type" codes. The writer supports U8, I16, F32, U16 and U32 (from float
+ * values, so exact up to 2^24); the reader all. */
 enum kg_envi_type {
 	KG_ENVI_U8 = 1,
 	KG_ENVI_I16 = 2,

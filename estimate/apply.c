@@ -546,6 +546,7 @@ void kg_est_material_set_free(kg_est_material_set **pset)
 	free(s->materials);
 	free(s->spectra);
 	free(s->names);
+	free(s->mats);
 	free(s);
 	*pset = NULL;
 }
@@ -598,7 +599,8 @@ int kg_est_material_set_new(const kg_material_library *lib, const char *library,
 	s->materials = calloc((size_t)n, sizeof(*s->materials));
 	s->spectra = calloc((size_t)n, sizeof(*s->spectra));
 	s->names = calloc((size_t)n, sizeof(*s->names));
-	if (!s->materials || !s->spectra || !s->names) {
+	s->mats = calloc((size_t)n, sizeof(*s->mats));
+	if (!s->materials || !s->spectra || !s->names || !s->mats) {
 		kg_est_material_set_free(&s);
 		return kg_fail(err, KG_ENOMEM, "out of memory");
 	}
@@ -613,6 +615,7 @@ int kg_est_material_set_new(const kg_material_library *lib, const char *library,
 			return rc;
 		}
 		snprintf(s->names[i], sizeof(s->names[i]), "%s", mat->name);
+		s->mats[i] = mat;
 		s->materials[i].name = s->names[i];
 		s->materials[i].spectrum = s->spectra[i].v;
 	}

@@ -49,6 +49,8 @@
  * kg_classify_image_opts) fit in a byte beside KG_EST_LABEL_NONE. */
 #define KG_EST_MAX_MATERIALS 253
 #define KG_EST_LUT_MAX_N 65
+/* A class name: a material's, or a compound of several joined by '|'. */
+#define KG_EST_CLASS_NAME_MAX 256
 
 typedef enum kg_est_method {
 	KG_EST_LINEAR,
@@ -432,8 +434,10 @@ typedef struct kg_est_material_set {
 	int n;
 	kg_est_material *materials; /* n entries; name and spectrum point into the set */
 	kg_spectrum *spectra;       /* reflectance at the set's angle */
-	char (*names)[KG_MATERIAL_NAME_MAX];
+	char (*names)[KG_EST_CLASS_NAME_MAX];
 	double angle_deg;
+	const kg_material **mats; /* the library's entries (the library must outlive the set),
+	                             NULL in a set built by hand */
 } kg_est_material_set;
 
 /* The reflectance of library materials at incidence angle_deg (0..90, 0 = normal)
@@ -448,7 +452,7 @@ void kg_est_material_set_free(kg_est_material_set **set);
 
 /* Per class of a label map. */
 typedef struct kg_class_summary {
-	char name[KG_MATERIAL_NAME_MAX];
+	char name[KG_EST_CLASS_NAME_MAX];
 	uint64_t pixels;
 	double fraction; /* of all pixels of the image */
 	/* The spectrum of the class's mean RGB: for the (linear) pca kernel the mean of
@@ -467,6 +471,7 @@ typedef struct kg_classify_result {
 	uint64_t background;       /* label nclasses + 2: masked out or below the level */
 	double unknown_threshold;  /* the bound used (+Inf when the test was off) */
 	int dof;                   /* its degrees of freedom */
+	int nregions;              /* camera space: regions decided (0: none formed) */
 	kg_est_stats stats;
 } kg_classify_result;
 
@@ -555,6 +560,67 @@ int kg_classify_image(const kg_est_kernel *k, const kg_est_material_set *set,
                       kg_est_distance distance, const kg_image *img,
                       const kg_apply_options *opt, const kg_classify_info *info,
                       const char *out_hdr, kg_classify_result *res, kg_err *err);
+
+/* ==== Camera-space label maps (labels_cam.c) =====================================
+ *
+ * The default method of kogei classify and kogei process: each pixel matched in the
+ * reference camera's space (kg_cs_*) with its own noise, over the declared materials,
+ * incidence angles and intensities; materials the capture's noise cannot tell apart
+ * per pixel merged into compound classes "a|b"; regions decided on their pooled
+ * likelihood. Files (OUT = LABELS.hdr, stem = OUT without its extension):
+ *   OUT                    ENVI Classification, uint8: 0 unclassified (flagged), then
+ *                          the classes (a material, or a compound "a|b"), "unknown",
+ *                          "background"
+ *   <stem>_confidence.hdr  float32, 4 bands BIP: margin (noise-weighted d2 of the
+ *                          runner-up class minus the chosen class's), posterior of the
+ *                          chosen class, the best material's fitted angle (degrees) and
+ *                          intensity; NaN where no class was given
+ *   <stem>_mask.hdr        pixel flags, as for estimate
+ *   <stem>_regions.hdr     uint32 region number per pixel (0: none), connected
+ *                          components of the classes (not written with a user map)
+ *   <stem>_regions.csv     region,pixels,class,label,posterior,mean_d2: every region
+ *   <stem>.json            as for classify, plus camera_space (the model, the noise
+ *                          survey, the unknown bound), separability (the pairs' table),
+ *                          merges, each class's members, regions (those of 100 pixels
+ *                          or more)
+ *   <stem>.png             preview */
+typedef struct kg_classify_camera {
+	const double *response;   /* F, 3 x 61 row-major: the reference camera's response */
+	char response_source[32]; /* where it came from, for LABELS.json */
+	double site_to_ref[9];    /* M2: reference reading = M2 site reading */
+	/* The calibration residual's relative covariance: a reading of mean square level
+	 * l^2 = |x|^2 / 3 carries l^2 calib_cov of model error (kg_camera_residual_cov). */
+	double calib_cov[9];
+	double angle_from, angle_to, angle_step; /* degrees, 0 <= from <= to < 90 */
+	double intensity_lo, intensity_hi;       /* the unknown scale of the geometry */
+	double merge_distance; /* 0: KG_CS_MERGE_DISTANCE; negative: no merges */
+	int regions;           /* connected components decided on the pooled likelihood */
+	/* The noise survey before the run: a second reader of the image and of its
+	 * variance (NULL: the noise model at mid intensity). */
+	const kg_row_source *survey, *survey_variance;
+	/* User regions: 1 channel of whole numbers (0: none, up to 65535), the image's
+	 * size; replaces the connected components. */
+	const kg_row_source *region_map;
+	const char *region_map_name;
+} kg_classify_camera;
+
+/* M2 identity, angles 0-70 every 5 degrees, intensity 0.3-1.0, merge distance 0
+ * (the default), regions on, no survey, no region map. */
+void kg_classify_camera_init(kg_classify_camera *c);
+
+/* Camera-space label map of src among the materials of set (from
+ * kg_est_material_set_new: it needs the library's entries). copt gives the noise
+ * (variance and frames, or the noise model), the mask, the background level and the
+ * unknown bound (0: the 99.9 % point of chi-square with 2 degrees of freedom for the
+ * best material's d2; its intensity, and partly its angle, are fitted to the 3
+ * channels); its distance is not used. k, the site's pca kernel, gives the classes'
+ * mean spectra (may be NULL: no spectra). Memory stays bounded (regions: at most
+ * 2^20 runs of a class, above which no regions are formed and LABELS.json says so). */
+int kg_classify_camera_rows(const kg_est_kernel *k, const kg_est_material_set *set,
+                            const kg_classify_camera *cam, const kg_row_source *src,
+                            const kg_apply_options *opt, const kg_classify_options *copt,
+                            const kg_classify_info *info, const char *out_hdr,
+                            kg_classify_result *res, kg_err *err);
 
 /* ==== end of apply.c ============================================================ */
 

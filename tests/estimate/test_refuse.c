@@ -206,13 +206,13 @@ static void check_image(const fx_kernels *ks)
 	fx_materials(&r, NMAT, spectra);
 	kg_est_material mats[NMAT];
 	kg_spectrum spec[NMAT];
-	char names[NMAT][KG_MATERIAL_NAME_MAX] = {"a", "b", "c"};
+	char names[NMAT][KG_EST_CLASS_NAME_MAX] = {"a", "b", "c"};
 	for (int j = 0; j < NMAT; j++) {
 		mats[j].name = names[j];
 		mats[j].spectrum = spectra + j * KG_NBANDS;
 		memcpy(spec[j].v, spectra + j * KG_NBANDS, sizeof(spec[j].v));
 	}
-	kg_est_material_set set = {NMAT, mats, spec, names, 0.0};
+	kg_est_material_set set = {NMAT, mats, spec, names, 0.0, NULL};
 	const char *stems[4] = {"c", "avx2", "rows7", "threads1"};
 	kg_image *img = NULL, *var = NULL, *mask = NULL, *small = NULL;
 	kg_err err = {{0}};

@@ -1,0 +1,1284 @@
+/* Camera-space label maps: kg_classify_camera_rows.
+ *
+ * Each pixel's site reading rho is mapped into the reference camera's space, x = M2 rho,
+ * with the covariance
+ *   C = M2 diag(v) M2^T + l^2 R,   l^2 = |x|^2 / 3,
+ * v the noise of the pixel's channels (the variance image over the frames averaged, or
+ * the noise model) and R the calibration residual's relative covariance (what M2 leaves
+ * of the chart, per squared level). camspace.c matches x against every declared material
+ * over the angles and intensities (kg_cs_match_block).
+ *
+ * Before the run a survey pass (a second reading of the image and its variance) finds
+ * the capture's noise: the mean C over the pixels that will be classified, at their
+ * mean level. At that noise kg_cs_separability gives every pair's distance; pairs
+ * closer than the merge distance are one compound class "a|b", and the label map holds
+ * classes, not materials: no per-pixel distinction is written that the noise cannot
+ * support.
+ *
+ * Regions: connected components (4-neighbours) of the per-pixel classes, found while
+ * the rows stream past (union-find over the runs of each row, with each run's sums of
+ * the materials' distances), or the ids of a user region map. Each region is decided on
+ * its pooled likelihood, sum over its pixels of every material's d2. The calibration's
+ * part of the noise is the same error in every pixel and does not average out: with f
+ * its share of a pixel's variance, N pixels weigh as N / (1 + N f) independent ones, so
+ * the pooled differences are scaled by 1 / (1 + N f). A compound class resolves into
+ * one material where that material's share of the class's pooled posterior is 0.99 or
+ * more. */
+#include <float.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "apply_private.h"
+
+#define MAX_PROVISIONAL (1 << 20) /* runs of the union-find; above, no regions */
+#define MAX_USER_REGIONS 65536
+#define RESOLVE_POSTERIOR 0.99
+#define TABLE_MIN_PIXELS 100 /* regions listed in LABELS.json */
+
+void kg_classify_camera_init(kg_classify_camera *c)
+{
+	memset(c, 0, sizeof(*c));
+	for (int i = 0; i < 3; i++)
+		c->site_to_ref[4 * i] = 1.0;
+	c->angle_from = 0;
+	c->angle_to = 70;
+	c->angle_step = 5;
+	c->intensity_lo = 0.3;
+	c->intensity_hi = 1.0;
+	c->merge_distance = 0;
+	c->regions = 1;
+}
+
+/* ---- the per-pixel noise ------------------------------------------------------------ */
+
+typedef struct noise {
+	double M2[9], R[9];
+	double inv_frames, floor2, rel2;
+} noise;
+
+/* x = M2 rho and its covariance (6 values) in double. */
+static void pixel_noise(const noise *nz, const float *rho, const float *var, double x[3],
+                        double c[6])
+{
+	double v[3];
+	for (int ch = 0; ch < 3; ch++) {
+		double r = rho[ch] > 0.0f ? rho[ch] : 0.0;
+		v[ch] = var ? var[ch] * nz->inv_frames : nz->floor2 + nz->rel2 * r * r;
+	}
+	for (int a = 0; a < 3; a++)
+		x[a] = nz->M2[3 * a] * rho[0] + nz->M2[3 * a + 1] * rho[1] + nz->M2[3 * a + 2] * rho[2];
+	double l2 = (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]) / 3.0;
+	static const int ia[6] = {0, 0, 0, 1, 1, 2}, ib[6] = {0, 1, 2, 1, 2, 2};
+	for (int e = 0; e < 6; e++) {
+		int a = ia[e], b = ib[e];
+		double s = 0;
+		for (int ch = 0; ch < 3; ch++)
+			s += nz->M2[3 * a + ch] * nz->M2[3 * b + ch] * v[ch];
+		c[e] = s + l2 * nz->R[3 * a + b];
+	}
+}
+
+/* ---- the run ---------------------------------------------------------------------------- */
+
+typedef struct cam_run {
+	const kg_cs_model *model;
+	noise nz;
+	feed in;
+	size_t base;  /* floats per pixel the feed writes */
+	int nm, nc;   /* materials, classes */
+	int group[KG_EST_MAX_MATERIALS];   /* material -> class index */
+	double threshold;                  /* unknown above; +Inf: no test */
+	float background_level;
+	uint8_t unknown, background;
+} cam_run;
+
+/* The extra planes after the feed's, per block of n pixels. */
+typedef struct cam_planes {
+	float *x, *cov, *post, *angle, *scale, *best, *d2;
+} cam_planes;
+
+static size_t extra_floats(int nm) { return 3 + 6 + 4 + (size_t)nm; }
+
+static cam_planes cam_planes_of(const cam_run *r, void *in, size_t n)
+{
+	float *p = (float *)in + r->base * n;
+	cam_planes c;
+	c.x = p;
+	c.cov = p + 3 * n;
+	c.post = p + 9 * n;
+	c.angle = p + 10 * n;
+	c.scale = p + 11 * n;
+	c.best = p + 12 * n;
+	c.d2 = p + 13 * n;
+	return c;
+}
+
+static void cam_compute(void *user, void *inbuf, size_t n, uint8_t *labels, float *conf,
+                        uint8_t *mask, uint64_t *nonfinite, uint64_t *clipped)
+{
+	const cam_run *r = user;
+	planes pl = ap_feed_planes(&r->in, inbuf, n);
+	cam_planes cp = cam_planes_of(r, inbuf, n);
+	const float clip = r->in.clip;
+	/* which pixels are matched: the rest get a harmless reading and are relabelled */
+	uint8_t *best = (uint8_t *)cp.best; /* n bytes at the start of the plane */
+	for (size_t i = 0; i < n; i++) {
+		const float *px = pl.raw + 3 * i;
+		double x[3], c[6];
+		if (!isfinite(px[0]) || !isfinite(px[1]) || !isfinite(px[2])) {
+			mask[i] = KG_EST_MASK_NONFINITE;
+			++*nonfinite;
+		} else if (px[0] >= clip || px[1] >= clip || px[2] >= clip) {
+			mask[i] = KG_EST_MASK_CLIPPED;
+			++*clipped;
+		} else {
+			mask[i] = 0;
+		}
+		pixel_noise(&r->nz, px, pl.var ? pl.var + 3 * i : NULL, x, c);
+		for (int a = 0; a < 3; a++)
+			cp.x[3 * i + a] = (float)x[a];
+		for (int e = 0; e < 6; e++)
+			cp.cov[6 * i + e] = (float)c[e];
+	}
+	kg_cs_block out = {best, NULL, NULL, cp.angle, cp.scale, cp.d2};
+	kg_cs_match_block(r->model, cp.x, cp.cov, n, &out);
+	const int nm = r->nm;
+	for (size_t i = 0; i < n; i++) {
+		const float *px = pl.raw + 3 * i;
+		const float *d2 = cp.d2 + i * (size_t)nm;
+		int refused = 0;
+		if (pl.mask && pl.mask[i] == 0.0f) {
+			labels[i] = r->background;
+			refused = 1;
+		} else if (mask[i]) {
+			labels[i] = KG_EST_LABEL_NONE;
+			refused = 1;
+		} else if (fmaxf(px[0], fmaxf(px[1], px[2])) < r->background_level) {
+			labels[i] = r->background;
+			refused = 1;
+		} else if (best[i] == KG_CS_NO_MATCH) {
+			labels[i] = r->unknown;
+			refused = 1;
+		}
+		if (!refused) {
+			/* classes: the least distance of their members */
+			double dc[KG_EST_MAX_MATERIALS], dmin = INFINITY;
+			for (int c = 0; c < r->nc; c++)
+				dc[c] = INFINITY;
+			for (int j = 0; j < nm; j++) {
+				double d = d2[j];
+				if (d < dc[r->group[j]])
+					dc[r->group[j]] = d;
+				if (d < dmin)
+					dmin = d;
+			}
+			int cb = r->group[best[i]];
+			double second = INFINITY, sum = 0, mine = 0;
+			for (int c = 0; c < r->nc; c++)
+				if (c != cb && dc[c] < second)
+					second = dc[c];
+			for (int j = 0; j < nm; j++) {
+				double w = exp(-0.5 * (d2[j] - dmin));
+				sum += w;
+				if (r->group[j] == cb)
+					mine += w;
+			}
+			if (dmin > r->threshold) {
+				labels[i] = r->unknown;
+				refused = 1;
+			} else {
+				labels[i] = (uint8_t)(cb + 1);
+				conf[i] = (float)(second - dmin);
+				cp.post[i] = (float)(mine / sum);
+			}
+		}
+		if (refused) {
+			conf[i] = NAN;
+			cp.post[i] = NAN;
+			cp.angle[i] = NAN;
+			cp.scale[i] = NAN;
+		}
+	}
+	/* the sink reads best as floats */
+	for (size_t i = n; i-- > 0;)
+		cp.best[i] = (float)best[i];
+}
+
+/* ---- regions ----------------------------------------------------------------------- */
+
+typedef struct run_seg {
+	int x0, x1; /* inclusive */
+	uint32_t id;
+	uint8_t label;
+} run_seg;
+
+typedef struct regions {
+	int on, overflow, user;
+	int nm;
+	/* union-find over provisional ids (connected components) or user ids */
+	uint32_t *parent;
+	uint8_t *label;
+	uint64_t *count;
+	double *d2;        /* nm per id */
+	double *f_sum;     /* calibration share of the pixel's noise, summed */
+	uint32_t n, cap;
+	run_seg *prev, *cur;
+	int nprev, ncur, width;
+	/* after the run */
+	uint32_t *final;   /* id -> region number (1-based), 0 none */
+	uint32_t nfinal;
+} regions;
+
+static void regions_free(regions *g)
+{
+	free(g->parent);
+	free(g->label);
+	free(g->count);
+	free(g->d2);
+	free(g->f_sum);
+	free(g->prev);
+	free(g->cur);
+	free(g->final);
+	memset(g, 0, sizeof(*g));
+}
+
+static int regions_grow(regions *g, uint32_t need, kg_err *err)
+{
+	if (need <= g->cap)
+		return 0;
+	uint32_t cap = g->cap ? g->cap : 4096;
+	while (cap < need)
+		cap *= 2;
+	uint32_t *p = realloc(g->parent, sizeof(uint32_t) * cap);
+	if (p)
+		g->parent = p;
+	uint8_t *l = realloc(g->label, cap);
+	if (l)
+		g->label = l;
+	uint64_t *c = realloc(g->count, sizeof(uint64_t) * cap);
+	if (c)
+		g->count = c;
+	double *d = realloc(g->d2, sizeof(double) * (size_t)cap * (size_t)g->nm);
+	if (d)
+		g->d2 = d;
+	double *f = realloc(g->f_sum, sizeof(double) * cap);
+	if (f)
+		g->f_sum = f;
+	if (!p || !l || !c || !d || !f)
+		return kg_fail(err, KG_ENOMEM, "classify: out of memory for the regions");
+	g->cap = cap;
+	return 0;
+}
+
+static uint32_t find_root(uint32_t *parent, uint32_t a)
+{
+	while (parent[a] != a) {
+		parent[a] = parent[parent[a]];
+		a = parent[a];
+	}
+	return a;
+}
+
+static void unite(regions *g, uint32_t a, uint32_t b)
+{
+	a = find_root(g->parent, a);
+	b = find_root(g->parent, b);
+	if (a < b)
+		g->parent[b] = a;
+	else if (b < a)
+		g->parent[a] = b;
+}
+
+static uint32_t new_id(regions *g, uint8_t label)
+{
+	uint32_t id = g->n++;
+	g->parent[id] = id;
+	g->label[id] = label;
+	g->count[id] = 0;
+	g->f_sum[id] = 0;
+	memset(g->d2 + (size_t)id * g->nm, 0, sizeof(double) * (size_t)g->nm);
+	return id;
+}
+
+/* The runs of one row of labels (classes 1..nc only), each given a provisional id when
+ * assign is set (pass 1) or in the same order again (pass 2). */
+static int row_runs(regions *g, const uint8_t *lab, int width, int nc, run_seg *out)
+{
+	int n = 0;
+	for (int x = 0; x < width;) {
+		uint8_t l = lab[x];
+		int x1 = x;
+		while (x1 + 1 < width && lab[x1 + 1] == l)
+			x1++;
+		if (l >= 1 && l <= nc)
+			out[n++] = (run_seg){x, x1, 0, l};
+		x = x1 + 1;
+	}
+	(void)g;
+	return n;
+}
+
+/* Link the current row's runs to the previous row's (ids given in order from *next). */
+static void link_rows(regions *g, run_seg *cur, int ncur, const run_seg *prev, int nprev,
+                      int assign)
+{
+	int p = 0;
+	for (int i = 0; i < ncur; i++) {
+		if (assign)
+			cur[i].id = new_id(g, cur[i].label);
+		else
+			cur[i].id = g->n++;
+		while (p < nprev && prev[p].x1 < cur[i].x0)
+			p++;
+		for (int q = p; q < nprev && prev[q].x0 <= cur[i].x1; q++)
+			if (prev[q].label == cur[i].label && assign)
+				unite(g, cur[i].id, prev[q].id);
+	}
+}
+
+/* Pass 1, one row: its runs, their unions, and each pixel's distances added to its
+ * run's sums. */
+static int regions_row(regions *g, const uint8_t *lab, const float *d2, const float *fshare,
+                       int nc, kg_err *err)
+{
+	if (!g->on || g->overflow)
+		return 0;
+	g->ncur = row_runs(g, lab, g->width, nc, g->cur);
+	if (g->n + (uint32_t)g->ncur > MAX_PROVISIONAL) {
+		g->overflow = 1;
+		return 0;
+	}
+	int rc = regions_grow(g, g->n + (uint32_t)g->ncur, err);
+	if (rc)
+		return rc;
+	link_rows(g, g->cur, g->ncur, g->prev, g->nprev, 1);
+	for (int i = 0; i < g->ncur; i++) {
+		run_seg *s = &g->cur[i];
+		double *acc = g->d2 + (size_t)s->id * g->nm;
+		for (int x = s->x0; x <= s->x1; x++) {
+			const float *d = d2 + (size_t)x * g->nm;
+			for (int j = 0; j < g->nm; j++)
+				acc[j] += d[j];
+			g->f_sum[s->id] += fshare[x];
+		}
+		g->count[s->id] += (uint64_t)(s->x1 - s->x0 + 1);
+	}
+	run_seg *t = g->prev;
+	g->prev = g->cur;
+	g->cur = t;
+	g->nprev = g->ncur;
+	return 0;
+}
+
+/* User regions: ids straight from the map. */
+static int regions_user_row(regions *g, const float *ids, const uint8_t *lab, const float *d2,
+                            const float *fshare, int nc, kg_err *err)
+{
+	for (int x = 0; x < g->width; x++) {
+		float v = ids[x];
+		if (!(v >= 0.0f && v < (float)MAX_USER_REGIONS) || v != floorf(v))
+			return kg_fail(err, KG_EINVAL, "the region map's value %g: expected whole region "
+			               "numbers from 0 (none) to %d", (double)v, MAX_USER_REGIONS - 1);
+		uint32_t id = (uint32_t)v;
+		if (!id || lab[x] < 1 || lab[x] > nc)
+			continue;
+		double *acc = g->d2 + (size_t)id * g->nm;
+		const float *d = d2 + (size_t)x * g->nm;
+		for (int j = 0; j < g->nm; j++)
+			acc[j] += d[j];
+		g->f_sum[id] += fshare[x];
+		g->count[id]++;
+	}
+	return 0;
+}
+
+/* Roots' sums, and region numbers in order of first appearance. */
+static int regions_resolve(regions *g, kg_err *err)
+{
+	if (!(g->final = calloc(g->n ? g->n : 1, sizeof(uint32_t))))
+		return kg_fail(err, KG_ENOMEM, "classify: out of memory for the regions");
+	if (!g->user)
+		for (uint32_t id = 0; id < g->n; id++) {
+			uint32_t r = find_root(g->parent, id);
+			if (r == id)
+				continue;
+			g->count[r] += g->count[id];
+			g->f_sum[r] += g->f_sum[id];
+			for (int j = 0; j < g->nm; j++)
+				g->d2[(size_t)r * g->nm + j] += g->d2[(size_t)id * g->nm + j];
+			g->count[id] = 0;
+		}
+	for (uint32_t id = 0; id < g->n; id++)
+		if (g->count[id] && (g->user || find_root(g->parent, id) == id)) {
+			++g->nfinal;
+			g->final[id] = g->user ? id : g->nfinal; /* a user map keeps its numbers */
+		}
+	return 0;
+}
+
+/* A region's decision (see the top of the file). */
+typedef struct region_decision {
+	int cls;         /* class index */
+	int material;    /* the material it resolves to, or -1 (the compound class) */
+	double posterior;
+	double d2_mean;  /* the decided label's pooled distance per pixel */
+} region_decision;
+
+static region_decision decide(const regions *g, uint32_t id, const int *group, int nc)
+{
+	const double *D = g->d2 + (size_t)id * g->nm;
+	double N = (double)g->count[id], f = g->f_sum[id] / N;
+	double s = 1.0 / (1.0 + N * f);
+	double dmin = INFINITY, pc[KG_EST_MAX_MATERIALS] = {0}, sum = 0, w[KG_EST_MAX_MATERIALS];
+	for (int j = 0; j < g->nm; j++)
+		dmin = fmin(dmin, D[j]);
+	for (int j = 0; j < g->nm; j++) {
+		w[j] = exp(-0.5 * s * (D[j] - dmin));
+		sum += w[j];
+		pc[group[j]] += w[j];
+	}
+	region_decision r = {0, -1, 0, 0};
+	for (int c = 1; c < nc; c++)
+		if (pc[c] > pc[r.cls])
+			r.cls = c;
+	int jbest = -1, members = 0;
+	for (int j = 0; j < g->nm; j++)
+		if (group[j] == r.cls) {
+			members++;
+			if (jbest < 0 || w[j] > w[jbest])
+				jbest = j;
+		}
+	r.posterior = pc[r.cls] / sum;
+	if (members == 1 || w[jbest] / pc[r.cls] >= RESOLVE_POSTERIOR) {
+		r.material = jbest;
+		r.posterior = w[jbest] / sum;
+	}
+	r.d2_mean = D[jbest] / N;
+	return r;
+}
+
+/* ---- the sink -------------------------------------------------------------------- */
+
+typedef struct cam_sink {
+	kg_envi_writer *labels, *conf, *mask;
+	staging stage;
+	progress prog;
+	const cam_run *run;
+	const kg_row_source *region_map;
+	float *region_row;
+	int nclasses;
+	uint64_t count[KG_EST_MAX_MATERIALS + 3];
+	class_stats *cs;
+	uint8_t *preview;
+	int pw, ph, next_py, height;
+	float *conf4;   /* a block's 4 bands, BIP */
+	size_t conf4_cap;
+	float *fshare;  /* a row's calibration shares */
+	regions reg;
+} cam_sink;
+
+static int cam_sink_fn(void *user, const kg_est_block *b, kg_err *err)
+{
+	cam_sink *s = user;
+	const cam_run *r = s->run;
+	size_t n = (size_t)b->rows * b->width;
+	uint8_t *lab = (uint8_t *)b->data;
+	const float *margin = b->confidence;
+	planes pl = ap_feed_planes(&r->in, b->input, n);
+	cam_planes cp = cam_planes_of(r, (void *)b->input, n);
+	if (n > s->conf4_cap) {
+		float *c = realloc(s->conf4, sizeof(float) * 4 * n);
+		if (!c)
+			return kg_fail(err, KG_ENOMEM, "classify: out of memory");
+		s->conf4 = c;
+		s->conf4_cap = n;
+	}
+	for (size_t i = 0; i < n; i++) {
+		s->count[lab[i]]++;
+		float *c4 = s->conf4 + 4 * i;
+		c4[0] = margin[i];
+		c4[1] = cp.post[i];
+		c4[2] = cp.angle[i];
+		c4[3] = cp.scale[i];
+		if (lab[i] == KG_EST_LABEL_NONE || lab[i] > s->nclasses)
+			continue;
+		class_stats *c = &s->cs[lab[i] - 1];
+		if (!c->hi && !(c->hi = calloc(HIST_BINS, sizeof(uint32_t))))
+			return kg_fail(err, KG_ENOMEM, "classify: out of memory for the margins");
+		c->hi[ap_order_key(margin[i]) >> 16]++;
+		c->count++;
+		c->margin_sum += margin[i];
+		for (int ch = 0; ch < 3; ch++)
+			c->rgb_sum[ch] += pl.raw[3 * i + ch];
+	}
+	int rc = 0;
+	if (s->reg.on)
+		for (int y = 0; y < b->rows && !rc; y++) {
+			size_t o = (size_t)y * b->width;
+			for (int x = 0; x < b->width; x++) {
+				const float *cv = cp.cov + 6 * (o + x);
+				const float *xx = cp.x + 3 * (o + x);
+				double l2 = ((double)xx[0] * xx[0] + (double)xx[1] * xx[1] +
+				             (double)xx[2] * xx[2]) / 3.0;
+				double cal = l2 * (r->nz.R[0] + r->nz.R[4] + r->nz.R[8]);
+				double tot = (double)cv[0] + cv[3] + cv[5];
+				s->fshare[x] = tot > 0 && isfinite(tot) ? (float)(cal / tot) : 0.0f;
+			}
+			const float *d2 = cp.d2 + o * (size_t)r->nm;
+			if (s->reg.user) {
+				rc = s->region_map->read(s->region_map->user, b->y0 + y, 1, s->region_row, err);
+				if (!rc)
+					rc = regions_user_row(&s->reg, s->region_row, lab + o, d2, s->fshare,
+					                      s->nclasses, err);
+			} else {
+				rc = regions_row(&s->reg, lab + o, d2, s->fshare, s->nclasses, err);
+			}
+		}
+	if (rc)
+		return rc;
+	for (; s->next_py < s->ph; s->next_py++) {
+		int sy = (int)((long)s->next_py * s->height / s->ph);
+		if (sy >= b->y0 + b->rows)
+			break;
+		const uint8_t *row = lab + (size_t)(sy - b->y0) * b->width;
+		for (int x = 0; x < s->pw; x++)
+			s->preview[(size_t)s->next_py * s->pw + x] = row[(long)x * b->width / s->pw];
+	}
+	rc = ap_put_bytes(s->labels, &s->stage, b, lab, err);
+	if (!rc)
+		rc = kg_envi_writer_put(s->conf, b->y0, b->y0 + b->rows, KG_LAYOUT_BIP, s->conf4, err);
+	if (!rc)
+		rc = ap_put_bytes(s->mask, &s->stage, b, b->mask, err);
+	ap_progress_rows(&s->prog, b->y0 + b->rows);
+	return rc;
+}
+
+/* ---- the noise survey -------------------------------------------------------------- */
+
+typedef struct survey_result {
+	uint64_t pixels;
+	double cov[9];   /* mean covariance */
+	double level;    /* mean intensity, in the model's units */
+	double rms;      /* mean rms reading */
+	double calib_share;
+} survey_result;
+
+static int survey(const cam_run *r, const kg_classify_camera *cam, const kg_cs_model *m,
+                  survey_result *out, kg_err *err)
+{
+	memset(out, 0, sizeof(*out));
+	const kg_row_source *img = cam->survey, *var = cam->survey_variance;
+	double csum[6] = {0}, lsum = 0;
+	uint64_t count = 0;
+	if (img) {
+		int W = img->width, H = img->height;
+		int band = (int)(((size_t)1 << 18) / (size_t)W);
+		band = band < 1 ? 1 : band > H ? H : band;
+		float *buf = malloc(sizeof(float) * 3 * (size_t)band * W);
+		float *vbuf = var ? malloc(sizeof(float) * 3 * (size_t)band * W) : NULL;
+		int rc = buf && (!var || vbuf) ? 0 : kg_fail(err, KG_ENOMEM, "out of memory");
+		for (int y = 0; y < H && !rc; y += band) {
+			int rows = H - y < band ? H - y : band;
+			rc = img->read(img->user, y, rows, buf, err);
+			if (!rc && var)
+				rc = var->read(var->user, y, rows, vbuf, err);
+			size_t n = (size_t)rows * W;
+			for (size_t i = 0; i < n && !rc; i++) {
+				const float *p = buf + 3 * i;
+				if (!isfinite(p[0] + p[1] + p[2]) || p[0] >= r->in.clip ||
+				    p[1] >= r->in.clip || p[2] >= r->in.clip ||
+				    fmaxf(p[0], fmaxf(p[1], p[2])) < fmaxf(r->background_level, 1e-6f))
+					continue;
+				if (var && !isfinite(vbuf[3 * i] + vbuf[3 * i + 1] + vbuf[3 * i + 2]))
+					continue;
+				double x[3], c[6];
+				pixel_noise(&r->nz, p, var ? vbuf + 3 * i : NULL, x, c);
+				for (int e = 0; e < 6; e++)
+					csum[e] += c[e];
+				lsum += sqrt((x[0] * x[0] + x[1] * x[1] + x[2] * x[2]) / 3.0);
+				count++;
+			}
+		}
+		free(buf);
+		free(vbuf);
+		if (rc)
+			return rc;
+	}
+	/* the models' mean rms reading at intensity 1 */
+	double mu_rms = 0;
+	for (int i = 0; i < m->n * m->nangles; i++) {
+		const double *mu = m->mu + 3 * (size_t)i;
+		mu_rms += sqrt((mu[0] * mu[0] + mu[1] * mu[1] + mu[2] * mu[2]) / 3.0);
+	}
+	mu_rms /= m->n * m->nangles;
+	double c[6];
+	if (count) {
+		for (int e = 0; e < 6; e++)
+			c[e] = csum[e] / (double)count;
+		out->rms = lsum / (double)count;
+	} else {
+		/* no survey: the noise model at the middle of the intensity range */
+		out->rms = 0.5 * (m->lo + m->hi) * mu_rms;
+		float rho[3];
+		double x[3];
+		for (int ch = 0; ch < 3; ch++)
+			rho[ch] = (float)out->rms;
+		pixel_noise(&r->nz, rho, NULL, x, c);
+	}
+	static const int ia[6] = {0, 0, 0, 1, 1, 2}, ib[6] = {0, 1, 2, 1, 2, 2};
+	for (int e = 0; e < 6; e++)
+		out->cov[3 * ia[e] + ib[e]] = out->cov[3 * ib[e] + ia[e]] = c[e];
+	out->pixels = count;
+	double level = mu_rms > 0 ? out->rms / mu_rms : 1.0;
+	out->level = level < m->lo ? m->lo : level > m->hi ? m->hi : level;
+	double tr = out->cov[0] + out->cov[4] + out->cov[8];
+	double cal = out->rms * out->rms * (r->nz.R[0] + r->nz.R[4] + r->nz.R[8]);
+	out->calib_share = tr > 0 ? cal / tr : 0;
+	return 0;
+}
+
+/* ---- LABELS.json ------------------------------------------------------------------ */
+
+static json_t *mat3(const double *m)
+{
+	json_t *a = json_array();
+	for (int i = 0; i < 3; i++)
+		json_array_append_new(a, json_pack("[fff]", m[3 * i], m[3 * i + 1], m[3 * i + 2]));
+	return a;
+}
+
+static int write_json(const char *path, const kg_est_material_set *set,
+                      const kg_est_material_set *classes, const int *group,
+                      const kg_classify_camera *cam, const kg_classify_options *copt,
+                      const kg_cs_model *m, const survey_result *sv, const double *sep,
+                      double merge_d, const kg_row_source *img, const kg_apply_options *opt,
+                      const kg_classify_info *info, const char *const files[6],
+                      const regions *reg, const kg_classify_result *res, double threshold,
+                      kg_err *err)
+{
+	const int nm = set->n, nc = classes->n;
+	json_t *root = json_object();
+	json_object_set_new(root, "format", json_string("kogei-labels/1"));
+	const char *keys[4] = {"image", "calib", "materials", "method"};
+	const char *vals[4] = {info ? info->image : NULL, info ? info->calib : NULL,
+	                       info ? info->materials : NULL, "camera"};
+	for (int i = 0; i < 4; i++)
+		json_object_set_new(root, keys[i], vals[i] ? json_string(vals[i]) : json_null());
+	json_object_set_new(root, "clip_level", ap_json_num(opt->clip_level));
+	json_object_set_new(root, "width", json_integer(img->width));
+	json_object_set_new(root, "height", json_integer(img->height));
+	json_object_set_new(root, "pixels", json_integer((json_int_t)res->stats.pixels));
+	json_t *cs = json_object();
+	json_object_set_new(cs, "description",
+	                    json_string("each pixel's reading mapped through M2 into the "
+	                                "reference camera's space and matched against every "
+	                                "declared material's predicted reading over the angles "
+	                                "and intensities, by the noise-weighted (Mahalanobis) "
+	                                "distance d2"));
+	json_object_set_new(cs, "angles_deg", json_pack("[fff]", cam->angle_from, cam->angle_to,
+	                                                cam->angle_step));
+	json_object_set_new(cs, "intensity", json_pack("[ff]", cam->intensity_lo,
+	                                               cam->intensity_hi));
+	json_object_set_new(cs, "M2", mat3(cam->site_to_ref));
+	json_object_set_new(cs, "calibration_covariance", mat3(cam->calib_cov));
+	json_object_set_new(cs, "response", json_string(cam->response_source[0]
+	                                                    ? cam->response_source
+	                                                    : "given"));
+	json_t *nz = json_object();
+	if (copt->variance) {
+		json_object_set_new(nz, "noise", json_string("variance image"));
+		json_object_set_new(nz, "variance", json_string(info && info->variance ? info->variance
+		                                                                       : "given"));
+		json_object_set_new(nz, "frames", json_integer(copt->frames));
+	} else {
+		json_object_set_new(nz, "noise", json_string("model"));
+		json_object_set_new(nz, "noise_relative", json_real(copt->noise_relative));
+		json_object_set_new(nz, "noise_floor", json_real(copt->noise_floor));
+	}
+	json_object_set_new(nz, "survey_pixels", json_integer((json_int_t)sv->pixels));
+	json_object_set_new(nz, "mean_covariance", mat3(sv->cov));
+	json_object_set_new(nz, "mean_rms_reading", json_real(sv->rms));
+	json_object_set_new(nz, "level", json_real(sv->level));
+	json_object_set_new(nz, "calibration_share", json_real(sv->calib_share));
+	json_object_set_new(cs, "noise", nz);
+	json_t *u = json_object();
+	json_object_set_new(u, "enabled", json_boolean(isfinite(threshold)));
+	json_object_set_new(u, "statistic", json_string("d2 of the best material"));
+	json_object_set_new(u, "threshold", ap_json_num(threshold));
+	json_object_set_new(u, "dof", json_integer(2));
+	json_object_set_new(u, "probability", isfinite(threshold) && copt->unknown_threshold == 0
+	                                          ? json_real(0.999)
+	                                          : json_null());
+	json_object_set_new(cs, "unknown", u);
+	json_object_set_new(root, "camera_space", cs);
+
+	/* separability */
+	json_t *sj = json_object(), *names = json_array(), *dtab = json_array(),
+	       *ptab = json_array(), *pairs = json_array();
+	for (int i = 0; i < nm; i++) {
+		json_array_append_new(names, json_string(set->names[i]));
+		json_t *dr = json_array(), *pr = json_array();
+		for (int j = 0; j < nm; j++) {
+			double d = sep[(size_t)i * nm + j];
+			json_array_append_new(dr, ap_json_num(i == j ? 0.0 : d));
+			json_array_append_new(pr, i == j ? json_null() : ap_json_num(kg_cs_pixels_for(d)));
+		}
+		json_array_append_new(dtab, dr);
+		json_array_append_new(ptab, pr);
+	}
+	for (int i = 0; i < nm; i++)
+		for (int j = i + 1; j < nm; j++) {
+			double d = sep[(size_t)i * nm + j];
+			if (kg_cs_pixels_for(d) <= 1)
+				continue;
+			json_array_append_new(pairs, json_pack("{s:s,s:s,s:o,s:o,s:b}", "a", set->names[i],
+			                                       "b", set->names[j], "distance", ap_json_num(d),
+			                                       "pixels_for_1pc", ap_json_num(kg_cs_pixels_for(d)),
+			                                       "merged", group[i] == group[j]));
+		}
+	json_object_set_new(sj, "materials", names);
+	json_object_set_new(sj, "distance", dtab);
+	json_object_set_new(sj, "pixels_for_1pc", ptab);
+	json_object_set_new(sj, "pairs_needing_pooling", pairs);
+	json_object_set_new(sj, "merge_distance", ap_json_num(merge_d));
+	json_object_set_new(sj, "description",
+	                    json_string("least noise-weighted distance between two materials over "
+	                                "every angle and intensity at the capture's noise (the "
+	                                "survey's mean covariance, at its level); a pixel tells "
+	                                "them apart with error Phi(-d/2); pixels_for_1pc: pixels "
+	                                "a region must pool for a 1 % error; pairs closer than "
+	                                "merge_distance are one class"));
+	json_object_set_new(root, "separability", sj);
+	json_t *merges = json_array();
+	for (int c = 0; c < nc; c++) {
+		int members = 0;
+		for (int j = 0; j < nm; j++)
+			members += group[j] == c;
+		if (members < 2)
+			continue;
+		json_t *mm = json_array();
+		for (int j = 0; j < nm; j++)
+			if (group[j] == c)
+				json_array_append_new(mm, json_string(set->names[j]));
+		json_array_append_new(merges, mm);
+	}
+	json_object_set_new(root, "merges", merges);
+
+	json_t *fs = json_object();
+	const char *fkeys[6] = {"labels", "confidence", "mask", "preview", "regions",
+	                        "regions_csv"};
+	for (int i = 0; i < 6; i++)
+		json_object_set_new(fs, fkeys[i], files[i] ? json_string(files[i]) : json_null());
+	json_object_set_new(root, "files", fs);
+	json_object_set_new(root, "confidence",
+	                    json_string("bands: margin (d2 of the runner-up class minus the "
+	                                "chosen class's, noise-weighted), posterior (of the "
+	                                "chosen class over the declared materials, equal "
+	                                "priors), angle_deg and intensity (the best material's "
+	                                "fit); NaN for unclassified, unknown and background"));
+	json_t *classes_j = json_array();
+	json_t *c0 = json_pack("{s:i,s:s,s:I}", "label", 0, "name", "unclassified", "pixels",
+	                       (json_int_t)res->unclassified);
+	json_array_append_new(classes_j, c0);
+	for (int c = 0; c < nc; c++) {
+		const kg_class_summary *k = &res->classes[c];
+		unsigned char col[3];
+		ap_label_colour(classes, c + 1, col);
+		json_t *o = json_object();
+		json_object_set_new(o, "label", json_integer(c + 1));
+		json_object_set_new(o, "name", json_string(k->name));
+		json_t *mm = json_array();
+		for (int j = 0; j < nm; j++)
+			if (group[j] == c)
+				json_array_append_new(mm, json_string(set->names[j]));
+		json_object_set_new(o, "members", mm);
+		json_object_set_new(o, "pixels", json_integer((json_int_t)k->pixels));
+		json_object_set_new(o, "fraction", json_real(k->fraction));
+		json_object_set_new(o, "colour", json_pack("[iii]", col[0], col[1], col[2]));
+		json_t *ms = json_null();
+		if (k->pixels && isfinite(k->mean_spectrum[0])) {
+			ms = json_array();
+			for (int l = 0; l < KG_NBANDS; l++)
+				json_array_append_new(ms, ap_json_num(k->mean_spectrum[l]));
+		}
+		json_object_set_new(o, "mean_spectrum", ms);
+		json_object_set_new(o, "confidence",
+		                    json_pack("{s:o,s:o,s:o}", "mean", ap_json_num(k->margin_mean),
+		                              "median", ap_json_num(k->margin_median), "p5",
+		                              ap_json_num(k->margin_p5)));
+		json_array_append_new(classes_j, o);
+	}
+	json_array_append_new(classes_j, ap_refusal_class(classes, ap_label_unknown(classes),
+	                                                   res->unknown, res->stats.pixels));
+	json_array_append_new(classes_j, ap_refusal_class(classes, ap_label_background(classes),
+	                                                  res->background, res->stats.pixels));
+	json_object_set_new(root, "classes", classes_j);
+
+	json_t *rj = json_object();
+	json_object_set_new(rj, "enabled", json_boolean(reg->on && !reg->overflow));
+	json_object_set_new(rj, "source", json_string(reg->user ? "region map"
+	                                              : "connected components of the classes"));
+	if (reg->overflow)
+		json_object_set_new(rj, "note", json_string("more than 1048576 runs of classes: "
+		                                            "regions were not formed"));
+	json_object_set_new(rj, "count", json_integer(reg->nfinal));
+	json_object_set_new(rj, "decision",
+	                    json_string("pooled likelihood: sum of each material's d2 over the "
+	                                "region's pixels, the differences scaled by 1 / (1 + N f) "
+	                                "(f: the calibration's share of a pixel's noise, which "
+	                                "pooling does not reduce); a compound class resolves to "
+	                                "a member whose share of its posterior is >= 0.99"));
+	json_t *table = json_array();
+	if (reg->on && !reg->overflow && reg->final) {
+		int listed = 0;
+		for (uint32_t id = 0; id < reg->n && listed < 2000; id++) {
+			uint32_t f = reg->final[id];
+			if (!f || reg->count[id] < TABLE_MIN_PIXELS)
+				continue;
+			region_decision d = decide(reg, id, group, nc);
+			json_array_append_new(
+				table, json_pack("{s:I,s:I,s:s,s:s,s:o}", "region", (json_int_t)f, "pixels",
+				                 (json_int_t)reg->count[id], "class", classes->names[d.cls],
+				                 "label", d.material >= 0 ? set->names[d.material]
+				                                          : classes->names[d.cls],
+				                 "posterior", ap_json_num(d.posterior)));
+			listed++;
+		}
+	}
+	json_object_set_new(rj, "min_pixels_listed", json_integer(TABLE_MIN_PIXELS));
+	json_object_set_new(rj, "table", table);
+	json_object_set_new(root, "regions", rj);
+	int rc = kg_json_write(root, path, err);
+	json_decref(root);
+	if (rc)
+		kg_err_prefix(err, "%s: ", path);
+	return rc;
+}
+
+/* ---- region map and table (pass 2) ------------------------------------------------- */
+
+/* The region map of connected components: pass 1's runs found again in the written
+ * labels, in the same order, so each gets its provisional id and its root's number. */
+static int write_region_map(regions *g, const kg_est_material_set *classes,
+                            const char *labels_hdr, const char *reg_hdr, written *done,
+                            kg_err *err)
+{
+	const int W = g->width;
+	kg_envi *el = NULL;
+	kg_envi_writer *w = NULL;
+	int rc = kg_envi_open(labels_hdr, &el, err);
+	if (rc)
+		return rc;
+	const int H = el->meta.lines;
+	kg_envi_meta m = {0};
+	m.samples = W;
+	m.lines = H;
+	m.bands = 1;
+	m.data_type = KG_ENVI_U32;
+	m.interleave = KG_ENVI_BSQ;
+	m.description = "kogei classify regions: region number per pixel (0: none), as in "
+	                "the regions table";
+	float *lab = malloc(sizeof(float) * W), *out = malloc(sizeof(float) * W);
+	uint8_t *lab8 = malloc((size_t)W);
+	run_seg *a = malloc(sizeof(run_seg) * ((size_t)W + 1));
+	run_seg *b = malloc(sizeof(run_seg) * ((size_t)W + 1));
+	if (!lab || !out || !lab8 || !a || !b)
+		rc = kg_fail(err, KG_ENOMEM, "out of memory");
+	if (!rc)
+		rc = kg_envi_writer_open(reg_hdr, &m, &w, err);
+	uint32_t saved_n = g->n;
+	g->n = 0;
+	int na = 0;
+	for (int y = 0; y < H && !rc; y++) {
+		rc = kg_envi_read(el, 0, y, W, 1, KG_LAYOUT_BIP, lab, err);
+		if (rc)
+			break;
+		for (int x = 0; x < W; x++)
+			lab8[x] = (uint8_t)lab[x];
+		{
+			int nb = row_runs(g, lab8, W, classes->n, b);
+			link_rows(g, b, nb, a, na, 0);
+			for (int x = 0; x < W; x++)
+				out[x] = 0;
+			for (int i = 0; i < nb; i++) {
+				float f = (float)g->final[find_root(g->parent, b[i].id)];
+				for (int x = b[i].x0; x <= b[i].x1; x++)
+					out[x] = f;
+			}
+			run_seg *t = a;
+			a = b;
+			b = t;
+			na = nb;
+		}
+		rc = kg_envi_writer_put(w, y, y + 1, KG_LAYOUT_BIP, out, err);
+	}
+	g->n = saved_n;
+	kg_envi_close(&el);
+	free(lab);
+	free(out);
+	free(lab8);
+	free(a);
+	free(b);
+	if (!rc) {
+		rc = kg_envi_writer_finish(&w, err);
+		if (!rc)
+			ap_written_add_envi(done, reg_hdr);
+	} else if (w) {
+		kg_envi_writer_abort(&w);
+	}
+	return rc;
+}
+
+/* The table of every region (CSV). */
+static int write_region_table(const regions *g, const kg_est_material_set *set,
+                              const kg_est_material_set *classes, const int *group,
+                              const char *csv_path, written *done, kg_err *err)
+{
+	kg_outfile of;
+	int rc = kg_outfile_open(&of, csv_path, 0, err);
+	if (rc)
+		return rc;
+	fprintf(of.fp, "region,pixels,class,label,posterior,mean_d2\n");
+	for (uint32_t id = 0; id < g->n; id++) {
+		uint32_t f = g->final[id];
+		if (!f)
+			continue;
+		region_decision d = decide(g, id, group, classes->n);
+		fprintf(of.fp, "%u,%llu,%s,%s,%.6g,%.6g\n", f, (unsigned long long)g->count[id],
+		        classes->names[d.cls], d.material >= 0 ? set->names[d.material]
+		                                               : classes->names[d.cls],
+		        d.posterior, d.d2_mean);
+	}
+	rc = kg_outfile_commit(&of, err);
+	if (!rc)
+		ap_written_add(done, csv_path);
+	return rc;
+}
+
+/* ---- the call --------------------------------------------------------------------- */
+
+static void set_free_classes(kg_est_material_set *c)
+{
+	free(c->names);
+	free(c->materials);
+	free(c->spectra);
+}
+
+int kg_classify_camera_rows(const kg_est_kernel *k, const kg_est_material_set *set,
+                            const kg_classify_camera *cam, const kg_row_source *src,
+                            const kg_apply_options *opt, const kg_classify_options *copt,
+                            const kg_classify_info *info, const char *out_hdr,
+                            kg_classify_result *res, kg_err *err)
+{
+	kg_check_arg(set && cam && src && out_hdr, err);
+	kg_apply_options dflt;
+	if (!opt) {
+		kg_apply_options_init(&dflt);
+		opt = &dflt;
+	}
+	kg_classify_options cdflt;
+	if (!copt) {
+		kg_classify_options_init(&cdflt);
+		copt = &cdflt;
+	}
+	if (res)
+		memset(res, 0, sizeof(*res));
+	if (!set->mats)
+		return kg_fail(err, KG_EINVAL, "%s: camera-space matching needs the library's "
+		               "materials (kg_est_material_set_new)", out_hdr);
+	if (!cam->response)
+		return kg_fail(err, KG_EINVAL, "%s: camera-space matching needs the reference "
+		               "camera's spectral response", out_hdr);
+	if (set->n > 254)
+		return kg_fail(err, KG_EINVAL, "%s: %d materials: camera-space matching takes at most "
+		               "254", out_hdr, set->n);
+	for (int i = 0; i < 9; i++)
+		if (!isfinite(cam->site_to_ref[i]) || !isfinite(cam->calib_cov[i]))
+			return kg_fail(err, KG_EINVAL, "%s: M2 and the calibration covariance: expected "
+			               "finite values", out_hdr);
+	if (cam->region_map && (cam->region_map->width != src->width ||
+	                        cam->region_map->height != src->height ||
+	                        cam->region_map->channels != 1))
+		return kg_fail(err, KG_EINVAL, "%s: the region map %s is %d x %d with %d channel%s: "
+		               "expected one grey channel of the image's size, %d x %d", out_hdr,
+		               cam->region_map_name ? cam->region_map_name : "", cam->region_map->width,
+		               cam->region_map->height, cam->region_map->channels,
+		               cam->region_map->channels == 1 ? "" : "s", src->width, src->height);
+	cam_run run;
+	memset(&run, 0, sizeof(run));
+	kg_apply_options o = *opt;
+	o.pre = NULL; /* M2 is applied here, with the noise */
+	int rc = ap_feed_init(&run.in, src, &o, "classify", err);
+	if (rc)
+		return rc;
+	run.in.var = copt->variance;
+	run.in.var_name = info && info->variance ? info->variance : "the variance image";
+	run.in.mask = copt->mask;
+	if (copt->frames < 1)
+		return kg_fail(err, KG_EINVAL, "classify: frames %d: expected 1 or more", copt->frames);
+	for (int s = 0; s < 2; s++) {
+		const kg_row_source *v = s ? copt->mask : copt->variance;
+		if (v && (v->width != src->width || v->height != src->height ||
+		          v->channels != (s ? 1 : 3)))
+			return kg_fail(err, KG_EINVAL, "classify: %s is %d x %d with %d channels: "
+			               "expected %d x %d with %d", s ? "the mask" : run.in.var_name,
+			               v->width, v->height, v->channels, src->width, src->height,
+			               s ? 1 : 3);
+	}
+	memcpy(run.nz.M2, cam->site_to_ref, sizeof(run.nz.M2));
+	memcpy(run.nz.R, cam->calib_cov, sizeof(run.nz.R));
+	run.nz.inv_frames = 1.0 / copt->frames;
+	run.nz.floor2 = copt->noise_floor * copt->noise_floor;
+	run.nz.rel2 = copt->noise_relative * copt->noise_relative;
+	run.background_level = (float)copt->background_level;
+	run.nm = set->n;
+
+	kg_cs_model *model = NULL;
+	double *sep = NULL;
+	kg_est_material_set classes = {0};
+	kg_classify_result local = {0};
+	kg_envi_writer *ws[3] = {NULL, NULL, NULL};
+	char *conf_path = NULL, *mask_path = NULL, *json_path = NULL, *png_path = NULL,
+	     *reg_path = NULL, *csv_path = NULL;
+	const char *paths[3] = {out_hdr, NULL, NULL};
+	const char **names = NULL;
+	unsigned char *lookup = NULL;
+	cam_sink sink = {0};
+	written done = {0};
+	survey_result sv;
+	const int W = src->width, H = src->height;
+	const int nm = set->n;
+	double merge_d = cam->merge_distance == 0 ? KG_CS_MERGE_DISTANCE : cam->merge_distance;
+
+	if ((rc = kg_cs_model_new(cam->response, set->mats, nm, cam->angle_from, cam->angle_to,
+	                          cam->angle_step, cam->intensity_lo, cam->intensity_hi, &model,
+	                          err)))
+		goto out;
+	run.model = model;
+	if ((rc = survey(&run, cam, model, &sv, err)))
+		goto out;
+	if (!(sep = malloc(sizeof(double) * (size_t)nm * nm))) {
+		rc = kg_fail(err, KG_ENOMEM, "out of memory");
+		goto out;
+	}
+	if ((rc = kg_cs_separability(model, sv.cov, sv.level, sep, err)))
+		goto out;
+	run.nc = merge_d > 0 ? kg_cs_merge_groups(sep, nm, merge_d, run.group) : nm;
+	if (merge_d <= 0)
+		for (int j = 0; j < nm; j++)
+			run.group[j] = j;
+	/* classes numbered in order of their first member */
+	{
+		int map[KG_EST_MAX_MATERIALS], nc = 0;
+		for (int j = 0; j < nm; j++)
+			map[j] = -1;
+		for (int j = 0; j < nm; j++) {
+			int g = run.group[j];
+			if (map[g] < 0)
+				map[g] = nc++;
+			run.group[j] = map[g];
+		}
+		run.nc = nc;
+	}
+	classes.n = run.nc;
+	classes.angle_deg = set->angle_deg;
+	classes.names = calloc((size_t)run.nc, sizeof(*classes.names));
+	classes.materials = calloc((size_t)run.nc, sizeof(*classes.materials));
+	classes.spectra = calloc((size_t)run.nc, sizeof(*classes.spectra));
+	if (!classes.names || !classes.materials || !classes.spectra) {
+		rc = kg_fail(err, KG_ENOMEM, "out of memory");
+		goto out;
+	}
+	for (int c = 0; c < run.nc; c++) {
+		size_t used = 0;
+		for (int j = 0; j < nm; j++)
+			if (run.group[j] == c) {
+				int w = snprintf(classes.names[c] + used, sizeof(classes.names[c]) - used,
+				                 "%s%s", used ? "|" : "", set->names[j]);
+				if (w < 0 || used + (size_t)w >= sizeof(classes.names[c])) {
+					rc = kg_fail(err, KG_EINVAL, "%s: the merged class of '%s' has a name "
+					             "longer than %d characters", out_hdr, set->names[j],
+					             KG_EST_CLASS_NAME_MAX - 1);
+					goto out;
+				}
+				used += (size_t)w;
+			}
+		classes.materials[c].name = classes.names[c];
+		classes.materials[c].spectrum = classes.spectra[c].v;
+	}
+	run.unknown = (uint8_t)ap_label_unknown(&classes);
+	run.background = (uint8_t)ap_label_background(&classes);
+	run.threshold = copt->unknown_threshold > 0 ? copt->unknown_threshold
+	                                            : kg_chi2_quantile(0.999, 2);
+	local.unknown_threshold = run.threshold;
+	local.dof = 2;
+
+	if ((rc = kg_apply_side_path(out_hdr, "_confidence.hdr", &conf_path, err)) ||
+	    (rc = kg_apply_side_path(out_hdr, ".json", &json_path, err)) ||
+	    (rc = kg_apply_side_path(out_hdr, ".png", &png_path, err)) ||
+	    (rc = kg_apply_side_path(out_hdr, "_regions.hdr", &reg_path, err)) ||
+	    (rc = kg_apply_side_path(out_hdr, "_regions.csv", &csv_path, err)) ||
+	    (rc = kg_inputs_check_output(json_path, err)) ||
+	    (rc = kg_inputs_check_output(png_path, err)) ||
+	    (rc = kg_inputs_check_output(csv_path, err)))
+		goto out;
+	const int nlabels = run.nc + 3;
+	names = calloc((size_t)nlabels, sizeof(char *));
+	lookup = malloc(3 * (size_t)nlabels);
+	ap_preview_size(W, H, &sink.pw, &sink.ph);
+	sink.preview = malloc((size_t)sink.pw * sink.ph);
+	sink.cs = calloc((size_t)run.nc, sizeof(*sink.cs));
+	sink.fshare = malloc(sizeof(float) * (size_t)W);
+	sink.region_row = cam->region_map ? malloc(sizeof(float) * (size_t)W) : NULL;
+	if (!names || !lookup || !sink.preview || !sink.cs || !sink.fshare ||
+	    (cam->region_map && !sink.region_row)) {
+		rc = kg_fail(err, KG_ENOMEM, "classify: out of memory");
+		goto out;
+	}
+	for (int l = 0; l < nlabels; l++) {
+		names[l] = ap_label_name(&classes, l);
+		ap_label_colour(&classes, l, lookup + 3 * l);
+	}
+	sink.reg.on = cam->regions || cam->region_map;
+	sink.reg.user = cam->region_map != NULL;
+	sink.reg.nm = nm;
+	sink.reg.width = W;
+	if (sink.reg.on) {
+		sink.reg.prev = malloc(sizeof(run_seg) * ((size_t)W + 1));
+		sink.reg.cur = malloc(sizeof(run_seg) * ((size_t)W + 1));
+		if (!sink.reg.prev || !sink.reg.cur) {
+			rc = kg_fail(err, KG_ENOMEM, "classify: out of memory");
+			goto out;
+		}
+		if (sink.reg.user) {
+			if ((rc = regions_grow(&sink.reg, MAX_USER_REGIONS, err)))
+				goto out;
+			for (uint32_t id = 0; id < MAX_USER_REGIONS; id++)
+				new_id(&sink.reg, 0);
+		}
+	}
+
+	kg_envi_meta m = {0};
+	m.samples = W;
+	m.lines = H;
+	m.bands = 1;
+	m.data_type = KG_ENVI_U8;
+	m.interleave = KG_ENVI_BSQ;
+	char desc[200];
+	snprintf(desc, sizeof(desc), "kogei classify: camera-space matching, %d materials in %d "
+	         "classes, angles %g-%g deg, intensity %g-%g", nm, run.nc, cam->angle_from,
+	         cam->angle_to, cam->intensity_lo, cam->intensity_hi);
+	m.description = opt->description ? opt->description : desc;
+	m.classes = nlabels;
+	m.class_names = names;
+	m.class_lookup = lookup;
+	if ((rc = kg_envi_writer_open(out_hdr, &m, &ws[0], err)))
+		goto out;
+	kg_envi_meta mc = {0};
+	mc.samples = W;
+	mc.lines = H;
+	mc.bands = 4;
+	mc.data_type = KG_ENVI_F32;
+	mc.interleave = KG_ENVI_BIP;
+	mc.description = "kogei classify confidence (camera space): margin = d2 of the "
+	                 "runner-up class minus the chosen class's; posterior of the chosen "
+	                 "class; the best material's fitted incidence angle (degrees) and "
+	                 "intensity; NaN for unclassified, unknown and background pixels";
+	const char *band[4] = {"margin", "posterior", "angle_deg", "intensity"};
+	mc.band_names = band;
+	if ((rc = kg_envi_writer_open(conf_path, &mc, &ws[1], err)))
+		goto out;
+	paths[1] = conf_path;
+	if ((rc = ap_open_mask(out_hdr, W, H, &mask_path, &ws[2], err)))
+		goto out;
+	paths[2] = mask_path;
+
+	kg_est_job job;
+	kg_est_job_init(&job, NULL, KG_EST_LABELS);
+	ap_feed_job(&run.in, &job);
+	run.base = job.in_bytes / sizeof(float);
+	job.in_bytes += sizeof(float) * extra_floats(nm);
+	job.compute = cam_compute;
+	job.compute_user = &run;
+	job.threads = opt->threads;
+	job.block_rows = opt->block_rows;
+	sink.labels = ws[0];
+	sink.conf = ws[1];
+	sink.mask = ws[2];
+	sink.run = &run;
+	sink.region_map = cam->region_map;
+	sink.nclasses = run.nc;
+	sink.height = H;
+	ap_progress_init(&sink.prog, opt, "classify", W, H);
+	rc = kg_est_run_stream(&job, NULL, W, H, cam_sink_fn, &sink, &local.stats, err);
+	if (rc) {
+		kg_err_prefix(err, "%s: ", out_hdr);
+		goto out;
+	}
+	if ((rc = ap_check_estimable(&local.stats, &run.in, "classify", err)))
+		goto out;
+	if ((rc = ap_finish_all(ws, paths, 3, &done, err)))
+		goto out;
+	if ((rc = ap_margin_pass(sink.cs, run.nc, out_hdr, conf_path, 4, W, H, err)) ||
+	    (rc = ap_summarise(k, &classes, sink.count, sink.cs, (size_t)W * H, &local, err)))
+		goto out;
+	int have_regions = sink.reg.on && !sink.reg.overflow;
+	if (have_regions) {
+		if ((rc = regions_resolve(&sink.reg, err)) ||
+		    (!sink.reg.user &&
+		     (rc = write_region_map(&sink.reg, &classes, out_hdr, reg_path, &done, err))) ||
+		    (rc = write_region_table(&sink.reg, set, &classes, run.group, csv_path, &done,
+		                             err)))
+			goto out;
+		local.nregions = (int)sink.reg.nfinal;
+	}
+	const char *files[6] = {out_hdr, conf_path, mask_path, png_path,
+	                        have_regions && !sink.reg.user ? reg_path
+	                        : sink.reg.user                ? cam->region_map_name
+	                                                       : NULL,
+	                        have_regions ? csv_path : NULL};
+	if ((rc = write_json(json_path, set, &classes, run.group, cam, copt, model, &sv, sep,
+	                     merge_d, src, opt, info, files, &sink.reg, &local, run.threshold,
+	                     err)))
+		goto out;
+	ap_written_add(&done, json_path);
+	if ((rc = ap_write_preview(png_path, &classes, sink.preview, sink.pw, sink.ph, &local,
+	                           err)))
+		goto out;
+	ap_written_add(&done, png_path);
+
+out:
+	for (int i = 0; i < 3; i++)
+		if (ws[i])
+			kg_envi_writer_abort(&ws[i]);
+	ap_written_clear(&done, rc != 0);
+	if (rc == 0 && res)
+		*res = local;
+	else
+		kg_classify_result_free(&local);
+	for (int j = 0; sink.cs && j < run.nc; j++) {
+		free(sink.cs[j].hi);
+		for (int t = 0; t < MAX_TARGETS; t++)
+			free(sink.cs[j].lo[t]);
+	}
+	free(sink.cs);
+	free(sink.preview);
+	free(sink.stage.v);
+	free(sink.conf4);
+	free(sink.fshare);
+	free(sink.region_row);
+	regions_free(&sink.reg);
+	set_free_classes(&classes);
+	kg_cs_model_free(&model);
+	free(sep);
+	free(names);
+	free(lookup);
+	free(conf_path);
+	free(mask_path);
+	free(json_path);
+	free(png_path);
+	free(reg_path);
+	free(csv_path);
+	return rc;
+}
