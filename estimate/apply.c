@@ -1196,7 +1196,7 @@ static const char *side_name_mask(const kg_classify_info *info)
 	return info && info->mask ? info->mask : "the mask";
 }
 
-static int check_options(const kg_classify_options *o, const kg_row_source *img,
+int ap_check_options(const kg_classify_options *o, const kg_row_source *img,
                          const kg_classify_info *info, const char *what, kg_err *err)
 {
 	if (o->frames < 1)
@@ -1339,7 +1339,7 @@ int kg_classify_rows(const kg_est_kernel *k, const kg_est_material_set *set,
 	feed in;
 	int rc = ap_feed_init(&in, src, opt, "classify", err);
 	if (!rc)
-		rc = check_options(copt, src, info, "classify", err);
+		rc = ap_check_options(copt, src, info, "classify", err);
 	if (rc)
 		return rc;
 	in.var = copt->variance;

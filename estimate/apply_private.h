@@ -86,6 +86,9 @@ int ap_margin_pass(class_stats *cs, int nclasses, const char *labels_hdr, const 
 /* Counts, mean spectra (from the mean RGB through k; NaN without k) and margin
  * statistics per class, after ap_margin_pass. count: per label. */
 int ap_summarise(const kg_est_kernel *k, const kg_est_material_set *set, const uint64_t *count, const class_stats *cstats, size_t npix, kg_classify_result *res, kg_err *err);
+/* The classify options against the image: frames, noise values, bounds, and the
+ * variance's and mask's sizes and channels. */
+int ap_check_options(const kg_classify_options *o, const kg_row_source *img, const kg_classify_info *info, const char *what, kg_err *err);
 json_t *ap_json_num(double v);
 json_t *ap_refusal_class(const kg_est_material_set *set, int label, uint64_t pixels, uint64_t total);
 void ap_preview_size(int width, int height, int *pw, int *ph);

@@ -590,8 +590,9 @@ static int survey(const cam_run *r, const kg_classify_camera *cam, const kg_cs_m
 				    p[1] >= r->in.clip || p[2] >= r->in.clip ||
 				    fmaxf(p[0], fmaxf(p[1], p[2])) < fmaxf(r->background_level, 1e-6f))
 					continue;
-				if (var && !isfinite(vbuf[3 * i] + vbuf[3 * i + 1] + vbuf[3 * i + 2]))
-					continue;
+				if (var && !(vbuf[3 * i] >= 0 && vbuf[3 * i + 1] >= 0 && vbuf[3 * i + 2] >= 0 &&
+				             isfinite(vbuf[3 * i] + vbuf[3 * i + 1] + vbuf[3 * i + 2])))
+					continue; /* the run refuses it, naming the pixel */
 				double x[3], c[6];
 				pixel_noise(&r->nz, p, var ? vbuf + 3 * i : NULL, x, c);
 				for (int e = 0; e < 6; e++)
@@ -1015,17 +1016,8 @@ int kg_classify_camera_rows(const kg_est_kernel *k, const kg_est_material_set *s
 	run.in.var = copt->variance;
 	run.in.var_name = info && info->variance ? info->variance : "the variance image";
 	run.in.mask = copt->mask;
-	if (copt->frames < 1)
-		return kg_fail(err, KG_EINVAL, "classify: frames %d: expected 1 or more", copt->frames);
-	for (int s = 0; s < 2; s++) {
-		const kg_row_source *v = s ? copt->mask : copt->variance;
-		if (v && (v->width != src->width || v->height != src->height ||
-		          v->channels != (s ? 1 : 3)))
-			return kg_fail(err, KG_EINVAL, "classify: %s is %d x %d with %d channels: "
-			               "expected %d x %d with %d", s ? "the mask" : run.in.var_name,
-			               v->width, v->height, v->channels, src->width, src->height,
-			               s ? 1 : 3);
-	}
+	if ((rc = ap_check_options(copt, src, info, "classify", err)))
+		return rc;
 	memcpy(run.nz.M2, cam->site_to_ref, sizeof(run.nz.M2));
 	memcpy(run.nz.R, cam->calib_cov, sizeof(run.nz.R));
 	run.nz.inv_frames = 1.0 / copt->frames;

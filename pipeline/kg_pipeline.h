@@ -56,7 +56,12 @@ typedef struct kg_process_options {
 	const char *outdir;
 	int min_tags;              /* 0: 2 tags with the tagless fallback; N: N, no fallback */
 	double max_residual;       /* relative M2 residual refused above */
-	double angle_deg;          /* incidence assumed for the library's spectra (30) */
+	double angle_deg;          /* eq11: incidence assumed for the library's spectra (30) */
+	const char *method;        /* labels: "camera" (camera-space matching, the default)
+	                            * or "eq11" (the paper's eq. 11 on the pca weights) */
+	double angles[3];          /* camera: incidence angles searched, from, to, step
+	                            * (0, 70, 5) */
+	double intensity[2];       /* camera: intensities searched (0.3, 1.0) */
 	int force;                 /* accept a 3-patch chart and another camera */
 	int assume_same_exposure;  /* accept captures whose exposure is unknown */
 	int render;                /* render each scene.json to render.png (when Embree) */

@@ -21,6 +21,12 @@ void kg_process_options_default(kg_process_options *o)
 	memset(o, 0, sizeof(*o));
 	o->max_residual = KG_PROCESS_MAX_RESIDUAL;
 	o->angle_deg = 30.0;
+	o->method = "camera";
+	o->angles[0] = 0;
+	o->angles[1] = 70;
+	o->angles[2] = 5;
+	o->intensity[0] = 0.3;
+	o->intensity[1] = 1.0;
 	o->render = 1;
 	o->cube = "f32";
 }
@@ -364,13 +370,16 @@ static json_t *parameters_json(const kg_process_options *o, const char *material
 		for (int i = 0; i < o->nonly; i++)
 			json_array_append_new(only, json_string(o->only[i]));
 	}
-	return json_pack("{s:o, s:o, s:s, s:o, s:o, s:o, s:o, s:f, s:i, s:b, s:b, s:f, s:o, s:s}",
+	return json_pack("{s:o, s:o, s:s, s:o, s:o, s:o, s:o, s:f, s:i, s:b, s:b, s:f, s:o, s:s, "
+	                 "s:s, s:[fff], s:[ff]}",
 	                 "reference", jstr_or_null(o->reference), "spectra", jstr_or_null(o->spectra),
 	                 "materials", materials, "only", only, "layout", jstr_or_null(o->layout),
 	                 "mesh", jstr_or_null(o->mesh), "mask", jstr_or_null(o->mask),
 	                 "max_residual", o->max_residual, "min_tags", o->min_tags, "force", o->force,
 	                 "assume_same_exposure", o->assume_same_exposure, "angle_deg", o->angle_deg,
-	                 "chart", jstr_or_null(o->chart), "cube", o->cube ? o->cube : "f32");
+	                 "chart", jstr_or_null(o->chart), "cube", o->cube ? o->cube : "f32",
+	                 "method", o->method ? o->method : "camera", "angles", o->angles[0],
+	                 o->angles[1], o->angles[2], "intensity", o->intensity[0], o->intensity[1]);
 }
 
 static void iso_time(char *buf, size_t n)

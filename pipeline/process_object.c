@@ -291,8 +291,14 @@ static int classes_json(proc *p, const char *labels_json, const kg_est_material_
 				for (int b = 0; b < KG_NBANDS; b++)
 					json_array_append_new(model, json_real(set->spectra[j].v[b]));
 			}
-		if (!found)
+		if (!found && strchr(name, '|')) {
+			/* a compound class renders as its first member */
+			char first[KG_EST_CLASS_NAME_MAX];
+			snprintf(first, sizeof(first), "%.*s", (int)(strchr(name, '|') - name), name);
+			json_object_set_new(class_map, name, json_string(first));
+		} else if (!found) {
 			json_object_set_new(class_map, name, json_string(fallback));
+		}
 		json_t *e = json_pack("{s:s, s:O, s:O, s:O, s:O, s:o}", "name", name, "pixels",
 		                      json_object_get(c, "pixels"), "fraction",
 		                      json_object_get(c, "fraction"), "colour",
@@ -380,9 +386,9 @@ static int classify_pass(proc *p, const proc_capture *c, proc_source *src,
 	kg_est_kernel *kclass = NULL;
 	double pre[9];
 	int pre_needed = 0;
-	proc_pass *img_pass = NULL, *var_pass = NULL;
+	proc_pass *img_pass = NULL, *var_pass = NULL, *survey_pass = NULL, *survey_var_pass = NULL;
 	kg_image_rows *mask = NULL;
-	kg_row_source img_src, var_src, mask_src;
+	kg_row_source img_src, var_src, mask_src, survey_src, survey_var_src;
 	preview_tap tap = {0};
 	kg_classify_options copt;
 	kg_classify_options_init(&copt);
@@ -402,6 +408,36 @@ static int classify_pass(proc *p, const proc_capture *c, proc_source *src,
 		kg_row_source_of_rows(mask, &mask_src);
 		copt.mask = &mask_src;
 	}
+	/* camera-space matching needs the reference camera's response, which references
+	 * from before it existed lack: those fall back to eq. 11, and say so */
+	int camera = !p->o->method || strcmp(p->o->method, "camera") == 0;
+	kg_classify_camera ccam;
+	kg_classify_camera_init(&ccam);
+	if (!ret && camera && !p->cam->response.available) {
+		camera = 0;
+		proc_warn(p, json_object_get(object, "warnings"),
+		          "%s: the reference calibration holds no camera response: labels by eq. 11 "
+		          "instead of camera-space matching (recalibrate the reference with this "
+		          "version)",
+		          c->name);
+	}
+	if (!ret && camera) {
+		ccam.response = &p->cam->response.F[0][0];
+		snprintf(ccam.response_source, sizeof(ccam.response_source), "%s",
+		         p->cam->response.source);
+		memcpy(ccam.site_to_ref, p->cam->M2, sizeof(ccam.site_to_ref));
+		kg_camera_residual_cov(p->cam, ccam.calib_cov);
+		ccam.angle_from = p->o->angles[0];
+		ccam.angle_to = p->o->angles[1];
+		ccam.angle_step = p->o->angles[2];
+		ccam.intensity_lo = p->o->intensity[0];
+		ccam.intensity_hi = p->o->intensity[1];
+		if (!(ret = proc_pass_open(src, 0, &survey_pass, &survey_src)))
+			ccam.survey = &survey_src;
+		if (!ret && info->has_variance &&
+		    !(ret = proc_pass_open(src, 1, &survey_var_pass, &survey_var_src)))
+			ccam.survey_variance = &survey_var_src;
+	}
 	if (!ret) {
 		kg_classify_info cinfo = {.calib = "camera.json", .materials = p->library_path,
 		                          .method = "pca", .image = c->name,
@@ -411,7 +447,23 @@ static int classify_pass(proc *p, const proc_capture *c, proc_source *src,
 		proc_progress(p, "%s: classifying among %d materials (%s)", c->name, set->n,
 		              info->has_variance ? "noise from the capture's variance" : "noise model");
 		kg_classify_result cres = {0};
-		ret = kg_classify_rows(kclass, set, &img_src, &o, &copt, &cinfo, labels, &cres, err);
+		if (camera) {
+			cinfo.method = "camera";
+			ret = kg_classify_camera_rows(kclass, set, &ccam, &img_src, &o, &copt, &cinfo,
+			                              labels, &cres, err);
+			if (!ret)
+				json_object_set_new(object, "labels_method",
+				                    json_pack("{s:s,s:i,s:i,s:i}", "method", "camera",
+				                              "materials", set->n, "classes", cres.nclasses,
+				                              "regions", cres.nregions));
+		} else {
+			ret = kg_classify_rows(kclass, set, &img_src, &o, &copt, &cinfo, labels, &cres,
+			                       err);
+			if (!ret)
+				json_object_set_new(object, "labels_method",
+				                    json_pack("{s:s,s:i}", "method", "eq11", "materials",
+				                              set->n));
+		}
 		if (!ret && !json_object_get(object, "estimate")) /* no cube: the labels' counts */
 			stats_json(p, c, &cres.stats, "labels written", object);
 		kg_classify_result_free(&cres);
@@ -422,6 +474,8 @@ static int classify_pass(proc *p, const proc_capture *c, proc_source *src,
 	kg_image_rows_free(&mask);
 	proc_pass_free(&var_pass);
 	proc_pass_free(&img_pass);
+	proc_pass_free(&survey_pass);
+	proc_pass_free(&survey_var_pass);
 	kg_est_kernel_free(&kclass);
 	return ret;
 }

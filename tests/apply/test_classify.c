@@ -200,17 +200,17 @@ int main(int argc, char **argv)
 		return kg_test_done("apply-classify");
 
 	double recall[NM], recall_sf[NM], recall0[NM];
-	CHECK(FX_RUN("classify", "--calib", cam, "--materials", lib, "--only", only, scene0, "-o",
+	CHECK(FX_RUN("classify", "--method", "eq11", "--calib", cam, "--materials", lib, "--only", only, scene0, "-o",
 	             fx_path("labels0.hdr")) == 0,
 	      "classify noise-free: %s", fx_errs);
 	double acc0 = confusion("noise-free, plain distance", fx_path("labels0.hdr"), truth0, recall0);
-	CHECK(FX_RUN("classify", "--calib", cam, "--materials", lib, "--only", only, scene, "-o",
+	CHECK(FX_RUN("classify", "--method", "eq11", "--calib", cam, "--materials", lib, "--only", only, scene, "-o",
 	             fx_path("labels.hdr")) == 0,
 	      "classify: %s", fx_errs);
 	printf("%s", fx_out);
 	double acc = confusion("full well 20000 e-, read noise 10 e-, 12 bits; plain distance",
 	                       fx_path("labels.hdr"), truth, recall);
-	CHECK(FX_RUN("classify", "--calib", cam, "--materials", lib, "--only", only, "--distance",
+	CHECK(FX_RUN("classify", "--method", "eq11", "--calib", cam, "--materials", lib, "--only", only, "--distance",
 	             "scale-free", scene, "-o", fx_path("labels_sf.hdr")) == 0,
 	      "classify scale-free: %s", fx_errs);
 	double acc_sf = confusion("full well 20000 e-, read noise 10 e-, 12 bits; scale-free",

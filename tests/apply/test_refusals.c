@@ -58,7 +58,7 @@ int main(int argc, char **argv)
 	               "repeated material", "named twice", NULL);
 	expect_refusal(FX_RUN("classify", "--calib", cam_path, "--materials", lib, "--method",
 	                      "rootpoly2", tif, "-o", labels),
-	               "non-pca classification", "only pca", NULL);
+	               "non-pca classification", "expected camera", NULL);
 	expect_refusal(FX_RUN("classify", "--calib", cam_path, "--materials",
 	                      fx_path("missing-lib.json"), tif, "-o", labels),
 	               "missing library", "missing-lib.json", NULL);

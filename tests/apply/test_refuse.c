@@ -93,9 +93,9 @@ static int classify(const char *out, const char *scene, const char *set, ...)
 {
 	static char lib[4096];
 	snprintf(lib, sizeof(lib), "%s/fixtures/materials/default.json", KG_SOURCE_ROOT);
-	const char *args[40] = {"classify", "--calib", fx_path("cam.json"), "--materials", lib,
-	                        "--only",   set,       scene,               "-o",          out};
-	int n = 10;
+	const char *args[40] = {"classify", "--method", "eq11", "--calib", fx_path("cam.json"),
+	                        "--materials", lib, "--only", set, scene, "-o", out};
+	int n = 12;
 	va_list ap;
 	va_start(ap, set);
 	for (const char *a; n < 40 && (a = va_arg(ap, const char *));)

@@ -53,7 +53,7 @@ int main(int argc, char **argv)
 	CHECK(FX_RUN("estimate", "--calib", cam_path, tif, "-o", fx_path("cube_bip.hdr"),
 	             "--interleave", "bip") == 0,
 	      "estimate bip: %s", fx_errs);
-	CHECK(FX_RUN("classify", "--calib", cam_path, "--materials", lib, "--only",
+	CHECK(FX_RUN("classify", "--method", "eq11", "--calib", cam_path, "--materials", lib, "--only",
 	             "gold,silver,copper,urushi", tif, "-o", fx_path("labels.hdr")) == 0,
 	      "classify: %s", fx_errs);
 	CHECK(dump(fx_path("cube.hdr"), fx_path("expect_cube.f32"), 0) == 0, "dump cube");
