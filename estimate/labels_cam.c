@@ -419,6 +419,7 @@ static int regions_resolve(regions *g, kg_err *err)
 
 /* A region's decision (see the top of the file). */
 typedef struct region_decision {
+	int unknown;     /* no declared material explains the region */
 	int cls;         /* class index */
 	int material;    /* the material it resolves to, or -1 (the compound class) */
 	double posterior;
@@ -438,7 +439,7 @@ static region_decision decide(const regions *g, uint32_t id, const int *group, i
 		sum += w[j];
 		pc[group[j]] += w[j];
 	}
-	region_decision r = {0, -1, 0, 0};
+	region_decision r = {0, 0, -1, 0, 0};
 	for (int c = 1; c < nc; c++)
 		if (pc[c] > pc[r.cls])
 			r.cls = c;
@@ -455,7 +456,24 @@ static region_decision decide(const regions *g, uint32_t id, const int *group, i
 		r.posterior = w[jbest] / sum;
 	}
 	r.d2_mean = D[jbest] / N;
+	/* the pooled unknown test: the best material's summed d2 against chi-square with
+	 * 2 N degrees of freedom (its 99.9 % point; Wilson-Hilferty above 1000) */
+	double dof = 2.0 * N, q;
+	if (dof <= 1000)
+		q = kg_chi2_quantile(0.999, (int)dof);
+	else {
+		double h = 2.0 / (9.0 * dof), z = 3.090232306167813;
+		q = dof * pow(1.0 - h + z * sqrt(h), 3.0);
+	}
+	r.unknown = dmin > q;
 	return r;
+}
+
+static const char *region_label(const region_decision *d, const kg_est_material_set *set,
+                                const kg_est_material_set *classes)
+{
+	return d->unknown ? "unknown" : d->material >= 0 ? set->names[d->material]
+	                                                 : classes->names[d->cls];
 }
 
 /* ---- the sink -------------------------------------------------------------------- */
@@ -829,7 +847,10 @@ static int write_json(const char *path, const kg_est_material_set *set,
 	                                "region's pixels, the differences scaled by 1 / (1 + N f) "
 	                                "(f: the calibration's share of a pixel's noise, which "
 	                                "pooling does not reduce); a compound class resolves to "
-	                                "a member whose share of its posterior is >= 0.99"));
+	                                "a member whose share of its posterior is >= 0.99; "
+	                                "'unknown' when the best material's summed d2 exceeds "
+	                                "the 99.9 % point of chi-square with 2 N degrees of "
+	                                "freedom"));
 	json_t *table = json_array();
 	if (reg->on && !reg->overflow && reg->final) {
 		int listed = 0;
@@ -841,8 +862,7 @@ static int write_json(const char *path, const kg_est_material_set *set,
 			json_array_append_new(
 				table, json_pack("{s:I,s:I,s:s,s:s,s:o}", "region", (json_int_t)f, "pixels",
 				                 (json_int_t)reg->count[id], "class", classes->names[d.cls],
-				                 "label", d.material >= 0 ? set->names[d.material]
-				                                          : classes->names[d.cls],
+				                 "label", region_label(&d, set, classes),
 				                 "posterior", ap_json_num(d.posterior)));
 			listed++;
 		}
@@ -947,8 +967,7 @@ static int write_region_table(const regions *g, const kg_est_material_set *set,
 			continue;
 		region_decision d = decide(g, id, group, classes->n);
 		fprintf(of.fp, "%u,%llu,%s,%s,%.6g,%.6g\n", f, (unsigned long long)g->count[id],
-		        classes->names[d.cls], d.material >= 0 ? set->names[d.material]
-		                                               : classes->names[d.cls],
+		        classes->names[d.cls], region_label(&d, set, classes),
 		        d.posterior, d.d2_mean);
 	}
 	rc = kg_outfile_commit(&of, err);
