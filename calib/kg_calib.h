@@ -341,9 +341,9 @@ typedef struct kg_camera_calib {
 	kg_calib_source *sources; /* "reference", "site_rgb" */
 } kg_camera_calib;
 
-/* The site fit's residual as a relative covariance (3 x 3): sum over the patches of
- * r r^T / l^2 (r = rho0 - M2 rho_r, l^2 = |rho0|^2 / 3), over k - 3 degrees of freedom
- * (each channel's row of M2 fits 3 values). A reading of mean square level l^2 carries
+/* The site fit's residual as a relative covariance (3 x 3): the patches' sum of r r^T
+ * (r = rho0 - M2 rho_r) over their sum of l^2 = |rho0|^2 / 3, times k / (k - 3) (each
+ * channel's row of M2 fits 3 values). A reading of mean square level l^2 carries
  * about l^2 R of calibration error. Zeros for a fit of 3 patches. */
 void kg_camera_residual_cov(const kg_camera_calib *cam, double R[9]);
 

@@ -490,6 +490,7 @@ void kg_camera_residual_cov(const kg_camera_calib *cam, double R[9])
 {
 	memset(R, 0, 9 * sizeof(double));
 	int used = 0;
+	double level = 0;
 	for (int i = 0; cam && i < cam->k; i++) {
 		const double *r = cam->residual[i], *x = cam->rho0[i];
 		double l2 = (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]) / 3.0;
@@ -497,12 +498,13 @@ void kg_camera_residual_cov(const kg_camera_calib *cam, double R[9])
 			continue;
 		for (int a = 0; a < 3; a++)
 			for (int b = 0; b < 3; b++)
-				R[3 * a + b] += r[a] * r[b] / l2;
+				R[3 * a + b] += r[a] * r[b];
+		level += l2;
 		used++;
 	}
-	/* the residual of k patches fitted with 9 parameters: k - 3 degrees of freedom
-	 * per channel */
-	int dof = used > 3 ? used - 3 : 0;
+	/* relative to the patches' mean square level (as residual_relative is), over the
+	 * k - 3 degrees of freedom each channel's row of M2 leaves */
+	double scale = used > 3 && level > 0 ? (double)used / ((used - 3) * level) : 0.0;
 	for (int e = 0; e < 9; e++)
-		R[e] = dof ? R[e] / dof : 0.0;
+		R[e] *= scale;
 }

@@ -264,13 +264,10 @@ double kg_cs_pixels_for(double d)
 	return d > 0 ? ceil((2 * Z99 / d) * (2 * Z99 / d)) : INFINITY;
 }
 
-int kg_cs_separability(const kg_cs_model *m, const double cov[9], double level, double *d,
-                       kg_err *err)
+int kg_cs_separability_each(const kg_cs_model *m, const double *covs, double level, double *d,
+                            kg_err *err)
 {
-	kg_check_arg(m && cov && d, err);
-	double L[9];
-	if (!cholesky(cov, L))
-		return kg_fail(err, KG_EINVAL, "separability: the covariance is not positive definite");
+	kg_check_arg(m && covs && d, err);
 	if (!(level >= m->lo && level <= m->hi))
 		return kg_fail(err, KG_EINVAL, "separability: level %g outside the intensity range "
 		               "%g to %g", level, m->lo, m->hi);
@@ -278,48 +275,95 @@ int kg_cs_separability(const kg_cs_model *m, const double cov[9], double level, 
 	double *v = malloc(sizeof(double) * 3 * (size_t)n * (size_t)na);
 	if (!v)
 		return kg_fail(err, KG_ENOMEM, "out of memory");
-	for (int i = 0; i < n * na; i++)
-		forward(L, m->mu + 3 * (size_t)i, v + 3 * (size_t)i);
-	for (int i = 0; i < n; i++)
-		d[(size_t)i * n + i] = 0;
-	/* d(i, j): over i's angles at the given level, the nearest reading of j (any angle,
-	 * any intensity); the pair's separability is the smaller of d(i, j) and d(j, i). */
-	for (int i = 0; i < n; i++)
-		for (int j = 0; j < n; j++) {
-			if (i == j)
-				continue;
-			double best = INFINITY;
-			for (int k = 0; k < na; k++) {
-				const double *u = v + 3 * ((size_t)i * na + k);
-				double au[3] = {level * u[0], level * u[1], level * u[2]};
-				for (int q = 0; q < na; q++)
-					best = fmin(best, ray_distance(au, v + 3 * ((size_t)j * na + q), m->lo,
-					                               m->hi));
+	for (int i = 0; i < n * n; i++)
+		d[i] = i % (n + 1) == 0 ? 0.0 : INFINITY;
+	/* d(i, j): over i's angles at the given level, whitened by that reading's own
+	 * covariance, the nearest reading of j (any angle, any intensity); the pair's
+	 * separability is the smaller of d(i, j) and d(j, i). */
+	int ret = 0;
+	for (int i = 0; i < n && !ret; i++)
+		for (int k = 0; k < na && !ret; k++) {
+			double L[9], u[3];
+			if (!cholesky(covs + 9 * ((size_t)i * na + k), L)) {
+				ret = kg_fail(err, KG_EINVAL, "separability: the covariance of %s at %g degrees "
+				              "is not positive definite", m->names[i], m->angle_deg[k]);
+				break;
 			}
-			d[(size_t)i * n + j] = best;
+			for (int q = 0; q < n * na; q++)
+				forward(L, m->mu + 3 * (size_t)q, v + 3 * (size_t)q);
+			const double *w = v + 3 * ((size_t)i * na + k);
+			for (int c = 0; c < 3; c++)
+				u[c] = level * w[c];
+			for (int j = 0; j < n; j++) {
+				if (j == i)
+					continue;
+				double best = d[(size_t)i * n + j];
+				for (int q = 0; q < na; q++)
+					best = fmin(best, ray_distance(u, v + 3 * ((size_t)j * na + q), m->lo, m->hi));
+				d[(size_t)i * n + j] = best;
+			}
 		}
+	free(v);
+	if (ret)
+		return ret;
 	for (int i = 0; i < n; i++)
 		for (int j = i + 1; j < n; j++) {
 			double s = fmin(d[(size_t)i * n + j], d[(size_t)j * n + i]);
 			d[(size_t)i * n + j] = d[(size_t)j * n + i] = s;
 		}
-	free(v);
 	return 0;
+}
+
+int kg_cs_separability(const kg_cs_model *m, const double cov[9], double level, double *d,
+                       kg_err *err)
+{
+	kg_check_arg(m && cov && d, err);
+	double L[9];
+	if (!cholesky(cov, L))
+		return kg_fail(err, KG_EINVAL, "separability: the covariance is not positive definite");
+	size_t nr = (size_t)m->n * (size_t)m->nangles;
+	double *covs = malloc(sizeof(double) * 9 * nr);
+	if (!covs)
+		return kg_fail(err, KG_ENOMEM, "out of memory");
+	for (size_t r = 0; r < nr; r++)
+		memcpy(covs + 9 * r, cov, 9 * sizeof(double));
+	int ret = kg_cs_separability_each(m, covs, level, d, err);
+	free(covs);
+	return ret;
 }
 
 int kg_cs_merge_groups(const double *d, int n, double dmin, int *group)
 {
-	/* connected components of the pairs closer than dmin */
+	/* complete linkage: join the two classes whose farthest pair is the closest, while
+	 * that pair is closer than dmin (a chain of close pairs does not join far ends) */
 	for (int i = 0; i < n; i++)
 		group[i] = i;
-	for (int changed = 1; changed;) {
-		changed = 0;
-		for (int i = 0; i < n; i++)
-			for (int j = 0; j < n; j++)
-				if (i != j && d[(size_t)i * n + j] < dmin && group[j] < group[i]) {
-					group[i] = group[j];
-					changed = 1;
+	for (;;) {
+		double best = dmin;
+		int ga = -1, gb = -1;
+		for (int a = 0; a < n; a++) {
+			if (group[a] != a)
+				continue;
+			for (int b = a + 1; b < n; b++) {
+				if (group[b] != b)
+					continue;
+				double far = 0;
+				for (int i = 0; i < n; i++)
+					for (int j = 0; j < n; j++)
+						if (group[i] == a && group[j] == b && d[(size_t)i * n + j] > far)
+							far = d[(size_t)i * n + j];
+				if (far < best) {
+					best = far;
+					ga = a;
+					gb = b;
 				}
+			}
+		}
+		if (ga < 0)
+			break;
+		for (int i = 0; i < n; i++)
+			if (group[i] == gb)
+				group[i] = ga;
 	}
 	int ngroups = 0;
 	for (int i = 0; i < n; i++)

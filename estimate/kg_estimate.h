@@ -329,15 +329,24 @@ void kg_cs_match_block(const kg_cs_model *m, const float *x, const float *cov, s
  * other. A single pixel tells them apart with error Phi(-d / 2). */
 int kg_cs_separability(const kg_cs_model *m, const double cov[9], double level, double *d,
                        kg_err *err);
+/* The same with each reading's own covariance: covs holds 9 values for each reading
+ * of material i at angle k at intensity level (index i * nangles + k), e.g. from a
+ * noise model that grows with the signal. */
+int kg_cs_separability_each(const kg_cs_model *m, const double *covs, double level,
+                            double *d, kg_err *err);
 /* Pixels a region must pool to tell two materials at distance d apart with 1 % error:
  * ceil((2 z / d)^2), z the standard normal's 99 % point; +Inf for d = 0. */
 double kg_cs_pixels_for(double d);
-/* The classes a single pixel can support: materials joined when some pair of them is
- * closer than dmin (connected components); group[i] is the smallest index of i's
- * class. Returns the number of classes. KG_CS_MERGE_DISTANCE, one noise sigma, joins
- * pairs a single pixel confuses at least 31 % of the time (Phi(-1/2)); pairs up to
- * 2 z_99 = 4.65 apart still need pooled pixels (kg_cs_pixels_for) for a 1 % error. */
-#define KG_CS_MERGE_DISTANCE 1.0
+/* The classes a single pixel can support: materials joined by complete linkage (the
+ * two classes whose farthest pair is the closest join, while that pair is closer than
+ * dmin), so every pair inside a class is closer than dmin, and a chain of close pairs
+ * does not join materials far apart (such a pair across two classes stays in the
+ * separability table); group[i] is the smallest index of i's class. Returns the number
+ * of classes. KG_CS_MERGE_DISTANCE, two noise sigmas, joins pairs a single pixel
+ * confuses more than one time in six (Phi(-1) = 16 %: its reading lies past the
+ * midpoint, one sigma away); pairs up to 2 z_99 = 4.65 apart still need pooled pixels
+ * (kg_cs_pixels_for) for a 1 % error. */
+#define KG_CS_MERGE_DISTANCE 2.0
 int kg_cs_merge_groups(const double *d, int n, double dmin, int *group);
 
 /* ==== Images to files: cubes, masks and label maps (apply.c) =====================

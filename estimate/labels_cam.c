@@ -95,10 +95,10 @@ typedef struct cam_run {
 
 /* The extra planes after the feed's, per block of n pixels. */
 typedef struct cam_planes {
-	float *x, *cov, *post, *angle, *scale, *best, *d2;
+	float *x, *cov, *post, *angle, *scale, *best, *fshare, *d2;
 } cam_planes;
 
-static size_t extra_floats(int nm) { return 3 + 6 + 4 + (size_t)nm; }
+static size_t extra_floats(int nm) { return 3 + 6 + 5 + (size_t)nm; }
 
 static cam_planes cam_planes_of(const cam_run *r, void *in, size_t n)
 {
@@ -110,7 +110,8 @@ static cam_planes cam_planes_of(const cam_run *r, void *in, size_t n)
 	c.angle = p + 10 * n;
 	c.scale = p + 11 * n;
 	c.best = p + 12 * n;
-	c.d2 = p + 13 * n;
+	c.fshare = p + 13 * n; /* the calibration's share of the pixel's noise */
+	c.d2 = p + 14 * n;
 	return c;
 }
 
@@ -121,11 +122,15 @@ static void cam_compute(void *user, void *inbuf, size_t n, uint8_t *labels, floa
 	planes pl = ap_feed_planes(&r->in, inbuf, n);
 	cam_planes cp = cam_planes_of(r, inbuf, n);
 	const float clip = r->in.clip;
-	/* which pixels are matched: the rest get a harmless reading and are relabelled */
-	uint8_t *best = (uint8_t *)cp.best; /* n bytes at the start of the plane */
+	const double Rtr = r->nz.R[0] + r->nz.R[4] + r->nz.R[8];
+	/* Pixels refused before matching (masked out, flagged, dark) are labelled here;
+	 * the others are packed to the front of x and cov (their indices in idx, which
+	 * borrows the posterior plane), matched, and their results spread back. */
+	uint32_t *idx = (uint32_t *)cp.post;
+	uint8_t *best = (uint8_t *)cp.best; /* bytes, at the front of its plane */
+	size_t m = 0;
 	for (size_t i = 0; i < n; i++) {
 		const float *px = pl.raw + 3 * i;
-		double x[3], c[6];
 		if (!isfinite(px[0]) || !isfinite(px[1]) || !isfinite(px[2])) {
 			mask[i] = KG_EST_MASK_NONFINITE;
 			++*nonfinite;
@@ -135,74 +140,82 @@ static void cam_compute(void *user, void *inbuf, size_t n, uint8_t *labels, floa
 		} else {
 			mask[i] = 0;
 		}
-		pixel_noise(&r->nz, px, pl.var ? pl.var + 3 * i : NULL, x, c);
-		for (int a = 0; a < 3; a++)
-			cp.x[3 * i + a] = (float)x[a];
-		for (int e = 0; e < 6; e++)
-			cp.cov[6 * i + e] = (float)c[e];
+		cp.fshare[i] = 0.0f;
+		if (pl.mask && pl.mask[i] == 0.0f)
+			labels[i] = r->background;
+		else if (mask[i])
+			labels[i] = KG_EST_LABEL_NONE;
+		else if (fmaxf(px[0], fmaxf(px[1], px[2])) < r->background_level)
+			labels[i] = r->background;
+		else {
+			double x[3], c[6];
+			pixel_noise(&r->nz, px, pl.var ? pl.var + 3 * i : NULL, x, c);
+			for (int a = 0; a < 3; a++)
+				cp.x[3 * m + a] = (float)x[a];
+			for (int e = 0; e < 6; e++)
+				cp.cov[6 * m + e] = (float)c[e];
+			double tot = c[0] + c[3] + c[5];
+			double cal = (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]) / 3.0 * Rtr;
+			cp.fshare[i] = tot > 0 && isfinite(tot) ? (float)(cal / tot) : 0.0f;
+			labels[i] = 0xff; /* to be matched */
+			idx[m++] = (uint32_t)i;
+		}
+		conf[i] = NAN;
 	}
 	kg_cs_block out = {best, NULL, NULL, cp.angle, cp.scale, cp.d2};
-	kg_cs_match_block(r->model, cp.x, cp.cov, n, &out);
+	kg_cs_match_block(r->model, cp.x, cp.cov, m, &out);
 	const int nm = r->nm;
+	for (size_t k = m; k-- > 0;) { /* idx[k] >= k: from the back, nothing is overwritten early */
+		size_t i = idx[k];
+		if (i == k)
+			continue;
+		best[i] = best[k];
+		cp.angle[i] = cp.angle[k];
+		cp.scale[i] = cp.scale[k];
+		memmove(cp.d2 + i * (size_t)nm, cp.d2 + k * (size_t)nm, sizeof(float) * (size_t)nm);
+	}
 	for (size_t i = 0; i < n; i++) {
-		const float *px = pl.raw + 3 * i;
 		const float *d2 = cp.d2 + i * (size_t)nm;
-		int refused = 0;
-		if (pl.mask && pl.mask[i] == 0.0f) {
-			labels[i] = r->background;
-			refused = 1;
-		} else if (mask[i]) {
-			labels[i] = KG_EST_LABEL_NONE;
-			refused = 1;
-		} else if (fmaxf(px[0], fmaxf(px[1], px[2])) < r->background_level) {
-			labels[i] = r->background;
-			refused = 1;
-		} else if (best[i] == KG_CS_NO_MATCH) {
+		if (labels[i] != 0xff) {
+			cp.post[i] = cp.angle[i] = cp.scale[i] = NAN;
+			continue;
+		}
+		if (best[i] == KG_CS_NO_MATCH) {
 			labels[i] = r->unknown;
-			refused = 1;
+			cp.post[i] = cp.angle[i] = cp.scale[i] = NAN;
+			continue;
 		}
-		if (!refused) {
-			/* classes: the least distance of their members */
-			double dc[KG_EST_MAX_MATERIALS], dmin = INFINITY;
-			for (int c = 0; c < r->nc; c++)
-				dc[c] = INFINITY;
-			for (int j = 0; j < nm; j++) {
-				double d = d2[j];
-				if (d < dc[r->group[j]])
-					dc[r->group[j]] = d;
-				if (d < dmin)
-					dmin = d;
-			}
-			int cb = r->group[best[i]];
-			double second = INFINITY, sum = 0, mine = 0;
-			for (int c = 0; c < r->nc; c++)
-				if (c != cb && dc[c] < second)
-					second = dc[c];
-			for (int j = 0; j < nm; j++) {
-				double w = exp(-0.5 * (d2[j] - dmin));
-				sum += w;
-				if (r->group[j] == cb)
-					mine += w;
-			}
-			if (dmin > r->threshold) {
-				labels[i] = r->unknown;
-				refused = 1;
-			} else {
-				labels[i] = (uint8_t)(cb + 1);
-				conf[i] = (float)(second - dmin);
-				cp.post[i] = (float)(mine / sum);
-			}
+		/* classes: the least distance of their members */
+		double dc[KG_EST_MAX_MATERIALS], dmin = INFINITY;
+		for (int c = 0; c < r->nc; c++)
+			dc[c] = INFINITY;
+		for (int j = 0; j < nm; j++) {
+			double d = d2[j];
+			if (d < dc[r->group[j]])
+				dc[r->group[j]] = d;
+			if (d < dmin)
+				dmin = d;
 		}
-		if (refused) {
-			conf[i] = NAN;
-			cp.post[i] = NAN;
-			cp.angle[i] = NAN;
-			cp.scale[i] = NAN;
+		int cb = r->group[best[i]];
+		double second = INFINITY, sum = 0, mine = 0;
+		for (int c = 0; c < r->nc; c++)
+			if (c != cb && dc[c] < second)
+				second = dc[c];
+		for (int j = 0; j < nm; j++) {
+			double w = exp(-0.5 * (d2[j] - dmin));
+			sum += w;
+			if (r->group[j] == cb)
+				mine += w;
+		}
+		if (dmin > r->threshold) {
+			labels[i] = r->unknown;
+			cp.post[i] = cp.angle[i] = cp.scale[i] = NAN;
+		} else {
+			labels[i] = (uint8_t)(cb + 1);
+			conf[i] = (float)(second - dmin);
+			cp.post[i] = (float)(mine / sum);
 		}
 	}
-	/* the sink reads best as floats */
-	for (size_t i = n; i-- > 0;)
-		cp.best[i] = (float)best[i];
 }
 
 /* ---- regions ----------------------------------------------------------------------- */
@@ -456,16 +469,18 @@ static region_decision decide(const regions *g, uint32_t id, const int *group, i
 		r.posterior = w[jbest] / sum;
 	}
 	r.d2_mean = D[jbest] / N;
-	/* the pooled unknown test: the best material's summed d2 against chi-square with
-	 * 2 N degrees of freedom (its 99.9 % point; Wilson-Hilferty above 1000) */
-	double dof = 2.0 * N, q;
+	/* the pooled unknown test: the best material's summed d2, scaled like the
+	 * differences (the calibration's error is one error for the whole region), against
+	 * chi-square with 2 N s degrees of freedom (its 99.9 % point; Wilson-Hilferty above
+	 * 1000) */
+	double dof = ceil(2.0 * N * s), q;
 	if (dof <= 1000)
 		q = kg_chi2_quantile(0.999, (int)dof);
 	else {
 		double h = 2.0 / (9.0 * dof), z = 3.090232306167813;
 		q = dof * pow(1.0 - h + z * sqrt(h), 3.0);
 	}
-	r.unknown = dmin > q;
+	r.unknown = s * dmin > q;
 	return r;
 }
 
@@ -492,7 +507,6 @@ typedef struct cam_sink {
 	int pw, ph, next_py, height;
 	float *conf4;   /* a block's 4 bands, BIP */
 	size_t conf4_cap;
-	float *fshare;  /* a row's calibration shares */
 	regions reg;
 } cam_sink;
 
@@ -534,23 +548,15 @@ static int cam_sink_fn(void *user, const kg_est_block *b, kg_err *err)
 	if (s->reg.on)
 		for (int y = 0; y < b->rows && !rc; y++) {
 			size_t o = (size_t)y * b->width;
-			for (int x = 0; x < b->width; x++) {
-				const float *cv = cp.cov + 6 * (o + x);
-				const float *xx = cp.x + 3 * (o + x);
-				double l2 = ((double)xx[0] * xx[0] + (double)xx[1] * xx[1] +
-				             (double)xx[2] * xx[2]) / 3.0;
-				double cal = l2 * (r->nz.R[0] + r->nz.R[4] + r->nz.R[8]);
-				double tot = (double)cv[0] + cv[3] + cv[5];
-				s->fshare[x] = tot > 0 && isfinite(tot) ? (float)(cal / tot) : 0.0f;
-			}
+			const float *fshare = cp.fshare + o;
 			const float *d2 = cp.d2 + o * (size_t)r->nm;
 			if (s->reg.user) {
 				rc = s->region_map->read(s->region_map->user, b->y0 + y, 1, s->region_row, err);
 				if (!rc)
-					rc = regions_user_row(&s->reg, s->region_row, lab + o, d2, s->fshare,
+					rc = regions_user_row(&s->reg, s->region_row, lab + o, d2, fshare,
 					                      s->nclasses, err);
 			} else {
-				rc = regions_row(&s->reg, lab + o, d2, s->fshare, s->nclasses, err);
+				rc = regions_row(&s->reg, lab + o, d2, fshare, s->nclasses, err);
 			}
 		}
 	if (rc)
@@ -576,6 +582,9 @@ static int cam_sink_fn(void *user, const kg_est_block *b, kg_err *err)
 
 typedef struct survey_result {
 	uint64_t pixels;
+	/* per channel, the variance of a site reading rho: a + b rho + c rho^2 (fitted to the
+	 * variance image by least squares, c = 0; or the noise model: floor^2, 0, rel^2) */
+	double va[3], vb[3], vc[3];
 	double cov[9];   /* mean covariance */
 	double level;    /* mean intensity, in the model's units */
 	double rms;      /* mean rms reading */
@@ -588,6 +597,7 @@ static int survey(const cam_run *r, const kg_classify_camera *cam, const kg_cs_m
 	memset(out, 0, sizeof(*out));
 	const kg_row_source *img = cam->survey, *var = cam->survey_variance;
 	double csum[6] = {0}, lsum = 0;
+	double rs[3] = {0}, rs2[3] = {0}, vs[3] = {0}, vrs[3] = {0};
 	uint64_t count = 0;
 	if (img) {
 		int W = img->width, H = img->height;
@@ -615,6 +625,13 @@ static int survey(const cam_run *r, const kg_classify_camera *cam, const kg_cs_m
 				pixel_noise(&r->nz, p, var ? vbuf + 3 * i : NULL, x, c);
 				for (int e = 0; e < 6; e++)
 					csum[e] += c[e];
+				for (int ch = 0; var && ch < 3; ch++) {
+					double rho = p[ch], v = vbuf[3 * i + ch] * r->nz.inv_frames;
+					rs[ch] += rho;
+					rs2[ch] += rho * rho;
+					vs[ch] += v;
+					vrs[ch] += v * rho;
+				}
 				lsum += sqrt((x[0] * x[0] + x[1] * x[1] + x[2] * x[2]) / 3.0);
 				count++;
 			}
@@ -649,12 +666,93 @@ static int survey(const cam_run *r, const kg_classify_camera *cam, const kg_cs_m
 	for (int e = 0; e < 6; e++)
 		out->cov[3 * ia[e] + ib[e]] = out->cov[3 * ib[e] + ia[e]] = c[e];
 	out->pixels = count;
+	for (int ch = 0; ch < 3; ch++) {
+		if (!var || !count) {
+			out->va[ch] = r->nz.floor2;
+			out->vb[ch] = 0;
+			out->vc[ch] = r->nz.rel2;
+			continue;
+		}
+		double n = (double)count, mr = rs[ch] / n, mv = vs[ch] / n;
+		double sxx = rs2[ch] / n - mr * mr, sxy = vrs[ch] / n - mr * mv;
+		double b = sxx > 0 ? sxy / sxx : 0, a = mv - b * mr;
+		if (b < 0) {
+			b = 0;
+			a = mv;
+		}
+		if (a < 0) {
+			a = 0;
+			b = rs2[ch] > 0 ? vrs[ch] / rs2[ch] : 0;
+		}
+		out->va[ch] = a > 1e-14 ? a : 1e-14;
+		out->vb[ch] = b;
+		out->vc[ch] = 0;
+	}
 	double level = mu_rms > 0 ? out->rms / mu_rms : 1.0;
 	out->level = level < m->lo ? m->lo : level > m->hi ? m->hi : level;
 	double tr = out->cov[0] + out->cov[4] + out->cov[8];
 	double cal = out->rms * out->rms * (r->nz.R[0] + r->nz.R[4] + r->nz.R[8]);
 	out->calib_share = tr > 0 ? cal / tr : 0;
 	return 0;
+}
+
+/* The inverse of a 3 x 3 matrix (row-major); -1 when singular. */
+static int inverse3(const double *a, double *o)
+{
+	double c0 = a[4] * a[8] - a[5] * a[7], c1 = a[5] * a[6] - a[3] * a[8],
+	       c2 = a[3] * a[7] - a[4] * a[6];
+	double det = a[0] * c0 + a[1] * c1 + a[2] * c2;
+	if (!(fabs(det) > 0) || !isfinite(det))
+		return -1;
+	double id = 1.0 / det;
+	o[0] = c0 * id;
+	o[1] = (a[2] * a[7] - a[1] * a[8]) * id;
+	o[2] = (a[1] * a[5] - a[2] * a[4]) * id;
+	o[3] = c1 * id;
+	o[4] = (a[0] * a[8] - a[2] * a[6]) * id;
+	o[5] = (a[2] * a[3] - a[0] * a[5]) * id;
+	o[6] = c2 * id;
+	o[7] = (a[1] * a[6] - a[0] * a[7]) * id;
+	o[8] = (a[0] * a[4] - a[1] * a[3]) * id;
+	return 0;
+}
+
+/* Every pair's separability with each reading's own noise: material i at angle k at
+ * the survey's level x = level mu, its site reading M2^-1 x, that reading's variance
+ * from the survey's noise model through M2, and the calibration's l^2 R. */
+static int separability(const cam_run *r, const kg_cs_model *m, const survey_result *sv,
+                        double *d, kg_err *err)
+{
+	double Mi[9];
+	if (inverse3(r->nz.M2, Mi))
+		return kg_fail(err, KG_EINVAL, "camera space: M2 is singular");
+	size_t nr = (size_t)m->n * (size_t)m->nangles;
+	double *covs = malloc(sizeof(double) * 9 * nr);
+	if (!covs)
+		return kg_fail(err, KG_ENOMEM, "out of memory");
+	for (size_t q = 0; q < nr; q++) {
+		double x[3], rho[3], v[3];
+		for (int a = 0; a < 3; a++)
+			x[a] = sv->level * m->mu[3 * q + a];
+		for (int a = 0; a < 3; a++)
+			rho[a] = Mi[3 * a] * x[0] + Mi[3 * a + 1] * x[1] + Mi[3 * a + 2] * x[2];
+		for (int c = 0; c < 3; c++) {
+			double p = rho[c] > 0 ? rho[c] : 0;
+			v[c] = sv->va[c] + sv->vb[c] * p + sv->vc[c] * p * p;
+		}
+		double l2 = (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]) / 3.0;
+		double *C = covs + 9 * q;
+		for (int a = 0; a < 3; a++)
+			for (int b = 0; b < 3; b++) {
+				double s = 0;
+				for (int c = 0; c < 3; c++)
+					s += r->nz.M2[3 * a + c] * r->nz.M2[3 * b + c] * v[c];
+				C[3 * a + b] = s + l2 * r->nz.R[3 * a + b];
+			}
+	}
+	int rc = kg_cs_separability_each(m, covs, sv->level, d, err);
+	free(covs);
+	return rc;
 }
 
 /* ---- LABELS.json ------------------------------------------------------------------ */
@@ -716,6 +814,11 @@ static int write_json(const char *path, const kg_est_material_set *set,
 		json_object_set_new(nz, "noise_floor", json_real(copt->noise_floor));
 	}
 	json_object_set_new(nz, "survey_pixels", json_integer((json_int_t)sv->pixels));
+	json_object_set_new(nz, "variance_model",
+	                    json_pack("{s:s,s:[fff],s:[fff],s:[fff]}", "form",
+	                              "per site channel: a + b rho + c rho^2", "a", sv->va[0],
+	                              sv->va[1], sv->va[2], "b", sv->vb[0], sv->vb[1], sv->vb[2],
+	                              "c", sv->vc[0], sv->vc[1], sv->vc[2]));
 	json_object_set_new(nz, "mean_covariance", mat3(sv->cov));
 	json_object_set_new(nz, "mean_rms_reading", json_real(sv->rms));
 	json_object_set_new(nz, "level", json_real(sv->level));
@@ -763,8 +866,10 @@ static int write_json(const char *path, const kg_est_material_set *set,
 	json_object_set_new(sj, "merge_distance", ap_json_num(merge_d));
 	json_object_set_new(sj, "description",
 	                    json_string("least noise-weighted distance between two materials over "
-	                                "every angle and intensity at the capture's noise (the "
-	                                "survey's mean covariance, at its level); a pixel tells "
+	                                "every angle and intensity at the capture's noise (each "
+	                                "reading at the survey's level with its own covariance "
+	                                "from the fitted variance model and the calibration); a "
+	                                "pixel tells "
 	                                "them apart with error Phi(-d/2); pixels_for_1pc: pixels "
 	                                "a region must pool for a 1 % error; pairs closer than "
 	                                "merge_distance are one class"));
@@ -848,9 +953,9 @@ static int write_json(const char *path, const kg_est_material_set *set,
 	                                "(f: the calibration's share of a pixel's noise, which "
 	                                "pooling does not reduce); a compound class resolves to "
 	                                "a member whose share of its posterior is >= 0.99; "
-	                                "'unknown' when the best material's summed d2 exceeds "
-	                                "the 99.9 % point of chi-square with 2 N degrees of "
-	                                "freedom"));
+	                                "'unknown' when the best material's summed d2, scaled "
+	                                "the same, exceeds the 99.9 % point of chi-square with "
+	                                "2 N / (1 + N f) degrees of freedom"));
 	json_t *table = json_array();
 	if (reg->on && !reg->overflow && reg->final) {
 		int listed = 0;
@@ -1073,7 +1178,7 @@ int kg_classify_camera_rows(const kg_est_kernel *k, const kg_est_material_set *s
 		rc = kg_fail(err, KG_ENOMEM, "out of memory");
 		goto out;
 	}
-	if ((rc = kg_cs_separability(model, sv.cov, sv.level, sep, err)))
+	if ((rc = separability(&run, model, &sv, sep, err)))
 		goto out;
 	run.nc = merge_d > 0 ? kg_cs_merge_groups(sep, nm, merge_d, run.group) : nm;
 	if (merge_d <= 0)
@@ -1140,9 +1245,8 @@ int kg_classify_camera_rows(const kg_est_kernel *k, const kg_est_material_set *s
 	ap_preview_size(W, H, &sink.pw, &sink.ph);
 	sink.preview = malloc((size_t)sink.pw * sink.ph);
 	sink.cs = calloc((size_t)run.nc, sizeof(*sink.cs));
-	sink.fshare = malloc(sizeof(float) * (size_t)W);
 	sink.region_row = cam->region_map ? malloc(sizeof(float) * (size_t)W) : NULL;
-	if (!names || !lookup || !sink.preview || !sink.cs || !sink.fshare ||
+	if (!names || !lookup || !sink.preview || !sink.cs ||
 	    (cam->region_map && !sink.region_row)) {
 		rc = kg_fail(err, KG_ENOMEM, "classify: out of memory");
 		goto out;
@@ -1277,7 +1381,6 @@ out:
 	free(sink.preview);
 	free(sink.stage.v);
 	free(sink.conf4);
-	free(sink.fshare);
 	free(sink.region_row);
 	regions_free(&sink.reg);
 	set_free_classes(&classes);

@@ -129,7 +129,8 @@ static const json_t *previous_object(const proc *p, const char *name)
 	return NULL;
 }
 
-/* Bands of rows of a one-band cube, to a function. */
+/* Bands of rows of a cube (every band, BIP: buf holds band rows of them) to a
+ * function. */
 static int envi_bands(const kg_envi *e, float *buf, int band,
                       int (*fn)(void *user, int y0, int rows, const float *v), void *user,
                       kg_err *err)
@@ -146,6 +147,7 @@ static int envi_bands(const kg_envi *e, float *buf, int band,
 
 typedef struct conf_scan {
 	int w, pass;
+	int bands, band; /* the file's bands, the one shown */
 	float lo, hi;
 	long m, bins[1024];
 	int step, ow;
@@ -157,6 +159,11 @@ static int conf_band(void *user, int y0, int rows, const float *v)
 {
 	conf_scan *c = user;
 	size_t n = (size_t)rows * c->w;
+	/* the shown band, packed in place */
+	float *p = (float *)v;
+	for (size_t i = 0; c->bands > 1 && i < n; i++)
+		p[i] = v[i * (size_t)c->bands + (size_t)c->band];
+	v = p;
 	if (c->pass == 0) {
 		for (size_t i = 0; i < n; i++)
 			if (isfinite(v[i])) {
@@ -184,10 +191,12 @@ static int conf_band(void *user, int y0, int rows, const float *v)
 	return 0;
 }
 
-/* The confidence band as a grey image at most max_side pixels on its longer side
- * (every step-th pixel, as the photograph's preview): 0 black, the 95th percentile
- * and up white, not classified (NaN) dark red. Three passes over the band's file:
- * its range, a 1024-bin count over the range for the percentile, the image. */
+/* The confidence as a grey image at most max_side pixels on its longer side (every
+ * step-th pixel, as the photograph's preview), not classified (NaN) dark red. A
+ * one-band file (eq. 11: the margin): 0 black, the 95th percentile and up white; a
+ * camera-space file (4 bands): its posterior band, 0 black to 1 white. Three passes
+ * over the file: the range, a 1024-bin count over the range for the percentile, the
+ * image. */
 static int confidence_png(const char *hdr, const char *png, int max_side, kg_err *err)
 {
 	kg_envi *e = NULL;
@@ -195,13 +204,13 @@ static int confidence_png(const char *hdr, const char *png, int max_side, kg_err
 	if (ret)
 		return ret;
 	int w = e->meta.samples, h = e->meta.lines;
-	conf_scan c = {.w = w, .step = 1};
+	conf_scan c = {.w = w, .step = 1, .bands = e->meta.bands, .band = e->meta.bands == 4};
 	while ((w + c.step - 1) / c.step > max_side || (h + c.step - 1) / c.step > max_side)
 		c.step++;
 	c.ow = (w + c.step - 1) / c.step;
 	int oh = (h + c.step - 1) / c.step;
 	int band = (int)((1u << 20) / (unsigned)w) + 1;
-	float *v = malloc(sizeof(float) * (size_t)w * (size_t)band);
+	float *v = malloc(sizeof(float) * (size_t)w * (size_t)band * (size_t)c.bands);
 	c.out = malloc(3 * (size_t)c.ow * (size_t)oh);
 	if (!v || !c.out)
 		ret = kg_fail(err, KG_ENOMEM, "out of memory");
@@ -209,7 +218,7 @@ static int confidence_png(const char *hdr, const char *png, int max_side, kg_err
 		ret = envi_bands(e, v, band, conf_band, &c, err);
 		if (c.pass == 1) {
 			c.top = 1;
-			if (c.m) {
+			if (c.m && c.bands == 1) {
 				long acc = 0;
 				int b = 0;
 				while (b < 1023 && (acc += c.bins[b]) < (long)(0.95 * (double)c.m))

@@ -1,6 +1,7 @@
 /* `kogei demo -o DIR` end to end: it exits 0, writes every file it promises, the
  * files read back through the core readers (the cube has 61 bands 400-700 nm, the
- * label map names every material of the default library, labels.json parses, the
+ * label map's classes hold every material of the default library once, with copper
+ * and shakudo one class, labels.json parses, the
  * PNGs decode), the chart's spectra measured with the simulated spectrophotometer
  * (chart_spectra.cgats) hold the layout's 15 patches in `kogei measure`'s format and
  * agree with the spectra of CIE-TCS.sp within SPECTRA_RMSE_TOL / SPECTRA_DIFF_TOL,
@@ -26,8 +27,11 @@
  * Bayer capture of the site camera (the same camera as the site chart, as kogei
  * process requires) processed by kogei process, 77.58 % (11202 of the 14440 pixels
  * not at a sample's border: the 1560 border pixels, which bilinear demosaicing mixes
- * with the black ground, are counted apart).
- * The errors are among the near-identical alloys (copper / shakudo, the three nami
+ * with the black ground, are counted apart). Since camera-space matching is the
+ * default, a pixel is right when its label holds its true material (a compound class
+ * of materials the noise cannot split holds several): 99.70 % (14397 of 14440) in 6
+ * classes (copper|shakudo, and the four nami/jo shibuichi are each one class).
+ * With eq. 11, the errors were among the near-identical alloys (copper / shakudo, the three nami
  * shibuichi). The floor leaves room for changes in the models, the calibration and
  * the detection, not for a broken pipeline (chance is 10 %; gold, silver,
  * shibuichi-shiro and urushi alone are 40 %).
@@ -123,17 +127,46 @@ static void check_labels(const char *dir, const kg_material_library *lib)
 	CHECK(ret == 0, "%s: %s", path, err.msg);
 	int n = kg_material_library_count(lib);
 	if (!ret) {
-		/* unclassified, the materials, then unknown and background */
-		CHECK(e->meta.classes == n + 3, "%s: %d classes, expected %d", path, e->meta.classes,
-		      n + 3);
-		for (int j = 0; j < n && j + 1 < e->meta.classes; j++)
-			CHECK(strcmp(e->meta.class_names[j + 1], kg_material_library_get(lib, j)->name) == 0,
-			      "%s: class %d is '%s'", path, j + 1, e->meta.class_names[j + 1]);
-		if (e->meta.classes == n + 3)
-			CHECK(strcmp(e->meta.class_names[n + 1], "unknown") == 0 &&
-			          strcmp(e->meta.class_names[n + 2], "background") == 0,
-			      "%s: classes %d and %d are '%s' and '%s'", path, n + 1, n + 2,
-			      e->meta.class_names[n + 1], e->meta.class_names[n + 2]);
+		/* unclassified, the classes (a material or a compound "a|b" of materials the
+		 * noise cannot split), then unknown and background; every material of the
+		 * library in exactly one class, the classes in the order of their first
+		 * members */
+		int nc = e->meta.classes;
+		CHECK(nc >= 4 && strcmp(e->meta.class_names[0], "unclassified") == 0 &&
+		          strcmp(e->meta.class_names[nc - 2], "unknown") == 0 &&
+		          strcmp(e->meta.class_names[nc - 1], "background") == 0,
+		      "%s: %d classes: expected unclassified, the classes, unknown, background", path,
+		      nc);
+		int seen[KG_EST_MAX_MATERIALS] = {0}, last_first = -1, copper_shakudo = 0;
+		for (int c = 1; c + 2 < nc; c++) {
+			char buf[KG_EST_CLASS_NAME_MAX];
+			snprintf(buf, sizeof(buf), "%s", e->meta.class_names[c]);
+			int first = -1, has_cu = 0, has_sh = 0;
+			for (char *save = NULL, *tok = strtok_r(buf, "|", &save); tok;
+			     tok = strtok_r(NULL, "|", &save)) {
+				int j = -1;
+				for (int k = 0; k < n; k++)
+					if (strcmp(tok, kg_material_library_get(lib, k)->name) == 0)
+						j = k;
+				CHECK(j >= 0, "%s: class %d '%s' names '%s', not a library material", path, c,
+				      e->meta.class_names[c], tok);
+				if (j < 0)
+					continue;
+				seen[j]++;
+				first = first < 0 ? j : first;
+				has_cu |= !strcmp(tok, "copper");
+				has_sh |= !strcmp(tok, "shakudo");
+			}
+			CHECK(first > last_first, "%s: class %d '%s' out of the library's order", path, c,
+			      e->meta.class_names[c]);
+			last_first = first;
+			copper_shakudo |= has_cu && has_sh;
+		}
+		for (int j = 0; j < n; j++)
+			CHECK(seen[j] == 1, "%s: material %s in %d classes", path,
+			      kg_material_library_get(lib, j)->name, seen[j]);
+		CHECK(copper_shakudo, "%s: copper and shakudo (0.5 %% apart in RGB) are not one class",
+		      path);
 	}
 	kg_envi_close(&e);
 	free(path);
