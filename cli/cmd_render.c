@@ -1,4 +1,6 @@
+#include <errno.h>
 #include <getopt.h>
+#include <inttypes.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -7,11 +9,14 @@
 
 #include "cli.h"
 #include "kg_render.h"
+#include "kg_sim.h"
 
 static const char usage_render[] =
 	"kogei render --scene SCENE.json -o IMAGE.png [--linear XYZ.tif] [--spp N]\n"
 	"             [--wavelengths N|all] [--bounces N] [--threads N] [--seed N]\n"
 	"             [--width N] [--height N] [--material NAME] [--preview] [--quiet]\n"
+	"             [--camera CSS.csv [--white-level W] [--noise FULLWELL:READ:BITS]]\n"
+	"             [--truth-labels LABELS.hdr] [--truth-angle ANGLE.hdr]\n"
 	"  Render a scene (docs/render.md, \"format\": \"kogei-scene/1\") spectrally with\n"
 	"  Embree: an 8-bit sRGB PNG (white-balanced to the scene's light) and, with\n"
 	"  --linear, a 32-bit float TIFF of CIE 1931 XYZ (Y = 1 for a white diffuser lit by\n"
@@ -19,7 +24,21 @@ static const char usage_render[] =
 	"  samples per pixel, bands per path (hero wavelengths; 'all' = 61), surface\n"
 	"  interactions per path, the seed (same seed, same image, any thread count).\n"
 	"  --threads defaults to every core. --material renders the whole mesh in one\n"
-	"  library material. --preview traces camera rays only, shaded grey by N.V.";
+	"  library material. --preview traces camera rays only, shaded grey by N.V.\n"
+	"  --camera CSS.csv: a camera photograph: --linear holds linear camera RGB, the\n"
+	"  radiance weighted by the sensitivities (CSV wavelength_nm,r,g,b covering\n"
+	"  400-700 nm) instead of the CIE observer, scaled so a white diffuser lit by the\n"
+	"  scene's light at intensity 1 reads W (--white-level, default 0.9) in its\n"
+	"  brightest channel; the PNG stays the sRGB preview. --noise adds sim's sensor\n"
+	"  noise to it (Poisson shot noise for FULLWELL electrons at full scale, Gaussian\n"
+	"  read noise of READ electrons rms, clipping to 0..1, quantisation to BITS = 8, 10,\n"
+	"  12, 14 or 16), drawn from --seed. --truth-labels: an ENVI classification map\n"
+	"  (uint8) of the library material each pixel's camera rays hit first (class 0\n"
+	"  background: nothing, or a mesh part marked \"background\": true; then the\n"
+	"  library's materials in its order; a pixel takes its samples' majority).\n"
+	"  --truth-angle: an ENVI float32 band of the incidence angle there (degrees\n"
+	"  between surface normal and view direction, mean over the pixel's samples of\n"
+	"  its class; NaN on background).";
 
 typedef struct progress_state {
 	int last;
@@ -51,6 +70,32 @@ static int parse_count(const char *text, const char *what, long min, long max, l
 	return 0;
 }
 
+static int parse_white_level(const char *text, double *out)
+{
+	char *end;
+	errno = 0;
+	double v = strtod(text, &end);
+	if (end == text || *end || errno || !(v >= 1e-6 && v <= 1e6))
+		return kg_cli_usage_error(usage_render, "--white-level '%s': expected a number "
+		                          "from 1e-06 to 1e+06", text);
+	*out = v;
+	return 0;
+}
+
+/* Remove an output written earlier in a failed run (both files of an ENVI pair). */
+static void remove_output(const char *path, int envi)
+{
+	char *hdr = NULL, *data = NULL;
+	if (envi && kg_envi_paths(path, &hdr, &data, NULL) == 0) {
+		unlink(hdr);
+		unlink(data);
+	} else {
+		unlink(path);
+	}
+	free(hdr);
+	free(data);
+}
+
 /* The folder of an output file must exist before hours of rendering. */
 static int check_output_dir(const char *path, kg_err *err)
 {
@@ -72,6 +117,9 @@ static int check_output_dir(const char *path, kg_err *err)
 int kg_cmd_render(int argc, char **argv)
 {
 	const char *scene_path = NULL, *out = NULL, *linear = NULL, *material = NULL;
+	const char *camera = NULL, *noise_text = NULL, *white_text = NULL;
+	const char *truth_labels = NULL, *truth_angle = NULL;
+	double white_level = 0.9;
 	kg_render_options opt = {0};
 	int quiet = 0;
 	long v;
@@ -88,6 +136,11 @@ int kg_cmd_render(int argc, char **argv)
 		{"height", required_argument, NULL, 'H'},
 		{"material", required_argument, NULL, 'm'},
 		{"preview", no_argument, NULL, 'p'},
+		{"camera", required_argument, NULL, 'c'},
+		{"white-level", required_argument, NULL, 'L'},
+		{"noise", required_argument, NULL, 'N'},
+		{"truth-labels", required_argument, NULL, 'T'},
+		{"truth-angle", required_argument, NULL, 'A'},
 		{"quiet", no_argument, NULL, 'q'},
 		{"help", no_argument, NULL, 'h'},
 		{0, 0, 0, 0},
@@ -101,6 +154,14 @@ int kg_cmd_render(int argc, char **argv)
 		case 'o': out = optarg; break;
 		case 'l': linear = optarg; break;
 		case 'm': material = optarg; break;
+		case 'c': camera = optarg; break;
+		case 'L':
+			white_text = optarg;
+			bad = parse_white_level(optarg, &white_level);
+			break;
+		case 'N': noise_text = optarg; break;
+		case 'T': truth_labels = optarg; break;
+		case 'A': truth_angle = optarg; break;
 		case 'p': opt.mode = KG_RENDER_PREVIEW; break;
 		case 'q': quiet = 1; break;
 		case 'n':
@@ -151,10 +212,20 @@ int kg_cmd_render(int argc, char **argv)
 		return kg_cli_usage_error(usage_render, "--scene is required");
 	if (!out)
 		return kg_cli_usage_error(usage_render, "-o IMAGE.png is required");
+	if (noise_text && !camera)
+		return kg_cli_usage_error(usage_render, "--noise: only with --camera (the noise is "
+		                          "a camera's)");
+	if (white_text && !camera)
+		return kg_cli_usage_error(usage_render, "--white-level: only with --camera");
 
 	kg_err err = {{0}};
+	kg_sim_noise noise = {0};
+	if (noise_text && kg_sim_noise_parse(noise_text, &noise, &err) != 0)
+		return kg_cli_usage_error(usage_render, "--noise: %s", err.msg);
 	kg_scene *scene = NULL;
-	kg_image *xyz = NULL;
+	kg_render_result res = {0};
+	kg_sim_camera cam;
+	kg_sim_capture cap;
 	kg_render_stats st;
 	progress_state ps = {.last = -1, .tty = isatty(STDERR_FILENO)};
 	if (!quiet) {
@@ -164,16 +235,51 @@ int kg_cmd_render(int argc, char **argv)
 	int ret = check_output_dir(out, &err);
 	if (!ret && linear)
 		ret = check_output_dir(linear, &err);
+	if (!ret && truth_labels)
+		ret = check_output_dir(truth_labels, &err);
+	if (!ret && truth_angle)
+		ret = check_output_dir(truth_angle, &err);
 	if (!ret)
 		ret = kg_scene_load(scene_path, &scene, &err);
 	if (!ret && material)
 		ret = kg_scene_set_material(scene, material, &err);
+	if (!ret && camera) {
+		/* sim/'s camera and exposure: the weights k S_c(lambda) dlambda with k set so
+		 * the scene's light on a white diffuser reads white_level */
+		kg_spectrum light;
+		kg_scene_light_spectrum(scene, &light);
+		ret = kg_sim_camera_load(camera, 0, &cam, &err);
+		if (!ret && (ret = kg_sim_capture_init(&cap, &cam, &light, white_level, &noise, &err)))
+			kg_err_prefix(&err, "--camera %s", camera);
+		opt.observer = cap.signal_weight;
+		opt.want_xyz = 1;
+	}
+	opt.want_truth = truth_labels || truth_angle;
 	if (!ret)
-		ret = kg_render(scene, &opt, &xyz, &st, &err);
-	if (!ret && linear)
-		ret = kg_render_write_xyz_tiff(xyz, linear, &err);
-	if (!ret && (ret = kg_render_write_png(xyz, kg_scene_white(scene), out, &err)) && linear)
-		unlink(linear); /* both outputs or neither */
+		ret = kg_render_full(scene, &opt, &res, &st, &err);
+	if (!ret && camera)
+		kg_sim_noise_image(&noise, res.image, st.seed);
+	/* every output or none: a failure removes those already written */
+	int wrote_linear = 0, wrote_labels = 0, wrote_angle = 0;
+	if (!ret && linear && !(ret = kg_render_write_xyz_tiff(res.image, linear, &err)))
+		wrote_linear = 1;
+	if (!ret && truth_labels &&
+	    !(ret = kg_render_truth_write_labels(res.truth, truth_labels, &err)))
+		wrote_labels = 1;
+	if (!ret && truth_angle &&
+	    !(ret = kg_render_truth_write_angle(res.truth, truth_angle, &err)))
+		wrote_angle = 1;
+	if (!ret)
+		ret = kg_render_write_png(res.xyz ? res.xyz : res.image, kg_scene_white(scene), out,
+		                          &err);
+	if (ret) {
+		if (wrote_linear)
+			remove_output(linear, 0);
+		if (wrote_labels)
+			remove_output(truth_labels, 1);
+		if (wrote_angle)
+			remove_output(truth_angle, 1);
+	}
 	if (!ret && !quiet) {
 		double mrays = (double)(st.rays + st.shadow_rays) / st.render_s / 1e6;
 		printf("kogei render: %d x %d, %d spp, %d wavelength%s per path, %d bounce%s, "
@@ -181,10 +287,19 @@ int kg_cmd_render(int argc, char **argv)
 		       st.height, st.spp, st.wavelengths, st.wavelengths == 1 ? "" : "s",
 		       st.bounces, st.bounces == 1 ? "" : "s", st.threads,
 		       st.threads == 1 ? "" : "s", st.build_s, st.render_s, mrays);
+		if (camera) {
+			char ntext[128];
+			kg_sim_noise_format(&noise, ntext, sizeof(ntext));
+			printf("kogei render: camera %s, white level %g, noise %s, seed %" PRIu64 "\n",
+			       cam.name, white_level, ntext, st.seed);
+		}
 		printf("kogei render: wrote %s%s%s (white: %s)\n", out, linear ? " and " : "",
 		       linear ? linear : "", kg_scene_white_name(scene));
+		if (truth_labels || truth_angle)
+			printf("kogei render: truth %s%s%s\n", truth_labels ? truth_labels : "",
+			       truth_labels && truth_angle ? " and " : "", truth_angle ? truth_angle : "");
 	}
-	kg_image_free(&xyz);
+	kg_render_result_clear(&res);
 	kg_scene_free(&scene);
 	return ret ? kg_cli_error(&err, ret) : KG_EXIT_OK;
 }

@@ -1,5 +1,8 @@
-/* Writing a rendered XYZ image: an 8-bit sRGB PNG for people, a float TIFF of XYZ. */
+/* Writing a rendered image: an 8-bit sRGB PNG for people, a float TIFF of XYZ (or
+ * camera RGB), and the truth maps as ENVI files. */
+#include <math.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "kg_render.h"
 
@@ -30,4 +33,86 @@ int kg_render_write_xyz_tiff(const kg_image *xyz, const char *path, kg_err *err)
 {
 	kg_check_arg(xyz && xyz->channels == 3 && path, err);
 	return kg_image_write_tiff(xyz, path, 32, err);
+}
+
+void kg_render_truth_free(kg_render_truth **tp)
+{
+	if (!tp || !*tp)
+		return;
+	kg_render_truth *t = *tp;
+	for (int i = 0; t->class_names && i < t->nclasses; i++)
+		free(t->class_names[i]);
+	free(t->class_names);
+	free(t->label);
+	free(t->angle_deg);
+	free(t);
+	*tp = NULL;
+}
+
+void kg_render_result_clear(kg_render_result *r)
+{
+	if (!r)
+		return;
+	kg_image_free(&r->image);
+	kg_image_free(&r->xyz);
+	kg_render_truth_free(&r->truth);
+}
+
+int kg_render_truth_write_labels(const kg_render_truth *t, const char *hdr_path,
+                                 kg_err *err)
+{
+	kg_check_arg(t && hdr_path && t->nclasses >= 1 && t->nclasses <= 256, err);
+	size_t npix = (size_t)t->width * (size_t)t->height;
+	float *labels = malloc(npix * sizeof(*labels));
+	unsigned char *lookup = malloc((size_t)t->nclasses * 3);
+	int ret = 0;
+	if (!labels || !lookup)
+		ret = kg_fail(err, KG_ENOMEM, "%s: out of memory", hdr_path);
+	for (size_t p = 0; !ret && p < npix; p++)
+		labels[p] = (float)t->label[p];
+	/* background black, the materials in the plots' qualitative colours (as sim/'s
+	 * label maps) */
+	if (!ret) {
+		memset(lookup, 0, 3);
+		for (int k = 1; k < t->nclasses; k++) {
+			double rgb[3];
+			kg_series_colour(k - 1, rgb);
+			for (int c = 0; c < 3; c++)
+				lookup[3 * k + c] = (unsigned char)lrint(fmin(fmax(rgb[c], 0.0), 1.0) * 255.0);
+		}
+		kg_envi_meta meta = {
+		    .samples = t->width,
+		    .lines = t->height,
+		    .bands = 1,
+		    .data_type = KG_ENVI_U8,
+		    .interleave = KG_ENVI_BSQ,
+		    .description = "kogei render: library material of the primary hit of each pixel",
+		    .classes = t->nclasses,
+		    .class_names = (const char *const *)t->class_names,
+		    .class_lookup = lookup,
+		};
+		ret = kg_envi_write(hdr_path, &meta, KG_LAYOUT_BIP, labels, err);
+	}
+	free(labels);
+	free(lookup);
+	return ret;
+}
+
+int kg_render_truth_write_angle(const kg_render_truth *t, const char *hdr_path,
+                                kg_err *err)
+{
+	kg_check_arg(t && hdr_path, err);
+	static const char *const band_names[] = {"incidence angle (deg)"};
+	kg_envi_meta meta = {
+	    .samples = t->width,
+	    .lines = t->height,
+	    .bands = 1,
+	    .data_type = KG_ENVI_F32,
+	    .interleave = KG_ENVI_BSQ,
+	    .description = "kogei render: incidence angle at the primary hit of each pixel, "
+	                   "degrees between the surface normal and the view direction (NaN: "
+	                   "background)",
+	    .band_names = band_names,
+	};
+	return kg_envi_write(hdr_path, &meta, KG_LAYOUT_BIP, t->angle_deg, err);
 }

@@ -26,6 +26,7 @@
 
 #define TILE 16   /* pixels per tile side, a multiple of the 4 x 4 packet */
 #define MAX_THREADS 256
+#define MAX_CH 6  /* weighted channels: the observer's 3, then XYZ's when wanted */
 
 typedef struct rd_hit {
 	int valid;
@@ -48,7 +49,20 @@ typedef struct rd_ctx {
 	uint64_t seed;
 	kg_render_mode mode;
 	double eps;             /* ray origin offset along the geometric normal */
-	float *out;             /* width x height x 3 */
+	/* The observer: channel ch of a path is sum over bands of w[ch] L (the one place
+	 * spectra become image values); channels 0-2 go to out[0], 3-5 to out[1]. */
+	int nch;
+	float w[MAX_CH][KG_NBANDS];
+	double white_out[MAX_CH]; /* the white's reading (preview shading) */
+	float *out[2];          /* width x height x 3 each; out[1] only when nch = 6 */
+	/* Truth of the primary hits (want_truth): class per material, the maps, and per
+	 * thread TILE x TILE x ncls sample counts and angle sums. */
+	int truth, ncls;
+	uint8_t *mat_class;     /* per renderer material: 1 + its library index */
+	uint8_t *label;
+	float *angle;
+	uint32_t *tcount;
+	double *tangle;
 	int tiles_x, ntiles;
 	atomic_int next_tile;
 	pthread_mutex_t lock;   /* progress */
@@ -337,9 +351,9 @@ typedef struct rd_counts {
 	uint64_t rays, shadow_rays, primary_rays;
 } rd_counts;
 
-/* One path from the camera, its first hit given; adds its XYZ to xyz. */
+/* One path from the camera, its first hit given; adds its c->nch channels to acc. */
 static void trace_path(rd_ctx *c, kg_rng *rng, const double org0[3], const double dir0[3],
-                       const rd_hit *first, double xyz[3], rd_counts *cnt)
+                       const rd_hit *first, double *acc, rd_counts *cnt)
 {
 	const kg_scene *s = c->s;
 	int n = c->nwl, band[KG_NBANDS];
@@ -394,22 +408,58 @@ static void trace_path(rd_ctx *c, kg_rng *rng, const double org0[3], const doubl
 		cnt->rays++;
 		trace1(c, org, dir, &h);
 	}
-	/* eq. 12 estimated from the path's bands: each stands for KG_NBANDS / n of them */
+	/* the observer (eq. 12 for XYZ) estimated from the path's bands: each stands for
+	 * KG_NBANDS / n of them */
 	double k = (double)KG_NBANDS / n;
-	for (int ch = 0; ch < 3; ch++) {
+	for (int ch = 0; ch < c->nch; ch++) {
 		double sum = 0.0;
 		for (int j = 0; j < n; j++)
-			sum += (double)s->xyz_w[ch][band[j]] * L[j];
-		xyz[ch] += k * sum;
+			sum += (double)c->w[ch][band[j]] * L[j];
+		acc[ch] += k * sum;
 	}
 }
 
-static void render_tile(rd_ctx *c, int tile, rd_counts *cnt)
+/* The truth class of a primary hit (0: nothing, or a background part). */
+static int hit_class(const rd_ctx *c, const rd_hit *h)
+{
+	if (!h->valid || (c->s->tri_background && c->s->tri_background[h->prim]))
+		return 0;
+	return c->mat_class[c->tri_mat ? c->tri_mat[h->prim] : 0];
+}
+
+/* The tile's truth from the counts: each pixel's most frequent class (the lower on a
+ * tie) and the mean incidence angle of its samples of that class. */
+static void finish_truth(rd_ctx *c, int tx0, int ty0, const uint32_t *count,
+                         const double *angle)
+{
+	for (int y = ty0; y < ty0 + TILE && y < c->height; y++)
+		for (int x = tx0; x < tx0 + TILE && x < c->width; x++) {
+			size_t base = (size_t)((y - ty0) * TILE + (x - tx0)) * (size_t)c->ncls;
+			int best = 0;
+			for (int k = 1; k < c->ncls; k++)
+				if (count[base + (size_t)k] > count[base + (size_t)best])
+					best = k;
+			size_t i = (size_t)y * (size_t)c->width + (size_t)x;
+			c->label[i] = (uint8_t)best;
+			c->angle[i] = best ? (float)(angle[base + (size_t)best] /
+			                             count[base + (size_t)best])
+			                   : NAN;
+		}
+}
+
+static void render_tile(rd_ctx *c, int tile, int worker_idx, rd_counts *cnt)
 {
 	const kg_scene *s = c->s;
 	int tx0 = (tile % c->tiles_x) * TILE, ty0 = (tile / c->tiles_x) * TILE;
-	double acc[TILE * TILE][3];
+	double acc[TILE * TILE][MAX_CH];
 	memset(acc, 0, sizeof(acc));
+	size_t tsize = (size_t)TILE * TILE * (size_t)c->ncls;
+	uint32_t *tcount = c->truth ? c->tcount + (size_t)worker_idx * tsize : NULL;
+	double *tangle = c->truth ? c->tangle + (size_t)worker_idx * tsize : NULL;
+	if (c->truth) {
+		memset(tcount, 0, sizeof(*tcount) * tsize);
+		memset(tangle, 0, sizeof(*tangle) * tsize);
+	}
 	double aspect = (double)c->width / c->height;
 	const rd_frame *f = &c->frame;
 	struct RTCIntersectContext ictx;
@@ -466,6 +516,20 @@ static void render_tile(rd_ctx *c, int tile, rd_counts *cnt)
 					hit_from(&h, rh.ray.tfar[l], rh.hit.geomID[l], rh.hit.primID[l],
 					         rh.hit.u[l], rh.hit.v[l], rh.hit.Ng_x[l], rh.hit.Ng_y[l],
 					         rh.hit.Ng_z[l]);
+					if (c->truth) {
+						int cls = hit_class(c, &h);
+						double ang = 0.0;
+						if (cls) {
+							double V[3] = {-dirs[l][0], -dirs[l][1], -dirs[l][2]};
+							double ng[3], ns[3];
+							shading_frame(c, &h, V, ng, ns);
+							ang = acos(fmax(-1.0, fmin(1.0, dot3(ns, V)))) * (180.0 / M_PI);
+						}
+						size_t k = (size_t)((y - ty0) * TILE + (x - tx0)) * (size_t)c->ncls +
+						           (size_t)cls;
+						tcount[k]++;
+						tangle[k] += ang;
+					}
 					if (c->mode == KG_RENDER_PREVIEW) {
 						double V[3] = {-dirs[l][0], -dirs[l][1], -dirs[l][2]}, ng[3], ns[3];
 						double g = 0.0;
@@ -473,7 +537,8 @@ static void render_tile(rd_ctx *c, int tile, rd_counts *cnt)
 							shading_frame(c, &h, V, ng, ns);
 							g = dot3(ns, V);
 						}
-						a[0] += g * s->white.X, a[1] += g * s->white.Y, a[2] += g * s->white.Z;
+						for (int ch = 0; ch < c->nch; ch++)
+							a[ch] += g * c->white_out[ch];
 						continue;
 					}
 					trace_path(c, &rng[l], s->view.pos, dirs[l], &h, a, cnt);
@@ -482,21 +547,29 @@ static void render_tile(rd_ctx *c, int tile, rd_counts *cnt)
 	double k = s->exposure / c->spp;
 	for (int y = ty0; y < ty0 + TILE && y < c->height; y++)
 		for (int x = tx0; x < tx0 + TILE && x < c->width; x++)
-			for (int ch = 0; ch < 3; ch++)
-				c->out[3 * ((size_t)y * (size_t)c->width + (size_t)x) + ch] =
+			for (int ch = 0; ch < c->nch; ch++)
+				c->out[ch / 3][3 * ((size_t)y * (size_t)c->width + (size_t)x) + ch % 3] =
 					(float)(acc[(y - ty0) * TILE + (x - tx0)][ch] * k);
+	if (c->truth)
+		finish_truth(c, tx0, ty0, tcount, tangle);
 }
+
+typedef struct rd_worker {
+	rd_ctx *c;
+	int idx; /* its truth scratch */
+} rd_worker;
 
 static void *worker(void *arg)
 {
-	rd_ctx *c = arg;
+	rd_worker *wk = arg;
+	rd_ctx *c = wk->c;
 	set_fp_modes();
 	rd_counts cnt = {0};
 	for (;;) {
 		int tile = atomic_fetch_add(&c->next_tile, 1);
 		if (tile >= c->ntiles)
 			break;
-		render_tile(c, tile, &cnt);
+		render_tile(c, tile, wk->idx, &cnt);
 		if (c->opt && c->opt->progress) {
 			pthread_mutex_lock(&c->lock);
 			c->tiles_done++;
@@ -521,6 +594,83 @@ static void ctx_free(rd_ctx *c)
 		rd_material_clear(&c->mat[i]);
 	free(c->mat);
 	free(c->label_tri_mat);
+	free(c->mat_class);
+	free(c->tcount);
+	free(c->tangle);
+}
+
+/* The observer's weights (the scene's XYZ without one) and the white's reading. */
+static int setup_observer(rd_ctx *c, const kg_render_options *opt, kg_err *err)
+{
+	const kg_scene *s = c->s;
+	c->nch = 3;
+	for (int ch = 0; ch < 3; ch++)
+		for (int i = 0; i < KG_NBANDS; i++) {
+			if (opt->observer) {
+				double v = opt->observer[ch].v[i];
+				if (!isfinite(v))
+					return kg_fail(err, KG_EINVAL, "observer channel %d at %g nm: %g: "
+					               "expected a finite weight", ch, kg_band_nm(i), v);
+				c->w[ch][i] = (float)v;
+			} else {
+				c->w[ch][i] = s->xyz_w[ch][i];
+			}
+		}
+	if (opt->observer && opt->want_xyz) {
+		memcpy(c->w[3], s->xyz_w, sizeof(s->xyz_w));
+		c->nch = 6;
+	}
+	/* XYZ channels take the white point itself (the same bytes as ever), an observer's
+	 * its reading of the white's spectrum */
+	const double white[3] = {s->white.X, s->white.Y, s->white.Z};
+	for (int ch = 0; ch < c->nch; ch++) {
+		double sum = 0.0;
+		for (int i = 0; i < KG_NBANDS; i++)
+			sum += (double)c->w[ch][i] * s->white_spd[i];
+		c->white_out[ch] = ch >= 3 || !opt->observer ? white[ch % 3] : sum;
+	}
+	return 0;
+}
+
+/* Classes and maps of the truth; the scratch for `threads` workers. */
+static int setup_truth(rd_ctx *c, int threads, kg_render_truth **out, kg_err *err)
+{
+	const kg_scene *s = c->s;
+	int nlib = kg_material_library_count(s->lib);
+	if (nlib > 255)
+		return kg_fail(err, KG_EINVAL, "truth labels: the library %s has %d materials: "
+		               "a label map holds at most 255 (and background)", s->library_path,
+		               nlib);
+	kg_render_truth *t = calloc(1, sizeof(*t));
+	if (!t)
+		return kg_fail(err, KG_ENOMEM, "out of memory");
+	*out = t;
+	t->width = c->width;
+	t->height = c->height;
+	t->nclasses = c->ncls = nlib + 1;
+	size_t npix = (size_t)c->width * (size_t)c->height;
+	size_t tsize = (size_t)TILE * TILE * (size_t)c->ncls * (size_t)threads;
+	t->class_names = calloc((size_t)t->nclasses, sizeof(char *));
+	t->label = malloc(npix);
+	t->angle_deg = malloc(sizeof(float) * npix);
+	c->mat_class = calloc((size_t)(s->nmat ? s->nmat : 1), 1);
+	c->tcount = malloc(sizeof(*c->tcount) * tsize);
+	c->tangle = malloc(sizeof(*c->tangle) * tsize);
+	if (!t->class_names || !t->label || !t->angle_deg || !c->mat_class || !c->tcount ||
+	    !c->tangle)
+		return kg_fail(err, KG_ENOMEM, "out of memory for the truth maps");
+	for (int i = 0; i < t->nclasses; i++)
+		if (!(t->class_names[i] = strdup(i ? kg_material_library_get(s->lib, i - 1)->name
+		                                   : "background")))
+			return kg_fail(err, KG_ENOMEM, "out of memory");
+	for (int m = 0; m < s->nmat; m++)
+		for (int j = 0; j < nlib; j++)
+			if (kg_material_library_get(s->lib, j) == s->mat[m])
+				c->mat_class[m] = (uint8_t)(j + 1);
+	c->label = t->label;
+	c->angle = t->angle_deg;
+	c->truth = 1;
+	return 0;
 }
 
 int kg_render(const kg_scene *s, const kg_render_options *opt, kg_image **xyz,
@@ -528,6 +678,21 @@ int kg_render(const kg_scene *s, const kg_render_options *opt, kg_image **xyz,
 {
 	kg_check_arg(s && xyz, err);
 	*xyz = NULL;
+	kg_render_options o = {0};
+	if (opt)
+		o = *opt;
+	o.want_xyz = o.want_truth = 0;
+	kg_render_result r;
+	int ret = kg_render_full(s, &o, &r, stats, err);
+	*xyz = r.image;
+	return ret;
+}
+
+int kg_render_full(const kg_scene *s, const kg_render_options *opt, kg_render_result *res,
+                   kg_render_stats *stats, kg_err *err)
+{
+	kg_check_arg(s && res, err);
+	memset(res, 0, sizeof(*res));
 	static const kg_render_options defaults;
 	if (!opt)
 		opt = &defaults;
@@ -550,10 +715,19 @@ int kg_render(const kg_scene *s, const kg_render_options *opt, kg_image **xyz,
 		return kg_fail(err, KG_EINVAL, "image size %d x %d: expected at most 16384 per side",
 		               c.width, c.height);
 	rd_view_frame(&s->view, &c.frame);
+	kg_render_truth *truth = NULL;
+	int ret = setup_observer(&c, opt, err);
+	if (!ret && opt->want_truth)
+		ret = setup_truth(&c, threads, &truth, err);
+	if (ret) {
+		kg_render_truth_free(&truth);
+		ctx_free(&c);
+		return ret;
+	}
 
 	set_fp_modes();
 	double t0 = now_s();
-	int ret = build_scene(&c, threads, err);
+	ret = build_scene(&c, threads, err);
 	double t1 = now_s();
 	uint64_t label_rays = 0;
 	if (!ret && s->assign == RD_ASSIGN_LABEL_MAP)
@@ -564,14 +738,19 @@ int kg_render(const kg_scene *s, const kg_render_options *opt, kg_image **xyz,
 		ret = kg_fail(err, KG_ENOMEM, "out of memory");
 	for (int i = 0; !ret && i < s->nmat; i++, c.nmat++)
 		ret = rd_material_init(&c.mat[i], s->mat[i], err);
-	kg_image *img = NULL;
+	kg_image *img = NULL, *xyz = NULL;
 	if (!ret)
 		ret = kg_image_new(c.width, c.height, 3, &img, err);
+	if (!ret && c.nch == 6)
+		ret = kg_image_new(c.width, c.height, 3, &xyz, err);
 	if (ret) {
+		kg_image_free(&img);
+		kg_render_truth_free(&truth);
 		ctx_free(&c);
 		return ret;
 	}
-	c.out = img->data;
+	c.out[0] = img->data;
+	c.out[1] = xyz ? xyz->data : NULL;
 	c.tiles_x = (c.width + TILE - 1) / TILE;
 	c.ntiles = c.tiles_x * ((c.height + TILE - 1) / TILE);
 	atomic_init(&c.next_tile, 0);
@@ -580,13 +759,18 @@ int kg_render(const kg_scene *s, const kg_render_options *opt, kg_image **xyz,
 	atomic_init(&c.primary_rays, 0);
 	pthread_mutex_init(&c.lock, NULL);
 	pthread_t tid[MAX_THREADS];
+	rd_worker wk[MAX_THREADS];
 	int started = 0;
 	double t2 = now_s();
-	for (; started < threads; started++)
-		if (pthread_create(&tid[started], NULL, worker, &c) != 0)
+	for (; started < threads; started++) {
+		wk[started] = (rd_worker){.c = &c, .idx = started};
+		if (pthread_create(&tid[started], NULL, worker, &wk[started]) != 0)
 			break;
-	if (started == 0)
-		worker(&c); /* no thread could be started: render here */
+	}
+	if (started == 0) {
+		wk[0] = (rd_worker){.c = &c, .idx = 0};
+		worker(&wk[0]); /* no thread could be started: render here */
+	}
 	for (int i = 0; i < started; i++)
 		pthread_join(tid[i], NULL);
 	double t3 = now_s();
@@ -596,15 +780,20 @@ int kg_render(const kg_scene *s, const kg_render_options *opt, kg_image **xyz,
 	if (!ret && stats) {
 		*stats = (kg_render_stats){
 			.width = c.width, .height = c.height, .spp = c.spp, .wavelengths = c.nwl,
-			.bounces = c.bounces, .threads = threads, .build_s = t1 - t0,
+			.bounces = c.bounces, .threads = threads, .seed = c.seed, .build_s = t1 - t0,
 			.render_s = t3 - t2, .primary_rays = atomic_load(&c.primary_rays),
 			.rays = atomic_load(&c.rays), .shadow_rays = atomic_load(&c.shadow_rays),
 			.label_rays = label_rays,
 		};
 	}
 	ctx_free(&c);
-	if (ret)
+	if (ret) {
 		kg_image_free(&img);
-	*xyz = img;
+		kg_image_free(&xyz);
+		kg_render_truth_free(&truth);
+	}
+	res->image = img;
+	res->xyz = xyz;
+	res->truth = truth;
 	return ret;
 }

@@ -104,6 +104,8 @@ struct kg_scene {
 	rd_assign assign;
 	uint16_t *tri_mat;       /* ntris entries (FACE, VERTEX), else NULL */
 	rd_label_map label;      /* LABEL_MAP */
+	uint8_t *tri_background; /* ntris: 1 on triangles of parts marked "background"
+	                            (class 0 of the truth), or NULL when none is */
 
 	/* Emitters: spectra normalised so that each has luminance Y = 1 on the image
 	 * scale, times their intensity. */
@@ -129,6 +131,9 @@ struct kg_scene {
 	char white_name[64];
 	kg_xyz white;                   /* Y = 1 */
 	float xyz_w[3][KG_NBANDS];       /* signal -> XYZ on the image scale */
+	float white_spd[KG_NBANDS];      /* the white's spectrum at Y = 1 */
+	float light_spd[KG_NBANDS];      /* the light's (else the environment's) spectrum
+	                                    at intensity 1: a white diffuser's radiance */
 };
 
 /* Index of a library material in s->mat, adding it when new. */

@@ -505,7 +505,7 @@ static int load_part(kg_scene *s, const json_t *root, const char *path, kg_mesh 
 {
 	static const char *const keys[] = {"ply", "generator", "level", "half_size",
 	                                   "segments", "scale", "translate", "face_id",
-	                                   "smooth", NULL};
+	                                   "smooth", "background", NULL};
 	json_t *item;
 	char key[128];
 	int ret = kg_json_get(s->path, root, path, &item, err);
@@ -585,6 +585,10 @@ static int load_part(kg_scene *s, const json_t *root, const char *path, kg_mesh 
 		m->normal = NULL;
 		ret = kg_mesh_compute_normals(m, err);
 	}
+	json_t *bg = json_object_get(item, "background");
+	if (!ret && bg && !json_is_boolean(bg))
+		ret = kg_fail(err, KG_EINVAL, "%s: key '%s.background': expected true or false",
+		              s->path, path);
 	if (!ret && json_object_get(item, "face_id")) {
 		long id;
 		snprintf(key, sizeof(key), "%s.face_id", path);
@@ -642,6 +646,22 @@ static int join_parts(kg_mesh **part, size_t n, kg_mesh **out, kg_err *err)
 	return 0;
 }
 
+/* 1 when a mesh part is marked "background": true. */
+static int part_is_background(const json_t *item)
+{
+	return json_is_object(item) && json_is_true(json_object_get(item, "background"));
+}
+
+/* Mark the triangles first .. first + n - 1 as background. */
+static int mark_background(kg_scene *s, size_t first, size_t n, kg_err *err)
+{
+	if (!s->tri_background && !(s->tri_background = calloc(s->mesh->ntris ? s->mesh->ntris
+	                                                                       : 1, 1)))
+		return kg_fail(err, KG_ENOMEM, "out of memory");
+	memset(s->tri_background + first, 1, n);
+	return 0;
+}
+
 static int load_mesh(kg_scene *s, const json_t *root, kg_err *err)
 {
 	json_t *mesh;
@@ -650,6 +670,8 @@ static int load_mesh(kg_scene *s, const json_t *root, kg_err *err)
 		return ret;
 	if (!json_is_array(mesh)) {
 		ret = load_part(s, root, "mesh", &s->mesh, err);
+		if (!ret && part_is_background(mesh))
+			ret = mark_background(s, 0, s->mesh->ntris, err);
 	} else {
 		size_t n = json_array_size(mesh);
 		kg_mesh **part = calloc(n ? n : 1, sizeof(*part));
@@ -665,6 +687,9 @@ static int load_mesh(kg_scene *s, const json_t *root, kg_err *err)
 		}
 		if (!ret)
 			ret = join_parts(part, n, &s->mesh, err);
+		for (size_t i = 0, t0 = 0; !ret && i < n; t0 += part[i]->ntris, i++)
+			if (part_is_background(json_array_get(mesh, i)))
+				ret = mark_background(s, t0, part[i]->ntris, err);
 		for (size_t i = 0; part && i < n; i++)
 			kg_mesh_free(&part[i]);
 		free(part);
@@ -800,6 +825,8 @@ static int load_lights(kg_scene *s, const json_t *root, kg_err *err)
 			emitter(s, sun, M_PI * s->sun_intensity, s->sun_irradiance);
 		if (sky)
 			emitter(s, sky, s->env_intensity, s->env_radiance);
+		emitter(s, white, 1.0, s->white_spd);
+		emitter(s, sun ? sun : sky, 1.0, s->light_spd);
 	}
 	if (!ret && env && json_object_get(env, "image"))
 		ret = load_environment_image(s, root, sky, err);
@@ -926,6 +953,7 @@ void kg_scene_free(kg_scene **sp)
 	kg_material_library_free(&s->lib);
 	free(s->mat);
 	free(s->tri_mat);
+	free(s->tri_background);
 	free(s->label.path);
 	free(s->label.labels);
 	free(s->label.class_mat);
@@ -947,4 +975,17 @@ kg_xyz kg_scene_white(const kg_scene *s)
 const char *kg_scene_white_name(const kg_scene *s)
 {
 	return s->white_name;
+}
+
+void kg_scene_xyz_observer(const kg_scene *s, kg_spectrum out[3])
+{
+	for (int c = 0; c < 3; c++)
+		for (int i = 0; i < KG_NBANDS; i++)
+			out[c].v[i] = s->xyz_w[c][i];
+}
+
+void kg_scene_light_spectrum(const kg_scene *s, kg_spectrum *out)
+{
+	for (int i = 0; i < KG_NBANDS; i++)
+		out->v[i] = s->light_spd[i];
 }

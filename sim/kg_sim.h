@@ -45,6 +45,11 @@ void kg_sim_noise_format(const kg_sim_noise *n, char *buf, size_t len);
 int kg_sim_noise_enabled(const kg_sim_noise *n);
 /* One noisy reading of the noise-free value v (see the model above). */
 double kg_sim_noise_apply(const kg_sim_noise *n, double v, kg_rng *rng);
+/* kg_sim_noise_apply on every sample of an image in place (e.g. a rendered camera
+ * image), row by row, each row drawing from its own kg_rng seeded from (seed, row),
+ * samples in order: the same seed gives the same bytes. Nothing changes when the
+ * noise is "none". */
+void kg_sim_noise_image(const kg_sim_noise *n, kg_image *img, uint64_t seed);
 
 /* ---- inputs -------------------------------------------------------------------- */
 

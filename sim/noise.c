@@ -86,3 +86,17 @@ double kg_sim_noise_apply(const kg_sim_noise *n, double v, kg_rng *rng)
 	double top = (double)((1u << n->bits) - 1u);
 	return nearbyint(e / fw * top) / top;
 }
+
+void kg_sim_noise_image(const kg_sim_noise *n, kg_image *img, uint64_t seed)
+{
+	if (!kg_sim_noise_enabled(n) || !img)
+		return;
+	size_t row = (size_t)img->width * (size_t)img->channels;
+	for (int y = 0; y < img->height; y++) {
+		kg_rng rng;
+		kg_rng_seed(&rng, seed ^ (0x9E3779B97F4A7C15ull * (uint64_t)(y + 1)));
+		float *p = img->data + (size_t)y * row;
+		for (size_t i = 0; i < row; i++)
+			p[i] = (float)kg_sim_noise_apply(n, p[i], &rng);
+	}
+}
