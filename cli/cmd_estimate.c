@@ -62,7 +62,8 @@ static const char usage_classify[] =
 	"kogei classify --calib CAM.json --materials LIB.json IMAGE -o LABELS.hdr\n"
 	"               [--only a,b,c] [--method camera|eq11] [--angles A:B[:STEP]]\n"
 	"               [--intensity LO:HI] [--merge-distance D|none] [--regions MAP.png]\n"
-	"               [--no-regions] [--distance plain|scale-free] [--angle DEG]\n"
+	"               [--no-regions] [--composition COMP.hdr]\n"
+	"               [--distance plain|scale-free] [--angle DEG]\n"
 	"               [--variance VAR.tif] [--frames N] [--mask MASK.png]\n"
 	"               [--background-level L|none] [--unknown-threshold T|none]\n"
 	"               [--threads N] [--block-rows N] [--clip-level V] [--force] [--quiet]";
@@ -95,6 +96,14 @@ static const char help_classify[] =
 	"                       image's size: decide these regions instead of connected\n"
 	"                       components\n"
 	"  --no-regions         per-pixel labels only\n"
+	"  --composition COMP.hdr  ENVI cube (float32, 6 bands: ag, cu, au fractions and\n"
+	"                       their Cramer-Rao standard deviations) of the pixels whose\n"
+	"                       best material is made of the library's silver, copper and\n"
+	"                       gold, fitted in camera space (fractions >= 0, summing to\n"
+	"                       1); gold only where its sd is below the declared\n"
+	"                       materials' range of gold fractions. Regions and\n"
+	"                       LABELS.json get the composition whenever the library\n"
+	"                       holds the three metals\n"
 	"\n"
 	"With --method eq11 each pixel gets the material j minimising\n"
 	"||C_j - s||^2 over the declared materials, where C_j is the library reflectance\n"
@@ -395,6 +404,7 @@ int kg_cmd_classify(int argc, char **argv)
 {
 	const char *calib = NULL, *out = NULL, *library = NULL, *distance = "plain";
 	const char *method = "camera", *variance = NULL, *mask = NULL, *regions = NULL;
+	const char *composition = NULL;
 	char *only = NULL;
 	double angle = 0;
 	int no_regions = 0, distance_given = 0, angle_given = 0;
@@ -422,6 +432,7 @@ int kg_cmd_classify(int argc, char **argv)
 		{"merge-distance", required_argument, NULL, 'D'},
 		{"regions", required_argument, NULL, 'R'},
 		{"no-regions", no_argument, NULL, 'n'},
+		{"composition", required_argument, NULL, 'P'},
 		{0, 0, 0, 0},
 	};
 	int c;
@@ -443,6 +454,7 @@ int kg_cmd_classify(int argc, char **argv)
 		case 'V': variance = optarg; break;
 		case 'R': regions = optarg; break;
 		case 'n': no_regions = 1; break;
+		case 'P': composition = optarg; break;
 		case 'A': {
 			double v[3] = {0, 0, 5};
 			int nv = parse_doubles(optarg, v, 3);
@@ -552,9 +564,9 @@ int kg_cmd_classify(int argc, char **argv)
 		return kg_cli_usage_error(usage_classify, "--distance and --angle belong to --method "
 		                          "eq11; the camera method fits the angle and the intensity "
 		                          "(--angles, --intensity)");
-	if (!camera && (regions || no_regions))
-		return kg_cli_usage_error(usage_classify, "--regions and --no-regions belong to the "
-		                          "camera method");
+	if (!camera && (regions || no_regions || composition))
+		return kg_cli_usage_error(usage_classify, "--regions, --no-regions and --composition "
+		                          "belong to the camera method");
 	char *only_copy = only ? strdup(only) : NULL;
 	char *names[KG_EST_MAX_MATERIALS + 1];
 	int nnames = 0;
@@ -607,6 +619,15 @@ int kg_cmd_classify(int argc, char **argv)
 			ccam.region_map_name = regions;
 		}
 		ccam.regions = !no_regions;
+		static const char *const metal_names[3] = {"silver", "copper", "gold"};
+		for (int q = 0; !rc && q < 3; q++) {
+			const kg_material *mt = kg_material_library_find(lib, metal_names[q]);
+			ccam.metals[q] = mt && mt->kind == KG_MATERIAL_METAL ? mt : NULL;
+		}
+		if (!rc && composition && !(ccam.metals[0] && ccam.metals[1] && ccam.metals[2]))
+			rc = kg_fail(&err, KG_EINVAL, "%s: --composition needs the library's metals "
+			             "silver, copper and gold (kind metal)", library);
+		ccam.composition_hdr = composition;
 	}
 	if (!rc && camera) {
 		kg_classify_info info = {calib, library, "camera", image, variance, mask};

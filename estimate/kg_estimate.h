@@ -592,7 +592,12 @@ int kg_classify_image(const kg_est_kernel *k, const kg_est_material_set *set,
  *                          survey, the unknown bound), separability (the pairs' table),
  *                          merges, each class's members, regions (those of 100 pixels
  *                          or more)
- *   <stem>.png             preview */
+ *   <stem>.png             preview
+ *   COMP.hdr               (composition_hdr) float32, 6 bands BIP: ag, cu, au
+ *                          fractions, sd_ag, sd_cu, sd_au; NaN where not fitted; au is
+ *                          NaN where its sd is not below the declared materials' range
+ *                          of gold fractions (gold is not reported where the data
+ *                          cannot place it) */
 typedef struct kg_classify_camera {
 	const double *response;   /* F, 3 x 61 row-major: the reference camera's response */
 	char response_source[32]; /* where it came from, for LABELS.json */
@@ -611,6 +616,13 @@ typedef struct kg_classify_camera {
 	 * size; replaces the connected components. */
 	const kg_row_source *region_map;
 	const char *region_map_name;
+	/* Composition: the library's pure silver, copper and gold (in that order; NULL: no
+	 * composition), and where to write its cube (NULL: LABELS.json and the regions'
+	 * table only). Pixels whose best material is made of these metals get their Ag,
+	 * Cu and Au fractions (non-negative, summing to 1; the alloy model is linear in
+	 * them) fitted at the fitted angle, with Cramer-Rao standard deviations. */
+	const kg_material *metals[3];
+	const char *composition_hdr;
 } kg_classify_camera;
 
 /* M2 identity, angles 0-70 every 5 degrees, intensity 0.3-1.0, merge distance 0

@@ -79,6 +79,27 @@ static void pixel_noise(const noise *nz, const float *rho, const float *var, dou
 	}
 }
 
+/* The inverse of a 3 x 3 matrix (row-major); -1 when singular. */
+static int inverse3(const double *a, double *o)
+{
+	double c0 = a[4] * a[8] - a[5] * a[7], c1 = a[5] * a[6] - a[3] * a[8],
+	       c2 = a[3] * a[7] - a[4] * a[6];
+	double det = a[0] * c0 + a[1] * c1 + a[2] * c2;
+	if (!(fabs(det) > 0) || !isfinite(det))
+		return -1;
+	double id = 1.0 / det;
+	o[0] = c0 * id;
+	o[1] = (a[2] * a[7] - a[1] * a[8]) * id;
+	o[2] = (a[1] * a[5] - a[2] * a[4]) * id;
+	o[3] = c1 * id;
+	o[4] = (a[0] * a[8] - a[2] * a[6]) * id;
+	o[5] = (a[2] * a[3] - a[0] * a[5]) * id;
+	o[6] = c2 * id;
+	o[7] = (a[1] * a[6] - a[0] * a[7]) * id;
+	o[8] = (a[0] * a[4] - a[1] * a[3]) * id;
+	return 0;
+}
+
 /* ---- the run ---------------------------------------------------------------------------- */
 
 typedef struct cam_run {
@@ -89,16 +110,21 @@ typedef struct cam_run {
 	int nm, nc;   /* materials, classes */
 	int group[KG_EST_MAX_MATERIALS];   /* material -> class index */
 	double threshold;                  /* unknown above; +Inf: no test */
+	/* composition: the pure metals' readings (silver, copper, gold) at the model's
+	 * angles, and which materials are made of them */
+	const kg_cs_model *metals; /* NULL: no composition */
+	uint8_t comp_ok[KG_EST_MAX_MATERIALS];
+	double gold_range;         /* of the declared Ag-Cu-Au materials' gold fractions */
 	float background_level;
 	uint8_t unknown, background;
 } cam_run;
 
 /* The extra planes after the feed's, per block of n pixels. */
 typedef struct cam_planes {
-	float *x, *cov, *post, *angle, *scale, *best, *fshare, *d2;
+	float *x, *cov, *post, *angle, *scale, *best, *fshare, *comp, *d2;
 } cam_planes;
 
-static size_t extra_floats(int nm) { return 3 + 6 + 5 + (size_t)nm; }
+static size_t extra_floats(int nm) { return 3 + 6 + 5 + 6 + (size_t)nm; }
 
 static cam_planes cam_planes_of(const cam_run *r, void *in, size_t n)
 {
@@ -111,8 +137,130 @@ static cam_planes cam_planes_of(const cam_run *r, void *in, size_t n)
 	c.scale = p + 11 * n;
 	c.best = p + 12 * n;
 	c.fshare = p + 13 * n; /* the calibration's share of the pixel's noise */
-	c.d2 = p + 14 * n;
+	c.comp = p + 14 * n;   /* 6 per pixel: Ag, Cu, Au fractions, their sds */
+	c.d2 = p + 20 * n;
 	return c;
+}
+
+/* ---- composition -------------------------------------------------------------------- */
+
+/* Least squares of y on the columns of A (3 x 3, row-major) in the set `use` (bits),
+ * the others 0; +Inf when singular or a weight is negative. */
+static double fit_subset(const double *A, const double *y, unsigned use, double w[3])
+{
+	int idx[3], k = 0;
+	for (int j = 0; j < 3; j++) {
+		w[j] = 0;
+		if (use & (1u << j))
+			idx[k++] = j;
+	}
+	double N[9] = {0}, b[3] = {0};
+	for (int a = 0; a < k; a++) {
+		for (int c = 0; c < 3; c++)
+			b[a] += A[3 * c + idx[a]] * y[c];
+		for (int bb = 0; bb < k; bb++)
+			for (int c = 0; c < 3; c++)
+				N[3 * a + bb] += A[3 * c + idx[a]] * A[3 * c + idx[bb]];
+	}
+	/* Gaussian elimination on the k x k system */
+	for (int a = 0; a < k; a++) {
+		if (!(fabs(N[3 * a + a]) > 1e-300))
+			return INFINITY;
+		for (int r = a + 1; r < k; r++) {
+			double f = N[3 * r + a] / N[3 * a + a];
+			for (int c = a; c < k; c++)
+				N[3 * r + c] -= f * N[3 * a + c];
+			b[r] -= f * b[a];
+		}
+	}
+	double v[3];
+	for (int a = k - 1; a >= 0; a--) {
+		double t = b[a];
+		for (int c = a + 1; c < k; c++)
+			t -= N[3 * a + c] * v[c];
+		v[a] = t / N[3 * a + a];
+		if (!(v[a] >= 0))
+			return INFINITY;
+	}
+	for (int a = 0; a < k; a++)
+		w[idx[a]] = v[a];
+	double res = 0;
+	for (int c = 0; c < 3; c++) {
+		double e = y[c];
+		for (int j = 0; j < 3; j++)
+			e -= A[3 * c + j] * w[j];
+		res += e * e;
+	}
+	return res;
+}
+
+/* One pixel's Ag, Cu, Au fractions at angle index k: x = sum_i w_i mu_i (the alloy
+ * model is the fractions' weighted sum of the metals' reflectances, times the
+ * intensity sum_i w_i), w >= 0 by the best of the 7 active sets, whitened by the
+ * pixel's covariance; the Cramer-Rao standard deviations of the fractions from the
+ * unconstrained Fisher information (A^T A)^-1 through c = w / sum w. out: 3 fractions,
+ * 3 sds; NaN when nothing fits. */
+static void composition_pixel(const kg_cs_model *metals, int k, const float *xf,
+                              const float *cf, float out[6])
+{
+	for (int i = 0; i < 6; i++)
+		out[i] = NAN;
+	double C[9] = {cf[0], cf[1], cf[2], cf[1], cf[3], cf[4], cf[2], cf[4], cf[5]};
+	double L[9] = {0};
+	L[0] = sqrt(C[0]);
+	L[3] = C[3] / L[0];
+	L[6] = C[6] / L[0];
+	L[4] = sqrt(C[4] - L[3] * L[3]);
+	L[7] = (C[7] - L[6] * L[3]) / L[4];
+	L[8] = sqrt(C[8] - L[6] * L[6] - L[7] * L[7]);
+	if (!(L[0] > 0 && L[4] > 0 && L[8] > 0))
+		return;
+	double y[3], A[9];
+	double x[3] = {xf[0], xf[1], xf[2]};
+	y[0] = x[0] / L[0];
+	y[1] = (x[1] - L[3] * y[0]) / L[4];
+	y[2] = (x[2] - L[6] * y[0] - L[7] * y[1]) / L[8];
+	for (int j = 0; j < 3; j++) {
+		const double *mu = metals->mu + 3 * ((size_t)j * metals->nangles + k);
+		double v0 = mu[0] / L[0];
+		double v1 = (mu[1] - L[3] * v0) / L[4];
+		double v2 = (mu[2] - L[6] * v0 - L[7] * v1) / L[8];
+		A[j] = v0;
+		A[3 + j] = v1;
+		A[6 + j] = v2;
+	}
+	double best = INFINITY, w[3] = {0};
+	for (unsigned use = 1; use < 8; use++) {
+		double t[3];
+		double r = fit_subset(A, y, use, t);
+		if (r < best) {
+			best = r;
+			memcpy(w, t, sizeof(w));
+		}
+	}
+	double sum = w[0] + w[1] + w[2];
+	if (!isfinite(best) || !(sum > 0))
+		return;
+	double F[9] = {0}, Fi[9];
+	for (int a = 0; a < 3; a++)
+		for (int b = 0; b < 3; b++)
+			for (int c = 0; c < 3; c++)
+				F[3 * a + b] += A[3 * c + a] * A[3 * c + b];
+	int invertible = inverse3(F, Fi) == 0;
+	double c3[3] = {w[0] / sum, w[1] / sum, w[2] / sum};
+	for (int i = 0; i < 3; i++) {
+		out[i] = (float)c3[i];
+		if (!invertible)
+			continue;
+		/* J = (I - c 1^T) / sum: row i is (e_i - c_i 1) / sum */
+		double v = 0;
+		for (int a = 0; a < 3; a++)
+			for (int b = 0; b < 3; b++) {
+				double ja = ((a == i) - c3[i]) / sum, jb = ((b == i) - c3[i]) / sum;
+				v += ja * Fi[3 * a + b] * jb;
+			}
+		out[3 + i] = (float)sqrt(v > 0 ? v : 0);
+	}
 }
 
 static void cam_compute(void *user, void *inbuf, size_t n, uint8_t *labels, float *conf,
@@ -174,6 +322,20 @@ static void cam_compute(void *user, void *inbuf, size_t n, uint8_t *labels, floa
 		cp.scale[i] = cp.scale[k];
 		memmove(cp.d2 + i * (size_t)nm, cp.d2 + k * (size_t)nm, sizeof(float) * (size_t)nm);
 	}
+	/* composition of the pixels whose best material is made of silver, copper and gold,
+	 * at its fitted angle (x and cov are still packed; idx still holds the pixels) */
+	for (size_t i = 0; i < 6 * n; i++)
+		cp.comp[i] = NAN;
+	for (size_t k = 0; r->metals && k < m; k++) {
+		size_t i = idx[k];
+		if (best[i] == KG_CS_NO_MATCH || !r->comp_ok[best[i]])
+			continue;
+		const kg_cs_model *md = r->model;
+		double step = md->nangles > 1 ? md->angle_deg[1] - md->angle_deg[0] : 1.0;
+		int ka = (int)lround((cp.angle[i] - md->angle_deg[0]) / step);
+		ka = ka < 0 ? 0 : ka >= r->metals->nangles ? r->metals->nangles - 1 : ka;
+		composition_pixel(r->metals, ka, cp.x + 3 * k, cp.cov + 6 * k, cp.comp + 6 * i);
+	}
 	for (size_t i = 0; i < n; i++) {
 		const float *d2 = cp.d2 + i * (size_t)nm;
 		if (labels[i] != 0xff) {
@@ -210,6 +372,8 @@ static void cam_compute(void *user, void *inbuf, size_t n, uint8_t *labels, floa
 		if (dmin > r->threshold) {
 			labels[i] = r->unknown;
 			cp.post[i] = cp.angle[i] = cp.scale[i] = NAN;
+			for (int e = 0; e < 6; e++)
+				cp.comp[6 * i + e] = NAN;
 		} else {
 			labels[i] = (uint8_t)(cb + 1);
 			conf[i] = (float)(second - dmin);
@@ -235,6 +399,7 @@ typedef struct regions {
 	uint64_t *count;
 	double *d2;        /* nm per id */
 	double *f_sum;     /* calibration share of the pixel's noise, summed */
+	double *comp;      /* 6 per id: sum of c / sd^2 and of 1 / sd^2 for Ag, Cu, Au */
 	uint32_t n, cap;
 	run_seg *prev, *cur;
 	int nprev, ncur, width;
@@ -250,6 +415,7 @@ static void regions_free(regions *g)
 	free(g->count);
 	free(g->d2);
 	free(g->f_sum);
+	free(g->comp);
 	free(g->prev);
 	free(g->cur);
 	free(g->final);
@@ -278,7 +444,10 @@ static int regions_grow(regions *g, uint32_t need, kg_err *err)
 	double *f = realloc(g->f_sum, sizeof(double) * cap);
 	if (f)
 		g->f_sum = f;
-	if (!p || !l || !c || !d || !f)
+	double *cm = realloc(g->comp, sizeof(double) * 6 * cap);
+	if (cm)
+		g->comp = cm;
+	if (!p || !l || !c || !d || !f || !cm)
 		return kg_fail(err, KG_ENOMEM, "classify: out of memory for the regions");
 	g->cap = cap;
 	return 0;
@@ -310,6 +479,7 @@ static uint32_t new_id(regions *g, uint8_t label)
 	g->label[id] = label;
 	g->count[id] = 0;
 	g->f_sum[id] = 0;
+	memset(g->comp + 6 * (size_t)id, 0, 6 * sizeof(double));
 	memset(g->d2 + (size_t)id * g->nm, 0, sizeof(double) * (size_t)g->nm);
 	return id;
 }
@@ -350,10 +520,23 @@ static void link_rows(regions *g, run_seg *cur, int ncur, const run_seg *prev, i
 	}
 }
 
+/* A pixel's composition into a region's sums (inverse-variance weights). */
+static void add_comp(double *acc, const float *c)
+{
+	for (int q = 0; q < 3; q++) {
+		double sd = c[3 + q];
+		if (!isfinite(c[q]) || !isfinite(sd))
+			continue;
+		double w = 1.0 / (sd > 1e-6 ? sd * sd : 1e-12);
+		acc[q] += w * c[q];
+		acc[3 + q] += w;
+	}
+}
+
 /* Pass 1, one row: its runs, their unions, and each pixel's distances added to its
  * run's sums. */
 static int regions_row(regions *g, const uint8_t *lab, const float *d2, const float *fshare,
-                       int nc, kg_err *err)
+                       const float *comp, int nc, kg_err *err)
 {
 	if (!g->on || g->overflow)
 		return 0;
@@ -374,6 +557,7 @@ static int regions_row(regions *g, const uint8_t *lab, const float *d2, const fl
 			for (int j = 0; j < g->nm; j++)
 				acc[j] += d[j];
 			g->f_sum[s->id] += fshare[x];
+			add_comp(g->comp + 6 * (size_t)s->id, comp + 6 * (size_t)x);
 		}
 		g->count[s->id] += (uint64_t)(s->x1 - s->x0 + 1);
 	}
@@ -386,7 +570,7 @@ static int regions_row(regions *g, const uint8_t *lab, const float *d2, const fl
 
 /* User regions: ids straight from the map. */
 static int regions_user_row(regions *g, const float *ids, const uint8_t *lab, const float *d2,
-                            const float *fshare, int nc, kg_err *err)
+                            const float *fshare, const float *comp, int nc, kg_err *err)
 {
 	for (int x = 0; x < g->width; x++) {
 		float v = ids[x];
@@ -401,6 +585,7 @@ static int regions_user_row(regions *g, const float *ids, const uint8_t *lab, co
 		for (int j = 0; j < g->nm; j++)
 			acc[j] += d[j];
 		g->f_sum[id] += fshare[x];
+		add_comp(g->comp + 6 * (size_t)id, comp + 6 * (size_t)x);
 		g->count[id]++;
 	}
 	return 0;
@@ -418,6 +603,8 @@ static int regions_resolve(regions *g, kg_err *err)
 				continue;
 			g->count[r] += g->count[id];
 			g->f_sum[r] += g->f_sum[id];
+			for (int q = 0; q < 6; q++)
+				g->comp[6 * (size_t)r + q] += g->comp[6 * (size_t)id + q];
 			for (int j = 0; j < g->nm; j++)
 				g->d2[(size_t)r * g->nm + j] += g->d2[(size_t)id * g->nm + j];
 			g->count[id] = 0;
@@ -484,6 +671,21 @@ static region_decision decide(const regions *g, uint32_t id, const int *group, i
 	return r;
 }
 
+/* A region's composition: inverse-variance means of its pixels' fractions, their sds
+ * widened by sqrt(1 + N f) (the calibration's error does not average out). out: 3
+ * fractions, 3 sds, NaN without data; gold NaN where its sd is not below gold_range. */
+static void region_composition(const regions *g, uint32_t id, double gold_range, double out[6])
+{
+	const double *a = g->comp + 6 * (size_t)id;
+	double N = (double)g->count[id], f = g->f_sum[id] / N;
+	for (int q = 0; q < 3; q++) {
+		out[q] = a[3 + q] > 0 ? a[q] / a[3 + q] : NAN;
+		out[3 + q] = a[3 + q] > 0 ? sqrt((1.0 + N * f) / a[3 + q]) : NAN;
+	}
+	if (!(out[5] < gold_range))
+		out[2] = NAN;
+}
+
 static const char *region_label(const region_decision *d, const kg_est_material_set *set,
                                 const kg_est_material_set *classes)
 {
@@ -494,7 +696,7 @@ static const char *region_label(const region_decision *d, const kg_est_material_
 /* ---- the sink -------------------------------------------------------------------- */
 
 typedef struct cam_sink {
-	kg_envi_writer *labels, *conf, *mask;
+	kg_envi_writer *labels, *conf, *mask, *comp;
 	staging stage;
 	progress prog;
 	const cam_run *run;
@@ -554,9 +756,10 @@ static int cam_sink_fn(void *user, const kg_est_block *b, kg_err *err)
 				rc = s->region_map->read(s->region_map->user, b->y0 + y, 1, s->region_row, err);
 				if (!rc)
 					rc = regions_user_row(&s->reg, s->region_row, lab + o, d2, fshare,
-					                      s->nclasses, err);
+					                      cp.comp + 6 * o, s->nclasses, err);
 			} else {
-				rc = regions_row(&s->reg, lab + o, d2, fshare, s->nclasses, err);
+				rc = regions_row(&s->reg, lab + o, d2, fshare, cp.comp + 6 * o, s->nclasses,
+				                 err);
 			}
 		}
 	if (rc)
@@ -568,6 +771,15 @@ static int cam_sink_fn(void *user, const kg_est_block *b, kg_err *err)
 		const uint8_t *row = lab + (size_t)(sy - b->y0) * b->width;
 		for (int x = 0; x < s->pw; x++)
 			s->preview[(size_t)s->next_py * s->pw + x] = row[(long)x * b->width / s->pw];
+	}
+	if (s->comp) {
+		/* gold only where its sd is below the declared range */
+		for (size_t i = 0; i < n; i++)
+			if (!(cp.comp[6 * i + 5] < r->gold_range))
+				cp.comp[6 * i + 2] = NAN;
+		rc = kg_envi_writer_put(s->comp, b->y0, b->y0 + b->rows, KG_LAYOUT_BIP, cp.comp, err);
+		if (rc)
+			return rc;
 	}
 	rc = ap_put_bytes(s->labels, &s->stage, b, lab, err);
 	if (!rc)
@@ -696,26 +908,6 @@ static int survey(const cam_run *r, const kg_classify_camera *cam, const kg_cs_m
 	return 0;
 }
 
-/* The inverse of a 3 x 3 matrix (row-major); -1 when singular. */
-static int inverse3(const double *a, double *o)
-{
-	double c0 = a[4] * a[8] - a[5] * a[7], c1 = a[5] * a[6] - a[3] * a[8],
-	       c2 = a[3] * a[7] - a[4] * a[6];
-	double det = a[0] * c0 + a[1] * c1 + a[2] * c2;
-	if (!(fabs(det) > 0) || !isfinite(det))
-		return -1;
-	double id = 1.0 / det;
-	o[0] = c0 * id;
-	o[1] = (a[2] * a[7] - a[1] * a[8]) * id;
-	o[2] = (a[1] * a[5] - a[2] * a[4]) * id;
-	o[3] = c1 * id;
-	o[4] = (a[0] * a[8] - a[2] * a[6]) * id;
-	o[5] = (a[2] * a[3] - a[0] * a[5]) * id;
-	o[6] = c2 * id;
-	o[7] = (a[1] * a[6] - a[0] * a[7]) * id;
-	o[8] = (a[0] * a[4] - a[1] * a[3]) * id;
-	return 0;
-}
 
 /* Every pair's separability with each reading's own noise: material i at angle k at
  * the survey's level x = level mu, its site reading M2^-1 x, that reading's variance
@@ -772,7 +964,7 @@ static int write_json(const char *path, const kg_est_material_set *set,
                       double merge_d, const kg_row_source *img, const kg_apply_options *opt,
                       const kg_classify_info *info, const char *const files[6],
                       const regions *reg, const kg_classify_result *res, double threshold,
-                      kg_err *err)
+                      const cam_run *run, kg_err *err)
 {
 	const int nm = set->n, nc = classes->n;
 	json_t *root = json_object();
@@ -939,6 +1131,27 @@ static int write_json(const char *path, const kg_est_material_set *set,
 	                                                  res->background, res->stats.pixels));
 	json_object_set_new(root, "classes", classes_j);
 
+	json_t *comp = json_object();
+	json_object_set_new(comp, "enabled", json_boolean(run->metals != NULL));
+	if (run->metals) {
+		json_object_set_new(comp, "metals", json_pack("[sss]", cam->metals[0]->name,
+		                                              cam->metals[1]->name,
+		                                              cam->metals[2]->name));
+		json_object_set_new(comp, "file", cam->composition_hdr
+		                                      ? json_string(cam->composition_hdr)
+		                                      : json_null());
+		json_object_set_new(comp, "gold_range", json_real(run->gold_range));
+		json_object_set_new(comp, "description",
+		                    json_string("Ag, Cu and Au fractions (>= 0, summing to 1) of the "
+		                                "pixels whose best material is made of these metals, "
+		                                "fitted in camera space at the fitted angle (the alloy "
+		                                "model is linear in the fractions), with Cramer-Rao "
+		                                "standard deviations; gold is given only where its sd "
+		                                "is below gold_range, the range of gold fractions of "
+		                                "the declared materials; regions: inverse-variance "
+		                                "means, sds widened by sqrt(1 + N f)"));
+	}
+	json_object_set_new(root, "composition", comp);
 	json_t *rj = json_object();
 	json_object_set_new(rj, "enabled", json_boolean(reg->on && !reg->overflow));
 	json_object_set_new(rj, "source", json_string(reg->user ? "region map"
@@ -964,11 +1177,20 @@ static int write_json(const char *path, const kg_est_material_set *set,
 			if (!f || reg->count[id] < TABLE_MIN_PIXELS)
 				continue;
 			region_decision d = decide(reg, id, group, nc);
+			double c[6];
+			region_composition(reg, id, run->gold_range, c);
+			json_t *cj = json_null();
+			if (run->metals && (isfinite(c[0]) || isfinite(c[1])))
+				cj = json_pack("{s:o,s:o,s:o,s:o,s:o,s:o}", "ag", ap_json_num(c[0]), "cu",
+				               ap_json_num(c[1]), "au", ap_json_num(c[2]), "sd_ag",
+				               ap_json_num(c[3]), "sd_cu", ap_json_num(c[4]), "sd_au",
+				               ap_json_num(c[5]));
 			json_array_append_new(
-				table, json_pack("{s:I,s:I,s:s,s:s,s:o}", "region", (json_int_t)f, "pixels",
-				                 (json_int_t)reg->count[id], "class", classes->names[d.cls],
-				                 "label", region_label(&d, set, classes),
-				                 "posterior", ap_json_num(d.posterior)));
+				table, json_pack("{s:I,s:I,s:s,s:s,s:o,s:o}", "region", (json_int_t)f,
+				                 "pixels", (json_int_t)reg->count[id], "class",
+				                 classes->names[d.cls], "label",
+				                 region_label(&d, set, classes), "posterior",
+				                 ap_json_num(d.posterior), "composition", cj));
 			listed++;
 		}
 	}
@@ -1059,21 +1281,26 @@ static int write_region_map(regions *g, const kg_est_material_set *classes,
 /* The table of every region (CSV). */
 static int write_region_table(const regions *g, const kg_est_material_set *set,
                               const kg_est_material_set *classes, const int *group,
-                              const char *csv_path, written *done, kg_err *err)
+                              double gold_range, const char *csv_path, written *done,
+                              kg_err *err)
 {
 	kg_outfile of;
 	int rc = kg_outfile_open(&of, csv_path, 0, err);
 	if (rc)
 		return rc;
-	fprintf(of.fp, "region,pixels,class,label,posterior,mean_d2\n");
+	fprintf(of.fp, "region,pixels,class,label,posterior,mean_d2,ag,cu,au,sd_ag,sd_cu,sd_au\n");
 	for (uint32_t id = 0; id < g->n; id++) {
 		uint32_t f = g->final[id];
 		if (!f)
 			continue;
 		region_decision d = decide(g, id, group, classes->n);
-		fprintf(of.fp, "%u,%llu,%s,%s,%.6g,%.6g\n", f, (unsigned long long)g->count[id],
-		        classes->names[d.cls], region_label(&d, set, classes),
-		        d.posterior, d.d2_mean);
+		double c[6];
+		region_composition(g, id, gold_range, c);
+		fprintf(of.fp, "%u,%llu,%s,%s,%.6g,%.6g", f, (unsigned long long)g->count[id],
+		        classes->names[d.cls], region_label(&d, set, classes), d.posterior, d.d2_mean);
+		for (int q = 0; q < 6; q++)
+			isfinite(c[q]) ? fprintf(of.fp, ",%.4f", c[q]) : fprintf(of.fp, ",");
+		fprintf(of.fp, "\n");
 	}
 	rc = kg_outfile_commit(&of, err);
 	if (!rc)
@@ -1150,14 +1377,14 @@ int kg_classify_camera_rows(const kg_est_kernel *k, const kg_est_material_set *s
 	run.background_level = (float)copt->background_level;
 	run.nm = set->n;
 
-	kg_cs_model *model = NULL;
+	kg_cs_model *model = NULL, *metals = NULL;
 	double *sep = NULL;
 	kg_est_material_set classes = {0};
 	kg_classify_result local = {0};
-	kg_envi_writer *ws[3] = {NULL, NULL, NULL};
+	kg_envi_writer *ws[4] = {NULL, NULL, NULL, NULL};
 	char *conf_path = NULL, *mask_path = NULL, *json_path = NULL, *png_path = NULL,
 	     *reg_path = NULL, *csv_path = NULL;
-	const char *paths[3] = {out_hdr, NULL, NULL};
+	const char *paths[4] = {out_hdr, NULL, NULL, NULL};
 	const char **names = NULL;
 	unsigned char *lookup = NULL;
 	cam_sink sink = {0};
@@ -1172,6 +1399,42 @@ int kg_classify_camera_rows(const kg_est_kernel *k, const kg_est_material_set *s
 	                          err)))
 		goto out;
 	run.model = model;
+	if (cam->metals[0] && cam->metals[1] && cam->metals[2]) {
+		if ((rc = kg_cs_model_new(cam->response, cam->metals, 3, cam->angle_from,
+		                          cam->angle_to, cam->angle_step, cam->intensity_lo,
+		                          cam->intensity_hi, &metals, err)))
+			goto out;
+		run.metals = metals;
+		double glo = INFINITY, ghi = -INFINITY;
+		for (int j = 0; j < nm; j++) {
+			const kg_material *mt = set->mats[j];
+			double gold = -1;
+			if (mt->kind == KG_MATERIAL_METAL) {
+				for (int q = 0; q < 3; q++)
+					if (!strcmp(mt->name, cam->metals[q]->name))
+						gold = q == 2;
+			} else if (mt->kind == KG_MATERIAL_ALLOY) {
+				gold = 0;
+				for (int c = 0; c < mt->ncomponents && gold >= 0; c++) {
+					int known = 0;
+					for (int q = 0; q < 3; q++)
+						if (!strcmp(mt->component[c].name, cam->metals[q]->name)) {
+							known = 1;
+							if (q == 2)
+								gold += mt->component[c].fraction;
+						}
+					if (!known)
+						gold = -1;
+				}
+			}
+			run.comp_ok[j] = gold >= 0;
+			if (gold >= 0) {
+				glo = fmin(glo, gold);
+				ghi = fmax(ghi, gold);
+			}
+		}
+		run.gold_range = ghi >= glo ? ghi - glo : 0;
+	}
 	if ((rc = survey(&run, cam, model, &sv, err)))
 		goto out;
 	if (!(sep = malloc(sizeof(double) * (size_t)nm * nm))) {
@@ -1308,6 +1571,30 @@ int kg_classify_camera_rows(const kg_est_kernel *k, const kg_est_material_set *s
 	if ((rc = ap_open_mask(out_hdr, W, H, &mask_path, &ws[2], err)))
 		goto out;
 	paths[2] = mask_path;
+	int nws = 3;
+	if (cam->composition_hdr) {
+		if (!run.metals) {
+			rc = kg_fail(err, KG_EINVAL, "%s: composition: the library's silver, copper and "
+			             "gold are needed", cam->composition_hdr);
+			goto out;
+		}
+		kg_envi_meta mp = {0};
+		mp.samples = W;
+		mp.lines = H;
+		mp.bands = 6;
+		mp.data_type = KG_ENVI_F32;
+		mp.interleave = KG_ENVI_BIP;
+		mp.description = "kogei classify composition: Ag, Cu, Au fractions and their "
+		                 "Cramer-Rao standard deviations, fitted in camera space; NaN where "
+		                 "not fitted, and au where its sd is not below the declared "
+		                 "materials' range of gold fractions";
+		const char *cband[6] = {"ag", "cu", "au", "sd_ag", "sd_cu", "sd_au"};
+		mp.band_names = cband;
+		if ((rc = kg_envi_writer_open(cam->composition_hdr, &mp, &ws[3], err)))
+			goto out;
+		paths[3] = cam->composition_hdr;
+		nws = 4;
+	}
 
 	kg_est_job job;
 	kg_est_job_init(&job, NULL, KG_EST_LABELS);
@@ -1321,6 +1608,7 @@ int kg_classify_camera_rows(const kg_est_kernel *k, const kg_est_material_set *s
 	sink.labels = ws[0];
 	sink.conf = ws[1];
 	sink.mask = ws[2];
+	sink.comp = ws[3];
 	sink.run = &run;
 	sink.region_map = cam->region_map;
 	sink.nclasses = run.nc;
@@ -1333,7 +1621,7 @@ int kg_classify_camera_rows(const kg_est_kernel *k, const kg_est_material_set *s
 	}
 	if ((rc = ap_check_estimable(&local.stats, &run.in, "classify", err)))
 		goto out;
-	if ((rc = ap_finish_all(ws, paths, 3, &done, err)))
+	if ((rc = ap_finish_all(ws, paths, nws, &done, err)))
 		goto out;
 	if ((rc = ap_margin_pass(sink.cs, run.nc, out_hdr, conf_path, 4, W, H, err)) ||
 	    (rc = ap_summarise(k, &classes, sink.count, sink.cs, (size_t)W * H, &local, err)))
@@ -1343,8 +1631,8 @@ int kg_classify_camera_rows(const kg_est_kernel *k, const kg_est_material_set *s
 		if ((rc = regions_resolve(&sink.reg, err)) ||
 		    (!sink.reg.user &&
 		     (rc = write_region_map(&sink.reg, &classes, out_hdr, reg_path, &done, err))) ||
-		    (rc = write_region_table(&sink.reg, set, &classes, run.group, csv_path, &done,
-		                             err)))
+		    (rc = write_region_table(&sink.reg, set, &classes, run.group, run.gold_range,
+		                             csv_path, &done, err)))
 			goto out;
 		local.nregions = (int)sink.reg.nfinal;
 	}
@@ -1355,7 +1643,7 @@ int kg_classify_camera_rows(const kg_est_kernel *k, const kg_est_material_set *s
 	                        have_regions ? csv_path : NULL};
 	if ((rc = write_json(json_path, set, &classes, run.group, cam, copt, model, &sv, sep,
 	                     merge_d, src, opt, info, files, &sink.reg, &local, run.threshold,
-	                     err)))
+	                     &run, err)))
 		goto out;
 	ap_written_add(&done, json_path);
 	if ((rc = ap_write_preview(png_path, &classes, sink.preview, sink.pw, sink.ph, &local,
@@ -1364,7 +1652,7 @@ int kg_classify_camera_rows(const kg_est_kernel *k, const kg_est_material_set *s
 	ap_written_add(&done, png_path);
 
 out:
-	for (int i = 0; i < 3; i++)
+	for (int i = 0; i < 4; i++)
 		if (ws[i])
 			kg_envi_writer_abort(&ws[i]);
 	ap_written_clear(&done, rc != 0);
@@ -1385,6 +1673,7 @@ out:
 	regions_free(&sink.reg);
 	set_free_classes(&classes);
 	kg_cs_model_free(&model);
+	kg_cs_model_free(&metals);
 	free(sep);
 	free(names);
 	free(lookup);

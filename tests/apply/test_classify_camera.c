@@ -22,7 +22,10 @@
  * the rest within reach of gold or shibuichi-shiro), fewer than 1 % of the declared
  * materials' pixels are, every region of 100 pixels or more of copper or shakudo is
  * 'unknown' (the pooled test) and every such region of a declared material keeps its
- * label; (6) the fitted angle and intensity bands lie in the searched ranges. The
+ * label; (6) the fitted angle and intensity bands lie in the searched ranges; (7) the
+ * composition: each metal dome's region has its library Ag and Cu fractions within 3
+ * of its standard deviations, and every fitted pixel of the --composition cube lies
+ * on the simplex (fractions >= 0, summing to 1 where gold is given). The
  * paper's eq. 11 (scale-free) on the same photograph is printed for comparison. */
 #include <jansson.h>
 
@@ -142,7 +145,7 @@ int main(int argc, char **argv)
 
 	const char *lab_hdr = fx_path("labels.hdr");
 	CHECK(FX_RUN("classify", "--calib", cam, "--materials", lib_path, "--variance", vpath, obj,
-	             "-o", lab_hdr) == 0,
+	             "-o", lab_hdr, "--composition", fx_path("comp.hdr")) == 0,
 	      "classify: %s", fx_errs);
 	printf("%s", fx_out);
 	kg_envi *el = NULL;
@@ -185,7 +188,7 @@ int main(int argc, char **argv)
 	FILE *fp = fopen(fx_path("labels_regions.csv"), "r");
 	CHECK(fp != NULL, "labels_regions.csv");
 	char line[2048];
-	int big = 0, big_right = 0;
+	int big = 0, big_right = 0, comp_checked = 0;
 	while (fp && reg && fgets(line, sizeof(line), fp)) {
 		unsigned id;
 		unsigned long long px;
@@ -209,11 +212,60 @@ int main(int argc, char **argv)
 		      counted);
 		CHECK(holds(label, mats[maj]), "region %u (%llu pixels) labelled %s, truth %s", id, px,
 		      label, mats[maj]);
+		/* (7) composition: the region's Ag and Cu fractions within 3 sd of the truth's */
+		double c[6];
+		const char *p = line;
+		for (int f = 0; f < 6 && p; f++)
+			p = strchr(p + 1, ',');
+		int nc = p ? sscanf(p, ",%lf,%lf,%lf,%lf,%lf,%lf", &c[0], &c[1], &c[2], &c[3], &c[4],
+		                    &c[5])
+		           : 0;
+		const kg_material *tm = kg_material_library_find(lib, mats[maj]);
+		double tag = 0, tcu = 0;
+		if (tm && tm->kind == KG_MATERIAL_ALLOY)
+			for (int q = 0; q < tm->ncomponents; q++) {
+				tag += !strcmp(tm->component[q].name, "silver") * tm->component[q].fraction;
+				tcu += !strcmp(tm->component[q].name, "copper") * tm->component[q].fraction;
+			}
+		else if (tm) {
+			tag = !strcmp(tm->name, "silver");
+			tcu = !strcmp(tm->name, "copper");
+		}
+		if (tm && tm->kind != KG_MATERIAL_DIELECTRIC) {
+			CHECK(nc >= 5, "region %u (%s): composition in the table", id, mats[maj]);
+			if (nc >= 5) {
+				printf("  region %u %-26s Ag %.3f +- %.3f (truth %.3f), Cu %.3f +- %.3f "
+				       "(truth %.3f)\n", id, mats[maj], c[0], c[3], tag, c[1], c[4], tcu);
+				comp_checked++;
+				CHECK(fabs(c[0] - tag) <= 3 * c[3] && fabs(c[1] - tcu) <= 3 * c[4],
+				      "region %u (%s): Ag %.3f +- %.3f against %.3f, Cu %.3f +- %.3f against "
+				      "%.3f", id, mats[maj], c[0], c[3], tag, c[1], c[4], tcu);
+			}
+		}
 	}
 	if (fp)
 		fclose(fp);
 	printf("regions of 100 pixels or more: %d, %d with their true label\n", big, big_right);
 	CHECK(big >= NMAT, "%d regions of 100 pixels or more, expected one per dome", big);
+	CHECK(comp_checked >= NMAT - 1, "%d metal regions with a composition", comp_checked);
+	kg_envi *ecp = NULL;
+	float *comp = fx_read_envi(fx_path("comp.hdr"), &ecp);
+	CHECK(comp && ecp && ecp->meta.bands == 6, "the composition cube has 6 bands");
+	long sum_bad = 0, fitted = 0;
+	for (size_t i = 0; comp && i < (size_t)W * H; i++) {
+		const float *c = comp + 6 * i;
+		if (!isfinite(c[0]))
+			continue;
+		fitted++;
+		double t = c[0] + c[1] + (isfinite(c[2]) ? c[2] : 0);
+		sum_bad += c[0] < 0 || c[1] < 0 || (isfinite(c[2]) && (c[2] < 0 || fabs(t - 1) > 1e-4));
+	}
+	printf("composition cube: %ld pixels fitted, %ld with fractions out of the simplex\n",
+	       fitted, sum_bad);
+	CHECK(fitted > 0 && sum_bad == 0, "%ld of %ld fitted pixels off the simplex", sum_bad,
+	      fitted);
+	kg_envi_close(&ecp);
+	free(comp);
 
 	/* (4) posterior against accuracy, (6) the fitted bands */
 	kg_envi *ec = NULL;
