@@ -320,6 +320,18 @@ static int classes_json(proc *p, const char *labels_json, const kg_est_material_
 		json_array_append_new(out, e);
 	}
 	json_object_set_new(object, "classes", out);
+	/* camera space: what the data can tell apart, the regions and their composition */
+	json_t *sep = json_object_get(lj, "separability");
+	if (sep)
+		json_object_set_new(object, "separability",
+		                    json_pack("{s:O,s:O,s:O}", "merge_distance",
+		                              json_object_get(sep, "merge_distance"), "pairs",
+		                              json_object_get(sep, "pairs_needing_pooling"), "merges",
+		                              json_object_get(lj, "merges")));
+	const char *keep[2] = {"regions", "composition"};
+	for (int k = 0; k < 2; k++)
+		if (json_object_get(lj, keep[k]))
+			json_object_set(object, keep[k], json_object_get(lj, keep[k]));
 	json_decref(lj);
 	return 0;
 }
@@ -422,6 +434,7 @@ static int classify_pass(proc *p, const proc_capture *c, proc_source *src,
 	int camera = !p->o->method || strcmp(p->o->method, "camera") == 0;
 	kg_classify_camera ccam;
 	kg_classify_camera_init(&ccam);
+	char *composition = NULL;
 	if (!ret && camera && !p->cam->response.available) {
 		camera = 0;
 		proc_warn(p, json_object_get(object, "warnings"),
@@ -441,7 +454,15 @@ static int classify_pass(proc *p, const proc_capture *c, proc_source *src,
 		ccam.angle_step = p->o->angles[2];
 		ccam.intensity_lo = p->o->intensity[0];
 		ccam.intensity_hi = p->o->intensity[1];
-		if (!(ret = proc_pass_open(src, 0, &survey_pass, &survey_src)))
+		static const char *const metal_names[3] = {"silver", "copper", "gold"};
+		for (int q = 0; q < 3; q++) {
+			const kg_material *mt = kg_material_library_find(p->lib, metal_names[q]);
+			ccam.metals[q] = mt && mt->kind == KG_MATERIAL_METAL ? mt : NULL;
+		}
+		if (ccam.metals[0] && ccam.metals[1] && ccam.metals[2] &&
+		    !(ret = kg_apply_side_path(labels, "_composition.hdr", &composition, err)))
+			ccam.composition_hdr = composition;
+		if (!ret && !(ret = proc_pass_open(src, 0, &survey_pass, &survey_src)))
 			ccam.survey = &survey_src;
 		if (!ret && info->has_variance &&
 		    !(ret = proc_pass_open(src, 1, &survey_var_pass, &survey_var_src)))
@@ -485,6 +506,7 @@ static int classify_pass(proc *p, const proc_capture *c, proc_source *src,
 	proc_pass_free(&img_pass);
 	proc_pass_free(&survey_pass);
 	proc_pass_free(&survey_var_pass);
+	free(composition);
 	kg_est_kernel_free(&kclass);
 	return ret;
 }

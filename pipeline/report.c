@@ -679,6 +679,134 @@ static void section_color_accuracy(report *r)
 	section_end(r);
 }
 
+/* An object's key, or NULL when absent (optional sections of camera-space labels). */
+static json_t *object_key(report *r, int i, const char *key)
+{
+	return json_object_get(json_array_get(json_object_get(r->root, "objects"), (size_t)i), key);
+}
+
+static double jnum(const json_t *o, const char *key)
+{
+	const json_t *v = json_object_get(o, key);
+	return json_is_number(v) ? json_number_value(v) : NAN;
+}
+
+/* Camera-space labels: the pairs of materials a pixel cannot tell apart at the
+ * capture's noise, and the classes merged for it. */
+static void put_separability(report *r, int i)
+{
+	json_t *sep = object_key(r, i, "separability");
+	if (!json_is_object(sep))
+		return;
+	html(r, "<h4>What the data can tell apart</h4>\n<p>");
+	json_t *merges = json_object_get(sep, "merges");
+	if (json_array_size(merges) == 0) {
+		textf(r, "Every declared material is its own class: no pair is closer than %.3g "
+		      "noise sigmas at this capture's noise.", jnum(sep, "merge_distance"));
+	} else {
+		textf(r, "At this capture's noise (with the angle and intensity unknown) a single "
+		      "pixel cannot tell these materials apart (closer than %.3g noise sigmas); each "
+		      "group is one class of the label map: ", jnum(sep, "merge_distance"));
+		size_t g;
+		json_t *grp;
+		json_array_foreach(merges, g, grp) {
+			size_t k;
+			json_t *m;
+			if (g)
+				text(r, "; ");
+			json_array_foreach(grp, k, m) {
+				if (k)
+					text(r, " | ");
+				text(r, json_string_value(m));
+			}
+		}
+		text(r, ".");
+	}
+	html(r, "</p>\n");
+	json_t *pairs = json_object_get(sep, "pairs");
+	if (json_array_size(pairs) == 0)
+		return;
+	html(r, "<table class=\"num\"><caption>Pairs a single pixel confuses more than 1 %% of "
+	        "the time: noise-weighted distance (in noise sigmas) and the pixels a region must "
+	        "pool for a 1 %% error</caption><thead><tr><th>material</th><th>material</th>"
+	        "<th>distance</th><th>pixels for 1 %%</th><th>one class</th></tr></thead><tbody>\n");
+	size_t k;
+	json_t *p;
+	json_array_foreach(pairs, k, p) {
+		html(r, "<tr><td class=\"name\">");
+		text(r, json_string_value(json_object_get(p, "a")));
+		html(r, "</td><td class=\"name\">");
+		text(r, json_string_value(json_object_get(p, "b")));
+		html(r, "</td><td>");
+		put_num(r, jnum(p, "distance"), 2);
+		html(r, "</td><td>");
+		put_num(r, jnum(p, "pixels_for_1pc"), 0);
+		html(r, "</td><td>%s</td></tr>\n",
+		     json_is_true(json_object_get(p, "merged")) ? "yes" : "no");
+	}
+	html(r, "</tbody></table>\n");
+}
+
+/* Camera-space labels: the regions of 100 pixels or more, decided on their pooled
+ * likelihood, with their composition. */
+static void put_regions(report *r, int i)
+{
+	json_t *reg = object_key(r, i, "regions");
+	if (!json_is_object(reg))
+		return;
+	html(r, "<h4>Regions</h4>\n");
+	if (!json_is_true(json_object_get(reg, "enabled"))) {
+		html(r, "<p class=\"missing\">");
+		const char *note = json_string_value(json_object_get(reg, "note"));
+		text(r, note ? note : "No regions were formed.");
+		html(r, "</p>\n");
+		return;
+	}
+	json_t *table = json_object_get(reg, "table");
+	html(r, "<p>");
+	textf(r, "%.0f regions (connected pixels of one class); those of 100 pixels or more, "
+	      "each decided on its pixels' pooled likelihood (which can resolve a merged class "
+	      "or refuse the region as unknown):", jnum(reg, "count"));
+	html(r, "</p>\n");
+	if (json_array_size(table) == 0) {
+		html(r, "<p class=\"missing\">No region of 100 pixels or more.</p>\n");
+		return;
+	}
+	html(r, "<table class=\"num\"><thead><tr><th>region</th><th>pixels</th><th>label</th>"
+	        "<th>posterior</th><th>Ag</th><th>Cu</th><th>Au</th></tr></thead><tbody>\n");
+	size_t k;
+	json_t *e;
+	json_array_foreach(table, k, e) {
+		if (k == 40) {
+			html(r, "<tr class=\"aggregate\"><td colspan=\"7\">");
+			textf(r, "%zu more in the labels' regions table", json_array_size(table) - 40);
+			html(r, "</td></tr>\n");
+			break;
+		}
+		html(r, "<tr><td>%.0f</td><td>", jnum(e, "region"));
+		put_num(r, jnum(e, "pixels"), 0);
+		html(r, "</td><td class=\"name\">");
+		text(r, json_string_value(json_object_get(e, "label")));
+		html(r, "</td><td>");
+		put_num(r, jnum(e, "posterior"), 3);
+		json_t *c = json_object_get(e, "composition");
+		static const char *const el[3][2] = {{"ag", "sd_ag"}, {"cu", "sd_cu"}, {"au", "sd_au"}};
+		for (int q = 0; q < 3; q++) {
+			html(r, "</td><td>");
+			double v = jnum(c, el[q][0]), sd = jnum(c, el[q][1]);
+			if (isfinite(v)) {
+				put_num(r, v, 3);
+				html(r, " &plusmn; ");
+				put_num(r, sd, 3);
+			} else {
+				html(r, "&mdash;");
+			}
+		}
+		html(r, "</td></tr>\n");
+	}
+	html(r, "</tbody></table>\n");
+}
+
 static void put_object(report *r, int i)
 {
 	const char *capture = str(r, "objects[%d].capture", i);
@@ -703,8 +831,9 @@ static void put_object(report *r, int i)
 	html(r, "<figcaption>Label map; colours as in the legend below.</figcaption></figure>\n"
 	        "<figure>");
 	put_image_file(r, str(r, "objects[%d].confidence_png", i), "confidence map", "map");
-	html(r, "<figcaption>Confidence map (margin to the runner-up material; brighter is "
-	        "more certain).</figcaption></figure>\n</div>\n");
+	html(r, "<figcaption>Confidence map (camera-space labels: the posterior of the "
+	        "chosen class, black 0 to white 1; eq. 11 labels: the margin to the runner-up "
+	        "material; brighter is more certain).</figcaption></figure>\n</div>\n");
 
 	int nclasses;
 	arr(r, &nclasses, "objects[%d].classes", i);
@@ -741,6 +870,8 @@ static void put_object(report *r, int i)
 		html(r, "</td></tr>\n");
 	}
 	html(r, "</tbody></table>\n");
+	put_separability(r, i);
+	put_regions(r, i);
 
 	report_panel *panels = calloc(nclasses > 0 ? nclasses : 1, sizeof(*panels));
 	double (*spectra)[2][KG_NBANDS] = calloc(nclasses > 0 ? nclasses : 1, sizeof(*spectra));
