@@ -862,6 +862,16 @@ static void put_object(report *r, int i)
 	};
 	for (size_t k = 0; k < sizeof(rest) / sizeof(rest[0]); k++) {
 		double f = num(r, "objects[%d].%s", i, rest[k].key);
+		/* unknown and background are already rows of the legend (with their colour)
+		 * when labels.json lists them as classes */
+		int listed = 0;
+		for (int c = 0; c < nclasses && !listed; c++) {
+			const char *name = str(r, "objects[%d].classes[%d].name", i, c);
+			size_t len = strlen(name);
+			listed = len && strncmp(name, rest[k].key, len) == 0 && rest[k].key[len] == '_';
+		}
+		if (listed)
+			continue;
 		html(r, "<tr class=\"aggregate\"><td></td><td class=\"name\">%s</td><td>",
 		     rest[k].label);
 		put_num(r, f * pixels, 0);
