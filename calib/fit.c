@@ -677,7 +677,10 @@ static int fit_reference(const kg_patchset *train, const kg_patchset *field,
 	}
 
 	ret = record_charts(ref, train, field, err);
-	if (!ret && (ret = kg_response_fit(train, &ref->response, err)))
+	if (!ret && (ret = opt->camera_weights
+	                       ? kg_response_from_camera(opt->camera_weights, train, &ref->response,
+	                                                 err)
+	                       : kg_response_fit(train, &ref->response, err)))
 		kg_err_prefix(err, "%s: ", set_name(train, "training chart"));
 	if (ret)
 		goto error;

@@ -102,7 +102,7 @@ void kg_spectral_map_apply(const kg_spectral_map *map, const double rgb[3],
  * space, the reading of materials the chart does not hold. */
 typedef struct kg_response {
 	int available;          /* 0: none (a file from before it existed) */
-	char source[16];        /* "chart" */
+	char source[16];        /* "chart" (learned) or "camera" (sensitivities) */
 	double F[3][KG_NBANDS];
 	double lambda[3];       /* the penalty weight chosen per channel */
 	double loo_rmse[3];     /* leave-one-out RMSE of the chart's readings, per channel */
@@ -112,6 +112,12 @@ typedef struct kg_response {
 
 /* Learn the response from a chart's spectra and readings (3 or more patches). */
 int kg_response_fit(const kg_patchset *train, kg_response *out, kg_err *err);
+/* The response from the camera's spectral sensitivities times the chart's light
+ * (weight, any scale): each channel's scale (the exposure) fitted to the chart's
+ * readings by least squares; loo_rmse the leave-one-out error of that fit, lambda 0,
+ * source "camera". */
+int kg_response_from_camera(const kg_spectrum weight[3], const kg_patchset *train,
+                            kg_response *out, kg_err *err);
 /* A reflectance's reading (61 values in, 3 out). */
 void kg_response_apply(const kg_response *r, const double *spectrum, double rgb[3]);
 
@@ -126,6 +132,9 @@ typedef struct kg_reference_options {
 	double max_cond;    /* collinearity limit for both charts (see kg_camera_fit) */
 	const char *const *exclude; /* ids left out of both charts, or NULL */
 	int nexclude;
+	/* The reference camera's sensitivities times the chart's light (3 spectra), or
+	 * NULL: the response is then learned from the chart (kg_response_fit). */
+	const kg_spectrum *camera_weights;
 } kg_reference_options;
 
 /* K = 3, uncentred, ridge 0, noise_sigma 0.01, method pca, max_cond

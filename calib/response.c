@@ -116,3 +116,52 @@ int kg_response_fit(const kg_patchset *train, kg_response *out, kg_err *err)
 	snprintf(out->source, sizeof(out->source), "chart");
 	return 0;
 }
+
+int kg_response_from_camera(const kg_spectrum weight[3], const kg_patchset *train,
+                            kg_response *out, kg_err *err)
+{
+	kg_check_arg(weight && train && out, err);
+	memset(out, 0, sizeof(*out));
+	if (!train->spectra || !train->rgb)
+		return kg_fail(err, KG_EINVAL, "response: the chart needs spectra and RGB");
+	const int m = train->n;
+	if (m < 2)
+		return kg_fail(err, KG_EINVAL, "response: %d patches: expected 2 or more", m);
+	double num = 0, den = 0;
+	for (int c = 0; c < 3; c++) {
+		/* one scale per channel (the exposure): rho_c = k_c g_c . s, least squares; its
+		 * leave-one-out residuals e_i / (1 - g_i^2 / sum g^2) */
+		double gg = 0, gr = 0, *g = malloc(sizeof(double) * (size_t)m);
+		if (!g)
+			return kg_fail(err, KG_ENOMEM, "out of memory");
+		for (int i = 0; i < m; i++) {
+			double s = 0;
+			for (int l = 0; l < NB; l++)
+				s += weight[c].v[l] * train->spectra[i].v[l];
+			g[i] = s;
+			gg += s * s;
+			gr += s * train->rgb[i][c];
+		}
+		if (!(gg > 0)) {
+			free(g);
+			return kg_fail(err, KG_EINVAL, "response: the camera's channel %d sees nothing of "
+			               "the chart under this light", c);
+		}
+		double k = gr / gg, sse = 0;
+		for (int i = 0; i < m; i++) {
+			double e = (train->rgb[i][c] - k * g[i]) / fmax(1.0 - g[i] * g[i] / gg, 1e-9);
+			sse += e * e;
+			den += train->rgb[i][c] * train->rgb[i][c];
+		}
+		free(g);
+		for (int l = 0; l < NB; l++)
+			out->F[c][l] = k * weight[c].v[l];
+		out->loo_rmse[c] = sqrt(sse / m);
+		num += sse;
+	}
+	out->loo_relative = den > 0 ? sqrt(num / den) : NAN;
+	out->patches = m;
+	out->available = 1;
+	snprintf(out->source, sizeof(out->source), "camera");
+	return 0;
+}

@@ -6,12 +6,14 @@
 
 #include "cli.h"
 #include "kg_calib.h"
+#include "kg_sim.h"
 
 static const char usage_reference[] =
 	"kogei calib reference --spectra S.cgats|S.csv --rgb P.cgats -o REF.json\n"
 	"                      [--field-rgb F.cgats] [--basis K|auto] [--centred]\n"
 	"                      [--ridge L] [--noise SIGMA] [--method NAME|auto]\n"
 	"                      [--max-cond C] [--exclude ID[,ID...]]\n"
+	"                      [--camera CSS.csv --illuminant NAME|FILE]\n"
 	"  Reference calibration (docs/architecture.md, step 1). The chart's spectra S\n"
 	"  (CGATS SPEC_* fields, or a patch,name,<nm>... CSV table) and the reference\n"
 	"  camera's linear RGB rho (RGB_R RGB_G RGB_B) are matched by SAMPLE_ID. Fitted:\n"
@@ -28,7 +30,11 @@ static const char usage_reference[] =
 	"  from --field-rgb, else from --rgb. --exclude leaves patches out of both.\n"
 	"  Refused: clipped (a channel >= 0.98) or non-finite patches, near-black field\n"
 	"  patches (< 0.01), nearly collinear RGB (as in calib camera; limit C, default\n"
-	"  100). Writes kogei-reference/1 JSON and prints the leave-one-out table.";
+	"  100). Writes kogei-reference/1 JSON and prints the leave-one-out table.\n"
+	"  The file also holds the reference camera's spectral response (for camera-space\n"
+	"  material labels): with --camera (its sensitivities, CSV wavelength_nm,r,g,b) and\n"
+	"  --illuminant (the chart's light), their product with each channel's exposure\n"
+	"  fitted to the chart; without, the smoothest response that fits the chart.";
 
 static const char usage_camera[] =
 	"kogei calib camera --reference REF.json --rgb P.cgats -o CAM.json\n"
@@ -138,6 +144,10 @@ static void print_reference(FILE *fp, const kg_reference *ref, const char *out)
 	}
 	fprintf(fp, "%s on the chart: mean RMSE %.5f, mean dE00 %.3f (max %.3f) under D65\n",
 	        kg_method_name(ref->method), rm / ref->m, de / ref->m, demax);
+	if (ref->response.available)
+		fprintf(fp, "camera response (camera-space labels): from the %s, leave-one-out error "
+		        "%.4f relative\n", strcmp(ref->response.source, "camera") ? "chart"
+		        : "camera's sensitivities", ref->response.loo_relative);
 	if (strcmp(out, "-") != 0)
 		fprintf(fp, "wrote %s\n", out);
 }
@@ -158,16 +168,21 @@ int kg_cmd_calib_reference(int argc, char **argv)
 		{"method", required_argument, NULL, 'm'},
 		{"max-cond", required_argument, NULL, 'C'},
 		{"exclude", required_argument, NULL, 'x'},
+		{"camera", required_argument, NULL, 'S'},
+		{"illuminant", required_argument, NULL, 'I'},
 		{"output", required_argument, NULL, 'o'},
 		{"help", no_argument, NULL, 'h'},
 		{0, 0, 0, 0},
 	};
 	kg_err err = {{0}};
+	const char *camera = NULL, *illuminant = NULL;
 	int c;
 	optind = 1;
 	while ((c = getopt_long(argc, argv, "o:h", opts, NULL)) != -1) {
 		double v;
 		switch (c) {
+		case 'S': camera = optarg; break;
+		case 'I': illuminant = optarg; break;
 		case 's': spectra = optarg; break;
 		case 'r': rgb = optarg; break;
 		case 'f': field = optarg; break;
@@ -212,6 +227,23 @@ int kg_cmd_calib_reference(int argc, char **argv)
 		return kg_cli_usage_error(usage_reference, "unexpected argument '%s'", argv[optind]);
 	if (!spectra || !rgb || !out)
 		return kg_cli_usage_error(usage_reference, "--spectra, --rgb and -o are required");
+	if (!camera != !illuminant)
+		return kg_cli_usage_error(usage_reference, "--camera and --illuminant go together "
+		                          "(the sensitivities and the chart's light)");
+	kg_spectrum weights[3];
+	if (camera) {
+		kg_sim_camera css;
+		kg_illuminant *ill = NULL;
+		int r = kg_sim_camera_load(camera, 0, &css, &err);
+		if (!r)
+			r = kg_illuminant_lookup(illuminant, &ill, &err);
+		if (r)
+			return kg_cli_error(&err, r);
+		for (int ch = 0; ch < 3; ch++)
+			weights[ch] = kg_spectrum_mul(&css.sens[ch], &ill->spd);
+		kg_illuminant_free(&ill);
+		opt.camera_weights = weights;
+	}
 
 	char **ids = NULL;
 	int nids = 0;
