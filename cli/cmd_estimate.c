@@ -129,7 +129,8 @@ static const char help_classify[] =
 	"                       variance is VAR / N\n"
 	"  --unknown-threshold T  a pixel whose best material does not explain it is\n"
 	"                       'unknown'. camera: its d2 > T, default the 99.9 % point of\n"
-	"                       chi-square with 2 degrees of freedom (13.82). eq11:\n"
+	"                       chi-square with 2 degrees of freedom (13.82; 3, 16.27, when\n"
+	"                       --intensity fixes the intensity). eq11:\n"
 	"                       chi2 > T, where chi2 weighs its residual in\n"
 	"                       the K weights by the noise (VAR / N, or without --variance\n"
 	"                       a model: sigma = 0.002 + 1 % of the level, in quadrature)\n"
@@ -615,8 +616,10 @@ int kg_cmd_classify(int argc, char **argv)
 			ccam.survey_variance = &survey_var_src;
 		ccam.survey = &survey_src;
 		if (!rc && regions && !(rc = open_image(regions, 0, &region_img, &region_src, &err))) {
+			const kg_image *h = kg_image_rows_header(region_img);
 			ccam.region_map = &region_src;
 			ccam.region_map_name = regions;
+			ccam.region_scale = h->is_float || h->bits >= 32 ? 1.0 : (double)((1u << h->bits) - 1);
 		}
 		ccam.regions = !no_regions;
 		static const char *const metal_names[3] = {"silver", "copper", "gold"};

@@ -616,6 +616,9 @@ typedef struct kg_classify_camera {
 	 * size; replaces the connected components. */
 	const kg_row_source *region_map;
 	const char *region_map_name;
+	double region_scale; /* the map's values times this are the region numbers: 2^bits - 1
+	                        for an integer image read on the 0..1 scale, 1 for a float
+	                        one; 0 means 1 */
 	/* Composition: the library's pure silver, copper and gold (in that order; NULL: no
 	 * composition), and where to write its cube (NULL: LABELS.json and the regions'
 	 * table only). Pixels whose best material is made of these metals get their Ag,
@@ -632,9 +635,10 @@ void kg_classify_camera_init(kg_classify_camera *c);
 /* Camera-space label map of src among the materials of set (from
  * kg_est_material_set_new: it needs the library's entries). copt gives the noise
  * (variance and frames, or the noise model), the mask, the background level and the
- * unknown bound (0: the 99.9 % point of chi-square with 2 degrees of freedom for the
- * best material's d2; its intensity, and partly its angle, are fitted to the 3
- * channels); its distance is not used. k, the site's pca kernel, gives the classes'
+ * unknown bound (0: the 99.9 % point of chi-square for the best material's d2, with 2
+ * degrees of freedom when the intensity is searched (the 3 channels less the fitted
+ * intensity; the angle, weakly determined, is not counted), 3 when it is fixed); its
+ * distance is not used. k, the site's pca kernel, gives the classes'
  * mean spectra (may be NULL: no spectra). Memory stays bounded (regions: at most
  * 2^20 runs of a class, above which no regions are formed and LABELS.json says so). */
 int kg_classify_camera_rows(const kg_est_kernel *k, const kg_est_material_set *set,

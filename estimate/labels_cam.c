@@ -110,6 +110,7 @@ typedef struct cam_run {
 	int nm, nc;   /* materials, classes */
 	int group[KG_EST_MAX_MATERIALS];   /* material -> class index */
 	double threshold;                  /* unknown above; +Inf: no test */
+	int dof;                           /* of a pixel's d2 */
 	/* composition: the pure metals' readings (silver, copper, gold) at the model's
 	 * angles, and which materials are made of them */
 	const kg_cs_model *metals; /* NULL: no composition */
@@ -392,6 +393,8 @@ typedef struct run_seg {
 
 typedef struct regions {
 	int on, overflow, user;
+	double user_scale; /* a user map's values to region numbers */
+	int dof;           /* of a pixel's d2 */
 	int nm;
 	/* union-find over provisional ids (connected components) or user ids */
 	uint32_t *parent;
@@ -573,11 +576,11 @@ static int regions_user_row(regions *g, const float *ids, const uint8_t *lab, co
                             const float *fshare, const float *comp, int nc, kg_err *err)
 {
 	for (int x = 0; x < g->width; x++) {
-		float v = ids[x];
-		if (!(v >= 0.0f && v < (float)MAX_USER_REGIONS) || v != floorf(v))
+		double v = ids[x] * g->user_scale, rv = floor(v + 0.5);
+		if (!(rv >= 0 && rv < MAX_USER_REGIONS) || fabs(v - rv) > 1e-3)
 			return kg_fail(err, KG_EINVAL, "the region map's value %g: expected whole region "
-			               "numbers from 0 (none) to %d", (double)v, MAX_USER_REGIONS - 1);
-		uint32_t id = (uint32_t)v;
+			               "numbers from 0 (none) to %d", v, MAX_USER_REGIONS - 1);
+		uint32_t id = (uint32_t)rv;
 		if (!id || lab[x] < 1 || lab[x] > nc)
 			continue;
 		double *acc = g->d2 + (size_t)id * g->nm;
@@ -658,9 +661,9 @@ static region_decision decide(const regions *g, uint32_t id, const int *group, i
 	r.d2_mean = D[jbest] / N;
 	/* the pooled unknown test: the best material's summed d2, scaled like the
 	 * differences (the calibration's error is one error for the whole region), against
-	 * chi-square with 2 N s degrees of freedom (its 99.9 % point; Wilson-Hilferty above
-	 * 1000) */
-	double dof = ceil(2.0 * N * s), q;
+	 * chi-square with dof N s degrees of freedom (its 99.9 % point; Wilson-Hilferty
+	 * above 1000) */
+	double dof = ceil(g->dof * N * s), q;
 	if (dof <= 1000)
 		q = kg_chi2_quantile(0.999, (int)dof);
 	else {
@@ -1020,7 +1023,7 @@ static int write_json(const char *path, const kg_est_material_set *set,
 	json_object_set_new(u, "enabled", json_boolean(isfinite(threshold)));
 	json_object_set_new(u, "statistic", json_string("d2 of the best material"));
 	json_object_set_new(u, "threshold", ap_json_num(threshold));
-	json_object_set_new(u, "dof", json_integer(2));
+	json_object_set_new(u, "dof", json_integer(res->dof));
 	json_object_set_new(u, "probability", isfinite(threshold) && copt->unknown_threshold == 0
 	                                          ? json_real(0.999)
 	                                          : json_null());
@@ -1168,7 +1171,7 @@ static int write_json(const char *path, const kg_est_material_set *set,
 	                                "a member whose share of its posterior is >= 0.99; "
 	                                "'unknown' when the best material's summed d2, scaled "
 	                                "the same, exceeds the 99.9 % point of chi-square with "
-	                                "2 N / (1 + N f) degrees of freedom"));
+	                                "dof N / (1 + N f) degrees of freedom"));
 	json_t *table = json_array();
 	if (reg->on && !reg->overflow && reg->final) {
 		int listed = 0;
@@ -1486,12 +1489,16 @@ int kg_classify_camera_rows(const kg_est_kernel *k, const kg_est_material_set *s
 		classes.materials[c].name = classes.names[c];
 		classes.materials[c].spectrum = classes.spectra[c].v;
 	}
+	/* the reading's 3 channels less the fitted intensity (the angle, weakly determined,
+	 * is not counted: the bound errs towards keeping a material) */
+	run.dof = cam->intensity_hi > cam->intensity_lo ? 2 : 3;
 	run.unknown = (uint8_t)ap_label_unknown(&classes);
 	run.background = (uint8_t)ap_label_background(&classes);
 	run.threshold = copt->unknown_threshold > 0 ? copt->unknown_threshold
-	                                            : kg_chi2_quantile(0.999, 2);
+	                                            : kg_chi2_quantile(0.999, run.dof);
 	local.unknown_threshold = run.threshold;
-	local.dof = 2;
+	local.dof = run.dof;
+	sink.reg.dof = run.dof;
 
 	if ((rc = kg_apply_side_path(out_hdr, "_confidence.hdr", &conf_path, err)) ||
 	    (rc = kg_apply_side_path(out_hdr, ".json", &json_path, err)) ||
@@ -1520,6 +1527,7 @@ int kg_classify_camera_rows(const kg_est_kernel *k, const kg_est_material_set *s
 	}
 	sink.reg.on = cam->regions || cam->region_map;
 	sink.reg.user = cam->region_map != NULL;
+	sink.reg.user_scale = cam->region_scale > 0 ? cam->region_scale : 1.0;
 	sink.reg.nm = nm;
 	sink.reg.width = W;
 	if (sink.reg.on) {
