@@ -25,7 +25,9 @@
  * label; (6) the fitted angle and intensity bands lie in the searched ranges; (7) the
  * composition: each metal dome's region has its library Ag and Cu fractions within 3
  * of its standard deviations, and every fitted pixel of the --composition cube lies
- * on the simplex (fractions >= 0, summing to 1 where gold is given). The
+ * on the simplex (fractions >= 0, summing to 1 where gold is given); (8) a user region
+ * map decides each dome as one region under its own number; bad --angles, --regions
+ * with eq11 and a 3-channel region map are refused. The
  * paper's eq. 11 (scale-free) on the same photograph is printed for comparison. */
 #include <jansson.h>
 
@@ -383,6 +385,46 @@ int main(int argc, char **argv)
 		fclose(ucsv);
 	CHECK(ubig >= NMAT, "--only: %d regions of 100 pixels or more", ubig);
 	free(ureg);
+
+	/* (8) a user region map (16-bit PNG of the dome numbers 1-10, 0 between): each dome
+	 * decided as one region, numbered as in the map */
+	kg_image *map = NULL;
+	CHECK(kg_image_new(W, H, 1, &map, &err) == 0, "%s", err.msg);
+	for (size_t i = 0; map && i < (size_t)W * H; i++)
+		map->data[i] = truth[i] < 0 ? 0.0f : (float)(truth[i] + 1) / 65535.0f;
+	const char *map_path = fx_path("domes.png"), *ur_hdr = fx_path("user.hdr");
+	CHECK(map && kg_image_write(map, map_path, 16, &err) == 0, "%s", err.msg);
+	kg_image_free(&map);
+	CHECK(FX_RUN("classify", "--calib", cam, "--materials", lib_path, "--variance", vpath, obj,
+	             "--regions", map_path, "-o", ur_hdr) == 0,
+	      "classify --regions: %s", fx_errs);
+	FILE *uf = fopen(fx_path("user_regions.csv"), "r");
+	int user_regions = 0, user_right = 0;
+	while (uf && fgets(line, sizeof(line), uf)) {
+		unsigned id;
+		unsigned long long px;
+		char cls[KG_EST_CLASS_NAME_MAX], label[KG_EST_CLASS_NAME_MAX];
+		if (sscanf(line, "%u,%llu,%255[^,],%255[^,],", &id, &px, cls, label) != 4)
+			continue;
+		user_regions++;
+		user_right += id >= 1 && id <= NMAT && holds(label, mats[id - 1]);
+	}
+	if (uf)
+		fclose(uf);
+	printf("user region map: %d regions, %d with their dome's material\n", user_regions,
+	       user_right);
+	CHECK(user_regions == NMAT && user_right == NMAT, "user regions: %d of %d right",
+	      user_right, user_regions);
+	/* bad usage and bad input */
+	CHECK(FX_RUN("classify", "--calib", cam, "--materials", lib_path, obj, "-o",
+	             fx_path("x.hdr"), "--angles", "10:95") == 2 && strstr(fx_errs, "--angles"),
+	      "--angles beyond 90 refused: %s", fx_errs);
+	CHECK(FX_RUN("classify", "--method", "eq11", "--calib", cam, "--materials", lib_path, obj,
+	             "-o", fx_path("x.hdr"), "--regions", map_path) == 2,
+	      "--regions with eq11 refused");
+	CHECK(FX_RUN("classify", "--calib", cam, "--materials", lib_path, obj, "-o",
+	             fx_path("x.hdr"), "--regions", vpath) == 1 && strstr(fx_errs, "region map"),
+	      "a 3-channel region map refused: %s", fx_errs);
 
 	/* LABELS.json: the separability table and the merges */
 	json_t *j = json_load_file(fx_path("labels.json"), 0, NULL);
