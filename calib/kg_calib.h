@@ -356,6 +356,10 @@ typedef struct kg_camera_calib {
  * about l^2 R of calibration error. Zeros for a fit of 3 patches. */
 void kg_camera_residual_cov(const kg_camera_calib *cam, double R[9]);
 
+/* The sha256 of the reference calibration the site calibration was fitted against, or
+ * "" when it was not recorded. */
+const char *kg_camera_reference_sha256(const kg_camera_calib *cam);
+
 /* M2 from the reference's rho0 and a site patch set (rgb), matched by SAMPLE_ID.
  * Patches the detector flagged (a FLAGS column: clipped, glare, too few pixels, out of
  * frame, non-uniform) are left out and listed in flagged_ids. Refused (KG_EINVAL, the

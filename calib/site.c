@@ -508,3 +508,11 @@ void kg_camera_residual_cov(const kg_camera_calib *cam, double R[9])
 	for (int e = 0; e < 9; e++)
 		R[e] *= scale;
 }
+
+const char *kg_camera_reference_sha256(const kg_camera_calib *cam)
+{
+	for (int i = 0; cam && i < cam->nsources; i++)
+		if (cam->sources[i].role && strcmp(cam->sources[i].role, "reference") == 0)
+			return cam->sources[i].sha256;
+	return "";
+}

@@ -39,6 +39,7 @@ int kg_cli_check_camera(const kg_camera_calib *cam, const char *calib_path,
 
 int kg_cmd_spectra_xyz(int argc, char **argv);
 int kg_cmd_model(int argc, char **argv);
+int kg_cmd_materials_learn(int argc, char **argv);
 int kg_cmd_demo(int argc, char **argv);
 int kg_cmd_sim_patches(int argc, char **argv);
 int kg_cmd_sim_image(int argc, char **argv);

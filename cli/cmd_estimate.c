@@ -640,6 +640,7 @@ int kg_cmd_classify(int argc, char **argv)
 		         cam->response.source);
 		memcpy(ccam.site_to_ref, cam->M2, sizeof(ccam.site_to_ref));
 		kg_camera_residual_cov(cam, ccam.calib_cov);
+		ccam.reference_sha256 = kg_camera_reference_sha256(cam);
 		rc = kg_classify_camera_rows(k, set, &ccam, &src, &opt, &copt, &info, out, &res, &err);
 	} else if (!rc) {
 		kg_classify_info info = {calib, library, kg_method_name(m), image, variance, mask};

@@ -10,6 +10,7 @@ static const kg_command commands[] = {
 	{"measure", kg_cmd_measure, "reflectance readings with a USB spectrometer (single spot or chart)"},
 	{"spectra xyz", kg_cmd_spectra_xyz, "CIE XYZ and CIELAB of the spectra in a CGATS file"},
 	{"model", kg_cmd_model, "reflectance of a material over wavelength and incidence angle"},
+	{"materials learn", kg_cmd_materials_learn, "templates from photographs of reference coupons"},
 	{"sim patches", kg_cmd_sim_patches, "simulated camera readings of reflectance spectra"},
 	{"sim image", kg_cmd_sim_image, "simulated camera image of a chart and material samples"},
 	{"sim chart", kg_cmd_sim_chart, "simulated photograph of a chart layout with its truth"},

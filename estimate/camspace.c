@@ -25,6 +25,7 @@ void kg_cs_model_free(kg_cs_model **pm)
 	free((*pm)->mu);
 	free((*pm)->muf);
 	free((*pm)->anglef);
+	free((*pm)->templated);
 	free(*pm);
 	*pm = NULL;
 }
@@ -52,8 +53,10 @@ int kg_cs_model_new(const double *F, const kg_material *const *mats, int n, doub
 		m->mu = malloc(sizeof(double) * 3 * (size_t)n * (size_t)na);
 		m->muf = malloc(sizeof(float) * 3 * (size_t)n * (size_t)na);
 		m->anglef = malloc(sizeof(float) * (size_t)na);
+		m->templated = calloc((size_t)n, 1);
 	}
-	if (!m || !m->names || !m->angle_deg || !m->mu || !m->muf || !m->anglef) {
+	if (!m || !m->names || !m->angle_deg || !m->mu || !m->muf || !m->anglef ||
+	    !m->templated) {
 		kg_cs_model_free(&m);
 		return kg_fail(err, KG_ENOMEM, "out of memory");
 	}
@@ -66,6 +69,23 @@ int kg_cs_model_new(const double *F, const kg_material *const *mats, int n, doub
 		m->angle_deg[k] = a0 + step * k;
 	for (int j = 0; j < n && !ret; j++) {
 		snprintf(m->names[j], sizeof(m->names[j]), "%s", mats[j]->name);
+		const kg_material_template *t = &mats[j]->tmpl;
+		if (t->n > 0) {
+			/* the coupon's readings, linear between its views' angles, held beyond */
+			m->templated[j] = 1;
+			for (int k = 0; k < na; k++) {
+				double th = m->angle_deg[k], *mu = m->mu + 3 * ((size_t)j * na + k);
+				int v = 0;
+				while (v + 1 < t->n && t->angle_deg[v + 1] <= th)
+					v++;
+				double f = 0;
+				if (v + 1 < t->n && th > t->angle_deg[v])
+					f = (th - t->angle_deg[v]) / (t->angle_deg[v + 1] - t->angle_deg[v]);
+				for (int c = 0; c < 3; c++)
+					mu[c] = (1 - f) * t->mean[v][c] + (f > 0 ? f * t->mean[v + 1][c] : 0);
+			}
+			continue;
+		}
 		for (int k = 0; k < na && !ret; k++) {
 			kg_spectrum r;
 			if ((ret = kg_material_reflectance(mats[j], m->angle_deg[k] * M_PI / 180.0, &r,

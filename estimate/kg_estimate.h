@@ -283,10 +283,14 @@ typedef struct kg_cs_model {
 	double *mu;        /* n x nangles x 3: the predicted readings at intensity 1 */
 	float *muf;        /* the same in float, for the block kernel */
 	float *anglef;
+	uint8_t *templated; /* n: the material's readings come from its coupon template */
 	double lo, hi;     /* the intensity range searched */
 } kg_cs_model;
 
-/* F row-major (3 x 61); angles a0 to a1 degrees every step; intensities lo to hi. */
+/* F row-major (3 x 61); angles a0 to a1 degrees every step; intensities lo to hi. A
+ * material with a template (kg_material.tmpl, learned from coupons) takes its readings
+ * from it instead of F times its reflectance: linear between the views' angles, the
+ * nearest view's beyond them. */
 int kg_cs_model_new(const double *F, const kg_material *const *mats, int n, double a0,
                     double a1, double step, double lo, double hi, kg_cs_model **out,
                     kg_err *err);
@@ -626,6 +630,10 @@ typedef struct kg_classify_camera {
 	 * them) fitted at the fitted angle, with Cramer-Rao standard deviations. */
 	const kg_material *metals[3];
 	const char *composition_hdr;
+	/* sha256 of the reference calibration the site calibration was fitted against
+	 * (kg_camera_reference_sha256), or NULL: a declared material's coupon template
+	 * learned through another reference is refused */
+	const char *reference_sha256;
 } kg_classify_camera;
 
 /* M2 identity, angles 0-70 every 5 degrees, intensity 0.3-1.0, merge distance 0

@@ -993,6 +993,11 @@ static int write_json(const char *path, const kg_est_material_set *set,
 	json_object_set_new(cs, "intensity", json_pack("[ff]", cam->intensity_lo,
 	                                               cam->intensity_hi));
 	json_object_set_new(cs, "M2", mat3(cam->site_to_ref));
+	json_t *tm = json_array();
+	for (int j = 0; j < m->n; j++)
+		if (m->templated[j])
+			json_array_append_new(tm, json_string(m->names[j]));
+	json_object_set_new(cs, "coupon_templates", tm);
 	json_object_set_new(cs, "calibration_covariance", mat3(cam->calib_cov));
 	json_object_set_new(cs, "response", json_string(cam->response_source[0]
 	                                                    ? cam->response_source
@@ -1360,6 +1365,16 @@ int kg_classify_camera_rows(const kg_est_kernel *k, const kg_est_material_set *s
 		               cam->region_map_name ? cam->region_map_name : "", cam->region_map->width,
 		               cam->region_map->height, cam->region_map->channels,
 		               cam->region_map->channels == 1 ? "" : "s", src->width, src->height);
+	for (int j = 0; j < set->n; j++) {
+		const kg_material_template *t = &set->mats[j]->tmpl;
+		if (t->n && t->reference[0] && cam->reference_sha256 && cam->reference_sha256[0] &&
+		    strcmp(t->reference, cam->reference_sha256) != 0)
+			return kg_fail(err, KG_EINVAL, "%s: material '%s': its coupon template was learned "
+			               "through another reference calibration (sha256 %.12s..., this "
+			               "calibration's reference is %.12s...): learn it again through this "
+			               "one, or use a library without it", out_hdr, set->mats[j]->name,
+			               t->reference, cam->reference_sha256);
+	}
 	cam_run run;
 	memset(&run, 0, sizeof(run));
 	kg_apply_options o = *opt;

@@ -159,6 +159,21 @@ typedef struct kg_alloy_component {
 	kg_nk nk;                        /* the metal's optical constants */
 } kg_alloy_component;
 
+/* An empirical template: a material's reading learned from photographs of a reference
+ * coupon at the station (kogei materials learn), in the reference camera's space at
+ * the chart's exposure, per incidence angle of the views. Matching prefers it to the
+ * reading predicted from the published n, k. */
+#define KG_TEMPLATE_MAX_VIEWS 8
+typedef struct kg_material_template {
+	int n;                                  /* views; 0: no template */
+	double angle_deg[KG_TEMPLATE_MAX_VIEWS]; /* increasing */
+	double mean[KG_TEMPLATE_MAX_VIEWS][3];
+	double cov[KG_TEMPLATE_MAX_VIEWS][9];    /* of the coupon's pixels */
+	long pixels[KG_TEMPLATE_MAX_VIEWS];
+	char reference[65]; /* sha256 of the reference calibration it was learned through,
+	                       or "" when unknown */
+} kg_material_template;
+
 /* A plain value (copy by assignment). Fields not used by a kind are zero. */
 typedef struct kg_material {
 	char name[KG_MATERIAL_NAME_MAX];
@@ -173,6 +188,7 @@ typedef struct kg_material {
 	double mirror_width;
 	double gloss;
 	double mirror;
+	kg_material_template tmpl; /* optional, any kind ("template" in the library file) */
 } kg_material;
 
 /* Check a material: finite n >= 0 and k >= 0, alloy fractions in [0, 1] summing to 1

@@ -218,7 +218,8 @@ const kg_material *kg_material_library_find(const kg_material_library *lib, cons
 
 /* Keys an entry may have, by kind (the common ones first). */
 static const char *const common_keys[] = {"name", "kind", "note", "source", "roughness",
-                                          "mirror_width", "gloss", "mirror", NULL};
+                                          "mirror_width", "gloss", "mirror", "template",
+                                          NULL};
 static const char *const metal_keys[] = {"nk", "extrapolate", NULL};
 static const char *const alloy_keys[] = {"components", NULL};
 static const char *const dielectric_keys[] = {"n", "body", NULL};
@@ -248,7 +249,7 @@ static int check_keys(const char *label, const json_t *entry, kg_material_kind k
 			         k == own ? "" : ", ", *k);
 		return kg_fail(err, KG_EINVAL, "%s: field '%s' is not known for a %s: expected "
 		               "name, kind, note, source, roughness, mirror_width, gloss, mirror, "
-		               "%s", label, key, kind_name(kind), allowed);
+		               "template, %s", label, key, kind_name(kind), allowed);
 	}
 	return 0;
 }
@@ -393,6 +394,55 @@ static int parse_alloy(const char *label, const json_t *entry, const kg_material
 }
 
 /* Name, kind and surface parameters of entry i (the kind-specific parts follow). */
+/* "template": {"reference": sha256 or "", "views": [{"angle_deg", "mean" [3],
+ * "cov" [9], "pixels"}...]}, angles increasing in [0, 90), finite values, variances
+ * >= 0. */
+static int parse_template(const char *label, const json_t *t, kg_material_template *out,
+                          kg_err *err)
+{
+	memset(out, 0, sizeof(*out));
+	const json_t *views = json_object_get(t, "views");
+	const json_t *ref = json_object_get(t, "reference");
+	if (!json_is_object(t) || !json_is_array(views) || json_array_size(views) < 1 ||
+	    json_array_size(views) > KG_TEMPLATE_MAX_VIEWS || (ref && !json_is_string(ref)))
+		return kg_fail(err, KG_EINVAL, "%s: field template: expected {\"reference\": "
+		               "sha256, \"views\": [1 to %d views of angle_deg, mean (3), cov (9), "
+		               "pixels]}", label, KG_TEMPLATE_MAX_VIEWS);
+	if (ref)
+		snprintf(out->reference, sizeof(out->reference), "%s", json_string_value(ref));
+	size_t i;
+	const json_t *v;
+	json_array_foreach(views, i, v) {
+		const json_t *a = json_object_get(v, "angle_deg"), *mean = json_object_get(v, "mean"),
+		             *cov = json_object_get(v, "cov"), *px = json_object_get(v, "pixels");
+		int ok = json_is_number(a) && json_is_array(mean) && json_array_size(mean) == 3 &&
+		         json_is_array(cov) && json_array_size(cov) == 9 && json_is_integer(px) &&
+		         json_integer_value(px) > 0;
+		double ang = ok ? json_number_value(a) : NAN;
+		ok = ok && ang >= 0 && ang < 90 && (i == 0 || ang > out->angle_deg[i - 1]);
+		for (int c = 0; ok && c < 3; c++) {
+			const json_t *x = json_array_get(mean, (size_t)c);
+			ok = json_is_number(x) && isfinite(json_number_value(x));
+			out->mean[i][c] = ok ? json_number_value(x) : 0;
+		}
+		for (int e = 0; ok && e < 9; e++) {
+			const json_t *x = json_array_get(cov, (size_t)e);
+			ok = json_is_number(x) && isfinite(json_number_value(x));
+			out->cov[i][e] = ok ? json_number_value(x) : 0;
+		}
+		ok = ok && out->cov[i][0] >= 0 && out->cov[i][4] >= 0 && out->cov[i][8] >= 0;
+		if (!ok)
+			return kg_fail(err, KG_EINVAL, "%s: field template.views[%zu]: expected "
+			               "angle_deg in [0, 90) above the previous view's, mean (3 finite "
+			               "numbers), cov (9 finite numbers, variances >= 0) and pixels > 0",
+			               label, i);
+		out->angle_deg[i] = ang;
+		out->pixels[i] = (long)json_integer_value(px);
+	}
+	out->n = (int)json_array_size(views);
+	return 0;
+}
+
 static int parse_common(const char *file, int i, const json_t *entry,
                         const kg_material_library *lib, kg_material *m, char *label,
                         size_t labelsz, kg_err *err)
@@ -432,6 +482,8 @@ static int parse_common(const char *file, int i, const json_t *entry,
 	    (r = opt_number(label, entry, "gloss", DEFAULT_GLOSS, &m->gloss, err)) ||
 	    (r = opt_number(label, entry, "mirror", DEFAULT_MIRROR, &m->mirror, err)))
 		return r;
+	if (json_object_get(entry, "template"))
+		return parse_template(label, json_object_get(entry, "template"), &m->tmpl, err);
 	return 0;
 }
 

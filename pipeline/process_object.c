@@ -449,6 +449,7 @@ static int classify_pass(proc *p, const proc_capture *c, proc_source *src,
 		         p->cam->response.source);
 		memcpy(ccam.site_to_ref, p->cam->M2, sizeof(ccam.site_to_ref));
 		kg_camera_residual_cov(p->cam, ccam.calib_cov);
+		ccam.reference_sha256 = kg_camera_reference_sha256(p->cam);
 		ccam.angle_from = p->o->angles[0];
 		ccam.angle_to = p->o->angles[1];
 		ccam.angle_step = p->o->angles[2];
