@@ -12,6 +12,10 @@ int bench_speed_all(const kg_bench_config *cfg, kg_est_kernel *const *k,
                     const kg_est_classifier *cls, const float *rgb, int width, int height,
                     void *out, float *conf, kg_bench_results *r, kg_err *err);
 
+/* The camera-space rows (r->camspace) on cfg->camspace_mpix Mpix; the material
+ * library is cfg->materials (none: skipped, no rows), the sensor noise r->noise. */
+int bench_camspace(const kg_bench_config *cfg, kg_bench_results *r, kg_err *err);
+
 /* Append a formatted progress line through cfg->progress. */
 void bench_progress(const kg_bench_config *cfg, const char *fmt, ...) KG_PRINTF(2, 3);
 

@@ -154,6 +154,30 @@ const char *kg_bench_stream_kind(void);
 /* "f32-bsq", "f32-bip", "f16-bsq", "f16-bip", "weights", "labels". */
 const char *kg_bench_format_name(kg_est_format f);
 
+/* ---- camera-space matching --------------------------------------------------------- */
+
+/* kg_cs_match_block over camspace_mpix Mpix of noisy readings of the library's
+ * materials (bench_camspace.c says how they are made): one implementation on one
+ * thread count. Timed with best, both distances, angle and intensity written. */
+typedef struct kg_bench_camspace_row {
+	kg_est_isa isa; /* KG_EST_ISA_C or KG_EST_ISA_AVX2 */
+	int threads;
+	double seconds; /* median */
+	double mpix_s;
+} kg_bench_camspace_row;
+
+typedef struct kg_bench_camspace {
+	long pixels;
+	int materials, angles;
+	double angle_to, lo, hi; /* angles 0 to angle_to degrees, intensities lo to hi */
+	int avx2;                /* the CPU has AVX2: its rows were measured */
+	int identical;           /* AVX2 wrote the same bytes as C into every output */
+	double accuracy;         /* labels equal to the material a reading was drawn from */
+	long refused;            /* KG_CS_NO_MATCH */
+	int nrows;
+	kg_bench_camspace_row *rows;
+} kg_bench_camspace;
+
 /* ---- the whole benchmark --------------------------------------------------------- */
 
 typedef void (*kg_bench_progress_fn)(void *user, const char *line);
@@ -168,14 +192,15 @@ typedef struct kg_bench_config {
 	const int *threads;        /* thread counts */
 	int nthreads;
 	int nmaterials;            /* classifier size */
-	int run_error, run_speed;
+	int run_error, run_speed, run_camspace;
+	double camspace_mpix;      /* pixels of the camera-space rows, in Mpix */
 	const char *command;       /* the command line, for the report */
 	kg_bench_progress_fn progress;
 	void *progress_user;
 } kg_bench_config;
 
-/* Full bench: 12 Mpix, 5 repetitions, threads 1 and 2, 16 materials. quick: 2 Mpix
- * and 3 repetitions. */
+/* Full bench: 12 Mpix, 5 repetitions, threads 1 and 2, 16 materials, camera-space
+ * rows on 1 Mpix. quick: 2 Mpix and 3 repetitions. */
 void kg_bench_config_default(kg_bench_config *c, int quick);
 
 typedef struct kg_bench_results {
@@ -199,7 +224,8 @@ typedef struct kg_bench_results {
 	kg_bench_speed_row *speed;
 	int nlimit;
 	kg_bench_limit_row *limit;
-	double seconds_error, seconds_speed;
+	kg_bench_camspace camspace; /* nrows 0: not run */
+	double seconds_error, seconds_speed, seconds_camspace;
 } kg_bench_results;
 
 int kg_bench_run(const kg_bench_config *cfg, kg_bench_results **out, kg_err *err);

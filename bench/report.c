@@ -153,6 +153,70 @@ static void md_speed(FILE *fp, const kg_bench_results *r)
 	fputc('\n', fp);
 }
 
+static const char *isa_name(kg_est_isa isa)
+{
+	return isa == KG_EST_ISA_AVX2 ? "avx2" : "c";
+}
+
+static const char *camspace_agreement(const kg_bench_camspace *cs)
+{
+	return !cs->avx2 ? "not measured (the CPU has no AVX2)"
+	       : cs->identical ? "bit-identical"
+	                       : "DIFFERENT";
+}
+
+static void md_camspace(FILE *fp, const kg_bench_results *r)
+{
+	const kg_bench_camspace *cs = &r->camspace;
+	int t[16], nt = 0;
+	for (int i = 0; i < cs->nrows; i++) {
+		int seen = 0;
+		for (int j = 0; j < nt; j++)
+			seen |= t[j] == cs->rows[i].threads;
+		if (!seen && nt < 16)
+			t[nt++] = cs->rows[i].threads;
+	}
+	fprintf(fp, "## Camera-space matching\n\n");
+	fprintf(fp, "`kg_cs_match_block` on %.2f Mpix: %d materials x %d angles (0-%g degrees), "
+	            "intensity %g-%g, readings of the library's materials under the synthetic "
+	            "camera and D65 with photon and read noise (%g e- full well, %g e- rms) "
+	            "mapped through a colour matrix (a full covariance per pixel); median of %d "
+	            "runs after one warm-up, writing the label, both distances, the angle and "
+	            "the intensity.\n\n",
+	        (double)cs->pixels * 1e-6, cs->materials, cs->angles, cs->angle_to, cs->lo,
+	        cs->hi, r->noise.full_well, r->noise.read_noise, r->reps);
+	fprintf(fp, "| implementation |");
+	for (int j = 0; j < nt; j++)
+		fprintf(fp, " Mpix/s (%d thr) |", t[j]);
+	fprintf(fp, "\n|---|");
+	for (int j = 0; j < nt; j++)
+		fprintf(fp, "--:|");
+	fputc('\n', fp);
+	for (int impl = 0; impl < 2; impl++) {
+		kg_est_isa isa = impl ? KG_EST_ISA_AVX2 : KG_EST_ISA_C;
+		int any = 0;
+		for (int i = 0; i < cs->nrows; i++)
+			any |= cs->rows[i].isa == isa;
+		if (!any)
+			continue;
+		fprintf(fp, "| %s |", isa_name(isa));
+		for (int j = 0; j < nt; j++) {
+			const kg_bench_camspace_row *row = NULL;
+			for (int i = 0; i < cs->nrows; i++)
+				if (cs->rows[i].isa == isa && cs->rows[i].threads == t[j])
+					row = &cs->rows[i];
+			if (row)
+				fprintf(fp, " %.2f |", row->mpix_s);
+			else
+				fprintf(fp, " - |");
+		}
+		fputc('\n', fp);
+	}
+	fprintf(fp, "\nAVX2 against C, every output including each material's distance: %s. "
+	            "Labels equal to the material drawn: %.4f; %ld pixels refused.\n\n",
+	        camspace_agreement(cs), cs->accuracy, cs->refused);
+}
+
 static void md_metrics_header(FILE *fp, const char *first)
 {
 	fprintf(fp, "| %s | spectral RMSE | GFC | ΔE00 D65 mean | ΔE00 D65 p95 | ΔE00 A mean | "
@@ -235,8 +299,10 @@ static int write_markdown(const kg_bench_results *r, const char *path, kg_err *e
 	FILE *fp = o.fp;
 	fprintf(fp, "# kogei bench: speed against error\n\n");
 	fprintf(fp, "Command: `%s`  \n", r->command);
-	fprintf(fp, "Run: %s on %s%s; error part %.0f s, speed part %.0f s.\n\n", r->date,
-	        r->machine, r->quick ? " (quick)" : "", r->seconds_error, r->seconds_speed);
+	fprintf(fp, "Run: %s on %s%s; error part %.0f s, speed part %.0f s, camera-space "
+	            "rows %.0f s.\n\n",
+	        r->date, r->machine, r->quick ? " (quick)" : "", r->seconds_error,
+	        r->seconds_speed, r->seconds_camspace);
 	fprintf(fp,
 	        "## How to read\n\n"
 	        "- **Error**: each method is fitted on the training chart's simulated camera "
@@ -256,13 +322,23 @@ static int write_markdown(const kg_bench_results *r, const char *path, kg_err *e
 	        "kernel runs at memory speed, and small fractions mark compute-bound "
 	        "kernels. The machine drifts 15-30 %% between sessions: compare numbers "
 	        "from the same run.\n"
-	        "- **pareto.png**: speed (f32-bsq, %d thread%s) against the mean ΔE00 (D65) "
-	        "and spectral RMSE over the cameras, train CC24 -> test Munsell with noise%s.\n\n",
-	        r->nmaterials, pareto_threads(r), pareto_threads(r) == 1 ? "" : "s",
-	        r->nerror && r->nspeed ? "" : " (not drawn: this run has no "
-	                                      "error or no speed results)");
+	        "- **Camera-space matching**: Mpix/s of `kg_cs_match_block` (materials "
+	        "matched where the camera measures, with each pixel's covariance) for the C "
+	        "reference and the AVX2 kernel, and whether the two wrote the same bytes.\n",
+	        r->nmaterials);
+	if (r->nerror && r->nspeed)
+		fprintf(fp,
+		        "- **pareto.png**: speed (f32-bsq, %d thread%s) against the mean ΔE00 (D65) "
+		        "and spectral RMSE over the cameras, train CC24 -> test Munsell with "
+		        "noise.\n\n",
+		        pareto_threads(r), pareto_threads(r) == 1 ? "" : "s");
+	else
+		fprintf(fp, "- **pareto.png**: not drawn: this run has no error or no speed "
+		            "results.\n\n");
 	if (r->nspeed)
 		md_speed(fp, r);
+	if (r->camspace.nrows)
+		md_camspace(fp, r);
 	md_error(fp, r);
 	return kg_outfile_commit(&o, err);
 }
@@ -383,6 +459,32 @@ static int write_json(const kg_bench_results *r, const char *path, kg_err *err)
 	}
 	json_object_set_new(s, "limits", lr);
 	json_object_set_new(root, "speed", s);
+
+	const kg_bench_camspace *cs = &r->camspace;
+	json_t *c = json_object();
+	json_object_set_new(c, "run", json_boolean(cs->nrows > 0));
+	json_object_set_new(c, "pixels", json_integer(cs->pixels));
+	json_object_set_new(c, "materials", json_integer(cs->materials));
+	json_object_set_new(c, "angles", json_integer(cs->angles));
+	json_object_set_new(c, "angle_to_deg", num(cs->angle_to));
+	json_object_set_new(c, "intensity", json_pack("[ff]", cs->lo, cs->hi));
+	json_object_set_new(c, "avx2", json_boolean(cs->avx2));
+	json_object_set_new(c, "bit_identical",
+	                    cs->avx2 ? json_boolean(cs->identical) : json_null());
+	json_object_set_new(c, "accuracy", num(cs->accuracy));
+	json_object_set_new(c, "refused", json_integer(cs->refused));
+	json_object_set_new(c, "seconds", num(r->seconds_camspace));
+	json_t *cr = json_array();
+	for (int i = 0; i < cs->nrows; i++) {
+		json_t *o = json_object();
+		json_object_set_new(o, "implementation", json_string(isa_name(cs->rows[i].isa)));
+		json_object_set_new(o, "threads", json_integer(cs->rows[i].threads));
+		json_object_set_new(o, "seconds", num(cs->rows[i].seconds));
+		json_object_set_new(o, "mpix_per_s", num(cs->rows[i].mpix_s));
+		json_array_append_new(cr, o);
+	}
+	json_object_set_new(c, "rows", cr);
+	json_object_set_new(root, "camspace", c);
 	int ret = kg_json_write(root, path, err);
 	json_decref(root);
 	return ret;

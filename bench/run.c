@@ -35,7 +35,8 @@ void kg_bench_config_default(kg_bench_config *c, int quick)
 	c->threads = threads;
 	c->nthreads = 2;
 	c->nmaterials = 16;
-	c->run_error = c->run_speed = 1;
+	c->run_error = c->run_speed = c->run_camspace = 1;
+	c->camspace_mpix = 1.0;
 }
 
 void kg_bench_results_free(kg_bench_results **r)
@@ -45,6 +46,7 @@ void kg_bench_results_free(kg_bench_results **r)
 	free((*r)->error);
 	free((*r)->speed);
 	free((*r)->limit);
+	free((*r)->camspace.rows);
 	free(*r);
 	*r = NULL;
 }
@@ -365,6 +367,7 @@ int kg_bench_run(const kg_bench_config *cfg, kg_bench_results **out, kg_err *err
 	kg_check_arg(cfg && out && cfg->nthreads > 0 && cfg->threads && cfg->mpix > 0, err);
 	kg_check_arg(cfg->reps > 0 && cfg->nmaterials > 0 &&
 	             cfg->nmaterials <= KG_EST_MAX_MATERIALS, err);
+	kg_check_arg(!cfg->run_camspace || cfg->camspace_mpix > 0, err);
 	*out = NULL;
 	kg_bench_results *r = calloc(1, sizeof(*r));
 	if (!r)
@@ -398,6 +401,10 @@ int kg_bench_run(const kg_bench_config *cfg, kg_bench_results **out, kg_err *err
 	if (!ret && cfg->run_speed)
 		ret = speed_part(cfg, r, err);
 	r->seconds_speed = kg_bench_now() - t0;
+	t0 = kg_bench_now();
+	if (!ret && cfg->run_camspace)
+		ret = bench_camspace(cfg, r, err);
+	r->seconds_camspace = kg_bench_now() - t0;
 	if (ret) {
 		kg_bench_results_free(&r);
 		return ret;

@@ -12,6 +12,7 @@
  * (a quadratic in a, so the clamped minimiser is exact). The material of least d2 is
  * the label; with equal priors and the profile likelihood exp(-d2 / 2), its posterior
  * is 1 / sum_m exp(-(d2(m) - d2(best)) / 2). */
+#include <stdatomic.h>
 #include <stdlib.h>
 
 #include "est_private.h"
@@ -254,11 +255,39 @@ static void match_one(const kg_cs_model *m, const float *x, const float *c, size
 		out->scale[i] = best_a;
 }
 
+/* est_have_avx2 once: it asks CPUID, which a virtual machine may trap. */
+static int have_avx2(void)
+{
+	static atomic_int known = -1;
+	int v = atomic_load_explicit(&known, memory_order_relaxed);
+	if (v < 0) {
+		v = est_have_avx2();
+		atomic_store_explicit(&known, v, memory_order_relaxed);
+	}
+	return v;
+}
+
+int kg_cs_match_block_isa(const kg_cs_model *m, const float *x, const float *cov, size_t n,
+                          const kg_cs_block *out, kg_est_isa isa)
+{
+	if (isa != KG_EST_ISA_AUTO && isa != KG_EST_ISA_C && isa != KG_EST_ISA_AVX2)
+		return KG_EINVAL;
+	int avx2 = isa != KG_EST_ISA_C && have_avx2();
+	if (isa == KG_EST_ISA_AVX2 && !avx2)
+		return KG_ENOTSUP;
+	/* The optimised kernel takes whole vectors of 8 pixels, the reference the rest. Past
+	 * the 254 materials a label can name, its labels would saturate where the
+	 * reference's wrap: the reference takes such a model whole. */
+	size_t done = avx2 && m->n < KG_CS_NO_MATCH ? est_cs_match_avx2(m, x, cov, n, out) : 0;
+	for (size_t i = done; i < n; i++)
+		match_one(m, x + 3 * i, cov + 6 * i, i, out);
+	return 0;
+}
+
 void kg_cs_match_block(const kg_cs_model *m, const float *x, const float *cov, size_t n,
                        const kg_cs_block *out)
 {
-	for (size_t i = 0; i < n; i++)
-		match_one(m, x + 3 * i, cov + 6 * i, i, out);
+	kg_cs_match_block_isa(m, x, cov, n, out, KG_EST_ISA_AUTO);
 }
 
 /* ---- separability ------------------------------------------------------------------ */

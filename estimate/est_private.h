@@ -108,6 +108,12 @@ void est_dsp_init_c(est_dsp *dsp);
 int est_have_avx2(void);
 void est_dsp_init_avx2(est_dsp *dsp);
 
+/* kg_cs_match_block's optimised kernel (camspace_avx2.c; the CPU must have AVX2):
+ * pixels 0 to n - n % 8 - 1, 8 at a time, bit-identical to the reference. Returns the
+ * number of pixels matched (0 where it is not built in); the caller matches the rest. */
+size_t est_cs_match_avx2(const kg_cs_model *m, const float *x, const float *cov, size_t n,
+                         const kg_cs_block *out);
+
 /* Zeroed memory aligned to 64 bytes (free with free()). */
 void *est_alloc_zeroed(size_t bytes);
 

@@ -320,11 +320,20 @@ typedef struct kg_cs_block {
 	float *d2;         /* n x model->n: every material's distance */
 } kg_cs_block;
 
-/* kg_cs_match for n pixels in float (the reference implementation of the block kernel):
- * x 3 values per pixel, cov 6 per pixel (c00 c01 c02 c11 c12 c22). Up to 254
- * materials. */
+/* kg_cs_match for n pixels in float: x 3 values per pixel, cov 6 per pixel (c00 c01 c02
+ * c11 c12 c22). Up to 254 materials. The best implementation the CPU supports runs
+ * (isa AUTO below); every implementation gives bit-identical outputs. */
 void kg_cs_match_block(const kg_cs_model *m, const float *x, const float *cov, size_t n,
                        const kg_cs_block *out);
+/* The same with the implementation chosen. KG_EST_ISA_C: the reference, in plain C
+ * float (the Cholesky factor, the whitened reading, then every material at every
+ * angle). KG_EST_ISA_AVX2: 8 pixels per vector, the same IEEE operations in the same
+ * order lane by lane, the last n % 8 pixels through the reference; KG_ENOTSUP (nothing
+ * written) on a CPU without AVX2. AUTO: AVX2 when the CPU has it, else C. Returns 0,
+ * or KG_EINVAL for an isa out of range. Pixels the reference refuses (KG_CS_NO_MATCH,
+ * NaNs) are refused alike. */
+int kg_cs_match_block_isa(const kg_cs_model *m, const float *x, const float *cov, size_t n,
+                          const kg_cs_block *out, kg_est_isa isa);
 
 /* Separability of the model's materials at noise cov, for a reading at intensity
  * level: d[i * n + j] (n x n, symmetric, 0 on the diagonal) is the least

@@ -1,7 +1,10 @@
 /* The error computation of bench/ on synthetic data: the metrics on cases with known
  * answers, then one train -> test experiment with every method (no reference data
- * needed, no timing asserted). */
+ * needed, no timing asserted); and the camera-space rows on a small image. */
+#include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "kg_bench.h"
 #include "kg_test.h"
@@ -114,6 +117,70 @@ done:
 	kg_illuminant_free(&d65);
 }
 
+/* The camera-space rows on a few thousand pixels: both implementations measured where
+ * the CPU has AVX2, bit-identical, the labels far better than chance, and the report
+ * carrying them. */
+static void test_camspace_rows(void)
+{
+	static const int threads[2] = {1, 2};
+	char lib[4096], dir[] = "/tmp/kogei-bench-test-XXXXXX";
+	snprintf(lib, sizeof(lib), "%s/fixtures/materials/default.json", KG_SOURCE_ROOT);
+	kg_bench_config cfg;
+	kg_bench_config_default(&cfg, 1);
+	cfg.run_error = cfg.run_speed = 0;
+	cfg.camspace_mpix = 0.004;
+	cfg.reps = 1;
+	cfg.threads = threads;
+	cfg.nthreads = 2;
+	cfg.materials = lib;
+	kg_err err = {{0}};
+	kg_bench_results *r = NULL;
+	CHECK(kg_bench_run(&cfg, &r, &err) == 0, "%s", err.msg);
+	if (!r)
+		return;
+	const kg_bench_camspace *cs = &r->camspace;
+	CHECK(cs->pixels == 4000 && cs->materials == 10 && cs->angles == 15,
+	      "%ld pixels, %d materials, %d angles", cs->pixels, cs->materials, cs->angles);
+	CHECK(cs->nrows == (cs->avx2 ? 4 : 2), "%d rows", cs->nrows);
+	for (int i = 0; i < cs->nrows; i++)
+		CHECK(cs->rows[i].mpix_s > 0 && cs->rows[i].threads == threads[i % 2],
+		      "row %d: %d threads, %g Mpix/s", i, cs->rows[i].threads, cs->rows[i].mpix_s);
+	CHECK(!cs->avx2 || cs->identical, "AVX2 and C differ");
+	CHECK(cs->accuracy > 0.5 && cs->refused == 0, "accuracy %.3f, %ld refused",
+	      cs->accuracy, cs->refused);
+	CHECK(r->nspeed == 0 && r->nerror == 0, "only the camera-space rows were run");
+	if (mkdtemp(dir)) {
+		CHECK(kg_bench_write_report(r, dir, &err) == 0, "%s", err.msg);
+		char md[4200], js[4200], png[4200], text[65536] = {0};
+		snprintf(md, sizeof(md), "%s/bench.md", dir);
+		snprintf(js, sizeof(js), "%s/bench.json", dir);
+		snprintf(png, sizeof(png), "%s/pareto.png", dir);
+		FILE *fp = fopen(md, "r");
+		if (fp) {
+			size_t got = fread(text, 1, sizeof(text) - 1, fp);
+			text[got] = '\0';
+			fclose(fp);
+		}
+		CHECK(strstr(text, "## Camera-space matching") && strstr(text, "| c |") &&
+		          (strstr(text, "| avx2 |") != NULL) == cs->avx2,
+		      "bench.md has the camera-space table");
+		fp = fopen(js, "r");
+		memset(text, 0, sizeof(text));
+		if (fp) {
+			size_t got = fread(text, 1, sizeof(text) - 1, fp);
+			text[got] = '\0';
+			fclose(fp);
+		}
+		CHECK(strstr(text, "\"camspace\"") && strstr(text, "\"bit_identical\""),
+		      "bench.json has the camera-space rows");
+		unlink(md);
+		unlink(js);
+		unlink(png);
+		rmdir(dir);
+	}
+	kg_bench_results_free(&r);
+}
+
 int main(void)
 {
 	kg_bench_colour col;
@@ -121,5 +188,6 @@ int main(void)
 	test_percentile();
 	test_metrics(&col);
 	test_case(&col);
+	test_camspace_rows();
 	return kg_test_done("bench-error");
 }
