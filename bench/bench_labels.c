@@ -90,22 +90,6 @@ static double gauss(void)
 	return sqrt(-2 * log(u)) * cos(2 * M_PI * v);
 }
 
-/* Does class name `cls` ("a" or "a|b|c") hold material `m`? */
-static int holds(const char *cls, const char *m)
-{
-	size_t lm = strlen(m);
-	for (const char *p = cls; *p;) {
-		const char *bar = strchr(p, '|');
-		size_t len = bar ? (size_t)(bar - p) : strlen(p);
-		if (len == lm && strncmp(p, m, lm) == 0)
-			return 1;
-		if (!bar)
-			break;
-		p = bar + 1;
-	}
-	return 0;
-}
-
 typedef struct result {
 	int ok;
 	double pixel_acc, region_acc, seconds, mpix_s;
@@ -164,7 +148,8 @@ static void measure(const char *kogei, const char *dir, char **args, int nargs, 
 		if (truth[i] < 0)
 			continue;
 		total++;
-		right += l > 0 && l < e->meta.classes && holds(e->meta.class_names[l], mats[truth[i]]);
+		right += l > 0 && l < e->meta.classes &&
+		         kg_class_holds(e->meta.class_names[l], mats[truth[i]]);
 	}
 	res->classes = e->meta.classes - 3;
 	res->pixel_acc = total ? (double)right / total : NAN;
@@ -183,8 +168,8 @@ static void measure(const char *kogei, const char *dir, char **args, int nargs, 
 			    id < 1 || id > NMAT)
 				continue;
 			nreg++;
-			rright += holds(label, mats[id - 1]);
-			if (!holds(label, mats[id - 1]))
+			rright += kg_class_holds(label, mats[id - 1]);
+			if (!kg_class_holds(label, mats[id - 1]))
 				fprintf(stderr, "  region %u (%s) decided %s\n", id, mats[id - 1], label);
 		}
 		fclose(fp);

@@ -321,6 +321,51 @@ int ap_open_mask(const char *out_hdr, int width, int height, char **mask_path,
 	return kg_envi_writer_open(*mask_path, &m, w, err); /* its messages name the file */
 }
 
+int ap_open_floats(const char *path, int width, int height, int bands,
+                   const char *description, const char *const *band_names,
+                   kg_envi_writer **w, kg_err *err)
+{
+	kg_envi_meta m = {0};
+	m.samples = width;
+	m.lines = height;
+	m.bands = bands;
+	m.data_type = KG_ENVI_F32;
+	m.interleave = KG_ENVI_BIP;
+	m.description = description;
+	m.band_names = band_names;
+	return kg_envi_writer_open(path, &m, w, err);
+}
+
+int ap_open_label_map(const char *path, int width, int height,
+                      const kg_est_material_set *classes, const char *description,
+                      kg_envi_writer **w, kg_err *err)
+{
+	const int nlabels = classes->n + 3;
+	const char **names = calloc((size_t)nlabels, sizeof(char *));
+	unsigned char *lookup = malloc(3 * (size_t)nlabels);
+	int rc = names && lookup ? 0 : kg_fail(err, KG_ENOMEM, "out of memory");
+	for (int l = 0; !rc && l < nlabels; l++) {
+		names[l] = ap_label_name(classes, l);
+		ap_label_colour(classes, l, lookup + 3 * l);
+	}
+	if (!rc) {
+		kg_envi_meta m = {0};
+		m.samples = width;
+		m.lines = height;
+		m.bands = 1;
+		m.data_type = KG_ENVI_U8;
+		m.interleave = KG_ENVI_BSQ;
+		m.description = description;
+		m.classes = nlabels;
+		m.class_names = names;
+		m.class_lookup = lookup;
+		rc = kg_envi_writer_open(path, &m, w, err);
+	}
+	free(names);
+	free(lookup);
+	return rc;
+}
+
 /* ---- estimate ---------------------------------------------------------------------- */
 
 typedef struct est_sink {
@@ -1350,8 +1395,6 @@ int kg_classify_rows(const kg_est_kernel *k, const kg_est_material_set *set,
 	kg_envi_writer *ws[3] = {NULL, NULL, NULL};
 	char *conf_path = NULL, *mask_path = NULL, *json_path = NULL, *png_path = NULL;
 	const char *paths[3] = {out_hdr, NULL, NULL};
-	const char **names = NULL;
-	unsigned char *lookup = NULL;
 	cls_sink sink = {0};
 	written done = {0};
 	const int W = src->width, H = src->height;
@@ -1366,48 +1409,25 @@ int kg_classify_rows(const kg_est_kernel *k, const kg_est_material_set *set,
 	    (rc = kg_inputs_check_output(json_path, err)) ||
 	    (rc = kg_inputs_check_output(png_path, err)))
 		goto out;
-	const int nlabels = set->n + 3;
-	names = calloc((size_t)nlabels, sizeof(char *));
-	lookup = malloc(3 * (size_t)nlabels);
 	ap_preview_size(W, H, &sink.pw, &sink.ph);
 	sink.preview = malloc((size_t)sink.pw * sink.ph);
 	sink.cs = calloc((size_t)set->n, sizeof(*sink.cs));
-	if (!names || !lookup || !sink.preview || !sink.cs) {
+	if (!sink.preview || !sink.cs) {
 		rc = kg_fail(err, KG_ENOMEM, "classify: out of memory");
 		goto out;
 	}
-	for (int l = 0; l < nlabels; l++) {
-		names[l] = ap_label_name(set, l);
-		ap_label_colour(set, l, lookup + 3 * l);
-	}
-
-	kg_envi_meta m = {0};
-	m.samples = W;
-	m.lines = H;
-	m.bands = 1;
-	m.data_type = KG_ENVI_U8;
-	m.interleave = KG_ENVI_BSQ;
 	char desc[160];
 	snprintf(desc, sizeof(desc), "kogei classify: %d materials, %s distance, %g degrees",
 	         set->n, distance_name(distance), set->angle_deg);
-	m.description = opt->description ? opt->description : desc;
-	m.classes = nlabels;
-	m.class_names = names;
-	m.class_lookup = lookup;
-	if ((rc = kg_envi_writer_open(out_hdr, &m, &ws[0], err)))
+	if ((rc = ap_open_label_map(out_hdr, W, H, set,
+	                            opt->description ? opt->description : desc, &ws[0], err)))
 		goto out;
-	kg_envi_meta mc = {0};
-	mc.samples = W;
-	mc.lines = H;
-	mc.bands = 1;
-	mc.data_type = KG_ENVI_F32;
-	mc.interleave = KG_ENVI_BSQ;
-	mc.description = "kogei classify confidence: distance to the runner-up minus distance "
-	                 "to the chosen material; NaN for flagged, unknown and background "
-	                 "pixels, Inf with one material";
 	const char *band[1] = {"margin"};
-	mc.band_names = band;
-	if ((rc = kg_envi_writer_open(conf_path, &mc, &ws[1], err)))
+	if ((rc = ap_open_floats(conf_path, W, H, 1,
+	                         "kogei classify confidence: distance to the runner-up minus "
+	                         "distance to the chosen material; NaN for flagged, unknown and "
+	                         "background pixels, Inf with one material",
+	                         band, &ws[1], err)))
 		goto out;
 	paths[1] = conf_path;
 	if ((rc = ap_open_mask(out_hdr, W, H, &mask_path, &ws[2], err)))
@@ -1460,8 +1480,6 @@ out:
 		kg_classify_result_free(&local);
 	kg_est_classifier_free(&cls);
 	cls_sink_free(&sink);
-	free(names);
-	free(lookup);
 	free(conf_path);
 	free(mask_path);
 	free(json_path);

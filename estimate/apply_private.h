@@ -70,6 +70,11 @@ void ap_written_clear(written *w, int remove);
 int ap_finish_all(kg_envi_writer **ws, const char *const *paths, int n, written *done, kg_err *err);
 float *ap_staging_get(staging *s, size_t n, kg_err *err);
 int ap_put_bytes(kg_envi_writer *w, staging *s, const kg_est_block *b, const uint8_t *src, kg_err *err);
+/* A float32 BIP cube of `bands` bands (its writer). */
+int ap_open_floats(const char *path, int width, int height, int bands, const char *description, const char *const *band_names, kg_envi_writer **w, kg_err *err);
+/* A uint8 ENVI Classification map of classes (unclassified, the classes, unknown,
+ * background) with their names and colours. */
+int ap_open_label_map(const char *path, int width, int height, const kg_est_material_set *classes, const char *description, kg_envi_writer **w, kg_err *err);
 int ap_open_mask(const char *out_hdr, int width, int height, char **mask_path, kg_envi_writer **w, kg_err *err);
 void ap_class_colour(int j, unsigned char rgb[3]);
 int ap_label_unknown(const kg_est_material_set *set);

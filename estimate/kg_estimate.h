@@ -645,6 +645,9 @@ typedef struct kg_classify_camera {
 	const char *reference_sha256;
 } kg_classify_camera;
 
+/* 1 when class name cls ("a", or a compound "a|b|c") holds material m. */
+int kg_class_holds(const char *cls, const char *m);
+
 /* M2 identity, angles 0-70 every 5 degrees, intensity 0.3-1.0, merge distance 0
  * (the default), regions on, no survey, no region map. */
 void kg_classify_camera_init(kg_classify_camera *c);

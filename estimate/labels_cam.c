@@ -36,6 +36,19 @@
 #define RESOLVE_POSTERIOR 0.99
 #define TABLE_MIN_PIXELS 100 /* regions listed in LABELS.json */
 
+int kg_class_holds(const char *cls, const char *m)
+{
+	size_t lm = strlen(m);
+	for (const char *p = cls; p && *p;) {
+		const char *bar = strchr(p, '|');
+		size_t len = bar ? (size_t)(bar - p) : strlen(p);
+		if (len == lm && strncmp(p, m, lm) == 0)
+			return 1;
+		p = bar ? bar + 1 : NULL;
+	}
+	return 0;
+}
+
 void kg_classify_camera_init(kg_classify_camera *c)
 {
 	memset(c, 0, sizeof(*c));
@@ -1403,8 +1416,6 @@ int kg_classify_camera_rows(const kg_est_kernel *k, const kg_est_material_set *s
 	char *conf_path = NULL, *mask_path = NULL, *json_path = NULL, *png_path = NULL,
 	     *reg_path = NULL, *csv_path = NULL;
 	const char *paths[4] = {out_hdr, NULL, NULL, NULL};
-	const char **names = NULL;
-	unsigned char *lookup = NULL;
 	cam_sink sink = {0};
 	written done = {0};
 	survey_result sv;
@@ -1524,21 +1535,13 @@ int kg_classify_camera_rows(const kg_est_kernel *k, const kg_est_material_set *s
 	    (rc = kg_inputs_check_output(png_path, err)) ||
 	    (rc = kg_inputs_check_output(csv_path, err)))
 		goto out;
-	const int nlabels = run.nc + 3;
-	names = calloc((size_t)nlabels, sizeof(char *));
-	lookup = malloc(3 * (size_t)nlabels);
 	ap_preview_size(W, H, &sink.pw, &sink.ph);
 	sink.preview = malloc((size_t)sink.pw * sink.ph);
 	sink.cs = calloc((size_t)run.nc, sizeof(*sink.cs));
 	sink.region_row = cam->region_map ? malloc(sizeof(float) * (size_t)W) : NULL;
-	if (!names || !lookup || !sink.preview || !sink.cs ||
-	    (cam->region_map && !sink.region_row)) {
+	if (!sink.preview || !sink.cs || (cam->region_map && !sink.region_row)) {
 		rc = kg_fail(err, KG_ENOMEM, "classify: out of memory");
 		goto out;
-	}
-	for (int l = 0; l < nlabels; l++) {
-		names[l] = ap_label_name(&classes, l);
-		ap_label_colour(&classes, l, lookup + 3 * l);
 	}
 	sink.reg.on = cam->regions || cam->region_map;
 	sink.reg.user = cam->region_map != NULL;
@@ -1559,36 +1562,21 @@ int kg_classify_camera_rows(const kg_est_kernel *k, const kg_est_material_set *s
 				new_id(&sink.reg, 0);
 		}
 	}
-
-	kg_envi_meta m = {0};
-	m.samples = W;
-	m.lines = H;
-	m.bands = 1;
-	m.data_type = KG_ENVI_U8;
-	m.interleave = KG_ENVI_BSQ;
 	char desc[200];
 	snprintf(desc, sizeof(desc), "kogei classify: camera-space matching, %d materials in %d "
 	         "classes, angles %g-%g deg, intensity %g-%g", nm, run.nc, cam->angle_from,
 	         cam->angle_to, cam->intensity_lo, cam->intensity_hi);
-	m.description = opt->description ? opt->description : desc;
-	m.classes = nlabels;
-	m.class_names = names;
-	m.class_lookup = lookup;
-	if ((rc = kg_envi_writer_open(out_hdr, &m, &ws[0], err)))
+	if ((rc = ap_open_label_map(out_hdr, W, H, &classes,
+	                            opt->description ? opt->description : desc, &ws[0], err)))
 		goto out;
-	kg_envi_meta mc = {0};
-	mc.samples = W;
-	mc.lines = H;
-	mc.bands = 4;
-	mc.data_type = KG_ENVI_F32;
-	mc.interleave = KG_ENVI_BIP;
-	mc.description = "kogei classify confidence (camera space): margin = d2 of the "
-	                 "runner-up class minus the chosen class's; posterior of the chosen "
-	                 "class; the best material's fitted incidence angle (degrees) and "
-	                 "intensity; NaN for unclassified, unknown and background pixels";
 	const char *band[4] = {"margin", "posterior", "angle_deg", "intensity"};
-	mc.band_names = band;
-	if ((rc = kg_envi_writer_open(conf_path, &mc, &ws[1], err)))
+	if ((rc = ap_open_floats(conf_path, W, H, 4,
+	                         "kogei classify confidence (camera space): margin = d2 of the "
+	                         "runner-up class minus the chosen class's; posterior of the "
+	                         "chosen class; the best material's fitted incidence angle "
+	                         "(degrees) and intensity; NaN for unclassified, unknown and "
+	                         "background pixels",
+	                         band, &ws[1], err)))
 		goto out;
 	paths[1] = conf_path;
 	if ((rc = ap_open_mask(out_hdr, W, H, &mask_path, &ws[2], err)))
@@ -1601,19 +1589,13 @@ int kg_classify_camera_rows(const kg_est_kernel *k, const kg_est_material_set *s
 			             "gold are needed", cam->composition_hdr);
 			goto out;
 		}
-		kg_envi_meta mp = {0};
-		mp.samples = W;
-		mp.lines = H;
-		mp.bands = 6;
-		mp.data_type = KG_ENVI_F32;
-		mp.interleave = KG_ENVI_BIP;
-		mp.description = "kogei classify composition: Ag, Cu, Au fractions and their "
-		                 "Cramer-Rao standard deviations, fitted in camera space; NaN where "
-		                 "not fitted, and au where its sd is not below the declared "
-		                 "materials' range of gold fractions";
 		const char *cband[6] = {"ag", "cu", "au", "sd_ag", "sd_cu", "sd_au"};
-		mp.band_names = cband;
-		if ((rc = kg_envi_writer_open(cam->composition_hdr, &mp, &ws[3], err)))
+		if ((rc = ap_open_floats(cam->composition_hdr, W, H, 6,
+		                         "kogei classify composition: Ag, Cu, Au fractions and their "
+		                         "Cramer-Rao standard deviations, fitted in camera space; NaN "
+		                         "where not fitted, and au where its sd is not below the "
+		                         "declared materials' range of gold fractions",
+		                         cband, &ws[3], err)))
 			goto out;
 		paths[3] = cam->composition_hdr;
 		nws = 4;
@@ -1698,8 +1680,6 @@ out:
 	kg_cs_model_free(&model);
 	kg_cs_model_free(&metals);
 	free(sep);
-	free(names);
-	free(lookup);
 	free(conf_path);
 	free(mask_path);
 	free(json_path);

@@ -313,6 +313,16 @@ static inline int fx_paper_calibration(const char *cam_path, char *site_camera, 
 	              "-o", cam_path) == 0;
 }
 
+/* The class names of a classification file into names (at most max; class 0 first);
+ * returns how many. */
+static inline int fx_class_names(const kg_envi *e, char names[][KG_EST_CLASS_NAME_MAX], int max)
+{
+	int n = 0;
+	for (; e && e->meta.class_names && n < e->meta.classes && n < max; n++)
+		snprintf(names[n], KG_EST_CLASS_NAME_MAX, "%s", e->meta.class_names[n]);
+	return n;
+}
+
 /* Compare two files byte for byte. */
 static inline int fx_same_file(const char *a, const char *b)
 {

@@ -45,43 +45,6 @@ static const char *mats[NMAT] = {
 	"shibuichi-jo", "shibuichi-nami-uchisanbu", "shibuichi-nami-sotosanbu", "urushi",
 };
 
-/* The class names of a classification file (n of them, class 0 first). */
-static int class_names(const kg_envi *e, char names[][KG_EST_CLASS_NAME_MAX], int max)
-{
-	const char *s = kg_envi_get(e, "class names");
-	if (!s)
-		return 0;
-	char *buf = strdup(s);
-	int n = 0;
-	for (char *save = NULL, *tok = strtok_r(buf, ",", &save); tok && n < max;
-	     tok = strtok_r(NULL, ",", &save)) {
-		while (*tok == ' ' || *tok == '\n')
-			tok++;
-		char *end = tok + strlen(tok);
-		while (end > tok && (end[-1] == ' ' || end[-1] == '\n'))
-			*--end = '\0';
-		snprintf(names[n++], KG_EST_CLASS_NAME_MAX, "%s", tok);
-	}
-	free(buf);
-	return n;
-}
-
-/* Does class name `cls` ("a" or "a|b|c") hold material `m`? */
-static int holds(const char *cls, const char *m)
-{
-	size_t lm = strlen(m);
-	for (const char *p = cls; *p;) {
-		const char *bar = strchr(p, '|');
-		size_t len = bar ? (size_t)(bar - p) : strlen(p);
-		if (len == lm && strncmp(p, m, lm) == 0)
-			return 1;
-		if (!bar)
-			break;
-		p = bar + 1;
-	}
-	return 0;
-}
-
 int main(int argc, char **argv)
 {
 	fx_setup(argc, argv);
@@ -153,14 +116,14 @@ int main(int argc, char **argv)
 	kg_envi *el = NULL;
 	float *lab = fx_read_envi(lab_hdr, &el);
 	char names[KG_EST_MAX_MATERIALS + 3][KG_EST_CLASS_NAME_MAX];
-	int nn = el ? class_names(el, names, KG_EST_MAX_MATERIALS + 3) : 0;
+	int nn = el ? fx_class_names(el, names, KG_EST_MAX_MATERIALS + 3) : 0;
 	kg_envi_close(&el);
 	CHECK(lab && nn >= 3, "labels read back with %d class names", nn);
 
 	/* (1) copper|shakudo */
 	int merged = 0;
 	for (int c = 1; c < nn; c++)
-		merged |= holds(names[c], "copper") && holds(names[c], "shakudo");
+		merged |= kg_class_holds(names[c], "copper") && kg_class_holds(names[c], "shakudo");
 	CHECK(merged, "copper and shakudo are one class at 40 dB");
 
 	/* (2) per-pixel accuracy, per class */
@@ -169,7 +132,7 @@ int main(int argc, char **argv)
 		if (truth[i] < 0)
 			continue;
 		int l = (int)lab[i];
-		int ok = l > 0 && l < nn && holds(names[l], mats[truth[i]]);
+		int ok = l > 0 && l < nn && kg_class_holds(names[l], mats[truth[i]]);
 		right += ok;
 		total++;
 		per_right[truth[i]] += ok;
@@ -209,10 +172,10 @@ int main(int argc, char **argv)
 			if (votes[j] > votes[maj])
 				maj = j;
 		big++;
-		big_right += holds(label, mats[maj]);
+		big_right += kg_class_holds(label, mats[maj]);
 		CHECK(counted == (long)px, "region %u: %llu pixels in the table, %ld in the map", id, px,
 		      counted);
-		CHECK(holds(label, mats[maj]), "region %u (%llu pixels) labelled %s, truth %s", id, px,
+		CHECK(kg_class_holds(label, mats[maj]), "region %u (%llu pixels) labelled %s, truth %s", id, px,
 		      label, mats[maj]);
 		/* (7) composition: the region's Ag and Cu fractions within 3 sd of the truth's */
 		double c[6];
@@ -299,7 +262,7 @@ int main(int argc, char **argv)
 		kg_envi *ee = NULL;
 		float *eq = fx_read_envi(eq_hdr, &ee);
 		char en[KG_EST_MAX_MATERIALS + 3][KG_EST_CLASS_NAME_MAX];
-		int ne = ee ? class_names(ee, en, KG_EST_MAX_MATERIALS + 3) : 0;
+		int ne = ee ? fx_class_names(ee, en, KG_EST_MAX_MATERIALS + 3) : 0;
 		kg_envi_close(&ee);
 		long r_exact = 0, n_exact = 0;
 		for (size_t i = 0; eq && i < (size_t)W * H; i++)
@@ -323,7 +286,7 @@ int main(int argc, char **argv)
 	kg_envi *eu = NULL;
 	float *unk = fx_read_envi(unk_hdr, &eu);
 	char un[KG_EST_MAX_MATERIALS + 3][KG_EST_CLASS_NAME_MAX];
-	int nu = eu ? class_names(eu, un, KG_EST_MAX_MATERIALS + 3) : 0;
+	int nu = eu ? fx_class_names(eu, un, KG_EST_MAX_MATERIALS + 3) : 0;
 	kg_envi_close(&eu);
 	long bright = 0, bright_unknown = 0, kept = 0, kept_right = 0;
 	static long kept_as[NMAT][KG_EST_MAX_MATERIALS + 3];
@@ -407,7 +370,7 @@ int main(int argc, char **argv)
 		if (sscanf(line, "%u,%llu,%255[^,],%255[^,],", &id, &px, cls, label) != 4)
 			continue;
 		user_regions++;
-		user_right += id >= 1 && id <= NMAT && holds(label, mats[id - 1]);
+		user_right += id >= 1 && id <= NMAT && kg_class_holds(label, mats[id - 1]);
 	}
 	if (uf)
 		fclose(uf);

@@ -23,43 +23,6 @@
 #define FULLWELL 20000.0
 #define READ_E 5.0
 
-/* The class names of a classification file (n of them, class 0 first). */
-static int class_names(const kg_envi *e, char names[][KG_EST_CLASS_NAME_MAX], int max)
-{
-	const char *s = kg_envi_get(e, "class names");
-	if (!s)
-		return 0;
-	char *buf = strdup(s);
-	int n = 0;
-	for (char *save = NULL, *tok = strtok_r(buf, ",", &save); tok && n < max;
-	     tok = strtok_r(NULL, ",", &save)) {
-		while (*tok == ' ' || *tok == '\n')
-			tok++;
-		char *end = tok + strlen(tok);
-		while (end > tok && (end[-1] == ' ' || end[-1] == '\n'))
-			*--end = '\0';
-		snprintf(names[n++], KG_EST_CLASS_NAME_MAX, "%s", tok);
-	}
-	free(buf);
-	return n;
-}
-
-/* Does class name `cls` ("a" or "a|b|c") hold material `m`? */
-static int holds(const char *cls, const char *m)
-{
-	size_t lm = strlen(m);
-	for (const char *p = cls; *p;) {
-		const char *bar = strchr(p, '|');
-		size_t len = bar ? (size_t)(bar - p) : strlen(p);
-		if (len == lm && strncmp(p, m, lm) == 0)
-			return 1;
-		if (!bar)
-			break;
-		p = bar + 1;
-	}
-	return 0;
-}
-
 /* Index of name among the truth map's classes, -1 if absent. */
 static int truth_class(char names[][KG_EST_CLASS_NAME_MAX], int n, const char *name)
 {
@@ -122,8 +85,8 @@ int main(int argc, char **argv)
 	float *reg = fx_read_envi(fx_path("labels_regions.hdr"), &er);
 	static char ln[KG_EST_MAX_MATERIALS + 3][KG_EST_CLASS_NAME_MAX];
 	static char tn[KG_EST_MAX_MATERIALS + 3][KG_EST_CLASS_NAME_MAX];
-	int nl = el ? class_names(el, ln, KG_EST_MAX_MATERIALS + 3) : 0;
-	int nt = et ? class_names(et, tn, KG_EST_MAX_MATERIALS + 3) : 0;
+	int nl = el ? fx_class_names(el, ln, KG_EST_MAX_MATERIALS + 3) : 0;
+	int nt = et ? fx_class_names(et, tn, KG_EST_MAX_MATERIALS + 3) : 0;
 	kg_envi_close(&el);
 	kg_envi_close(&et);
 	kg_envi_close(&er);
@@ -139,7 +102,7 @@ int main(int argc, char **argv)
 	}
 	int merged = 0;
 	for (int c = 1; c < nl; c++)
-		merged |= holds(ln[c], "copper") && holds(ln[c], "shakudo");
+		merged |= kg_class_holds(ln[c], "copper") && kg_class_holds(ln[c], "shakudo");
 	CHECK(merged, "copper and shakudo are one class");
 
 	/* judged: object pixels at the incidence angles searched (0-70 degrees); the rim's
@@ -150,7 +113,7 @@ int main(int argc, char **argv)
 		int t = (int)tru[i], l = (int)lab[i];
 		if (t <= 0 || t >= nt)
 			continue;
-		int ok = l > 0 && l < nl && holds(ln[l], tn[t]);
+		int ok = l > 0 && l < nl && kg_class_holds(ln[l], tn[t]);
 		if (!(ang[i] <= 70.0f)) {
 			grazing++;
 			grazing_right += ok;
@@ -198,9 +161,9 @@ int main(int argc, char **argv)
 			if (votes[t] > votes[maj])
 				maj = t;
 		big++;
-		big_right += holds(label, tn[maj]);
+		big_right += kg_class_holds(label, tn[maj]);
 		printf("  region %u: %llu pixels, truth %s, labelled %s\n", id, px, tn[maj], label);
-		CHECK(holds(label, tn[maj]), "region %u (%llu pixels) labelled %s, truth %s", id, px,
+		CHECK(kg_class_holds(label, tn[maj]), "region %u (%llu pixels) labelled %s, truth %s", id, px,
 		      label, tn[maj]);
 	}
 	if (fp)
@@ -218,7 +181,7 @@ int main(int argc, char **argv)
 		kg_envi *ee = NULL;
 		float *eq = fx_read_envi(eq_hdr, &ee);
 		static char en[KG_EST_MAX_MATERIALS + 3][KG_EST_CLASS_NAME_MAX];
-		int ne = ee ? class_names(ee, en, KG_EST_MAX_MATERIALS + 3) : 0;
+		int ne = ee ? fx_class_names(ee, en, KG_EST_MAX_MATERIALS + 3) : 0;
 		kg_envi_close(&ee);
 		long r_exact = 0;
 		for (size_t i = 0; eq && i < (size_t)W * H; i++) {

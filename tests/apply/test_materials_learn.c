@@ -76,15 +76,8 @@ static double accuracy(const char *hdr, const int *truth, const char *const *nam
 			continue;
 		int l = (int)lab[i];
 		total++;
-		if (l > 0 && l < e->meta.classes) {
-			const char *cls = e->meta.class_names[l];
-			size_t lm = strlen(names[truth[i]]);
-			for (const char *p = cls; p && *p; p = strchr(p, '|') ? strchr(p, '|') + 1 : NULL)
-				if (!strncmp(p, names[truth[i]], lm) && (p[lm] == '|' || p[lm] == '\0')) {
-					right++;
-					break;
-				}
-		}
+		right += l > 0 && l < e->meta.classes &&
+		         kg_class_holds(e->meta.class_names[l], names[truth[i]]);
 	}
 	kg_envi_close(&e);
 	free(lab);
