@@ -939,14 +939,19 @@ int ap_margin_pass(class_stats *cs, int nclasses, const char *labels_hdr, const 
 	return rc;
 }
 
+void ap_class_stats_free(class_stats *cs, int n)
+{
+	for (int j = 0; cs && j < n; j++) {
+		free(cs[j].hi);
+		for (int t = 0; t < MAX_TARGETS; t++)
+			free(cs[j].lo[t]);
+	}
+	free(cs);
+}
+
 static void cls_sink_free(cls_sink *s)
 {
-	for (int j = 0; s->cs && j < s->nmaterials; j++) {
-		free(s->cs[j].hi);
-		for (int t = 0; t < MAX_TARGETS; t++)
-			free(s->cs[j].lo[t]);
-	}
-	free(s->cs);
+	ap_class_stats_free(s->cs, s->nmaterials);
 	free(s->preview);
 	free(s->stage.v);
 }

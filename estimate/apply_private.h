@@ -85,6 +85,8 @@ void ap_label_colour(const kg_est_material_set *set, int label, unsigned char rg
 uint32_t ap_order_key(float v);
 float ap_key_value(uint32_t k);
 void ap_stats_targets(class_stats *c);
+/* Free n classes' statistics and the array. */
+void ap_class_stats_free(class_stats *cs, int n);
 /* Pass 2 of the margins' order statistics (cs: nclasses entries, label j + 1): the
  * margins are band 0 of conf_hdr's `bands` bands. */
 int ap_margin_pass(class_stats *cs, int nclasses, const char *labels_hdr, const char *conf_hdr, int bands, int width, int height, kg_err *err);

@@ -1665,12 +1665,7 @@ out:
 		*res = local;
 	else
 		kg_classify_result_free(&local);
-	for (int j = 0; sink.cs && j < run.nc; j++) {
-		free(sink.cs[j].hi);
-		for (int t = 0; t < MAX_TARGETS; t++)
-			free(sink.cs[j].lo[t]);
-	}
-	free(sink.cs);
+	ap_class_stats_free(sink.cs, run.nc);
 	free(sink.preview);
 	free(sink.stage.v);
 	free(sink.conf4);
