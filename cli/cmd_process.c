@@ -1,6 +1,7 @@
 /* kogei process: a recorded session to calibration, maps, scenes and the report
  * (pipeline/ does the work; this file parses the command line). */
 #include <getopt.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -11,7 +12,9 @@
 static const char usage_process[] =
 	"kogei process SESSION (--reference REF.json | --spectra CHART.cgats) -o OUTDIR\n"
 	"              [--spectra CHART.cgats] [--materials LIB] [--only a,b,c] [--layout L]\n"
-	"              [--chart CAPTURE] [--mesh M.ply] [--mask MASK.png] [--angle DEG]\n"
+	"              [--chart CAPTURE] [--mesh M.ply] [--mask MASK.png]\n"
+	"              [--method camera|eq11] [--angles A:B[:STEP]] [--intensity LO:HI]\n"
+	"              [--angle DEG]\n"
 	"              [--min-tags N]\n"
 	"              [--max-residual R] [--force] [--assume-same-exposure] [--no-render]\n"
 	"              [--cube f32|f16|weights|none]\n"
@@ -44,7 +47,13 @@ static const char help_process[] =
 	"                        scenes (default: a plane in the chart's plane)\n"
 	"  --mask MASK.png       grey PNG or TIFF of the objects' size: 0 = background\n"
 	"                        (kept out of the labels), non-zero = object\n"
-	"  --angle DEG           incidence of the library's spectra (default 30)\n"
+	"  --method M            labels by camera-space matching (camera, the default: the\n"
+	"                        materials the noise cannot split merged as 'a|b', regions,\n"
+	"                        composition, kogei classify --help) or by the paper's\n"
+	"                        eq. 11 (eq11)\n"
+	"  --angles A:B[:STEP]   camera: incidence angles searched (default 0:70:5)\n"
+	"  --intensity LO:HI     camera: intensities searched (default 0.3:1)\n"
+	"  --angle DEG           eq11: incidence of the library's spectra (default 30)\n"
 	"  --min-tags N          at least N tags place the chart, and no tagless fallback\n"
 	"                        (default: 2 tags, or OpenCV mcc for a ColorChecker 24)\n"
 	"  --max-residual R      refuse an M2 whose relative residual exceeds R (default\n"
@@ -89,7 +98,8 @@ int kg_cmd_process(int argc, char **argv)
 		return KG_EXIT_OK;
 	}
 	enum { O_REF = 256, O_SPECTRA, O_MAT, O_ONLY, O_LAYOUT, O_CHART, O_MESH, O_ANGLE,
-	       O_MINTAGS, O_MAXRES, O_FORCE, O_SAME, O_NORENDER, O_THREADS, O_QUIET, O_MASK, O_CUBE };
+	       O_MINTAGS, O_MAXRES, O_FORCE, O_SAME, O_NORENDER, O_THREADS, O_QUIET, O_MASK, O_CUBE,
+	       O_METHOD, O_ANGLES, O_INTENSITY };
 	static const struct option longopts[] = {
 		{"reference", required_argument, NULL, O_REF},
 		{"spectra", required_argument, NULL, O_SPECTRA},
@@ -101,6 +111,9 @@ int kg_cmd_process(int argc, char **argv)
 		{"mask", required_argument, NULL, O_MASK},
 		{"cube", required_argument, NULL, O_CUBE},
 		{"angle", required_argument, NULL, O_ANGLE},
+		{"method", required_argument, NULL, O_METHOD},
+		{"angles", required_argument, NULL, O_ANGLES},
+		{"intensity", required_argument, NULL, O_INTENSITY},
 		{"min-tags", required_argument, NULL, O_MINTAGS},
 		{"max-residual", required_argument, NULL, O_MAXRES},
 		{"force", no_argument, NULL, O_FORCE},
@@ -138,6 +151,31 @@ int kg_cmd_process(int argc, char **argv)
 				                          "--cube %s: expected f32, f16, weights or none", optarg);
 			o.cube = optarg;
 			break;
+		case O_METHOD:
+			if (strcmp(optarg, "camera") && strcmp(optarg, "eq11"))
+				return kg_cli_usage_error(usage_process, "--method %s: expected camera or eq11",
+				                          optarg);
+			o.method = optarg;
+			break;
+		case O_ANGLES: {
+			double a[3] = {0, 0, 5};
+			int n = sscanf(optarg, "%lf:%lf:%lf", &a[0], &a[1], &a[2]);
+			if (n < 2 || !(a[0] >= 0 && a[1] >= a[0] && a[1] < 90 && a[2] > 0))
+				return kg_cli_usage_error(usage_process, "--angles %s: expected FROM:TO[:STEP] "
+				                          "degrees, 0 <= FROM <= TO < 90, STEP > 0", optarg);
+			memcpy(o.angles, a, sizeof(a));
+			break;
+		}
+		case O_INTENSITY: {
+			double iv[2];
+			if (sscanf(optarg, "%lf:%lf", &iv[0], &iv[1]) != 2 || !(iv[0] > 0 && iv[1] >= iv[0]) ||
+			    !isfinite(iv[1]))
+				return kg_cli_usage_error(usage_process, "--intensity %s: expected LO:HI with "
+				                          "0 < LO <= HI", optarg);
+			o.intensity[0] = iv[0];
+			o.intensity[1] = iv[1];
+			break;
+		}
 		case O_ANGLE:
 			o.angle_deg = strtod(optarg, &end);
 			if (*end || !(o.angle_deg >= 0 && o.angle_deg < 90))

@@ -105,12 +105,15 @@ static json_t *object_key(proc *p, const proc_capture *c)
 	return json_pack("{s:O, s:s, s:O, s:O, s:o, s:s}", "calibration", p->calib_key, "capture",
 	                 c->name, "outputs", json_object_get(c->j, "outputs"), "corrections",
 	                 json_object_get(c->j, "corrections"), "parameters",
-	                 json_pack("{s:s, s:f, s:o, s:o, s:b, s:b, s:s}", "materials", p->library_path,
-	                           "angle_deg", p->o->angle_deg, "mesh",
-	                           p->o->mesh ? json_string(p->o->mesh) : json_null(), "mask",
-	                           p->o->mask ? json_string(p->o->mask) : json_null(), "render",
-	                           p->o->render, "assume_same_exposure",
-	                           p->o->assume_same_exposure, "cube", proc_cube_name(p)),
+	                 json_pack("{s:s, s:f, s:o, s:o, s:b, s:b, s:s, s:s, s:[fff], s:[ff]}",
+	                           "materials", p->library_path, "angle_deg", p->o->angle_deg,
+	                           "mesh", p->o->mesh ? json_string(p->o->mesh) : json_null(),
+	                           "mask", p->o->mask ? json_string(p->o->mask) : json_null(),
+	                           "render", p->o->render, "assume_same_exposure",
+	                           p->o->assume_same_exposure, "cube", proc_cube_name(p), "method",
+	                           p->o->method ? p->o->method : "camera", "angles",
+	                           p->o->angles[0], p->o->angles[1], p->o->angles[2], "intensity",
+	                           p->o->intensity[0], p->o->intensity[1]),
 	                 "session", json_string_value(json_object_get(p->manifest, "created"))
 	                                ? json_string_value(json_object_get(p->manifest, "created"))
 	                                : "");

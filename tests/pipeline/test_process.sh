@@ -190,6 +190,28 @@ expect_exit 0 "$KOGEI" process "$S" --spectra "$T/chart.cgats" -o "$T/nocube" --
 check "changed cube format: all processed" grep -q "4 processed, 0 unchanged" "$T/out"
 expect_exit 2 "$KOGEI" process "$S" --spectra "$T/chart.cgats" -o "$T/bad" --cube f64
 check "--cube f64 refused" grep -q "expected f32, f16, weights or none" "$T/err"
+# --method: camera-space labels by default (separability, regions, composition in
+# labels.json and process.json), the paper's eq. 11 on request; a changed method
+# reprocesses.
+expect_exit 0 "$KOGEI" process "$S" --spectra "$T/chart.cgats" -o "$T/nocube" --angle 40 \
+	--cube f16 --no-render --quiet --method eq11
+check "changed method: all processed" grep -q "4 processed, 0 unchanged" "$T/out"
+check "--method: camera by default, eq11 on request" "$PY" - "$O" "$T/nocube" <<'PY'
+import json, sys
+cam, eq = sys.argv[1:3]
+lc = json.load(open(cam + "/object-full/labels.json"))
+le = json.load(open(eq + "/object-full/labels.json"))
+assert lc["method"] == "camera" and "separability" in lc and "regions" in lc, lc["method"]
+assert le["method"] == "pca" and "separability" not in le, le["method"]
+obj = {o["capture"]: o for o in json.load(open(cam + "/process.json"))["objects"]}["object-full"]
+assert obj["labels_method"]["method"] == "camera" and "separability" in obj
+assert json.load(open(eq + "/process.json"))["parameters"]["method"] == "eq11"
+print("camera: %d classes of %d materials; eq11: %d classes" % (
+    obj["labels_method"]["classes"], obj["labels_method"]["materials"],
+    len([c for c in le["classes"] if c["name"] not in ("unclassified", "unknown", "background")])))
+PY
+expect_exit 2 "$KOGEI" process "$S" --spectra "$T/chart.cgats" -o "$T/bad" --method svm
+check "--method svm refused" grep -q "expected camera or eq11" "$T/err"
 
 # One run at a time into an OUTDIR: a second kogei process is refused while it is locked.
 exec 9<"$O"
