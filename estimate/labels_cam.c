@@ -210,7 +210,8 @@ static double fit_subset(const double *A, const double *y, unsigned use, double 
 
 /* One pixel's Ag, Cu, Au fractions at angle index k: x = sum_i w_i mu_i (the alloy
  * model is the fractions' weighted sum of the metals' reflectances, times the
- * intensity sum_i w_i), w >= 0 by the best of the 7 active sets, whitened by the
+ * intensity sum_i w_i), w >= 0 by the best of the 7 active sets (the full one first:
+ * feasible, it fits exactly), whitened by the
  * pixel's covariance; the Cramer-Rao standard deviations of the fractions from the
  * unconstrained Fisher information (A^T A)^-1 through c = w / sum w. out: 3 fractions,
  * 3 sds; NaN when nothing fits. */
@@ -243,15 +244,19 @@ static void composition_pixel(const kg_cs_model *metals, int k, const float *xf,
 		A[3 + j] = v1;
 		A[6 + j] = v2;
 	}
-	double best = INFINITY, w[3] = {0};
-	for (unsigned use = 1; use < 8; use++) {
-		double t[3];
-		double r = fit_subset(A, y, use, t);
-		if (r < best) {
-			best = r;
-			memcpy(w, t, sizeof(w));
+	/* all three first: when its weights are >= 0 it fits exactly (3 readings, 3
+	 * weights), the least residual there is; else the best of the smaller sets */
+	double w[3] = {0};
+	double best = fit_subset(A, y, 7, w);
+	if (!isfinite(best))
+		for (unsigned use = 1; use < 7; use++) {
+			double t[3];
+			double r = fit_subset(A, y, use, t);
+			if (r < best) {
+				best = r;
+				memcpy(w, t, sizeof(w));
+			}
 		}
-	}
 	double sum = w[0] + w[1] + w[2];
 	if (!isfinite(best) || !(sum > 0))
 		return;
