@@ -1,6 +1,7 @@
 #include <cairo.h>
 #include <math.h>
 #include <stdarg.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -129,6 +130,35 @@ void kg_plot_stroke_rect(kg_plot *p, double x, double y, double w, double h,
 	cairo_set_line_width(p->cr, line_width);
 	cairo_rectangle(p->cr, x, y, w, h);
 	cairo_stroke(p->cr);
+}
+
+void kg_plot_image(kg_plot *p, double x, double y, const unsigned char *rgb, int w, int h)
+{
+	if (!rgb || w <= 0 || h <= 0)
+		return;
+	cairo_surface_t *img = cairo_image_surface_create(CAIRO_FORMAT_RGB24, w, h);
+	if (cairo_surface_status(img) != CAIRO_STATUS_SUCCESS) {
+		cairo_surface_destroy(img);
+		return;
+	}
+	cairo_surface_flush(img);
+	unsigned char *data = cairo_image_surface_get_data(img);
+	int stride = cairo_image_surface_get_stride(img);
+	for (int j = 0; j < h; j++)
+		for (int i = 0; i < w; i++) {
+			/* RGB24: one native-endian 32-bit word per pixel, 0x00RRGGBB */
+			const unsigned char *q = rgb + 3 * ((size_t)j * (size_t)w + (size_t)i);
+			uint32_t v = (uint32_t)q[0] << 16 | (uint32_t)q[1] << 8 | q[2];
+			memcpy(data + (size_t)j * (size_t)stride + 4 * (size_t)i, &v, sizeof(v));
+		}
+	cairo_surface_mark_dirty(img);
+	cairo_save(p->cr);
+	cairo_set_source_surface(p->cr, img, x, y);
+	cairo_pattern_set_filter(cairo_get_source(p->cr), CAIRO_FILTER_NEAREST);
+	cairo_rectangle(p->cr, x, y, w, h);
+	cairo_fill(p->cr);
+	cairo_restore(p->cr);
+	cairo_surface_destroy(img);
 }
 
 static void text_at(kg_plot *p, double x, double y, double size, enum kg_align align,

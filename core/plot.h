@@ -28,6 +28,9 @@ void kg_plot_stroke_rect(kg_plot *p, double x, double y, double w, double h,
                          const double rgb[3], double line_width);
 void kg_plot_text(kg_plot *p, double x, double y, double size, enum kg_align align,
                   const double rgb[3], const char *fmt, ...) KG_PRINTF(7, 8);
+/* An image: w x h pixels of 8-bit display-encoded sRGB (3 bytes each, row by row),
+ * drawn 1:1 with its top left corner at (x, y). */
+void kg_plot_image(kg_plot *p, double x, double y, const unsigned char *rgb, int w, int h);
 /* Text rotated 90 degrees counter-clockwise (for y axis labels), centred at x, y. */
 void kg_plot_text_vertical(kg_plot *p, double x, double y, double size, const char *text);
 

@@ -7,8 +7,9 @@
  * and the object); the chart's spectra are measured patch by patch with the simulated
  * spectrophotometer (devices/, as `kogei measure`); kg_process_run turns the lab
  * session into the reference and the site session into its calibration, cube, labels,
- * scene and report. The object's truth (sim/'s scene of the same materials) then
- * judges the cube and the labels. */
+ * scene and report. The object's truth (the material and incidence angle of each
+ * pixel of the render the object's photograph was taken of, recorded with the
+ * session) then judges the cube and the labels. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -277,6 +278,7 @@ static int demo_process(demo_ctx *d, const char *session, const char *reference,
 	po.reference = ref;
 	po.materials = d->library_path;
 	po.angle_deg = DEMO_ANGLE_DEG;
+	memcpy(d->angles, po.angles, sizeof(d->angles));
 	po.progress = stdout;
 	po.command = "kogei demo";
 	kg_process_summary sum;
@@ -365,68 +367,256 @@ done:
 	return ret;
 }
 
-/* Step 3: the object, every sample of the library in the specular view of the site
- * camera. Pixels outside the samples are set to NaN (no data), as a segmentation
- * mask would leave them: estimate and classify flag them instead of labelling the
- * background. */
+void demo_region_name(int face_id, char *buf, size_t size)
+{
+	/* the tsuba's own regions (render/kg_mesh.h, KG_TSUBA_*); the scene's further
+	 * parts, the inlays, take the ids after them */
+	static const char *const tsuba[] = {"plate", "rim", "relief", "seppa-dai"};
+	if (face_id >= 0 && face_id < 4)
+		snprintf(buf, size, "%s", tsuba[face_id]);
+	else
+		snprintf(buf, size, "inlay %d", face_id - 3);
+}
+
+/* The scene's regions: each face id of materials.face_ids and its library material. */
+static int load_regions(demo_ctx *d, const char *scene_path)
+{
+	json_t *root = NULL;
+	int ret = kg_json_load(scene_path, &root, &d->err);
+	const json_t *ids = ret ? NULL : kg_json_find(root, "materials.face_ids");
+	if (!ret && !json_is_object(ids))
+		ret = kg_fail(&d->err, KG_EINVAL, "%s: key 'materials.face_ids': expected the "
+		              "regions' materials", scene_path);
+	const char *key;
+	json_t *v;
+	d->nregions = 0;
+	json_object_foreach((json_t *)ids, key, v)
+	{
+		if (ret)
+			break;
+		char *end;
+		long id = strtol(key, &end, 10);
+		const char *name = json_string_value(v);
+		int j = -1;
+		for (int k = 0; name && k < kg_material_library_count(d->lib); k++)
+			if (!strcmp(kg_material_library_get(d->lib, k)->name, name))
+				j = k;
+		if (*end || id < 0 || id > 65535 || j < 0 || d->nregions >= DEMO_MAX_REGIONS)
+			ret = kg_fail(&d->err, KG_EINVAL, "%s: key 'materials.face_ids.%s': expected a "
+			              "face id and a material of the default library (at most %d)",
+			              scene_path, key, DEMO_MAX_REGIONS);
+		else {
+			d->region_id[d->nregions] = (int)id;
+			d->region_material[d->nregions++] = j;
+		}
+	}
+	if (!ret && d->nregions == 0)
+		ret = kg_fail(&d->err, KG_EINVAL, "%s: no regions", scene_path);
+	json_decref(root);
+	return ret;
+}
+
+/* The recorded truth (fixtures/demo/object_truth_*.png, demo_private.h) into
+ * d->truth, checked against the library and the photograph's size. */
+static int load_truth(demo_ctx *d, const char *labels_path, const char *angle_path)
+{
+	kg_image *lab = NULL, *ang = NULL;
+	kg_render_truth *t = calloc(1, sizeof(*t));
+	int nmat = kg_material_library_count(d->lib);
+	int ret = t ? 0 : kg_fail(&d->err, KG_ENOMEM, "out of memory");
+	if (!ret)
+		ret = kg_image_read(labels_path, &lab, &d->err);
+	if (!ret)
+		ret = kg_image_read(angle_path, &ang, &d->err);
+	if (!ret && (lab->channels != 1 || lab->bits != 8 || ang->channels != 1 ||
+	             ang->bits != 16 || lab->width != ang->width || lab->height != ang->height))
+		ret = kg_fail(&d->err, KG_EINVAL, "%s, %s: expected an 8-bit and a 16-bit grey PNG "
+		              "of one size (fixtures/demo/make_session.sh writes them)", labels_path,
+		              angle_path);
+	size_t n = ret ? 0 : (size_t)lab->width * (size_t)lab->height;
+	if (!ret) {
+		t->width = lab->width;
+		t->height = lab->height;
+		t->nclasses = 1 + nmat;
+		t->label = malloc(n ? n : 1);
+		t->angle_deg = malloc(sizeof(float) * (n ? n : 1));
+		t->class_names = calloc((size_t)t->nclasses, sizeof(char *));
+		if (!t->label || !t->angle_deg || !t->class_names)
+			ret = kg_fail(&d->err, KG_ENOMEM, "out of memory");
+	}
+	for (int c = 0; !ret && c < t->nclasses; c++)
+		if (!(t->class_names[c] =
+		          strdup(c ? kg_material_library_get(d->lib, c - 1)->name : "background")))
+			ret = kg_fail(&d->err, KG_ENOMEM, "out of memory");
+	for (size_t i = 0; !ret && i < n; i++) {
+		long c = lrint(lab->data[i] * 255.0);
+		long a = lrint(ang->data[i] * 65535.0);
+		if (c < 0 || c >= t->nclasses || (c > 0) != (a != DEMO_TRUTH_ANGLE_NONE) ||
+		    (a != DEMO_TRUTH_ANGLE_NONE && a > 90 * DEMO_TRUTH_ANGLE_SCALE)) {
+			ret = kg_fail(&d->err, KG_EINVAL, "%s, %s: pixel %zu, %zu: class %ld, angle "
+			              "value %ld: expected a class below %d and an angle of 0-90 deg "
+			              "exactly where the class is not 0", labels_path, angle_path,
+			              i % (size_t)t->width, i / (size_t)t->width, c, a, t->nclasses);
+			break;
+		}
+		t->label[i] = (uint8_t)c;
+		t->angle_deg[i] = a == DEMO_TRUTH_ANGLE_NONE ? NAN : (float)(a / DEMO_TRUTH_ANGLE_SCALE);
+	}
+	kg_image_free(&lab);
+	kg_image_free(&ang);
+	if (ret)
+		kg_render_truth_free(&t);
+	d->truth = t;
+	return ret;
+}
+
+int demo_truth_table(demo_ctx *d, float **out)
+{
+	const kg_render_truth *t = d->truth;
+	const int nang = (int)(90 * DEMO_TRUTH_ANGLE_SCALE) + 1;
+	int nmat = t->nclasses - 1;
+	size_t n = (size_t)t->width * (size_t)t->height;
+	float *table = calloc((size_t)nmat * (size_t)nang * KG_NBANDS, sizeof(float));
+	char *used = calloc((size_t)nmat + 1, 1);
+	int ret = table && used ? 0 : kg_fail(&d->err, KG_ENOMEM, "out of memory");
+	for (size_t i = 0; !ret && i < n; i++)
+		used[t->label[i]] = 1;
+	for (int j = 0; !ret && j < nmat; j++)
+		for (int a = 0; used[j + 1] && !ret && a < nang; a++) {
+			kg_spectrum s;
+			ret = kg_material_reflectance(kg_material_library_get(d->lib, j),
+			                              a / DEMO_TRUTH_ANGLE_SCALE * M_PI / 180.0, &s,
+			                              &d->err);
+			for (int b = 0; !ret && b < KG_NBANDS; b++)
+				table[((size_t)j * nang + (size_t)a) * KG_NBANDS + b] = (float)s.v[b];
+		}
+	free(used);
+	if (ret)
+		free(table);
+	*out = ret ? NULL : table;
+	return ret;
+}
+
+/* The true reflectance cube: each object pixel's material at its incidence angle,
+ * NaN on the background; BIP. */
+static int write_truth_cube(demo_ctx *d, const char *path)
+{
+	const kg_render_truth *t = d->truth;
+	const int nang = (int)(90 * DEMO_TRUTH_ANGLE_SCALE) + 1;
+	size_t n = (size_t)t->width * (size_t)t->height;
+	float *table = NULL;
+	float *cube = malloc(sizeof(float) * KG_NBANDS * n);
+	int ret = cube ? demo_truth_table(d, &table) : kg_fail(&d->err, KG_ENOMEM, "out of memory");
+	for (size_t i = 0; !ret && i < n; i++) {
+		float *px = cube + i * KG_NBANDS;
+		if (!t->label[i]) {
+			for (int b = 0; b < KG_NBANDS; b++)
+				px[b] = NAN;
+			continue;
+		}
+		long a = lrint(t->angle_deg[i] * DEMO_TRUTH_ANGLE_SCALE);
+		memcpy(px, table + ((size_t)(t->label[i] - 1) * nang + (size_t)a) * KG_NBANDS,
+		       sizeof(float) * KG_NBANDS);
+	}
+	if (!ret) {
+		double wl[KG_NBANDS];
+		for (int b = 0; b < KG_NBANDS; b++)
+			wl[b] = kg_band_nm(b);
+		kg_envi_meta meta = {
+			.samples = t->width,
+			.lines = t->height,
+			.bands = KG_NBANDS,
+			.data_type = KG_ENVI_F32,
+			.interleave = KG_ENVI_BSQ,
+			.description = "kogei demo: true reflectance of the object, each pixel's "
+			               "material at its incidence angle (NaN: background)",
+			.wavelength = wl,
+		};
+		ret = kg_envi_write(path, &meta, KG_LAYOUT_BIP, cube, &d->err);
+	}
+	free(cube);
+	free(table);
+	return ret;
+}
+
+/* Step 4: the object's truth, recorded with the session: the material and the
+ * incidence angle of every pixel of the render the photograph was taken of. Written
+ * out with the photograph (object.tif) for comparison by other tools. */
 static int demo_object(demo_ctx *d)
 {
 	char *image = demo_path(d, "object.tif");
-	char *truth = demo_path(d, "object_truth.hdr");
+	char *cube = demo_path(d, "object_truth.hdr");
 	char *labels = demo_path(d, "object_truth_labels.hdr");
-	kg_sim_material_set *set = NULL;
-	kg_sim_noise noise;
-	kg_sim_capture cap;
-	printf("[4/7] the object's truth: the library's samples at %g deg incidence, site camera "
-	       "under CIE %s\n",
-	       DEMO_ANGLE_DEG, DEMO_SITE_ILLUMINANT);
-	int ret = kg_sim_noise_parse(DEMO_SITE_NOISE, &noise, &d->err);
+	char *angle = demo_path(d, "object_truth_angle.hdr");
+	char *scene = kg_data_path(DEMO_OBJECT_SCENE);
+	char *lab_png = kg_data_path(DEMO_TRUTH_LABELS), *ang_png = kg_data_path(DEMO_TRUTH_ANGLE);
+	printf("[4/7] the object's truth: the tsuba of fixtures/%s (a library material per "
+	       "region, CIE %s studio) as its render recorded it: material and incidence angle "
+	       "per pixel\n",
+	       DEMO_OBJECT_SCENE, DEMO_SITE_ILLUMINANT);
+	int ret = image && cube && labels && angle && scene && lab_png && ang_png
+	              ? kg_material_library_load(d->library_path, &d->lib, &d->err)
+	              : kg_fail(&d->err, KG_ENOMEM, "out of memory");
 	if (!ret)
-		ret = kg_sim_capture_load(&cap, d->site_camera, DEMO_SITE_ILLUMINANT,
-		                          DEMO_WHITE_LEVEL, &noise, 0, &d->err);
+		ret = load_regions(d, scene);
 	if (!ret)
-		ret = kg_sim_material_set_load(d->library_path, NULL, DEMO_ANGLE_DEG, &set, &d->err);
-	if (!ret) {
-		kg_sim_scene_desc desc = {
-			.materials = set->reflectance,
-			.material_names = (const char *const *)set->names,
-			.nmaterials = set->n,
-			.tile = DEMO_TILE,
-			.gap = DEMO_TILE / 4,
-			.columns = 5,
-			.background = 0.0,
-			.width = DEMO_OBJECT_WIDTH,
-			.height = DEMO_OBJECT_HEIGHT,
-		};
-		ret = kg_sim_scene_new(&desc, &cap, DEMO_SEED_OBJECT, &d->scene, &d->err);
-	}
-	/* The photograph is the session's object capture; the scene supplies the ground
-	 * truth it was rendered from (the same layout, fixtures/demo/make_session.sh). */
+		ret = load_truth(d, lab_png, ang_png);
+	/* The photograph is the session's object capture; the truth is that of the render
+	 * it was taken of (fixtures/demo/make_session.sh). */
 	const kg_image *photo = d->photos.object;
-	if (!ret && (!photo || photo->channels != 3 || photo->width != d->scene->width ||
-	             photo->height != d->scene->height))
+	if (!ret && (d->truth->width != DEMO_OBJECT_WIDTH || d->truth->height != DEMO_OBJECT_HEIGHT))
+		ret = kg_fail(&d->err, KG_EINVAL, "%s: %dx%d: the demo's object is %dx%d (the site "
+		              "camera's sensor)", lab_png, d->truth->width, d->truth->height,
+		              DEMO_OBJECT_WIDTH, DEMO_OBJECT_HEIGHT);
+	if (!ret && (!photo || photo->channels != 3 || photo->width != d->truth->width ||
+	             photo->height != d->truth->height))
 		ret = kg_fail(&d->err, KG_EINVAL,
-		              "the session's object capture is %dx%d with %d channels; the demo's "
-		              "scene is %dx%d RGB (re-record with fixtures/demo/make_session.sh)",
+		              "the session's object capture is %dx%d with %d channels; its truth is "
+		              "%dx%d and the demo needs the demosaiced RGB (re-record with "
+		              "fixtures/demo/make_session.sh)",
 		              photo ? photo->width : 0, photo ? photo->height : 0,
-		              photo ? photo->channels : 0, d->scene->width, d->scene->height);
+		              photo ? photo->channels : 0, d->truth->width, d->truth->height);
+	if (!ret)
+		ret = kg_image_write_tiff(photo, image, 32, &d->err);
+	if (!ret)
+		ret = kg_render_truth_write_labels(d->truth, labels, &d->err);
+	if (!ret)
+		ret = kg_render_truth_write_angle(d->truth, angle, &d->err);
+	if (!ret)
+		ret = write_truth_cube(d, cube);
 	if (!ret) {
-		kg_sim_scene *s = d->scene;
-		for (long i = 0; i < 3L * s->width * s->height; i++)
-			s->rgb[i] = photo->data[i];
-		ret = kg_sim_scene_write(s, image, KG_SIM_DEPTH_F32, truth, labels, &d->err);
+		const kg_render_truth *t = d->truth;
+		long count[256] = {0}, n = (long)t->width * t->height;
+		float lo = 90, hi = 0;
+		for (long i = 0; i < n; i++) {
+			count[t->label[i]]++;
+			if (t->label[i]) {
+				lo = fminf(lo, t->angle_deg[i]);
+				hi = fmaxf(hi, t->angle_deg[i]);
+			}
+		}
+		printf("  %dx%d pixels, %ld of the object (incidence %.1f-%.1f deg), %d regions:",
+		       t->width, t->height, n - count[0], lo, hi, d->nregions);
+		for (int k = 0; k < d->nregions; k++) {
+			char name[32];
+			demo_region_name(d->region_id[k], name, sizeof(name));
+			printf("%s %s %s (%ld px)", k ? "," : "", name,
+			       t->class_names[d->region_material[k] + 1],
+			       count[d->region_material[k] + 1]);
+		}
+		printf("\n");
+		demo_wrote(d, image, "the site camera's photograph of the object (float TIFF)");
+		demo_wrote(d, labels, "truth: the material of each pixel (ENVI classification)");
+		demo_wrote(d, angle, "truth: the incidence angle of each pixel (ENVI float32)");
+		demo_wrote(d, cube, "truth: reflectance at each pixel's angle (ENVI, 61 bands)");
 	}
-	if (!ret) {
-		printf("  %d materials, %dx%d pixels, noise %s\n", d->scene->nclasses - 1,
-		       d->scene->width, d->scene->height, DEMO_SITE_NOISE);
-		demo_wrote(d, image, "the site camera's image of the object (float TIFF)");
-		demo_wrote(d, truth, "ground truth: true reflectance cube");
-		demo_wrote(d, labels, "ground truth: label map");
-	}
-	kg_sim_material_set_free(&set);
 	free(image);
-	free(truth);
+	free(cube);
 	free(labels);
+	free(angle);
+	free(scene);
+	free(lab_png);
+	free(ang_png);
 	return ret;
 }
 
@@ -438,7 +628,8 @@ static void demo_free(demo_ctx *d)
 	free(d->layout_path);
 	kg_reference_free(&d->ref);
 	kg_camera_calib_free(&d->cam);
-	kg_sim_scene_free(&d->scene);
+	kg_render_truth_free(&d->truth);
+	kg_material_library_free(&d->lib);
 	kg_classify_result_free(&d->classes);
 	demo_photos_free(&d->photos);
 }
@@ -488,7 +679,8 @@ int kg_demo_run(const char *dir, kg_err *err)
 		ret = demo_render(&d);
 	}
 	if (!ret) {
-		printf("[7/7] against the truth: estimated and true spectra, confusion, summary\n");
+		printf("[7/7] against the truth: labels, regions, spectra, the object re-rendered from "
+		       "its labels (Embree), summary\n");
 		ret = demo_report(&d);
 	}
 	if (ret && err)

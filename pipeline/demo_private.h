@@ -5,6 +5,7 @@
 
 #include "kg_pipeline.h"
 #include "kg_calib.h"
+#include "kg_render.h"
 #include "kg_sim.h"
 
 /* The simulated session: fixed inputs, so every run gives the same numbers. */
@@ -16,10 +17,28 @@
 #define DEMO_SITE_ILLUMINANT "A"
 #define DEMO_SITE_NOISE "20000:5:12" /* a site camera: 12 bits */
 #define DEMO_WHITE_LEVEL 0.9
-#define DEMO_ANGLE_DEG 30.0 /* incidence of the object's samples (specular view) */
-#define DEMO_TILE 40         /* pixels per sample side in the object image */
+#define DEMO_ANGLE_DEG 30.0 /* eq. 11's assumed incidence (kogei process --method eq11) */
 #define DEMO_OBJECT_WIDTH 800 /* the object's photograph: the site camera's sensor */
 #define DEMO_OBJECT_HEIGHT 600
+/* The object: a tsuba with inlays, one library material per region (face id), in a
+ * grey studio under CIE A (fixtures/demo/tsuba_scene.json, studio.png), rendered
+ * noise-free through the site camera and photographed by the sim: camera when the
+ * session was recorded. Its truth, from the same render (fixtures/demo/README.md):
+ * the material per pixel (8-bit PNG, the value the render's truth class: 0
+ * background, 1 + i the library's entry i) and the incidence angle (16-bit PNG, the
+ * value round(10 x degrees), 65535 on the background). */
+#define DEMO_OBJECT_SCENE "demo/tsuba_scene.json"
+#define DEMO_TRUTH_LABELS "demo/object_truth_labels.png"
+#define DEMO_TRUTH_ANGLE "demo/object_truth_angle.png"
+#define DEMO_TRUTH_ANGLE_SCALE 10.0 /* PNG value per degree */
+#define DEMO_TRUTH_ANGLE_NONE 65535
+#define DEMO_MAX_REGIONS 64         /* face ids of the scene */
+#define DEMO_REGION_MIN_PIXELS 100  /* regions of the label map judged */
+/* The re-render from the estimated labels and the one from the truth (step 7): the
+ * object's scene under D65, half the photograph's size. */
+#define DEMO_RERENDER_WIDTH 400
+#define DEMO_RERENDER_HEIGHT 300
+#define DEMO_RERENDER_SPP 8
 /* The chart: the 15 samples in a printed AprilTag frame (fixtures/demo/README.md),
  * photographed, found by its tags and sampled (kg_chart_detect). */
 #define DEMO_CHART_LAYOUT "demo/cie-tcs-frame.json"
@@ -119,7 +138,16 @@ typedef struct demo_ctx {
 	kg_reference *ref;      /* as fitted and saved */
 	kg_camera_calib *cam;   /* as read back from camera.json */
 	double cond_m2;         /* of the 3 x 3 M2 */
-	kg_sim_scene *scene;    /* the object, with its ground truth */
+	double angles[3];       /* the incidence angles camera-space matching searched */
+	/* The object's truth (step 4): the render's truth maps as the fixtures hold them
+	 * (classes: 0 background, 1 + i library entry i; angles in degrees, NaN on the
+	 * background), the library, and the scene's regions: face id and material (its
+	 * library index) of each, in the order of the scene file. */
+	kg_render_truth *truth;
+	kg_material_library *lib;
+	int nregions;
+	int region_id[DEMO_MAX_REGIONS];
+	int region_material[DEMO_MAX_REGIONS];
 	kg_est_stats est_stats; /* of the cube */
 	kg_classify_result classes;
 	demo_photos photos;     /* the session's captures, replayed */
@@ -142,9 +170,39 @@ void demo_wrote(demo_ctx *d, const char *path, const char *what);
  * (demo_render.c). */
 int demo_render(demo_ctx *d);
 
-/* Read the cube and the label map back, compare them with the scene's ground truth
- * and write spectra_by_material.png, confusion.png, object_d65.png and summary.md,
- * then print the summary. */
+/* The true reflectance of each library material at every angle the truth holds
+ * (0-90 deg in steps of 1 / DEMO_TRUTH_ANGLE_SCALE; kg_material_reflectance), only for
+ * the materials the truth shows: (*table)[(material * steps + step) * 61 + band],
+ * caller frees. */
+int demo_truth_table(demo_ctx *d, float **table);
+
+/* The name of a region of the object's scene: "plate", "rim", "relief",
+ * "seppa-dai" for the tsuba's face ids 0-3, "inlay N" for the domes (ids 4 on). */
+void demo_region_name(int face_id, char *buf, size_t size);
+
+/* The re-render (step 7): the object's scene under D65, once with each region's true
+ * material, once with the material given (library index per region, d->region_*
+ * order); both in CIE XYZ relative to the white, their difference in CIEDE2000 per
+ * pixel over the object (the truth render's object pixels). Writes
+ * rerender/truth.json, estimate.json (kogei render --scene ... gives them again),
+ * the studio they name, truth.png, estimate.png and de00.tif (NaN off the object).
+ * Without Embree: available = 0, nothing written. */
+typedef struct demo_rerender_result {
+	int available;
+	int width, height;
+	kg_image *truth, *estimate; /* XYZ, Y = 1 the white */
+	float *de00;                /* per pixel, NaN off the object */
+	long pixels;                /* object pixels */
+	double de00_mean, de00_p90, de00_max;
+	double seconds;
+} demo_rerender_result;
+int demo_rerender(demo_ctx *d, const int *estimate_material, demo_rerender_result *out);
+void demo_rerender_result_clear(demo_rerender_result *r);
+
+/* Read the cube, the label map and its regions back, compare them with the object's
+ * truth, re-render the object from the estimated labels, and write
+ * spectra_by_material.png, confusion.png, object_d65.png, truth_vs_estimate.png and
+ * summary.md, then print the summary. */
 int demo_report(demo_ctx *d);
 
 #endif
