@@ -18,7 +18,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include "kg_bench.h"
@@ -38,18 +37,6 @@ typedef struct row {
 	int patches;
 } row;
 
-static int run_program(char *const *argv)
-{
-	pid_t pid = fork();
-	if (pid == 0) {
-		execv(argv[0], argv);
-		_exit(127);
-	}
-	int st = 0;
-	if (pid < 0 || waitpid(pid, &st, 0) < 0)
-		return -1;
-	return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
-}
 
 /* Errors of a result against a truth file. */
 static void errors(const kg_chart_result *r, const kg_patchset *truth, row *out)
@@ -211,7 +198,7 @@ int main(int argc, char **argv)
 		}
 		sim[n] = NULL;
 		double t0 = kg_bench_now();
-		if (run_program(sim) != 0) {
+		if (kg_bench_run_program(sim, 0) != 0) {
 			fprintf(stderr, "kogei-bench-chart: %s sim chart failed\n", kogei);
 			return 1;
 		}

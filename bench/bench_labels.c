@@ -29,7 +29,6 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include "kg_bench.h"
@@ -59,22 +58,6 @@ static const scenario scenarios[] = {
 	{"both", "both unknown", 0, 70, 0.3, 1},
 };
 
-static int run_program(char *const *argv, int quiet)
-{
-	pid_t pid = fork();
-	if (pid == 0) {
-		if (quiet) {
-			freopen("/dev/null", "w", stdout);
-			freopen("/dev/null", "w", stderr);
-		}
-		execv(argv[0], argv);
-		_exit(127);
-	}
-	int st = 0;
-	if (pid < 0 || waitpid(pid, &st, 0) < 0)
-		return -1;
-	return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
-}
 
 static uint64_t rng_state = 2026;
 static double uniform(void)
@@ -125,7 +108,7 @@ static void measure(const char *kogei, const char *dir, char **args, int nargs, 
 	for (int r = 0; r < reps; r++) {
 		unlink(csv);
 		double t0 = kg_bench_now();
-		if (run_program(argv, 1) != 0)
+		if (kg_bench_run_program(argv, 1) != 0)
 			return;
 		t[r] = kg_bench_now() - t0;
 	}
@@ -242,7 +225,7 @@ int main(int argc, char **argv)
 		 "-o", p_cam, NULL},
 	};
 	for (int s = 0; s < 4; s++)
-		if (run_program(steps[s], 1) != 0) {
+		if (kg_bench_run_program(steps[s], 1) != 0) {
 			fprintf(stderr, "kogei-bench-labels: step %d of the calibration failed (%s)\n",
 			        s + 1, kogei);
 			return 1;

@@ -144,6 +144,9 @@ typedef struct kg_bench_limit_row {
 
 /* Seconds on CLOCK_MONOTONIC. */
 double kg_bench_now(void);
+/* Run argv (argv[0] a path) and wait: its exit status, -1 when it could not run or
+ * did not exit; quiet sends its output to /dev/null. */
+int kg_bench_run_program(char *const *argv, int quiet);
 /* Seconds to write `bytes` into buf with non-temporal stores on `threads` threads
  * (at most 64), one contiguous share each; the threads are created for the call, as
  * kg_est_run creates its pool for each run. The bytes are those of float 0.5. */

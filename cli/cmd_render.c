@@ -82,20 +82,6 @@ static int parse_white_level(const char *text, double *out)
 	return 0;
 }
 
-/* Remove an output written earlier in a failed run (both files of an ENVI pair). */
-static void remove_output(const char *path, int envi)
-{
-	char *hdr = NULL, *data = NULL;
-	if (envi && kg_envi_paths(path, &hdr, &data, NULL) == 0) {
-		unlink(hdr);
-		unlink(data);
-	} else {
-		unlink(path);
-	}
-	free(hdr);
-	free(data);
-}
-
 /* The folder of an output file must exist before hours of rendering. */
 static int check_output_dir(const char *path, kg_err *err)
 {
@@ -274,11 +260,11 @@ int kg_cmd_render(int argc, char **argv)
 		                          &err);
 	if (ret) {
 		if (wrote_linear)
-			remove_output(linear, 0);
+			kg_envi_remove_output(linear, 0);
 		if (wrote_labels)
-			remove_output(truth_labels, 1);
+			kg_envi_remove_output(truth_labels, 1);
 		if (wrote_angle)
-			remove_output(truth_angle, 1);
+			kg_envi_remove_output(truth_angle, 1);
 	}
 	if (!ret && !quiet) {
 		double mrays = (double)(st.rays + st.shadow_rays) / st.render_s / 1e6;

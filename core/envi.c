@@ -1246,3 +1246,16 @@ int kg_envi_get_numbers(const kg_envi *e, const char *key, double **v, int *n, k
 		return kg_fail(err, KG_EINVAL, "%s: key '%s' is missing", e->hdr_path, key);
 	return numbers_from(e->hdr_path, key, val, e->store, v, n, err);
 }
+
+void kg_envi_remove_output(const char *path, int envi)
+{
+	char *hdr = NULL, *data = NULL;
+	if (envi && kg_envi_paths(path, &hdr, &data, NULL) == 0) {
+		unlink(hdr);
+		unlink(data);
+	} else {
+		unlink(path);
+	}
+	free(hdr);
+	free(data);
+}

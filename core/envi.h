@@ -58,6 +58,10 @@ typedef struct kg_envi_meta {
 /* Header and data paths for a name given on the command line (caller frees both). */
 int kg_envi_paths(const char *path, char **hdr_path, char **data_path, kg_err *err);
 
+/* Remove an output a failed run had already put in place: both files of an ENVI pair
+ * when envi is set, else the file itself. */
+void kg_envi_remove_output(const char *path, int envi);
+
 /* "{v0, v1, ...}" with enough digits to read back the same doubles (caller frees). */
 int kg_envi_format_list(const double *v, int n, char **out, kg_err *err);
 

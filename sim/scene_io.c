@@ -125,20 +125,6 @@ int kg_sim_scene_write_labels(const kg_sim_scene *s, const char *hdr_path, kg_er
 	return ret;
 }
 
-/* Remove an output written earlier in a failed run (both files of an ENVI pair). */
-static void remove_output(const char *path, int envi)
-{
-	char *hdr = NULL, *data = NULL;
-	if (envi && kg_envi_paths(path, &hdr, &data, NULL) == 0) {
-		unlink(hdr);
-		unlink(data);
-	} else {
-		unlink(path);
-	}
-	free(hdr);
-	free(data);
-}
-
 int kg_sim_scene_write(const kg_sim_scene *s, const char *image_path,
                        enum kg_sim_depth depth, const char *truth_cube_path,
                        const char *labels_path, kg_err *err)
@@ -150,16 +136,16 @@ int kg_sim_scene_write(const kg_sim_scene *s, const char *image_path,
 	if (truth_cube_path) {
 		ret = kg_sim_scene_write_truth_cube(s, truth_cube_path, err);
 		if (ret) {
-			remove_output(image_path, 0);
+			kg_envi_remove_output(image_path, 0);
 			return ret;
 		}
 	}
 	if (labels_path) {
 		ret = kg_sim_scene_write_labels(s, labels_path, err);
 		if (ret) {
-			remove_output(image_path, 0);
+			kg_envi_remove_output(image_path, 0);
 			if (truth_cube_path)
-				remove_output(truth_cube_path, 1);
+				kg_envi_remove_output(truth_cube_path, 1);
 			return ret;
 		}
 	}
