@@ -328,6 +328,35 @@ static void library_files(void)
 	bad_library(HEAD "{\"name\": \"l\", \"kind\": \"dielectric\", \"n\": 1.5, \"body\": "
 	            "1.5}]}", "'l'", "body");
 	bad_library(HEAD "]}", "materials", NULL);
+	/* coupon templates (kogei materials learn) */
+#define CU_T(views) "{\"name\": \"cu\", \"kind\": \"metal\", " \
+	"\"nk\": {\"model\": \"rakic1998-ld\", \"element\": \"Cu\"}, " \
+	"\"template\": {\"reference\": \"\", \"views\": [" views "]}}]}"
+#define VIEW(a, v) "{\"angle_deg\": " #a ", \"mean\": [0.5, 0.4, 0.3], \"cov\": [" #v \
+	", 0, 0, 0, 1e-4, 0, 0, 0, 1e-4], \"pixels\": 500}"
+	bad_library(HEAD CU_T(VIEW(30, 1e-4) ", " VIEW(10, 1e-4)), "'cu'", "template.views[1]");
+	bad_library(HEAD CU_T(VIEW(30, -1e-4)), "'cu'", "variances >= 0");
+	bad_library(HEAD CU_T(VIEW(95, 1e-4)), "'cu'", "[0, 90)");
+	bad_library(HEAD CU_T(""), "'cu'", "template");
+	bad_library(HEAD "{\"name\": \"cu\", \"kind\": \"metal\", \"nk\": {\"model\": "
+	            "\"rakic1998-ld\", \"element\": \"Cu\"}, \"template\": {\"views\": [{"
+	            "\"angle_deg\": 0, \"mean\": [0.5, 0.4], \"cov\": [0,0,0,0,0,0,0,0,0], "
+	            "\"pixels\": 5}]}}]}", "'cu'", "mean (3");
+	{
+		const char *path = kg_tmpfile("lib/good.json", HEAD CU_T(VIEW(0, 1e-4) ", "
+		                                                       VIEW(40, 2e-4)));
+		kg_material_library *lib = NULL;
+		kg_err e = {""};
+		CHECK(kg_material_library_load(path, &lib, &e) == 0, "template library: %s", e.msg);
+		const kg_material *cu = lib ? kg_material_library_find(lib, "cu") : NULL;
+		CHECK(cu && cu->tmpl.n == 2 && cu->tmpl.angle_deg[1] == 40 &&
+		          cu->tmpl.cov[1][0] == 2e-4 && cu->tmpl.mean[0][2] == 0.3 &&
+		          cu->tmpl.pixels[0] == 500,
+		      "the template read back");
+		kg_material_library_free(&lib);
+	}
+#undef VIEW
+#undef CU_T
 	bad_library("{\"format\": \"kogei-camera/1\", \"materials\": [" CU "]}", "format", NULL);
 	bad_library("{\"format\": \"kogei-materials/1\", \"extra\": 1, \"materials\": [" CU "]}",
 	            "extra", NULL);
