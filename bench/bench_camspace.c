@@ -3,7 +3,7 @@
  *
  * Model: the library's materials under the synthetic camera (Gaussian sensitivities,
  * kg_bench_synthetic_camera) and CIE D65, white at KG_BENCH_WHITE_LEVEL, angles 0 to 70
- * degrees every 5 (15), intensity 0.3 to 1.0. Pixels: a random material at a random
+ * degrees every 5 (15; kogei bench --camspace-step), intensity 0.3 to 1.0. Pixels: a random material at a random
  * angle in [0, 70] (every degree, so mostly between the model's angles) and a random
  * intensity in [0.3, 1.0], with the noise of the bench's sensor (full well, read
  * noise) on the camera's channels mapped through a colour matrix with cross terms,
@@ -214,7 +214,8 @@ int bench_camspace(const kg_bench_config *cfg, kg_bench_results *r, kg_err *err)
 		n = KG_EST_MAX_MATERIALS;
 	for (int j = 0; j < n; j++)
 		mats[j] = kg_material_library_get(lib, j);
-	ret = kg_cs_model_new(F, mats, n, 0, CS_ANGLE_TO, CS_ANGLE_STEP, CS_LO, CS_HI, &m, err);
+	double step = cfg->camspace_step > 0 ? cfg->camspace_step : CS_ANGLE_STEP;
+	ret = kg_cs_model_new(F, mats, n, 0, CS_ANGLE_TO, step, CS_LO, CS_HI, &m, err);
 	if (!ret)
 		ret = kg_cs_model_new(F, mats, n, 0, CS_ANGLE_TO, 1.0, CS_LO, CS_HI, &fine, err);
 	if (ret)

@@ -14,7 +14,8 @@
  *   both         angle 0-70, intensity 0.3-1.0
  * Methods: eq. 11 plain and scale-free (spectra at 30 degrees: what the method
  * assumes), camera-space matching with the merges off (every material its own class)
- * and on (the default), the search ranges set to what the scenario leaves unknown.
+ * and on (the default), the search ranges set to what the scenario leaves unknown, and
+ * the default with the angles every 10 degrees instead of 5 (half the work).
  * Per pixel: the share of the pixels whose label holds their material (exact for
  * single materials, membership for a compound class); per region: the share of the
  * ten blocks (given as the region map) whose pooled decision holds their material;
@@ -291,8 +292,9 @@ int main(int argc, char **argv)
 			fprintf(stderr, "kogei-bench-labels: %s\n", err.msg);
 			return 1;
 		}
-		char angles[64], intens[64];
+		char angles[64], angles10[64], intens[64];
 		snprintf(angles, sizeof(angles), "%g:%g:5", S->a0, S->a1);
+		snprintf(angles10, sizeof(angles10), "%g:%g:10", S->a0, S->a1);
 		snprintf(intens, sizeof(intens), "%g:%g", S->i0, S->i1);
 		struct {
 			const char *name;
@@ -311,6 +313,11 @@ int main(int argc, char **argv)
 			{"camera space, merged classes", {"--angles", angles, "--intensity", intens,
 			                                  "--regions", p_map, "--variance", p_var,
 			                                  "--calib", p_cam, "--materials", p_lib, p_img},
+			 13, 1},
+			{"camera space, merged, 10 deg grid", {"--angles", angles10, "--intensity", intens,
+			                                       "--regions", p_map, "--variance", p_var,
+			                                       "--calib", p_cam, "--materials", p_lib,
+			                                       p_img},
 			 13, 1},
 		};
 		for (size_t mi = 0; mi < sizeof(methods) / sizeof(methods[0]); mi++) {

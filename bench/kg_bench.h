@@ -197,6 +197,7 @@ typedef struct kg_bench_config {
 	int nmaterials;            /* classifier size */
 	int run_error, run_speed, run_camspace;
 	double camspace_mpix;      /* pixels of the camera-space rows, in Mpix */
+	double camspace_step;      /* their model's angle step, degrees (5) */
 	const char *command;       /* the command line, for the report */
 	kg_bench_progress_fn progress;
 	void *progress_user;

@@ -17,6 +17,7 @@ enum { EXIT_INPUT = 1, EXIT_USAGE = 2 };
 static const char usage_bench[] =
 	"kogei bench [--quick] [-o DIR] [--threads-list N[,N...]] [--mpix N] [--reps N]\n"
 	"            [--reference DIR] [--no-error] [--no-speed] [--no-camspace]\n"
+	"            [--camspace-step DEG]\n"
 	"  Speed against error of every method (pca K=3 and K=auto, linear, wiener,\n"
 	"  rootpoly2, rootpoly3, a 33^3 LUT of pca).\n"
 	"  Error: each method trained on ColorChecker 24 and tested on Munsell, and\n"
@@ -29,7 +30,8 @@ static const char usage_bench[] =
 	"  beside the machine's limit for writing the same bytes with non-temporal\n"
 	"  stores. Median of --reps runs (default 5; --quick 3).\n"
 	"  Camera-space matching: Mpix/s of kg_cs_match_block (the library's materials,\n"
-	"  15 angles, 1 Mpix of noisy readings), the C reference and AVX2 on each\n"
+	"  angles 0-70 every --camspace-step degrees (default 5: 15 angles), 1 Mpix of\n"
+	"  noisy readings), the C reference and AVX2 on each\n"
 	"  thread count, whether the two are bit-identical, and the labels' accuracy.\n"
 	"  Writes DIR/bench.md, DIR/bench.json and DIR/pareto.png (DIR default\n"
 	"  out/bench). Progress goes to standard error.";
@@ -95,11 +97,12 @@ int main(int argc, char **argv)
 		{"no-error", no_argument, NULL, 'E'},
 		{"no-speed", no_argument, NULL, 'S'},
 		{"no-camspace", no_argument, NULL, 'C'},
+		{"camspace-step", required_argument, NULL, 'A'},
 		{"help", no_argument, NULL, 'h'},
 		{0, 0, 0, 0},
 	};
 	const char *dir = "out/bench", *threads_text = NULL, *reference = NULL;
-	double mpix = 0;
+	double mpix = 0, cs_step = 5;
 	long reps = 0;
 	int quick = 0, no_error = 0, no_speed = 0, no_camspace = 0;
 	int c;
@@ -114,6 +117,11 @@ int main(int argc, char **argv)
 		case 'E': no_error = 1; break;
 		case 'S': no_speed = 1; break;
 		case 'C': no_camspace = 1; break;
+		case 'A':
+			cs_step = strtod(optarg, &end);
+			if (end == optarg || *end || !(cs_step >= 1 && cs_step <= 70))
+				return usage_error("--camspace-step %s: expected degrees from 1 to 70", optarg);
+			break;
 		case 'p':
 			mpix = strtod(optarg, &end);
 			if (end == optarg || *end || !isfinite(mpix) || mpix <= 0 || mpix > 1000)
@@ -150,6 +158,7 @@ int main(int argc, char **argv)
 	cfg.run_error = !no_error;
 	cfg.run_speed = !no_speed;
 	cfg.run_camspace = !no_camspace;
+	cfg.camspace_step = cs_step;
 
 	char default_reference[4096];
 	const char *env = getenv("KOGEI_REFERENCE");

@@ -37,6 +37,7 @@ void kg_bench_config_default(kg_bench_config *c, int quick)
 	c->nmaterials = 16;
 	c->run_error = c->run_speed = c->run_camspace = 1;
 	c->camspace_mpix = 1.0;
+	c->camspace_step = 5.0;
 }
 
 void kg_bench_results_free(kg_bench_results **r)
