@@ -389,6 +389,23 @@ int main(int argc, char **argv)
 	             fx_path("x.hdr"), "--regions", vpath) == 1 && strstr(fx_errs, "region map"),
 	      "a 3-channel region map refused: %s", fx_errs);
 
+	/* a calibration from before the camera response existed: the camera method is
+	 * refused (naming the file and the field), eq. 11 still works */
+	json_t *cj = json_load_file(cam, 0, NULL);
+	CHECK(cj != NULL, "%s read back", cam);
+	if (cj) {
+		json_object_del(cj, "response");
+		json_dump_file(cj, fx_path("old.json"), 0);
+		json_decref(cj);
+	}
+	CHECK(FX_RUN("classify", "--calib", fx_path("old.json"), "--materials", lib_path, obj, "-o",
+	             fx_path("x.hdr")) == 1 && strstr(fx_errs, "old.json") &&
+	          strstr(fx_errs, "response"),
+	      "a calibration without a response refused: %s", fx_errs);
+	CHECK(FX_RUN("classify", "--method", "eq11", "--calib", fx_path("old.json"), "--materials",
+	             lib_path, obj, "-o", fx_path("x.hdr")) == 0,
+	      "eq11 with it: %s", fx_errs);
+
 	/* LABELS.json: the separability table and the merges */
 	json_t *j = json_load_file(fx_path("labels.json"), 0, NULL);
 	json_t *sep = j ? json_object_get(j, "separability") : NULL;

@@ -212,6 +212,25 @@ print("camera: %d classes of %d materials; eq11: %d classes" % (
 PY
 expect_exit 2 "$KOGEI" process "$S" --spectra "$T/chart.cgats" -o "$T/bad" --method svm
 check "--method svm refused" grep -q "expected camera or eq11" "$T/err"
+# A reference from before the camera response existed: labels by eq. 11, and a
+# warning that says so (in process.json and the report).
+"$PY" - "$O/reference.json" "$T/old-reference.json" <<'PY'
+import json, sys
+r = json.load(open(sys.argv[1]))
+r.pop("response", None)
+json.dump(r, open(sys.argv[2], "w"))
+PY
+expect_exit 0 "$KOGEI" process "$S" --reference "$T/old-reference.json" -o "$T/oldref" \
+	--cube none --no-render --quiet
+check "old reference: eq. 11 labels with a warning" "$PY" - "$T/oldref" <<'PY'
+import json, sys
+out = sys.argv[1]
+obj = {o["capture"]: o for o in json.load(open(out + "/process.json"))["objects"]}["object-full"]
+assert obj["labels_method"]["method"] == "eq11", obj["labels_method"]
+assert any("no camera response" in w for w in obj["warnings"]), obj["warnings"]
+assert "no camera response" in open(out + "/report.html").read()
+print("old reference: eq. 11 labels, warned")
+PY
 
 # One run at a time into an OUTDIR: a second kogei process is refused while it is locked.
 exec 9<"$O"
