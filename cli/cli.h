@@ -22,6 +22,13 @@ int kg_cli_usage_error(const char *usage, const char *fmt, ...) KG_PRINTF(2, 3);
 /* 1 if argv holds -h or --help. */
 int kg_cli_wants_help(int argc, char **argv);
 
+/* "a:b[:c]" (numbers separated by colons) into up to max finite values; how many, or
+ * -1 for anything else (an empty part, trailing text, too many). */
+int kg_cli_parse_numbers(const char *text, double *v, int max);
+/* Split "a,b,c" in place into at most max names (*n of them); -1 for an empty name or
+ * too many. */
+int kg_cli_split_names(char *text, char **names, int max, int *n);
+
 /* Parse "start:stop:step" (degrees) into a newly allocated list. */
 int kg_cli_parse_range(const char *text, double **values, int *n, kg_err *err);
 

@@ -173,25 +173,6 @@ static int parse_int(const char *text, int lo, int hi, int *out)
 	return 0;
 }
 
-/* "a:b[:c]" into up to max numbers; returns how many, or -1. */
-static int parse_doubles(const char *text, double *v, int max)
-{
-	int n = 0;
-	const char *p = text;
-	for (;;) {
-		char *end = NULL;
-		double x = strtod(p, &end);
-		if (!end || end == p || n == max || !isfinite(x))
-			return -1;
-		v[n++] = x;
-		if (*end == '\0')
-			return n;
-		if (*end != ':')
-			return -1;
-		p = end + 1;
-	}
-}
-
 static int parse_clip(const char *text, float *out)
 {
 	if (strcmp(text, "none") == 0) {
@@ -384,23 +365,6 @@ int kg_cmd_estimate(int argc, char **argv)
 	return rc ? kg_cli_error(&err, rc) : KG_EXIT_OK;
 }
 
-/* Split "a,b,c" in place into at most max names; empty names are refused. */
-static int split_names(char *text, char **names, int max, int *n)
-{
-	*n = 0;
-	for (char *p = text;;) {
-		char *comma = strchr(p, ',');
-		if (comma)
-			*comma = '\0';
-		if (!*p || *n == max)
-			return -1;
-		names[(*n)++] = p;
-		if (!comma)
-			return 0;
-		p = comma + 1;
-	}
-}
-
 int kg_cmd_classify(int argc, char **argv)
 {
 	const char *calib = NULL, *out = NULL, *library = NULL, *distance = "plain";
@@ -458,7 +422,7 @@ int kg_cmd_classify(int argc, char **argv)
 		case 'P': composition = optarg; break;
 		case 'A': {
 			double v[3] = {0, 0, 5};
-			int nv = parse_doubles(optarg, v, 3);
+			int nv = kg_cli_parse_numbers(optarg, v, 3);
 			if (nv < 2 || !(v[0] >= 0 && v[1] >= v[0] && v[1] < 90 && v[2] > 0))
 				return kg_cli_usage_error(usage_classify, "--angles %s: expected FROM:TO[:STEP] "
 				                          "degrees, 0 <= FROM <= TO < 90, STEP > 0", optarg);
@@ -469,7 +433,7 @@ int kg_cmd_classify(int argc, char **argv)
 		}
 		case 'I': {
 			double v[2];
-			if (parse_doubles(optarg, v, 2) != 2 || !(v[0] > 0 && v[1] >= v[0] && isfinite(v[1])))
+			if (kg_cli_parse_numbers(optarg, v, 2) != 2 || !(v[0] > 0 && v[1] >= v[0] && isfinite(v[1])))
 				return kg_cli_usage_error(usage_classify, "--intensity %s: expected LO:HI with "
 				                          "0 < LO <= HI", optarg);
 			ccam.intensity_lo = v[0];
@@ -571,7 +535,7 @@ int kg_cmd_classify(int argc, char **argv)
 	char *only_copy = only ? strdup(only) : NULL;
 	char *names[KG_EST_MAX_MATERIALS + 1];
 	int nnames = 0;
-	if (only && (!only_copy || split_names(only_copy, names, KG_EST_MAX_MATERIALS + 1, &nnames))) {
+	if (only && (!only_copy || kg_cli_split_names(only_copy, names, KG_EST_MAX_MATERIALS + 1, &nnames))) {
 		free(only_copy);
 		return kg_cli_usage_error(usage_classify,
 		                          "--only %s: expected material names separated by commas",

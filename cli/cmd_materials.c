@@ -43,19 +43,6 @@ static const char help_learn[] =
 
 #define MIN_COUPON_PIXELS 100
 
-/* Split "a,b,c" (modified in place) into at most max items. */
-static int split_list(char *text, char **items, int max)
-{
-	int n = 0;
-	for (char *save = NULL, *tok = strtok_r(text, ",", &save); tok;
-	     tok = strtok_r(NULL, ",", &save)) {
-		if (n == max)
-			return -1;
-		items[n++] = tok;
-	}
-	return n;
-}
-
 static int cmp_double(const void *a, const void *b)
 {
 	double x = *(const double *)a, y = *(const double *)b;
@@ -204,8 +191,13 @@ int kg_cmd_materials_learn(int argc, char **argv)
 	char *images[MAXV], *names[MAXV], *angles_s[MAXV];
 	char *ic = strdup(images_arg), *nc = strdup(names_arg),
 	     *ac = angles_arg ? strdup(angles_arg) : NULL;
-	int ni = ic ? split_list(ic, images, MAXV) : -1, nn = nc ? split_list(nc, names, MAXV) : -1;
-	int na = ac ? split_list(ac, angles_s, MAXV) : 0;
+	int ni = -1, nn = -1, na = 0;
+	if (!ic || kg_cli_split_names(ic, images, MAXV, &ni))
+		ni = -1;
+	if (!nc || kg_cli_split_names(nc, names, MAXV, &nn))
+		nn = -1;
+	if (ac && kg_cli_split_names(ac, angles_s, MAXV, &na))
+		na = -1;
 	double angles[MAXV];
 	int bad = ni < 1 || nn != ni || (angles_arg && na != ni);
 	for (int i = 0; !bad && i < ni; i++) {

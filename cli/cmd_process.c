@@ -159,7 +159,7 @@ int kg_cmd_process(int argc, char **argv)
 			break;
 		case O_ANGLES: {
 			double a[3] = {0, 0, 5};
-			int n = sscanf(optarg, "%lf:%lf:%lf", &a[0], &a[1], &a[2]);
+			int n = kg_cli_parse_numbers(optarg, a, 3);
 			if (n < 2 || !(a[0] >= 0 && a[1] >= a[0] && a[1] < 90 && a[2] > 0))
 				return kg_cli_usage_error(usage_process, "--angles %s: expected FROM:TO[:STEP] "
 				                          "degrees, 0 <= FROM <= TO < 90, STEP > 0", optarg);
@@ -168,8 +168,7 @@ int kg_cmd_process(int argc, char **argv)
 		}
 		case O_INTENSITY: {
 			double iv[2];
-			if (sscanf(optarg, "%lf:%lf", &iv[0], &iv[1]) != 2 || !(iv[0] > 0 && iv[1] >= iv[0]) ||
-			    !isfinite(iv[1]))
+			if (kg_cli_parse_numbers(optarg, iv, 2) != 2 || !(iv[0] > 0 && iv[1] >= iv[0]))
 				return kg_cli_usage_error(usage_process, "--intensity %s: expected LO:HI with "
 				                          "0 < LO <= HI", optarg);
 			o.intensity[0] = iv[0];

@@ -30,6 +30,40 @@ int kg_cli_parse_range(const char *text, double **values, int *n, kg_err *err)
 	return 0;
 }
 
+int kg_cli_parse_numbers(const char *text, double *v, int max)
+{
+	int n = 0;
+	const char *p = text;
+	for (;;) {
+		char *end = NULL;
+		double x = strtod(p, &end);
+		if (!end || end == p || n == max || !isfinite(x))
+			return -1;
+		v[n++] = x;
+		if (*end == '\0')
+			return n;
+		if (*end != ':')
+			return -1;
+		p = end + 1;
+	}
+}
+
+int kg_cli_split_names(char *text, char **names, int max, int *n)
+{
+	*n = 0;
+	for (char *p = text;;) {
+		char *comma = strchr(p, ',');
+		if (comma)
+			*comma = '\0';
+		if (!*p || *n == max)
+			return -1;
+		names[(*n)++] = p;
+		if (!comma)
+			return 0;
+		p = comma + 1;
+	}
+}
+
 int kg_cli_image_identity(const char *image, kg_camera_identity *id, kg_err *err)
 {
 	memset(id, 0, sizeof(*id));

@@ -28,10 +28,12 @@ void kg_err_prefix(kg_err *err, const char *fmt, ...)
 	size_t n = strlen(prefix);
 	if (n > sizeof(err->msg) - 3)
 		n = sizeof(err->msg) - 3;
+	/* a prefix that already ends in ": " gets no second one */
+	size_t sep = n >= 2 && prefix[n - 2] == ':' && prefix[n - 1] == ' ' ? 0 : 2;
 	memcpy(err->msg, prefix, n);
-	memcpy(err->msg + n, ": ", 2);
+	memcpy(err->msg + n, ": ", sep);
 	size_t rest = sizeof(err->msg) - n - 3;
 	size_t m = strnlen(old, rest);
-	memcpy(err->msg + n + 2, old, m);
-	err->msg[n + 2 + m] = '\0';
+	memcpy(err->msg + n + sep, old, m);
+	err->msg[n + sep + m] = '\0';
 }

@@ -36,7 +36,8 @@ typedef struct kg_err {
  * `return kg_fail(err, KG_EINVAL, "%s: line %d: field %s: expected a number", ...);` */
 int kg_fail(kg_err *err, int code, const char *fmt, ...) KG_PRINTF(3, 4);
 
-/* Prefix an existing message, e.g. with the name of the file being processed. */
+/* Prefix an existing message, e.g. with the name of the file being processed: the
+ * result is "PREFIX: message" (a prefix that already ends in ": " keeps just that). */
 void kg_err_prefix(kg_err *err, const char *fmt, ...) KG_PRINTF(2, 3);
 
 /* Check an argument at a public boundary. */

@@ -373,3 +373,23 @@ done:
 	kg_mat_free(&vecs);
 	return ret;
 }
+
+int kg_mat3_inverse(const double a[9], double out[9])
+{
+	double c0 = a[4] * a[8] - a[5] * a[7], c1 = a[5] * a[6] - a[3] * a[8],
+	       c2 = a[3] * a[7] - a[4] * a[6];
+	double det = a[0] * c0 + a[1] * c1 + a[2] * c2;
+	if (!(fabs(det) > 0) || !isfinite(det))
+		return -1;
+	double id = 1.0 / det;
+	out[0] = c0 * id;
+	out[1] = (a[2] * a[7] - a[1] * a[8]) * id;
+	out[2] = (a[1] * a[5] - a[2] * a[4]) * id;
+	out[3] = c1 * id;
+	out[4] = (a[0] * a[8] - a[2] * a[6]) * id;
+	out[5] = (a[2] * a[3] - a[0] * a[5]) * id;
+	out[6] = c2 * id;
+	out[7] = (a[1] * a[6] - a[0] * a[7]) * id;
+	out[8] = (a[0] * a[4] - a[1] * a[3]) * id;
+	return 0;
+}

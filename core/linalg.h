@@ -52,6 +52,10 @@ int kg_svd(const kg_mat *a, kg_mat **u, kg_mat **s, kg_mat **vt, kg_err *err);
  * returned when the pointers are not NULL. */
 int kg_pinv(const kg_mat *a, double rtol, kg_mat **pinv, int *rank, kg_mat **s, kg_err *err);
 
+/* The inverse of a 3 x 3 matrix (row-major) by cofactors; -1 (out untouched) when it
+ * is singular or not finite. */
+int kg_mat3_inverse(const double a[9], double out[9]);
+
 /* Condition number smax / smin over the min(rows, cols) singular values; +inf when
  * the matrix is rank deficient (smin <= rtol * smax). */
 int kg_cond(const kg_mat *a, double rtol, double *cond, kg_err *err);

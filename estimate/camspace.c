@@ -113,42 +113,21 @@ int kg_cs_model_new(const double *F, const kg_material *const *mats, int n, doub
 	return 0;
 }
 
-/* C = L L^T, L lower triangular (row-major 3 x 3); 0 when C is not positive definite. */
-static int cholesky(const double cov[9], double L[9])
-{
-	memset(L, 0, 9 * sizeof(double));
-	L[0] = sqrt(cov[0]);
-	L[3] = cov[3] / L[0];
-	L[6] = cov[6] / L[0];
-	L[4] = sqrt(cov[4] - L[3] * L[3]);
-	L[7] = (cov[7] - L[6] * L[3]) / L[4];
-	L[8] = sqrt(cov[8] - L[6] * L[6] - L[7] * L[7]);
-	return L[0] > 0 && L[4] > 0 && L[8] > 0;
-}
-
-/* y = L^-1 x for the lower Cholesky factor L (row-major 3 x 3). */
-static void forward(const double L[9], const double x[3], double y[3])
-{
-	y[0] = x[0] / L[0];
-	y[1] = (x[1] - L[3] * y[0]) / L[4];
-	y[2] = (x[2] - L[6] * y[0] - L[7] * y[1]) / L[8];
-}
-
 int kg_cs_match(const kg_cs_model *m, const double x[3], const double cov[9],
                 kg_cs_result *out)
 {
 	double L[9];
-	if (!cholesky(cov, L) || !isfinite(x[0] + x[1] + x[2]))
+	if (!est_chol3(cov, L) || !isfinite(x[0] + x[1] + x[2]))
 		return KG_EINVAL;
 	double y[3];
-	forward(L, x, y);
+	est_forward3(L, x, y);
 	double best = INFINITY, second = INFINITY, sum = 0;
 	out->best = -1;
 	for (int j = 0; j < m->n; j++) {
 		double dj = INFINITY, aj = NAN, thj = NAN;
 		for (int k = 0; k < m->nangles; k++) {
 			double v[3];
-			forward(L, m->mu + 3 * ((size_t)j * m->nangles + k), v);
+			est_forward3(L, m->mu + 3 * ((size_t)j * m->nangles + k), v);
 			double vv = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
 			double a = vv > 0 ? (v[0] * y[0] + v[1] * y[1] + v[2] * y[2]) / vv : m->lo;
 			a = a < m->lo ? m->lo : a > m->hi ? m->hi : a;
@@ -333,13 +312,13 @@ int kg_cs_separability_each(const kg_cs_model *m, const double *covs, double lev
 	for (int i = 0; i < n && !ret; i++)
 		for (int k = 0; k < na && !ret; k++) {
 			double L[9], u[3];
-			if (!cholesky(covs + 9 * ((size_t)i * na + k), L)) {
+			if (!est_chol3(covs + 9 * ((size_t)i * na + k), L)) {
 				ret = kg_fail(err, KG_EINVAL, "separability: the covariance of %s at %g degrees "
 				              "is not positive definite", m->names[i], m->angle_deg[k]);
 				break;
 			}
 			for (int q = 0; q < n * na; q++)
-				forward(L, m->mu + 3 * (size_t)q, v + 3 * (size_t)q);
+				est_forward3(L, m->mu + 3 * (size_t)q, v + 3 * (size_t)q);
 			const double *w = v + 3 * ((size_t)i * na + k);
 			for (int c = 0; c < 3; c++)
 				u[c] = level * w[c];
@@ -368,7 +347,7 @@ int kg_cs_separability(const kg_cs_model *m, const double cov[9], double level, 
 {
 	kg_check_arg(m && cov && d, err);
 	double L[9];
-	if (!cholesky(cov, L))
+	if (!est_chol3(cov, L))
 		return kg_fail(err, KG_EINVAL, "separability: the covariance is not positive definite");
 	size_t nr = (size_t)m->n * (size_t)m->nangles;
 	double *covs = malloc(sizeof(double) * 9 * nr);

@@ -304,4 +304,26 @@ static inline void est_classify_pixel(const kg_est_classifier *c, const double *
 	*margin = (float)(second - best);
 }
 
+/* C = L L^T for a 3 x 3 covariance (row-major), L lower triangular; 0 when C is not
+ * positive definite. Shared by camera-space matching and the composition fit. */
+static inline int est_chol3(const double cov[9], double L[9])
+{
+	memset(L, 0, 9 * sizeof(double));
+	L[0] = sqrt(cov[0]);
+	L[3] = cov[3] / L[0];
+	L[6] = cov[6] / L[0];
+	L[4] = sqrt(cov[4] - L[3] * L[3]);
+	L[7] = (cov[7] - L[6] * L[3]) / L[4];
+	L[8] = sqrt(cov[8] - L[6] * L[6] - L[7] * L[7]);
+	return L[0] > 0 && L[4] > 0 && L[8] > 0;
+}
+
+/* y = L^-1 x for the lower Cholesky factor L of est_chol3. */
+static inline void est_forward3(const double L[9], const double x[3], double y[3])
+{
+	y[0] = x[0] / L[0];
+	y[1] = (x[1] - L[3] * y[0]) / L[4];
+	y[2] = (x[2] - L[6] * y[0] - L[7] * y[1]) / L[8];
+}
+
 #endif

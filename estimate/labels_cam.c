@@ -92,26 +92,6 @@ static void pixel_noise(const noise *nz, const float *rho, const float *var, dou
 	}
 }
 
-/* The inverse of a 3 x 3 matrix (row-major); -1 when singular. */
-static int inverse3(const double *a, double *o)
-{
-	double c0 = a[4] * a[8] - a[5] * a[7], c1 = a[5] * a[6] - a[3] * a[8],
-	       c2 = a[3] * a[7] - a[4] * a[6];
-	double det = a[0] * c0 + a[1] * c1 + a[2] * c2;
-	if (!(fabs(det) > 0) || !isfinite(det))
-		return -1;
-	double id = 1.0 / det;
-	o[0] = c0 * id;
-	o[1] = (a[2] * a[7] - a[1] * a[8]) * id;
-	o[2] = (a[1] * a[5] - a[2] * a[4]) * id;
-	o[3] = c1 * id;
-	o[4] = (a[0] * a[8] - a[2] * a[6]) * id;
-	o[5] = (a[2] * a[3] - a[0] * a[5]) * id;
-	o[6] = c2 * id;
-	o[7] = (a[1] * a[6] - a[0] * a[7]) * id;
-	o[8] = (a[0] * a[4] - a[1] * a[3]) * id;
-	return 0;
-}
 
 /* ---- the run ---------------------------------------------------------------------------- */
 
@@ -221,28 +201,17 @@ static void composition_pixel(const kg_cs_model *metals, int k, const float *xf,
 	for (int i = 0; i < 6; i++)
 		out[i] = NAN;
 	double C[9] = {cf[0], cf[1], cf[2], cf[1], cf[3], cf[4], cf[2], cf[4], cf[5]};
-	double L[9] = {0};
-	L[0] = sqrt(C[0]);
-	L[3] = C[3] / L[0];
-	L[6] = C[6] / L[0];
-	L[4] = sqrt(C[4] - L[3] * L[3]);
-	L[7] = (C[7] - L[6] * L[3]) / L[4];
-	L[8] = sqrt(C[8] - L[6] * L[6] - L[7] * L[7]);
-	if (!(L[0] > 0 && L[4] > 0 && L[8] > 0))
-		return;
-	double y[3], A[9];
+	double L[9], y[3], A[9];
 	double x[3] = {xf[0], xf[1], xf[2]};
-	y[0] = x[0] / L[0];
-	y[1] = (x[1] - L[3] * y[0]) / L[4];
-	y[2] = (x[2] - L[6] * y[0] - L[7] * y[1]) / L[8];
+	if (!est_chol3(C, L))
+		return;
+	est_forward3(L, x, y);
 	for (int j = 0; j < 3; j++) {
-		const double *mu = metals->mu + 3 * ((size_t)j * metals->nangles + k);
-		double v0 = mu[0] / L[0];
-		double v1 = (mu[1] - L[3] * v0) / L[4];
-		double v2 = (mu[2] - L[6] * v0 - L[7] * v1) / L[8];
-		A[j] = v0;
-		A[3 + j] = v1;
-		A[6 + j] = v2;
+		double v[3];
+		est_forward3(L, metals->mu + 3 * ((size_t)j * metals->nangles + k), v);
+		A[j] = v[0];
+		A[3 + j] = v[1];
+		A[6 + j] = v[2];
 	}
 	/* all three first: when its weights are >= 0 it fits exactly (3 readings, 3
 	 * weights), the least residual there is; else the best of the smaller sets */
@@ -265,7 +234,7 @@ static void composition_pixel(const kg_cs_model *metals, int k, const float *xf,
 		for (int b = 0; b < 3; b++)
 			for (int c = 0; c < 3; c++)
 				F[3 * a + b] += A[3 * c + a] * A[3 * c + b];
-	int invertible = inverse3(F, Fi) == 0;
+	int invertible = kg_mat3_inverse(F, Fi) == 0;
 	double c3[3] = {w[0] / sum, w[1] / sum, w[2] / sum};
 	for (int i = 0; i < 3; i++) {
 		out[i] = (float)c3[i];
@@ -412,6 +381,7 @@ typedef struct run_seg {
 typedef struct regions {
 	int on, overflow, user;
 	double user_scale; /* a user map's values to region numbers */
+	const char *user_name; /* its file, for messages */
 	int dof;           /* of a pixel's d2 */
 	int nm;
 	/* union-find over provisional ids (connected components) or user ids */
@@ -507,7 +477,7 @@ static uint32_t new_id(regions *g, uint8_t label)
 
 /* The runs of one row of labels (classes 1..nc only), each given a provisional id when
  * assign is set (pass 1) or in the same order again (pass 2). */
-static int row_runs(regions *g, const uint8_t *lab, int width, int nc, run_seg *out)
+static int row_runs(const uint8_t *lab, int width, int nc, run_seg *out)
 {
 	int n = 0;
 	for (int x = 0; x < width;) {
@@ -519,7 +489,6 @@ static int row_runs(regions *g, const uint8_t *lab, int width, int nc, run_seg *
 			out[n++] = (run_seg){x, x1, 0, l};
 		x = x1 + 1;
 	}
-	(void)g;
 	return n;
 }
 
@@ -561,7 +530,7 @@ static int regions_row(regions *g, const uint8_t *lab, const float *d2, const fl
 {
 	if (!g->on || g->overflow)
 		return 0;
-	g->ncur = row_runs(g, lab, g->width, nc, g->cur);
+	g->ncur = row_runs(lab, g->width, nc, g->cur);
 	if (g->n + (uint32_t)g->ncur > MAX_PROVISIONAL) {
 		g->overflow = 1;
 		return 0;
@@ -590,14 +559,17 @@ static int regions_row(regions *g, const uint8_t *lab, const float *d2, const fl
 }
 
 /* User regions: ids straight from the map. */
-static int regions_user_row(regions *g, const float *ids, const uint8_t *lab, const float *d2,
-                            const float *fshare, const float *comp, int nc, kg_err *err)
+static int regions_user_row(regions *g, int y, const float *ids, const uint8_t *lab,
+                            const float *d2, const float *fshare, const float *comp, int nc,
+                            kg_err *err)
 {
 	for (int x = 0; x < g->width; x++) {
 		double v = ids[x] * g->user_scale, rv = floor(v + 0.5);
 		if (!(rv >= 0 && rv < MAX_USER_REGIONS) || fabs(v - rv) > 1e-3)
-			return kg_fail(err, KG_EINVAL, "the region map's value %g: expected whole region "
-			               "numbers from 0 (none) to %d", v, MAX_USER_REGIONS - 1);
+			return kg_fail(err, KG_EINVAL, "%s: pixel (%d, %d) holds %g: expected a whole "
+			               "region number from 0 (none) to %d",
+			               g->user_name ? g->user_name : "the region map", x, y, v,
+			               MAX_USER_REGIONS - 1);
 		uint32_t id = (uint32_t)rv;
 		if (!id || lab[x] < 1 || lab[x] > nc)
 			continue;
@@ -776,8 +748,8 @@ static int cam_sink_fn(void *user, const kg_est_block *b, kg_err *err)
 			if (s->reg.user) {
 				rc = s->region_map->read(s->region_map->user, b->y0 + y, 1, s->region_row, err);
 				if (!rc)
-					rc = regions_user_row(&s->reg, s->region_row, lab + o, d2, fshare,
-					                      cp.comp + 6 * o, s->nclasses, err);
+					rc = regions_user_row(&s->reg, b->y0 + y, s->region_row, lab + o, d2,
+					                      fshare, cp.comp + 6 * o, s->nclasses, err);
 			} else {
 				rc = regions_row(&s->reg, lab + o, d2, fshare, cp.comp + 6 * o, s->nclasses,
 				                 err);
@@ -937,8 +909,9 @@ static int separability(const cam_run *r, const kg_cs_model *m, const survey_res
                         double *d, kg_err *err)
 {
 	double Mi[9];
-	if (inverse3(r->nz.M2, Mi))
-		return kg_fail(err, KG_EINVAL, "camera space: M2 is singular");
+	if (kg_mat3_inverse(r->nz.M2, Mi))
+		return kg_fail(err, KG_EINVAL, "M2: expected an invertible 3 x 3 matrix (the site "
+		               "calibration's), got a singular one");
 	size_t nr = (size_t)m->n * (size_t)m->nangles;
 	double *covs = malloc(sizeof(double) * 9 * nr);
 	if (!covs)
@@ -1271,7 +1244,7 @@ static int write_region_map(regions *g, const kg_est_material_set *classes,
 		for (int x = 0; x < W; x++)
 			lab8[x] = (uint8_t)lab[x];
 		{
-			int nb = row_runs(g, lab8, W, classes->n, b);
+			int nb = row_runs(lab8, W, classes->n, b);
 			link_rows(g, b, nb, a, na, 0);
 			for (int x = 0; x < W; x++)
 				out[x] = 0;
@@ -1475,12 +1448,12 @@ int kg_classify_camera_rows(const kg_est_kernel *k, const kg_est_material_set *s
 		rc = kg_fail(err, KG_ENOMEM, "out of memory");
 		goto out;
 	}
-	if ((rc = separability(&run, model, &sv, sep, err)))
+	if ((rc = separability(&run, model, &sv, sep, err))) {
+		kg_err_prefix(err, "%s: ", out_hdr);
 		goto out;
-	run.nc = merge_d > 0 ? kg_cs_merge_groups(sep, nm, merge_d, run.group) : nm;
-	if (merge_d <= 0)
-		for (int j = 0; j < nm; j++)
-			run.group[j] = j;
+	}
+	/* a merge distance <= 0 joins nothing: every material its own class */
+	kg_cs_merge_groups(sep, nm, merge_d > 0 ? merge_d : 0, run.group);
 	/* classes numbered in order of their first member */
 	{
 		int map[KG_EST_MAX_MATERIALS], nc = 0;
@@ -1551,6 +1524,7 @@ int kg_classify_camera_rows(const kg_est_kernel *k, const kg_est_material_set *s
 	sink.reg.on = cam->regions || cam->region_map;
 	sink.reg.user = cam->region_map != NULL;
 	sink.reg.user_scale = cam->region_scale > 0 ? cam->region_scale : 1.0;
+	sink.reg.user_name = cam->region_map_name;
 	sink.reg.nm = nm;
 	sink.reg.width = W;
 	if (sink.reg.on) {

@@ -388,6 +388,17 @@ int main(int argc, char **argv)
 	CHECK(FX_RUN("classify", "--calib", cam, "--materials", lib_path, obj, "-o",
 	             fx_path("x.hdr"), "--regions", vpath) == 1 && strstr(fx_errs, "region map"),
 	      "a 3-channel region map refused: %s", fx_errs);
+	kg_image *half = NULL;
+	CHECK(kg_image_new(W, H, 1, &half, &err) == 0, "%s", err.msg);
+	for (size_t i = 0; half && i < (size_t)W * H; i++)
+		half->data[i] = 0.5f;
+	const char *half_path = fx_path("half.tif");
+	CHECK(half && kg_image_write(half, half_path, 32, &err) == 0, "%s", err.msg);
+	kg_image_free(&half);
+	CHECK(FX_RUN("classify", "--calib", cam, "--materials", lib_path, obj, "-o",
+	             fx_path("x.hdr"), "--regions", half_path) == 1 &&
+	          strstr(fx_errs, "half.tif") && strstr(fx_errs, "whole region number"),
+	      "a region map of fractions refused, naming it: %s", fx_errs);
 
 	/* a calibration from before the camera response existed: the camera method is
 	 * refused (naming the file and the field), eq. 11 still works */

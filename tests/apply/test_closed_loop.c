@@ -23,15 +23,6 @@
 #define FULLWELL 20000.0
 #define READ_E 5.0
 
-/* Index of name among the truth map's classes, -1 if absent. */
-static int truth_class(char names[][KG_EST_CLASS_NAME_MAX], int n, const char *name)
-{
-	for (int c = 0; c < n; c++)
-		if (strcmp(names[c], name) == 0)
-			return c;
-	return -1;
-}
-
 int main(int argc, char **argv)
 {
 	fx_setup(argc, argv);
@@ -172,7 +163,6 @@ int main(int argc, char **argv)
 	       big_right);
 	CHECK(big >= 4, "%d object regions of 100 pixels or more, expected at least the 4 parts",
 	      big);
-	(void)truth_class;
 
 	/* eq. 11 on the same photograph, for comparison */
 	const char *eq_hdr = fx_path("eq11.hdr");

@@ -333,8 +333,38 @@ static void test_eigsym(void)
 	kg_mat_free(&AV);
 }
 
+/* kg_mat3_inverse: A A^-1 = I on a badly scaled matrix, -1 and out untouched for a
+ * singular or non-finite one. And kg_err_prefix keeps one ": " between prefix and
+ * message whether or not the prefix ends with one. */
+static void test_mat3_inverse(void)
+{
+	const double a[9] = {2.0, -1.0, 0.5, 1e-3, 3.0, -2.0, 4.0, 0.25, 1.0};
+	double inv[9], worst = 0;
+	CHECK(kg_mat3_inverse(a, inv) == 0, "an invertible matrix inverted");
+	for (int r = 0; r < 3; r++)
+		for (int c = 0; c < 3; c++) {
+			double s = 0;
+			for (int k = 0; k < 3; k++)
+				s += a[3 * r + k] * inv[3 * k + c];
+			worst = fmax(worst, fabs(s - (r == c)));
+		}
+	CHECK(worst < 1e-14, "A A^-1 - I: %g", worst);
+	const double sing[9] = {1, 2, 3, 2, 4, 6, 0, 1, 1};
+	double out[9] = {7, 7, 7, 7, 7, 7, 7, 7, 7};
+	CHECK(kg_mat3_inverse(sing, out) == -1 && out[0] == 7, "a singular matrix refused");
+	const double nan_m[9] = {NAN, 0, 0, 0, 1, 0, 0, 0, 1};
+	CHECK(kg_mat3_inverse(nan_m, out) == -1, "a non-finite matrix refused");
+	kg_err e = {{0}};
+	kg_fail(&e, KG_EINVAL, "bad value");
+	kg_err_prefix(&e, "%s", "a.json");
+	CHECK(!strcmp(e.msg, "a.json: bad value"), "prefix without a colon: '%s'", e.msg);
+	kg_err_prefix(&e, "%s: ", "dir");
+	CHECK(!strcmp(e.msg, "dir: a.json: bad value"), "prefix ending in ': ': '%s'", e.msg);
+}
+
 int main(void)
 {
+	test_mat3_inverse();
 	test_basics();
 	check_svd(7, 4);
 	check_svd(4, 7);
