@@ -160,7 +160,7 @@ void kg_frame_format_fill(kg_frame_format *f)
 
 static const char *const feature_names[KG_FEAT_COUNT] = {
 	"exposure_us", "gain", "frame_rate", "auto_exposure", "auto_white_balance",
-	"wb_red", "wb_blue",
+	"wb_red", "wb_blue", "iso", "aperture", "focal_length_mm",
 };
 
 const char *kg_feature_name(kg_feature f)
@@ -177,7 +177,7 @@ int kg_feature_parse(const char *text, kg_feature *f, kg_err *err)
 		}
 	return kg_fail(err, KG_EINVAL,
 	               "feature '%s': expected exposure_us, gain, frame_rate, auto_exposure, "
-	               "auto_white_balance, wb_red or wb_blue",
+	               "auto_white_balance, wb_red, wb_blue, iso, aperture or focal_length_mm",
 	               text ? text : "(null)");
 }
 

@@ -192,7 +192,7 @@ static int replay_feature_info(void *state, kg_feature f, kg_feature_info *o, kg
 		[KG_FEAT_EXPOSURE_US] = "us", [KG_FEAT_GAIN] = "recorded",
 		[KG_FEAT_FRAME_RATE] = "fps", [KG_FEAT_AUTO_EXPOSURE] = "bool",
 		[KG_FEAT_AUTO_WHITE_BALANCE] = "bool"};
-	if (f == KG_FEAT_WB_RED || f == KG_FEAT_WB_BLUE)
+	if (!unit[f])
 		return 0; /* not recorded: not available */
 	o->available = o->writable = 1;
 	if (f == KG_FEAT_AUTO_EXPOSURE || f == KG_FEAT_AUTO_WHITE_BALANCE) {

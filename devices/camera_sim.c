@@ -146,6 +146,8 @@ static int sim_feature_info(void *state, kg_feature f, kg_feature_info *o, kg_er
 	};
 	(void)state;
 	(void)err;
+	if (!tab[f].unit)
+		return 0; /* a photographic setting the simulated sensor does not have */
 	o->available = o->writable = 1;
 	o->min = tab[f].min;
 	o->max = tab[f].max;

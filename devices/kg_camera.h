@@ -92,11 +92,15 @@ typedef enum kg_feature {
 	KG_FEAT_AUTO_WHITE_BALANCE, /* 1 on, 0 off */
 	KG_FEAT_WB_RED,            /* white-balance (colour) gain of red, 1 = none */
 	KG_FEAT_WB_BLUE,           /* white-balance (colour) gain of blue, 1 = none */
+	/* Photographic cameras (gphoto2:, and raw files through files:): */
+	KG_FEAT_ISO,               /* ISO speed (unit "ISO"); the sensor gain of a DSLR */
+	KG_FEAT_APERTURE,          /* f-number (unit "f") */
+	KG_FEAT_FOCAL_LENGTH,      /* millimetres (unit "mm"), usually read-only */
 	KG_FEAT_COUNT
 } kg_feature;
 
 /* "exposure_us", "gain", "frame_rate", "auto_exposure", "auto_white_balance",
- * "wb_red", "wb_blue". */
+ * "wb_red", "wb_blue", "iso", "aperture", "focal_length_mm". */
 const char *kg_feature_name(kg_feature f);
 int kg_feature_parse(const char *text, kg_feature *f, kg_err *err);
 
@@ -125,6 +129,7 @@ typedef struct kg_camera_info {
 	char uri[512];       /* as opened */
 	char vendor[64], model[64], serial[64];
 	char transport[32];  /* "GigE Vision", "USB3 Vision", "UVC", "V4L2", "sim", ... */
+	char lens[64];       /* the lens, where the camera or file names it; "" otherwise */
 	int sensor_width, sensor_height;
 } kg_camera_info;
 

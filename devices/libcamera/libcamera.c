@@ -187,6 +187,8 @@ static const struct {
 static int lc_feature_info(void *state, kg_feature f, kg_feature_info *out, kg_err *err)
 {
 	lc_state *s = state;
+	if (!feature_map[f].unit)
+		return 0; /* no libcamera control behind it */
 	kg_lc_control k = feature_map[f].control;
 	double lo, hi;
 	out->available = kg_lc_control_range(s->cam, k, &lo, &hi);
