@@ -106,6 +106,7 @@ int kg_cmd_devices(int argc, char **argv)
 		{"v4l2", "linux/videodev2.h"},
 		{"aravis", "aravis-0.8"},
 		{"libcamera", "libcamera"},
+		{"gphoto2", "libgphoto2"},
 	};
 	for (size_t k = 0; k < sizeof(optional) / sizeof(optional[0]); k++) {
 		int built = 0;

@@ -69,6 +69,13 @@ extern const kg_camera_driver kg_camera_aravis_driver;
 #if HAVE_LIBCAMERA
 extern const kg_camera_driver kg_camera_libcamera_driver;
 #endif
+#if HAVE_GPHOTO2
+extern const kg_camera_driver kg_camera_gphoto2_driver;
+#endif
+
+/* The driver state of an open camera when drv is its driver, else NULL (for a
+ * backend's own accessors, e.g. gphoto2_private.h). */
+void *kg_camera_driver_state(kg_camera *c, const kg_camera_driver *drv);
 
 /* The recorder behind kg_camera_record_* (camera_record.c; replay: reads its format). */
 typedef struct kg_frame_recorder kg_frame_recorder;
