@@ -12,7 +12,14 @@ import struct
 import sys
 
 DEVNODE = "/dev/bus/usb/001/002"
-VID, PID = 0x1209, 0x0001  # pid.codes test id: no libgphoto2 table lists it -> generic PTP
+# config: pid.codes' test id, in no libgphoto2 table: the generic "USB PTP Class Camera"
+GENERIC_ID = (0x1209, 0x0001)
+# capture: the id of libgphoto2's "Nikon:Coolpix P5000 (PTP mode)", a model flagged as
+# never sending ObjectAdded, so that ptp2 finds the new picture by listing the objects
+# before and after InitiateCapture instead of waiting on the interrupt endpoint (which
+# a umockdev replay cannot serve: README.md)
+COOLPIX_ID = (0x04B0, 0x015B)
+VENDOR_NIKON = 0x0000000A
 EP_OUT, EP_IN, EP_INT = 0x01, 0x81, 0x82
 MANUFACTURER, MODEL = "Kogei", "PTP Test Camera"
 VERSION, SERIAL = "1.0", "KG0001"
@@ -27,7 +34,7 @@ RC_OK = 0x2001
 EC_ObjectAdded, EC_CaptureComplete = 0x4002, 0x400D
 DPC_ExposureTime = 0x500D  # UINT32, 0.1 ms
 DPC_ExposureIndex = 0x500F  # ISO
-FMT_DNG = 0xB811  # no: generic "Undefined" would hide it; see object_format()
+OFC_Association, OFC_TIFF = 0x3001, 0x380D  # the DNG is served as a TIFF object
 
 CT_COMMAND, CT_DATA, CT_RESPONSE, CT_EVENT = 1, 2, 3, 4
 
@@ -62,9 +69,9 @@ def container(ctype, code, tid, payload=b""):
     return u32(12 + len(payload)) + u16(ctype) + u16(code) + u32(tid) + payload
 
 
-def descriptors():
+def descriptors(vid, pid):
     dev = bytes([18, 1, 0x00, 0x02, 0x00, 0x00, 0x00, 64,
-                 VID & 0xFF, VID >> 8, PID & 0xFF, PID >> 8, 0x00, 0x01,
+                 vid & 0xFF, vid >> 8, pid & 0xFF, pid >> 8, 0x00, 0x01,
                  0, 0, 0, 1])  # no string descriptors (they would need control transfers)
     eps = [(EP_OUT, 2, 512, 0), (EP_IN, 2, 512, 0)]  # no interrupt endpoint: README
     intf = bytes([9, 4, 0, 0, len(eps), 6, 1, 1, 0])
@@ -74,15 +81,15 @@ def descriptors():
     return dev + cfg + intf + epd
 
 
-def device_file():
-    d = descriptors().hex().upper()
+def device_file(vid, pid):
+    d = descriptors(vid, pid).hex().upper()
     return "\n".join([
         "P: /devices/pci0000:00/0000:00:14.0/usb1/1-1",
         "N: bus/usb/001/002=" + d,
         "E: DEVNAME=" + DEVNODE,
         "E: DEVTYPE=usb_device",
         "E: DRIVER=usb",
-        "E: PRODUCT=%x/%x/100" % (VID, PID),
+        "E: PRODUCT=%x/%x/100" % (vid, pid),
         "E: SUBSYSTEM=usb",
         "E: BUSNUM=001",
         "E: DEVNUM=002",
@@ -94,8 +101,8 @@ def device_file():
         "A: bNumInterfaces= 1",
         "A: busnum=1",
         "A: devnum=2",
-        "A: idProduct=%04x" % PID,
-        "A: idVendor=%04x" % VID,
+        "A: idProduct=%04x" % pid,
+        "A: idVendor=%04x" % vid,
         "A: speed=480",
         "H: descriptors=" + d,
         "",
@@ -178,6 +185,18 @@ def exptime_desc():
             + b"".join(u32(v) for v in EXPTIME_CHOICES))
 
 
+CAPTURES = 2          # the one that learns the format at start, then one frame
+HANDLE0 = 0x00010000
+
+
+def object_info(handle, data, name):
+    """ObjectInfo dataset of a picture in the root of the storage."""
+    return (u32(STORAGE) + u16(OFC_TIFF) + u16(0) + u32(len(data)) + u16(0) + u32(0)
+            + u32(0) + u32(0) + u32(64) + u32(48) + u32(16) + u32(0) + u16(0) + u32(0)
+            + u32(0) + ptp_string(name) + ptp_string("20260101T120000")
+            + ptp_string("20260101T120000") + ptp_string(""))
+
+
 def device_info(vendor_ext, ops, events, props, capture_formats, image_formats):
     return (u16(100) + u32(vendor_ext) + u16(100) + ptp_string("") + u16(0)
             + u16_array(ops) + u16_array(events) + u16_array(props)
@@ -192,15 +211,17 @@ OPS = [OC_GetDeviceInfo, OC_OpenSession, OC_CloseSession, OC_GetStorageIDs,
        OC_SetDevicePropValue]
 
 
-def scenario(s, dng):
+def config_scenario(s):
+    """Open, read the two properties, set ISO and read it back, close."""
     s.transaction("OpenSession", OC_OpenSession, [1])
     s.transaction("GetDeviceInfo", OC_GetDeviceInfo,
                   data_in=device_info(0, OPS, [EC_ObjectAdded, EC_CaptureComplete],
-                                      [DPC_ExposureTime, DPC_ExposureIndex], [0x3800], [0x3800, 0x3801]))
+                                      [DPC_ExposureTime, DPC_ExposureIndex],
+                                      [OFC_TIFF], [OFC_TIFF]))
     s.transaction("GetStorageIDs", OC_GetStorageIDs, data_in=u32_array([STORAGE]))
-    s.transaction("GetObjectHandles (root, empty card)", OC_GetObjectHandles,
+    s.transaction("GetObjectHandles (all storages, root: empty card)", OC_GetObjectHandles,
                   [0xFFFFFFFF, 0, 0xFFFFFFFF], data_in=u32_array([]))
-    s.transaction("GetObjectHandles (storage, empty card)", OC_GetObjectHandles,
+    s.transaction("GetObjectHandles (storage, root: empty)", OC_GetObjectHandles,
                   [STORAGE, 0, 0xFFFFFFFF], data_in=u32_array([]))
     s.transaction("GetDevicePropDesc ExposureTime (shutter speed)", OC_GetDevicePropDesc,
                   [DPC_ExposureTime], data_in=exptime_desc())
@@ -213,19 +234,61 @@ def scenario(s, dng):
     s.transaction("CloseSession", OC_CloseSession)
 
 
+def capture_scenario(s, dng):
+    """Open, capture one picture, download it, close."""
+    s.transaction("OpenSession", OC_OpenSession, [1])
+    s.transaction("GetDeviceInfo", OC_GetDeviceInfo,
+                  data_in=device_info(VENDOR_NIKON, OPS, [EC_ObjectAdded],
+                                      [DPC_ExposureTime, DPC_ExposureIndex],
+                                      [OFC_TIFF], [OFC_TIFF]))
+    s.transaction("GetStorageIDs", OC_GetStorageIDs, data_in=u32_array([STORAGE]))
+    s.transaction("GetObjectHandles (all storages, root: empty card)", OC_GetObjectHandles,
+                  [0xFFFFFFFF, 0, 0xFFFFFFFF], data_in=u32_array([]))
+    s.transaction("GetObjectHandles (storage, root: empty)", OC_GetObjectHandles,
+                  [STORAGE, 0, 0xFFFFFFFF], data_in=u32_array([]))
+    s.transaction("GetDevicePropDesc ExposureTime (shutter speed)", OC_GetDevicePropDesc,
+                  [DPC_ExposureTime], data_in=exptime_desc())
+    s.transaction("GetDevicePropDesc ExposureIndex (ISO)", OC_GetDevicePropDesc,
+                  [DPC_ExposureIndex], data_in=iso_desc(ISO_NOW))
+    for k in range(1, CAPTURES + 1):
+        handles = [HANDLE0 + i for i in range(k - 1)]
+        s.transaction("capture %d: GetObjectHandles before" % k, OC_GetObjectHandles,
+                      [0xFFFFFFFF, 0, 0], data_in=u32_array(handles))
+        s.transaction("capture %d: InitiateCapture" % k, OC_InitiateCapture, [0, 0])
+        handle = HANDLE0 + k - 1
+        s.transaction("capture %d: GetObjectHandles after (one new object)" % k,
+                      OC_GetObjectHandles, [0xFFFFFFFF, 0, 0],
+                      data_in=u32_array(handles + [handle]))
+        s.transaction("capture %d: GetObjectInfo" % k, OC_GetObjectInfo, [handle],
+                      data_in=object_info(handle, dng, "KG%05d.DNG" % k))
+        s.transaction("capture %d: GetObject (the DNG, %d bytes)" % (k, len(dng)), OC_GetObject,
+                      [handle], data_in=dng)
+        s.transaction("capture %d: DeleteObject (?delete=1)" % k, OC_DeleteObject, [handle, 0])
+        if k < CAPTURES:
+            # a session that ends here (no raw decoder built in: the first capture
+            # fails to decode); the next capture's transactions use the same ids
+            s.transaction("CloseSession (if the session ends after capture %d)" % k,
+                          OC_CloseSession)
+            s.tid -= 1
+    s.transaction("CloseSession", OC_CloseSession)
+
+
 def main():
     if len(sys.argv) != 3:
         sys.exit(__doc__)
     dng = open(sys.argv[1], "rb").read()
     out = sys.argv[2]
-    s = Script()
-    scenario(s, dng)
-    with open(out + "/ptpcam.umockdev", "w") as f:
-        f.write(device_file())
-    with open(out + "/ptpcam.ioctl", "w") as f:
-        f.write(s.text())
-    with open(out + "/ptpcam.steps", "w") as f:
-        f.write("\n".join(s.steps) + "\n")
+    for name, ids, fill in (("config", GENERIC_ID, config_scenario),
+                            ("capture", COOLPIX_ID, lambda s: capture_scenario(s, dng))):
+        s = Script()
+        fill(s)
+        base = "%s/ptp-%s" % (out, name)
+        with open(base + ".umockdev", "w") as f:
+            f.write(device_file(*ids))
+        with open(base + ".ioctl", "w") as f:
+            f.write(s.text())
+        with open(base + ".steps", "w") as f:
+            f.write("".join("%s\n" % step for step in s.steps))
 
 
 if __name__ == "__main__":
