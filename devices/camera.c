@@ -20,6 +20,7 @@ static const kg_camera_driver *const drivers[] = {
 	&kg_camera_libcamera_driver,
 #endif
 	&kg_camera_replay_driver,
+	&kg_camera_files_driver,
 	&kg_camera_sim_driver,
 };
 #define NDRIVERS ((int)(sizeof(drivers) / sizeof(drivers[0])))
@@ -191,7 +192,8 @@ int kg_camera_open(const char *uri, kg_camera **out, kg_err *err)
 	if (!colon || colon == uri)
 		return kg_fail(err, KG_EINVAL,
 		               "camera '%s': expected SCHEME:TARGET (v4l2:/dev/video0, "
-		               "aravis:ADDRESS, libcamera:ID, replay:SESSION, sim:[IMAGE])",
+		               "aravis:ADDRESS, libcamera:ID, gphoto2:MODEL, files:DIR/PATTERN, "
+		               "replay:SESSION, sim:[IMAGE])",
 		               uri);
 	size_t n = (size_t)(colon - uri);
 	const kg_camera_driver *drv = NULL;
@@ -199,7 +201,7 @@ int kg_camera_open(const char *uri, kg_camera **out, kg_err *err)
 		if (strlen(drivers[i]->scheme) == n && !strncmp(drivers[i]->scheme, uri, n))
 			drv = drivers[i];
 	if (!drv) {
-		static const char *const known[] = {"v4l2", "aravis", "libcamera"};
+		static const char *const known[] = {"v4l2", "aravis", "libcamera", "gphoto2"};
 		for (size_t i = 0; i < sizeof(known) / sizeof(known[0]); i++)
 			if (strlen(known[i]) == n && !strncmp(known[i], uri, n))
 				return kg_fail(err, KG_ENOTSUP,
@@ -243,6 +245,11 @@ void kg_camera_free(kg_camera **pc)
 }
 
 const kg_camera_info *kg_camera_get_info(const kg_camera *c) { return &c->info; }
+
+long kg_camera_frames_available(kg_camera *c)
+{
+	return c && c->drv->frames_available ? c->drv->frames_available(c->state) : -1;
+}
 
 /* ---- features ----------------------------------------------------------------- */
 
