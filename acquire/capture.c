@@ -68,6 +68,8 @@ typedef struct cap_ctx {
 	int recording;
 	json_t *frames; /* [{file, sha256, sequence, timestamp}] */
 	json_t *steps;  /* exposure helper */
+	json_t *sources; /* files the frames were read from: [{file, sha256}] */
+	char source_note[256]; /* how the first of them was decoded */
 } cap_ctx;
 
 static void note(const cap_ctx *c, const char *fmt, ...) KG_PRINTF(2, 3);
@@ -187,6 +189,20 @@ static json_t *frame_entry(cap_ctx *c, const kg_frame *f)
 		return NULL;
 	return json_pack("{s:s, s:s, s:I, s:o}", "file", file, "sha256", sha, "sequence",
 	                 (json_int_t)f->sequence, "timestamp", jnum(f->timestamp));
+}
+
+/* A frame read from a file (files:, gphoto2:): the file and its sha256, so the manifest
+ * names the originals the capture was made from. */
+static int source_entry(cap_ctx *c, const kg_frame *f, kg_err *err)
+{
+	char sha[65];
+	int ret = kg_file_sha256(f->source, sha, err);
+	if (ret)
+		return ret;
+	if (!c->source_note[0] && f->source_note)
+		snprintf(c->source_note, sizeof(c->source_note), "%s", f->source_note);
+	json_array_append_new(c->sources, json_pack("{s:s, s:s}", "file", f->source, "sha256", sha));
+	return 0;
 }
 
 /* ---- exposure helper -------------------------------------------------------------- */
@@ -670,6 +686,8 @@ static int average(cap_ctx *c, int timeout_ms, kg_err *err)
 		json_t *e = ret ? NULL : frame_entry(c, &f);
 		if (e)
 			json_array_append_new(c->frames, e);
+		if (!ret && f.source)
+			ret = source_entry(c, &f, err);
 		kg_camera_push(c->cam, &f, NULL);
 		if (!ret && o->progress) {
 			double dt = now_s() - t0;
@@ -705,6 +723,16 @@ static json_t *capture_json(cap_ctx *c, const char *started, const char *ended,
 		"format", format_json(&r->format), "frames", o->frames, "exposure_mode", mode,
 		"timeout_ms", timeout_ms, "max_dropped", (json_int_t)o->max_dropped, "force_nonlinear",
 		o->force_nonlinear);
+	/* Photographic cameras (gphoto2:, raw files): ISO, aperture, focal length, lens. */
+	const kg_camera_info *info = kg_camera_get_info(c->cam);
+	if (settings) {
+		json_object_set_new(settings, "iso", jnum(read_feature(c, KG_FEAT_ISO)));
+		json_object_set_new(settings, "aperture", jnum(read_feature(c, KG_FEAT_APERTURE)));
+		json_object_set_new(settings, "focal_length_mm",
+		                    jnum(read_feature(c, KG_FEAT_FOCAL_LENGTH)));
+		json_object_set_new(settings, "lens",
+		                    info->lens[0] ? json_string(info->lens) : json_null());
+	}
 	const kg_image_stats *s = &r->stats;
 	json_t *stats = json_pack(
 		"{s:o, s:o, s:f, s:o, s:o, s:{s:o, s:o, s:o, s:o}, s:I, s:I, s:o}", "clipped_fraction",
@@ -729,6 +757,10 @@ static json_t *capture_json(cap_ctx *c, const char *started, const char *ended,
 			          "iterations", r->nsteps, "steps", c->steps, "locked", 1));
 	if (cap && o->chart_layout)
 		json_object_set_new(cap, "chart_layout", json_string(o->chart_layout));
+	if (cap && json_array_size(c->sources))
+		json_object_set_new(cap, "sources",
+		                    json_pack("{s:O, s:s}", "files", c->sources, "decoding",
+		                              c->source_note));
 	if (cap)
 		json_object_set_new(cap, "demosaic", demosaic ? demosaic : json_null());
 	else
@@ -762,12 +794,13 @@ int kg_capture_run(kg_session *s, kg_camera *camera, const kg_capture_options *o
 
 	c.frames = json_array();
 	c.steps = json_array();
+	c.sources = json_array();
 	kg_image *dark = NULL, *flat = NULL;
 	json_t *demosaic = NULL;
 	char started[32], ended[32];
 	int wrote = 0, recorded = 0;
 	saved_file camera_file = {0};
-	if (!c.frames || !c.steps) {
+	if (!c.frames || !c.steps || !c.sources) {
 		ret = kg_fail(err, KG_ENOMEM, "out of memory");
 		goto done;
 	}
@@ -898,6 +931,7 @@ done:
 	json_decref(demosaic);
 	json_decref(c.frames);
 	json_decref(c.steps);
+	json_decref(c.sources);
 	kg_image_free(&dark);
 	kg_image_free(&flat);
 	if (ret) {

@@ -15,10 +15,12 @@ static const char usage_acquire[] =
 	"  Take one capture: N frames averaged (mean and per-pixel variance, float32 TIFF),\n"
 	"  dark-subtracted and flat-field corrected, demosaiced when Bayer, and recorded\n"
 	"  into the session directory with its manifest (SESSION/session.json).\n"
-	"  URI: v4l2:/dev/videoN, aravis:ADDRESS, libcamera:ID, replay:SESSION[#CAPTURE],\n"
+	"  URI: v4l2:/dev/videoN, aravis:ADDRESS, libcamera:ID, gphoto2:MODEL|PORT,\n"
+	"       files:DIR or files:DIR/PATTERN (raw files, TIFF, PNG: one frame per file,\n"
+	"       e.g. files:shoot/chart_*.CR3), replay:SESSION[#CAPTURE],\n"
 	"       sim:[IMAGE][?key=value&...] (see `kogei devices`, docs/cameras.md)\n"
 	"  --name NAME          capture name (default <kind>-NNNN, the next free number)\n"
-	"  --frames N           frames averaged (default 10)\n"
+	"  --frames N           frames averaged (default 10; files: every file)\n"
 	"  --exposure US|auto   exposure in microseconds, or auto: the exposure helper sets\n"
 	"                       it so the brightest patch sits at --target, then locks it\n"
 	"                       (default: the camera's exposure, auto exposure off)\n"
@@ -178,7 +180,7 @@ int kg_cmd_acquire(int argc, char **argv)
 	kg_capture_options o;
 	kg_capture_options_default(&o);
 	const char *uri = NULL, *out = NULL, *kind = NULL, *layout = NULL;
-	int have_target = 0;
+	int have_target = 0, have_frames = 0;
 	enum { O_NAME = 256, O_FRAMES, O_EXPOSURE, O_TARGET, O_LAYOUT, O_GAIN, O_FORMAT, O_ROI,
 	       O_DARK, O_FLAT, O_TIMEOUT, O_MAX_DROPPED, O_FORCE, O_NO_RECORD, O_KIND };
 	static const struct option opts[] = {
@@ -215,6 +217,7 @@ int kg_cmd_acquire(int argc, char **argv)
 		case O_FRAMES:
 			if (!(r = parse_long("--frames", optarg, 1, 1000000, &n)))
 				o.frames = (int)n;
+			have_frames = 1;
 			break;
 		case O_EXPOSURE:
 			if (!strcmp(optarg, "auto"))
@@ -315,6 +318,15 @@ int kg_cmd_acquire(int argc, char **argv)
 		r = exit_for(&err, code,
 		             code == KG_ENODEV || code == KG_EIO || code == KG_ETIMEDOUT ||
 		                 code == KG_ENOTSUP);
+		goto done;
+	}
+	/* Photographs already taken (files:): every file unless --frames says otherwise. */
+	long available = kg_camera_frames_available(camera);
+	if (!have_frames && available > 0)
+		o.frames = available > 1000000 ? 1000000 : (int)available;
+	if (have_frames && available >= 0 && o.frames > available) {
+		r = kg_cli_usage_error(usage_acquire, "--frames %d: %s holds %ld frame(s)", o.frames,
+		                       uri, available);
 		goto done;
 	}
 	code = kg_capture_run(s, camera, &o, &res, &err);

@@ -12,6 +12,7 @@
 
 #include "fsutil.h"
 #include "image.h"
+#include "raw.h"
 #include "kg_config.h"
 
 #define MAX_SIDE (1L << 20)
@@ -198,6 +199,8 @@ struct kg_image_rows {
 	size_t rowbytes;
 	unsigned char *png_row;
 	float *lut; /* code value -> linear 0..1 */
+	/* camera raw (LibRaw): decoded whole when opened, rows served from it */
+	kg_image *whole;
 };
 
 static int rows_new(const char *path, kg_image_rows **out, kg_err *err)
@@ -602,7 +605,7 @@ static void png_job_end(struct png_job *j, int reading)
 
 /* ---- the row reader and the whole-image readers on it ------------------------------ */
 
-enum image_kind { KIND_TIFF = 1, KIND_PNG };
+enum image_kind { KIND_TIFF = 1, KIND_PNG, KIND_RAW };
 
 static int image_kind(const char *path, kg_err *err)
 {
@@ -616,12 +619,33 @@ static int image_kind(const char *path, kg_err *err)
 	fclose(fp);
 	if (n >= 8 && png_sig_cmp(magic, 0, 8) == 0)
 		return KIND_PNG;
+	/* DNG and the TIFF-based raw formats (CR2, NEF, ARW, ...) before plain TIFF: their
+	 * first image is often a thumbnail. */
+	if (kg_raw_is_raw(path))
+		return KIND_RAW;
 	if (n >= 4 && ((magic[0] == 'I' && magic[1] == 'I' && (magic[2] == 42 || magic[2] == 43) &&
 	                magic[3] == 0) ||
 	               (magic[0] == 'M' && magic[1] == 'M' && magic[2] == 0 &&
 	                (magic[3] == 42 || magic[3] == 43))))
 		return KIND_TIFF;
-	return kg_fail(err, KG_EINVAL, "%s: unknown image format: expected a TIFF or PNG file", path);
+	return kg_fail(err, KG_EINVAL, "%s: unknown image format: expected a TIFF, PNG or camera "
+	               "raw file (DNG, CR2, CR3, NEF, ARW, ...)", path);
+}
+
+/* A raw file is decoded whole (LibRaw has no row interface); the header copies it. */
+static int raw_rows_open(kg_image_rows *r, kg_err *err)
+{
+	int ret = kg_raw_read(r->path, &r->whole, NULL, err);
+	if (ret)
+		return ret;
+	kg_image *h = r->head, *w = r->whole;
+	h->width = w->width;
+	h->height = w->height;
+	h->channels = w->channels;
+	h->bits = w->bits;
+	h->is_float = w->is_float;
+	memcpy(h->note, w->note, sizeof(h->note));
+	return w->cfa ? kg_image_set_cfa(h, w->cfa, w->cfa_rows, w->cfa_cols, err) : 0;
 }
 
 static int rows_open_kind(const char *path, int kind, kg_image_rows **out, kg_err *err)
@@ -632,7 +656,9 @@ static int rows_open_kind(const char *path, int kind, kg_image_rows **out, kg_er
 	int ret = rows_new(path, &r, err);
 	if (ret)
 		return ret;
-	ret = kind == KIND_PNG ? png_rows_open(r, err) : tiff_rows_open(r, err);
+	ret = kind == KIND_PNG ? png_rows_open(r, err)
+	      : kind == KIND_RAW ? raw_rows_open(r, err)
+	                         : tiff_rows_open(r, err);
 	if (ret)
 		kg_image_rows_free(&r);
 	*out = r;
@@ -658,6 +684,12 @@ int kg_image_rows_read(kg_image_rows *r, int rows, float *out, kg_err *err)
 	if (rows > r->head->height - r->y)
 		return kg_fail(err, KG_EINVAL, "%s: rows %d to %d asked of an image of %d rows",
 		               r->path, r->y, r->y + rows - 1, r->head->height);
+	if (r->whole) {
+		size_t row = (size_t)r->head->width * (size_t)r->head->channels;
+		memcpy(out, r->whole->data + (size_t)r->y * row, (size_t)rows * row * sizeof(float));
+		r->y += rows;
+		return 0;
+	}
 	return r->tif ? tiff_rows_read(r, rows, out, err) : png_rows_read(r, rows, out, err);
 }
 
@@ -676,6 +708,7 @@ void kg_image_rows_free(kg_image_rows **pr)
 		fclose(r->pj.fp);
 	free(r->png_row);
 	free(r->lut);
+	kg_image_free(&r->whole);
 	kg_image_free(&r->head);
 	free(r->path);
 	free(r);
@@ -714,6 +747,8 @@ int kg_image_read(const char *path, kg_image **out, kg_err *err)
 	kg_check_arg(path && out, err);
 	*out = NULL;
 	int kind = image_kind(path, err);
+	if (kind == KIND_RAW)
+		return kg_raw_read(path, out, NULL, err);
 	return kind < 0 ? kind : read_whole(path, kind, out, err);
 }
 

@@ -1,10 +1,391 @@
-/* Camera raw files through LibRaw (raw.h). Placeholder while the decoder is written. */
+/* Camera raw files through LibRaw (raw.h): the CFA samples with black subtracted and
+ * scaled by the white level, nothing else. */
 #include "kg_config.h"
 
+#include <ctype.h>
+#include <errno.h>
 #include <math.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "raw.h"
+
+#if HAVE_LIBRAW
+#include <libraw/libraw.h>
+#endif
+
+/* ---- recognising a raw file ---------------------------------------------------------- */
+
+static const char *const raw_extensions[] = {
+	"dng", "cr2", "cr3", "crw", "nef", "nrw", "arw", "srf", "sr2", "orf", "rw2", "raf", "pef",
+	"iiq", "3fr", "fff", "erf", "kdc", "dcr", "mos", "mef", "mrw", "srw", "x3f", "rwl",
+};
+
+static int has_raw_extension(const char *path)
+{
+	const char *dot = strrchr(path, '.'), *slash = strrchr(path, '/');
+	if (!dot || (slash && dot < slash) || strlen(dot + 1) > 4)
+		return 0;
+	char ext[8] = {0};
+	for (size_t i = 0; dot[1 + i] && i < sizeof(ext) - 1; i++)
+		ext[i] = (char)tolower((unsigned char)dot[1 + i]);
+	for (size_t i = 0; i < sizeof(raw_extensions) / sizeof(raw_extensions[0]); i++)
+		if (!strcmp(ext, raw_extensions[i]))
+			return 1;
+	return 0;
+}
+
+static uint32_t get_u(const unsigned char *p, int n, int big)
+{
+	uint32_t v = 0;
+	for (int i = 0; i < n; i++)
+		v |= (uint32_t)p[big ? n - 1 - i : i] << (8 * i);
+	return v;
+}
+
+/* A classic TIFF whose first IFD has the DNGVersion tag (50706). */
+static int tiff_has_dng_version(FILE *fp)
+{
+	unsigned char h[8], e[12];
+	if (fread(h, 1, 8, fp) != 8)
+		return 0;
+	int big = h[0] == 'M';
+	if (!((h[0] == 'I' && h[1] == 'I') || (h[0] == 'M' && h[1] == 'M')) ||
+	    get_u(h + 2, 2, big) != 42)
+		return 0;
+	if (fseek(fp, (long)get_u(h + 4, 4, big), SEEK_SET))
+		return 0;
+	unsigned char c[2];
+	if (fread(c, 1, 2, fp) != 2)
+		return 0;
+	unsigned n = get_u(c, 2, big);
+	for (unsigned i = 0; i < n && i < 4096; i++) {
+		if (fread(e, 1, 12, fp) != 12)
+			return 0;
+		if (get_u(e, 2, big) == 50706)
+			return 1;
+	}
+	return 0;
+}
+
+int kg_raw_is_raw(const char *path)
+{
+	if (!path)
+		return 0;
+	if (has_raw_extension(path))
+		return 1;
+	FILE *fp = fopen(path, "rb");
+	if (!fp)
+		return 0;
+	int dng = tiff_has_dng_version(fp);
+	fclose(fp);
+	return dng;
+}
+
+#if HAVE_LIBRAW
+
+int kg_raw_available(void)
+{
+	return 1;
+}
+
+const char *kg_raw_version(void)
+{
+	return libraw_version();
+}
+
+/* What went wrong inside LibRaw while decoding (its data-error callback). */
+typedef struct raw_job {
+	libraw_data_t *lr;
+	const char *name;
+	int data_error;
+	char data_where[128];
+} raw_job;
+
+static void on_data_error(void *user, const char *file, const int offset)
+{
+	raw_job *j = user;
+	if (!j->data_error)
+		snprintf(j->data_where, sizeof(j->data_where), "at byte %d", offset);
+	(void)file;
+	j->data_error = 1;
+}
+
+static int lr_fail(raw_job *j, int code, kg_err *err, const char *what)
+{
+	int ours = code == LIBRAW_FILE_UNSUPPORTED ? KG_ENOTSUP
+	           : code == LIBRAW_UNSUFFICIENT_MEMORY ? KG_ENOMEM
+	           : code == LIBRAW_IO_ERROR && errno == ENOENT ? KG_ENOENT
+	           : KG_EINVAL;
+	if (code == LIBRAW_FILE_UNSUPPORTED)
+		return kg_fail(err, ours, "%s: not a camera raw file LibRaw %s can read (%s)",
+		               j->name, libraw_version(), libraw_strerror(code));
+	return kg_fail(err, ours, "%s: %s: %s (truncated or damaged?)", j->name, what,
+	               libraw_strerror(code));
+}
+
+static void copy_str(char *dst, size_t n, const char *src)
+{
+	size_t len = src ? strnlen(src, n - 1) : 0;
+	memcpy(dst, src ? src : "", len);
+	dst[len] = 0;
+	/* trailing spaces: some makers pad the EXIF strings */
+	for (size_t k = strlen(dst); k > 0 && dst[k - 1] == ' '; k--)
+		dst[k - 1] = 0;
+}
+
+static double positive_or_nan(double v)
+{
+	return isfinite(v) && v > 0 ? v : NAN;
+}
+
+/* The visible area's 2x2 CFA, or a reason it has none kogei can use. */
+static int bayer_pattern(raw_job *j, int unpacked, char cfa[5], kg_err *err)
+{
+	libraw_data_t *lr = j->lr;
+	if (!lr->idata.filters || (unpacked && !lr->rawdata.raw_image))
+		return kg_fail(err, KG_ENOTSUP,
+		               "%s: no colour filter array data (an sRAW/mRAW, linear or lossy DNG, "
+		               "or a Foveon file: the camera or converter already demosaiced it); "
+		               "kogei needs the sensor's mosaic",
+		               j->name);
+	if (lr->idata.filters == 9)
+		return kg_fail(err, KG_ENOTSUP,
+		               "%s: an X-Trans (6x6) mosaic: kogei demosaics 2x2 Bayer mosaics only",
+		               j->name);
+	if (lr->idata.filters < 1000 || lr->idata.colors != 3)
+		return kg_fail(err, KG_ENOTSUP,
+		               "%s: a %d-colour mosaic (filters 0x%x): kogei reads RGB Bayer mosaics "
+		               "only",
+		               j->name, lr->idata.colors, lr->idata.filters);
+	for (int r = 0; r < 16; r++)
+		for (int c = 0; c < 16; c++)
+			if (libraw_COLOR(lr, r, c) != libraw_COLOR(lr, r % 2, c % 2))
+				return kg_fail(err, KG_ENOTSUP,
+				               "%s: the mosaic does not repeat every 2x2 pixels", j->name);
+	for (int k = 0; k < 4; k++) {
+		int idx = libraw_COLOR(lr, k / 2, k % 2);
+		char ch = idx >= 0 && idx < 4 ? lr->idata.cdesc[idx] : '?';
+		if (ch != 'R' && ch != 'G' && ch != 'B')
+			return kg_fail(err, KG_ENOTSUP, "%s: CFA colour '%c' (colours %s): expected R, G "
+			               "or B", j->name, ch, lr->idata.cdesc);
+		cfa[k] = ch;
+	}
+	cfa[4] = 0;
+	int nr = 0, ng = 0, nb = 0;
+	for (int k = 0; k < 4; k++)
+		nr += cfa[k] == 'R', ng += cfa[k] == 'G', nb += cfa[k] == 'B';
+	if (nr != 1 || ng != 2 || nb != 1)
+		return kg_fail(err, KG_ENOTSUP, "%s: CFA pattern %s: expected a Bayer pattern (one "
+		               "R, two G, one B)", j->name, cfa);
+	return 0;
+}
+
+/* Lossy encodings LibRaw decodes but whose values are not the sensor's. */
+static int refuse_lossy(raw_job *j, kg_err *err)
+{
+	libraw_decoder_info_t di;
+	memset(&di, 0, sizeof(di));
+	if (libraw_get_decoder_info(j->lr, &di) != LIBRAW_SUCCESS || !di.decoder_name)
+		return 0;
+	static const char *const lossy[] = {"lossy_dng_load_raw", "sony_arw2_load_raw",
+	                                    "canon_sraw_load_raw", "nikon_load_sraw",
+	                                    "kodak_ycbcr_load_raw", "sony_ycbcr_load_raw"};
+	for (size_t i = 0; i < sizeof(lossy) / sizeof(lossy[0]); i++)
+		if (strstr(di.decoder_name, lossy[i]))
+			return kg_fail(err, KG_ENOTSUP,
+			               "%s: a lossy raw encoding (%s): its values are not the sensor's; "
+			               "set the camera to uncompressed or lossless raw",
+			               j->name, di.decoder_name);
+	if (di.decoder_flags & LIBRAW_DECODER_SONYARW2)
+		return kg_fail(err, KG_ENOTSUP,
+		               "%s: Sony compressed raw (lossy); set the camera to uncompressed or "
+		               "lossless raw",
+		               j->name);
+	return 0;
+}
+
+static void fill_meta(raw_job *j, const char cfa[5], kg_raw_meta *m)
+{
+	libraw_data_t *lr = j->lr;
+	memset(m, 0, sizeof(*m));
+	if (lr->idata.dng_version)
+		snprintf(m->format, sizeof(m->format), "DNG %u.%u.%u.%u",
+		         lr->idata.dng_version >> 24, (lr->idata.dng_version >> 16) & 255,
+		         (lr->idata.dng_version >> 8) & 255, lr->idata.dng_version & 255);
+	else
+		snprintf(m->format, sizeof(m->format), "%.24s raw",
+		         lr->idata.normalized_make[0] ? lr->idata.normalized_make : lr->idata.make);
+	copy_str(m->make, sizeof(m->make), lr->idata.make);
+	copy_str(m->model, sizeof(m->model), lr->idata.model);
+	copy_str(m->serial, sizeof(m->serial), lr->shootinginfo.BodySerial);
+	if (!m->serial[0])
+		copy_str(m->serial, sizeof(m->serial), lr->shootinginfo.InternalBodySerial);
+	copy_str(m->lens, sizeof(m->lens), lr->lens.Lens);
+	/* LibRaw keeps the exposure time as a float: 1/125 s would read 0.0079999998. */
+	char t[32];
+	snprintf(t, sizeof(t), "%.6g", (double)lr->other.shutter);
+	m->exposure_s = positive_or_nan(strtod(t, NULL));
+	m->iso = positive_or_nan(lr->other.iso_speed);
+	m->aperture = positive_or_nan(lr->other.aperture);
+	m->focal_length_mm = positive_or_nan(lr->other.focal_len);
+	m->timestamp = (long long)lr->other.timestamp;
+	if (cfa)
+		memcpy(m->cfa, cfa, 5);
+	m->width = lr->sizes.width;
+	m->height = lr->sizes.height;
+}
+
+/* Black of CFA position (r, c) of the visible area: LibRaw's common black, the black of
+ * that colour, and the repeating black pattern (cblack[4] x cblack[5] from cblack[6]). */
+static double black_at(const libraw_data_t *lr, int r, int c)
+{
+	const unsigned *cb = lr->color.cblack;
+	int colour = libraw_COLOR((libraw_data_t *)lr, r, c);
+	double b = (double)lr->color.black + (colour >= 0 && colour < 4 ? cb[colour] : 0);
+	if (cb[4] && cb[5] && 6 + cb[4] * cb[5] <= LIBRAW_CBLACK_SIZE)
+		b += cb[6 + (unsigned)(r % (int)cb[4]) * cb[5] + (unsigned)(c % (int)cb[5])];
+	return b;
+}
+
+static int decode(raw_job *j, kg_image **out, kg_raw_meta *meta, int pixels, kg_err *err)
+{
+	libraw_data_t *lr = j->lr;
+	char cfa[5] = {0};
+	int ret;
+	if (!pixels) { /* the header only: refuse what decoding would refuse */
+		if ((ret = bayer_pattern(j, 0, cfa, err)))
+			return ret;
+		if (meta)
+			fill_meta(j, cfa, meta);
+		return 0;
+	}
+	int code = libraw_unpack(lr);
+	if (code != LIBRAW_SUCCESS)
+		return lr_fail(j, code, err, "cannot decode the raw data");
+	if (j->data_error)
+		return kg_fail(err, KG_EINVAL, "%s: the raw data is damaged or truncated (%s)",
+		               j->name, j->data_where);
+	if ((ret = refuse_lossy(j, err)) || (ret = bayer_pattern(j, 1, cfa, err)))
+		return ret;
+	const libraw_image_sizes_t *S = &lr->sizes;
+	int w = S->width, h = S->height;
+	if (w < 2 || h < 2 || S->left_margin + w > S->raw_width ||
+	    S->top_margin + h > S->raw_height || S->raw_pitch < 2u * S->raw_width)
+		return kg_fail(err, KG_EINVAL, "%s: visible area %dx%d at (%d, %d) of a %dx%d sensor: "
+		               "does not fit", j->name, w, h, S->left_margin, S->top_margin,
+		               S->raw_width, S->raw_height);
+	/* Black and white per CFA position; the white level per channel where the file
+	 * gives one (linear_max, black included), else the common maximum. */
+	double black[4], white[4];
+	for (int k = 0; k < 4; k++) {
+		black[k] = black_at(lr, k / 2, k % 2);
+		int colour = libraw_COLOR(lr, k / 2, k % 2);
+		double lin = colour >= 0 && colour < 4 ? (double)lr->color.linear_max[colour] : 0;
+		white[k] = lin > black[k] ? lin : (double)lr->color.maximum;
+		if (!(white[k] > black[k]))
+			return kg_fail(err, KG_EINVAL, "%s: white level %g not above black level %g",
+			               j->name, white[k], black[k]);
+	}
+	const unsigned *cb = lr->color.cblack;
+	int pattern = cb[4] && cb[5] && (cb[4] > 2 || cb[5] > 2 || (2 % cb[4]) || (2 % cb[5]));
+	kg_image *img = NULL;
+	if ((ret = kg_image_new(w, h, 1, &img, err)) ||
+	    (ret = kg_image_set_cfa(img, cfa, 2, 2, err))) {
+		kg_image_free(&img);
+		return ret;
+	}
+	double range_bits = ceil(log2(white[0] + 1));
+	img->bits = range_bits >= 1 && range_bits <= 16 ? (int)range_bits : 16;
+	img->is_float = 0;
+	const unsigned short *raw = lr->rawdata.raw_image;
+	size_t pitch = S->raw_pitch / 2;
+	for (int y = 0; y < h; y++) {
+		const unsigned short *src = raw + (size_t)(y + S->top_margin) * pitch + S->left_margin;
+		float *dst = img->data + (size_t)y * (size_t)w;
+		int k0 = (y & 1) * 2;
+		if (!pattern) {
+			double b0 = black[k0], b1 = black[k0 + 1];
+			double s0 = 1.0 / (white[k0] - b0), s1 = 1.0 / (white[k0 + 1] - b1);
+			for (int x = 0; x + 1 < w; x += 2) {
+				dst[x] = (float)((src[x] - b0) * s0);
+				dst[x + 1] = (float)((src[x + 1] - b1) * s1);
+			}
+			if (w & 1)
+				dst[w - 1] = (float)((src[w - 1] - b0) * s0);
+		} else {
+			for (int x = 0; x < w; x++) {
+				int k = k0 + (x & 1);
+				double b = black_at(lr, y, x);
+				dst[x] = (float)((src[x] - b) / (white[k] - black[k]));
+			}
+		}
+	}
+	if (meta) {
+		fill_meta(j, cfa, meta);
+		for (int k = 0; k < 4; k++) {
+			meta->black[k] = black[k];
+			meta->white[k] = white[k];
+		}
+		meta->raw_bits = img->bits;
+	}
+	snprintf(img->note, sizeof(img->note), "raw %s decoded by LibRaw %s: black %g, white %g",
+	         meta ? meta->format : "file", libraw_version(), black[0], white[0]);
+	*out = img;
+	return 0;
+}
+
+static int run(const char *path, const void *data, size_t size, const char *name,
+               kg_image **out, kg_raw_meta *meta, int pixels, kg_err *err)
+{
+	if (out)
+		*out = NULL;
+	raw_job j = {.name = name};
+	j.lr = libraw_init(0);
+	if (!j.lr)
+		return kg_fail(err, KG_ENOMEM, "%s: cannot start LibRaw", name);
+	libraw_set_dataerror_handler(j.lr, on_data_error, &j);
+	int code = path ? libraw_open_file(j.lr, path)
+	                : libraw_open_buffer(j.lr, (void *)(uintptr_t)data, size);
+	int ret;
+	if (code != LIBRAW_SUCCESS) {
+		if (path && access(path, F_OK) != 0)
+			ret = kg_fail(err, KG_ENOENT, "%s: cannot open: no such file", name);
+		else
+			ret = lr_fail(&j, code, err, "cannot read the file's header");
+	} else {
+		ret = decode(&j, out, meta, pixels, err);
+	}
+	libraw_close(j.lr);
+	return ret;
+}
+
+int kg_raw_read(const char *path, kg_image **out, kg_raw_meta *meta, kg_err *err)
+{
+	kg_check_arg(path && out, err);
+	return run(path, NULL, 0, path, out, meta, 1, err);
+}
+
+int kg_raw_read_memory(const void *data, size_t size, const char *name, kg_image **out,
+                       kg_raw_meta *meta, kg_err *err)
+{
+	kg_check_arg(data && out, err);
+	if (size < 16)
+		return kg_fail(err, KG_EINVAL, "%s: %zu bytes: too short for a raw file",
+		               name ? name : "raw data", size);
+	return run(NULL, data, size, name ? name : "raw data", out, meta, 1, err);
+}
+
+int kg_raw_read_meta(const char *path, kg_raw_meta *meta, kg_err *err)
+{
+	kg_check_arg(path && meta, err);
+	return run(path, NULL, 0, path, NULL, meta, 0, err);
+}
+
+#else /* without LibRaw */
 
 int kg_raw_available(void)
 {
@@ -16,17 +397,18 @@ const char *kg_raw_version(void)
 	return NULL;
 }
 
-int kg_raw_is_raw(const char *path)
+static int no_libraw(const char *name, kg_err *err)
 {
-	(void)path;
-	return 0;
+	return kg_fail(err, KG_ENOTSUP, "%s: a camera raw file: this kogei was built without LibRaw "
+	               "(install libraw-dev and rebuild with -Dlibraw=enabled)",
+	               name ? name : "raw data");
 }
 
 int kg_raw_read(const char *path, kg_image **out, kg_raw_meta *meta, kg_err *err)
 {
 	(void)out;
 	(void)meta;
-	return kg_fail(err, KG_ENOTSUP, "%s: raw decoding is not written yet", path);
+	return no_libraw(path, err);
 }
 
 int kg_raw_read_memory(const void *data, size_t size, const char *name, kg_image **out,
@@ -36,11 +418,13 @@ int kg_raw_read_memory(const void *data, size_t size, const char *name, kg_image
 	(void)size;
 	(void)out;
 	(void)meta;
-	return kg_fail(err, KG_ENOTSUP, "%s: raw decoding is not written yet", name);
+	return no_libraw(name, err);
 }
 
 int kg_raw_read_meta(const char *path, kg_raw_meta *meta, kg_err *err)
 {
 	(void)meta;
-	return kg_fail(err, KG_ENOTSUP, "%s: raw decoding is not written yet", path);
+	return no_libraw(path, err);
 }
+
+#endif

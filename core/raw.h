@@ -55,7 +55,9 @@ int kg_raw_is_raw(const char *path);
 int kg_raw_read(const char *path, kg_image **out, kg_raw_meta *meta, kg_err *err);
 int kg_raw_read_memory(const void *data, size_t size, const char *name, kg_image **out,
                        kg_raw_meta *meta, kg_err *err);
-/* Only the metadata (no decoding of the pixel data). */
+/* Only the metadata, without decoding the pixel data (black, white and raw_bits stay
+ * 0: LibRaw knows them after decoding); a file decoding would refuse for its mosaic is
+ * refused here too. */
 int kg_raw_read_meta(const char *path, kg_raw_meta *meta, kg_err *err);
 
 #endif

@@ -23,6 +23,7 @@ static const kg_camera_driver *const drivers[] = {
 	&kg_camera_gphoto2_driver,
 #endif
 	&kg_camera_replay_driver,
+	&kg_camera_files_driver,
 	&kg_camera_sim_driver,
 };
 #define NDRIVERS ((int)(sizeof(drivers) / sizeof(drivers[0])))
@@ -194,8 +195,8 @@ int kg_camera_open(const char *uri, kg_camera **out, kg_err *err)
 	if (!colon || colon == uri)
 		return kg_fail(err, KG_EINVAL,
 		               "camera '%s': expected SCHEME:TARGET (v4l2:/dev/video0, "
-		               "aravis:ADDRESS, libcamera:ID, gphoto2:MODEL, replay:SESSION, "
-		               "sim:[IMAGE])",
+		               "aravis:ADDRESS, libcamera:ID, gphoto2:MODEL, files:DIR/PATTERN, "
+		               "replay:SESSION, sim:[IMAGE])",
 		               uri);
 	size_t n = (size_t)(colon - uri);
 	const kg_camera_driver *drv = NULL;
@@ -251,6 +252,11 @@ const kg_camera_info *kg_camera_get_info(const kg_camera *c) { return &c->info; 
 void *kg_camera_driver_state(kg_camera *c, const kg_camera_driver *drv)
 {
 	return c && c->drv == drv ? c->state : NULL;
+}
+
+long kg_camera_frames_available(kg_camera *c)
+{
+	return c && c->drv->frames_available ? c->drv->frames_available(c->state) : -1;
 }
 
 /* ---- features ----------------------------------------------------------------- */

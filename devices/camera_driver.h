@@ -35,6 +35,8 @@ typedef struct kg_camera_driver {
 	/* Optional: driver-level counters (failed, incomplete, resent, missing_packets);
 	 * camera.c adds completed, dropped and timeouts. */
 	void (*stats)(void *state, kg_stream_stats *out);
+	/* Optional: frames left to deliver (a finite source such as files:), else -1. */
+	long (*frames_available)(void *state);
 } kg_camera_driver;
 
 /* One line of a recording's index (camera_recording.c reads them; replay serves them). */
@@ -60,6 +62,7 @@ int kg_rec_read_camera(const char *frames_dir, kg_camera_info *info, kg_frame_fo
 
 extern const kg_camera_driver kg_camera_sim_driver;
 extern const kg_camera_driver kg_camera_replay_driver;
+extern const kg_camera_driver kg_camera_files_driver;
 #if HAVE_V4L2
 extern const kg_camera_driver kg_camera_v4l2_driver;
 #endif

@@ -80,6 +80,9 @@ typedef struct kg_frame {
 	int status;          /* KG_FRAME_* */
 	double exposure_us;  /* settings in force when the frame was taken, as read back */
 	double gain;
+	const char *source;  /* the file the frame was read from (files:, gphoto2:), else NULL */
+	const char *source_note; /* how it was decoded ("DNG 1.4.0.0, LibRaw 0.20.2, ..."),
+	                            or NULL */
 	int slot;            /* driver's buffer index (private) */
 } kg_frame;
 
@@ -167,6 +170,9 @@ int kg_camera_stop(kg_camera *c, kg_err *err);
  * can reuse its buffer. */
 int kg_camera_pop(kg_camera *c, int timeout_ms, kg_frame *frame, kg_err *err);
 int kg_camera_push(kg_camera *c, kg_frame *frame, kg_err *err);
+/* How many frames the camera can still deliver: the files left (files:), or -1 for a
+ * camera that delivers as long as it streams. */
+long kg_camera_frames_available(kg_camera *c);
 /* Counters since start (dropped is derived from sequence gaps by camera.c). */
 void kg_camera_stats(kg_camera *c, kg_stream_stats *out);
 

@@ -13,7 +13,9 @@ typedef struct proc_capture {
 	kg_capture_kind kind;
 	const json_t *camera;     /* its devices.cameras entry, or NULL */
 	double exposure_us;       /* NAN when not recorded */
-	double gain_linear;       /* 10^(dB / 20); NAN when not recorded or not in dB */
+	double gain_linear;       /* 10^(dB / 20), or ISO / 100 for a photographic camera
+	                             without a gain; NAN when not recorded or in another unit */
+	double aperture;          /* f-number; NAN when not recorded */
 	double gain;              /* as recorded, in gain_unit; NAN when not recorded */
 	const char *gain_unit;
 	long frames;
@@ -120,6 +122,11 @@ int proc_objects(proc *p, json_t *objects, kg_process_summary *sum);
 int proc_scene_write(proc *p, const char *path, const char *labels_file, int width,
                      int height, const json_t *class_map, const char *fallback, json_t *object);
 /* The same camera: backend, model and serial of the manifest's devices.cameras. */
+/* How a capture's values were made, for process.json and the report: an object with
+ * gain and gain_unit as process reads them (ISO for photographic cameras), aperture,
+ * demosaic (the capture's algorithm, or the one process uses for a mosaic; null for
+ * RGB and mono) and raw_decoding (how its raw files were decoded; null otherwise). */
+json_t *proc_capture_making(const proc_capture *c);
 int proc_same_camera(const proc_capture *a, const proc_capture *b);
 
 /* An sRGB preview of a linear image (the 99.5th percentile at 0.9), at most max_side

@@ -122,6 +122,16 @@ static int read_captures(proc *p)
 		c->gain_unit = unit;
 		if (json_is_number(g) && unit && !strcmp(unit, "dB"))
 			c->gain_linear = pow(10.0, json_number_value(g) / 20.0);
+		/* A photographic camera (raw files, gphoto2:): its gain is the ISO speed, and
+		 * the aperture sets the light on the sensor. */
+		const json_t *iso = kg_json_find(s, "iso"), *fno = kg_json_find(s, "aperture");
+		if (!json_is_number(g) && json_is_number(iso) && json_number_value(iso) > 0) {
+			c->gain = json_number_value(iso);
+			c->gain_unit = "ISO";
+			c->gain_linear = c->gain / 100.0;
+		}
+		c->aperture = json_is_number(fno) && json_number_value(fno) > 0 ? json_number_value(fno)
+		                                                               : NAN;
 		c->frames = (long)json_number_value(kg_json_find(s, "frames"));
 		c->pixfmt = json_string_value(kg_json_find(s, "format.pixfmt"));
 		c->cfa = json_string_value(kg_json_find(s, "format.cfa"));
@@ -148,6 +158,26 @@ static int same_format(const proc_capture *a, const proc_capture *b)
 	return a->pixfmt && b->pixfmt && !strcmp(a->pixfmt, b->pixfmt) && a->bits == b->bits &&
 	       a->width == b->width && a->height == b->height &&
 	       ((!a->cfa && !b->cfa) || (a->cfa && b->cfa && !strcmp(a->cfa, b->cfa)));
+}
+
+static json_t *num_or_null(double v)
+{
+	return isfinite(v) ? json_real(v) : json_null();
+}
+
+json_t *proc_capture_making(const proc_capture *c)
+{
+	const json_t *alg = kg_json_find(c->j, "demosaic.algorithm");
+	const json_t *dec = kg_json_find(c->j, "sources.decoding");
+	const char *mine = kg_demosaic_algorithm();
+	int mosaic = c->pixfmt && !strncmp(c->pixfmt, "bayer", 5);
+	return json_pack("{s:o, s:o, s:o, s:o, s:o}", "gain", num_or_null(c->gain), "gain_unit",
+	                 json_string(c->gain_unit ? c->gain_unit : ""),
+	                 "aperture", num_or_null(c->aperture), "demosaic",
+	                 json_is_string(alg) ? json_deep_copy(alg)
+	                 : mosaic && mine   ? json_string(mine)
+	                                    : json_null(),
+	                 "raw_decoding", json_is_string(dec) ? json_deep_copy(dec) : json_null());
 }
 
 int proc_same_camera(const proc_capture *a, const proc_capture *b)

@@ -386,6 +386,9 @@ int proc_calibrate(proc *p)
 		ret = kg_fail(err, KG_ENOMEM, "out of memory");
 		goto done;
 	}
+	json_t *making = proc_capture_making(p->chart);
+	json_object_update(p->calibration, making);
+	json_decref(making);
 	json_t *fl = json_array();
 	for (int i = 0; i < nflagged; i++)
 		json_array_append_new(fl, json_string(flagged[i]));

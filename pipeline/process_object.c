@@ -66,17 +66,28 @@ static double gain_ratio(const proc_capture *chart, const proc_capture *c)
 	return NAN;
 }
 
-/* Camera values of c relative to the chart capture's: (t g)_chart / (t g)_object. */
+/* Camera values of c relative to the chart capture's: (t g / N^2)_chart over the
+ * object's, N the f-number where both record one. */
 static int exposure_scale(proc *p, const proc_capture *c, json_t *warnings, double *scale)
 {
 	const proc_capture *k = p->chart;
 	double t = k->exposure_us / c->exposure_us, g = gain_ratio(k, c);
 	if (isfinite(t) && t > 0 && isfinite(g) && g > 0) {
 		*scale = t * g;
+		if (isfinite(k->aperture) && isfinite(c->aperture) &&
+		    fabs(k->aperture - c->aperture) > 1e-6 * k->aperture) {
+			double a = (c->aperture / k->aperture) * (c->aperture / k->aperture);
+			*scale *= a;
+			proc_warn(p, warnings, "capture %s: aperture f/%g, the chart capture %s f/%g: "
+			          "values scaled by %.4g for the aperture; marked f-numbers are nominal "
+			          "(a lens may be off by a sixth of a stop, 8 %%), so the reflectance "
+			          "scale is uncertain by as much: shoot the chart and the object at one "
+			          "aperture", c->name, c->aperture, k->name, k->aperture, a);
+		}
 		return 0;
 	}
 	if (!p->o->assume_same_exposure)
-		return kg_fail(p->err, KG_EINVAL, "capture %s: exposure time or gain (in dB) not "
+		return kg_fail(p->err, KG_EINVAL, "capture %s: exposure time or gain (dB or ISO) not "
 		               "recorded for it or for the chart capture %s, so its values cannot be "
 		               "normalised to the chart's; --assume-same-exposure if they were equal",
 		               isfinite(c->exposure_us) ? k->name : c->name, k->name);
@@ -735,6 +746,9 @@ int proc_objects(proc *p, json_t *objects, kg_process_summary *sum)
 		                                    : json_null());
 		json_object_set_new(object, "frames", json_integer(c->frames));
 		json_object_set_new(object, "exposure_scale", json_real(scale));
+		json_t *making = proc_capture_making(c);
+		json_object_update(object, making);
+		json_decref(making);
 		if (fabs(scale - 1) > 1e-9)
 			proc_progress(p, "%s: exposure %.6g us, gain %.4g %s against the chart's %.6g us, "
 			              "%.4g %s: values scaled by %.6g", c->name, c->exposure_us, c->gain,

@@ -61,6 +61,18 @@ static json_t *vget(report *r, const char *fmt, va_list ap, char *path, size_t s
 	return v;
 }
 
+/* Whether a key path exists (keys process.json gained later: older records lack them). */
+static int has(report *r, const char *fmt, ...) KG_PRINTF(2, 3);
+static int has(report *r, const char *fmt, ...)
+{
+	char path[256];
+	va_list ap;
+	va_start(ap, fmt);
+	vsnprintf(path, sizeof(path), fmt, ap);
+	va_end(ap);
+	return kg_json_find(r->root, path) != NULL;
+}
+
 #define GETTER_PROLOGUE                                                                \
 	char path[256];                                                                    \
 	va_list ap;                                                                        \
@@ -951,6 +963,8 @@ static void acquisition_row(report *r, const char *who, const char *prefix, doub
 	html(r, "</td><td>");
 	put_num(r, opt_num(r, "%s.gain", prefix), 2);
 	html(r, "</td><td>");
+	put_num(r, has(r, "%s.aperture", prefix) ? opt_num(r, "%s.aperture", prefix) : NAN, 1);
+	html(r, "</td><td>");
 	put_num(r, num(r, "%s.frames", prefix), 0);
 	html(r, "</td><td>");
 	if (isfinite(scale))
@@ -962,6 +976,16 @@ static void acquisition_row(report *r, const char *who, const char *prefix, doub
 	text(r, dark ? dark : "none");
 	html(r, "</td><td>");
 	text(r, flat ? flat : "none");
+	html(r, "</td><td>");
+	const char *dem = has(r, "%s.demosaic", prefix) ? opt_str(r, "%s.demosaic", prefix) : NULL;
+	const char *dec =
+		has(r, "%s.raw_decoding", prefix) ? opt_str(r, "%s.raw_decoding", prefix) : NULL;
+	text(r, dem ? dem : has(r, "%s.demosaic", prefix) ? "none (not a mosaic)" : "not recorded");
+	if (dec) {
+		html(r, "<br><small>raw: ");
+		text(r, dec);
+		html(r, "</small>");
+	}
 	html(r, "</td></tr>\n");
 }
 
@@ -1014,7 +1038,7 @@ static void section_provenance(report *r)
 	html(r, "<h3>Acquisition</h3>\n<table class=\"num\"><thead><tr><th>capture</th>"
 	        "<th>exposure (&micro;s)</th><th>gain (");
 	text(r, str(r, "calibration.gain_unit"));
-	html(r, ")</th><th>frames averaged</th><th>exposure scale (&times; chart)</th><th>dark</th><th>flat</th></tr></thead>"
+	html(r, ")</th><th>aperture (f/)</th><th>frames averaged</th><th>exposure scale (&times; chart)</th><th>dark</th><th>flat</th><th>demosaicing</th></tr></thead>"
 	        "<tbody>\n");
 	acquisition_row(r, str(r, "calibration.chart_capture"), "calibration", NAN);
 	int n;

@@ -8,11 +8,15 @@
  *                               ptpip:<address>
  *   options: delete=1   delete each file from the camera after downloading it
  *                       (default 0: the card keeps every capture)
+ *            save=DIR   keep each downloaded file in DIR (an existing folder) under its
+ *                       name on the camera (KG00001.DNG, or KG00001-2.DNG when taken);
+ *                       frames then name it as their source (the manifest of
+ *                       `kogei acquire` lists the originals with their sha256)
  *
  * Each pop is one exposure: capture (gp_camera_capture), the raw file downloaded to
  * memory, decoded linearly by core/raw.c (LibRaw) and delivered as BAYER16 (the
  * decoded (raw-black)/(white-black) on 0..1 times 65535). The file's own metadata
- * gives the frame's exposure time and ISO (frame.gain holds the ISO). The frame size
+ * gives the frame's exposure time (the ISO is the iso feature). The frame size
  * is the raw's, known only from a capture: the first get_format or start takes one
  * capture to learn it (kept as the last file, not delivered as a frame).
  *
@@ -32,6 +36,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
+#include <sys/stat.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -59,6 +64,9 @@ typedef struct gp_state {
 	char model[128];
 	char port[256];
 	int delete_after;
+	char *save_dir; /* save=DIR, or NULL */
+	char saved[4096]; /* where the last file was saved, "" when not */
+	char note[512];   /* how the last file was decoded */
 	char gp_error[512]; /* the last error libgphoto2 reported through the context */
 	feat feats[KG_FEAT_COUNT];
 
@@ -440,8 +448,8 @@ static int parse_target(gp_state *s, const char *target, char *name, size_t n, k
 	size_t len = q ? (size_t)(q - target) : strlen(target);
 	if (!len || len >= n)
 		return kg_fail(err, KG_EINVAL,
-		               "expected gphoto2:<model or port>[?delete=0|1], got '%s' (see `kogei "
-		               "devices`)",
+		               "expected gphoto2:<model or port>[?delete=0|1&save=DIR], got '%s' (see "
+		               "`kogei devices`)",
 		               target);
 	memcpy(name, target, len);
 	name[len] = 0;
@@ -450,8 +458,20 @@ static int parse_target(gp_state *s, const char *target, char *name, size_t n, k
 		size_t plen = amp ? (size_t)(amp - p) : strlen(p);
 		if (plen == 8 && (!strncmp(p, "delete=0", 8) || !strncmp(p, "delete=1", 8)))
 			s->delete_after = p[7] == '1';
-		else
-			return kg_fail(err, KG_EINVAL, "option '%.*s': expected delete=0 or delete=1",
+		else if (plen > 5 && !strncmp(p, "save=", 5)) {
+			free(s->save_dir);
+			s->save_dir = strndup(p + 5, plen - 5);
+			if (!s->save_dir)
+				return kg_fail(err, KG_ENOMEM, "out of memory");
+			struct stat st;
+			if (stat(s->save_dir, &st) || !S_ISDIR(st.st_mode) || access(s->save_dir, W_OK))
+				return kg_fail(err, KG_EINVAL,
+				               "option save=%s: expected an existing folder kogei may "
+				               "write to",
+				               s->save_dir);
+		} else
+			return kg_fail(err, KG_EINVAL,
+			               "option '%.*s': expected delete=0, delete=1 or save=DIR",
 			               (int)plen, p);
 		p = amp ? amp + 1 : NULL;
 	}
@@ -678,6 +698,7 @@ static void gp2_close(void *state)
 		gp_context_unref(s->ctx);
 	free(s->frame);
 	free(s->file);
+	free(s->save_dir);
 	free(s);
 }
 
@@ -725,6 +746,40 @@ static int download(gp_state *s, const char *folder, const char *name, kg_err *e
 		return gpfail(s, err, KG_EIO, gpret, "camera %s: cannot delete %s after downloading it",
 		              s->model, s->file_name);
 	return 0;
+}
+
+/* Write the last file into save_dir under its camera name (never over another file). */
+static int save_file(gp_state *s, const char *name, kg_err *err)
+{
+	s->saved[0] = 0;
+	if (!s->save_dir)
+		return 0;
+	const char *dot = strrchr(name, '.');
+	int stem = dot ? (int)(dot - name) : (int)strlen(name);
+	for (int k = 1; k < 1000; k++) {
+		char path[sizeof(s->saved)];
+		if (k == 1)
+			snprintf(path, sizeof(path), "%s/%s", s->save_dir, name);
+		else
+			snprintf(path, sizeof(path), "%s/%.*s-%d%s", s->save_dir, stem, name, k,
+			         dot ? dot : "");
+		FILE *f = fopen(path, "wbx"); /* x: fails when the name is taken */
+		if (!f && errno == EEXIST)
+			continue;
+		int ok = f && fwrite(s->file, 1, s->file_size, f) == s->file_size;
+		int e = errno;
+		if (f && fclose(f))
+			ok = 0, e = errno;
+		if (!ok) {
+			if (f)
+				remove(path);
+			return kg_fail(err, e == ENOSPC ? KG_ENOSPC : KG_EIO, "%s: cannot save: %s",
+			               path, strerror(e));
+		}
+		snprintf(s->saved, sizeof(s->saved), "%s", path);
+		return 0;
+	}
+	return kg_fail(err, KG_EIO, "%s: no free name for %s (999 taken)", s->save_dir, name);
 }
 
 /* After a capture that gave a non-raw file: the raw of a RAW+JPEG pair is announced as
@@ -779,7 +834,7 @@ static int capture_one(gp_state *s, int timeout_ms, kg_image **img, kg_err *err)
 			path = raw;
 		}
 	}
-	if ((ret = download(s, path.folder, path.name, err)))
+	if ((ret = download(s, path.folder, path.name, err)) || (ret = save_file(s, path.name, err)))
 		return ret;
 	double t1 = now_s();
 	fprintf(stderr, "gphoto2: %s: frame %llu: %s, %.1f MB, %.1f s\n", s->model,
@@ -800,6 +855,12 @@ static int capture_one(gp_state *s, int timeout_ms, kg_image **img, kg_err *err)
 		return kg_fail(err, KG_ENOTSUP, "camera %s: %s has no Bayer colour filter array",
 		               s->model, s->file_name);
 	}
+	const kg_raw_meta *m = &s->meta;
+	snprintf(s->note, sizeof(s->note),
+	         "%s from %.64s by LibRaw %s: black %g/%g/%g/%g, white %g/%g/%g/%g, CFA %s", m->format,
+	         s->model, kg_raw_version() ? kg_raw_version() : "", m->black[0], m->black[1],
+	         m->black[2], m->black[3], m->white[0], m->white[1], m->white[2], m->white[3],
+	         m->cfa);
 	return 0;
 }
 
@@ -928,8 +989,10 @@ static int gp2_pop(void *state, int timeout_ms, kg_frame *frame, kg_err *err)
 	frame->slot = 0;
 	if (isfinite(s->meta.exposure_s) && s->meta.exposure_s > 0)
 		frame->exposure_us = s->meta.exposure_s * 1e6;
-	if (isfinite(s->meta.iso) && s->meta.iso > 0)
-		frame->gain = s->meta.iso;
+	/* frame->gain stays unknown: a DSLR's sensor gain is its ISO speed, a feature of
+	 * its own (KG_FEAT_ISO); the file's ISO is in kg_gphoto2_last_file's metadata. */
+	frame->source = s->saved[0] ? s->saved : NULL;
+	frame->source_note = s->note;
 	s->held = 1;
 	return 0;
 }
