@@ -837,8 +837,12 @@ static int capture_one(gp_state *s, int timeout_ms, kg_image **img, kg_err *err)
 	if ((ret = download(s, path.folder, path.name, err)) || (ret = save_file(s, path.name, err)))
 		return ret;
 	double t1 = now_s();
-	fprintf(stderr, "gphoto2: %s: frame %llu: %s, %.1f MB, %.1f s\n", s->model,
-	        (unsigned long long)s->seq, s->file_name, (double)s->file_size / 1e6, t1 - t0);
+	if (s->streaming)
+		fprintf(stderr, "gphoto2: %s: frame %llu: %s, %.1f MB, %.1f s\n", s->model,
+		        (unsigned long long)s->seq, s->file_name, (double)s->file_size / 1e6, t1 - t0);
+	else
+		fprintf(stderr, "gphoto2: %s: format capture: %s, %.1f MB, %.1f s\n", s->model,
+		        s->file_name, (double)s->file_size / 1e6, t1 - t0);
 	memset(&s->meta, 0, sizeof(s->meta));
 	ret = kg_raw_read_memory(s->file, s->file_size, s->file_name, img, &s->meta, err);
 	if (ret && !kg_gp_is_raw_name(s->file_name))

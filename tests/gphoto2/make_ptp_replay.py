@@ -289,6 +289,14 @@ def main():
             f.write(s.text())
         with open(base + ".steps", "w") as f:
             f.write("".join("%s\n" % step for step in s.steps))
+    # what the camera says, for the test's assertions
+    with open(out + "/ptp.expect", "w") as f:
+        f.write("manufacturer=%s\nmodel=%s\nserial=%s\n" % (MANUFACTURER, MODEL, SERIAL))
+        f.write("iso_now=%d\niso_set=%d\niso_min=%d\niso_max=%d\n"
+                % (ISO_NOW, ISO_SET, min(ISO_CHOICES), max(ISO_CHOICES)))
+        f.write("exposure_now_us=%d\nexposure_min_us=%d\nexposure_max_us=%d\n"
+                % (EXPTIME_NOW * 100, min(EXPTIME_CHOICES) * 100, max(EXPTIME_CHOICES) * 100))
+        f.write("captures=%d\nfile1=KG00001.DNG\nfile2=KG00002.DNG\n" % CAPTURES)
 
 
 if __name__ == "__main__":
