@@ -25,10 +25,11 @@
  * choices or fails naming the nearest ones.
  *
  * Enumeration is libgphoto2's autodetection over the ports its I/O libraries list (USB
- * devices and serial ports; nothing is sent to a device until one is opened). Debian's
- * ptpip I/O library lists fixed entries only; a libgphoto2 built with Bonjour would
- * browse mDNS there, so with KOGEI_CAMERA_DISCOVERY=none enumeration is skipped when
- * that I/O library lists anything beyond its fixed entries. */
+ * devices' descriptors and serial port names; nothing is sent to a device until one is
+ * opened). Debian's ptpip I/O library lists fixed entries only; a libgphoto2 built with
+ * Bonjour links its ptpip library with libdns_sd and browses mDNS while listing ports,
+ * so with KOGEI_CAMERA_DISCOVERY=none enumeration is skipped when that library names
+ * libdns_sd (looked for in the file before anything is loaded). */
 #include <errno.h>
 #include <math.h>
 #include <stdarg.h>
@@ -68,6 +69,7 @@ typedef struct gp_state {
 	char saved[4096]; /* where the last file was saved, "" when not */
 	char note[512];   /* how the last file was decoded */
 	char gp_error[512]; /* the last error libgphoto2 reported through the context */
+	int opening;        /* the port's own error text is about this open */
 	feat feats[KG_FEAT_COUNT];
 
 	kg_frame_format fmt;
@@ -106,7 +108,8 @@ static int gpfail(gp_state *s, kg_err *err, int code, int gpret, const char *fmt
 	va_start(ap, fmt);
 	vsnprintf(what, sizeof(what), fmt, ap);
 	va_end(ap);
-	const char *port_msg = s->cam && s->cam->port ? gp_port_get_error(s->cam->port) : NULL;
+	const char *port_msg =
+		s->opening && s->cam && s->cam->port ? gp_port_get_error(s->cam->port) : NULL;
 	const char *detail = s->gp_error[0] ? s->gp_error : NULL;
 	if (!detail && port_msg && *port_msg && strcmp(port_msg, "No error description available"))
 		detail = port_msg;
@@ -660,8 +663,13 @@ static int gp2_open(const char *target, void **state, kg_camera_info *info, kg_e
 		             s->port);
 		goto error;
 	}
-	if ((gpret = gp_camera_init(s->cam, s->ctx)) < GP_OK) {
+	s->opening = 1;
+	gpret = gp_camera_init(s->cam, s->ctx);
+	s->opening = 0;
+	if (gpret < GP_OK) {
+		s->opening = 1;
 		ret = open_error(s, gpret, err);
+		s->opening = 0;
 		gp_camera_free(s->cam);
 		s->cam = NULL;
 		goto error;
@@ -1037,28 +1045,48 @@ int kg_gphoto2_last_file(kg_camera *c, const void **data, size_t *size, const ch
 
 /* ---- enumeration -------------------------------------------------------------- */
 
-/* 1 when the I/O libraries listed a PTP/IP or IP port beyond their fixed entries
- * ("ptpip:", "^ptpip:", "ip:", "^ip:"): what a Bonjour-enabled ptpip library adds after
- * browsing the network. */
-static int lists_network_ports(GPPortInfoList *ports)
+/* 1 when libgphoto2_port's ptpip I/O library links libdns_sd (Bonjour: it browses the
+ * network while listing ports). The library's folder: $IOLIBS as libgphoto2_port reads
+ * it, else where it was built to look. */
+static int ptpip_browses(void)
 {
-	int n = gp_port_info_list_count(ports);
-	for (int i = 0; i < n; i++) {
-		GPPortInfo pi;
-		GPPortType t;
-		char *path = NULL;
-		if (gp_port_info_list_get_info(ports, i, &pi) < GP_OK ||
-		    gp_port_info_get_type(pi, &t) < GP_OK || gp_port_info_get_path(pi, &path) < GP_OK)
-			continue;
-		if ((t == GP_PORT_PTPIP || t == GP_PORT_IP) && path && strcmp(path, "ptpip:") &&
-		    strcmp(path, "^ptpip:") && strcmp(path, "ip:") && strcmp(path, "^ip:"))
-			return 1;
+	const char *dir = getenv("IOLIBS");
+	if (!dir || !*dir)
+		dir = KG_GP_IOLIB_DIR;
+	char path[1024];
+	snprintf(path, sizeof(path), "%s/ptpip.so", dir);
+	FILE *f = fopen(path, "rb");
+	if (!f)
+		return 0;
+	static const char needle[] = "libdns_sd";
+	size_t k = sizeof(needle) - 1, have = 0;
+	char buf[65536 + sizeof(needle)];
+	int hit = 0;
+	for (;;) {
+		size_t n = fread(buf + have, 1, sizeof(buf) - have, f);
+		if (!n)
+			break;
+		have += n;
+		for (size_t i = 0; i + k <= have && !hit; i++)
+			hit = !memcmp(buf + i, needle, k);
+		if (hit)
+			break;
+		/* keep the tail: a match may straddle two reads */
+		memmove(buf, buf + have - (k - 1), k - 1);
+		have = k - 1;
 	}
-	return 0;
+	fclose(f);
+	return hit;
 }
 
 static int gp2_enumerate(kg_camera_found_fn found, void *user, kg_err *err)
 {
+	const char *disc = getenv("KOGEI_CAMERA_DISCOVERY");
+	if (disc && !strcmp(disc, "none") && ptpip_browses())
+		return kg_fail(err, KG_ENOTSUP,
+		               "not scanned: this libgphoto2 browses the network (mDNS) for PTP/IP "
+		               "cameras and network discovery is off (KOGEI_CAMERA_DISCOVERY=none); "
+		               "open USB cameras by port: gphoto2:usb:BBB,DDD");
 	gp_state s;
 	memset(&s, 0, sizeof(s));
 	s.ctx = gp_context_new();
@@ -1070,14 +1098,6 @@ static int gp2_enumerate(kg_camera_found_fn found, void *user, kg_err *err)
 	if (ret) {
 		gp_context_unref(s.ctx);
 		return ret;
-	}
-	const char *disc = getenv("KOGEI_CAMERA_DISCOVERY");
-	if (disc && !strcmp(disc, "none") && lists_network_ports(l.ports)) {
-		lists_free(&l);
-		gp_context_unref(s.ctx);
-		return kg_fail(err, KG_ENOTSUP,
-		               "not scanned: this libgphoto2 browses the network for PTP/IP cameras "
-		               "and network discovery is off (KOGEI_CAMERA_DISCOVERY=none)");
 	}
 	int count = gp_list_count(l.found);
 	for (int i = 0; i < count; i++) {

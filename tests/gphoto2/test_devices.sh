@@ -8,6 +8,8 @@
 # 3. with the synthesised PTP camera of make_ptp_replay.py in the testbed, `kogei
 #    devices` lists it as gphoto2:USB PTP Class Camera at usb:001,002 (autodetection
 #    reads the device descriptors only: no transfer is made)
+# 4. a libgphoto2 whose ptpip library would browse mDNS is not scanned with
+#    KOGEI_CAMERA_DISCOVERY=none
 set -u
 kogei=$1 test=$2
 here=$(cd "$(dirname "$0")" && pwd)
@@ -43,5 +45,13 @@ if command -v umockdev-run >/dev/null 2>&1 && command -v python3 >/dev/null 2>&1
 else
 	echo "SKIP (part 3): umockdev-run or python3 missing"
 fi
+echo "a libgphoto2 whose ptpip I/O library links libdns_sd (Bonjour) is not scanned with"
+echo "KOGEI_CAMERA_DISCOVERY=none (a stand-in library in IOLIBS; nothing is loaded)"
+mkdir "$tmp/iolibs"
+printf 'stand-in: NEEDED libdns_sd.so.1\n' >"$tmp/iolibs/ptpip.so"
+IOLIBS="$tmp/iolibs" timeout 60 "$kogei" devices >"$tmp/devices3" 2>&1 </dev/null
+grep '^  gphoto2: ' "$tmp/devices3" | sed 's/^/  /'
+grep -q '^  gphoto2: not scanned: .*mDNS' "$tmp/devices3" ||
+	{ echo "FAIL: no note that gphoto2 was not scanned"; fail=1; }
 [ "$fail" -eq 0 ] && echo "all checks passed"
 exit $fail
