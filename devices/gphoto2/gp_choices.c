@@ -7,6 +7,9 @@
 #include <string.h>
 #include <strings.h>
 
+#include <gphoto2/gphoto2-port-result.h>
+#include <gphoto2/gphoto2-result.h>
+
 #include "gp_choices.h"
 
 static const char *skip_space(const char *p)
@@ -232,6 +235,46 @@ int kg_gp_program_is_manual(const char *text)
 	const char *p = skip_space(text);
 	return !strcasecmp(p, "M") || !strcasecmp(p, "Manual") || !strcasecmp(p, "Bulb") ||
 	       !strcasecmp(p, "Manual (M)");
+}
+
+int kg_gp_open_error(const char *model, const char *port, const char *node, int denied,
+                     int gpret, const char *gp_text, const char *detail, kg_err *err)
+{
+	char why[640];
+	snprintf(why, sizeof(why), "%s%s%s", gp_text ? gp_text : "error", detail ? ": " : "",
+	         detail ? detail : "");
+	if (denied)
+		return kg_fail(err, KG_EIO,
+		               "camera %s at %s: no permission to use %s; install libgphoto2's udev "
+		               "rules (Debian/Ubuntu package libgphoto2-6, which puts its "
+		               "*-libgphoto2*.rules in the udev rules directory), then replug the "
+		               "camera",
+		               model, port, node);
+	switch (gpret) {
+	case GP_ERROR_IO_USB_CLAIM:
+	case GP_ERROR_IO_LOCK:
+	case GP_ERROR_CAMERA_BUSY:
+		return kg_fail(err, KG_EIO,
+		               "camera %s at %s is held by another program: close it (a desktop file "
+		               "manager or gvfs-gphoto2-volume-monitor often holds cameras; `gio "
+		               "mount -s gphoto2` releases them) and try again (%s)",
+		               model, port, why);
+	case GP_ERROR_IO_USB_FIND:
+		return kg_fail(err, KG_ENODEV,
+		               "camera %s at %s: cannot find or access the USB device; if it is "
+		               "attached, install libgphoto2's udev rules (package libgphoto2-6) so "
+		               "that you may use it (%s)",
+		               model, port, why);
+	case GP_ERROR_MODEL_NOT_FOUND:
+	case GP_ERROR_IO_INIT:
+	case GP_ERROR_IO:
+		return kg_fail(err, KG_ENODEV,
+		               "camera %s at %s does not answer (unplugged, switched off or asleep?) "
+		               "(%s)",
+		               model, port, why);
+	default:
+		return kg_fail(err, KG_EIO, "camera %s at %s: cannot open (%s)", model, port, why);
+	}
 }
 
 void kg_gp_to_bayer16(const float *in, size_t n, uint8_t *out)

@@ -1,4 +1,4 @@
-/* The pure parts of the gphoto2 backend (no libgphoto2 here, unit-tested on their own in
+/* The pure parts of the gphoto2 backend (of libgphoto2 only its result codes; unit-tested in
  * tests/gphoto2): the camera's choice strings of its radio/menu settings read as numbers,
  * the exact choice for a value (or the nearest ones in the error), raw image formats and
  * file names, exposure programs, and the raw image to a 16-bit Bayer frame. */
@@ -41,6 +41,15 @@ int kg_gp_is_raw_name(const char *name);
 /* 1 when an exposure program choice is manual ("M", "Manual", "Bulb"), where the
  * camera does not choose the exposure itself. */
 int kg_gp_program_is_manual(const char *text);
+
+/* The error of a camera that could not be opened (gp_camera_init failed with gpret,
+ * gp_text its name, detail libgphoto2's own message or NULL): permission denied on the
+ * USB device node (denied: node exists and cannot be opened read-write for want of
+ * permission) -> install libgphoto2's udev rules; the interface claimed by another
+ * program -> close it (gvfs, `gio mount -s gphoto2`); device gone -> KG_ENODEV;
+ * anything else KG_EIO. Each message names the camera and its port. */
+int kg_gp_open_error(const char *model, const char *port, const char *node, int denied,
+                     int gpret, const char *gp_text, const char *detail, kg_err *err);
 
 /* A decoded raw (1 channel, values (raw-black)/(white-black)) to BAYER16 samples:
  * round(clamp(v, 0, 1) * 65535) as little-endian 16-bit words, n samples (2n bytes);

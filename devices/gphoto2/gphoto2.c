@@ -69,7 +69,6 @@ typedef struct gp_state {
 	char saved[4096]; /* where the last file was saved, "" when not */
 	char note[512];   /* how the last file was decoded */
 	char gp_error[512]; /* the last error libgphoto2 reported through the context */
-	int opening;        /* the port's own error text is about this open */
 	feat feats[KG_FEAT_COUNT];
 
 	kg_frame_format fmt;
@@ -108,11 +107,7 @@ static int gpfail(gp_state *s, kg_err *err, int code, int gpret, const char *fmt
 	va_start(ap, fmt);
 	vsnprintf(what, sizeof(what), fmt, ap);
 	va_end(ap);
-	const char *port_msg =
-		s->opening && s->cam && s->cam->port ? gp_port_get_error(s->cam->port) : NULL;
 	const char *detail = s->gp_error[0] ? s->gp_error : NULL;
-	if (!detail && port_msg && *port_msg && strcmp(port_msg, "No error description available"))
-		detail = port_msg;
 	int ret = kg_fail(err, code, "%s: %s%s%s", what, gp_result_as_string(gpret),
 	                  detail ? ": " : "", detail ? detail : "");
 	s->gp_error[0] = 0;
@@ -133,38 +128,15 @@ static int open_error(gp_state *s, int gpret, kg_err *err)
 {
 	char node[64];
 	usb_node(s->port, node, sizeof(node));
-	if (node[0] && access(node, R_OK | W_OK) && errno == EACCES)
-		return kg_fail(err, KG_EIO,
-		               "camera %s at %s: no permission to use %s; install libgphoto2's "
-		               "udev rules (Debian/Ubuntu package libgphoto2-6, the "
-		               "*-libgphoto2*.rules in the udev rules directory), then replug the "
-		               "camera",
-		               s->model, s->port, node);
-	switch (gpret) {
-	case GP_ERROR_IO_USB_CLAIM:
-	case GP_ERROR_IO_LOCK:
-	case GP_ERROR_CAMERA_BUSY:
-		return gpfail(s, err, KG_EIO, gpret,
-		              "camera %s at %s is held by another program: close it (a desktop file "
-		              "manager or gvfs-gphoto2-volume-monitor often holds cameras; `gio "
-		              "mount -s gphoto2` releases them) and try again",
-		              s->model, s->port);
-	case GP_ERROR_IO_USB_FIND:
-		return gpfail(s, err, KG_ENODEV, gpret,
-		              "camera %s at %s: cannot find or access the USB device; if it is "
-		              "attached, install libgphoto2's udev rules (package libgphoto2-6) so "
-		              "that you may use it",
-		              s->model, s->port);
-	case GP_ERROR_MODEL_NOT_FOUND:
-	case GP_ERROR_IO_INIT:
-	case GP_ERROR_IO:
-		return gpfail(s, err, KG_ENODEV, gpret,
-		              "camera %s at %s does not answer (unplugged, switched off or asleep?)",
-		              s->model, s->port);
-	default:
-		return gpfail(s, err, KG_EIO, gpret, "camera %s at %s: cannot open", s->model,
-		              s->port);
-	}
+	int denied = node[0] && access(node, R_OK | W_OK) && errno == EACCES;
+	const char *port_msg = s->cam && s->cam->port ? gp_port_get_error(s->cam->port) : NULL;
+	const char *detail = s->gp_error[0] ? s->gp_error : NULL;
+	if (!detail && port_msg && *port_msg && strcmp(port_msg, "No error description available"))
+		detail = port_msg;
+	int ret = kg_gp_open_error(s->model, s->port, node, denied, gpret,
+	                           gp_result_as_string(gpret), detail, err);
+	s->gp_error[0] = 0;
+	return ret;
 }
 
 /* ---- configuration ------------------------------------------------------------ */
@@ -663,13 +635,9 @@ static int gp2_open(const char *target, void **state, kg_camera_info *info, kg_e
 		             s->port);
 		goto error;
 	}
-	s->opening = 1;
 	gpret = gp_camera_init(s->cam, s->ctx);
-	s->opening = 0;
 	if (gpret < GP_OK) {
-		s->opening = 1;
 		ret = open_error(s, gpret, err);
-		s->opening = 0;
 		gp_camera_free(s->cam);
 		s->cam = NULL;
 		goto error;

@@ -155,6 +155,30 @@ int main(void)
 		      want[i]);
 	}
 
+	printf("open errors: permission, another program holding the camera, camera gone\n");
+	ret = kg_gp_open_error("Cam X", "usb:001,007", "/dev/bus/usb/001/007", 1, -7, "I/O problem",
+	                       NULL, &err);
+	printf("  %s\n", err.msg);
+	CHECK(ret == KG_EIO && strstr(err.msg, "Cam X") && strstr(err.msg, "/dev/bus/usb/001/007") &&
+	          strstr(err.msg, "udev rules") && strstr(err.msg, "libgphoto2-6"),
+	      "permission: %d '%s'", ret, err.msg);
+	ret = kg_gp_open_error("Cam X", "usb:001,007", "/dev/bus/usb/001/007", 0, -53,
+	                       "Could not claim the USB device", "Could not claim interface 0",
+	                       &err);
+	printf("  %s\n", err.msg);
+	CHECK(ret == KG_EIO && strstr(err.msg, "Cam X") && strstr(err.msg, "another program") &&
+	          strstr(err.msg, "gvfs-gphoto2-volume-monitor") &&
+	          strstr(err.msg, "gio mount -s gphoto2") && strstr(err.msg, "claim interface 0"),
+	      "claim: %d '%s'", ret, err.msg);
+	ret = kg_gp_open_error("Cam X", "usb:001,007", "", 0, -52, "Could not find the USB device",
+	                       NULL, &err);
+	CHECK(ret == KG_ENODEV && strstr(err.msg, "udev rules"), "find: %d '%s'", ret, err.msg);
+	ret = kg_gp_open_error("Cam X", "usb:001,007", "", 0, -7, "I/O problem", NULL, &err);
+	CHECK(ret == KG_ENODEV && strstr(err.msg, "does not answer") && strstr(err.msg, "Cam X"),
+	      "gone: %d '%s'", ret, err.msg);
+	ret = kg_gp_open_error("Cam X", "ptpip:10.0.0.2", "", 0, -1, "Unspecified error", NULL, &err);
+	CHECK(ret == KG_EIO && strstr(err.msg, "ptpip:10.0.0.2"), "other: %d '%s'", ret, err.msg);
+
 	if (failures)
 		printf("%d check(s) failed\n", failures);
 	else
