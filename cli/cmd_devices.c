@@ -89,7 +89,8 @@ int kg_cmd_devices(int argc, char **argv)
 		       "attached whose ids the drivers know. sim: and replay: cameras are not\n"
 		       "listed: they are opened by URI (docs/cameras.md).\n\n"
 		       "Environment: KOGEI_CAMERA_DISCOVERY=none skips backends that discover\n"
-		       "cameras by broadcasting on the network (aravis: GigE Vision).\n",
+		       "cameras by broadcasting on the network (aravis: GigE Vision; gphoto2 only\n"
+		       "when its libgphoto2 would browse mDNS for PTP/IP cameras).\n",
 		       devices_usage);
 		return KG_EXIT_OK;
 	}

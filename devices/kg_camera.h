@@ -6,6 +6,9 @@
  *   aravis:<id or address>           GigE Vision / USB3 Vision through Aravis
  *                                    (an IP address is opened without discovery)
  *   libcamera:<id>                   libcamera (C++ shim)
+ *   gphoto2:<model or port>[?delete=1&save=DIR]
+ *                                    tethered DSLR / mirrorless camera through
+ *                                    libgphoto2: one raw capture per frame
  *   replay:<session dir>             the raw frames recorded in a session, served back
  *   sim:[<image.tif>][?k=v&...]      a simulated sensor looking at a linear image
  *
