@@ -8,7 +8,8 @@
 # within 0.2 %, labels on 99.5 % of the pixels), so decoding kept the values linear. Then
 # an object shot at half the exposure time and twice the ISO (the same signal) and one
 # at half the light and half the time at f/8 normalise to the same reflectance within
-# 1 %; the manifest names the source files with their sha256 and the decoding; the
+# 1 %; a dark DNG set is subtracted from the captures at its exposure and ISO only; the
+# manifest names the source files with their sha256 and the decoding; the
 # report shows the demosaicing and the raw decoding; a folder mixing exposures and an
 # object from another camera body are refused.
 # usage: test_raw_session.sh KOGEI SOURCE_ROOT MAKE_DNG HAVE_TAGS_AND_DEMOSAIC HAVE_LIBRAW
@@ -42,6 +43,8 @@ for k in 1 2; do
 	dng "$T/object.tif" "$T/shoot/object_$k.dng" --exposure 0.01 || fail=1
 	# half the time at twice the ISO: the same signal
 	dng "$T/object.tif" "$T/shoot/fast_$k.dng" --exposure 0.005 --iso 200 || fail=1
+	# the lens capped: a dark at the chart's and object's settings
+	dng "$T/chart.tif" "$T/shoot/dark_$k.dng" --exposure 0.01 --scale 0 || fail=1
 	# half the light (values halved) in half the time
 	dng "$T/object.tif" "$T/shoot/dim_$k.dng" --exposure 0.005 --scale 0.5 || fail=1
 done
@@ -56,6 +59,7 @@ acq() { # kind pattern name [options]
 	"$KOGEI" acquire --camera "files:$T/$pat" --out "$S" --kind "$kind" --name "$name" "$@" \
 		>"$T/acq.out" 2>"$T/acq.err"
 }
+check "acquire the dark's DNG files" acq dark 'shoot/dark_*.dng' dark
 check "acquire the chart's DNG files" acq chart 'shoot/chart_*.dng' chart --layout cie-tcs-frame
 check "acquire took every file (2 frames)" grep -q "chart: 2 frames, bayer16 RGGB 16 bits" "$T/acq.out"
 check "acquire the object's DNG files" acq object 'shoot/object_*.dng' object
@@ -84,6 +88,9 @@ assert "OpenCV" in c["demosaic"]["algorithm"], c["demosaic"]
 cam = [x for x in d["devices"]["cameras"] if x["id"] == c["camera"]][0]
 assert cam["backend"] == "files" and cam["model"] == "Studio DSLR" and cam["serial"] == "7001", cam
 assert caps["object-fast"]["settings"]["iso"] == 200
+# the dark (ISO 100, 1/100 s) is subtracted from the captures at its settings only
+assert c["corrections"]["dark"] == "dark" and caps["object"]["corrections"]["dark"] == "dark"
+assert caps["object-fast"]["corrections"]["dark"] is None, caps["object-fast"]["corrections"]
 PY
 
 # ---- the same scenes through the sim camera -------------------------------------------
