@@ -7,7 +7,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "kg_acquire.h"
 #include "raw.h"
 #include "cli.h"
 #include "kg_calib.h"
@@ -240,14 +239,8 @@ static int open_raw_photograph(const char *path, kg_row_source *src, kg_err *err
 	int slot = 0;
 	while (slot < 4 && demosaiced[slot])
 		slot++;
-	kg_image *mosaic = NULL;
 	int rc = slot == 4 ? kg_fail(err, KG_EINVAL, "%s: too many raw images", path)
-	                   : kg_image_read(path, &mosaic, err);
-	if (!rc)
-		rc = kg_demosaic(mosaic, &demosaiced[slot], NULL, err);
-	kg_image_free(&mosaic);
-	if (rc)
-		kg_err_prefix(err, "%s", path);
+	                   : kg_cli_read_photograph(path, &demosaiced[slot], err);
 	if (rc)
 		return rc;
 	kg_row_source_of_image(demosaiced[slot], src);
@@ -257,7 +250,7 @@ static int open_raw_photograph(const char *path, kg_row_source *src, kg_err *err
 static int open_image(const char *path, int channels, kg_image_rows **rows,
                       kg_row_source *src, kg_err *err)
 {
-	if (channels == 3 && kg_raw_is_raw(path) && kg_demosaic_algorithm())
+	if (channels == 3 && kg_raw_is_raw(path))
 		return open_raw_photograph(path, src, err);
 	int rc = kg_image_rows_open(path, rows, err);
 	if (rc)

@@ -65,6 +65,21 @@ int kg_cli_split_names(char *text, char **names, int max, int *n)
 	}
 }
 
+int kg_cli_read_photograph(const char *path, kg_image **out, kg_err *err)
+{
+	kg_image *img = NULL;
+	int rc = kg_image_read(path, &img, err);
+	if (rc || img->channels != 1 || !img->cfa || !kg_raw_is_raw(path)) {
+		*out = img;
+		return rc;
+	}
+	rc = kg_demosaic(img, out, NULL, err);
+	kg_image_free(&img);
+	if (rc)
+		kg_err_prefix(err, "%s: demosaicing the raw mosaic", path);
+	return rc;
+}
+
 int kg_cli_image_identity(const char *image, kg_camera_identity *id, kg_err *err)
 {
 	memset(id, 0, sizeof(*id));
