@@ -357,7 +357,7 @@ static int exposure_helper(cap_ctx *c, int timeout_ms, kg_err *err)
 
 /* Why capture cap's settings differ from these (why[0] == 0 when they match). */
 static void settings_differ(const json_t *cap, const kg_frame_format *fmt, double exposure,
-                            double gain, char *why, size_t len)
+                            double gain, double iso, char *why, size_t len)
 {
 	const json_t *st = json_object_get(cap, "settings");
 	const json_t *f = json_object_get(st, "format");
@@ -391,8 +391,16 @@ static void settings_differ(const json_t *cap, const kg_frame_format *fmt, doubl
 	if (!isnan(gain)) {
 		const json_t *g = json_object_get(st, "gain");
 		double gv = json_is_number(g) ? json_number_value(g) : NAN;
-		if (!(fabs(gv - gain) <= 1e-6 * (1 + fabs(gain))))
+		if (!(fabs(gv - gain) <= 1e-6 * (1 + fabs(gain)))) {
 			snprintf(why, len, "gain %.6g, not %.6g", gv, gain);
+			return;
+		}
+	}
+	if (!isnan(iso)) { /* photographic cameras: ISO is their gain */
+		const json_t *g = json_object_get(st, "iso");
+		double gv = json_is_number(g) ? json_number_value(g) : NAN;
+		if (!(fabs(gv - iso) <= 1e-6 * iso))
+			snprintf(why, len, "ISO %.6g, not %.6g", gv, iso);
 	}
 }
 
@@ -443,11 +451,12 @@ static int load_corrections(cap_ctx *c, kg_image **dark, kg_image **flat, kg_err
 	const json_t *dcap = NULL, *fcap = NULL;
 	char why[256];
 	int ret = 0;
+	double iso = read_feature(c, KG_FEAT_ISO);
 	if (o->kind != KG_CAPTURE_DARK && !(o->dark && !strcmp(o->dark, "none"))) {
 		if (o->dark) {
 			if ((ret = find_kind(c, o->dark, "dark", "--dark", &dcap, err)))
 				return ret;
-			settings_differ(dcap, &r->format, r->exposure_us, r->gain, why, sizeof(why));
+			settings_differ(dcap, &r->format, r->exposure_us, r->gain, iso, why, sizeof(why));
 			if (why[0])
 				return kg_fail(err, KG_EINVAL,
 				               "--dark %s: taken with %s; a dark must match the capture's "
@@ -459,14 +468,16 @@ static int load_corrections(cap_ctx *c, kg_image **dark, kg_image **flat, kg_err
 			json_array_foreach(caps, i, cap)
 			{
 				const char *k = json_string_value(json_object_get(cap, "kind"));
-				settings_differ(cap, &r->format, r->exposure_us, r->gain, why, sizeof(why));
+				settings_differ(cap, &r->format, r->exposure_us, r->gain, iso, why, sizeof(why));
 				if (k && !strcmp(k, "dark") && !why[0])
 					dcap = cap; /* the latest wins */
 			}
 			if (!dcap)
 				note(c, "no dark subtracted: the session has no dark capture with exposure "
-				        "%.6g us, gain %.6g, %s %dx%d+%d+%d",
-				     r->exposure_us, r->gain, kg_pixfmt_name(r->format.pixfmt),
+				        "%.6g us, %s %.6g, %s %dx%d+%d+%d",
+				     r->exposure_us, isnan(r->gain) && !isnan(iso) ? "ISO" : "gain",
+				     isnan(r->gain) && !isnan(iso) ? iso : r->gain,
+				     kg_pixfmt_name(r->format.pixfmt),
 				     r->format.width, r->format.height, r->format.offset_x,
 				     r->format.offset_y);
 		}
@@ -477,7 +488,7 @@ static int load_corrections(cap_ctx *c, kg_image **dark, kg_image **flat, kg_err
 			               kg_capture_kind_name(o->kind));
 		if ((ret = find_kind(c, o->flat, "flat", "--flat", &fcap, err)))
 			return ret;
-		settings_differ(fcap, &r->format, NAN, NAN, why, sizeof(why));
+		settings_differ(fcap, &r->format, NAN, NAN, NAN, why, sizeof(why));
 		if (why[0])
 			return kg_fail(err, KG_EINVAL,
 			               "--flat %s: taken with %s; a flat must match the capture's format "

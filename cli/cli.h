@@ -32,6 +32,11 @@ int kg_cli_split_names(char *text, char **names, int max, int *n);
 /* Parse "start:stop:step" (degrees) into a newly allocated list. */
 int kg_cli_parse_range(const char *text, double **values, int *n, kg_err *err);
 
+/* A photograph to estimate or classify: kg_image_read, and a camera raw file's mosaic
+ * demosaiced to RGB (kg_demosaic, as chart detect and process do; refused without
+ * OpenCV). Other images are returned as read. */
+int kg_cli_read_photograph(const char *path, kg_image **out, kg_err *err);
+
 /* The camera identity of an image file inside a kogei session (the capture's camera,
  * pixel format and demosaicing, kg_session_image_identify). An image outside a
  * session gives id->known = 0 and 0; a session that does not list the image's capture

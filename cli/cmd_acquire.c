@@ -147,10 +147,13 @@ static int exit_for(const kg_err *err, int code, int device)
 static void print_summary(const kg_capture_result *r, const kg_capture_options *o,
                           const char *session, int ncaptures)
 {
-	printf("%s: %d frames, %s%s%s %d bits %dx%d+%d+%d, exposure %.6g us, gain %.6g\n", r->name,
+	char gain[48] = "";
+	if (isfinite(r->gain))
+		snprintf(gain, sizeof(gain), ", gain %.6g", r->gain);
+	printf("%s: %d frames, %s%s%s %d bits %dx%d+%d+%d, exposure %.6g us%s\n", r->name,
 	       o->frames, kg_pixfmt_name(r->format.pixfmt), r->format.cfa[0] ? " " : "",
 	       r->format.cfa, r->format.bits, r->format.width, r->format.height,
-	       r->format.offset_x, r->format.offset_y, r->exposure_us, r->gain);
+	       r->format.offset_x, r->format.offset_y, r->exposure_us, gain);
 	if (r->nsteps)
 		printf("  exposure helper: %d step(s), locked at %.6g us (level %.4f, target %.3f)\n",
 		       r->nsteps, r->steps[r->nsteps - 1].exposure_us, r->steps[r->nsteps - 1].level,

@@ -7,6 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "raw.h"
 #include "cli.h"
 #include "kg_calib.h"
 
@@ -223,9 +224,34 @@ static int common_option(int c, const char *usage, kg_apply_options *opt, int *q
 /* An input image opened to be read a band of rows at a time (memory stays bounded
  * whatever its size), with the channels the command needs: 3 for the photograph and
  * its variance, 1 for a mask. */
+/* Camera raw photographs demosaiced whole (as chart detect and process do), held until
+ * the command ends. */
+static kg_image *demosaiced[4];
+
+static void free_demosaiced(void)
+{
+	for (int i = 0; i < 4; i++)
+		kg_image_free(&demosaiced[i]);
+}
+
+static int open_raw_photograph(const char *path, kg_row_source *src, kg_err *err)
+{
+	int slot = 0;
+	while (slot < 4 && demosaiced[slot])
+		slot++;
+	int rc = slot == 4 ? kg_fail(err, KG_EINVAL, "%s: too many raw images", path)
+	                   : kg_cli_read_photograph(path, &demosaiced[slot], err);
+	if (rc)
+		return rc;
+	kg_row_source_of_image(demosaiced[slot], src);
+	return 0;
+}
+
 static int open_image(const char *path, int channels, kg_image_rows **rows,
                       kg_row_source *src, kg_err *err)
 {
+	if (channels == 3 && kg_raw_is_raw(path))
+		return open_raw_photograph(path, src, err);
 	int rc = kg_image_rows_open(path, rows, err);
 	if (rc)
 		return rc;
@@ -361,6 +387,7 @@ int kg_cmd_estimate(int argc, char **argv)
 	}
 	kg_est_kernel_free(&k);
 	kg_image_rows_free(&img);
+	free_demosaiced();
 	kg_camera_calib_free(&cam);
 	return rc ? kg_cli_error(&err, rc) : KG_EXIT_OK;
 }
@@ -668,6 +695,7 @@ int kg_cmd_classify(int argc, char **argv)
 	kg_classify_result_free(&res);
 	kg_est_kernel_free(&k);
 	kg_image_rows_free(&img);
+	free_demosaiced();
 	kg_image_rows_free(&var_img);
 	kg_image_rows_free(&mask_img);
 	kg_image_rows_free(&survey_img);

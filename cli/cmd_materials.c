@@ -60,7 +60,7 @@ static int learn_view(const kg_camera_calib *cam, const char *path, double mean[
                       double cov[9], long *pixels, kg_err *err)
 {
 	kg_image *img = NULL;
-	int rc = kg_image_read(path, &img, err);
+	int rc = kg_cli_read_photograph(path, &img, err);
 	if (rc)
 		return rc;
 	if (img->channels != 3) {

@@ -4,6 +4,7 @@
 #include <string.h>
 #include <sys/stat.h>
 
+#include "raw.h"
 #include "cli.h"
 #include "kg_acquire.h"
 #include "kg_config.h"
@@ -64,12 +65,43 @@ int kg_cli_split_names(char *text, char **names, int max, int *n)
 	}
 }
 
+int kg_cli_read_photograph(const char *path, kg_image **out, kg_err *err)
+{
+	kg_image *img = NULL;
+	int rc = kg_image_read(path, &img, err);
+	if (rc || img->channels != 1 || !img->cfa || !kg_raw_is_raw(path)) {
+		*out = img;
+		return rc;
+	}
+	rc = kg_demosaic(img, out, NULL, err);
+	kg_image_free(&img);
+	if (rc)
+		kg_err_prefix(err, "%s: demosaicing the raw mosaic", path);
+	return rc;
+}
+
 int kg_cli_image_identity(const char *image, kg_camera_identity *id, kg_err *err)
 {
 	memset(id, 0, sizeof(*id));
 	kg_session_image si;
 	kg_err local = {{0}};
 	int ret = kg_session_image_identify(image, &si, &local);
+	if (ret == KG_ENOENT && kg_raw_is_raw(image)) {
+		/* A camera raw file names its camera: the identity a files: capture of it has
+		 * (16-bit frames, the demosaicing chart detect and process use). */
+		kg_raw_meta m;
+		if (kg_raw_read_meta(image, &m, &local))
+			return 0; /* the read itself will say what is wrong */
+		id->known = 1;
+		snprintf(id->backend, sizeof(id->backend), "files");
+		snprintf(id->model, sizeof(id->model), "%s", m.model);
+		snprintf(id->serial, sizeof(id->serial), "%s", m.serial);
+		snprintf(id->pixfmt, sizeof(id->pixfmt), "bayer16");
+		id->white_level = 65535;
+		snprintf(id->demosaic, sizeof(id->demosaic), "%s",
+		         kg_demosaic_algorithm() ? kg_demosaic_algorithm() : "none");
+		return 0;
+	}
 	if (ret == KG_ENOENT)
 		return 0;
 	if (ret)

@@ -71,6 +71,32 @@ static int tiff_has_dng_version(FILE *fp)
 	return 0;
 }
 
+#if HAVE_LIBRAW
+/* A TIFF-based file (DNG, CR2, NEF, ARW, ...) whose first directory or strips lie
+ * beyond its end: cut short in a copy or a download. */
+static int tiff_truncated(const char *path, char *why, size_t n)
+{
+	FILE *fp = fopen(path, "rb");
+	if (!fp)
+		return 0;
+	unsigned char h[8];
+	int cut = 0;
+	long size = fseek(fp, 0, SEEK_END) == 0 ? ftell(fp) : -1;
+	if (size >= 8 && fseek(fp, 0, SEEK_SET) == 0 && fread(h, 1, 8, fp) == 8 &&
+	    ((h[0] == 'I' && h[1] == 'I') || (h[0] == 'M' && h[1] == 'M'))) {
+		uint32_t ifd = get_u(h + 4, 4, h[0] == 'M');
+		if ((long)ifd + 2 > size) {
+			snprintf(why, n, "its TIFF directory at byte %u lies beyond the end of the "
+			         "%ld-byte file", ifd, size);
+			cut = 1;
+		}
+	}
+	fclose(fp);
+	return cut;
+}
+
+#endif
+
 int kg_raw_is_raw(const char *path)
 {
 	if (!path)
@@ -352,8 +378,11 @@ static int run(const char *path, const void *data, size_t size, const char *name
 	                : libraw_open_buffer(j.lr, (void *)(uintptr_t)data, size);
 	int ret;
 	if (code != LIBRAW_SUCCESS) {
+		char why[160];
 		if (path && access(path, F_OK) != 0)
 			ret = kg_fail(err, KG_ENOENT, "%s: cannot open: no such file", name);
+		else if (path && tiff_truncated(path, why, sizeof(why)))
+			ret = kg_fail(err, KG_EINVAL, "%s: truncated or damaged: %s", name, why);
 		else
 			ret = lr_fail(&j, code, err, "cannot read the file's header");
 	} else {

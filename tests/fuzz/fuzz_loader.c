@@ -29,6 +29,7 @@
 #include "kg_optics.h"
 #include "kg_render.h"
 #include "mjpeg.h"
+#include "raw.h"
 
 static const char target_name[] = "fuzz-" KG_FUZZ_LOADER;
 
@@ -179,6 +180,37 @@ static int decode_mjpeg(const uint8_t *data, size_t size, int *obj, kg_err *err)
 	return r;
 }
 
+/* A camera raw file (core/raw.c, LibRaw): from the file and from memory, which must
+ * agree on success and on the samples. */
+static int load_raw(const char *path, int *obj, kg_err *err)
+{
+	kg_image *a = NULL, *b = NULL;
+	kg_raw_meta m;
+	int r = kg_raw_read(path, &a, &m, err);
+	char *bytes = NULL;
+	size_t len = 0;
+	kg_err e2 = { { 0 } };
+	if (kg_read_file(path, &bytes, &len, &e2) == 0) {
+		int r2 = len ? kg_raw_read_memory(bytes, len, "fuzz input", &b, NULL, &e2) : KG_EINVAL;
+		require((r == 0) == (r2 == 0) || r == KG_EINVAL || r2 == KG_EINVAL,
+		        "file and memory decoding disagree");
+		if (!r && !r2)
+			require(a->width == b->width && a->height == b->height &&
+			                !memcmp(a->data, b->data,
+			                        sizeof(float) * (size_t)a->width * (size_t)a->height),
+			        "file and memory decode to different samples");
+		if (r2)
+			require(r2 < 0 && e2.msg[0] && !b, "memory refusal without a message");
+	}
+	free(bytes);
+	*obj = a != NULL;
+	if (a)
+		require(a->channels == 1 && a->cfa && strlen(a->cfa) == 4, "a raw image without its CFA");
+	kg_image_free(&a);
+	kg_image_free(&b);
+	return r;
+}
+
 typedef struct loader {
 	const char *name;
 	const char *leaf; /* where the input goes in the per-run directory */
@@ -193,6 +225,7 @@ static const loader loaders[] = {
 	{ "chart-cht", "layout.cht", 0, load_chart_layout, NULL },
 	{ "scene", "scene.json", 0, load_scene, NULL },
 	{ "image", "image", 0, load_image, NULL },
+	{ "raw", "shot.dng", 0, load_raw, NULL },
 	{ "camera", "camera.json", 0, load_camera, NULL },
 	{ "reference", "reference.json", 0, load_reference, NULL },
 	{ "envi", "cube.hdr", 0, load_envi, NULL },
