@@ -254,6 +254,34 @@ void *kg_camera_driver_state(kg_camera *c, const kg_camera_driver *drv)
 	return c && c->drv == drv ? c->state : NULL;
 }
 
+int kg_camera_target_split(const char *target, char *name, size_t n, const char *usage,
+                           kg_camera_option_fn option, void *user, kg_err *err)
+{
+	const char *q = strchr(target, '?');
+	size_t len = q ? (size_t)(q - target) : strlen(target);
+	if (!len || len >= n)
+		return kg_fail(err, KG_EINVAL, "expected %s, got '%s'", usage, target);
+	memcpy(name, target, len);
+	name[len] = 0;
+	for (const char *p = q ? q + 1 : NULL; p && *p;) {
+		const char *amp = strchr(p, '&');
+		size_t plen = amp ? (size_t)(amp - p) : strlen(p);
+		char kv[1024];
+		if (plen >= sizeof(kv))
+			return kg_fail(err, KG_EINVAL, "option '%.*s...': too long", 32, p);
+		memcpy(kv, p, plen);
+		kv[plen] = 0;
+		char *eq = strchr(kv, '=');
+		if (eq)
+			*eq = 0;
+		int ret = option(user, kv, eq ? eq + 1 : NULL, err);
+		if (ret)
+			return ret;
+		p = amp ? amp + 1 : NULL;
+	}
+	return 0;
+}
+
 long kg_camera_frames_available(kg_camera *c)
 {
 	return c && c->drv->frames_available ? c->drv->frames_available(c->state) : -1;

@@ -60,6 +60,15 @@ void kg_rec_frame_clear(kg_rec_frame *fr);
 int kg_rec_read_camera(const char *frames_dir, kg_camera_info *info, kg_frame_format *fmt0,
                        kg_err *err);
 
+/* Split a driver's target NAME[?key=value&key=value...]: NAME into name (size n), then
+ * option(user, key, value) for each option in order (value NULL when it has no '=').
+ * A missing or too long NAME is KG_EINVAL with "expected <usage>, got '<target>'"; an
+ * option's own error stops the scan. */
+typedef int (*kg_camera_option_fn)(void *user, const char *key, const char *value,
+                                   kg_err *err);
+int kg_camera_target_split(const char *target, char *name, size_t n, const char *usage,
+                           kg_camera_option_fn option, void *user, kg_err *err);
+
 extern const kg_camera_driver kg_camera_sim_driver;
 extern const kg_camera_driver kg_camera_replay_driver;
 extern const kg_camera_driver kg_camera_files_driver;

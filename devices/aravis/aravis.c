@@ -526,42 +526,24 @@ static int parse_bytes(const char *key, const char *v, long lo, long hi, int *ou
 	return 0;
 }
 
+static int arv_option(void *user, const char *key, const char *value, kg_err *err)
+{
+	arv_state *s = user;
+	if (value && !strcmp(key, "packet_size"))
+		return parse_bytes(key, value, 576, 65500, &s->packet_size, err);
+	if (value && !strcmp(key, "socket_buffer"))
+		return parse_bytes(key, value, 4096, 1L << 30, &s->socket_buffer, err);
+	return kg_fail(err, KG_EINVAL,
+	               "option '%s': expected packet_size=BYTES or socket_buffer=BYTES", key);
+}
+
 /* target = NAME[?key=value&...]; name is copied into name (size n). */
 static int parse_target(arv_state *s, const char *target, char *name, size_t n, kg_err *err)
 {
-	const char *q = strchr(target, '?');
-	size_t len = q ? (size_t)(q - target) : strlen(target);
-	if (!len || len >= n)
-		return kg_fail(err, KG_EINVAL,
-		               "expected aravis:<IPv4 address or device id>[?packet_size=N&"
-		               "socket_buffer=N], got '%s'",
-		               target);
-	memcpy(name, target, len);
-	name[len] = 0;
-	for (const char *p = q ? q + 1 : NULL; p && *p;) {
-		const char *amp = strchr(p, '&');
-		size_t plen = amp ? (size_t)(amp - p) : strlen(p);
-		char kv[128];
-		if (plen >= sizeof(kv))
-			return kg_fail(err, KG_EINVAL, "option '%.*s': too long", (int)plen, p);
-		memcpy(kv, p, plen);
-		kv[plen] = 0;
-		char *eq = strchr(kv, '=');
-		int ret;
-		if (eq)
-			*eq = 0;
-		if (eq && !strcmp(kv, "packet_size"))
-			ret = parse_bytes(kv, eq + 1, 576, 65500, &s->packet_size, err);
-		else if (eq && !strcmp(kv, "socket_buffer"))
-			ret = parse_bytes(kv, eq + 1, 4096, 1L << 30, &s->socket_buffer, err);
-		else
-			ret = kg_fail(err, KG_EINVAL,
-			              "option '%s': expected packet_size=BYTES or socket_buffer=BYTES", kv);
-		if (ret)
-			return ret;
-		p = amp ? amp + 1 : NULL;
-	}
-	return 0;
+	return kg_camera_target_split(target, name, n,
+	                              "aravis:<IPv4 address or device id>[?packet_size=N&"
+	                              "socket_buffer=N]",
+	                              arv_option, s, err);
 }
 
 /* The local address the kernel would send from to reach addr. connect() on a UDP

@@ -127,7 +127,7 @@ int kg_gp_choice_range(kg_feature f, const char *const *choices, int n, double *
 	return count;
 }
 
-static const char *unit_of(kg_feature f)
+const char *kg_gp_unit(kg_feature f)
 {
 	switch (f) {
 	case KG_FEAT_EXPOSURE_US:
@@ -139,7 +139,7 @@ static const char *unit_of(kg_feature f)
 	case KG_FEAT_FOCAL_LENGTH:
 		return "mm";
 	default:
-		return "";
+		return "bool";
 	}
 }
 
@@ -168,7 +168,7 @@ int kg_gp_choice_pick(kg_feature f, const char *config, const char *const *choic
 			va = v;
 		}
 	}
-	const char *unit = unit_of(f);
+	const char *unit = kg_gp_unit(f);
 	if (below < 0 && above < 0)
 		return kg_fail(err, KG_ENOTSUP, "%s offers no numeric choice for %s", config,
 		               kg_feature_name(f));

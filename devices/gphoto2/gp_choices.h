@@ -18,6 +18,8 @@
  * 1 with *value set when the text is such a number, 0 for anything else ("Auto",
  * "Bulb", "Time", "x 250", "implicit auto", ""), which no number can select. */
 int kg_gp_choice_value(kg_feature f, const char *text, double *value);
+/* The unit kogei gives a feature: "us", "ISO", "f", "mm"; "bool" for the others. */
+const char *kg_gp_unit(kg_feature f);
 
 /* Numeric choices among n: how many, and their smallest and largest value (0 and 0
  * when none). */

@@ -223,22 +223,6 @@ static void resolve_features(gp_state *s)
 	}
 }
 
-static const char *unit_of(kg_feature f)
-{
-	switch (f) {
-	case KG_FEAT_EXPOSURE_US:
-		return "us";
-	case KG_FEAT_ISO:
-		return "ISO";
-	case KG_FEAT_APERTURE:
-		return "f";
-	case KG_FEAT_FOCAL_LENGTH:
-		return "mm";
-	default:
-		return "bool";
-	}
-}
-
 static int gp2_feature_info(void *state, kg_feature kf, kg_feature_info *out, kg_err *err)
 {
 	gp_state *s = state;
@@ -254,7 +238,7 @@ static int gp2_feature_info(void *state, kg_feature kf, kg_feature_info *out, kg
 	out->writable = !ro && f->kind != K_TEXT && f->kind != K_RANGE;
 	if (kf == KG_FEAT_FOCAL_LENGTH)
 		out->writable = 0; /* a zoom ring is turned by hand */
-	snprintf(out->unit, sizeof(out->unit), "%s", unit_of(kf));
+	snprintf(out->unit, sizeof(out->unit), "%s", kg_gp_unit(kf));
 	snprintf(out->native, sizeof(out->native), "%s", f->name);
 	out->step = 0;
 	int ret = 0;
@@ -417,40 +401,35 @@ static int check_raw_format(gp_state *s, int strict, kg_err *err)
 
 /* ---- open and close ----------------------------------------------------------- */
 
+static int gp_option(void *user, const char *key, const char *value, kg_err *err)
+{
+	gp_state *s = user;
+	if (value && !strcmp(key, "delete") && (!strcmp(value, "0") || !strcmp(value, "1"))) {
+		s->delete_after = value[0] == '1';
+		return 0;
+	}
+	if (value && !strcmp(key, "save") && value[0]) {
+		free(s->save_dir);
+		s->save_dir = strdup(value);
+		if (!s->save_dir)
+			return kg_fail(err, KG_ENOMEM, "out of memory");
+		struct stat st;
+		if (stat(s->save_dir, &st) || !S_ISDIR(st.st_mode) || access(s->save_dir, W_OK))
+			return kg_fail(err, KG_EINVAL,
+			               "option save=%s: expected an existing folder kogei may write to",
+			               s->save_dir);
+		return 0;
+	}
+	return kg_fail(err, KG_EINVAL, "option '%s%s%s': expected delete=0, delete=1 or save=DIR",
+	               key, value ? "=" : "", value ? value : "");
+}
+
 static int parse_target(gp_state *s, const char *target, char *name, size_t n, kg_err *err)
 {
-	const char *q = strchr(target, '?');
-	size_t len = q ? (size_t)(q - target) : strlen(target);
-	if (!len || len >= n)
-		return kg_fail(err, KG_EINVAL,
-		               "expected gphoto2:<model or port>[?delete=0|1&save=DIR], got '%s' (see "
-		               "`kogei devices`)",
-		               target);
-	memcpy(name, target, len);
-	name[len] = 0;
-	for (const char *p = q ? q + 1 : NULL; p && *p;) {
-		const char *amp = strchr(p, '&');
-		size_t plen = amp ? (size_t)(amp - p) : strlen(p);
-		if (plen == 8 && (!strncmp(p, "delete=0", 8) || !strncmp(p, "delete=1", 8)))
-			s->delete_after = p[7] == '1';
-		else if (plen > 5 && !strncmp(p, "save=", 5)) {
-			free(s->save_dir);
-			s->save_dir = strndup(p + 5, plen - 5);
-			if (!s->save_dir)
-				return kg_fail(err, KG_ENOMEM, "out of memory");
-			struct stat st;
-			if (stat(s->save_dir, &st) || !S_ISDIR(st.st_mode) || access(s->save_dir, W_OK))
-				return kg_fail(err, KG_EINVAL,
-				               "option save=%s: expected an existing folder kogei may "
-				               "write to",
-				               s->save_dir);
-		} else
-			return kg_fail(err, KG_EINVAL,
-			               "option '%.*s': expected delete=0, delete=1 or save=DIR",
-			               (int)plen, p);
-		p = amp ? amp + 1 : NULL;
-	}
-	return 0;
+	return kg_camera_target_split(target, name, n,
+	                              "gphoto2:<model or port>[?delete=0|1&save=DIR] (see "
+	                              "`kogei devices`)",
+	                              gp_option, s, err);
 }
 
 static int is_port(const char *name)

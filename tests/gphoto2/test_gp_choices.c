@@ -7,18 +7,8 @@
 #include <string.h>
 
 #include "gp_choices.h"
+#include "kg_test.h"
 
-static int failures;
-
-#define CHECK(cond, ...)                                                               \
-	do {                                                                               \
-		if (!(cond)) {                                                                 \
-			printf("FAIL %s:%d: ", __FILE__, __LINE__);                                \
-			printf(__VA_ARGS__);                                                       \
-			printf("\n");                                                              \
-			failures++;                                                                \
-		}                                                                              \
-	} while (0)
 
 /* text must read as want (relative 1e-9), or not at all when want is NAN */
 static void value_is(kg_feature f, const char *text, double want)
@@ -179,9 +169,9 @@ int main(void)
 	ret = kg_gp_open_error("Cam X", "ptpip:10.0.0.2", "", 0, -1, "Unspecified error", NULL, &err);
 	CHECK(ret == KG_EIO && strstr(err.msg, "ptpip:10.0.0.2"), "other: %d '%s'", ret, err.msg);
 
-	if (failures)
-		printf("%d check(s) failed\n", failures);
+	if (kg_test_failures)
+		printf("%d check(s) failed\n", kg_test_failures);
 	else
 		printf("all checks passed\n");
-	return failures ? 1 : 0;
+	return kg_test_failures ? 1 : 0;
 }

@@ -10,18 +10,8 @@
 #include <string.h>
 
 #include "kg_camera.h"
+#include "kg_test.h"
 
-static int failures;
-
-#define CHECK(cond, ...)                                                               \
-	do {                                                                               \
-		if (!(cond)) {                                                                 \
-			printf("FAIL %s:%d: ", __FILE__, __LINE__);                                \
-			printf(__VA_ARGS__);                                                       \
-			printf("\n");                                                              \
-			failures++;                                                                \
-		}                                                                              \
-	} while (0)
 
 typedef struct seen {
 	int cameras, notes, bad;
@@ -113,9 +103,9 @@ int main(int argc, char **argv)
 		fprintf(stderr, "usage: test_gphoto2 enumerate none|any | open-errors\n");
 		return 2;
 	}
-	if (failures)
-		printf("%d check(s) failed\n", failures);
+	if (kg_test_failures)
+		printf("%d check(s) failed\n", kg_test_failures);
 	else
 		printf("all checks passed\n");
-	return failures ? 1 : 0;
+	return kg_test_failures ? 1 : 0;
 }

@@ -23,18 +23,8 @@
 #include "gphoto2_private.h"
 #include "kg_camera.h"
 #include "raw.h"
+#include "kg_test.h"
 
-static int failures;
-
-#define CHECK(cond, ...)                                                               \
-	do {                                                                               \
-		if (!(cond)) {                                                                 \
-			printf("FAIL %s:%d: ", __FILE__, __LINE__);                                \
-			printf(__VA_ARGS__);                                                       \
-			printf("\n");                                                              \
-			failures++;                                                                \
-		}                                                                              \
-	} while (0)
 
 /* ---- expectations -------------------------------------------------------------- */
 
@@ -308,9 +298,9 @@ int main(int argc, char **argv)
 		config();
 	else
 		capture(argv[2], argv[3]);
-	if (failures)
-		printf("%d check(s) failed\n", failures);
+	if (kg_test_failures)
+		printf("%d check(s) failed\n", kg_test_failures);
 	else
 		printf("all checks passed\n");
-	return failures ? 1 : 0;
+	return kg_test_failures ? 1 : 0;
 }
