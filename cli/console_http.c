@@ -1,0 +1,600 @@
+/* kogei console: the HTTP server (libmicrohttpd), its security rules and the files it
+ * serves (docs/console.md, "Security"). */
+#include <arpa/inet.h>
+#include <errno.h>
+#include <fcntl.h>
+#include <getopt.h>
+#include <math.h>
+#include <signal.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/random.h>
+#include <sys/stat.h>
+#include <time.h>
+#include <unistd.h>
+
+#include <microhttpd.h>
+
+#include "cli.h"
+#include "console.h"
+
+#define MAX_BODY 65536
+
+double console_now(void)
+{
+	struct timespec ts;
+	clock_gettime(CLOCK_MONOTONIC, &ts);
+	return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+/* ---- responses ------------------------------------------------------------------ */
+
+static enum MHD_Result send_buf(struct MHD_Connection *conn, unsigned status, const char *type,
+                                const void *data, size_t size, int copy)
+{
+	struct MHD_Response *r = MHD_create_response_from_buffer(
+		size, (void *)data, copy ? MHD_RESPMEM_MUST_COPY : MHD_RESPMEM_MUST_FREE);
+	if (!r)
+		return MHD_NO;
+	MHD_add_response_header(r, "Content-Type", type);
+	MHD_add_response_header(r, "Cache-Control", "no-store");
+	MHD_add_response_header(r, "X-Content-Type-Options", "nosniff");
+	MHD_add_response_header(r, "Referrer-Policy", "no-referrer");
+	MHD_add_response_header(r, "Content-Security-Policy",
+	                        "default-src 'self'; img-src 'self' data: blob:; style-src 'self' "
+	                        "'unsafe-inline'; frame-ancestors 'self'");
+	enum MHD_Result ret = MHD_queue_response(conn, status, r);
+	MHD_destroy_response(r);
+	return ret;
+}
+
+static enum MHD_Result send_json(struct MHD_Connection *conn, unsigned status, json_t *j)
+{
+	char *text = j ? json_dumps(j, JSON_COMPACT) : NULL;
+	json_decref(j);
+	if (!text)
+		return send_buf(conn, 500, "text/plain", "out of memory\n", 14, 1);
+	return send_buf(conn, status, "application/json", text, strlen(text), 0);
+}
+
+static enum MHD_Result send_error(struct MHD_Connection *conn, unsigned status,
+                                  const char *fmt, ...) KG_PRINTF(3, 4);
+static enum MHD_Result send_error(struct MHD_Connection *conn, unsigned status,
+                                  const char *fmt, ...)
+{
+	char msg[1024];
+	va_list ap;
+	va_start(ap, fmt);
+	vsnprintf(msg, sizeof(msg), fmt, ap);
+	va_end(ap);
+	return send_json(conn, status, json_pack("{s:s}", "error", msg));
+}
+
+/* ---- files ---------------------------------------------------------------------- */
+
+static const char *type_of(const char *path)
+{
+	static const char *const types[][2] = {
+		{".html", "text/html; charset=utf-8"}, {".json", "application/json"},
+		{".png", "image/png"}, {".css", "text/css"}, {".js", "text/javascript"},
+		{".tif", "image/tiff"}, {".txt", "text/plain; charset=utf-8"},
+		{".cgats", "text/plain; charset=utf-8"}, {".jsonl", "text/plain; charset=utf-8"},
+	};
+	const char *dot = strrchr(path, '.');
+	for (size_t i = 0; dot && i < sizeof(types) / sizeof(types[0]); i++)
+		if (!strcmp(dot, types[i][0]))
+			return types[i][1];
+	return "application/octet-stream";
+}
+
+/* A relative path the console may serve from below a directory: components of
+ * [A-Za-z0-9._+-] only, none empty, "." or "..", none starting with a dot. */
+static int rel_path_ok(const char *rel)
+{
+	if (!*rel || strlen(rel) > 1024)
+		return 0;
+	const char *p = rel;
+	while (*p) {
+		const char *end = strchr(p, '/');
+		size_t n = end ? (size_t)(end - p) : strlen(p);
+		if (n == 0 || p[0] == '.')
+			return 0;
+		for (size_t i = 0; i < n; i++) {
+			char ch = p[i];
+			if (!((ch >= 'a' && ch <= 'z') || (ch >= 'A' && ch <= 'Z') ||
+			      (ch >= '0' && ch <= '9') || ch == '.' || ch == '_' || ch == '-' ||
+			      ch == '+'))
+				return 0;
+		}
+		p += n;
+		if (*p == '/')
+			p++;
+		else
+			break;
+	}
+	return rel[strlen(rel) - 1] != '/';
+}
+
+/* Serve base/rel when it resolves (symbolic links followed) to a regular file inside
+ * base resolved. */
+static enum MHD_Result send_file(struct MHD_Connection *conn, const char *base,
+                                 const char *rel)
+{
+	if (!rel_path_ok(rel))
+		return send_error(conn, 403, "'%s': refused (only plain relative paths inside the "
+		                  "directory are served)", rel);
+	char root[PATH_MAX], path[PATH_MAX * 2], real[PATH_MAX];
+	if (!realpath(base, root))
+		return send_error(conn, 404, "'%s': not there yet", rel);
+	snprintf(path, sizeof(path), "%s/%s", root, rel);
+	if (!realpath(path, real))
+		return send_error(conn, 404, "'%s': no such file", rel);
+	size_t n = strlen(root);
+	if (strncmp(real, root, n) || real[n] != '/')
+		return send_error(conn, 403, "'%s': refused (it leads outside the directory)", rel);
+	int fd = open(real, O_RDONLY | O_CLOEXEC);
+	struct stat st;
+	if (fd < 0 || fstat(fd, &st) || !S_ISREG(st.st_mode)) {
+		if (fd >= 0)
+			close(fd);
+		return send_error(conn, 404, "'%s': not a readable file", rel);
+	}
+	struct MHD_Response *r = MHD_create_response_from_fd((uint64_t)st.st_size, fd);
+	if (!r) {
+		close(fd);
+		return MHD_NO;
+	}
+	MHD_add_response_header(r, "Content-Type", type_of(real));
+	MHD_add_response_header(r, "Cache-Control", "no-store");
+	MHD_add_response_header(r, "X-Content-Type-Options", "nosniff");
+	enum MHD_Result ret = MHD_queue_response(conn, 200, r);
+	MHD_destroy_response(r);
+	return ret;
+}
+
+/* ---- security -------------------------------------------------------------------- */
+
+static int token_ok(const console *c, const char *given)
+{
+	if (!given || strlen(given) != strlen(c->token))
+		return 0;
+	unsigned char d = 0;
+	for (size_t i = 0; c->token[i]; i++)
+		d |= (unsigned char)(given[i] ^ c->token[i]);
+	return d == 0;
+}
+
+/* The Host header names this server: the listen address and port (or localhost for a
+ * loopback address); a wildcard address accepts any host (the token is required). */
+static int host_ok(const console *c, const char *host)
+{
+	if (!host)
+		return 0;
+	if (!strcmp(c->host, "0.0.0.0") || !strcmp(c->host, "::"))
+		return 1;
+	char want[128];
+	if (strchr(c->host, ':'))
+		snprintf(want, sizeof(want), "[%s]:%d", c->host, c->port);
+	else
+		snprintf(want, sizeof(want), "%s:%d", c->host, c->port);
+	if (!strcmp(host, want))
+		return 1;
+	snprintf(want, sizeof(want), "localhost:%d", c->port);
+	return (!strcmp(c->host, "127.0.0.1") || !strcmp(c->host, "::1")) && !strcmp(host, want);
+}
+
+/* ---- requests --------------------------------------------------------------------- */
+
+typedef struct request {
+	char *body;
+	size_t size;
+	int too_big;
+} request;
+
+static double qnum(struct MHD_Connection *conn, const char *key, double dflt)
+{
+	const char *v = MHD_lookup_connection_value(conn, MHD_GET_ARGUMENT_KIND, key);
+	char *end;
+	double x = v ? strtod(v, &end) : dflt;
+	return v && (*end || !isfinite(x)) ? dflt : x;
+}
+
+static enum MHD_Result handle_get(console *c, struct MHD_Connection *conn, const char *url)
+{
+	if (!strcmp(url, "/"))
+		url = "/index.html";
+	for (const kg_console_asset *a = kg_console_assets; a->path; a++)
+		if (!strcmp(url, a->path))
+			return send_buf(conn, 200, a->type, a->data, a->size, 1);
+	if (!strcmp(url, "/api/live")) {
+		double roi[4] = {qnum(conn, "x0", NAN), qnum(conn, "y0", NAN), qnum(conn, "x1", NAN),
+		                 qnum(conn, "y1", NAN)};
+		uint64_t after = (uint64_t)fmax(0, qnum(conn, "after", 0));
+		return send_json(conn, 200,
+		                 console_live_json(c, after, roi, qnum(conn, "ev", 0),
+		                                   qnum(conn, "peaking", 0) != 0));
+	}
+	if (!strcmp(url, "/api/live.png")) {
+		size_t n = 0;
+		unsigned char *png = console_live_png(c, &n);
+		if (!png)
+			return send_error(conn, 503, "no preview yet");
+		return send_buf(conn, 200, "image/png", png, n, 0);
+	}
+	if (!strcmp(url, "/api/state"))
+		return send_json(conn, 200, console_state_json(c));
+	if (!strcmp(url, "/api/session"))
+		return send_json(conn, 200, console_session_json(c));
+	if (!strcmp(url, "/api/chart"))
+		return send_json(conn, 200, console_chart_check(c));
+	if (!strncmp(url, "/session/", 9))
+		return send_file(conn, c->session_dir, url + 9);
+	if (!strncmp(url, "/out/", 5))
+		return send_file(conn, c->outdir, url + 5);
+	return send_error(conn, 404, "%s: no such page", url);
+}
+
+static enum MHD_Result handle_post(console *c, struct MHD_Connection *conn, const char *url,
+                                   const request *rq)
+{
+	json_error_t je;
+	json_t *req = rq->size ? json_loadb(rq->body, rq->size, 0, &je) : json_object();
+	if (!req || !json_is_object(req)) {
+		json_decref(req);
+		return send_error(conn, 400, "%s: the request body: expected a JSON object", url);
+	}
+	char why[1024] = "";
+	int status;
+	if (!strcmp(url, "/api/capture"))
+		status = console_job_capture(c, req, why, sizeof(why));
+	else if (!strcmp(url, "/api/measure"))
+		status = console_job_measure(c, req, why, sizeof(why));
+	else if (!strcmp(url, "/api/measure/answer"))
+		status = console_job_answer(c, req, why, sizeof(why));
+	else if (!strcmp(url, "/api/process"))
+		status = console_job_process(c, req, why, sizeof(why));
+	else if (!strcmp(url, "/api/settings"))
+		status = console_settings_set(c, req, why, sizeof(why));
+	else {
+		status = 404;
+		snprintf(why, sizeof(why), "%s: no such action", url);
+	}
+	json_decref(req);
+	if (status)
+		return send_error(conn, (unsigned)status, "%s", why);
+	return send_json(conn, 200, console_state_json(c));
+}
+
+static enum MHD_Result on_request(void *cls, struct MHD_Connection *conn, const char *url,
+                                  const char *method, const char *version,
+                                  const char *upload, size_t *upload_size, void **state)
+{
+	console *c = cls;
+	(void)version;
+	request *rq = *state;
+	if (!rq) {
+		/* First call: the headers. Everything is checked before a body is read. */
+		const char *host = MHD_lookup_connection_value(conn, MHD_HEADER_KIND, "Host");
+		if (!host_ok(c, host))
+			return send_error(conn, 403, "Host '%s': this console answers to %s:%d only",
+			                  host ? host : "(none)", c->host, c->port);
+		if (c->need_token) {
+			const char *t = MHD_lookup_connection_value(conn, MHD_HEADER_KIND, "X-Kogei-Token");
+			if (!t)
+				t = MHD_lookup_connection_value(conn, MHD_GET_ARGUMENT_KIND, "token");
+			if (!token_ok(c, t))
+				return send_error(conn, 403, "this console listens on %s: every request needs "
+				                  "its token (?token=... or the X-Kogei-Token header), printed "
+				                  "when it started", c->host);
+		}
+		if (!strcmp(method, "POST")) {
+			const char *origin = MHD_lookup_connection_value(conn, MHD_HEADER_KIND, "Origin");
+			char want[160];
+			snprintf(want, sizeof(want), "http://%s", host);
+			if (!origin || strcmp(origin, want))
+				return send_error(conn, 403, "actions need the Origin header of this console's "
+				                  "page (%s), got '%s'", want, origin ? origin : "(none)");
+		} else if (strcmp(method, "GET") && strcmp(method, "HEAD")) {
+			return send_error(conn, 405, "%s: only GET and POST (actions) are served", method);
+		}
+		if (!strcmp(method, "GET") && !strncmp(url, "/api/", 5) &&
+		    (!strcmp(url, "/api/capture") || !strncmp(url, "/api/measure", 12) ||
+		     !strcmp(url, "/api/process") || !strcmp(url, "/api/settings")))
+			return send_error(conn, 405, "%s: an action: POST only", url);
+		rq = calloc(1, sizeof(*rq));
+		if (!rq)
+			return MHD_NO;
+		*state = rq;
+		return MHD_YES;
+	}
+	if (*upload_size) {
+		if (rq->size + *upload_size > MAX_BODY) {
+			rq->too_big = 1;
+		} else {
+			char *b = realloc(rq->body, rq->size + *upload_size + 1);
+			if (!b)
+				return MHD_NO;
+			rq->body = b;
+			memcpy(rq->body + rq->size, upload, *upload_size);
+			rq->size += *upload_size;
+			rq->body[rq->size] = 0;
+		}
+		*upload_size = 0;
+		return MHD_YES;
+	}
+	if (rq->too_big)
+		return send_error(conn, 413, "request body larger than %d bytes", MAX_BODY);
+	if (!strcmp(method, "POST"))
+		return handle_post(c, conn, url, rq);
+	return handle_get(c, conn, url);
+}
+
+static void on_completed(void *cls, struct MHD_Connection *conn, void **state,
+                         enum MHD_RequestTerminationCode toe)
+{
+	(void)cls;
+	(void)conn;
+	(void)toe;
+	request *rq = *state;
+	if (rq) {
+		free(rq->body);
+		free(rq);
+		*state = NULL;
+	}
+}
+
+/* ---- the command ------------------------------------------------------------------ */
+
+static int parse_listen(const char *text, console *c)
+{
+	const char *colon;
+	size_t hn;
+	if (text[0] == '[') {
+		const char *close = strchr(text, ']');
+		if (!close || close[1] != ':')
+			return -1;
+		hn = (size_t)(close - text - 1);
+		text++;
+		colon = close + 1;
+	} else {
+		colon = strrchr(text, ':');
+		if (!colon)
+			return -1;
+		hn = (size_t)(colon - text);
+	}
+	if (hn == 0 || hn >= sizeof(c->host))
+		return -1;
+	memcpy(c->host, text, hn);
+	c->host[hn] = 0;
+	char *end;
+	long port = strtol(colon + 1, &end, 10);
+	if (*end || colon[1] == 0 || port < 0 || port > 65535)
+		return -1;
+	c->port = (int)port;
+	return 0;
+}
+
+static int make_token(char token[33])
+{
+	unsigned char b[16];
+	size_t got = 0;
+	while (got < sizeof(b)) {
+		ssize_t n = getrandom(b + got, sizeof(b) - got, 0);
+		if (n < 0 && errno == EINTR)
+			continue;
+		if (n <= 0)
+			return -1;
+		got += (size_t)n;
+	}
+	for (int i = 0; i < 16; i++)
+		sprintf(token + 2 * i, "%02x", b[i]);
+	return 0;
+}
+
+/* The sibling of the session directory: DIR + suffix (a trailing slash dropped). */
+static int sibling(const char *dir, const char *suffix, char *out, size_t n)
+{
+	size_t len = strlen(dir);
+	while (len > 1 && dir[len - 1] == '/')
+		len--;
+	return snprintf(out, n, "%.*s%s", (int)len, dir, suffix) >= (int)n ? -1 : 0;
+}
+
+/* The layout of the session's latest chart capture, or NULL. */
+static const char *session_layout(const kg_session *s)
+{
+	const json_t *caps = json_object_get(kg_session_manifest(s), "captures");
+	const char *found = NULL;
+	size_t i;
+	const json_t *cap;
+	json_array_foreach(caps, i, cap)
+	{
+		const char *kind = json_string_value(json_object_get(cap, "kind"));
+		const char *lay = json_string_value(json_object_get(cap, "chart_layout"));
+		if (kind && !strcmp(kind, "chart") && lay)
+			found = lay;
+	}
+	return found;
+}
+
+int kg_cmd_console(int argc, char **argv)
+{
+	if (kg_cli_wants_help(argc, argv)) {
+		printf("usage: %s\n", kg_console_usage);
+		return KG_EXIT_OK;
+	}
+	static console con;
+	console *c = &con;
+	memset(c, 0, sizeof(*c));
+	const char *session = NULL, *out = NULL, *spectra_out = NULL, *listen = "127.0.0.1:8080";
+	c->frames = 10;
+	enum { O_SESSION = 256, O_CAMERA, O_SPECTRO, O_LAYOUT, O_LISTEN, O_OUT, O_SPECTRA_OUT,
+	       O_REFERENCE, O_FRAMES };
+	static const struct option opts[] = {
+		{"session", required_argument, NULL, O_SESSION},
+		{"camera", required_argument, NULL, O_CAMERA},
+		{"spectro", required_argument, NULL, O_SPECTRO},
+		{"layout", required_argument, NULL, O_LAYOUT},
+		{"listen", required_argument, NULL, O_LISTEN},
+		{"out", required_argument, NULL, O_OUT},
+		{"spectra-out", required_argument, NULL, O_SPECTRA_OUT},
+		{"reference", required_argument, NULL, O_REFERENCE},
+		{"frames", required_argument, NULL, O_FRAMES},
+		{NULL, 0, NULL, 0},
+	};
+	optind = 1;
+	opterr = 0;
+	int opt;
+	while ((opt = getopt_long(argc, argv, ":", opts, NULL)) != -1) {
+		char *end;
+		switch (opt) {
+		case O_SESSION: session = optarg; break;
+		case O_CAMERA:
+			if (c->ncameras == CONSOLE_MAX_CAMERAS)
+				return kg_cli_usage_error(kg_console_usage, "--camera: at most %d cameras",
+				                          CONSOLE_MAX_CAMERAS);
+			c->cameras[c->ncameras++] = optarg;
+			break;
+		case O_SPECTRO: c->spectro_uri = optarg; break;
+		case O_LAYOUT: c->layout = optarg; break;
+		case O_LISTEN: listen = optarg; break;
+		case O_OUT: out = optarg; break;
+		case O_SPECTRA_OUT: spectra_out = optarg; break;
+		case O_REFERENCE: c->reference = optarg; break;
+		case O_FRAMES:
+			c->frames = (int)strtol(optarg, &end, 10);
+			if (*end || c->frames < 1 || c->frames > 10000)
+				return kg_cli_usage_error(kg_console_usage, "--frames '%s': expected 1..10000",
+				                          optarg);
+			break;
+		case ':':
+			return kg_cli_usage_error(kg_console_usage, "option %s needs a value",
+			                          argv[optind - 1]);
+		default:
+			return kg_cli_usage_error(kg_console_usage, "unknown option '%s'",
+			                          argv[optind - 1]);
+		}
+	}
+	if (optind < argc)
+		return kg_cli_usage_error(kg_console_usage, "unexpected argument '%s'", argv[optind]);
+	if (!session)
+		return kg_cli_usage_error(kg_console_usage, "--session DIR is required");
+	if (parse_listen(listen, c))
+		return kg_cli_usage_error(kg_console_usage,
+		                          "--listen '%s': expected ADDRESS:PORT (e.g. 127.0.0.1:8080 "
+		                          "or [::1]:8080)", listen);
+	struct in6_addr a6;
+	struct in_addr a4;
+	int v6 = inet_pton(AF_INET6, c->host, &a6) == 1;
+	if (!v6 && inet_pton(AF_INET, c->host, &a4) != 1)
+		return kg_cli_usage_error(kg_console_usage,
+		                          "--listen '%s': expected a numeric IPv4 or IPv6 address", listen);
+	c->need_token = strcmp(c->host, "127.0.0.1") != 0;
+	if (snprintf(c->session_dir, sizeof(c->session_dir), "%s", session) >=
+	        (int)sizeof(c->session_dir) ||
+	    (out ? snprintf(c->outdir, sizeof(c->outdir), "%s", out) >= (int)sizeof(c->outdir)
+	         : sibling(session, ".processed", c->outdir, sizeof(c->outdir))) ||
+	    (spectra_out ? snprintf(c->spectra_out, sizeof(c->spectra_out), "%s", spectra_out) >=
+	                       (int)sizeof(c->spectra_out)
+	                 : sibling(session, ".chart.cgats", c->spectra_out, sizeof(c->spectra_out))))
+		return kg_cli_usage_error(kg_console_usage, "--session: path too long");
+	if (c->need_token && make_token(c->token)) {
+		fprintf(stderr, "kogei: console: cannot read random bytes for the token: %s\n",
+		        strerror(errno));
+		return KG_EXIT_INPUT;
+	}
+
+	kg_err err = {{0}};
+	int code = kg_session_open(c->session_dir, &c->session, &err);
+	if (code)
+		return kg_cli_error(&err, code);
+	static char layout_copy[PATH_MAX];
+	if (!c->layout && session_layout(c->session)) {
+		snprintf(layout_copy, sizeof(layout_copy), "%s", session_layout(c->session));
+		c->layout = layout_copy;
+	}
+	int rc = KG_EXIT_OK;
+	if (c->layout && (code = kg_chart_layout_load(c->layout, &c->chart_layout, &err))) {
+		rc = kg_cli_error(&err, code);
+		kg_session_free(&c->session);
+		return rc;
+	}
+	pthread_mutex_init(&c->lock, NULL);
+	pthread_mutex_init(&c->cam_lock, NULL);
+	pthread_cond_init(&c->cond, NULL);
+	c->job_log = json_array();
+	c->manifest = json_deep_copy(kg_session_manifest(c->session));
+	c->cam_index = -1;
+	if (c->ncameras && (code = console_camera_select(c, 0, &err))) {
+		fprintf(stderr, "kogei: %s\n", err.msg);
+		rc = KG_EXIT_DEVICE;
+		goto done;
+	}
+	/* Signals go to sigwait below only: every thread started from here blocks them. */
+	sigset_t sigs;
+	sigemptyset(&sigs);
+	sigaddset(&sigs, SIGINT);
+	sigaddset(&sigs, SIGTERM);
+	pthread_sigmask(SIG_BLOCK, &sigs, NULL);
+	signal(SIGPIPE, SIG_IGN);
+
+	struct sockaddr_in sa4 = {0};
+	struct sockaddr_in6 sa6 = {0};
+	if (v6) {
+		sa6.sin6_family = AF_INET6;
+		sa6.sin6_port = htons((uint16_t)c->port);
+		sa6.sin6_addr = a6;
+	} else {
+		sa4.sin_family = AF_INET;
+		sa4.sin_port = htons((uint16_t)c->port);
+		sa4.sin_addr = a4;
+	}
+	struct MHD_Daemon *d = MHD_start_daemon(
+		MHD_USE_THREAD_PER_CONNECTION | MHD_USE_INTERNAL_POLLING_THREAD |
+			(v6 ? MHD_USE_IPv6 : 0),
+		(uint16_t)c->port, NULL, NULL, on_request, c, MHD_OPTION_SOCK_ADDR,
+		v6 ? (struct sockaddr *)&sa6 : (struct sockaddr *)&sa4, MHD_OPTION_CONNECTION_LIMIT,
+		(unsigned)64, MHD_OPTION_CONNECTION_TIMEOUT, (unsigned)60,
+		MHD_OPTION_NOTIFY_COMPLETED, on_completed, c, MHD_OPTION_END);
+	if (!d) {
+		fprintf(stderr, "kogei: console: cannot listen on %s: %s (address in use or not "
+		                "this machine's?)\n", listen, strerror(errno));
+		rc = KG_EXIT_INPUT;
+		goto done;
+	}
+	const union MHD_DaemonInfo *info = MHD_get_daemon_info(d, MHD_DAEMON_INFO_BIND_PORT);
+	if (info && info->port)
+		c->port = info->port;
+	if (console_live_start(c, &err)) {
+		fprintf(stderr, "kogei: %s\n", err.msg);
+		MHD_stop_daemon(d);
+		rc = KG_EXIT_INPUT;
+		goto done;
+	}
+	printf("kogei console: session %s, output %s\n", c->session_dir, c->outdir);
+	if (strchr(c->host, ':'))
+		printf("open http://[%s]:%d/%s%s\n", c->host, c->port, c->need_token ? "?token=" : "",
+		       c->need_token ? c->token : "");
+	else
+		printf("open http://%s:%d/%s%s\n", c->host, c->port, c->need_token ? "?token=" : "",
+		       c->need_token ? c->token : "");
+	fflush(stdout);
+	int sig = 0;
+	sigwait(&sigs, &sig);
+	fprintf(stderr, "kogei console: stopping (signal %d)\n", sig);
+	console_jobs_stop(c);
+	console_live_stop(c);
+	MHD_stop_daemon(d);
+done:
+	kg_camera_free(&c->cam);
+	kg_chart_layout_free(&c->chart_layout);
+	kg_session_free(&c->session);
+	json_decref(c->job_log);
+	json_decref(c->job_result);
+	json_decref(c->manifest);
+	json_decref(c->live);
+	free(c->png);
+	return rc;
+}
