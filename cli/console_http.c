@@ -21,6 +21,9 @@
 #include "console.h"
 
 #define MAX_BODY 65536
+#define CSP                                                                                 \
+	"default-src 'self'; img-src 'self' data: blob:; style-src 'self' 'unsafe-inline'; "     \
+	"frame-ancestors 'self'"
 
 double console_now(void)
 {
@@ -42,9 +45,7 @@ static enum MHD_Result send_buf(struct MHD_Connection *conn, unsigned status, co
 	MHD_add_response_header(r, "Cache-Control", "no-store");
 	MHD_add_response_header(r, "X-Content-Type-Options", "nosniff");
 	MHD_add_response_header(r, "Referrer-Policy", "no-referrer");
-	MHD_add_response_header(r, "Content-Security-Policy",
-	                        "default-src 'self'; img-src 'self' data: blob:; style-src 'self' "
-	                        "'unsafe-inline'; frame-ancestors 'self'");
+	MHD_add_response_header(r, "Content-Security-Policy", CSP);
 	enum MHD_Result ret = MHD_queue_response(conn, status, r);
 	MHD_destroy_response(r);
 	return ret;
@@ -201,13 +202,39 @@ static double qnum(struct MHD_Connection *conn, const char *key, double dflt)
 	return v && (*end || !isfinite(x)) ? dflt : x;
 }
 
+/* The page's own files. With a token, the page's response also sets it as a cookie
+ * (per port, SameSite=Strict, HttpOnly), so the files the page loads (its script,
+ * style sheet, the report in its frame) carry it too. */
+static enum MHD_Result send_asset(const console *c, struct MHD_Connection *conn,
+                                  const kg_console_asset *a)
+{
+	struct MHD_Response *r =
+		MHD_create_response_from_buffer(a->size, (void *)a->data, MHD_RESPMEM_PERSISTENT);
+	if (!r)
+		return MHD_NO;
+	MHD_add_response_header(r, "Content-Type", a->type);
+	MHD_add_response_header(r, "Cache-Control", "no-store");
+	MHD_add_response_header(r, "X-Content-Type-Options", "nosniff");
+	MHD_add_response_header(r, "Referrer-Policy", "no-referrer");
+	MHD_add_response_header(r, "Content-Security-Policy", CSP);
+	if (c->need_token) {
+		char cookie[160];
+		snprintf(cookie, sizeof(cookie), "kogei_token_%d=%s; Path=/; HttpOnly; SameSite=Strict",
+		         c->port, c->token);
+		MHD_add_response_header(r, "Set-Cookie", cookie);
+	}
+	enum MHD_Result ret = MHD_queue_response(conn, 200, r);
+	MHD_destroy_response(r);
+	return ret;
+}
+
 static enum MHD_Result handle_get(console *c, struct MHD_Connection *conn, const char *url)
 {
 	if (!strcmp(url, "/"))
 		url = "/index.html";
 	for (const kg_console_asset *a = kg_console_assets; a->path; a++)
 		if (!strcmp(url, a->path))
-			return send_buf(conn, 200, a->type, a->data, a->size, 1);
+			return send_asset(c, conn, a);
 	if (!strcmp(url, "/api/live")) {
 		double roi[4] = {qnum(conn, "x0", NAN), qnum(conn, "y0", NAN), qnum(conn, "x1", NAN),
 		                 qnum(conn, "y1", NAN)};
@@ -284,6 +311,10 @@ static enum MHD_Result on_request(void *cls, struct MHD_Connection *conn, const 
 			const char *t = MHD_lookup_connection_value(conn, MHD_HEADER_KIND, "X-Kogei-Token");
 			if (!t)
 				t = MHD_lookup_connection_value(conn, MHD_GET_ARGUMENT_KIND, "token");
+			char name[32];
+			snprintf(name, sizeof(name), "kogei_token_%d", c->port);
+			if (!t)
+				t = MHD_lookup_connection_value(conn, MHD_COOKIE_KIND, name);
 			if (!token_ok(c, t))
 				return send_error(conn, 403, "this console listens on %s: every request needs "
 				                  "its token (?token=... or the X-Kogei-Token header), printed "
