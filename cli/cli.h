@@ -49,16 +49,6 @@ int kg_cli_image_identity(const char *image, kg_camera_identity *id, kg_err *err
 int kg_cli_check_camera(const kg_camera_calib *cam, const char *calib_path,
                         const char *image, int force, kg_err *err);
 
-/* The exposure helper's chart measure (kg_capture_options.measure) of `kogei acquire
- * --exposure auto --layout L` and the console: the level of the brightest sampled patch
- * of the chart found in the frame; KG_ENOENT when there is none. user: a
- * kg_cli_chart_measure. */
-typedef struct kg_cli_chart_measure {
-	kg_chart_layout *layout;
-	kg_chart_detect_options opt;
-} kg_cli_chart_measure;
-int kg_cli_brightest_patch(void *user, const kg_image *frame, double *level, kg_err *err);
-
 int kg_cmd_console(int argc, char **argv);
 extern const char kg_console_usage[];
 int kg_cmd_spectra_xyz(int argc, char **argv);

@@ -9,6 +9,7 @@
 #include "cli.h"
 #include "kg_acquire.h"
 #include "kg_calib.h"
+#include "kg_pipeline.h"
 
 static const char usage_acquire[] =
 	"kogei acquire --camera URI --out SESSION --kind chart|object|dark|flat [options]\n"
@@ -257,12 +258,14 @@ int kg_cmd_acquire(int argc, char **argv)
 	if ((o.kind == KG_CAPTURE_DARK || o.kind == KG_CAPTURE_FLAT) && o.flat)
 		return kg_cli_usage_error(usage_acquire, "--flat: does not apply to --kind %s", kind);
 
-	kg_cli_chart_measure cm = {0};
+	kg_chart_level cm = {0};
+	kg_chart_layout *layout_loaded = NULL;
 	if (layout) {
-		if ((r = kg_chart_layout_load(layout, &cm.layout, &err)))
+		if ((r = kg_chart_layout_load(layout, &layout_loaded, &err)))
 			return kg_cli_error(&err, r);
+		cm.layout = layout_loaded;
 		kg_chart_detect_options_default(&cm.opt);
-		o.measure = o.auto_exposure ? kg_cli_brightest_patch : NULL;
+		o.measure = o.auto_exposure ? kg_chart_brightest_patch : NULL;
 		o.measure_user = &cm;
 		o.chart_layout = layout;
 	}
@@ -311,6 +314,6 @@ done:
 	kg_capture_result_clear(&res);
 	kg_camera_free(&camera);
 	kg_session_free(&s);
-	kg_chart_layout_free(&cm.layout);
+	kg_chart_layout_free(&layout_loaded);
 	return r;
 }

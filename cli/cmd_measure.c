@@ -11,7 +11,7 @@
 #include "cli.h"
 #include "kg_calib.h"
 #include "kg_devices.h"
-#include "measure_flow.h"
+#include "kg_pipeline.h"
 
 static const char usage_measure[] =
 	"kogei measure --spectro URI (--single | --chart LAYOUT | --patches ID,ID,... |\n"

@@ -14,7 +14,6 @@
 #include <string.h>
 #include <time.h>
 
-#include "cli.h"
 #include "console.h"
 
 /* ---- the camera ------------------------------------------------------------------ */

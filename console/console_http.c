@@ -3,7 +3,6 @@
 #include <arpa/inet.h>
 #include <errno.h>
 #include <fcntl.h>
-#include <getopt.h>
 #include <math.h>
 #include <signal.h>
 #include <stdarg.h>
@@ -17,7 +16,6 @@
 
 #include <microhttpd.h>
 
-#include "cli.h"
 #include "console.h"
 
 #define MAX_BODY 65536
@@ -376,36 +374,7 @@ static void on_completed(void *cls, struct MHD_Connection *conn, void **state,
 	}
 }
 
-/* ---- the command ------------------------------------------------------------------ */
-
-static int parse_listen(const char *text, console *c)
-{
-	const char *colon;
-	size_t hn;
-	if (text[0] == '[') {
-		const char *close = strchr(text, ']');
-		if (!close || close[1] != ':')
-			return -1;
-		hn = (size_t)(close - text - 1);
-		text++;
-		colon = close + 1;
-	} else {
-		colon = strrchr(text, ':');
-		if (!colon)
-			return -1;
-		hn = (size_t)(colon - text);
-	}
-	if (hn == 0 || hn >= sizeof(c->host))
-		return -1;
-	memcpy(c->host, text, hn);
-	c->host[hn] = 0;
-	char *end;
-	long port = strtol(colon + 1, &end, 10);
-	if (*end || colon[1] == 0 || port < 0 || port > 65535)
-		return -1;
-	c->port = (int)port;
-	return 0;
-}
+/* ---- running it ------------------------------------------------------------------ */
 
 static int make_token(char token[33])
 {
@@ -422,15 +391,6 @@ static int make_token(char token[33])
 	for (int i = 0; i < 16; i++)
 		sprintf(token + 2 * i, "%02x", b[i]);
 	return 0;
-}
-
-/* The sibling of the session directory: DIR + suffix (a trailing slash dropped). */
-static int sibling(const char *dir, const char *suffix, char *out, size_t n)
-{
-	size_t len = strlen(dir);
-	while (len > 1 && dir[len - 1] == '/')
-		len--;
-	return snprintf(out, n, "%.*s%s", (int)len, dir, suffix) >= (int)n ? -1 : 0;
 }
 
 /* The layout of the session's latest chart capture, or NULL. */
@@ -450,107 +410,52 @@ static const char *session_layout(const kg_session *s)
 	return found;
 }
 
-int kg_cmd_console(int argc, char **argv)
+int kg_console_run(const kg_console_options *o, int *device_failure, kg_err *err)
 {
-	if (kg_cli_wants_help(argc, argv)) {
-		printf("usage: %s\n", kg_console_usage);
-		return KG_EXIT_OK;
-	}
 	static console con;
 	console *c = &con;
 	memset(c, 0, sizeof(*c));
-	const char *session = NULL, *out = NULL, *spectra_out = NULL, *listen = "127.0.0.1:8080";
-	c->frames = 10;
-	enum { O_SESSION = 256, O_CAMERA, O_SPECTRO, O_LAYOUT, O_LISTEN, O_OUT, O_SPECTRA_OUT,
-	       O_REFERENCE, O_FRAMES };
-	static const struct option opts[] = {
-		{"session", required_argument, NULL, O_SESSION},
-		{"camera", required_argument, NULL, O_CAMERA},
-		{"spectro", required_argument, NULL, O_SPECTRO},
-		{"layout", required_argument, NULL, O_LAYOUT},
-		{"listen", required_argument, NULL, O_LISTEN},
-		{"out", required_argument, NULL, O_OUT},
-		{"spectra-out", required_argument, NULL, O_SPECTRA_OUT},
-		{"reference", required_argument, NULL, O_REFERENCE},
-		{"frames", required_argument, NULL, O_FRAMES},
-		{NULL, 0, NULL, 0},
-	};
-	optind = 1;
-	opterr = 0;
-	int opt;
-	while ((opt = getopt_long(argc, argv, ":", opts, NULL)) != -1) {
-		char *end;
-		switch (opt) {
-		case O_SESSION: session = optarg; break;
-		case O_CAMERA:
-			if (c->ncameras == CONSOLE_MAX_CAMERAS)
-				return kg_cli_usage_error(kg_console_usage, "--camera: at most %d cameras",
-				                          CONSOLE_MAX_CAMERAS);
-			c->cameras[c->ncameras++] = optarg;
-			break;
-		case O_SPECTRO: c->spectro_uri = optarg; break;
-		case O_LAYOUT: c->layout = optarg; break;
-		case O_LISTEN: listen = optarg; break;
-		case O_OUT: out = optarg; break;
-		case O_SPECTRA_OUT: spectra_out = optarg; break;
-		case O_REFERENCE: c->reference = optarg; break;
-		case O_FRAMES:
-			c->frames = (int)strtol(optarg, &end, 10);
-			if (*end || c->frames < 1 || c->frames > 10000)
-				return kg_cli_usage_error(kg_console_usage, "--frames '%s': expected 1..10000",
-				                          optarg);
-			break;
-		case ':':
-			return kg_cli_usage_error(kg_console_usage, "option %s needs a value",
-			                          argv[optind - 1]);
-		default:
-			return kg_cli_usage_error(kg_console_usage, "unknown option '%s'",
-			                          argv[optind - 1]);
-		}
-	}
-	if (optind < argc)
-		return kg_cli_usage_error(kg_console_usage, "unexpected argument '%s'", argv[optind]);
-	if (!session)
-		return kg_cli_usage_error(kg_console_usage, "--session DIR is required");
-	if (parse_listen(listen, c))
-		return kg_cli_usage_error(kg_console_usage,
-		                          "--listen '%s': expected ADDRESS:PORT (e.g. 127.0.0.1:8080 "
-		                          "or [::1]:8080)", listen);
+	*device_failure = 0;
+	FILE *announce = o->announce ? o->announce : stdout;
+	kg_check_arg(o->session && o->outdir && o->spectra_out && o->host, err);
+	if (o->ncameras > CONSOLE_MAX_CAMERAS || o->port < 0 || o->port > 65535 ||
+	    snprintf(c->host, sizeof(c->host), "%s", o->host) >= (int)sizeof(c->host) ||
+	    snprintf(c->session_dir, sizeof(c->session_dir), "%s", o->session) >=
+	        (int)sizeof(c->session_dir) ||
+	    snprintf(c->outdir, sizeof(c->outdir), "%s", o->outdir) >= (int)sizeof(c->outdir) ||
+	    snprintf(c->spectra_out, sizeof(c->spectra_out), "%s", o->spectra_out) >=
+	        (int)sizeof(c->spectra_out))
+		return kg_fail(err, KG_EINVAL, "console: an option is out of range or too long");
+	c->port = o->port;
+	c->ncameras = o->ncameras;
+	for (int i = 0; i < o->ncameras; i++)
+		c->cameras[i] = o->cameras[i];
+	c->spectro_uri = o->spectro;
+	c->layout = o->layout;
+	c->reference = o->reference;
+	c->frames = o->frames > 0 ? o->frames : 10;
 	struct in6_addr a6;
 	struct in_addr a4;
 	int v6 = inet_pton(AF_INET6, c->host, &a6) == 1;
 	if (!v6 && inet_pton(AF_INET, c->host, &a4) != 1)
-		return kg_cli_usage_error(kg_console_usage,
-		                          "--listen '%s': expected a numeric IPv4 or IPv6 address", listen);
+		return kg_fail(err, KG_EINVAL, "console: listen address '%s': expected a numeric IPv4 "
+		               "or IPv6 address", c->host);
 	c->need_token = strcmp(c->host, "127.0.0.1") != 0;
-	if (snprintf(c->session_dir, sizeof(c->session_dir), "%s", session) >=
-	        (int)sizeof(c->session_dir) ||
-	    (out ? snprintf(c->outdir, sizeof(c->outdir), "%s", out) >= (int)sizeof(c->outdir)
-	         : sibling(session, ".processed", c->outdir, sizeof(c->outdir))) ||
-	    (spectra_out ? snprintf(c->spectra_out, sizeof(c->spectra_out), "%s", spectra_out) >=
-	                       (int)sizeof(c->spectra_out)
-	                 : sibling(session, ".chart.cgats", c->spectra_out, sizeof(c->spectra_out))))
-		return kg_cli_usage_error(kg_console_usage, "--session: path too long");
-	if (c->need_token && make_token(c->token)) {
-		fprintf(stderr, "kogei: console: cannot read random bytes for the token: %s\n",
-		        strerror(errno));
-		return KG_EXIT_INPUT;
-	}
-
-	kg_err err = {{0}};
-	int code = kg_session_open(c->session_dir, &c->session, &err);
+	if (c->need_token && make_token(c->token))
+		return kg_fail(err, KG_EIO, "console: cannot read random bytes for the token: %s",
+		               strerror(errno));
+	int code = kg_session_open(c->session_dir, &c->session, err);
 	if (code)
-		return kg_cli_error(&err, code);
+		return code;
 	static char layout_copy[PATH_MAX];
 	if (!c->layout && session_layout(c->session)) {
 		snprintf(layout_copy, sizeof(layout_copy), "%s", session_layout(c->session));
 		c->layout = layout_copy;
 	}
-	int rc = KG_EXIT_OK;
-	if (c->layout && (code = kg_chart_layout_load(c->layout, &c->chart_layout, &err))) {
-		rc = kg_cli_error(&err, code);
+	int rc = 0;
+	if (c->layout && (code = kg_chart_layout_load(c->layout, &c->chart_layout, err))) {
 		kg_session_free(&c->session);
-		return rc;
+		return code;
 	}
 	pthread_mutex_init(&c->lock, NULL);
 	pthread_mutex_init(&c->cam_lock, NULL);
@@ -558,9 +463,9 @@ int kg_cmd_console(int argc, char **argv)
 	c->job_log = json_array();
 	c->manifest = json_deep_copy(kg_session_manifest(c->session));
 	c->cam_index = -1;
-	if (c->ncameras && (code = console_camera_select(c, 0, &err))) {
-		fprintf(stderr, "kogei: %s\n", err.msg);
-		rc = KG_EXIT_DEVICE;
+	if (c->ncameras && (code = console_camera_select(c, 0, err))) {
+		*device_failure = 1;
+		rc = code;
 		goto done;
 	}
 	/* Signals go to sigwait below only: every thread started from here blocks them. */
@@ -590,28 +495,25 @@ int kg_cmd_console(int argc, char **argv)
 		(unsigned)64, MHD_OPTION_CONNECTION_TIMEOUT, (unsigned)60,
 		MHD_OPTION_NOTIFY_COMPLETED, on_completed, c, MHD_OPTION_END);
 	if (!d) {
-		fprintf(stderr, "kogei: console: cannot listen on %s: %s (address in use or not "
-		                "this machine's?)\n", listen, strerror(errno));
-		rc = KG_EXIT_INPUT;
+		rc = kg_fail(err, KG_EINVAL, "console: cannot listen on %s port %d: %s (address in "
+		             "use or not this machine's?)", c->host, c->port, strerror(errno));
 		goto done;
 	}
 	const union MHD_DaemonInfo *info = MHD_get_daemon_info(d, MHD_DAEMON_INFO_BIND_PORT);
 	if (info && info->port)
 		c->port = info->port;
-	if (console_live_start(c, &err)) {
-		fprintf(stderr, "kogei: %s\n", err.msg);
+	if ((rc = console_live_start(c, err))) {
 		MHD_stop_daemon(d);
-		rc = KG_EXIT_INPUT;
 		goto done;
 	}
-	printf("kogei console: session %s, output %s\n", c->session_dir, c->outdir);
+	fprintf(announce, "kogei console: session %s, output %s\n", c->session_dir, c->outdir);
 	if (strchr(c->host, ':'))
-		printf("open http://[%s]:%d/%s%s\n", c->host, c->port, c->need_token ? "?token=" : "",
+		fprintf(announce, "open http://[%s]:%d/%s%s\n", c->host, c->port, c->need_token ? "?token=" : "",
 		       c->need_token ? c->token : "");
 	else
-		printf("open http://%s:%d/%s%s\n", c->host, c->port, c->need_token ? "?token=" : "",
+		fprintf(announce, "open http://%s:%d/%s%s\n", c->host, c->port, c->need_token ? "?token=" : "",
 		       c->need_token ? c->token : "");
-	fflush(stdout);
+	fflush(announce);
 	int sig = 0;
 	sigwait(&sigs, &sig);
 	fprintf(stderr, "kogei console: stopping (signal %d)\n", sig);

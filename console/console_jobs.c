@@ -11,10 +11,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-#include "cli.h"
 #include "console.h"
-#include "kg_pipeline.h"
-#include "measure_flow.h"
 
 #define LOG_MAX 400 /* lines kept */
 
@@ -218,12 +215,12 @@ static void *capture_main(void *arg)
 	o.progress_user = c;
 	o.note = capture_note;
 	o.note_user = c;
-	kg_cli_chart_measure cm = {0};
+	kg_chart_level cm = {0};
 	char measure_name[96] = "";
 	if (c->chart_layout && (o.kind == KG_CAPTURE_CHART || o.auto_exposure)) {
 		cm.layout = c->chart_layout;
 		kg_chart_detect_options_default(&cm.opt);
-		o.measure = o.auto_exposure ? kg_cli_brightest_patch : NULL;
+		o.measure = o.auto_exposure ? kg_chart_brightest_patch : NULL;
 		o.measure_user = &cm;
 		o.chart_layout = c->layout;
 		snprintf(measure_name, sizeof(measure_name), "brightest patch of chart %s",

@@ -1,4 +1,4 @@
-/* The guided spectrometer measurement (cli/measure_flow.h). */
+/* The guided spectrometer measurement (kg_pipeline.h). */
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -8,8 +8,7 @@
 #include <time.h>
 #include <unistd.h>
 
-#include "kg_calib.h"
-#include "measure_flow.h"
+#include "kg_pipeline.h"
 
 static void say(const kg_measure_flow *m, const char *fmt, ...) KG_PRINTF(2, 3);
 static void say(const kg_measure_flow *m, const char *fmt, ...)

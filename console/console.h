@@ -1,4 +1,4 @@
-/* kogei console: the operator's web console (docs/console.md). Private to cli/:
+/* kogei console: the operator's web console (docs/console.md). Private to console/:
  * console_http.c (the server, security, files), console_live.c (the live view and
  * the chart check), console_jobs.c (captures, the spectrometer chart, processing). */
 #ifndef KG_CONSOLE_H
@@ -11,11 +11,9 @@
 
 #include <jansson.h>
 
-#include "kg_acquire.h"
-#include "kg_calib.h"
-#include "kg_camera.h"
+#include "kg_console.h"
 
-#define CONSOLE_MAX_CAMERAS 8
+#define CONSOLE_MAX_CAMERAS KG_CONSOLE_MAX_CAMERAS
 #define CONSOLE_PREVIEW_SIDE 1024 /* long side of the live preview, at most */
 #define CONSOLE_HIST_BINS 64
 
