@@ -49,6 +49,8 @@ int kg_cli_image_identity(const char *image, kg_camera_identity *id, kg_err *err
 int kg_cli_check_camera(const kg_camera_calib *cam, const char *calib_path,
                         const char *image, int force, kg_err *err);
 
+int kg_cmd_console(int argc, char **argv);
+extern const char kg_console_usage[];
 int kg_cmd_spectra_xyz(int argc, char **argv);
 int kg_cmd_model(int argc, char **argv);
 int kg_cmd_materials_learn(int argc, char **argv);

@@ -9,6 +9,7 @@
 #include "cli.h"
 #include "kg_acquire.h"
 #include "kg_calib.h"
+#include "kg_pipeline.h"
 
 static const char usage_acquire[] =
 	"kogei acquire --camera URI --out SESSION --kind chart|object|dark|flat [options]\n"
@@ -43,38 +44,6 @@ static const char usage_acquire[] =
 	"  --no-record          do not store the raw frames (no replay possible)\n"
 	"  Exit 0 ok, 1 bad input, 2 bad usage, 3 the camera failed (timeouts, dropped or\n"
 	"  incomplete frames: the counts are printed and nothing is added to the session).";
-
-/* ---- the chart measure of the exposure helper --------------------------------------- */
-
-typedef struct chart_measure {
-	kg_chart_layout *layout;
-	kg_chart_detect_options opt;
-} chart_measure;
-
-/* The level of the brightest patch: the largest channel of any sampled patch. */
-static int brightest_patch(void *user, const kg_image *frame, double *level, kg_err *err)
-{
-	chart_measure *m = user;
-	kg_chart_result *r = NULL;
-	int ret = kg_chart_detect(m->layout, frame, &m->opt, &r, err);
-	if (ret)
-		return ret == KG_ENOENT ? KG_ENOENT : ret;
-	double best = -INFINITY;
-	for (int i = 0; i < r->npatches; i++) {
-		const kg_chart_sample *p = &r->patches[i];
-		if (p->flags & KG_CHART_FLAG_REJECTED)
-			continue;
-		for (int c = 0; c < 3; c++)
-			if (isfinite(p->rgb[c]) && p->rgb[c] > best)
-				best = p->rgb[c];
-	}
-	kg_chart_result_free(&r);
-	if (!isfinite(best))
-		return kg_fail(err, KG_ENOENT, "chart %s found but no patch could be sampled",
-		               m->layout->name);
-	*level = best;
-	return 0;
-}
 
 /* ---- terminal --------------------------------------------------------------------- */
 
@@ -289,12 +258,14 @@ int kg_cmd_acquire(int argc, char **argv)
 	if ((o.kind == KG_CAPTURE_DARK || o.kind == KG_CAPTURE_FLAT) && o.flat)
 		return kg_cli_usage_error(usage_acquire, "--flat: does not apply to --kind %s", kind);
 
-	chart_measure cm = {0};
+	kg_chart_level cm = {0};
+	kg_chart_layout *layout_loaded = NULL;
 	if (layout) {
-		if ((r = kg_chart_layout_load(layout, &cm.layout, &err)))
+		if ((r = kg_chart_layout_load(layout, &layout_loaded, &err)))
 			return kg_cli_error(&err, r);
+		cm.layout = layout_loaded;
 		kg_chart_detect_options_default(&cm.opt);
-		o.measure = o.auto_exposure ? brightest_patch : NULL;
+		o.measure = o.auto_exposure ? kg_chart_brightest_patch : NULL;
 		o.measure_user = &cm;
 		o.chart_layout = layout;
 	}
@@ -343,6 +314,6 @@ done:
 	kg_capture_result_clear(&res);
 	kg_camera_free(&camera);
 	kg_session_free(&s);
-	kg_chart_layout_free(&cm.layout);
+	kg_chart_layout_free(&layout_loaded);
 	return r;
 }

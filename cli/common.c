@@ -139,3 +139,4 @@ int kg_cli_check_camera(const kg_camera_calib *cam, const char *calib_path,
 		return kg_fail(err, ret, "%s", why.msg);
 	return 0;
 }
+

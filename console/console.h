@@ -1,0 +1,120 @@
+/* kogei console: the operator's web console (docs/console.md). Private to console/:
+ * console_http.c (the server, security, files), console_live.c (the live view and
+ * the chart check), console_jobs.c (captures, the spectrometer chart, processing). */
+#ifndef KG_CONSOLE_H
+#define KG_CONSOLE_H
+
+#include <limits.h>
+#include <pthread.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include <jansson.h>
+
+#include "kg_console.h"
+
+#define CONSOLE_MAX_CAMERAS KG_CONSOLE_MAX_CAMERAS
+#define CONSOLE_PREVIEW_SIDE 1024 /* long side of the live preview, at most */
+#define CONSOLE_HIST_BINS 64
+
+typedef struct console {
+	/* configuration (read-only once the server runs) */
+	char session_dir[PATH_MAX];  /* as given */
+	char outdir[PATH_MAX];       /* kogei process output (default DIR.processed) */
+	char spectra_out[PATH_MAX];  /* the spectrometer chart (default DIR.chart.cgats) */
+	const char *reference;       /* kogei process --reference, or NULL */
+	const char *layout;          /* the chart layout (name or file), or NULL */
+	const char *spectro_uri;     /* or NULL */
+	const char *cameras[CONSOLE_MAX_CAMERAS];
+	int ncameras;
+	int frames;                  /* default frames per capture */
+	char host[64];               /* listen address as written (no brackets) */
+	int port;
+	int need_token;
+	char token[33];
+	kg_chart_layout *chart_layout; /* loaded from layout, or NULL */
+
+	kg_session *session;         /* open (and locked) for the console's lifetime */
+
+	/* the camera: one at a time, owned by whoever holds cam_lock */
+	pthread_mutex_t cam_lock;
+	kg_camera *cam;
+	int cam_index;
+	int streaming;
+
+	/* everything below: lock */
+	pthread_mutex_t lock;
+	pthread_cond_t cond;
+	int stop;
+	int camera_owned;            /* a capture owns the camera: the live view pauses */
+	double last_request;         /* monotonic time the page last asked for a preview */
+	/* live view */
+	uint64_t live_seq;
+	unsigned char *png;
+	size_t png_size;
+	json_t *live;                /* the preview's numbers */
+	char live_error[1100];
+	double ev;                   /* display exposure scale, stops */
+	double roi[4];               /* focus region x0 y0 x1 y1, 0..1 of the frame */
+	int have_roi;
+	int peaking;
+	double preview_ms;           /* server time of the last preview (pop to PNG) */
+	double preview_ms_mean;
+	long previews;
+	/* the manifest as of the last capture (a copy) */
+	json_t *manifest;
+	/* the job: one at a time */
+	pthread_t job_thread;
+	int job_joinable;
+	int job_running;
+	char job_kind[32];           /* "capture", "measure", "process" */
+	char job_title[128];
+	json_t *job_log;             /* lines */
+	json_t *job_result;          /* the summary when it ended, or NULL */
+	char job_error[1200];
+	int job_i, job_n;
+	double job_fps;
+	/* the spectrometer's prompt while a measurement waits for the operator */
+	char prompt[512];
+	char allowed[8];
+	int waiting;
+	int answer;
+	/* captures requested by the page */
+	pthread_t live_thread;
+} console;
+
+double console_now(void);
+void console_log(console *c, const char *fmt, ...) KG_PRINTF(2, 3); /* with c->lock held */
+
+/* console_live.c */
+int console_live_start(console *c, kg_err *err);
+void console_live_stop(console *c);
+/* The live JSON (a new reference), waiting up to 2 s for a preview after `after`. */
+json_t *console_live_json(console *c, uint64_t after, const double *roi, double ev,
+                          int peaking);
+/* The latest preview PNG (a copy, malloc'd), or NULL. */
+unsigned char *console_live_png(console *c, size_t *size);
+/* Find the chart on a fresh decimated frame: JSON with the overlay and go/no-go. */
+json_t *console_chart_check(console *c);
+/* Take the camera from the live view (blocks until it is free), give it back. */
+void console_camera_take(console *c);
+void console_camera_give(console *c);
+/* Open camera i of the list (with the camera taken). */
+int console_camera_select(console *c, int i, kg_err *err);
+json_t *console_settings_json(console *c); /* with the camera taken */
+
+/* console_jobs.c */
+json_t *console_state_json(console *c);
+json_t *console_session_json(console *c);
+/* Start a job from the page's request; 0, or an HTTP status with *why set. */
+int console_job_capture(console *c, const json_t *req, char *why, size_t n);
+int console_job_measure(console *c, const json_t *req, char *why, size_t n);
+int console_job_answer(console *c, const json_t *req, char *why, size_t n);
+int console_job_process(console *c, const json_t *req, char *why, size_t n);
+int console_settings_set(console *c, const json_t *req, char *why, size_t n);
+void console_jobs_stop(console *c);
+void console_manifest_refresh(console *c); /* with c->lock held */
+
+#include "console_assets.h"
+
+#endif

@@ -1,0 +1,222 @@
+#!/usr/bin/env python3
+"""The console's HTTP API without a browser: security (loopback, token, Host and
+Origin checks, POST-only actions, path traversal and symbolic links), a dark capture
+into session.json, bad requests, the session lock, and the spectrometer's guided
+chart (answers, redo, stop and resume).
+
+usage: console_api.py KOGEI PARENT_DIR [TCS.sp] (works in a new directory below it)"""
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from console_common import Console, check, fail, failures  # noqa: E402
+
+SIM = "sim:?format=bayer_rggb12&fullwell=20000&read=5&width=320&height=240"
+
+
+def security(c, work):
+    st, body = c.request("GET", "/")
+    check(st == 200 and b"kogei console" in body, "GET / serves the page (%d)" % st)
+    for asset in ("/console.js", "/console.css"):
+        st, _ = c.request("GET", asset)
+        check(st == 200, "GET %s: %d" % (asset, st))
+    # Path traversal, absolute paths, hidden files: refused, whatever the spelling.
+    for path in ("/session/../session.json", "/session/%2e%2e/%2e%2e/etc/passwd",
+                 "/session/frames/../../../etc/passwd", "/session//etc/passwd",
+                 "/session/.lock", "/out/..%2f..%2fetc%2fpasswd", "/session/%2fetc/passwd",
+                 "/session/captures\\..\\..\\x"):
+        st, body = c.request("GET", path)
+        check(st in (403, 404) and b"root:" not in body,
+              "GET %s: expected a refusal, got %d" % (path, st))
+    # A symbolic link inside OUTDIR leading out of it is refused; a file inside is served.
+    os.makedirs(work + "/S.processed", exist_ok=True)
+    with open(work + "/outside.txt", "w") as f:
+        f.write("secret outside\n")
+    with open(work + "/S.processed/inside.txt", "w") as f:
+        f.write("inside\n")
+    os.symlink(work + "/outside.txt", work + "/S.processed/leak.txt")
+    st, body = c.request("GET", "/out/leak.txt")
+    check(st == 403 and b"secret" not in body, "a symlink out of OUTDIR: got %d" % st)
+    st, body = c.request("GET", "/out/inside.txt")
+    check(st == 200 and body == b"inside\n", "a file in OUTDIR is served (%d)" % st)
+    # Actions: POST only, with this page's Origin; the Host must be this console.
+    st, _ = c.request("GET", "/api/capture")
+    check(st == 405, "GET of an action: expected 405, got %d" % st)
+    st, _ = c.request("PUT", "/api/capture", {"kind": "dark"})
+    check(st == 405, "PUT: expected 405, got %d" % st)
+    st, _ = c.request("POST", "/api/capture", {"kind": "dark"}, origin=False)
+    check(st == 403, "POST without Origin: expected 403, got %d" % st)
+    st, _ = c.request("POST", "/api/capture", {"kind": "dark"},
+                      headers={"Origin": "http://evil.example"})
+    check(st == 403, "POST from another origin: expected 403, got %d" % st)
+    st, _ = c.request("GET", "/api/state", headers={"Host": "evil.example:80"})
+    check(st == 403, "another Host (DNS rebinding): expected 403, got %d" % st)
+    check(c.token is None, "no token on 127.0.0.1")
+
+
+def bad_requests(c):
+    for body, word in (({"kind": "bogus"}, "kind"), ({"kind": "dark", "frames": 0}, "frames"),
+                       ({"kind": "dark", "name": "../x"}, "name"),
+                       ({"kind": "dark", "auto_exposure": True}, "dark"),
+                       ({"kind": "dark", "camera": 5}, "camera")):
+        st, j = c.json("POST", "/api/capture", body)
+        check(st == 400 and word in j.get("error", ""),
+              "capture %s: expected 400 naming '%s', got %d %s" % (body, word, st, j))
+    st, body = c.request("POST", "/api/capture", None,
+                         headers={"Content-Type": "application/json"})
+    st, j = c.json("POST", "/api/settings", {"exposure_us": "fast"})
+    check(st == 400 and "exposure_us" in j.get("error", ""), "settings: a string exposure (%d)" % st)
+
+
+def dark_capture(c, work):
+    st, j = c.json("POST", "/api/capture", {"kind": "dark", "frames": 3, "exposure_us": 4000,
+                                            "name": "dark-api"})
+    check(st == 200, "dark capture started (%d %s)" % (st, j))
+    s = c.wait_job()
+    if not check(s is not None, "the dark capture ended within 60 s"):
+        return
+    check(not s["job"]["error"], "dark capture: %s" % s["job"]["error"])
+    res = s["job"]["result"] or {}
+    check(res.get("name") == "dark-api" and res.get("kind") == "dark",
+          "the job's summary is the manifest entry (%s)" % res.get("name"))
+    stream = res.get("statistics", {}).get("stream", {})
+    check(stream.get("completed", 0) >= 3, "stream counts in the summary: %s" % stream)
+    with open(work + "/S/session.json") as f:
+        man = json.load(f)
+    names = [(x["name"], x["kind"]) for x in man["captures"]]
+    check(("dark-api", "dark") in names, "session.json lists the dark: %s" % names)
+    st, body = c.request("GET", "/session/session.json")
+    check(st == 200 and b"dark-api" in body, "the session's manifest is served (%d)" % st)
+    st, j = c.json("GET", "/api/session")
+    check(any(x["name"] == "dark-api" for x in j["manifest"]["captures"]),
+          "/api/session lists the dark")
+    # the live view works again after the capture
+    st, j = c.json("GET", "/api/live?after=0")
+    seq1 = j.get("preview", 0)
+    st, j = c.json("GET", "/api/live?after=%d" % seq1)
+    check(j.get("preview", 0) > seq1, "the live view runs after a capture (%s)" % j.get("error"))
+    st, png = c.request("GET", "/api/live.png")
+    check(st == 200 and png[:8] == b"\x89PNG\r\n\x1a\n", "live.png is a PNG (%d)" % st)
+
+
+def second_console(kogei, work):
+    r = subprocess.run([kogei, "console", "--session", work + "/S", "--listen", "127.0.0.1:0"],
+                       capture_output=True, text=True, timeout=20)
+    check(r.returncode == 1 and "lock" in r.stderr,
+          "a second console on the session is refused (exit %d: %s)" % (r.returncode,
+                                                                         r.stderr.strip()))
+
+
+def token(kogei, work):
+    c = Console(kogei, work + "/T", [SIM], listen="127.0.0.2:0")
+    try:
+        check(c.token is not None and len(c.token) == 32, "a token is printed for 127.0.0.2")
+        for path in ("/", "/api/state", "/api/live.png", "/session/session.json"):
+            st, body = c.request("GET", path, token=False)
+            check(st == 403 and b"token" in body, "GET %s without the token: %d" % (path, st))
+        st, _ = c.request("GET", "/api/state", token=False,
+                          headers={"X-Kogei-Token": "0" * 32})
+        check(st == 403, "a wrong token: %d" % st)
+        st, _ = c.request("GET", "/api/state?token=" + c.token, token=False)
+        check(st == 200, "the token as ?token=: %d" % st)
+        st, _ = c.request("GET", "/api/state")
+        check(st == 200, "the token as X-Kogei-Token: %d" % st)
+        st, _ = c.request("POST", "/api/capture", {"kind": "dark", "frames": 1}, token=False)
+        check(st == 403, "an action without the token: %d" % st)
+    finally:
+        c.stop()
+
+
+def measure(kogei, work, tcs):
+    out = work + "/M.chart.cgats"
+    c = Console(kogei, work + "/M", [SIM], extra=["--spectro", "sim:" + tcs, "--layout",
+                                                   "cie-tcs-frame", "--spectra-out", out])
+    try:
+        def answer(a, expect=200):
+            st, j = c.json("POST", "/api/measure/answer", {"answer": a})
+            check(st == expect, "answer %s: %d %s" % (a, st, j.get("error")))
+
+        def wait_prompt():
+            deadline = time.time() + 30
+            while time.time() < deadline:
+                _, s = c.json("GET", "/api/state")
+                if s["job"]["waiting"] or not s["job"]["running"]:
+                    return s
+                time.sleep(0.05)
+            return s
+
+        st, j = c.json("POST", "/api/measure", {})
+        check(st == 200, "measurement started (%d %s)" % (st, j))
+        s = wait_prompt()
+        check("Cover the probe" in (s["job"]["prompt"] or ""), "first prompt: the dark")
+        answer("r", 400)  # no redo before a patch
+        answer("m")       # dark
+        wait_prompt()
+        answer("m")       # white
+        for _ in range(3):
+            s = wait_prompt()
+            answer("m")
+        s = wait_prompt()
+        check("r" in s["job"]["allowed"], "redo offered after a patch")
+        answer("r")
+        s = wait_prompt()
+        check(any("again" in line for line in s["job"]["log"]), "redo asks for the patch again")
+        answer("q")
+        s = c.wait_job(30)
+        check(s["spectra_partial"] and not s["spectra_measured"],
+              "stopped: the .partial file holds what was measured")
+        st, j = c.json("POST", "/api/measure", {"resume": True})
+        check(st == 200, "resumed (%d)" % st)
+        n = 0
+        while n < 40:
+            s = wait_prompt()
+            if not s["job"]["running"]:
+                break
+            answer("m")
+            n += 1
+        check(not s["job"]["error"], "measurement: %s" % s["job"]["error"])
+        check(os.path.exists(out) and not os.path.exists(out + ".partial"),
+              "the chart's spectra are written and the .partial file removed")
+        with open(out) as f:
+            text = f.read()
+        ids = [l.split()[0] for l in text.split("BEGIN_DATA\n")[1].splitlines()
+               if l and not l.startswith("END_DATA")]
+        check(len(ids) == (s["job"]["result"] or {}).get("patches", -1),
+              "every patch measured once (%d rows)" % len(ids))
+        check(any("resuming: 3 of" in line for line in s["job"]["log"]),
+              "the resumed run starts from the 3 saved patches")
+    finally:
+        c.stop()
+
+
+def main():
+    kogei, parent = sys.argv[1:3]
+    work = tempfile.mkdtemp(prefix="console-api-", dir=parent)
+    tcs = sys.argv[3] if len(sys.argv) > 3 else "/usr/share/colord/ref/CIE-TCS.sp"
+    c = Console(kogei, work + "/S", [SIM])
+    try:
+        security(c, work)
+        bad_requests(c)
+        dark_capture(c, work)
+        second_console(kogei, work)
+    finally:
+        rc = c.stop()
+        check(rc == 0, "the console stops on SIGTERM with 0 (got %s)" % rc)
+    token(kogei, work)
+    if os.path.exists(tcs):
+        measure(kogei, work, tcs)
+    else:
+        print("note: %s missing (colord-data): the spectrometer part is skipped" % tcs)
+    print("console-api: %s" % ("FAIL (%d)" % len(failures) if failures else "ok"))
+    if not failures:
+        shutil.rmtree(work)
+    return 1 if failures else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
