@@ -18,8 +18,8 @@
 #include <cpuid.h>
 #include <immintrin.h>
 
-#define AVX2 __attribute__((target("avx2,f16c,popcnt")))
-#define INLINE_AVX2 __attribute__((target("avx2,f16c,popcnt"), always_inline)) static inline
+#define AVX2 __attribute__((target("avx2,fma,f16c,popcnt")))
+#define INLINE_AVX2 __attribute__((target("avx2,fma,f16c,popcnt"), always_inline)) static inline
 
 /* F16C through CPUID: not every compiler's __builtin_cpu_supports knows it. AVX2's
  * check covers the OS saving the YMM registers, which F16C needs too. */
@@ -27,7 +27,8 @@ int est_have_avx2(void)
 {
 	unsigned a, b, c, d;
 	__builtin_cpu_init();
-	return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("popcnt") &&
+	return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") &&
+	       __builtin_cpu_supports("popcnt") &&
 	       __get_cpuid(1, &a, &b, &c, &d) && (c & bit_F16C);
 }
 
@@ -143,7 +144,7 @@ INLINE_AVX2 __m256 cbrt8(__m256 x)
 /* Stage 1 of matrix kernels: est_pixel_flags and est_pixel_terms for m pixels into
  * s->flags and s->terms (term t of pixel i at t * EST_TSTRIDE + i; lanes up to the
  * next multiple of 8 hold the terms of black pixels). */
-AVX2 static void stage_terms(const est_plan *p, est_scratch *s, const float *rgb, size_t m,
+AVX2 void est_avx2_stage_terms(const est_plan *p, est_scratch *s, const float *rgb, size_t m,
                              est_counts *c)
 {
 	kg_est_method method = p->k->method;
@@ -224,7 +225,7 @@ AVX2 static void stage_lut(const est_plan *p, est_scratch *s, const float *rgb, 
 }
 
 /* Mask bytes and the clamped-pixel count of a chunk. */
-static void finish_mask(const est_scratch *s, size_t m, uint8_t *mask, est_counts *c)
+void est_finish_mask(const est_scratch *s, size_t m, uint8_t *mask, est_counts *c)
 {
 	for (size_t i = 0; i < m; i += 8)
 		c->clamped_pixels += (uint64_t)__builtin_popcount(s->clampbits[i / 8]);
@@ -276,7 +277,7 @@ INLINE_AVX2 void matrix_soa_nt(const est_map *mp, const int nt, est_scratch *s, 
 			__m256 acc = _mm256_load_ps(off8 + 8 * o);
 #pragma GCC unroll 16
 			for (int t = 0; t < nt; t++)
-				acc = _mm256_add_ps(acc, _mm256_mul_ps(_mm256_load_ps(a + 8 * t), term[t]));
+				acc = _mm256_fmadd_ps(_mm256_load_ps(a + 8 * t), term[t], acc);
 			if (clamp) {
 				__m256 lt = _mm256_cmp_ps(acc, zero, _CMP_LT_OQ);
 				acc = clamp_negative(acc);
@@ -353,6 +354,122 @@ AVX2 static void store_bsq(const est_plan *p, const est_scratch *s, size_t m,
 	}
 }
 
+/* Matrix kernel straight into BSQ planes, without going through s->vals: EST_G
+ * vectors (8 * EST_G pixels) at a time, every band, each band's values stored at once
+ * into its plane (with EST_G = 4: 128 bytes of f32 or 64 of f16, whole cache lines
+ * when the planes are 64-byte aligned, so that streaming stores fill their
+ * write-combining buffers and nothing is read for ownership). The coefficients are
+ * loaded once per band for the group; the clamped bands are counted per lane, a count
+ * per pixel, which gives both the mask bit and the clamped values. The last group of
+ * a chunk may be partial: it goes through a small buffer. */
+#define EST_G 4
+INLINE_AVX2 void matrix_bsq_nt(const est_plan *p, const int nt, est_scratch *s, size_t m,
+                               const est_dst *d, size_t at, const int stream, est_counts *c)
+{
+	const est_map *mp = p->map;
+	const int nb = mp->nb, clamp = mp->clamp, half = p->format == KG_EST_F16_BSQ;
+	const float *a8 = mp->a8, *off8 = mp->off8, *terms = s->terms;
+	const __m256 zero = _mm256_setzero_ps();
+	__m256i total = _mm256_setzero_si256();
+	for (size_t i = 0; i < m; i += 8 * EST_G) {
+		const size_t left = m - i;
+		const int full = left >= 8 * EST_G;
+		__m256i cnt[EST_G];
+		for (int g = 0; g < EST_G; g++)
+			cnt[g] = _mm256_setzero_si256();
+		for (int o = 0; o < nb; o++) {
+			const float *a = a8 + (size_t)o * nt * 8;
+			__m256 acc[EST_G];
+			for (int g = 0; g < EST_G; g++)
+				acc[g] = _mm256_load_ps(off8 + 8 * o);
+#pragma GCC unroll 16
+			for (int t = 0; t < nt; t++) {
+				__m256 coef = _mm256_load_ps(a + 8 * t);
+				for (int g = 0; g < EST_G; g++)
+					acc[g] = _mm256_fmadd_ps(
+					    coef, _mm256_load_ps(terms + t * EST_TSTRIDE + i + 8 * g), acc[g]);
+			}
+			if (clamp)
+				for (int g = 0; g < EST_G; g++) {
+					__m256 lt = _mm256_cmp_ps(acc[g], zero, _CMP_LT_OQ);
+					acc[g] = clamp_negative(acc[g]);
+					cnt[g] = _mm256_sub_epi32(cnt[g], _mm256_castps_si256(lt));
+				}
+			if (half) {
+				__m256i h[EST_G / 2];
+				for (int g = 0; g < EST_G / 2; g++)
+					h[g] = _mm256_inserti128_si256(
+					    _mm256_castsi128_si256(
+					        _mm256_cvtps_ph(acc[2 * g], _MM_FROUND_TO_NEAREST_INT)),
+					    _mm256_cvtps_ph(acc[2 * g + 1], _MM_FROUND_TO_NEAREST_INT), 1);
+				uint16_t *dst = (uint16_t *)d->data + o * d->plane_stride + at + i;
+				if (full && stream)
+					for (int g = 0; g < EST_G / 2; g++)
+						_mm256_stream_si256((__m256i *)(dst + 16 * g), h[g]);
+				else if (full)
+					for (int g = 0; g < EST_G / 2; g++)
+						_mm256_storeu_si256((__m256i *)(dst + 16 * g), h[g]);
+				else {
+					uint16_t tmp[8 * EST_G];
+					for (int g = 0; g < EST_G / 2; g++)
+						_mm256_storeu_si256((__m256i *)(tmp + 16 * g), h[g]);
+					memcpy(dst, tmp, left * sizeof(uint16_t));
+				}
+			} else {
+				float *dst = (float *)d->data + o * d->plane_stride + at + i;
+				if (full && stream)
+					for (int g = 0; g < EST_G; g++)
+						_mm256_stream_ps(dst + 8 * g, acc[g]);
+				else if (full)
+					for (int g = 0; g < EST_G; g++)
+						_mm256_storeu_ps(dst + 8 * g, acc[g]);
+				else {
+					float tmp[8 * EST_G];
+					for (int g = 0; g < EST_G; g++)
+						_mm256_storeu_ps(tmp + 8 * g, acc[g]);
+					memcpy(dst, tmp, left * sizeof(float));
+				}
+			}
+		}
+		if (clamp)
+			for (int g = 0; g < EST_G && 8 * (size_t)g < left; g++) {
+				__m256i valid = _mm256_castps_si256(valid_lanes(i + 8 * g, m));
+				__m256i n = _mm256_and_si256(cnt[g], valid);
+				total = _mm256_add_epi32(total, n);
+				s->clampbits[(i + 8 * g) / 8] = (uint8_t)_mm256_movemask_ps(
+				    _mm256_castsi256_ps(_mm256_cmpgt_epi32(n, _mm256_setzero_si256())));
+			}
+	}
+	c->clamped_values += sum_lanes(total);
+}
+
+/* Whether matrix_bsq can write this chunk: every plane's part of it starts on the
+ * same 32-byte alignment as the first (so streaming stores, which need it, apply to
+ * all or none). */
+static int bsq_direct(const est_plan *p, const est_dst *d, size_t at, int *stream)
+{
+	size_t es = p->format == KG_EST_F16_BSQ ? 2 : 4;
+	int aligned = (((uintptr_t)d->data + at * es) & 31) == 0 && ((d->plane_stride * es) & 31) == 0;
+	*stream = p->stream && aligned;
+	return !p->stream || aligned;
+}
+
+AVX2 static void matrix_bsq(const est_plan *p, est_scratch *s, size_t m, const est_dst *d,
+                            size_t at, int stream, est_counts *c)
+{
+	switch (p->k->nterms) {
+	case 3:
+		matrix_bsq_nt(p, 3, s, m, d, at, stream, c);
+		break;
+	case 6:
+		matrix_bsq_nt(p, 6, s, m, d, at, stream, c);
+		break;
+	default:
+		matrix_bsq_nt(p, KG_EST_MAX_TERMS, s, m, d, at, stream, c);
+		break;
+	}
+}
+
 /* Matrix kernel straight into BIP (f32, f16 or weights): for 8 pixels the output is
  * 8 * nb consecutive values, i.e. nb vectors; lane l of vector v is band (8v+l) % nb
  * of pixel (8v+l) / nb, whose terms a permute brings into the lane. */
@@ -385,9 +502,8 @@ INLINE_AVX2 void matrix_bip_nt(const est_plan *p, const int nt, est_scratch *s, 
 			const float *coef = bip_coef + (size_t)v * nt * 8;
 #pragma GCC unroll 16
 			for (int t = 0; t < nt; t++)
-				acc = _mm256_add_ps(acc,
-				                    _mm256_mul_ps(_mm256_load_ps(coef + 8 * t),
-				                                  _mm256_permutevar8x32_ps(term[t], pix)));
+				acc = _mm256_fmadd_ps(_mm256_load_ps(coef + 8 * t),
+				                      _mm256_permutevar8x32_ps(term[t], pix), acc);
 			if (clamp) {
 				__m256i hit = _mm256_castps_si256(_mm256_cmp_ps(acc, zero, _CMP_LT_OQ));
 				acc = clamp_negative(acc);
@@ -498,18 +614,24 @@ AVX2 static void classify(const est_plan *p, const est_scratch *s, size_t m,
 	}
 }
 
-AVX2 static void avx2_matrix_block(const est_plan *p, est_scratch *s, const float *rgb,
+AVX2 void est_avx2_matrix_block(const est_plan *p, est_scratch *s, const float *rgb,
                                    size_t n, const est_dst *d, est_counts *c)
 {
 	for (size_t at = 0; at < n; at += EST_CHUNK) {
 		size_t m = n - at < EST_CHUNK ? n - at : EST_CHUNK;
-		stage_terms(p, s, rgb + 3 * at, m, c);
+		est_avx2_stage_terms(p, s, rgb + 3 * at, m, c);
 		switch (p->format) {
 		case KG_EST_F32_BSQ:
-		case KG_EST_F16_BSQ:
-			matrix_soa(p, s, m, c);
-			store_bsq(p, s, m, d, at);
+		case KG_EST_F16_BSQ: {
+			int stream;
+			if (bsq_direct(p, d, at, &stream)) {
+				matrix_bsq(p, s, m, d, at, stream, c);
+			} else {
+				matrix_soa(p, s, m, c);
+				store_bsq(p, s, m, d, at);
+			}
 			break;
+		}
 		case KG_EST_LABELS:
 			matrix_soa(p, s, m, c);
 			classify(p, s, m, d, at);
@@ -518,7 +640,7 @@ AVX2 static void avx2_matrix_block(const est_plan *p, est_scratch *s, const floa
 			matrix_bip(p, s, m, d, at, c);
 			break;
 		}
-		finish_mask(s, m, d->mask ? d->mask + at : NULL, c);
+		est_finish_mask(s, m, d->mask ? d->mask + at : NULL, c);
 	}
 	if (p->stream)
 		_mm_sfence();
@@ -549,7 +671,7 @@ INLINE_AVX2 void lut_rows_stride(const est_plan *p, const int stride, est_scratc
 			__m256 acc = _mm256_mul_ps(w[0], _mm256_load_ps(node + corner[0] + g));
 #pragma GCC unroll 8
 			for (int q = 1; q < 8; q++)
-				acc = _mm256_add_ps(acc, _mm256_mul_ps(w[q], _mm256_load_ps(node + corner[q] + g)));
+				acc = _mm256_fmadd_ps(w[q], _mm256_load_ps(node + corner[q] + g), acc);
 			if (clamp) {
 				__m256 lt = _mm256_and_ps(_mm256_cmp_ps(acc, _mm256_setzero_ps(), _CMP_LT_OQ),
 				                          band_valid[g / 8]);
@@ -636,7 +758,7 @@ AVX2 static void avx2_lut_block(const est_plan *p, est_scratch *s, const float *
 			lut_store_bip(p, s, m, d, at);
 			break;
 		}
-		finish_mask(s, m, d->mask ? d->mask + at : NULL, c);
+		est_finish_mask(s, m, d->mask ? d->mask + at : NULL, c);
 	}
 	if (p->stream)
 		_mm_sfence();
@@ -645,7 +767,7 @@ AVX2 static void avx2_lut_block(const est_plan *p, est_scratch *s, const float *
 void est_dsp_init_avx2(est_dsp *dsp)
 {
 	for (int f = 0; f < KG_EST_NFORMATS; f++) {
-		dsp->block[EST_KIND_MATRIX][f] = avx2_matrix_block;
+		dsp->block[EST_KIND_MATRIX][f] = est_avx2_matrix_block;
 		dsp->block[EST_KIND_LUT][f] = avx2_lut_block;
 	}
 }
@@ -655,5 +777,22 @@ void est_dsp_init_avx2(est_dsp *dsp)
 int est_have_avx2(void) { return 0; }
 
 void est_dsp_init_avx2(est_dsp *dsp) { (void)dsp; }
+
+void est_avx2_stage_terms(const est_plan *p, est_scratch *s, const float *rgb, size_t m,
+                          est_counts *c)
+{
+	(void)p, (void)s, (void)rgb, (void)m, (void)c;
+}
+
+void est_finish_mask(const est_scratch *s, size_t m, uint8_t *mask, est_counts *c)
+{
+	(void)s, (void)m, (void)mask, (void)c;
+}
+
+void est_avx2_matrix_block(const est_plan *p, est_scratch *s, const float *rgb, size_t n,
+                           const est_dst *d, est_counts *c)
+{
+	(void)p, (void)s, (void)rgb, (void)n, (void)d, (void)c;
+}
 
 #endif

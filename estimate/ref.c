@@ -134,10 +134,14 @@ int est_dsp_init(est_dsp *dsp, kg_est_isa isa)
 	est_dsp_init_c(dsp);
 	if (isa == KG_EST_ISA_C)
 		return 0;
-	int avx2 = est_have_avx2();
-	if (isa == KG_EST_ISA_AVX2 && !avx2)
+	if ((int)isa < 0 || isa >= KG_EST_NISAS)
+		return KG_EINVAL;
+	int avx2 = est_have_avx2(), avx512 = avx2 && est_have_avx512();
+	if ((isa == KG_EST_ISA_AVX2 && !avx2) || (isa == KG_EST_ISA_AVX512 && !avx512))
 		return KG_ENOTSUP;
 	if (avx2)
 		est_dsp_init_avx2(dsp);
+	if (avx512 && isa != KG_EST_ISA_AVX2)
+		est_dsp_init_avx512(dsp);
 	return 0;
 }
