@@ -32,91 +32,83 @@ int est_have_avx512(void)
 	return est_have_avx2() && __builtin_cpu_supports("avx512f");
 }
 
-/* Matrix kernel of one chunk straight into the BSQ planes: 2 vectors of 16 pixels per
- * group, all bands; per pixel the number of clamped bands is counted in its lane. */
-#define G512 2
+/* Matrix kernel of one chunk straight into the BSQ planes, band by band as the AVX2
+ * path does (avx2.c says why), 16 pixels per vector: the band's coefficients are
+ * broadcast once, its values for the chunk go to its plane in one sequential run.
+ * Lanes past the chunk's end compute from leftover terms and are neither stored nor
+ * counted. The clamped bands are counted per pixel in s->cell. */
 INLINE_AVX512 void bsq512_nt(const est_plan *p, const int nt, est_scratch *s, size_t m,
                              const est_dst *d, size_t at, const int stream, est_counts *c)
 {
 	const est_map *mp = p->map;
 	const int nb = mp->nb, clamp = mp->clamp, half = p->format == KG_EST_F16_BSQ;
-	const float *a = mp->a, *off = mp->off, *terms = s->terms;
+	const float *a = mp->a, *terms = s->terms;
+	int32_t *cnt = s->cell;
 	const __m512 zero = _mm512_setzero_ps();
 	const __m512i one = _mm512_set1_epi32(1);
-	__m512i total = _mm512_setzero_si512();
-	for (size_t i = 0; i < m; i += 16 * G512) {
-		const size_t left = m - i;
-		const int full = left >= 16 * G512;
-		__m512i cnt[G512];
-		for (int g = 0; g < G512; g++)
-			cnt[g] = _mm512_setzero_si512();
-		for (int o = 0; o < nb; o++) {
-			const float *ao = a + (size_t)o * nt;
-			__m512 acc[G512];
-			for (int g = 0; g < G512; g++)
-				acc[g] = _mm512_set1_ps(off[o]);
+	const size_t mv = (m + 15) & ~(size_t)15, mfull = m & ~(size_t)15;
+	if (clamp)
+		memset(cnt, 0, mv * sizeof(int32_t));
+	for (int o = 0; o < nb; o++) {
+		__m512 coef[KG_EST_MAX_TERMS];
+		for (int t = 0; t < nt; t++)
+			coef[t] = _mm512_set1_ps(a[(size_t)o * nt + t]);
+		const __m512 off = _mm512_set1_ps(mp->off[o]);
+		float *dst32 = (float *)d->data + o * d->plane_stride + at;
+		uint16_t *dst16 = (uint16_t *)d->data + o * d->plane_stride + at;
+		for (size_t i = 0; i < mv; i += 16) {
+			__m512 acc = off;
 #pragma GCC unroll 16
-			for (int t = 0; t < nt; t++) {
-				__m512 coef = _mm512_set1_ps(ao[t]);
-				for (int g = 0; g < G512; g++)
-					acc[g] = _mm512_fmadd_ps(
-					    coef, _mm512_load_ps(terms + t * EST_TSTRIDE + i + 16 * g), acc[g]);
+			for (int t = 0; t < nt; t++)
+				acc = _mm512_fmadd_ps(coef[t], _mm512_load_ps(terms + t * EST_TSTRIDE + i), acc);
+			if (clamp) {
+				__mmask16 lt = _mm512_cmp_ps_mask(acc, zero, _CMP_LT_OQ);
+				/* maxps returns its second operand for a NaN and for equal zeros */
+				acc = _mm512_max_ps(zero, acc);
+				__m512i q = _mm512_load_si512((const void *)(cnt + i));
+				_mm512_store_si512((void *)(cnt + i), _mm512_mask_add_epi32(q, lt, q, one));
 			}
-			if (clamp)
-				for (int g = 0; g < G512; g++) {
-					__mmask16 lt = _mm512_cmp_ps_mask(acc[g], zero, _CMP_LT_OQ);
-					/* maxps returns its second operand for NaN and for equal zeros */
-					acc[g] = _mm512_max_ps(zero, acc[g]);
-					cnt[g] = _mm512_mask_add_epi32(cnt[g], lt, cnt[g], one);
-				}
 			if (half) {
-				__m512i h = _mm512_inserti64x4(
-				    _mm512_castsi256_si512(_mm512_cvtps_ph(acc[0], _MM_FROUND_TO_NEAREST_INT)),
-				    _mm512_cvtps_ph(acc[1], _MM_FROUND_TO_NEAREST_INT), 1);
-				uint16_t *dst = (uint16_t *)d->data + o * d->plane_stride + at + i;
-				if (full && stream)
-					_mm512_stream_si512((void *)dst, h);
-				else if (full)
-					_mm512_storeu_si512((void *)dst, h);
-				else {
-					uint16_t tmp[16 * G512];
-					_mm512_storeu_si512((void *)tmp, h);
-					memcpy(dst, tmp, left * sizeof(uint16_t));
+				__m256i h = _mm512_cvtps_ph(acc, _MM_FROUND_TO_NEAREST_INT);
+				if (i < mfull) {
+					if (stream)
+						_mm256_stream_si256((__m256i *)(dst16 + i), h);
+					else
+						_mm256_storeu_si256((__m256i *)(dst16 + i), h);
+				} else {
+					uint16_t tmp[16];
+					_mm256_storeu_si256((__m256i *)tmp, h);
+					memcpy(dst16 + i, tmp, (m - i) * sizeof(uint16_t));
 				}
+			} else if (i < mfull) {
+				if (stream)
+					_mm512_stream_ps(dst32 + i, acc);
+				else
+					_mm512_storeu_ps(dst32 + i, acc);
 			} else {
-				float *dst = (float *)d->data + o * d->plane_stride + at + i;
-				if (full && stream)
-					for (int g = 0; g < G512; g++)
-						_mm512_stream_ps(dst + 16 * g, acc[g]);
-				else if (full)
-					for (int g = 0; g < G512; g++)
-						_mm512_storeu_ps(dst + 16 * g, acc[g]);
-				else {
-					float tmp[16 * G512];
-					for (int g = 0; g < G512; g++)
-						_mm512_storeu_ps(tmp + 16 * g, acc[g]);
-					memcpy(dst, tmp, left * sizeof(float));
-				}
+				float tmp[16];
+				_mm512_storeu_ps(tmp, acc);
+				memcpy(dst32 + i, tmp, (m - i) * sizeof(float));
 			}
 		}
-		if (clamp)
-			for (int g = 0; g < G512 && 16 * (size_t)g < left; g++) {
-				size_t lanes = left - 16 * (size_t)g;
-				__mmask16 valid = lanes >= 16 ? (__mmask16)0xffff
-				                              : (__mmask16)((1u << lanes) - 1);
-				__m512i n = _mm512_maskz_mov_epi32(valid, cnt[g]);
-				total = _mm512_add_epi32(total, n);
-				unsigned hit = (unsigned)_mm512_cmpgt_epi32_mask(n, _mm512_setzero_si512());
-				size_t byte = (i + 16 * (size_t)g) / 8;
-				s->clampbits[byte] = (uint8_t)(hit & 0xff);
-				if (lanes > 8)
-					s->clampbits[byte + 1] = (uint8_t)(hit >> 8);
-			}
 	}
-	int lanes[16];
-	_mm512_storeu_si512((void *)lanes, total);
+	if (!clamp)
+		return;
+	__m512i total = _mm512_setzero_si512();
+	for (size_t i = 0; i < mv; i += 16) {
+		size_t lanes = m - i;
+		__mmask16 valid = lanes >= 16 ? (__mmask16)0xffff : (__mmask16)((1u << lanes) - 1);
+		__m512i n = _mm512_maskz_loadu_epi32(valid, cnt + i);
+		total = _mm512_add_epi32(total, n);
+		unsigned hit = (unsigned)_mm512_cmpgt_epi32_mask(n, _mm512_setzero_si512());
+		s->clampbits[i / 8] = (uint8_t)(hit & 0xff);
+		if (lanes > 8)
+			s->clampbits[i / 8 + 1] = (uint8_t)(hit >> 8);
+	}
+	int sum[16];
+	_mm512_storeu_si512((void *)sum, total);
 	for (int l = 0; l < 16; l++)
-		c->clamped_values += (uint64_t)lanes[l];
+		c->clamped_values += (uint64_t)sum[l];
 }
 
 AVX512 static void bsq512(const est_plan *p, est_scratch *s, size_t m, const est_dst *d,
