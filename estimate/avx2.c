@@ -367,6 +367,39 @@ AVX2 static void store_bsq(const est_plan *p, const est_scratch *s, size_t m,
  * and groups of 32 pixels with every band written at once (61 planes touched 128
  * bytes at a time). The clamped bands are counted per pixel in s->cell (LUT scratch,
  * unused by matrix kernels), which gives both the mask bit and the clamped values. */
+/* One band's values for pixels [0, mfull) (whole vectors) into its plane; the
+ * store kind and the clamp are constants, so that each combination gets its own
+ * branch-free loop. */
+INLINE_AVX2 void bsq_band(const int nt, const __m256 *coef, __m256 off, const float *terms,
+                          size_t mfull, void *dst, int32_t *cnt, const int half,
+                          const int stream, const int clamp)
+{
+	const __m256 zero = _mm256_setzero_ps();
+	for (size_t i = 0; i < mfull; i += 8) {
+		__m256 acc = off;
+#pragma GCC unroll 16
+		for (int t = 0; t < nt; t++)
+			acc = _mm256_fmadd_ps(coef[t], _mm256_load_ps(terms + t * EST_TSTRIDE + i), acc);
+		if (clamp) {
+			__m256 lt = _mm256_cmp_ps(acc, zero, _CMP_LT_OQ);
+			acc = clamp_negative(acc);
+			__m256i *q = (__m256i *)(cnt + i);
+			_mm256_store_si256(q, _mm256_sub_epi32(_mm256_load_si256(q), _mm256_castps_si256(lt)));
+		}
+		if (half) {
+			__m128i h = _mm256_cvtps_ph(acc, _MM_FROUND_TO_NEAREST_INT);
+			if (stream)
+				_mm_stream_si128((__m128i *)((uint16_t *)dst + i), h);
+			else
+				_mm_storeu_si128((__m128i *)((uint16_t *)dst + i), h);
+		} else if (stream) {
+			_mm256_stream_ps((float *)dst + i, acc);
+		} else {
+			_mm256_storeu_ps((float *)dst + i, acc);
+		}
+	}
+}
+
 INLINE_AVX2 void matrix_bsq_nt(const est_plan *p, const int nt, est_scratch *s, size_t m,
                                const est_dst *d, size_t at, const int stream, est_counts *c)
 {
@@ -384,11 +417,21 @@ INLINE_AVX2 void matrix_bsq_nt(const est_plan *p, const int nt, est_scratch *s, 
 		for (int t = 0; t < nt; t++)
 			coef[t] = _mm256_load_ps(a + 8 * t);
 		const __m256 off = _mm256_load_ps(off8 + 8 * o);
-		float *dst32 = (float *)d->data + o * d->plane_stride + at;
-		uint16_t *dst16 = (uint16_t *)d->data + o * d->plane_stride + at;
-		for (size_t i = 0; i < mv; i += 8) {
+		void *dst = (char *)d->data + (o * d->plane_stride + at) * (half ? 2 : 4);
+		const int kind = (half ? 4 : 0) | (stream ? 2 : 0) | (clamp ? 1 : 0);
+		switch (kind) {
+		case 0: bsq_band(nt, coef, off, terms, mfull, dst, cnt, 0, 0, 0); break;
+		case 1: bsq_band(nt, coef, off, terms, mfull, dst, cnt, 0, 0, 1); break;
+		case 2: bsq_band(nt, coef, off, terms, mfull, dst, cnt, 0, 1, 0); break;
+		case 3: bsq_band(nt, coef, off, terms, mfull, dst, cnt, 0, 1, 1); break;
+		case 4: bsq_band(nt, coef, off, terms, mfull, dst, cnt, 1, 0, 0); break;
+		case 5: bsq_band(nt, coef, off, terms, mfull, dst, cnt, 1, 0, 1); break;
+		case 6: bsq_band(nt, coef, off, terms, mfull, dst, cnt, 1, 1, 0); break;
+		default: bsq_band(nt, coef, off, terms, mfull, dst, cnt, 1, 1, 1); break;
+		}
+		if (mfull < m) { /* the last, partial vector through a small buffer */
+			size_t i = mfull;
 			__m256 acc = off;
-#pragma GCC unroll 16
 			for (int t = 0; t < nt; t++)
 				acc = _mm256_fmadd_ps(coef[t], _mm256_load_ps(terms + t * EST_TSTRIDE + i), acc);
 			if (clamp) {
@@ -398,26 +441,13 @@ INLINE_AVX2 void matrix_bsq_nt(const est_plan *p, const int nt, est_scratch *s, 
 				_mm256_store_si256(q, _mm256_sub_epi32(_mm256_load_si256(q), _mm256_castps_si256(lt)));
 			}
 			if (half) {
-				__m128i h = _mm256_cvtps_ph(acc, _MM_FROUND_TO_NEAREST_INT);
-				if (i < mfull) {
-					if (stream)
-						_mm_stream_si128((__m128i *)(dst16 + i), h);
-					else
-						_mm_storeu_si128((__m128i *)(dst16 + i), h);
-				} else {
-					uint16_t tmp[8];
-					_mm_storeu_si128((__m128i *)tmp, h);
-					memcpy(dst16 + i, tmp, (m - i) * sizeof(uint16_t));
-				}
-			} else if (i < mfull) {
-				if (stream)
-					_mm256_stream_ps(dst32 + i, acc);
-				else
-					_mm256_storeu_ps(dst32 + i, acc);
+				uint16_t tmp[8];
+				_mm_storeu_si128((__m128i *)tmp, _mm256_cvtps_ph(acc, _MM_FROUND_TO_NEAREST_INT));
+				memcpy((uint16_t *)dst + i, tmp, (m - i) * sizeof(uint16_t));
 			} else {
 				float tmp[8];
 				_mm256_storeu_ps(tmp, acc);
-				memcpy(dst32 + i, tmp, (m - i) * sizeof(float));
+				memcpy((float *)dst + i, tmp, (m - i) * sizeof(float));
 			}
 		}
 	}
