@@ -9,7 +9,8 @@
  * stores by 1 and 2 threads. Each figure is the median of several repetitions
  * (CLOCK_MONOTONIC). Markdown goes to stdout, JSON to --json.
  *
- *   kogei-bench-kernels [--mpix N] [--reps N] [--quick] [--isa auto|c] [--json PATH] */
+ *   kogei-bench-kernels [--mpix N] [--reps N] [--quick] [--isa auto|c|avx2|avx512]
+ *                       [--json PATH] */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -76,8 +77,8 @@ typedef struct output {
 
 static void usage(FILE *f)
 {
-	fprintf(f, "usage: kogei-bench-kernels [--mpix N] [--reps N] [--quick] [--isa auto|c] "
-	           "[--json PATH]\n");
+	fprintf(f, "usage: kogei-bench-kernels [--mpix N] [--reps N] [--quick] "
+	           "[--isa auto|c|avx2|avx512] [--json PATH]\n");
 }
 
 int main(int argc, char **argv)
@@ -97,7 +98,10 @@ int main(int argc, char **argv)
 			reps = 3;
 		} else if (!strcmp(argv[i], "--isa") && i + 1 < argc) {
 			i++;
-			isa = !strcmp(argv[i], "c") ? KG_EST_ISA_C : KG_EST_ISA_AUTO;
+			isa = !strcmp(argv[i], "c")        ? KG_EST_ISA_C
+			      : !strcmp(argv[i], "avx2")   ? KG_EST_ISA_AVX2
+			      : !strcmp(argv[i], "avx512") ? KG_EST_ISA_AVX512
+			                                   : KG_EST_ISA_AUTO;
 		} else if (!strcmp(argv[i], "--json") && i + 1 < argc)
 			json_path = argv[++i];
 		else if (!strcmp(argv[i], "--help")) {
@@ -186,7 +190,7 @@ int main(int argc, char **argv)
 
 	fprintf(stderr, "kogei-bench-kernels: %d x %d = %.2f Mpix, %d repetitions, %s kernels, "
 	        "limit by %s\n",
-	        WIDTH, height, npix / 1e6, reps, isa == KG_EST_ISA_C ? "reference" : "best",
+	        WIDTH, height, npix / 1e6, reps, kg_bench_isa_name(isa),
 	        kg_bench_stream_kind());
 
 	/* limits, by bytes per pixel */
@@ -212,7 +216,7 @@ int main(int argc, char **argv)
 		fprintf(json.fp,
 		        "{\n  \"format\": \"kogei-bench-kernels/1\",\n  \"width\": %d,\n  \"height\": %d,\n"
 		        "  \"repetitions\": %d,\n  \"kernels\": \"%s\",\n  \"results\": [",
-		        WIDTH, height, reps, isa == KG_EST_ISA_C ? "reference" : "best");
+		        WIDTH, height, reps, kg_bench_isa_name(isa));
 	}
 	printf("| method | output | bytes/px | Mpix/s 1 thr | Mpix/s 2 thr | limit 1 thr | limit 2 "
 	       "thr | of limit 1 thr | of limit 2 thr |\n");

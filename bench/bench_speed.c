@@ -132,6 +132,36 @@ const char *kg_bench_format_name(kg_est_format f)
 	return f >= 0 && f < KG_EST_NFORMATS ? names[f] : "unknown";
 }
 
+const char *kg_bench_isa_name(kg_est_isa isa)
+{
+	switch (isa) {
+	case KG_EST_ISA_C:
+		return "c";
+	case KG_EST_ISA_AVX2:
+		return "avx2+fma";
+	case KG_EST_ISA_AVX512:
+		return "avx512";
+	default:
+		return "auto";
+	}
+}
+
+int kg_bench_isa_available(kg_est_isa isa)
+{
+	static const double zero[KG_NBANDS * 3];
+	kg_est_kernel *k = NULL;
+	if (kg_est_kernel_new(&(kg_est_desc){KG_EST_LINEAR, 0, zero, NULL, NULL, NULL}, &k, NULL) < 0)
+		return 0;
+	kg_est_job job;
+	kg_est_job_init(&job, k, KG_EST_F32_BIP);
+	job.isa = isa;
+	job.threads = 1;
+	float px[3] = {0.5f, 0.5f, 0.5f}, out[KG_NBANDS];
+	int ok = kg_est_run(&job, px, 1, 1, &(kg_est_dest){out, NULL, NULL}, NULL, NULL) == 0;
+	kg_est_kernel_free(&k);
+	return ok;
+}
+
 /* The write limit of each (bytes per pixel, threads) pair: the median of the limits
  * measured beside its speed rows. */
 static int collect_limits(kg_bench_results *r, kg_err *err)
@@ -168,10 +198,31 @@ static int collect_limits(kg_bench_results *r, kg_err *err)
 	return 0;
 }
 
+/* The paths a (method, format) row is measured with: every optimised path the CPU
+ * has, and the reference too for pca3's BSQ outputs (the reference is slow: its
+ * fmaf is a library call on a build for any x86-64). Returns how many. */
+static int row_paths(int m, kg_est_format fmt, const int *have, kg_est_isa *paths)
+{
+	int n = 0;
+	if (m == KG_BENCH_PCA3 && (fmt == KG_EST_F32_BSQ || fmt == KG_EST_F16_BSQ))
+		paths[n++] = KG_EST_ISA_C;
+	if (have[KG_EST_ISA_AVX2])
+		paths[n++] = KG_EST_ISA_AVX2;
+	if (have[KG_EST_ISA_AVX512])
+		paths[n++] = KG_EST_ISA_AVX512;
+	if (!n)
+		paths[n++] = KG_EST_ISA_C;
+	return n;
+}
+
 int bench_speed_all(const kg_bench_config *cfg, kg_est_kernel *const *k,
                     const kg_est_classifier *cls, const float *rgb, int width, int height,
                     void *out, float *conf, kg_bench_results *r, kg_err *err)
 {
+	int have[KG_EST_NISAS] = {0};
+	for (int i = KG_EST_ISA_C; i < KG_EST_NISAS; i++)
+		have[i] = kg_bench_isa_available((kg_est_isa)i);
+	kg_est_isa paths[KG_EST_NISAS];
 	static const kg_est_format formats[] = {KG_EST_F32_BSQ, KG_EST_F16_BSQ, KG_EST_WEIGHTS,
 	                                        KG_EST_LABELS};
 	const int nformats = (int)(sizeof(formats) / sizeof(formats[0]));
@@ -184,7 +235,7 @@ int bench_speed_all(const kg_bench_config *cfg, kg_est_kernel *const *k,
 			if (k[m] && (formats[f] == KG_EST_F32_BSQ || formats[f] == KG_EST_F16_BSQ ||
 			             (formats[f] == KG_EST_WEIGHTS && kg_est_kernel_k(k[m]) > 0) ||
 			             (formats[f] == KG_EST_LABELS && m == KG_BENCH_PCA3 && cls)))
-				total += cfg->nthreads;
+				total += cfg->nthreads * row_paths(m, formats[f], have, paths);
 	int ret = 0;
 	for (int m = 0; m < KG_BENCH_NMETHODS && !ret; m++) {
 		if (!k[m])
@@ -198,11 +249,13 @@ int bench_speed_all(const kg_bench_config *cfg, kg_est_kernel *const *k,
 			             (double)kg_est_format_elem_size(fmt);
 			if (fmt == KG_EST_LABELS)
 				bpp += sizeof(float); /* the confidence beside the label */
-			for (int ti = 0; ti < cfg->nthreads && !ret; ti++) {
-				int threads = cfg->threads[ti];
+			int npaths = row_paths(m, fmt, have, paths);
+			for (int pt = 0; pt < npaths * cfg->nthreads && !ret; pt++) {
+				int pi = pt / cfg->nthreads, threads = cfg->threads[pt % cfg->nthreads];
 				kg_est_job job;
 				kg_est_job_init(&job, k[m], fmt);
 				job.threads = threads;
+				job.isa = paths[pi];
 				job.classifier = fmt == KG_EST_LABELS ? cls : NULL;
 				kg_est_dest dest = {out, fmt == KG_EST_LABELS ? conf : NULL, NULL};
 				/* Kernel runs and limit runs alternate, so both see the same
@@ -230,6 +283,7 @@ int bench_speed_all(const kg_bench_config *cfg, kg_est_kernel *const *k,
 				row = &r->speed[r->nspeed++];
 				row->method = (kg_bench_method)m;
 				row->format = fmt;
+				row->isa = paths[pi];
 				row->threads = threads;
 				row->bytes_per_pixel = bpp;
 				row->seconds = kg_bench_percentile(t, reps, 0.5);
@@ -238,10 +292,11 @@ int bench_speed_all(const kg_bench_config *cfg, kg_est_kernel *const *k,
 				row->limit_gb_s = limit;
 				row->fraction = row->gb_s / limit;
 				bench_progress(cfg,
-				               "[speed %d/%d] %-10s %-8s %d thread%s: %7.1f Mpix/s, %6.2f "
-				               "GB/s = %.2f of the write limit (%.1f GB/s)",
+				               "[speed %d/%d] %-10s %-8s %-8s %d thread%s: %7.1f Mpix/s, "
+				               "%6.2f GB/s = %.2f of the write limit (%.1f GB/s)",
 				               ++done, total, kg_bench_method_name(row->method),
-				               kg_bench_format_name(fmt), threads, threads == 1 ? " " : "s",
+				               kg_bench_format_name(fmt), kg_bench_isa_name(row->isa), threads,
+				               threads == 1 ? " " : "s",
 				               row->mpix_s, row->gb_s, row->fraction, limit);
 			}
 		}

@@ -123,6 +123,7 @@ void kg_bench_synthetic_camera(kg_sim_camera *cam);
 typedef struct kg_bench_speed_row {
 	kg_bench_method method;
 	kg_est_format format;
+	kg_est_isa isa; /* the path measured: KG_EST_ISA_C, _AVX2 or _AVX512 */
 	int threads;
 	double bytes_per_pixel; /* output bytes (labels: label + confidence) */
 	double seconds;         /* median */
@@ -156,6 +157,10 @@ const char *kg_bench_stream_kind(void);
 
 /* "f32-bsq", "f32-bip", "f16-bsq", "f16-bip", "weights", "labels". */
 const char *kg_bench_format_name(kg_est_format f);
+/* "c", "avx2+fma", "avx512" ("auto" for KG_EST_ISA_AUTO). */
+const char *kg_bench_isa_name(kg_est_isa isa);
+/* Whether the CPU runs path isa (a one-pixel kg_est_run; C always). */
+int kg_bench_isa_available(kg_est_isa isa);
 
 /* ---- camera-space matching --------------------------------------------------------- */
 

@@ -64,14 +64,19 @@ static int thread_counts(const kg_bench_results *r, int *t, int max)
 	return n;
 }
 
+/* The row of a path; KG_EST_ISA_AUTO: of the best path measured (the last in the
+ * order C, AVX2, AVX-512). */
 static const kg_bench_speed_row *speed_row(const kg_bench_results *r, kg_bench_method m,
-                                           kg_est_format f, int threads)
+                                           kg_est_format f, kg_est_isa isa, int threads)
 {
+	const kg_bench_speed_row *best = NULL;
 	for (int i = 0; i < r->nspeed; i++)
 		if (r->speed[i].method == m && r->speed[i].format == f &&
-		    r->speed[i].threads == threads)
-			return &r->speed[i];
-	return NULL;
+		    r->speed[i].threads == threads &&
+		    (isa == KG_EST_ISA_AUTO ? !best || r->speed[i].isa > best->isa
+		                            : r->speed[i].isa == isa))
+			best = &r->speed[i];
+	return best;
 }
 
 /* The thread count the Pareto plot uses: 2 if measured, else the largest. */
@@ -104,41 +109,43 @@ static void md_speed(FILE *fp, const kg_bench_results *r)
 	            "kernels fitted for %s.\n\n",
 	        r->width, r->height, r->width * (double)r->height * 1e-6, r->reps,
 	        r->speed_calibration);
-	fprintf(fp, "| method | output | B/pixel |");
+	fprintf(fp, "| method | output | path | B/pixel |");
 	for (int j = 0; j < nt; j++)
 		fprintf(fp, " Mpix/s (%d thr) |", t[j]);
 	for (int j = 0; j < nt; j++)
 		fprintf(fp, " GB/s (%d thr) |", t[j]);
 	for (int j = 0; j < nt; j++)
 		fprintf(fp, " of limit (%d thr) |", t[j]);
-	fprintf(fp, "\n|---|---|--:|");
+	fprintf(fp, "\n|---|---|---|--:|");
 	for (int j = 0; j < 3 * nt; j++)
 		fprintf(fp, "--:|");
 	fputc('\n', fp);
 	for (int m = 0; m < KG_BENCH_NMETHODS; m++)
-		for (int f = 0; f < KG_EST_NFORMATS; f++) {
-			const kg_bench_speed_row *first = NULL;
-			for (int j = 0; j < nt && !first; j++)
-				first = speed_row(r, (kg_bench_method)m, (kg_est_format)f, t[j]);
-			if (!first)
-				continue;
-			fprintf(fp, "| %s | %s | %g |", kg_bench_method_name((kg_bench_method)m),
-			        kg_bench_format_name((kg_est_format)f), first->bytes_per_pixel);
-			for (int pass = 0; pass < 3; pass++)
-				for (int j = 0; j < nt; j++) {
-					const kg_bench_speed_row *s =
-					    speed_row(r, (kg_bench_method)m, (kg_est_format)f, t[j]);
-					if (!s)
-						fprintf(fp, " - |");
-					else if (pass == 0)
-						fprintf(fp, " %.1f |", s->mpix_s);
-					else if (pass == 1)
-						fprintf(fp, " %.2f |", s->gb_s);
-					else
-						fprintf(fp, " %.2f |", s->fraction);
-				}
-			fputc('\n', fp);
-		}
+		for (int f = 0; f < KG_EST_NFORMATS; f++)
+			for (int isa = KG_EST_ISA_C; isa < KG_EST_NISAS; isa++) {
+				const kg_bench_speed_row *first = NULL;
+				for (int j = 0; j < nt && !first; j++)
+					first = speed_row(r, (kg_bench_method)m, (kg_est_format)f, (kg_est_isa)isa, t[j]);
+				if (!first)
+					continue;
+				fprintf(fp, "| %s | %s | %s | %g |", kg_bench_method_name((kg_bench_method)m),
+				        kg_bench_format_name((kg_est_format)f), kg_bench_isa_name((kg_est_isa)isa),
+				        first->bytes_per_pixel);
+				for (int pass = 0; pass < 3; pass++)
+					for (int j = 0; j < nt; j++) {
+						const kg_bench_speed_row *s = speed_row(r, (kg_bench_method)m,
+						                                        (kg_est_format)f, (kg_est_isa)isa, t[j]);
+						if (!s)
+							fprintf(fp, " - |");
+						else if (pass == 0)
+							fprintf(fp, " %.1f |", s->mpix_s);
+						else if (pass == 1)
+							fprintf(fp, " %.2f |", s->gb_s);
+						else
+							fprintf(fp, " %.2f |", s->fraction);
+					}
+				fputc('\n', fp);
+			}
 	fprintf(fp, "\nWrite limit (%s of the same bytes into the same buffer, one "
 	            "contiguous share per thread, runs alternating with the kernels'; median "
 	            "over the rows that share it):\n\n",
@@ -320,8 +327,10 @@ static int write_markdown(const kg_bench_results *r, const char *path, kg_err *e
 	        "divides it by the write limit, the rate at which this machine writes the "
 	        "same bytes with non-temporal stores on as many threads: 1.00 means the "
 	        "kernel runs at memory speed, and small fractions mark compute-bound "
-	        "kernels. The machine drifts 15-30 %% between sessions: compare numbers "
-	        "from the same run.\n"
+	        "kernels. **path** is the implementation (all bit-identical): avx2+fma and "
+	        "avx512 for every row the CPU can run, c (the reference, fmaf in plain C) "
+	        "for pca3's BSQ outputs. The machine drifts 15-30 %% between sessions: "
+	        "compare numbers from the same run.\n"
 	        "- **Camera-space matching**: Mpix/s of `kg_cs_match_block` (materials "
 	        "matched where the camera measures, with each pixel's covariance) for the C "
 	        "reference and the AVX2 kernel, and whether the two wrote the same bytes.\n",
@@ -438,6 +447,7 @@ static int write_json(const kg_bench_results *r, const char *path, kg_err *err)
 		json_t *o = json_object();
 		json_object_set_new(o, "method", json_string(kg_bench_method_name(x->method)));
 		json_object_set_new(o, "format", json_string(kg_bench_format_name(x->format)));
+		json_object_set_new(o, "path", json_string(kg_bench_isa_name(x->isa)));
 		json_object_set_new(o, "threads", json_integer(x->threads));
 		json_object_set_new(o, "bytes_per_pixel", num(x->bytes_per_pixel));
 		json_object_set_new(o, "seconds", num(x->seconds));
@@ -554,7 +564,8 @@ static int write_pareto(const kg_bench_results *r, const char *path, kg_err *err
 	double smax = 0, demin = INFINITY, demax = 0, rmin = INFINITY, rmax = 0;
 	for (int j = 0; j < KG_BENCH_NMETHODS; j++) {
 		kg_bench_metrics m;
-		const kg_bench_speed_row *s = speed_row(r, (kg_bench_method)j, KG_EST_F32_BSQ, threads);
+		const kg_bench_speed_row *s =
+		    speed_row(r, (kg_bench_method)j, KG_EST_F32_BSQ, KG_EST_ISA_AUTO, threads);
 		have[j] = s && error_summary(r, PARETO_TRAIN, PARETO_NOISY, (kg_bench_method)j, &m);
 		if (!have[j])
 			continue;
@@ -573,7 +584,7 @@ static int write_pareto(const kg_bench_results *r, const char *path, kg_err *err
 	double limit = NAN;
 	const kg_bench_speed_row *any = NULL;
 	for (int j = 0; j < KG_BENCH_NMETHODS && !any; j++)
-		any = speed_row(r, (kg_bench_method)j, KG_EST_F32_BSQ, threads);
+		any = speed_row(r, (kg_bench_method)j, KG_EST_F32_BSQ, KG_EST_ISA_AUTO, threads);
 	if (any) {
 		limit = limit_gb_s(r, any->bytes_per_pixel, threads) * 1e3 / any->bytes_per_pixel;
 		smax = fmax(smax, limit);

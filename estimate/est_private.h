@@ -105,8 +105,21 @@ typedef struct est_dsp {
  * CPU supports. KG_ENOTSUP when isa names an extension the CPU lacks. */
 int est_dsp_init(est_dsp *dsp, kg_est_isa isa);
 void est_dsp_init_c(est_dsp *dsp);
+/* AVX2 + FMA + F16C (+ POPCNT), and the OS saves the YMM registers. */
 int est_have_avx2(void);
 void est_dsp_init_avx2(est_dsp *dsp);
+/* AVX-512F on top of est_have_avx2's set, and the OS saves the ZMM and mask registers. */
+int est_have_avx512(void);
+void est_dsp_init_avx512(est_dsp *dsp);
+
+/* Pieces of the AVX2 path the AVX-512 path reuses (avx2.c; the CPU must have AVX2):
+ * stage 1 of matrix kernels (flags and terms of m <= EST_CHUNK pixels into s), the
+ * mask bytes and clamped-pixel count of a chunk, and the whole AVX2 matrix block. */
+void est_avx2_stage_terms(const est_plan *p, est_scratch *s, const float *rgb, size_t m,
+                          est_counts *c);
+void est_finish_mask(const est_scratch *s, size_t m, uint8_t *mask, est_counts *c);
+void est_avx2_matrix_block(const est_plan *p, est_scratch *s, const float *rgb, size_t n,
+                           const est_dst *d, est_counts *c);
 
 /* kg_cs_match_block's optimised kernel (camspace_avx2.c; the CPU must have AVX2):
  * pixels 0 to n - n % 8 - 1, 8 at a time, bit-identical to the reference. Returns the
@@ -195,13 +208,15 @@ static inline void est_pixel_terms(kg_est_method m, const float *rgb, unsigned f
 	t[12] = cr * (cg * cb);
 }
 
-/* Value of band o of a matrix kernel: offset first, then the terms in order. */
+/* Value of band o of a matrix kernel: offset first, then the terms in order, each
+ * added with one fused multiply-add (fmaf: a single rounding), as the vector paths'
+ * FMA instructions do. */
 static inline float est_matrix_band(const est_map *m, int nterms, int o, const float *t)
 {
 	const float *a = m->a + (size_t)o * nterms;
 	float acc = m->off[o];
 	for (int i = 0; i < nterms; i++)
-		acc = acc + a[i] * t[i];
+		acc = fmaf(a[i], t[i], acc);
 	return acc;
 }
 
@@ -242,13 +257,14 @@ static inline int32_t est_lut_corner(int n, int c)
 	return ((c >> 2) * n + ((c >> 1) & 1)) * n + (c & 1);
 }
 
-/* Band o of a LUT output: corners summed in order, starting from corner 0. */
+/* Band o of a LUT output: corners summed in order, starting from corner 0 (a plain
+ * product), each further corner added with one fused multiply-add. */
 static inline float est_lut_band(const est_map *m, int n, int32_t cell, const float *w,
                                  int o)
 {
 	float acc = w[0] * m->lut[(size_t)cell * m->stride + o];
 	for (int c = 1; c < 8; c++)
-		acc = acc + w[c] * m->lut[(size_t)(cell + est_lut_corner(n, c)) * m->stride + o];
+		acc = fmaf(w[c], m->lut[(size_t)(cell + est_lut_corner(n, c)) * m->stride + o], acc);
 	return acc;
 }
 

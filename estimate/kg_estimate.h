@@ -20,12 +20,17 @@
  * K weights w themselves, and can feed the material classifier (the paper's eq. 11),
  * which works on w alone.
  *
- * Every kernel has a plain C reference implementation and, on x86-64 CPUs with AVX2
- * and F16C, an optimised one. Both produce bit-identical output: they perform the same
- * IEEE operations in the same order (no FMA contraction; estimate/ is built with
- * -ffp-contract=off), and the F16C conversion rounds exactly like kg_f16_from_f32.
- * Output is also bit-identical for every block size and thread count: each pixel is
- * computed independently of its neighbours.
+ * Every kernel has a plain C reference implementation and, on x86-64, optimised ones
+ * chosen at run time: AVX2 + FMA + F16C, and AVX-512F (kg_est_isa). All produce
+ * bit-identical output: they perform the same IEEE operations in the same order. Each
+ * multiply-add of a band's sum (offset, then the terms in order; a LUT's corners 1 to
+ * 7 after corner 0's product) is one fused operation with a single rounding: fmaf in
+ * the reference, an FMA instruction in the vector paths. Nothing else is fused (the
+ * compiler may not contract: estimate/ is built with -ffp-contract=off; the cube root
+ * and the classifier's double distances stay unfused in every path), and the F16C
+ * conversion rounds exactly like kg_f16_from_f32. Output is also bit-identical for
+ * every block size and thread count: each pixel is computed independently of its
+ * neighbours.
  *
  * Pixel flags (the optional uint8 mask, one byte per pixel):
  *   KG_EST_MASK_NONFINITE  an input channel is NaN or +-Inf.
@@ -79,11 +84,14 @@ enum {
  * has label j + 1, as class 0 is "Unclassified" in an ENVI classification file. */
 #define KG_EST_LABEL_NONE 0
 
-/* Which implementation runs. AUTO picks the best the CPU supports. */
+/* Which implementation runs. AUTO picks the best the CPU supports (AVX-512, then
+ * AVX2, then C), asked once per run (CPUID). A path the CPU lacks gives KG_ENOTSUP. */
 typedef enum kg_est_isa {
 	KG_EST_ISA_AUTO,
-	KG_EST_ISA_C,    /* the reference kernels */
-	KG_EST_ISA_AVX2, /* AVX2 + F16C; KG_ENOTSUP when the CPU lacks them */
+	KG_EST_ISA_C,      /* the reference kernels (fmaf for every multiply-add) */
+	KG_EST_ISA_AVX2,   /* AVX2 + FMA + F16C */
+	KG_EST_ISA_AVX512, /* AVX-512F on top of those: 16 lanes for the BSQ outputs */
+	KG_EST_NISAS
 } kg_est_isa;
 
 /* Non-temporal (streaming) stores bypass the cache: they pay when the output is far

@@ -193,8 +193,13 @@ static int prepare(const kg_est_job *job, const float *rgb, int width, int heigh
 		               job->threads, job->block_rows);
 
 	est_dsp dsp;
-	if (est_dsp_init(&dsp, job->isa) < 0)
-		return kg_fail(err, KG_ENOTSUP, "estimate: this CPU lacks the requested AVX2/F16C");
+	int isa_rc = est_dsp_init(&dsp, job->isa);
+	if (isa_rc == KG_EINVAL)
+		return kg_fail(err, KG_EINVAL, "estimate: implementation %d: unknown", (int)job->isa);
+	if (isa_rc < 0)
+		return kg_fail(err, KG_ENOTSUP, "estimate: this CPU lacks the requested %s",
+		               job->isa == KG_EST_ISA_AVX512 ? "AVX-512F (with AVX2, FMA and F16C)"
+		                                             : "AVX2, FMA and F16C");
 	memset(r, 0, sizeof(*r));
 	r->plan.k = k;
 	r->plan.format = job->format;
