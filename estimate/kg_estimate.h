@@ -338,7 +338,8 @@ void kg_cs_match_block(const kg_cs_model *m, const float *x, const float *cov, s
  * angle). KG_EST_ISA_AVX2: 8 pixels per vector, the same IEEE operations in the same
  * order lane by lane, the last n % 8 pixels through the reference; KG_ENOTSUP (nothing
  * written) on a CPU without AVX2. AUTO: AVX2 when the CPU has it, else C. Returns 0,
- * or KG_EINVAL for an isa out of range. Pixels the reference refuses (KG_CS_NO_MATCH,
+ * or KG_EINVAL for an isa out of range (KG_EST_ISA_AVX512 included: camera-space
+ * matching has no AVX-512 kernel). Pixels the reference refuses (KG_CS_NO_MATCH,
  * NaNs) are refused alike. */
 int kg_cs_match_block_isa(const kg_cs_model *m, const float *x, const float *cov, size_t n,
                           const kg_cs_block *out, kg_est_isa isa);
