@@ -211,11 +211,12 @@ OPS = [OC_GetDeviceInfo, OC_OpenSession, OC_CloseSession, OC_GetStorageIDs,
        OC_SetDevicePropValue]
 
 
-def config_scenario(s):
-    """Open, read the two properties, set ISO and read it back, close."""
+def open_and_describe(s, vendor, events):
+    """What libgphoto2 does on opening any camera: session, device info, storages, the
+    objects on the card, the two property descriptions."""
     s.transaction("OpenSession", OC_OpenSession, [1])
     s.transaction("GetDeviceInfo", OC_GetDeviceInfo,
-                  data_in=device_info(0, OPS, [EC_ObjectAdded, EC_CaptureComplete],
+                  data_in=device_info(vendor, OPS, events,
                                       [DPC_ExposureTime, DPC_ExposureIndex],
                                       [OFC_TIFF], [OFC_TIFF]))
     s.transaction("GetStorageIDs", OC_GetStorageIDs, data_in=u32_array([STORAGE]))
@@ -227,6 +228,11 @@ def config_scenario(s):
                   [DPC_ExposureTime], data_in=exptime_desc())
     s.transaction("GetDevicePropDesc ExposureIndex (ISO)", OC_GetDevicePropDesc,
                   [DPC_ExposureIndex], data_in=iso_desc(ISO_NOW))
+
+
+def config_scenario(s):
+    """Open, read the two properties, set ISO and read it back, close."""
+    open_and_describe(s, 0, [EC_ObjectAdded, EC_CaptureComplete])
     s.transaction("SetDevicePropValue ExposureIndex = %d" % ISO_SET, OC_SetDevicePropValue,
                   [DPC_ExposureIndex], data_out=u16(ISO_SET))
     s.transaction("GetDevicePropDesc ExposureIndex (read back)", OC_GetDevicePropDesc,
@@ -236,20 +242,7 @@ def config_scenario(s):
 
 def capture_scenario(s, dng):
     """Open, capture one picture, download it, close."""
-    s.transaction("OpenSession", OC_OpenSession, [1])
-    s.transaction("GetDeviceInfo", OC_GetDeviceInfo,
-                  data_in=device_info(VENDOR_NIKON, OPS, [EC_ObjectAdded],
-                                      [DPC_ExposureTime, DPC_ExposureIndex],
-                                      [OFC_TIFF], [OFC_TIFF]))
-    s.transaction("GetStorageIDs", OC_GetStorageIDs, data_in=u32_array([STORAGE]))
-    s.transaction("GetObjectHandles (all storages, root: empty card)", OC_GetObjectHandles,
-                  [0xFFFFFFFF, 0, 0xFFFFFFFF], data_in=u32_array([]))
-    s.transaction("GetObjectHandles (storage, root: empty)", OC_GetObjectHandles,
-                  [STORAGE, 0, 0xFFFFFFFF], data_in=u32_array([]))
-    s.transaction("GetDevicePropDesc ExposureTime (shutter speed)", OC_GetDevicePropDesc,
-                  [DPC_ExposureTime], data_in=exptime_desc())
-    s.transaction("GetDevicePropDesc ExposureIndex (ISO)", OC_GetDevicePropDesc,
-                  [DPC_ExposureIndex], data_in=iso_desc(ISO_NOW))
+    open_and_describe(s, VENDOR_NIKON, [EC_ObjectAdded])
     for k in range(1, CAPTURES + 1):
         handles = [HANDLE0 + i for i in range(k - 1)]
         s.transaction("capture %d: GetObjectHandles before" % k, OC_GetObjectHandles,
