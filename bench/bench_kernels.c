@@ -9,8 +9,13 @@
  * stores by 1 and 2 threads. Each figure is the median of several repetitions
  * (CLOCK_MONOTONIC). Markdown goes to stdout, JSON to --json.
  *
+ * Each repetition times the limit and then the kernel, back to back, so that a ratio
+ * compares runs under the same conditions (the machine drifts between sessions and
+ * within one); the figures are the medians of each.
+ *
  *   kogei-bench-kernels [--mpix N] [--reps N] [--quick] [--isa auto|c|avx2|avx512]
- *                       [--json PATH] */
+ *                       [--methods N] [--json PATH]
+ * --methods N keeps the first N methods (1: the linear kernel only). */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -21,15 +26,6 @@
 
 #define WIDTH 4000
 #define MAX_REPS 31
-
-/* The limit: the same bytes written with non-temporal stores (bench/kg_bench.h). */
-static double limit_seconds(char *buf, size_t bytes, int threads, int reps)
-{
-	double t[MAX_REPS];
-	for (int r = 0; r < reps; r++)
-		t[r] = kg_bench_stream_seconds(buf, bytes, threads);
-	return kg_bench_percentile(t, reps, 0.5);
-}
 
 /* ---- the model ------------------------------------------------------------- */
 
@@ -78,13 +74,13 @@ typedef struct output {
 static void usage(FILE *f)
 {
 	fprintf(f, "usage: kogei-bench-kernels [--mpix N] [--reps N] [--quick] "
-	           "[--isa auto|c|avx2|avx512] [--json PATH]\n");
+	           "[--isa auto|c|avx2|avx512] [--methods N] [--json PATH]\n");
 }
 
 int main(int argc, char **argv)
 {
 	double mpix = 12;
-	int reps = 5;
+	int reps = 5, nmethods = 5;
 	const char *json_path = NULL;
 	kg_est_isa isa = KG_EST_ISA_AUTO;
 	kg_outfile json = {0};
@@ -102,7 +98,9 @@ int main(int argc, char **argv)
 			      : !strcmp(argv[i], "avx2")   ? KG_EST_ISA_AVX2
 			      : !strcmp(argv[i], "avx512") ? KG_EST_ISA_AVX512
 			                                   : KG_EST_ISA_AUTO;
-		} else if (!strcmp(argv[i], "--json") && i + 1 < argc)
+		} else if (!strcmp(argv[i], "--methods") && i + 1 < argc)
+			nmethods = atoi(argv[++i]);
+		else if (!strcmp(argv[i], "--json") && i + 1 < argc)
 			json_path = argv[++i];
 		else if (!strcmp(argv[i], "--help")) {
 			usage(stdout);
@@ -112,8 +110,10 @@ int main(int argc, char **argv)
 			return 2;
 		}
 	}
-	if (!(mpix > 0 && mpix <= 100) || reps < 1 || reps > MAX_REPS) {
-		fprintf(stderr, "kogei-bench-kernels: --mpix 0..100 and --reps 1..%d\n", MAX_REPS);
+	if (!(mpix > 0 && mpix <= 100) || reps < 1 || reps > MAX_REPS || nmethods < 1 ||
+	    nmethods > 5) {
+		fprintf(stderr, "kogei-bench-kernels: --mpix 0..100, --reps 1..%d and --methods 1..5\n",
+		        MAX_REPS);
 		return 2;
 	}
 	int height = (int)(mpix * 1e6 / WIDTH + 0.5);
@@ -193,23 +193,6 @@ int main(int argc, char **argv)
 	        WIDTH, height, npix / 1e6, reps, kg_bench_isa_name(isa),
 	        kg_bench_stream_kind());
 
-	/* limits, by bytes per pixel */
-	size_t limit_bpp[8];
-	double limit_mpix[8][2];
-	int nlimit = 0;
-	for (int o = 0; o < nout; o++) {
-		int seen = 0;
-		for (int l = 0; l < nlimit; l++)
-			seen |= limit_bpp[l] == outputs[o].bytes_per_pixel;
-		if (seen)
-			continue;
-		limit_bpp[nlimit] = outputs[o].bytes_per_pixel;
-		for (int t = 1; t <= 2; t++)
-			limit_mpix[nlimit][t - 1] =
-			    npix / 1e6 / limit_seconds(buf, npix * limit_bpp[nlimit], t, reps);
-		nlimit++;
-	}
-
 	if (json_path) {
 		if (kg_outfile_open(&json, json_path, 1, &err) < 0)
 			goto fail;
@@ -222,14 +205,9 @@ int main(int argc, char **argv)
 	       "thr | of limit 1 thr | of limit 2 thr |\n");
 	printf("|---|---|---:|---:|---:|---:|---:|---:|---:|\n");
 	int first = 1;
-	for (int mi = 0; mi < 5; mi++)
+	for (int mi = 0; mi < nmethods; mi++)
 		for (int o = 0; o < nout; o++) {
-			double speed[2], limit[2] = {0, 0};
-			for (int l = 0; l < nlimit; l++)
-				if (limit_bpp[l] == outputs[o].bytes_per_pixel) {
-					limit[0] = limit_mpix[l][0];
-					limit[1] = limit_mpix[l][1];
-				}
+			double speed[2], limit[2];
 			for (int t = 1; t <= 2; t++) {
 				kg_est_job job;
 				kg_est_job_init(&job, methods[mi].k, outputs[o].format);
@@ -237,15 +215,17 @@ int main(int argc, char **argv)
 				job.threads = t;
 				job.isa = isa;
 				job.clip_level = 1.0f;
-				double times[MAX_REPS];
+				double times[MAX_REPS], limits[MAX_REPS];
 				kg_est_dest dest = {buf, outputs[o].format == KG_EST_LABELS ? conf : NULL, NULL};
 				for (int r = 0; r < reps; r++) {
+					limits[r] = kg_bench_stream_seconds(buf, npix * outputs[o].bytes_per_pixel, t);
 					double t0 = kg_bench_now();
 					if (kg_est_run(&job, rgb, WIDTH, height, &dest, NULL, &err) < 0)
 						goto fail;
 					times[r] = kg_bench_now() - t0;
 				}
 				speed[t - 1] = npix / 1e6 / kg_bench_percentile(times, reps, 0.5);
+				limit[t - 1] = npix / 1e6 / kg_bench_percentile(limits, reps, 0.5);
 			}
 			printf("| %s | %s | %zu | %.1f | %.1f | %.1f | %.1f | %.2f | %.2f |\n", methods[mi].name,
 			       outputs[o].name, outputs[o].bytes_per_pixel, speed[0], speed[1], limit[0], limit[1],
