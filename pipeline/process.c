@@ -281,6 +281,12 @@ void proc_preview_rows(proc_preview *pv, int y0, int rows, const float *rgb)
 			       rgb + (size_t)(y - y0) * row + (size_t)x * pv->step * 3, 3 * sizeof(float));
 }
 
+static int cmp_float_asc(const void *a, const void *b)
+{
+	float x = *(const float *)a, y = *(const float *)b;
+	return (x > y) - (x < y);
+}
+
 int proc_preview_write(proc_preview *pv, const char *path, kg_err *err)
 {
 	/* white point: the 99.5th percentile of the samples */
@@ -288,16 +294,10 @@ int proc_preview_write(proc_preview *pv, const char *path, kg_err *err)
 	float *samp = pv->samp;
 	int nsamp = pv->nsamp;
 	if (nsamp > 0) {
+		/* up to PREVIEW_SAMPLES values: sorted in O(n log n) (an insertion sort of 65536
+		 * took a fifth of kogei process on the demo session) */
 		int k = (int)(0.995 * (nsamp - 1));
-		for (int i = 1; i < nsamp; i++) { /* insertion sort: a small sample */
-			float v = samp[i];
-			int j = i;
-			while (j > 0 && samp[j - 1] > v) {
-				samp[j] = samp[j - 1];
-				j--;
-			}
-			samp[j] = v;
-		}
+		qsort(samp, (size_t)nsamp, sizeof(float), cmp_float_asc);
 		white = samp[k] > 1e-6 ? samp[k] / 0.9 : 1.0;
 	}
 	size_t n = (size_t)pv->ow * (size_t)pv->oh;
