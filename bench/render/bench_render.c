@@ -3,11 +3,13 @@
  *  1. BVH build (Embree, build quality medium, as kg_render builds it) of the
  *     icosphere of level 8 (1,310,720 triangles) at 1 and 2 threads;
  *  2. path-traced rays per second on that mesh (closest-hit plus shadow rays; a
- *     gold sphere under a light and an environment), 1 and 2 threads;
+ *     gold sphere under a light and an environment), 1 and 2 threads, and the same
+ *     split by bounce: renders at 1, 2, 3 and 4 bounces, the rays each added bounce
+ *     traces (the renderer's per-depth counts) over the time it adds;
  *  3. camera rays per second through the renderer (kg_render preview mode: 4 x 4
- *     packets per sample, seeding, shading by N.V, output) beside the raw Embree
- *     rate of rtcIntersect16 on the same mesh, camera and threads, measured in the
- *     same run (pixel-centre rays, no shading);
+ *     packets per sample, seeding, jitter, shading by N.V, output) beside the raw
+ *     Embree rate of rtcIntersect16 on the same mesh, camera and threads, measured in
+ *     the same run (pixel-centre rays, no shading), and their ratio;
  *  4. a 1080p render of the demo object (tsuba, 256 segments) on a ground plane at a
  *     stated quality.
  * Each figure is the median of --reps runs (default 3). Prints a Markdown table. */
@@ -55,6 +57,9 @@ static double median(double *v, int n)
 }
 
 static char dir[] = "/tmp/kogei-bench-render-XXXXXX";
+
+/* The path-traced sphere is rendered at 1 to this many bounces. */
+#define MAX_BOUNCE 4
 
 static int write_scene(const char *name, const char *text, char *path, size_t size)
 {
@@ -188,7 +193,7 @@ static int raw_packet_rate(const kg_mesh *mesh, int threads, int width, int heig
 
 typedef struct run_result {
 	double build_s, render_s, rays_per_s, primary_per_s;
-	kg_render_stats st;
+	kg_render_stats st; /* the last run's (the ray counts are the same in every run) */
 } run_result;
 
 static int run(const kg_scene *s, const kg_render_options *opt, int reps, run_result *out)
@@ -310,26 +315,65 @@ int main(int argc, char **argv)
 		        "- **camera rays, renderer**: kg_render in preview mode (16-ray packets "
 		        "with per-sample seeding, jitter, N.V shading and output) beside "
 		        "**rtcIntersect16 raw**: the same mesh, camera and thread count, "
-		        "pixel-centre 4 x 4 packets and nothing else, in the same run.\n"
+		        "pixel-centre 4 x 4 packets and nothing else, in the same run; "
+		        "**camera / raw** is their ratio.\n"
+		        "- **Path tracing by bounce**: the render above at 1, 2, 3 and 4 bounces. "
+		        "Bounce b adds the closest-hit rays of depth b (depth 0: the camera's, "
+		        "counted in bounce 1) and the shadow rays from the hits of depth b - 1, "
+		        "as the renderer counts them; its time is what it adds to the render "
+		        "(render at b bounces minus render at b - 1; bounce 1: the whole render "
+		        "at 1 bounce), so its rate includes the shading at depth b - 1.\n"
 		        "- The machine drifts 15-30 %% between sessions and its 2 cores may be "
 		        "shared: compare numbers within one run.\n\n", m->ntris, m->nverts, W, H);
 		fprintf(out, "## Rays\n\n");
 		fprintf(out, "| threads | BVH build (s) | path-traced rays (M/s) | camera rays, "
-		       "renderer (M/s) | rtcIntersect16 raw (M/s) | raw hit fraction |\n");
-		fprintf(out, "|---|---|---|---|---|---|\n");
+		       "renderer (M/s) | rtcIntersect16 raw (M/s) | camera / raw | raw hit "
+		       "fraction |\n");
+		fprintf(out, "|---|---|---|---|---|---|---|\n");
 	}
+	run_result bounce[3][MAX_BOUNCE + 1];
 	for (int threads = 1; !ret && threads <= 2; threads++) {
-		run_result path, prim;
-		kg_render_options po = {.threads = threads, .spp = 1};
+		run_result prim;
 		kg_render_options pv = {.threads = threads, .spp = 1, .mode = KG_RENDER_PREVIEW};
 		double raw, hit;
-		if (run(sphere, &po, reps, &path) || run(sphere, &pv, reps, &prim) ||
+		for (int b = 1; !ret && b <= MAX_BOUNCE; b++) {
+			kg_render_options po = {.threads = threads, .spp = 1, .bounces = b};
+			ret = run(sphere, &po, reps, &bounce[threads][b]);
+		}
+		if (ret || run(sphere, &pv, reps, &prim) ||
 		    raw_packet_rate(kg_scene_mesh(sphere), threads, W, H, reps, &raw, &hit)) {
 			ret = -1;
 			break;
 		}
-		fprintf(out, "| %d | %.3f | %.2f | %.2f | %.2f | %.3f |\n", threads, path.build_s,
-		       path.rays_per_s / 1e6, prim.primary_per_s / 1e6, raw / 1e6, hit);
+		const run_result *path = &bounce[threads][MAX_BOUNCE];
+		fprintf(out, "| %d | %.3f | %.2f | %.2f | %.2f | %.2f | %.3f |\n", threads,
+		        path->build_s, path->rays_per_s / 1e6, prim.primary_per_s / 1e6,
+		        raw / 1e6, prim.primary_per_s / raw, hit);
+	}
+	if (!ret) {
+		fprintf(out, "\n## Path tracing by bounce\n\nThe sphere render of the table above "
+		        "(%d x %d, 1 spp) at 1 to %d bounces; M = 10^6 rays.\n\n", W, H, MAX_BOUNCE);
+		fprintf(out, "| threads | bounce | closest-hit rays (M) | shadow rays (M) | "
+		        "added time (s) | M rays/s |\n");
+		fprintf(out, "|---|---|---|---|---|---|\n");
+		for (int threads = 1; threads <= 2; threads++)
+			for (int b = 1; b <= MAX_BOUNCE; b++) {
+				const kg_render_stats *st = &bounce[threads][MAX_BOUNCE].st;
+				double closest = (double)st->depth_rays[b];
+				double shadow = (double)st->depth_shadow_rays[b - 1];
+				double t = bounce[threads][b].render_s -
+				           (b > 1 ? bounce[threads][b - 1].render_s : 0.0);
+				char cl[64];
+				if (b == 1)
+					snprintf(cl, sizeof(cl), "%.3f + %.3f (camera)", closest / 1e6,
+					         (double)st->depth_rays[0] / 1e6);
+				else
+					snprintf(cl, sizeof(cl), "%.3f", closest / 1e6);
+				if (b == 1)
+					closest += (double)st->depth_rays[0];
+				fprintf(out, "| %d | %d | %s | %.3f | %.3f | %.2f |\n", threads, b, cl,
+				        shadow / 1e6, t, (closest + shadow) / t / 1e6);
+			}
 	}
 	if (!ret) {
 		run_result r;
