@@ -71,6 +71,7 @@ typedef struct rd_ctx {
 	const kg_render_options *opt;
 	/* rays by depth, summed from the workers' own counts under lock */
 	uint64_t depth_rays[KG_RENDER_MAX_BOUNCES + 1], depth_shadow[KG_RENDER_MAX_BOUNCES];
+	double depth_s[KG_RENDER_MAX_BOUNCES + 1];
 	char embree_error[256];
 } rd_ctx;
 
@@ -442,16 +443,18 @@ static void camera_rays(const rd_ctx *c, int bx, int by, int smp, int *valid,
 
 typedef struct rd_counts {
 	uint64_t rays[KG_RENDER_MAX_BOUNCES + 1], shadow[KG_RENDER_MAX_BOUNCES];
+	double secs[KG_RENDER_MAX_BOUNCES + 1]; /* kg_render_stats.depth_s */
 } rd_counts;
 
 /* The paths of a camera packet (its hits in h), carried on together depth by depth:
  * the shadow rays of a depth as one packet (towards the light: coherent), then the
  * bounce rays as another. Each lane draws from its own generator in the order a
  * lone path would, so a pixel's value does not depend on its packet's other lanes.
- * Adds each lane's c->nch channels to acc[ch][pix[l]]. */
+ * Adds each lane's c->nch channels to acc[ch][pix[l]]; t is the clock when the
+ * camera packet was done (the time from there on goes to the depths). */
 static void trace_paths(rd_ctx *c, kg_rng *rng, const int *valid, struct RTCRayHit16 *rh,
                         rd_lanes *h, double acc[][TILE * TILE], const int *pix,
-                        rd_counts *cnt)
+                        double t, rd_counts *cnt)
 {
 	const kg_scene *s = c->s;
 	int n = c->nwl;
@@ -477,7 +480,8 @@ static void trace_paths(rd_ctx *c, kg_rng *rng, const int *valid, struct RTCRayH
 	rtcInitIntersectContext(&ictx);
 	_Alignas(64) int sv[LANES], bv[LANES];
 	struct RTCRay16 sh;
-	for (int depth = 0;; depth++) {
+	int depth = 0;
+	for (;; depth++) {
 		for (int l = 0; l < LANES; l++)
 			if (alive[l] && !h->hit[l]) {
 				env_radiance(s, dir[l], band[l], n, tmp);
@@ -560,9 +564,13 @@ static void trace_paths(rd_ctx *c, kg_rng *rng, const int *valid, struct RTCRayH
 			alive[l] = bv[l];
 		if (!lanes_any(bv))
 			break;
+		double t1 = now_s();
+		cnt->secs[depth] += t1 - t;
 		ictx.flags = RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
 		rtcIntersect16(bv, c->scene, &ictx, rh);
 		packet_hits(c, bv, rh, h);
+		t = now_s();
+		cnt->secs[depth + 1] += t - t1;
 	}
 	/* the observer (eq. 12 for XYZ) estimated from the path's bands: each stands for
 	 * KG_NBANDS / n of them */
@@ -577,6 +585,7 @@ static void trace_paths(rd_ctx *c, kg_rng *rng, const int *valid, struct RTCRayH
 			acc[ch][pix[l]] += k * sum;
 		}
 	}
+	cnt->secs[depth] += now_s() - t;
 }
 
 /* The truth class of lane l's hit (0: nothing, or a background part). */
@@ -639,6 +648,7 @@ static void render_tile(rd_ctx *c, int tile, int worker_idx, rd_counts *cnt)
 				pix[l] = (by - ty0 + (l >> 2)) * TILE + (bx - tx0 + (l & 3));
 			packet_init(&rh);
 			for (int smp = 0; smp < c->spp; smp++) {
+				double t0 = c->mode == KG_RENDER_PREVIEW ? 0.0 : now_s();
 				camera_rays(c, bx, by, smp, valid, &rh, key);
 				for (int l = 0; l < LANES; l++)
 					cnt->rays[0] += valid[l] != 0;
@@ -668,7 +678,9 @@ static void render_tile(rd_ctx *c, int tile, int worker_idx, rd_counts *cnt)
 				for (int l = 0; l < LANES; l++)
 					if (valid[l])
 						kg_rng_seed(&rng[l], key[l]);
-				trace_paths(c, rng, valid, &rh, &h, acc, pix, cnt);
+				double t1 = now_s();
+				cnt->secs[0] += t1 - t0;
+				trace_paths(c, rng, valid, &rh, &h, acc, pix, t1, cnt);
 			}
 		}
 	/* the tile's rows, each a run of 3 x nx floats of each image */
@@ -717,8 +729,10 @@ static void *worker(void *arg)
 		}
 	}
 	pthread_mutex_lock(&c->lock);
-	for (int d = 0; d <= c->bounces; d++)
+	for (int d = 0; d <= c->bounces; d++) {
 		c->depth_rays[d] += cnt.rays[d];
+		c->depth_s[d] += cnt.secs[d];
+	}
 	for (int d = 0; d < c->bounces; d++)
 		c->depth_shadow[d] += cnt.shadow[d];
 	pthread_mutex_unlock(&c->lock);
@@ -941,6 +955,7 @@ int kg_render_full(const kg_scene *s, const kg_render_options *opt, kg_render_re
 		};
 		for (int d = 0; d <= c.bounces; d++) {
 			stats->depth_rays[d] = c.depth_rays[d];
+			stats->depth_s[d] = c.depth_s[d];
 			stats->rays += c.depth_rays[d];
 		}
 		for (int d = 0; d < c.bounces; d++) {

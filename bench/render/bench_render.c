@@ -3,9 +3,9 @@
  *  1. BVH build (Embree, build quality medium, as kg_render builds it) of the
  *     icosphere of level 8 (1,310,720 triangles) at 1 and 2 threads;
  *  2. path-traced rays per second on that mesh (closest-hit plus shadow rays; a
- *     gold sphere under a light and an environment), 1 and 2 threads, and the same
- *     split by bounce: renders at 1, 2, 3 and 4 bounces, the rays each added bounce
- *     traces (the renderer's per-depth counts) over the time it adds;
+ *     gold sphere under a light and an environment), 1 and 2 threads; and split by
+ *     depth on the demo scene of 4. (a convex sphere sends no ray past its first
+ *     bounce) at 1 spp: the renderer's per-depth ray counts and times;
  *  3. camera rays per second through the renderer (kg_render preview mode: 4 x 4
  *     packets per sample, seeding, jitter, shading by N.V, output) beside the raw
  *     Embree rate of rtcIntersect16 on the same mesh, camera and threads, measured in
@@ -58,7 +58,7 @@ static double median(double *v, int n)
 
 static char dir[] = "/tmp/kogei-bench-render-XXXXXX";
 
-/* The path-traced sphere is rendered at 1 to this many bounces. */
+/* Bounces of the per-depth split. */
 #define MAX_BOUNCE 4
 
 static int write_scene(const char *name, const char *text, char *path, size_t size)
@@ -317,12 +317,13 @@ int main(int argc, char **argv)
 		        "**rtcIntersect16 raw**: the same mesh, camera and thread count, "
 		        "pixel-centre 4 x 4 packets and nothing else, in the same run; "
 		        "**camera / raw** is their ratio.\n"
-		        "- **Path tracing by bounce**: the render above at 1, 2, 3 and 4 bounces. "
-		        "Bounce b adds the closest-hit rays of depth b (depth 0: the camera's, "
-		        "counted in bounce 1) and the shadow rays from the hits of depth b - 1, "
-		        "as the renderer counts them; its time is what it adds to the render "
-		        "(render at b bounces minus render at b - 1; bounce 1: the whole render "
-		        "at 1 bounce), so its rate includes the shading at depth b - 1.\n"
+		        "- **Path tracing by depth**: the demo scene of the last table (a convex "
+		        "sphere sends no ray past its first bounce) at 1 spp, 4 bounces, as the "
+		        "renderer counts it (kg_render_stats): at depth d, the closest-hit rays of "
+		        "depth d (0: the camera's) and the shadow rays from their hits; the time "
+		        "is the workers' time on them, their shading and the choice of the next "
+		        "direction (depth 0: making the camera rays too), divided by the thread "
+		        "count (a share of the render time); rays/s = both rays over that time.\n"
 		        "- The machine drifts 15-30 %% between sessions and its 2 cores may be "
 		        "shared: compare numbers within one run.\n\n", m->ntris, m->nverts, W, H);
 		fprintf(out, "## Rays\n\n");
@@ -331,49 +332,46 @@ int main(int argc, char **argv)
 		       "fraction |\n");
 		fprintf(out, "|---|---|---|---|---|---|---|\n");
 	}
-	run_result bounce[3][MAX_BOUNCE + 1];
 	for (int threads = 1; !ret && threads <= 2; threads++) {
-		run_result prim;
+		run_result path, prim;
+		kg_render_options po = {.threads = threads, .spp = 1};
 		kg_render_options pv = {.threads = threads, .spp = 1, .mode = KG_RENDER_PREVIEW};
 		double raw, hit;
-		for (int b = 1; !ret && b <= MAX_BOUNCE; b++) {
-			kg_render_options po = {.threads = threads, .spp = 1, .bounces = b};
-			ret = run(sphere, &po, reps, &bounce[threads][b]);
-		}
-		if (ret || run(sphere, &pv, reps, &prim) ||
+		if (run(sphere, &po, reps, &path) || run(sphere, &pv, reps, &prim) ||
 		    raw_packet_rate(kg_scene_mesh(sphere), threads, W, H, reps, &raw, &hit)) {
 			ret = -1;
 			break;
 		}
-		const run_result *path = &bounce[threads][MAX_BOUNCE];
 		fprintf(out, "| %d | %.3f | %.2f | %.2f | %.2f | %.2f | %.3f |\n", threads,
-		        path->build_s, path->rays_per_s / 1e6, prim.primary_per_s / 1e6,
-		        raw / 1e6, prim.primary_per_s / raw, hit);
+		        path.build_s, path.rays_per_s / 1e6, prim.primary_per_s / 1e6, raw / 1e6,
+		        prim.primary_per_s / raw, hit);
+	}
+	run_result depth[3];
+	for (int threads = 1; !ret && threads <= 2; threads++) {
+		kg_render_options po = {.threads = threads, .spp = 1, .bounces = MAX_BOUNCE};
+		ret = run(tsuba, &po, reps, &depth[threads]);
 	}
 	if (!ret) {
-		fprintf(out, "\n## Path tracing by bounce\n\nThe sphere render of the table above "
-		        "(%d x %d, 1 spp) at 1 to %d bounces; M = 10^6 rays.\n\n", W, H, MAX_BOUNCE);
-		fprintf(out, "| threads | bounce | closest-hit rays (M) | shadow rays (M) | "
-		        "added time (s) | M rays/s |\n");
+		fprintf(out, "\n## Path tracing by depth\n\nThe demo scene of the render-time "
+		        "table below at %d x %d, 1 spp, %d bounces; M = 10^6 rays.\n\n", W, H,
+		        MAX_BOUNCE);
+		fprintf(out, "| threads | depth | closest-hit rays (M) | shadow rays (M) | time (s) | "
+		        "M rays/s |\n");
 		fprintf(out, "|---|---|---|---|---|---|\n");
-		for (int threads = 1; threads <= 2; threads++)
-			for (int b = 1; b <= MAX_BOUNCE; b++) {
-				const kg_render_stats *st = &bounce[threads][MAX_BOUNCE].st;
-				double closest = (double)st->depth_rays[b];
-				double shadow = (double)st->depth_shadow_rays[b - 1];
-				double t = bounce[threads][b].render_s -
-				           (b > 1 ? bounce[threads][b - 1].render_s : 0.0);
-				char cl[64];
-				if (b == 1)
-					snprintf(cl, sizeof(cl), "%.3f + %.3f (camera)", closest / 1e6,
-					         (double)st->depth_rays[0] / 1e6);
-				else
-					snprintf(cl, sizeof(cl), "%.3f", closest / 1e6);
-				if (b == 1)
-					closest += (double)st->depth_rays[0];
-				fprintf(out, "| %d | %d | %s | %.3f | %.3f | %.2f |\n", threads, b, cl,
-				        shadow / 1e6, t, (closest + shadow) / t / 1e6);
+		for (int threads = 1; threads <= 2; threads++) {
+			const kg_render_stats *st = &depth[threads].st;
+			for (int d = 0; d <= MAX_BOUNCE; d++) {
+				double closest = (double)st->depth_rays[d];
+				double shadow = d < MAX_BOUNCE ? (double)st->depth_shadow_rays[d] : 0.0;
+				double t = st->depth_s[d] / threads;
+				fprintf(out, "| %d | %d%s | %.3f | %.3f | %.3f | %.2f |\n", threads, d,
+				        d ? "" : " (camera)", closest / 1e6, shadow / 1e6, t,
+				        t > 0.0 ? (closest + shadow) / t / 1e6 : 0.0);
 			}
+			fprintf(out, "| %d | all | %.3f | %.3f | %.3f | %.2f |\n", threads,
+			        (double)st->rays / 1e6, (double)st->shadow_rays / 1e6, st->render_s,
+			        (double)(st->rays + st->shadow_rays) / st->render_s / 1e6);
+		}
 	}
 	if (!ret) {
 		run_result r;
