@@ -129,7 +129,8 @@ static void advise_huge_pages(void *p, size_t n)
 {
 #if defined(MADV_HUGEPAGE)
 	uintptr_t page = (uintptr_t)sysconf(_SC_PAGESIZE);
-	uintptr_t a = ((uintptr_t)p + page - 1) / page * page, b = ((uintptr_t)p + n) / page * page;
+	uintptr_t a = ((uintptr_t)p + page - 1) / page * page;
+	uintptr_t b = ((uintptr_t)p + n) / page * page;
 	if (b > a)
 		madvise((void *)a, b - a, MADV_HUGEPAGE);
 #else
@@ -296,6 +297,7 @@ static void env_radiance(const kg_scene *s, const double dir[3], const int *band
 
 /* ---- packets ---------------------------------------------------------------------- */
 
+/* 1 when any of the 16 lanes of a mask is set. */
 static int lanes_any(const int *v)
 {
 	int any = 0;
@@ -480,6 +482,7 @@ static void trace_paths(rd_ctx *c, kg_rng *rng, const int *valid, struct RTCRayH
 	rtcInitIntersectContext(&ictx);
 	_Alignas(64) int sv[LANES], bv[LANES];
 	struct RTCRay16 sh;
+	memset(&sh, 0, sizeof(sh)); /* Embree may load the lanes it leaves alone */
 	int depth = 0;
 	for (;; depth++) {
 		for (int l = 0; l < LANES; l++)
