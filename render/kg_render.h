@@ -48,6 +48,8 @@ void kg_scene_xyz_observer(const kg_scene *s, kg_spectrum out[3]);
 
 /* Every hero wavelength path carries `wavelengths` bands (1..61); this many is all. */
 #define KG_RENDER_ALL_BANDS 61
+/* Surface interactions per path: 1 to this many. */
+#define KG_RENDER_MAX_BOUNCES 64
 
 typedef enum kg_render_mode {
 	KG_RENDER_FULL,    /* spectral path tracing (the default) */
@@ -98,6 +100,18 @@ typedef struct kg_render_stats {
 	uint64_t rays;           /* every closest-hit ray, primary included */
 	uint64_t shadow_rays;    /* occlusion rays towards the directional light */
 	uint64_t label_rays;     /* occlusion rays projecting a label map */
+	/* The same rays by depth (summed over the worker threads): depth_rays[0] are the
+	 * camera rays, depth_rays[d] the rays leaving the d-th surface interaction (up to
+	 * [bounces]); depth_shadow_rays[d] the shadow rays from the hits of the rays of
+	 * depth d (up to [bounces - 1]). The preview traces depth 0 only. depth_s[d]:
+	 * the worker threads' time (summed over them) spent tracing the rays of depth d
+	 * and shading their hits, shadow rays and the choice of the next direction
+	 * included (depth 0: making the camera rays too); full mode only (0 in the
+	 * preview). The paths of a packet advance together, so it is read from the clock
+	 * three times per depth per 16 paths. */
+	uint64_t depth_rays[KG_RENDER_MAX_BOUNCES + 1];
+	uint64_t depth_shadow_rays[KG_RENDER_MAX_BOUNCES];
+	double depth_s[KG_RENDER_MAX_BOUNCES + 1];
 } kg_render_stats;
 
 /* 1 when the renderer was built (Embree found). */

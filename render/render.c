@@ -1,13 +1,15 @@
 /* The renderer on Embree 3: one triangle geometry sharing the mesh's index buffer,
- * camera rays traced as 16-ray packets per 4 x 4 pixel block, paths continued one ray
- * at a time with hero-wavelength spectral sampling (A. Wilkie, S. Nawaz, M. Droske,
- * A. Weidlich and J. Hanika, "Hero wavelength spectral sampling", Computer Graphics
- * Forum 33(4), 123-131, 2014), tiles handed to worker threads from an atomic counter.
+ * camera rays traced as 16-ray packets per 4 x 4 pixel block, and the block's 16
+ * paths carried on together, depth by depth, with their shadow and bounce rays
+ * traced as 16-ray packets too, with hero-wavelength spectral sampling (A. Wilkie,
+ * S. Nawaz, M. Droske, A. Weidlich and J. Hanika, "Hero wavelength spectral
+ * sampling", Computer Graphics Forum 33(4), 123-131, 2014), tiles handed to worker
+ * threads from an atomic counter.
  *
- * Determinism: every sample of every pixel draws from its own generator seeded from
- * (seed, pixel, sample), a pixel is finished by one thread, and every worker runs
- * with the same floating-point modes, so the image does not depend on the thread
- * count or on which thread takes which tile. */
+ * Determinism: every sample of every pixel takes its jitter and its path's generator
+ * from one hash of (seed, pixel, sample), a pixel is finished by one thread, and every
+ * worker runs with the same floating-point modes, so the image does not depend on the
+ * thread count or on which thread takes which tile. */
 #include <math.h>
 #include <pthread.h>
 #include <stdatomic.h>
@@ -15,6 +17,7 @@
 #include <string.h>
 #include <time.h>
 #include <unistd.h>
+#include <sys/mman.h>
 
 #include <embree3/rtcore.h>
 #if defined(__SSE2__)
@@ -27,13 +30,7 @@
 #define TILE 16   /* pixels per tile side, a multiple of the 4 x 4 packet */
 #define MAX_THREADS 256
 #define MAX_CH 6  /* weighted channels: the observer's 3, then XYZ's when wanted */
-
-typedef struct rd_hit {
-	int valid;
-	unsigned prim;
-	float u, v, t;
-	float ng[3];
-} rd_hit;
+#define LANES 16  /* rays per packet */
 
 typedef struct rd_ctx {
 	const kg_scene *s;
@@ -45,8 +42,12 @@ typedef struct rd_ctx {
 	const uint16_t *tri_mat; /* NULL: material 0 everywhere */
 	uint16_t *label_tri_mat; /* the label map projected onto the triangles */
 	rd_frame frame;
+	/* The camera in float, as the packets take it: a pixel position (x, y) plus
+	 * jitter looks along fwd + ((x + jx) sx + ox) right + ((y + jy) sy + oy) up. */
+	float cam_org[3], cam_fwd[3], cam_right[3], cam_up[3], cam_sx, cam_ox, cam_sy, cam_oy;
 	int width, height, spp, nwl, bounces;
 	uint64_t seed;
+	uint64_t key_base;      /* the seed hashed once: the samples' keys start from it */
 	kg_render_mode mode;
 	double eps;             /* ray origin offset along the geometric normal */
 	/* The observer: channel ch of a path is sum over bands of w[ch] L (the one place
@@ -68,7 +69,9 @@ typedef struct rd_ctx {
 	pthread_mutex_t lock;   /* progress */
 	int tiles_done;
 	const kg_render_options *opt;
-	atomic_ullong rays, shadow_rays, primary_rays;
+	/* rays by depth, summed from the workers' own counts under lock */
+	uint64_t depth_rays[KG_RENDER_MAX_BOUNCES + 1], depth_shadow[KG_RENDER_MAX_BOUNCES];
+	double depth_s[KG_RENDER_MAX_BOUNCES + 1];
 	char embree_error[256];
 } rd_ctx;
 
@@ -118,16 +121,21 @@ static double dot3(const double a[3], const double b[3])
 	return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
 }
 
-/* One division, three products: three divisions per call were a quarter of a preview
- * render's time (perf, 1.3 M triangles). */
-static inline void normalize3(double v[3])
+/* The image's pages are first touched by the workers as they store the tiles: one
+ * fault per 4 KiB page was a third of a 1080p preview's time on a virtual machine
+ * (perf: kernel page faults under the output stores). Ask for transparent huge pages
+ * over the buffer (whole pages inside it only); harmless where they are off. */
+static void advise_huge_pages(void *p, size_t n)
 {
-	double n = sqrt(dot3(v, v));
-	if (n > 0.0) {
-		double r = 1.0 / n;
-		for (int i = 0; i < 3; i++)
-			v[i] *= r;
-	}
+#if defined(MADV_HUGEPAGE)
+	uintptr_t page = (uintptr_t)sysconf(_SC_PAGESIZE);
+	uintptr_t a = ((uintptr_t)p + page - 1) / page * page;
+	uintptr_t b = ((uintptr_t)p + n) / page * page;
+	if (b > a)
+		madvise((void *)a, b - a, MADV_HUGEPAGE);
+#else
+	(void)p, (void)n;
+#endif
 }
 
 /* ---- Embree scene ---------------------------------------------------------------- */
@@ -177,37 +185,6 @@ static int build_scene(rd_ctx *c, int threads, kg_err *err)
 		return kg_fail(err, KG_EIO, "Embree: building the scene of %zu triangles: %s",
 		               mesh->ntris, c->embree_error[0] ? c->embree_error : "failed");
 	return 0;
-}
-
-static void hit_from(rd_hit *h, float t, unsigned geom, unsigned prim, float u, float v,
-                     float nx, float ny, float nz)
-{
-	h->valid = geom != RTC_INVALID_GEOMETRY_ID;
-	h->prim = prim;
-	h->t = t;
-	h->u = u;
-	h->v = v;
-	h->ng[0] = nx, h->ng[1] = ny, h->ng[2] = nz;
-}
-
-static void trace1(rd_ctx *c, const double org[3], const double dir[3], rd_hit *h)
-{
-	struct RTCIntersectContext ictx;
-	rtcInitIntersectContext(&ictx);
-	struct RTCRayHit rh;
-	rh.ray.org_x = (float)org[0], rh.ray.org_y = (float)org[1], rh.ray.org_z = (float)org[2];
-	rh.ray.dir_x = (float)dir[0], rh.ray.dir_y = (float)dir[1], rh.ray.dir_z = (float)dir[2];
-	rh.ray.tnear = 0.0f;
-	rh.ray.tfar = INFINITY;
-	rh.ray.time = 0.0f;
-	rh.ray.mask = ~0u;
-	rh.ray.id = 0;
-	rh.ray.flags = 0;
-	rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-	rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-	rtcIntersect1(c->scene, &ictx, &rh);
-	hit_from(h, rh.ray.tfar, rh.hit.geomID, rh.hit.primID, rh.hit.u, rh.hit.v, rh.hit.Ng_x,
-	         rh.hit.Ng_y, rh.hit.Ng_z);
 }
 
 /* 1 when nothing lies between org and org + tfar dir. */
@@ -318,113 +295,308 @@ static void env_radiance(const kg_scene *s, const double dir[3], const int *band
 	}
 }
 
-/* Shading frame at a hit: geometric normal ng and shading normal ns, both on the side
- * of the viewer V; the interpolated vertex normal when the mesh has normals and it
- * faces the viewer. */
-static void shading_frame(const rd_ctx *c, const rd_hit *h, const double V[3], double ng[3],
-                          double ns[3])
+/* ---- packets ---------------------------------------------------------------------- */
+
+/* 1 when any of the 16 lanes of a mask is set. */
+static int lanes_any(const int *v)
 {
-	const kg_mesh *mesh = c->s->mesh;
-	for (int i = 0; i < 3; i++)
-		ng[i] = h->ng[i];
-	normalize3(ng);
-	if (dot3(ng, V) < 0.0)
-		for (int i = 0; i < 3; i++)
-			ng[i] = -ng[i];
-	memcpy(ns, ng, sizeof(double) * 3);
-	if (mesh->normal) {
-		const uint32_t *tri = mesh->tri + 3 * (size_t)h->prim;
-		double w0 = 1.0 - h->u - h->v, n[3];
-		for (int i = 0; i < 3; i++)
-			n[i] = w0 * mesh->normal[3 * tri[0] + i] + h->u * mesh->normal[3 * tri[1] + i] +
-			       h->v * mesh->normal[3 * tri[2] + i];
-		normalize3(n);
-		if (dot3(n, ng) < 0.0)
-			for (int i = 0; i < 3; i++)
-				n[i] = -n[i];
-		if (dot3(n, V) > 0.0 && isfinite(n[0]) && isfinite(n[1]) && isfinite(n[2]))
-			memcpy(ns, n, sizeof(double) * 3);
+	int any = 0;
+	for (int l = 0; l < LANES; l++)
+		any |= v[l];
+	return any;
+}
+
+/* The hits of a 16-ray packet and their shading frames, as structures of arrays so
+ * that the frame arithmetic runs as SIMD loops over the lanes. */
+typedef struct rd_lanes {
+	int hit[LANES];           /* the lane's ray was traced and hit the mesh */
+	unsigned prim[LANES];     /* its triangle (0 when it missed: a safe index) */
+	float t[LANES], u[LANES], v[LANES];
+	float vx[LANES], vy[LANES], vz[LANES]; /* unit, back along the ray */
+	float gx[LANES], gy[LANES], gz[LANES]; /* geometric normal: unit, viewer's side */
+	float nx[LANES], ny[LANES], nz[LANES]; /* shading normal */
+	uint32_t idx[3][LANES];   /* the triangle's vertices */
+	float vn[3][3][LANES];    /* their normals: [corner][axis][lane] */
+} rd_lanes;
+
+/* Fill the fixed fields of the lanes of a packet of rays from the camera or from
+ * surface points, and the hit fields Embree leaves alone on a miss; origins and
+ * directions are the caller's. */
+static void packet_init(struct RTCRayHit16 *rh)
+{
+	for (int l = 0; l < LANES; l++) {
+		rh->hit.primID[l] = 0;
+		rh->hit.u[l] = rh->hit.v[l] = 0.0f;
+		rh->hit.Ng_x[l] = rh->hit.Ng_y[l] = rh->hit.Ng_z[l] = 0.0f;
+		rh->ray.tnear[l] = 0.0f;
+		rh->ray.tfar[l] = INFINITY;
+		rh->ray.time[l] = 0.0f;
+		rh->ray.mask[l] = ~0u;
+		rh->ray.id[l] = (unsigned)l;
+		rh->ray.flags[l] = 0;
+		rh->hit.geomID[l] = RTC_INVALID_GEOMETRY_ID;
+		rh->hit.instID[0][l] = RTC_INVALID_GEOMETRY_ID;
 	}
 }
 
+/* The hits of a traced packet (lanes with valid[l] = 0 were not traced) with their
+ * shading frames: geometric normal ng and shading normal ns, both on the side of the
+ * viewer V; ns is the interpolated vertex normal when the mesh has normals and it
+ * faces the viewer, else ng. Only the lanes with hit[l] mean anything. */
+static void packet_hits(const rd_ctx *c, const int *valid,
+                        const struct RTCRayHit16 *restrict rh, rd_lanes *restrict h)
+{
+	const kg_mesh *mesh = c->s->mesh;
+	/* Branch-free lane loops (selects of computed values, divisions on safe operands)
+	 * so that they vectorise; a missed lane keeps whatever its fields held (defined:
+	 * packet_init), its triangle index 0. */
+	for (int l = 0; l < LANES; l++) {
+		int hit = (valid[l] != 0) & (rh->hit.geomID[l] != RTC_INVALID_GEOMETRY_ID);
+		h->hit[l] = hit;
+		h->prim[l] = rh->hit.primID[l] & -(unsigned)hit;
+	}
+	for (int l = 0; l < LANES; l++) {
+		float vx = -rh->ray.dir_x[l], vy = -rh->ray.dir_y[l], vz = -rh->ray.dir_z[l];
+		float x = rh->hit.Ng_x[l], y = rh->hit.Ng_y[l], z = rh->hit.Ng_z[l];
+		h->t[l] = rh->ray.tfar[l];
+		h->u[l] = rh->hit.u[l];
+		h->v[l] = rh->hit.v[l];
+		h->vx[l] = vx, h->vy[l] = vy, h->vz[l] = vz;
+		float d = x * x + y * y + z * z;
+		float r = 1.0f / sqrtf(d > 0.0f ? d : 1.0f);
+		r = d > 0.0f ? r : 0.0f;
+		r = x * vx + y * vy + z * vz < 0.0f ? -r : r;
+		h->gx[l] = h->nx[l] = x * r;
+		h->gy[l] = h->ny[l] = y * r;
+		h->gz[l] = h->nz[l] = z * r;
+	}
+	if (!mesh->normal || !lanes_any(h->hit))
+		return;
+	/* the vertex indices of the lanes that hit, then their normals: two rounds of
+	 * independent loads (the mesh's arrays are cold: Embree traverses its own copy);
+	 * the other lanes keep earlier values and are computed for nothing */
+	for (int l = 0; l < LANES; l++)
+		if (h->hit[l]) {
+			const uint32_t *tri = mesh->tri + 3 * (size_t)h->prim[l];
+			h->idx[0][l] = tri[0], h->idx[1][l] = tri[1], h->idx[2][l] = tri[2];
+		}
+	for (int l = 0; l < LANES; l++)
+		if (h->hit[l])
+			for (int k = 0; k < 3; k++) {
+				const float *vn = mesh->normal + 3 * (size_t)h->idx[k][l];
+				h->vn[k][0][l] = vn[0], h->vn[k][1][l] = vn[1], h->vn[k][2][l] = vn[2];
+			}
+	for (int l = 0; l < LANES; l++) {
+		float u = h->u[l], v = h->v[l], w = 1.0f - u - v;
+		float x = w * h->vn[0][0][l] + u * h->vn[1][0][l] + v * h->vn[2][0][l];
+		float y = w * h->vn[0][1][l] + u * h->vn[1][1][l] + v * h->vn[2][1][l];
+		float z = w * h->vn[0][2][l] + u * h->vn[1][2][l] + v * h->vn[2][2][l];
+		float d = x * x + y * y + z * z;
+		float r = 1.0f / sqrtf(d > 0.0f ? d : 1.0f);
+		r = d > 0.0f ? r : 0.0f;
+		r = x * h->gx[l] + y * h->gy[l] + z * h->gz[l] < 0.0f ? -r : r;
+		x *= r, y *= r, z *= r;
+		/* facing the viewer, and finite (a unit vector's components are at most 1) */
+		int use = (x * h->vx[l] + y * h->vy[l] + z * h->vz[l] > 0.0f) & (fabsf(x) <= 1.0f) &
+		          (fabsf(y) <= 1.0f) & (fabsf(z) <= 1.0f);
+		h->nx[l] = use ? x : h->nx[l];
+		h->ny[l] = use ? y : h->ny[l];
+		h->nz[l] = use ? z : h->nz[l];
+	}
+}
+
+/* The camera rays of the 4 x 4 block at (bx, by), sample smp, into rh (fixed fields
+ * set by packet_init): lanes outside the image are invalid. Each sample's key is one
+ * hash of (seed, pixel, sample): its top 48 bits are the jitter, and it seeds the
+ * path's generator. Directions in float, as Embree takes them, in SIMD loops. */
+static void camera_rays(const rd_ctx *c, int bx, int by, int smp, int *valid,
+                        struct RTCRayHit16 *rh, uint64_t *key)
+{
+	float jx[LANES], jy[LANES];
+	for (int l = 0; l < LANES; l++) {
+		int x = bx + (l & 3), y = by + (l >> 2);
+		valid[l] = -((x < c->width) & (y < c->height));
+		uint64_t pixel = (uint64_t)y * (uint64_t)c->width + (uint64_t)x;
+		uint64_t k = mix64(c->key_base ^ (pixel << 32 | (uint32_t)smp));
+		key[l] = k;
+		/* through int32_t: a uint64_t to float conversion branches on the top bit */
+		jx[l] = (float)(int32_t)(k >> 40) * 0x1p-24f;
+		jy[l] = (float)(int32_t)((k >> 16) & 0xffffff) * 0x1p-24f;
+	}
+	for (int l = 0; l < LANES; l++) {
+		float px = ((float)(bx + (l & 3)) + jx[l]) * c->cam_sx + c->cam_ox;
+		float py = ((float)(by + (l >> 2)) + jy[l]) * c->cam_sy + c->cam_oy;
+		float x = c->cam_fwd[0] + px * c->cam_right[0] + py * c->cam_up[0];
+		float y = c->cam_fwd[1] + px * c->cam_right[1] + py * c->cam_up[1];
+		float z = c->cam_fwd[2] + px * c->cam_right[2] + py * c->cam_up[2];
+		float r = 1.0f / sqrtf(x * x + y * y + z * z);
+		rh->ray.org_x[l] = c->cam_org[0];
+		rh->ray.org_y[l] = c->cam_org[1];
+		rh->ray.org_z[l] = c->cam_org[2];
+		rh->ray.dir_x[l] = x * r;
+		rh->ray.dir_y[l] = y * r;
+		rh->ray.dir_z[l] = z * r;
+		rh->ray.tfar[l] = INFINITY;
+		rh->hit.geomID[l] = RTC_INVALID_GEOMETRY_ID;
+	}
+}
+
+/* ---- paths ------------------------------------------------------------------------ */
+
 typedef struct rd_counts {
-	uint64_t rays, shadow_rays, primary_rays;
+	uint64_t rays[KG_RENDER_MAX_BOUNCES + 1], shadow[KG_RENDER_MAX_BOUNCES];
+	double secs[KG_RENDER_MAX_BOUNCES + 1]; /* kg_render_stats.depth_s */
 } rd_counts;
 
-/* One path from the camera, its first hit given; adds its c->nch channels to acc. */
-static void trace_path(rd_ctx *c, kg_rng *rng, const double org0[3], const double dir0[3],
-                       const rd_hit *first, double *acc, rd_counts *cnt)
+/* The paths of a camera packet (its hits in h), carried on together depth by depth:
+ * the shadow rays of a depth as one packet (towards the light: coherent), then the
+ * bounce rays as another. Each lane draws from its own generator in the order a
+ * lone path would, so a pixel's value does not depend on its packet's other lanes.
+ * Adds each lane's c->nch channels to acc[ch][pix[l]]; t is the clock when the
+ * camera packet was done (the time from there on goes to the depths). */
+static void trace_paths(rd_ctx *c, kg_rng *rng, const int *valid, struct RTCRayHit16 *rh,
+                        rd_lanes *h, double acc[][TILE * TILE], const int *pix,
+                        double t, rd_counts *cnt)
 {
 	const kg_scene *s = c->s;
-	int n = c->nwl, band[KG_NBANDS];
-	int hero = (int)(kg_rng_uniform(rng) * KG_NBANDS);
-	for (int j = 0; j < n; j++)
-		band[j] = (hero + j * KG_NBANDS / n) % KG_NBANDS;
-	float T[KG_NBANDS], L[KG_NBANDS], tmp[KG_NBANDS];
-	for (int j = 0; j < n; j++)
-		T[j] = 1.0f, L[j] = 0.0f;
-	double org[3], dir[3];
-	memcpy(org, org0, sizeof(org));
-	memcpy(dir, dir0, sizeof(dir));
-	rd_hit h = *first;
-	for (int depth = 0;; depth++) {
-		if (!h.valid) {
-			env_radiance(s, dir, band, n, tmp);
-			for (int j = 0; j < n; j++)
-				L[j] += T[j] * tmp[j];
-			break;
+	int n = c->nwl;
+	int alive[LANES], band[LANES][KG_NBANDS];
+	float T[LANES][KG_NBANDS], L[LANES][KG_NBANDS], sun[LANES][KG_NBANDS];
+	float tmp[KG_NBANDS];
+	double org[LANES][3], dir[LANES][3];
+	for (int l = 0; l < LANES; l++) {
+		alive[l] = valid[l];
+		if (!alive[l])
+			continue;
+		int hero = (int)(kg_rng_uniform(&rng[l]) * KG_NBANDS);
+		for (int j = 0; j < n; j++) {
+			band[l][j] = (hero + j * KG_NBANDS / n) % KG_NBANDS;
+			T[l][j] = 1.0f;
+			L[l][j] = 0.0f;
 		}
-		if (depth == c->bounces)
-			break;
-		double P[3], V[3] = {-dir[0], -dir[1], -dir[2]}, ng[3], ns[3];
 		for (int i = 0; i < 3; i++)
-			P[i] = org[i] + h.t * dir[i];
-		shading_frame(c, &h, V, ng, ns);
-		const rd_material *m = &c->mat[c->tri_mat ? c->tri_mat[h.prim] : 0];
-		if (s->has_sun && dot3(ng, s->sun_dir) > 0.0 &&
-		    rd_eval(m, ns, V, s->sun_dir, band, n, tmp)) {
-			double o[3];
-			for (int i = 0; i < 3; i++)
-				o[i] = P[i] + c->eps * ng[i];
-			cnt->shadow_rays++;
-			if (unoccluded(c, o, s->sun_dir, INFINITY))
+			org[l][i] = s->view.pos[i];
+		dir[l][0] = rh->ray.dir_x[l], dir[l][1] = rh->ray.dir_y[l], dir[l][2] = rh->ray.dir_z[l];
+	}
+	struct RTCIntersectContext ictx;
+	rtcInitIntersectContext(&ictx);
+	_Alignas(64) int sv[LANES], bv[LANES];
+	struct RTCRay16 sh;
+	memset(&sh, 0, sizeof(sh)); /* Embree may load the lanes it leaves alone */
+	int depth = 0;
+	for (;; depth++) {
+		for (int l = 0; l < LANES; l++)
+			if (alive[l] && !h->hit[l]) {
+				env_radiance(s, dir[l], band[l], n, tmp);
 				for (int j = 0; j < n; j++)
-					L[j] += T[j] * tmp[j] * s->sun_irradiance[band[j]];
-		}
-		double u[3] = {kg_rng_uniform(rng), kg_rng_uniform(rng), kg_rng_uniform(rng)};
-		double Lo[3];
-		if (!rd_sample(m, ns, V, u, band, n, Lo, tmp))
+					L[l][j] += T[l][j] * tmp[j];
+				alive[l] = 0;
+			}
+		if (depth == c->bounces || !lanes_any(alive))
 			break;
-		/* a shading normal can send a sample under the surface: drop it */
-		double side = dot3(ng, Lo);
-		if (!(side > 0.0))
-			break;
-		for (int j = 0; j < n; j++)
-			T[j] *= tmp[j];
-		for (int i = 0; i < 3; i++) {
-			org[i] = P[i] + c->eps * ng[i];
-			dir[i] = Lo[i];
+		for (int l = 0; l < LANES; l++) {
+			sv[l] = bv[l] = 0;
+			if (!alive[l])
+				continue;
+			double P[3], V[3] = {h->vx[l], h->vy[l], h->vz[l]};
+			double ng[3] = {h->gx[l], h->gy[l], h->gz[l]};
+			double ns[3] = {h->nx[l], h->ny[l], h->nz[l]};
+			for (int i = 0; i < 3; i++)
+				P[i] = org[l][i] + h->t[l] * dir[l][i];
+			const rd_material *m = &c->mat[c->tri_mat ? c->tri_mat[h->prim[l]] : 0];
+			if (s->has_sun && dot3(ng, s->sun_dir) > 0.0 &&
+			    rd_eval(m, ns, V, s->sun_dir, band[l], n, tmp)) {
+				for (int j = 0; j < n; j++)
+					sun[l][j] = T[l][j] * tmp[j] * s->sun_irradiance[band[l][j]];
+				sv[l] = -1;
+				sh.org_x[l] = (float)(P[0] + c->eps * ng[0]);
+				sh.org_y[l] = (float)(P[1] + c->eps * ng[1]);
+				sh.org_z[l] = (float)(P[2] + c->eps * ng[2]);
+				sh.dir_x[l] = (float)s->sun_dir[0];
+				sh.dir_y[l] = (float)s->sun_dir[1];
+				sh.dir_z[l] = (float)s->sun_dir[2];
+				sh.tnear[l] = 0.0f;
+				sh.tfar[l] = INFINITY;
+				sh.time[l] = 0.0f;
+				sh.mask[l] = ~0u;
+				sh.id[l] = (unsigned)l;
+				sh.flags[l] = 0;
+				cnt->shadow[depth]++;
+			}
+			double u[3] = {kg_rng_uniform(&rng[l]), kg_rng_uniform(&rng[l]),
+			               kg_rng_uniform(&rng[l])};
+			double Lo[3];
+			if (!rd_sample(m, ns, V, u, band[l], n, Lo, tmp))
+				continue;
+			/* A shading normal can send a sample under the surface (about one path in
+			 * 10^4 on a level-4 sphere): mirror it about the surface's plane, keeping
+			 * its weight, rather than end the path and lose its energy (the furnace
+			 * test sees such a loss). */
+			double side = dot3(ng, Lo);
+			if (side <= 0.0)
+				for (int i = 0; i < 3; i++)
+					Lo[i] -= 2.0 * side * ng[i];
+			if (!(dot3(ng, Lo) > 0.0))
+				continue;
+			for (int j = 0; j < n; j++)
+				T[l][j] *= tmp[j];
+			for (int i = 0; i < 3; i++) {
+				org[l][i] = P[i] + c->eps * ng[i];
+				dir[l][i] = Lo[i];
+			}
+			bv[l] = -1;
+			rh->ray.org_x[l] = (float)org[l][0];
+			rh->ray.org_y[l] = (float)org[l][1];
+			rh->ray.org_z[l] = (float)org[l][2];
+			rh->ray.dir_x[l] = (float)Lo[0];
+			rh->ray.dir_y[l] = (float)Lo[1];
+			rh->ray.dir_z[l] = (float)Lo[2];
+			rh->ray.tfar[l] = INFINITY;
+			rh->hit.geomID[l] = RTC_INVALID_GEOMETRY_ID;
+			cnt->rays[depth + 1]++;
 		}
-		cnt->rays++;
-		trace1(c, org, dir, &h);
+		if (lanes_any(sv)) {
+			ictx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+			rtcOccluded16(sv, c->scene, &ictx, &sh);
+			for (int l = 0; l < LANES; l++)
+				if (sv[l] && sh.tfar[l] >= 0.0f)
+					for (int j = 0; j < n; j++)
+						L[l][j] += sun[l][j];
+		}
+		for (int l = 0; l < LANES; l++)
+			alive[l] = bv[l];
+		if (!lanes_any(bv))
+			break;
+		double t1 = now_s();
+		cnt->secs[depth] += t1 - t;
+		ictx.flags = RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+		rtcIntersect16(bv, c->scene, &ictx, rh);
+		packet_hits(c, bv, rh, h);
+		t = now_s();
+		cnt->secs[depth + 1] += t - t1;
 	}
 	/* the observer (eq. 12 for XYZ) estimated from the path's bands: each stands for
 	 * KG_NBANDS / n of them */
 	double k = (double)KG_NBANDS / n;
-	for (int ch = 0; ch < c->nch; ch++) {
-		double sum = 0.0;
-		for (int j = 0; j < n; j++)
-			sum += (double)c->w[ch][band[j]] * L[j];
-		acc[ch] += k * sum;
+	for (int l = 0; l < LANES; l++) {
+		if (!valid[l])
+			continue;
+		for (int ch = 0; ch < c->nch; ch++) {
+			double sum = 0.0;
+			for (int j = 0; j < n; j++)
+				sum += (double)c->w[ch][band[l][j]] * L[l][j];
+			acc[ch][pix[l]] += k * sum;
+		}
 	}
+	cnt->secs[depth] += now_s() - t;
 }
 
-/* The truth class of a primary hit (0: nothing, or a background part). */
-static int hit_class(const rd_ctx *c, const rd_hit *h)
+/* The truth class of lane l's hit (0: nothing, or a background part). */
+static int hit_class(const rd_ctx *c, const rd_lanes *h, int l)
 {
-	if (!h->valid || (c->s->tri_background && c->s->tri_background[h->prim]))
+	if (!h->hit[l] || (c->s->tri_background && c->s->tri_background[h->prim[l]]))
 		return 0;
-	return c->mat_class[c->tri_mat ? c->tri_mat[h->prim] : 0];
+	return c->mat_class[c->tri_mat ? c->tri_mat[h->prim[l]] : 0];
 }
 
 /* The tile's truth from the counts: each pixel's most frequent class (the lower on a
@@ -449,10 +621,12 @@ static void finish_truth(rd_ctx *c, int tx0, int ty0, const uint32_t *count,
 
 static void render_tile(rd_ctx *c, int tile, int worker_idx, rd_counts *cnt)
 {
-	const kg_scene *s = c->s;
 	int tx0 = (tile % c->tiles_x) * TILE, ty0 = (tile / c->tiles_x) * TILE;
-	double acc[TILE * TILE][MAX_CH];
-	memset(acc, 0, sizeof(acc));
+	/* per channel, per pixel of the tile; the preview sums N.V in channel 0 and
+	 * scales the white's reading by it at the end */
+	double acc[MAX_CH][TILE * TILE];
+	int nacc = c->mode == KG_RENDER_PREVIEW ? 1 : c->nch;
+	memset(acc, 0, sizeof(acc[0]) * (size_t)nacc);
 	size_t tsize = (size_t)TILE * TILE * (size_t)c->ncls;
 	uint32_t *tcount = c->truth ? c->tcount + (size_t)worker_idx * tsize : NULL;
 	double *tangle = c->truth ? c->tangle + (size_t)worker_idx * tsize : NULL;
@@ -460,96 +634,76 @@ static void render_tile(rd_ctx *c, int tile, int worker_idx, rd_counts *cnt)
 		memset(tcount, 0, sizeof(*tcount) * tsize);
 		memset(tangle, 0, sizeof(*tangle) * tsize);
 	}
-	double aspect = (double)c->width / c->height;
-	const rd_frame *f = &c->frame;
 	struct RTCIntersectContext ictx;
 	rtcInitIntersectContext(&ictx);
 	ictx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+	_Alignas(64) int valid[LANES];
+	struct RTCRayHit16 rh;
+	rd_lanes h;
+	memset(&h, 0, sizeof(h)); /* lanes that never hit are computed on, never used */
+	uint64_t key[LANES];
+	kg_rng rng[LANES];
+	int pix[LANES];
 
 	for (int by = ty0; by < ty0 + TILE && by < c->height; by += 4)
-		for (int bx = tx0; bx < tx0 + TILE && bx < c->width; bx += 4)
+		for (int bx = tx0; bx < tx0 + TILE && bx < c->width; bx += 4) {
+			for (int l = 0; l < LANES; l++)
+				pix[l] = (by - ty0 + (l >> 2)) * TILE + (bx - tx0 + (l & 3));
+			packet_init(&rh);
 			for (int smp = 0; smp < c->spp; smp++) {
-				_Alignas(64) int valid[16];
-				struct RTCRayHit16 rh;
-				kg_rng rng[16];
-				double dirs[16][3];
-				for (int l = 0; l < 16; l++) {
-					int x = bx + (l & 3), y = by + (l >> 2);
-					valid[l] = (x < c->width && y < c->height) ? -1 : 0;
-					uint64_t pixel = (uint64_t)y * (uint64_t)c->width + (uint64_t)x;
-					kg_rng_seed(&rng[l], mix64(mix64(c->seed ^ 0x6b67656900000000ULL) + pixel) +
-					                         (uint64_t)smp * 0x9e3779b97f4a7c15ULL);
-					double jx = kg_rng_uniform(&rng[l]), jy = kg_rng_uniform(&rng[l]);
-					double px = (2.0 * (x + jx) / c->width - 1.0) * f->tan_half * aspect;
-					double py = (1.0 - 2.0 * (y + jy) / c->height) * f->tan_half;
-					/* in registers, then stored once: normalising in place reloaded
-					 * the three stores as one 16-byte load (a failed store forward) */
-					double d[3];
-					for (int i = 0; i < 3; i++)
-						d[i] = f->fwd[i] + px * f->right[i] + py * f->up[i];
-					double inv = 1.0 / sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
-					for (int i = 0; i < 3; i++)
-						dirs[l][i] = d[i] * inv;
-					rh.ray.org_x[l] = (float)s->view.pos[0];
-					rh.ray.org_y[l] = (float)s->view.pos[1];
-					rh.ray.org_z[l] = (float)s->view.pos[2];
-					rh.ray.dir_x[l] = (float)dirs[l][0];
-					rh.ray.dir_y[l] = (float)dirs[l][1];
-					rh.ray.dir_z[l] = (float)dirs[l][2];
-					rh.ray.tnear[l] = 0.0f;
-					rh.ray.tfar[l] = INFINITY;
-					rh.ray.time[l] = 0.0f;
-					rh.ray.mask[l] = ~0u;
-					rh.ray.id[l] = (unsigned)l;
-					rh.ray.flags[l] = 0;
-					rh.hit.geomID[l] = RTC_INVALID_GEOMETRY_ID;
-					rh.hit.instID[0][l] = RTC_INVALID_GEOMETRY_ID;
-					cnt->primary_rays += valid[l] != 0;
-				}
+				double t0 = c->mode == KG_RENDER_PREVIEW ? 0.0 : now_s();
+				camera_rays(c, bx, by, smp, valid, &rh, key);
+				for (int l = 0; l < LANES; l++)
+					cnt->rays[0] += valid[l] != 0;
 				rtcIntersect16(valid, c->scene, &ictx, &rh);
-				for (int l = 0; l < 16; l++) {
-					if (!valid[l])
-						continue;
-					int x = bx + (l & 3), y = by + (l >> 2);
-					double *a = acc[(y - ty0) * TILE + (x - tx0)];
-					rd_hit h;
-					hit_from(&h, rh.ray.tfar[l], rh.hit.geomID[l], rh.hit.primID[l],
-					         rh.hit.u[l], rh.hit.v[l], rh.hit.Ng_x[l], rh.hit.Ng_y[l],
-					         rh.hit.Ng_z[l]);
-					if (c->truth) {
-						int cls = hit_class(c, &h);
+				packet_hits(c, valid, &rh, &h);
+				if (c->truth)
+					for (int l = 0; l < LANES; l++) {
+						if (!valid[l])
+							continue;
+						int cls = hit_class(c, &h, l);
 						double ang = 0.0;
 						if (cls) {
-							double V[3] = {-dirs[l][0], -dirs[l][1], -dirs[l][2]};
-							double ng[3], ns[3];
-							shading_frame(c, &h, V, ng, ns);
-							ang = acos(fmax(-1.0, fmin(1.0, dot3(ns, V)))) * (180.0 / M_PI);
+							double nv = h.nx[l] * h.vx[l] + h.ny[l] * h.vy[l] + h.nz[l] * h.vz[l];
+							ang = acos(fmax(-1.0, fmin(1.0, nv))) * (180.0 / M_PI);
 						}
-						size_t k = (size_t)((y - ty0) * TILE + (x - tx0)) * (size_t)c->ncls +
-						           (size_t)cls;
+						size_t k = (size_t)pix[l] * (size_t)c->ncls + (size_t)cls;
 						tcount[k]++;
 						tangle[k] += ang;
 					}
-					if (c->mode == KG_RENDER_PREVIEW) {
-						double V[3] = {-dirs[l][0], -dirs[l][1], -dirs[l][2]}, ng[3], ns[3];
-						double g = 0.0;
-						if (h.valid) {
-							shading_frame(c, &h, V, ng, ns);
-							g = dot3(ns, V);
-						}
-						for (int ch = 0; ch < c->nch; ch++)
-							a[ch] += g * c->white_out[ch];
-						continue;
-					}
-					trace_path(c, &rng[l], s->view.pos, dirs[l], &h, a, cnt);
+				if (c->mode == KG_RENDER_PREVIEW) {
+					for (int l = 0; l < LANES; l++)
+						if (h.hit[l])
+							acc[0][pix[l]] += h.nx[l] * h.vx[l] + h.ny[l] * h.vy[l] +
+							                  h.nz[l] * h.vz[l];
+					continue;
 				}
+				for (int l = 0; l < LANES; l++)
+					if (valid[l])
+						kg_rng_seed(&rng[l], key[l]);
+				double t1 = now_s();
+				cnt->secs[0] += t1 - t0;
+				trace_paths(c, rng, valid, &rh, &h, acc, pix, t1, cnt);
 			}
-	double k = s->exposure / c->spp;
-	for (int y = ty0; y < ty0 + TILE && y < c->height; y++)
-		for (int x = tx0; x < tx0 + TILE && x < c->width; x++)
-			for (int ch = 0; ch < c->nch; ch++)
-				c->out[ch / 3][3 * ((size_t)y * (size_t)c->width + (size_t)x) + ch % 3] =
-					(float)(acc[(y - ty0) * TILE + (x - tx0)][ch] * k);
+		}
+	/* the tile's rows, each a run of 3 x nx floats of each image */
+	double k = c->s->exposure / c->spp, wk[MAX_CH];
+	for (int ch = 0; ch < c->nch; ch++)
+		wk[ch] = c->mode == KG_RENDER_PREVIEW ? c->white_out[ch] * k : k;
+	int nx = c->width - tx0 < TILE ? c->width - tx0 : TILE;
+	for (int y = ty0; y < ty0 + TILE && y < c->height; y++) {
+		int p = (y - ty0) * TILE;
+		size_t o = 3 * ((size_t)y * (size_t)c->width + (size_t)tx0);
+		for (int img = 0; img < c->nch / 3; img++) {
+			float *out = c->out[img] + o;
+			for (int i = 0; i < 3; i++) {
+				const double *a = acc[nacc == 1 ? 0 : 3 * img + i] + p;
+				double w = wk[3 * img + i];
+				for (int x = 0; x < nx; x++)
+					out[3 * x + i] = (float)(a[x] * w);
+			}
+		}
+	}
 	if (c->truth)
 		finish_truth(c, tx0, ty0, tcount, tangle);
 }
@@ -577,9 +731,14 @@ static void *worker(void *arg)
 			pthread_mutex_unlock(&c->lock);
 		}
 	}
-	atomic_fetch_add(&c->rays, cnt.rays + cnt.primary_rays);
-	atomic_fetch_add(&c->shadow_rays, cnt.shadow_rays);
-	atomic_fetch_add(&c->primary_rays, cnt.primary_rays);
+	pthread_mutex_lock(&c->lock);
+	for (int d = 0; d <= c->bounces; d++) {
+		c->depth_rays[d] += cnt.rays[d];
+		c->depth_s[d] += cnt.secs[d];
+	}
+	for (int d = 0; d < c->bounces; d++)
+		c->depth_shadow[d] += cnt.shadow[d];
+	pthread_mutex_unlock(&c->lock);
 	return NULL;
 }
 
@@ -708,6 +867,9 @@ int kg_render_full(const kg_scene *s, const kg_render_options *opt, kg_render_re
 		threads = 1;
 	if (threads > MAX_THREADS)
 		threads = MAX_THREADS;
+	if (c.bounces > KG_RENDER_MAX_BOUNCES)
+		return kg_fail(err, KG_EINVAL, "bounces: %d: expected 1 to %d", c.bounces,
+		               KG_RENDER_MAX_BOUNCES);
 	if (c.nwl > KG_RENDER_ALL_BANDS)
 		return kg_fail(err, KG_EINVAL, "wavelengths per path: %d: expected 1 to %d", c.nwl,
 		               KG_RENDER_ALL_BANDS);
@@ -715,6 +877,18 @@ int kg_render_full(const kg_scene *s, const kg_render_options *opt, kg_render_re
 		return kg_fail(err, KG_EINVAL, "image size %d x %d: expected at most 16384 per side",
 		               c.width, c.height);
 	rd_view_frame(&s->view, &c.frame);
+	c.key_base = mix64(c.seed ^ 0x6b67656900000000ULL);
+	double aspect = (double)c.width / c.height;
+	for (int i = 0; i < 3; i++) {
+		c.cam_org[i] = (float)s->view.pos[i];
+		c.cam_fwd[i] = (float)c.frame.fwd[i];
+		c.cam_right[i] = (float)c.frame.right[i];
+		c.cam_up[i] = (float)c.frame.up[i];
+	}
+	c.cam_sx = (float)(2.0 * c.frame.tan_half * aspect / c.width);
+	c.cam_ox = (float)(-c.frame.tan_half * aspect);
+	c.cam_sy = (float)(-2.0 * c.frame.tan_half / c.height);
+	c.cam_oy = (float)c.frame.tan_half;
 	kg_render_truth *truth = NULL;
 	int ret = setup_observer(&c, opt, err);
 	if (!ret && opt->want_truth)
@@ -751,12 +925,11 @@ int kg_render_full(const kg_scene *s, const kg_render_options *opt, kg_render_re
 	}
 	c.out[0] = img->data;
 	c.out[1] = xyz ? xyz->data : NULL;
+	for (int i = 0; i < 2 && c.out[i]; i++)
+		advise_huge_pages(c.out[i], sizeof(float) * 3 * (size_t)c.width * (size_t)c.height);
 	c.tiles_x = (c.width + TILE - 1) / TILE;
 	c.ntiles = c.tiles_x * ((c.height + TILE - 1) / TILE);
 	atomic_init(&c.next_tile, 0);
-	atomic_init(&c.rays, 0);
-	atomic_init(&c.shadow_rays, 0);
-	atomic_init(&c.primary_rays, 0);
 	pthread_mutex_init(&c.lock, NULL);
 	pthread_t tid[MAX_THREADS];
 	rd_worker wk[MAX_THREADS];
@@ -781,10 +954,17 @@ int kg_render_full(const kg_scene *s, const kg_render_options *opt, kg_render_re
 		*stats = (kg_render_stats){
 			.width = c.width, .height = c.height, .spp = c.spp, .wavelengths = c.nwl,
 			.bounces = c.bounces, .threads = threads, .seed = c.seed, .build_s = t1 - t0,
-			.render_s = t3 - t2, .primary_rays = atomic_load(&c.primary_rays),
-			.rays = atomic_load(&c.rays), .shadow_rays = atomic_load(&c.shadow_rays),
-			.label_rays = label_rays,
+			.render_s = t3 - t2, .primary_rays = c.depth_rays[0], .label_rays = label_rays,
 		};
+		for (int d = 0; d <= c.bounces; d++) {
+			stats->depth_rays[d] = c.depth_rays[d];
+			stats->depth_s[d] = c.depth_s[d];
+			stats->rays += c.depth_rays[d];
+		}
+		for (int d = 0; d < c.bounces; d++) {
+			stats->depth_shadow_rays[d] = c.depth_shadow[d];
+			stats->shadow_rays += c.depth_shadow[d];
+		}
 	}
 	ctx_free(&c);
 	if (ret) {

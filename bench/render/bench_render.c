@@ -3,11 +3,13 @@
  *  1. BVH build (Embree, build quality medium, as kg_render builds it) of the
  *     icosphere of level 8 (1,310,720 triangles) at 1 and 2 threads;
  *  2. path-traced rays per second on that mesh (closest-hit plus shadow rays; a
- *     gold sphere under a light and an environment), 1 and 2 threads;
+ *     gold sphere under a light and an environment), 1 and 2 threads; and split by
+ *     depth on the demo scene of 4. (a convex sphere sends no ray past its first
+ *     bounce) at 1 spp: the renderer's per-depth ray counts and times;
  *  3. camera rays per second through the renderer (kg_render preview mode: 4 x 4
- *     packets per sample, seeding, shading by N.V, output) beside the raw Embree
- *     rate of rtcIntersect16 on the same mesh, camera and threads, measured in the
- *     same run (pixel-centre rays, no shading);
+ *     packets per sample, seeding, jitter, shading by N.V, output) beside the raw
+ *     Embree rate of rtcIntersect16 on the same mesh, camera and threads, measured in
+ *     the same run (pixel-centre rays, no shading), and their ratio;
  *  4. a 1080p render of the demo object (tsuba, 256 segments) on a ground plane at a
  *     stated quality.
  * Each figure is the median of --reps runs (default 3). Prints a Markdown table. */
@@ -55,6 +57,9 @@ static double median(double *v, int n)
 }
 
 static char dir[] = "/tmp/kogei-bench-render-XXXXXX";
+
+/* Bounces of the per-depth split. */
+#define MAX_BOUNCE 4
 
 static int write_scene(const char *name, const char *text, char *path, size_t size)
 {
@@ -188,7 +193,7 @@ static int raw_packet_rate(const kg_mesh *mesh, int threads, int width, int heig
 
 typedef struct run_result {
 	double build_s, render_s, rays_per_s, primary_per_s;
-	kg_render_stats st;
+	kg_render_stats st; /* the last run's (the ray counts are the same in every run) */
 } run_result;
 
 static int run(const kg_scene *s, const kg_render_options *opt, int reps, run_result *out)
@@ -310,13 +315,22 @@ int main(int argc, char **argv)
 		        "- **camera rays, renderer**: kg_render in preview mode (16-ray packets "
 		        "with per-sample seeding, jitter, N.V shading and output) beside "
 		        "**rtcIntersect16 raw**: the same mesh, camera and thread count, "
-		        "pixel-centre 4 x 4 packets and nothing else, in the same run.\n"
+		        "pixel-centre 4 x 4 packets and nothing else, in the same run; "
+		        "**camera / raw** is their ratio.\n"
+		        "- **Path tracing by depth**: the demo scene of the last table (a convex "
+		        "sphere sends no ray past its first bounce) at 1 spp, 4 bounces, as the "
+		        "renderer counts it (kg_render_stats): at depth d, the closest-hit rays of "
+		        "depth d (0: the camera's) and the shadow rays from their hits; the time "
+		        "is the workers' time on them, their shading and the choice of the next "
+		        "direction (depth 0: making the camera rays too), divided by the thread "
+		        "count (a share of the render time); rays/s = both rays over that time.\n"
 		        "- The machine drifts 15-30 %% between sessions and its 2 cores may be "
 		        "shared: compare numbers within one run.\n\n", m->ntris, m->nverts, W, H);
 		fprintf(out, "## Rays\n\n");
 		fprintf(out, "| threads | BVH build (s) | path-traced rays (M/s) | camera rays, "
-		       "renderer (M/s) | rtcIntersect16 raw (M/s) | raw hit fraction |\n");
-		fprintf(out, "|---|---|---|---|---|---|\n");
+		       "renderer (M/s) | rtcIntersect16 raw (M/s) | camera / raw | raw hit "
+		       "fraction |\n");
+		fprintf(out, "|---|---|---|---|---|---|---|\n");
 	}
 	for (int threads = 1; !ret && threads <= 2; threads++) {
 		run_result path, prim;
@@ -328,8 +342,36 @@ int main(int argc, char **argv)
 			ret = -1;
 			break;
 		}
-		fprintf(out, "| %d | %.3f | %.2f | %.2f | %.2f | %.3f |\n", threads, path.build_s,
-		       path.rays_per_s / 1e6, prim.primary_per_s / 1e6, raw / 1e6, hit);
+		fprintf(out, "| %d | %.3f | %.2f | %.2f | %.2f | %.2f | %.3f |\n", threads,
+		        path.build_s, path.rays_per_s / 1e6, prim.primary_per_s / 1e6, raw / 1e6,
+		        prim.primary_per_s / raw, hit);
+	}
+	run_result depth[3];
+	for (int threads = 1; !ret && threads <= 2; threads++) {
+		kg_render_options po = {.threads = threads, .spp = 1, .bounces = MAX_BOUNCE};
+		ret = run(tsuba, &po, reps, &depth[threads]);
+	}
+	if (!ret) {
+		fprintf(out, "\n## Path tracing by depth\n\nThe demo scene of the render-time "
+		        "table below at %d x %d, 1 spp, %d bounces; M = 10^6 rays.\n\n", W, H,
+		        MAX_BOUNCE);
+		fprintf(out, "| threads | depth | closest-hit rays (M) | shadow rays (M) | time (s) | "
+		        "M rays/s |\n");
+		fprintf(out, "|---|---|---|---|---|---|\n");
+		for (int threads = 1; threads <= 2; threads++) {
+			const kg_render_stats *st = &depth[threads].st;
+			for (int d = 0; d <= MAX_BOUNCE; d++) {
+				double closest = (double)st->depth_rays[d];
+				double shadow = d < MAX_BOUNCE ? (double)st->depth_shadow_rays[d] : 0.0;
+				double t = st->depth_s[d] / threads;
+				fprintf(out, "| %d | %d%s | %.3f | %.3f | %.3f | %.2f |\n", threads, d,
+				        d ? "" : " (camera)", closest / 1e6, shadow / 1e6, t,
+				        t > 0.0 ? (closest + shadow) / t / 1e6 : 0.0);
+			}
+			fprintf(out, "| %d | all | %.3f | %.3f | %.3f | %.2f |\n", threads,
+			        (double)st->rays / 1e6, (double)st->shadow_rays / 1e6, st->render_s,
+			        (double)(st->rays + st->shadow_rays) / st->render_s / 1e6);
+		}
 	}
 	if (!ret) {
 		run_result r;
