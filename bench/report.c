@@ -329,9 +329,11 @@ static int write_markdown(const kg_bench_results *r, const char *path, kg_err *e
 	        "avx512 for every row the CPU can run, c (the reference, fmaf in plain C) "
 	        "for pca3's BSQ outputs. The machine drifts 15-30 %% between sessions: "
 	        "compare numbers from the same run.\n"
-	        "- **Camera-space matching**: Mpix/s of `kg_cs_match_block` (materials "
-	        "matched where the camera measures, with each pixel's covariance) for the C "
-	        "reference and the AVX2 kernel, and whether the two wrote the same bytes.\n",
+	        "- **Camera-space matching**: Mpix/s of `kg_cs_match_block_method` "
+	        "(materials matched where the camera measures, with each pixel's covariance), "
+	        "the exact and the quadratic method in C, AVX2 and AVX-512, whether each "
+	        "wrote its method's C reference's bytes, and how often its labels and outputs "
+	        "are the exact C reference's.\n",
 	        r->nmaterials);
 	if (r->nerror && r->nspeed)
 		fprintf(fp,
