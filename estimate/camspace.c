@@ -194,7 +194,7 @@ int kg_cs_match(const kg_cs_model *m, const double x[3], const double cov[9],
  * KG_CS_QUADRATIC: the same distance is |y|^2 + a (a p^T Q p - 2 p^T b), Q = C^-1 =
  * L^-T L^-1 (6 numbers per pixel), b = Q x, p the candidate's prediction; with each
  * prediction's products p p^T stored in the model (kg_cs_model.ppf), p^T Q p is six
- * multiply-adds and the whole candidate about 15 operations. That form cancels: its
+ * multiply-adds and the whole candidate 11 multiplies and 5 other operations. That form cancels: its
  * rounding is some eps |y|^2 (|y|^2 the whitened reading's length squared, 10^4 and
  * more at a camera's noise) where the exact form's is some eps |y| sqrt(d). So it only
  * chooses each material's angle, and that one candidate is then computed by

@@ -336,8 +336,8 @@ typedef struct kg_cs_block {
 /* kg_cs_match for n pixels in float: x 3 values per pixel, cov 6 per pixel (c00 c01 c02
  * c11 c12 c22). Up to 254 materials. Two methods (camspace.c says how each computes):
  * KG_CS_EXACT, every candidate (material, angle) through the pixel's Cholesky factor;
- * KG_CS_QUADRATIC, each material's angle chosen by quadratic forms (about 15
- * operations per candidate instead of 40), then that candidate through KG_CS_EXACT's
+ * KG_CS_QUADRATIC, each material's angle chosen by quadratic forms (11 multiplies and
+ * 5 other operations per candidate instead of about 40), then that candidate through KG_CS_EXACT's
  * operations, so every value it writes is the exact method's for that material at that
  * angle. They differ only where another angle of a material is within float rounding
  * (some eps |y|^2, y the whitened reading) of the best one: the quadratic method may
@@ -354,12 +354,12 @@ void kg_cs_match_block(const kg_cs_model *m, const float *x, const float *cov, s
                        const kg_cs_block *out);
 /* The same with the method and the implementation chosen. KG_EST_ISA_C: the method's
  * reference in plain C float (KG_CS_QUADRATIC: multiply-adds fused by fmaf).
- * KG_EST_ISA_AVX2: 8 pixels per vector, KG_EST_ISA_AVX512: 16,
- * the same IEEE operations in the same order lane by lane, the last pixels that fill
- * no vector through the reference; KG_ENOTSUP (nothing written) on a CPU without the
- * extension. AUTO: the widest the CPU has for the method, else C. Returns 0, or
- * KG_EINVAL for a method or isa out of range or KG_CS_QUADRATIC without ppf. Pixels the reference refuses (KG_CS_NO_MATCH, NaNs) are
- * refused alike by both methods. */
+ * KG_EST_ISA_AVX2: 8 pixels per vector, KG_EST_ISA_AVX512: 16, the same IEEE
+ * operations in the same order lane by lane, the last pixels that fill no vector
+ * through the reference; KG_ENOTSUP (nothing written) on a CPU without the extension.
+ * AUTO: the widest the CPU has, else C. Returns 0, or KG_EINVAL for a method or isa
+ * out of range or KG_CS_QUADRATIC without ppf. Pixels the reference refuses
+ * (KG_CS_NO_MATCH, NaNs) are refused alike by both methods. */
 int kg_cs_match_block_method(const kg_cs_model *m, const float *x, const float *cov, size_t n,
                              const kg_cs_block *out, kg_cs_method method, kg_est_isa isa);
 /* kg_cs_match_block_method with KG_CS_EXACT. */
