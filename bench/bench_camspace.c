@@ -1,5 +1,7 @@
-/* The camera-space rows: kg_cs_match_block over a synthetic image, the reference (C)
- * and the AVX2 kernel on each thread count, and whether the two write the same bytes.
+/* The camera-space rows: kg_cs_match_block_method over a synthetic image, each method
+ * (exact, quadratic) in each implementation the CPU has (C, AVX2, AVX-512) on each
+ * thread count; whether each writes its method's C reference's bytes, and how often the
+ * quadratic method's labels and outputs are the exact reference's.
  *
  * Model: the library's materials under the synthetic camera (Gaussian sensitivities,
  * kg_bench_synthetic_camera) and CIE D65, white at KG_BENCH_WHITE_LEVEL, angles 0 to 70
@@ -34,6 +36,7 @@ typedef struct cs_share {
 	const float *x, *cov;
 	size_t n;
 	kg_cs_block out;
+	kg_cs_method method;
 	kg_est_isa isa;
 	int ret;
 	pthread_t thread;
@@ -42,7 +45,7 @@ typedef struct cs_share {
 static void *cs_share_main(void *arg)
 {
 	cs_share *s = arg;
-	s->ret = kg_cs_match_block_isa(s->m, s->x, s->cov, s->n, &s->out, s->isa);
+	s->ret = kg_cs_match_block_method(s->m, s->x, s->cov, s->n, &s->out, s->method, s->isa);
 	return NULL;
 }
 
@@ -52,14 +55,14 @@ static float *offset(float *p, size_t i, size_t per)
 }
 
 /* One run over n pixels on `threads` threads (created for the run, as kg_est_run
- * does), each a contiguous share of whole vectors. */
+ * does), each a contiguous share of whole vectors (32 pixels: two of AVX-512). */
 static int cs_run(const kg_cs_model *m, const float *x, const float *cov, size_t n,
-                  const kg_cs_block *out, kg_est_isa isa, int threads)
+                  const kg_cs_block *out, kg_cs_method method, kg_est_isa isa, int threads)
 {
 	cs_share sh[CS_MAX_THREADS];
 	int created[CS_MAX_THREADS] = {0};
 	threads = threads < 1 ? 1 : threads > CS_MAX_THREADS ? CS_MAX_THREADS : threads;
-	size_t per = ((n + (size_t)threads - 1) / (size_t)threads + 7) & ~(size_t)7;
+	size_t per = ((n + (size_t)threads - 1) / (size_t)threads + 31) & ~(size_t)31;
 	for (int t = 0; t < threads; t++) {
 		size_t at = per * (size_t)t < n ? per * (size_t)t : n;
 		size_t len = n - at < per ? n - at : per;
@@ -67,7 +70,7 @@ static int cs_run(const kg_cs_model *m, const float *x, const float *cov, size_t
 		                   {out->best + at, offset(out->d2best, at, 1),
 		                    offset(out->d2second, at, 1), offset(out->angle_deg, at, 1),
 		                    offset(out->scale, at, 1), offset(out->d2, at, (size_t)m->n)},
-		                   isa, 0, 0};
+		                   method, isa, 0, 0};
 	}
 	for (int t = 1; t < threads; t++) {
 		created[t] = pthread_create(&sh[t].thread, NULL, cs_share_main, &sh[t]) == 0;
@@ -173,6 +176,15 @@ static int cs_same(const cs_out *a, const cs_out *b, size_t n, int nm)
 	       (!a->d2 || !memcmp(a->d2, b->d2, 4 * n * (size_t)nm));
 }
 
+/* Pixel i's every output in a and b: the same bytes. */
+static int cs_same_pixel(const cs_out *a, const cs_out *b, size_t i, int nm)
+{
+	return a->best[i] == b->best[i] && !memcmp(a->d2best + i, b->d2best + i, 4) &&
+	       !memcmp(a->d2second + i, b->d2second + i, 4) &&
+	       !memcmp(a->angle + i, b->angle + i, 4) && !memcmp(a->scale + i, b->scale + i, 4) &&
+	       !memcmp(a->d2 + i * (size_t)nm, b->d2 + i * (size_t)nm, 4 * (size_t)nm);
+}
+
 /* The model's F: the synthetic camera's weights under D65. */
 static int cs_response(double F[3 * KG_NBANDS], kg_err *err)
 {
@@ -196,7 +208,7 @@ int bench_camspace(const kg_bench_config *cfg, kg_bench_results *r, kg_err *err)
 	kg_cs_model *m = NULL, *fine = NULL;
 	float *x = NULL, *cov = NULL;
 	uint8_t *truth = NULL;
-	cs_out ref = {0}, vec = {0}, timed = {0};
+	cs_out ref = {0}, quad = {0}, vec = {0}, timed = {0};
 	const kg_material *mats[KG_EST_MAX_MATERIALS];
 	double F[3 * KG_NBANDS];
 	int ret;
@@ -233,65 +245,102 @@ int bench_camspace(const kg_bench_config *cfg, kg_bench_results *r, kg_err *err)
 	cov = malloc(sizeof(float) * 6 * npix);
 	truth = malloc(npix);
 	if (!x || !cov || !truth || cs_out_alloc(&ref, npix, m->n, 1) ||
-	    cs_out_alloc(&vec, npix, m->n, 1) || cs_out_alloc(&timed, npix, m->n, 0)) {
+	    cs_out_alloc(&quad, npix, m->n, 1) || cs_out_alloc(&vec, npix, m->n, 1) ||
+	    cs_out_alloc(&timed, npix, m->n, 0)) {
 		ret = kg_fail(err, KG_ENOMEM, "bench: out of memory for the camera-space rows");
 		goto done;
 	}
 	cs_pixels(fine, &r->noise, r->seed + 7, npix, x, cov, truth);
 
-	/* agreement, every output including each material's distance */
-	kg_cs_block bref = cs_block(&ref), bvec = cs_block(&vec);
-	ret = cs_run(m, x, cov, npix, &bref, KG_EST_ISA_C, 1);
+	/* agreement, every output including each material's distance: each path against
+	 * its method's C reference and against the exact one */
+	static const struct {
+		kg_cs_method method;
+		kg_est_isa isa;
+		const char *name;
+	} paths[KG_BENCH_CS_PATHS] = {
+		{KG_CS_EXACT, KG_EST_ISA_C, "exact c"},
+		{KG_CS_EXACT, KG_EST_ISA_AVX2, "exact avx2"},
+		{KG_CS_EXACT, KG_EST_ISA_AVX512, "exact avx512"},
+		{KG_CS_QUADRATIC, KG_EST_ISA_C, "quad c"},
+		{KG_CS_QUADRATIC, KG_EST_ISA_AVX2, "quad avx2"},
+		{KG_CS_QUADRATIC, KG_EST_ISA_AVX512, "quad avx512"},
+	};
+	kg_cs_block bref = cs_block(&ref), bquad = cs_block(&quad), bvec = cs_block(&vec);
+	ret = cs_run(m, x, cov, npix, &bref, KG_CS_EXACT, KG_EST_ISA_C, 1);
+	if (!ret)
+		ret = cs_run(m, x, cov, npix, &bquad, KG_CS_QUADRATIC, KG_EST_ISA_C, 1);
 	if (ret)
 		goto done;
-	int avx2 = cs_run(m, x, cov, npix, &bvec, KG_EST_ISA_AVX2, 1) == 0;
-	cs->avx2 = avx2;
-	cs->identical = avx2 && cs_same(&ref, &vec, npix, m->n);
-	long right = 0, refused = 0;
+	long right = 0, right_quad = 0, refused = 0;
 	for (size_t i = 0; i < npix; i++) {
 		right += ref.best[i] == truth[i];
+		right_quad += quad.best[i] == truth[i];
 		refused += ref.best[i] == KG_CS_NO_MATCH;
 	}
 	cs->accuracy = (double)right / (double)npix;
+	cs->accuracy_quad = (double)right_quad / (double)npix;
 	cs->refused = refused;
-	bench_progress(cfg,
-	               "[camspace] %zu pixels, %d materials x %d angles: labels right %.4f; "
-	               "AVX2 %s",
-	               npix, m->n, m->nangles, cs->accuracy,
-	               !avx2 ? "not supported by this CPU"
-	               : cs->identical ? "bit-identical to C" : "DIFFERS from C");
+	bench_progress(cfg, "[camspace] %zu pixels, %d materials x %d angles: labels right %.4f "
+	               "(exact), %.4f (quadratic)", npix, m->n, m->nangles, cs->accuracy,
+	               cs->accuracy_quad);
+	for (int q = 0; q < KG_BENCH_CS_PATHS; q++) {
+		kg_bench_camspace_path *pa = &cs->paths[q];
+		pa->method = paths[q].method;
+		pa->isa = paths[q].isa;
+		const cs_out *own = pa->method == KG_CS_EXACT ? &ref : &quad;
+		const cs_out *got = own;
+		if (pa->isa != KG_EST_ISA_C) {
+			if (cs_run(m, x, cov, npix, &bvec, pa->method, pa->isa, 1))
+				continue;
+			got = &vec;
+		}
+		pa->supported = 1;
+		pa->identical = cs_same(own, got, npix, m->n);
+		long labels = 0, all = 0;
+		for (size_t i = 0; i < npix; i++) {
+			labels += got->best[i] == ref.best[i];
+			all += cs_same_pixel(&ref, got, i, m->n);
+		}
+		pa->labels_agree = (double)labels / (double)npix;
+		pa->all_agree = (double)all / (double)npix;
+		bench_progress(cfg, "[camspace] %-12s: %s its method's C reference; labels of the "
+		               "exact C %.6f, every output %.6f", paths[q].name,
+		               pa->identical ? "bit-identical to" : "DIFFERS from", pa->labels_agree,
+		               pa->all_agree);
+	}
 
 	/* speed: best, both distances, angle and intensity (no per-material distances) */
 	int reps = cfg->reps < 1 ? 1 : (cfg->reps > 64 ? 64 : cfg->reps);
 	kg_bench_camspace_row *rows =
-	    calloc((size_t)(2 * cfg->nthreads), sizeof(*rows));
+	    calloc((size_t)(KG_BENCH_CS_PATHS * cfg->nthreads), sizeof(*rows));
 	if (!rows) {
 		ret = kg_fail(err, KG_ENOMEM, "bench: out of memory");
 		goto done;
 	}
 	cs->rows = rows;
 	kg_cs_block bt = cs_block(&timed);
-	for (int impl = 0; impl < 1 + avx2 && !ret; impl++)
-		for (int ti = 0; ti < cfg->nthreads && !ret; ti++) {
-			kg_est_isa isa = impl ? KG_EST_ISA_AVX2 : KG_EST_ISA_C;
+	for (int q = 0; q < KG_BENCH_CS_PATHS && !ret; q++)
+		for (int ti = 0; ti < cfg->nthreads && cs->paths[q].supported && !ret; ti++) {
+			const kg_cs_method method = paths[q].method;
+			const kg_est_isa isa = paths[q].isa;
 			int threads = cfg->threads[ti] > CS_MAX_THREADS ? CS_MAX_THREADS : cfg->threads[ti];
 			double t[64];
-			ret = cs_run(m, x, cov, npix, &bt, isa, threads); /* warm-up */
+			ret = cs_run(m, x, cov, npix, &bt, method, isa, threads); /* warm-up */
 			for (int i = 0; i < reps && !ret; i++) {
 				double t0 = kg_bench_now();
-				ret = cs_run(m, x, cov, npix, &bt, isa, threads);
+				ret = cs_run(m, x, cov, npix, &bt, method, isa, threads);
 				t[i] = kg_bench_now() - t0;
 			}
 			if (ret)
 				break;
 			kg_bench_camspace_row *row = &cs->rows[cs->nrows++];
-			row->isa = isa;
+			row->path = q;
 			row->threads = threads;
 			row->seconds = kg_bench_percentile(t, reps, 0.5);
 			row->mpix_s = (double)npix / row->seconds * 1e-6;
-			bench_progress(cfg, "[camspace] %-4s %d thread%s: %7.2f Mpix/s",
-			               impl ? "avx2" : "c", threads, threads == 1 ? " " : "s",
-			               row->mpix_s);
+			bench_progress(cfg, "[camspace] %-12s %d thread%s: %7.2f Mpix/s", paths[q].name,
+			               threads, threads == 1 ? " " : "s", row->mpix_s);
 		}
 done:
 	kg_material_library_free(&lib);
@@ -301,6 +350,7 @@ done:
 	free(cov);
 	free(truth);
 	cs_out_free(&ref);
+	cs_out_free(&quad);
 	cs_out_free(&vec);
 	cs_out_free(&timed);
 	return ret;

@@ -164,23 +164,35 @@ int kg_bench_isa_available(kg_est_isa isa);
 
 /* ---- camera-space matching --------------------------------------------------------- */
 
-/* kg_cs_match_block over camspace_mpix Mpix of noisy readings of the library's
- * materials (bench_camspace.c says how they are made): one implementation on one
- * thread count. Timed with best, both distances, angle and intensity written. */
+/* kg_cs_match_block_method over camspace_mpix Mpix of noisy readings of the library's
+ * materials (bench_camspace.c says how they are made). A path is one method in one
+ * implementation; a row, one path on one thread count, timed with best, both
+ * distances, angle and intensity written. */
+typedef struct kg_bench_camspace_path {
+	kg_cs_method method;
+	kg_est_isa isa;      /* KG_EST_ISA_C, _AVX2 or _AVX512 */
+	int supported;       /* the CPU has the extension: measured */
+	int identical;       /* the same bytes as its method's C reference, every output */
+	double labels_agree; /* share of pixels with the exact C reference's label */
+	double all_agree;    /* share of pixels whose every output (each material's distance
+	                        included) is the exact C reference's, bit for bit */
+} kg_bench_camspace_path;
+
 typedef struct kg_bench_camspace_row {
-	kg_est_isa isa; /* KG_EST_ISA_C or KG_EST_ISA_AVX2 */
+	int path; /* index into kg_bench_camspace.paths */
 	int threads;
 	double seconds; /* median */
 	double mpix_s;
 } kg_bench_camspace_row;
 
+#define KG_BENCH_CS_PATHS 6
 typedef struct kg_bench_camspace {
 	long pixels;
 	int materials, angles;
 	double angle_to, lo, hi; /* angles 0 to angle_to degrees, intensities lo to hi */
-	int avx2;                /* the CPU has AVX2: its rows were measured */
-	int identical;           /* AVX2 wrote the same bytes as C into every output */
-	double accuracy;         /* labels equal to the material a reading was drawn from */
+	kg_bench_camspace_path paths[KG_BENCH_CS_PATHS];
+	double accuracy;         /* exact C labels equal to the material a reading was drawn from */
+	double accuracy_quad;    /* the same for the quadratic C reference */
 	long refused;            /* KG_CS_NO_MATCH */
 	int nrows;
 	kg_bench_camspace_row *rows;

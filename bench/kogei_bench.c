@@ -29,10 +29,11 @@ static const char usage_bench[] =
 	"  an N Mpix image (default 12; --quick 2) for each thread count (default 1,2),\n"
 	"  beside the machine's limit for writing the same bytes with non-temporal\n"
 	"  stores. Median of --reps runs (default 5; --quick 3).\n"
-	"  Camera-space matching: Mpix/s of kg_cs_match_block (the library's materials,\n"
-	"  angles 0-70 every --camspace-step degrees (default 5: 15 angles), 1 Mpix of\n"
-	"  noisy readings), the C reference and AVX2 on each\n"
-	"  thread count, whether the two are bit-identical, and the labels' accuracy.\n"
+	"  Camera-space matching: Mpix/s of kg_cs_match_block_method (the library's\n"
+	"  materials, angles 0-70 every --camspace-step degrees (default 5: 15 angles),\n"
+	"  1 Mpix of noisy readings), the exact and the quadratic method in C, AVX2 and\n"
+	"  AVX-512 on each thread count, whether each is bit-identical to its method's C\n"
+	"  reference, its labels' agreement with the exact C reference, and accuracy.\n"
 	"  Writes DIR/bench.md, DIR/bench.json and DIR/pareto.png (DIR default\n"
 	"  out/bench). Progress goes to standard error.";
 

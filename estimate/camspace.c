@@ -25,6 +25,7 @@ void kg_cs_model_free(kg_cs_model **pm)
 	free((*pm)->angle_deg);
 	free((*pm)->mu);
 	free((*pm)->muf);
+	free((*pm)->ppf);
 	free((*pm)->anglef);
 	free((*pm)->templated);
 	free(*pm);
@@ -109,7 +110,30 @@ int kg_cs_model_new(const double *F, const kg_material *const *mats, int n, doub
 		m->muf[i] = (float)m->mu[i];
 	for (int k = 0; k < na; k++)
 		m->anglef[k] = (float)m->angle_deg[k];
+	if (kg_cs_model_products(m)) {
+		kg_cs_model_free(&m);
+		return kg_fail(err, KG_ENOMEM, "out of memory");
+	}
 	*out = m;
+	return 0;
+}
+
+int kg_cs_model_products(kg_cs_model *m)
+{
+	size_t nc = (size_t)m->n * (size_t)m->nangles;
+	float *pp = realloc(m->ppf, sizeof(float) * 6 * (nc ? nc : 1));
+	if (!pp)
+		return KG_ENOMEM;
+	m->ppf = pp;
+	for (size_t c = 0; c < nc; c++, pp += 6) {
+		const double p0 = m->muf[3 * c], p1 = m->muf[3 * c + 1], p2 = m->muf[3 * c + 2];
+		pp[0] = (float)(p0 * p0);
+		pp[1] = (float)(p1 * p1);
+		pp[2] = (float)(p2 * p2);
+		pp[3] = (float)(2 * p0 * p1);
+		pp[4] = (float)(2 * p0 * p2);
+		pp[5] = (float)(2 * p1 * p2);
+	}
 	return 0;
 }
 
@@ -158,53 +182,118 @@ int kg_cs_match(const kg_cs_model *m, const double x[3], const double cov[9],
 	return 0;
 }
 
-/* One pixel in float: the Cholesky factor of its covariance, the whitened reading, then
- * every material at every angle with the clamped intensity. The optimised kernel must
- * repeat exactly these operations in this order. */
+/* ---- blocks of pixels in float -------------------------------------------------------
+ *
+ * Two methods, each a plain C reference here and vector kernels that repeat exactly
+ * its operations in its order, lane by lane (camspace_avx2.c, camspace_avx512.c):
+ *
+ * KG_CS_EXACT: every candidate (material, angle) through the pixel's Cholesky factor
+ * L, d = |y - a v|^2 with v = L^-1 mu, y = L^-1 x, a = clamp(v.y / v.v, lo, hi).
+ * About 40 operations per candidate, none fused.
+ *
+ * KG_CS_QUADRATIC: the same distance is |y|^2 + a (a p^T Q p - 2 p^T b), Q = C^-1 =
+ * L^-T L^-1 (6 numbers per pixel), b = Q x, p the candidate's prediction; with each
+ * prediction's products p p^T stored in the model (kg_cs_model.ppf), p^T Q p is six
+ * multiply-adds and the whole candidate 11 multiplies and 5 other operations. That form cancels: its
+ * rounding is some eps |y|^2 (|y|^2 the whitened reading's length squared, 10^4 and
+ * more at a camera's noise) where the exact form's is some eps |y| sqrt(d). So it only
+ * chooses each material's angle, and that one candidate is then computed by
+ * KG_CS_EXACT's operations: every output a material gets is bit for bit the exact
+ * method's value for that material at that angle. The two differ only where another
+ * of the material's angles is within the form's rounding of the best (the exact
+ * method's minimum over the angles is then a hair lower); the label differs only where
+ * two materials are that close too. */
+
+/* A pixel's Cholesky factor (of cov: c00 c01 c02 c11 c12 c22), reciprocals of its
+ * diagonal and whitened reading; ok is 0 where the reference refuses the pixel. */
+typedef struct cs_px {
+	float l3, l6, l7, i0, i4, i8, y0, y1, y2;
+	int ok;
+} cs_px;
+
+static cs_px px_factor(const float *x, const float *c)
+{
+	cs_px p;
+	float l0 = sqrtf(c[0]);
+	p.l3 = c[1] / l0;
+	p.l6 = c[2] / l0;
+	float l4 = sqrtf(c[3] - p.l3 * p.l3);
+	p.l7 = (c[4] - p.l6 * p.l3) / l4;
+	float l8 = sqrtf(c[5] - p.l6 * p.l6 - p.l7 * p.l7);
+	p.ok = l0 > 0.0f && l4 > 0.0f && l8 > 0.0f && isfinite(x[0] + x[1] + x[2]);
+	p.i0 = 1.0f / l0;
+	p.i4 = 1.0f / l4;
+	p.i8 = 1.0f / l8;
+	p.y0 = x[0] * p.i0;
+	p.y1 = (x[1] - p.l3 * p.y0) * p.i4;
+	p.y2 = (x[2] - p.l6 * p.y0 - p.l7 * p.y1) * p.i8;
+	return p;
+}
+
+/* KG_CS_EXACT's candidate: the squared distance, the intensity in *a. */
+static float exact_candidate(const cs_px *p, const float *mu, float lo, float hi, float *a)
+{
+	float v0 = mu[0] * p->i0;
+	float v1 = (mu[1] - p->l3 * v0) * p->i4;
+	float v2 = (mu[2] - p->l6 * v0 - p->l7 * v1) * p->i8;
+	float vv = v0 * v0 + v1 * v1 + v2 * v2;
+	float vy = v0 * p->y0 + v1 * p->y1 + v2 * p->y2;
+	float s = vy / vv;
+	s = s > lo ? s : lo;
+	s = s < hi ? s : hi;
+	float e0 = p->y0 - s * v0, e1 = p->y1 - s * v1, e2 = p->y2 - s * v2;
+	*a = s;
+	return e0 * e0 + e1 * e1 + e2 * e2;
+}
+
+/* The running results of one pixel over the materials. */
+typedef struct cs_fold {
+	float best, second, a, t;
+	int j;
+} cs_fold;
+
+static void fold_material(cs_fold *f, int j, float dj, float aj, float tj)
+{
+	if (dj < f->best) {
+		f->second = f->best;
+		f->best = dj;
+		f->j = j;
+		f->a = aj;
+		f->t = tj;
+	} else if (dj < f->second) {
+		f->second = dj;
+	}
+}
+
+static void store_pixel(const kg_cs_model *m, const cs_px *p, const cs_fold *f,
+                        const kg_cs_block *out, size_t i)
+{
+	out->best[i] = p->ok ? (uint8_t)f->j : KG_CS_NO_MATCH;
+	if (out->d2best)
+		out->d2best[i] = p->ok ? f->best : NAN;
+	if (out->d2second)
+		out->d2second[i] = p->ok ? f->second : NAN;
+	if (out->angle_deg)
+		out->angle_deg[i] = p->ok ? f->t : NAN;
+	if (out->scale)
+		out->scale[i] = p->ok ? f->a : NAN;
+	if (out->d2 && !p->ok)
+		for (int j = 0; j < m->n; j++)
+			out->d2[i * (size_t)m->n + j] = NAN;
+}
+
+/* KG_CS_EXACT on one pixel: the vector kernels repeat these operations in this order. */
 static void match_one(const kg_cs_model *m, const float *x, const float *c, size_t i,
                       const kg_cs_block *out)
 {
-	float l0 = sqrtf(c[0]);
-	float l3 = c[1] / l0, l6 = c[2] / l0;
-	float l4 = sqrtf(c[3] - l3 * l3);
-	float l7 = (c[4] - l6 * l3) / l4;
-	float l8 = sqrtf(c[5] - l6 * l6 - l7 * l7);
-	if (!(l0 > 0.0f && l4 > 0.0f && l8 > 0.0f) || !isfinite(x[0] + x[1] + x[2])) {
-		out->best[i] = KG_CS_NO_MATCH;
-		if (out->d2best)
-			out->d2best[i] = NAN;
-		if (out->d2second)
-			out->d2second[i] = NAN;
-		if (out->angle_deg)
-			out->angle_deg[i] = NAN;
-		if (out->scale)
-			out->scale[i] = NAN;
-		if (out->d2)
-			for (int j = 0; j < m->n; j++)
-				out->d2[i * (size_t)m->n + j] = NAN;
-		return;
-	}
-	float i0 = 1.0f / l0, i4 = 1.0f / l4, i8 = 1.0f / l8;
-	float y0 = x[0] * i0;
-	float y1 = (x[1] - l3 * y0) * i4;
-	float y2 = (x[2] - l6 * y0 - l7 * y1) * i8;
+	const cs_px p = px_factor(x, c);
+	cs_fold f = {INFINITY, INFINITY, NAN, NAN, 0};
 	const float lo = (float)m->lo, hi = (float)m->hi;
-	float best = INFINITY, second = INFINITY, best_a = NAN, best_t = NAN;
-	int bj = 0;
 	const float *mu = m->muf;
-	for (int j = 0; j < m->n; j++) {
+	for (int j = 0; j < m->n && p.ok; j++) {
 		float dj = INFINITY, aj = NAN, tj = NAN;
 		for (int k = 0; k < m->nangles; k++, mu += 3) {
-			float v0 = mu[0] * i0;
-			float v1 = (mu[1] - l3 * v0) * i4;
-			float v2 = (mu[2] - l6 * v0 - l7 * v1) * i8;
-			float vv = v0 * v0 + v1 * v1 + v2 * v2;
-			float vy = v0 * y0 + v1 * y1 + v2 * y2;
-			float a = vy / vv;
-			a = a > lo ? a : lo;
-			a = a < hi ? a : hi;
-			float e0 = y0 - a * v0, e1 = y1 - a * v1, e2 = y2 - a * v2;
-			float d = e0 * e0 + e1 * e1 + e2 * e2;
+			float a, d = exact_candidate(&p, mu, lo, hi, &a);
 			if (d < dj) {
 				dj = d;
 				aj = a;
@@ -213,60 +302,120 @@ static void match_one(const kg_cs_model *m, const float *x, const float *c, size
 		}
 		if (out->d2)
 			out->d2[i * (size_t)m->n + j] = dj;
-		if (dj < best) {
-			second = best;
-			best = dj;
-			bj = j;
-			best_a = aj;
-			best_t = tj;
-		} else if (dj < second) {
-			second = dj;
-		}
+		fold_material(&f, j, dj, aj, tj);
 	}
-	out->best[i] = (uint8_t)bj;
-	if (out->d2best)
-		out->d2best[i] = best;
-	if (out->d2second)
-		out->d2second[i] = second;
-	if (out->angle_deg)
-		out->angle_deg[i] = best_t;
-	if (out->scale)
-		out->scale[i] = best_a;
+	store_pixel(m, &p, &f, out, i);
 }
 
-/* est_have_avx2 once: it asks CPUID, which a virtual machine may trap. */
-static int have_avx2(void)
+/* KG_CS_QUADRATIC on one pixel, multiply-adds fused (fmaf) where the vector kernels
+ * fuse them. Q = W^T W with W = L^-1 (lower triangular, by forward substitution),
+ * b = W^T y = Q x. Per candidate: vv = p^T Q p, vy = p.b, a clamped as in the exact
+ * method, and the distance less |y|^2, s = a ((a vv - vy) - vy), whose least value
+ * picks the angle (the first of equals; NaN never). */
+EST_REF_CLONES static void match_one_quad(const kg_cs_model *m, const float *x, const float *c,
+                                          size_t i, const kg_cs_block *out)
 {
-	static atomic_int known = -1;
-	int v = atomic_load_explicit(&known, memory_order_relaxed);
+	const cs_px p = px_factor(x, c);
+	cs_fold f = {INFINITY, INFINITY, NAN, NAN, 0};
+	const float lo = (float)m->lo, hi = (float)m->hi;
+	const float w00 = p.i0, w11 = p.i4, w22 = p.i8;
+	const float w10 = -p.l3 * w00 * p.i4;
+	const float w21 = -p.l7 * w11 * p.i8;
+	const float w20 = (-p.l6 * w00 - p.l7 * w10) * p.i8;
+	const float q00 = fmaf(w20, w20, fmaf(w10, w10, w00 * w00));
+	const float q11 = fmaf(w21, w21, w11 * w11), q22 = w22 * w22;
+	const float q01 = fmaf(w20, w21, w10 * w11), q02 = w20 * w22, q12 = w21 * w22;
+	const float b0 = fmaf(w20, p.y2, fmaf(w10, p.y1, w00 * p.y0));
+	const float b1 = fmaf(w21, p.y2, w11 * p.y1), b2 = w22 * p.y2;
+	const int na = m->nangles;
+	for (int j = 0; j < m->n && p.ok; j++) {
+		const float *pp = m->ppf + 6 * (size_t)j * na, *mu = m->muf + 3 * (size_t)j * na;
+		float sj = INFINITY;
+		int kj = 0;
+		for (int k = 0; k < na; k++, pp += 6, mu += 3) {
+			float vv = q00 * pp[0];
+			vv = fmaf(q11, pp[1], vv);
+			vv = fmaf(q22, pp[2], vv);
+			vv = fmaf(q01, pp[3], vv);
+			vv = fmaf(q02, pp[4], vv);
+			vv = fmaf(q12, pp[5], vv);
+			float vy = b0 * mu[0];
+			vy = fmaf(b1, mu[1], vy);
+			vy = fmaf(b2, mu[2], vy);
+			float a = vy / vv;
+			a = a > lo ? a : lo;
+			a = a < hi ? a : hi;
+			float s = a * (fmaf(a, vv, -vy) - vy);
+			if (s < sj) {
+				sj = s;
+				kj = k;
+			}
+		}
+		float a, d = exact_candidate(&p, m->muf + 3 * ((size_t)j * na + kj), lo, hi, &a);
+		/* the exact method's update from its start (INFINITY, NaN, NaN) */
+		float dj = d < INFINITY ? d : INFINITY;
+		float aj = d < INFINITY ? a : NAN, tj = d < INFINITY ? m->anglef[kj] : NAN;
+		if (out->d2)
+			out->d2[i * (size_t)m->n + j] = dj;
+		fold_material(&f, j, dj, aj, tj);
+	}
+	store_pixel(m, &p, &f, out, i);
+}
+
+/* CPUID once: a virtual machine may trap it. */
+static int have_isa(kg_est_isa isa)
+{
+	static atomic_int known[2] = {-1, -1};
+	int w = isa == KG_EST_ISA_AVX512;
+	int v = atomic_load_explicit(&known[w], memory_order_relaxed);
 	if (v < 0) {
-		v = est_have_avx2();
-		atomic_store_explicit(&known, v, memory_order_relaxed);
+		v = w ? est_have_avx512() : est_have_avx2();
+		atomic_store_explicit(&known[w], v, memory_order_relaxed);
 	}
 	return v;
+}
+
+int kg_cs_match_block_method(const kg_cs_model *m, const float *x, const float *cov, size_t n,
+                             const kg_cs_block *out, kg_cs_method method, kg_est_isa isa)
+{
+	const int quad = method == KG_CS_QUADRATIC;
+	if ((method != KG_CS_EXACT && !quad) || isa < KG_EST_ISA_AUTO || isa > KG_EST_ISA_AVX512 ||
+	    (quad && !m->ppf))
+		return KG_EINVAL;
+	if (isa == KG_EST_ISA_AUTO)
+		isa = have_isa(KG_EST_ISA_AVX512) ? KG_EST_ISA_AVX512
+		      : have_isa(KG_EST_ISA_AVX2) ? KG_EST_ISA_AVX2
+		                                  : KG_EST_ISA_C;
+	else if (isa != KG_EST_ISA_C && !have_isa(isa))
+		return KG_ENOTSUP;
+	/* The vector kernels take whole vectors, the reference the rest. Past the 254
+	 * materials a label can name, their labels would saturate where the reference's
+	 * wrap: the reference takes such a model whole. */
+	size_t done = 0;
+	if (isa != KG_EST_ISA_C && m->n < KG_CS_NO_MATCH)
+		done = isa == KG_EST_ISA_AVX512 ? (quad ? est_cs_quad_avx512 : est_cs_match_avx512)(
+		                                      m, x, cov, n, out)
+		       : quad ? est_cs_quad_avx2(m, x, cov, n, out)
+		              : est_cs_match_avx2(m, x, cov, n, out);
+	for (size_t i = done; i < n; i++)
+		(quad ? match_one_quad : match_one)(m, x + 3 * i, cov + 6 * i, i, out);
+	return 0;
 }
 
 int kg_cs_match_block_isa(const kg_cs_model *m, const float *x, const float *cov, size_t n,
                           const kg_cs_block *out, kg_est_isa isa)
 {
-	if (isa != KG_EST_ISA_AUTO && isa != KG_EST_ISA_C && isa != KG_EST_ISA_AVX2)
-		return KG_EINVAL;
-	int avx2 = isa != KG_EST_ISA_C && have_avx2();
-	if (isa == KG_EST_ISA_AVX2 && !avx2)
-		return KG_ENOTSUP;
-	/* The optimised kernel takes whole vectors of 8 pixels, the reference the rest. Past
-	 * the 254 materials a label can name, its labels would saturate where the
-	 * reference's wrap: the reference takes such a model whole. */
-	size_t done = avx2 && m->n < KG_CS_NO_MATCH ? est_cs_match_avx2(m, x, cov, n, out) : 0;
-	for (size_t i = done; i < n; i++)
-		match_one(m, x + 3 * i, cov + 6 * i, i, out);
-	return 0;
+	return kg_cs_match_block_method(m, x, cov, n, out, KG_CS_EXACT, isa);
 }
 
 void kg_cs_match_block(const kg_cs_model *m, const float *x, const float *cov, size_t n,
                        const kg_cs_block *out)
 {
-	kg_cs_match_block_isa(m, x, cov, n, out, KG_EST_ISA_AUTO);
+	/* with 8 lanes the quadratic method is no faster: its per-pixel terms and the
+	 * gathers of the chosen candidates cost what it saves */
+	int quad = m->ppf && have_isa(KG_EST_ISA_AVX512);
+	kg_cs_match_block_method(m, x, cov, n, out, quad ? KG_CS_QUADRATIC : KG_CS_EXACT,
+	                         KG_EST_ISA_AUTO);
 }
 
 /* ---- separability ------------------------------------------------------------------ */

@@ -126,6 +126,28 @@ void est_avx2_matrix_block(const est_plan *p, est_scratch *s, const float *rgb, 
  * number of pixels matched (0 where it is not built in); the caller matches the rest. */
 size_t est_cs_match_avx2(const kg_cs_model *m, const float *x, const float *cov, size_t n,
                          const kg_cs_block *out);
+/* The other kernels of camspace_simd.h (in camspace_avx2.c and camspace_avx512.c; the
+ * CPU must have the extension), likewise: KG_CS_EXACT on 16 pixels per vector,
+ * KG_CS_QUADRATIC on 8 and 16. */
+size_t est_cs_match_avx512(const kg_cs_model *m, const float *x, const float *cov, size_t n,
+                           const kg_cs_block *out);
+size_t est_cs_quad_avx2(const kg_cs_model *m, const float *x, const float *cov, size_t n,
+                        const kg_cs_block *out);
+size_t est_cs_quad_avx512(const kg_cs_model *m, const float *x, const float *cov, size_t n,
+                          const kg_cs_block *out);
+
+/* On x86-64 a reference that uses fmaf is also built for CPUs with FMA and the better
+ * build is chosen when the program loads (an ifunc): there fmaf is one instruction
+ * instead of a library call. fmaf is exact either way (one rounding), so both builds
+ * give the same bytes; what changes is only the reference's speed. */
+#if defined(__x86_64__) && defined(__has_attribute)
+#if __has_attribute(target_clones)
+#define EST_REF_CLONES __attribute__((target_clones("fma", "default")))
+#endif
+#endif
+#ifndef EST_REF_CLONES
+#define EST_REF_CLONES
+#endif
 
 /* Zeroed memory aligned to 64 bytes (free with free()). */
 void *est_alloc_zeroed(size_t bytes);

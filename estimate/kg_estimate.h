@@ -289,7 +289,9 @@ typedef struct kg_cs_model {
 	char (*names)[KG_MATERIAL_NAME_MAX];
 	double *angle_deg; /* nangles, increasing */
 	double *mu;        /* n x nangles x 3: the predicted readings at intensity 1 */
-	float *muf;        /* the same in float, for the block kernel */
+	float *muf;        /* the same in float, for the block kernels */
+	float *ppf;        /* n x nangles x 6: each muf's products p0^2, p1^2, p2^2, 2 p0 p1,
+	                      2 p0 p2, 2 p1 p2 (KG_CS_QUADRATIC); NULL: that method refused */
 	float *anglef;
 	uint8_t *templated; /* n: the material's readings come from its coupon template */
 	double lo, hi;     /* the intensity range searched */
@@ -303,6 +305,9 @@ int kg_cs_model_new(const double *F, const kg_material *const *mats, int n, doub
                     double a1, double step, double lo, double hi, kg_cs_model **out,
                     kg_err *err);
 void kg_cs_model_free(kg_cs_model **m);
+/* (Re)computes ppf from muf (kg_cs_model_new does; for a model built field by field).
+ * 0 or KG_ENOMEM. */
+int kg_cs_model_products(kg_cs_model *m);
 
 typedef struct kg_cs_result {
 	int best;                  /* material index */
@@ -329,18 +334,35 @@ typedef struct kg_cs_block {
 } kg_cs_block;
 
 /* kg_cs_match for n pixels in float: x 3 values per pixel, cov 6 per pixel (c00 c01 c02
- * c11 c12 c22). Up to 254 materials. The best implementation the CPU supports runs
- * (isa AUTO below); every implementation gives bit-identical outputs. */
+ * c11 c12 c22). Up to 254 materials. Two methods (camspace.c says how each computes):
+ * KG_CS_EXACT, every candidate (material, angle) through the pixel's Cholesky factor;
+ * KG_CS_QUADRATIC, each material's angle chosen by quadratic forms (11 multiplies and
+ * 5 other operations per candidate instead of about 40), then that candidate through KG_CS_EXACT's
+ * operations, so every value it writes is the exact method's for that material at that
+ * angle. They differ only where another angle of a material is within float rounding
+ * (some eps |y|^2, y the whitened reading) of the best one: the quadratic method may
+ * take it, its distance a hair above the exact method's, and where two materials are
+ * that close the label may differ (kogei bench counts the pixels). Each method's
+ * implementations write bit-identical outputs. */
+typedef enum kg_cs_method {
+	KG_CS_EXACT,
+	KG_CS_QUADRATIC,
+} kg_cs_method;
+/* On a CPU with AVX-512, KG_CS_QUADRATIC in AVX-512 (when the model has ppf); elsewhere
+ * KG_CS_EXACT in AVX2 or C (with 8 lanes the quadratic method is no faster). */
 void kg_cs_match_block(const kg_cs_model *m, const float *x, const float *cov, size_t n,
                        const kg_cs_block *out);
-/* The same with the implementation chosen. KG_EST_ISA_C: the reference, in plain C
- * float (the Cholesky factor, the whitened reading, then every material at every
- * angle). KG_EST_ISA_AVX2: 8 pixels per vector, the same IEEE operations in the same
- * order lane by lane, the last n % 8 pixels through the reference; KG_ENOTSUP (nothing
- * written) on a CPU without AVX2. AUTO: AVX2 when the CPU has it, else C. Returns 0,
- * or KG_EINVAL for an isa out of range (KG_EST_ISA_AVX512 included: camera-space
- * matching has no AVX-512 kernel). Pixels the reference refuses (KG_CS_NO_MATCH,
- * NaNs) are refused alike. */
+/* The same with the method and the implementation chosen. KG_EST_ISA_C: the method's
+ * reference in plain C float (KG_CS_QUADRATIC: multiply-adds fused by fmaf).
+ * KG_EST_ISA_AVX2: 8 pixels per vector, KG_EST_ISA_AVX512: 16, the same IEEE
+ * operations in the same order lane by lane, the last pixels that fill no vector
+ * through the reference; KG_ENOTSUP (nothing written) on a CPU without the extension.
+ * AUTO: the widest the CPU has, else C. Returns 0, or KG_EINVAL for a method or isa
+ * out of range or KG_CS_QUADRATIC without ppf. Pixels the reference refuses
+ * (KG_CS_NO_MATCH, NaNs) are refused alike by both methods. */
+int kg_cs_match_block_method(const kg_cs_model *m, const float *x, const float *cov, size_t n,
+                             const kg_cs_block *out, kg_cs_method method, kg_est_isa isa);
+/* kg_cs_match_block_method with KG_CS_EXACT. */
 int kg_cs_match_block_isa(const kg_cs_model *m, const float *x, const float *cov, size_t n,
                           const kg_cs_block *out, kg_est_isa isa);
 

@@ -30,20 +30,8 @@ static void store_value(const est_plan *p, const est_dst *d, size_t i, int o, fl
 	}
 }
 
-/* On x86-64 the reference is also built for CPUs with FMA and the better build is
- * chosen when the program loads (an ifunc): there fmaf is one instruction instead of
- * a library call. fmaf is exact either way (one rounding), so both builds give the
- * same bytes; what changes is only the reference's speed. */
-#if defined(__x86_64__) && defined(__has_attribute)
-#if __has_attribute(target_clones)
-#define REF_CLONES __attribute__((target_clones("fma", "default")))
-#endif
-#endif
-#ifndef REF_CLONES
-#define REF_CLONES
-#endif
-
-REF_CLONES static void ref_block(const est_plan *p, est_scratch *s, const float *rgb, size_t n,
+/* EST_REF_CLONES: fmaf is one instruction where the CPU has FMA (est_private.h). */
+EST_REF_CLONES static void ref_block(const est_plan *p, est_scratch *s, const float *rgb, size_t n,
                                  const est_dst *d, est_counts *c)
 {
 	const kg_est_kernel *k = p->k;

@@ -1,22 +1,30 @@
-/* The camera-space block matcher (kg_cs_match_block, estimate/camspace.c and
- * camspace_avx2.c).
+/* The camera-space block matcher (kg_cs_match_block_method, estimate/camspace.c,
+ * camspace_simd.h in camspace_avx2.c and camspace_avx512.c), both methods.
  *  - Bit identity: over random models (1 to 16 materials, 1 to 20 angles, materials
  *    that are black, negative, duplicated, the same at every angle or near FLT_MAX at
  *    one angle (infinite and NaN distances among finite ones), intensity ranges
  *    with lo = hi) at ordinary, tiny and huge scales, and random pixels with the hard
  *    cases sprinkled in (x NaN or infinite or summing past FLT_MAX; covariances zero,
  *    negative, indefinite, singular, NaN, infinite or subnormal; readings that clamp at
- *    lo and at hi; x = 0 and x = -mu), the reference (KG_EST_ISA_C) and the AVX2 kernel
- *    write the same bytes into every output, for block sizes that are and are not a
- *    multiple of 8, with every output and with only some of them. Both are run into
- *    buffers prefilled with different bytes, so every value is written. On a CPU
- *    without AVX2 that part is skipped with a message and KG_ENOTSUP is checked.
- *  - Against the double kg_cs_match, on the ordinary pixels (none of the hard cases,
- *    scales 1e-15 to 1e15): every material's distance within 1e-4 relative (plus
- *    the float rounding of whitening a reading of length |y|, 16 eps |y| (2 sqrt(d) +
- *    16 eps |y|), which only matters for near-perfect fits), and the same best material
- *    whenever the double best and second distances are more than 1e-3 relative (and
- *    twice the distance tolerance) apart.
+ *    lo and at hi; x = 0 and x = -mu), each method's reference (KG_EST_ISA_C) and its
+ *    AVX2 and AVX-512 kernels write the same bytes into every output, for block sizes
+ *    that are and are not a multiple of 8, 16 and 32, with every output and with only
+ *    some of them. All are run into buffers prefilled with different bytes, so every
+ *    value is written. On a CPU without an extension that part is skipped with a
+ *    message and KG_ENOTSUP is checked.
+ *  - The quadratic method against the exact one, on every pixel: the same pixels
+ *    refused; no material's distance below the exact method's (it is the exact
+ *    distance at one of the material's angles); and on the ordinary pixels no
+ *    distance above it by more than the quadratic form's rounding, 32 eps M summed
+ *    over the two candidates compared (M = a^2 p^T|Q|p + 2 a |p|.|b|, the form's
+ *    terms' magnitudes, in double) plus the exact method's own rounding of both; where
+ *    the labels differ, the two best materials are that close.
+ *  - The exact method against the double kg_cs_match, on the ordinary pixels (none of
+ *    the hard cases, scales 1e-15 to 1e15): every material's distance within 1e-4
+ *    relative (plus the float rounding of whitening a reading of length |y|,
+ *    16 eps |y| (2 sqrt(d) + 16 eps |y|), which only matters for near-perfect fits),
+ *    and the same best material whenever the double best and second distances are
+ *    more than 1e-3 relative (and twice the distance tolerance) apart.
  *  - The library's ten materials under a smooth synthetic response, realistic noise.
  */
 #include <float.h>
@@ -95,6 +103,8 @@ static kg_cs_model *random_model(fx_rng *r, double scale)
 	}
 	for (size_t i = 0; i < 3 * (size_t)n * (size_t)na; i++)
 		m->mu[i] = m->muf[i];
+	if (kg_cs_model_products(m))
+		kg_cs_model_free(&m);
 	return m;
 }
 
@@ -296,9 +306,10 @@ static long first_difference(const outputs *a, const outputs *b, size_t n, int n
 }
 
 typedef struct tally {
-	long blocks, identical_blocks, pixels, nomatch, nan_valid, at_lo, at_hi;
+	long blocks[2], identical_blocks[2], pixels, nomatch, nan_valid, at_lo, at_hi;
 	long compared, best_checked, best_wrong, dist_wrong;
-	double max_rel, max_rel_fit, worst;
+	long quad_compared, quad_labels_same, quad_all_same, quad_below, quad_above, quad_tie_wrong;
+	double max_rel, max_rel_fit, worst, quad_worst;
 } tally;
 
 /* Bytes of the outputs a partial block did not ask for: still the fill. */
@@ -313,81 +324,199 @@ static int untouched(const outputs *o, size_t n, int nm, int fill)
 	return 1;
 }
 
-/* Run every implementation over p and compare: only best and scale, then all outputs,
- * each time into fresh buffers filled with different bytes. */
-static void check_block(const kg_cs_model *m, const pixels *p, int have_avx2, tally *t,
-                        const char *label)
+static const char *method_name[2] = {"exact", "quadratic"};
+static const char *isa_label[4] = {"auto", "C", "AVX2", "AVX-512"};
+
+/* One method's implementation against its reference ref (all: every output; else only
+ * best and scale, the rest untouched). */
+static void compare_impl(const kg_cs_model *m, const pixels *p, const outputs *ref,
+                         kg_cs_method method, kg_est_isa isa, int all, tally *t,
+                         const char *label)
 {
-	outputs ref = {0}, ref2 = {0}, vec = {0}, aut = {0};
+	outputs vec = {0};
 	int nm = m->n;
-	for (int all = 0; all <= 1; all++) {
-		outputs_free(&ref);
-		outputs_free(&ref2);
-		outputs_free(&vec);
-		outputs_free(&aut);
-		if (outputs_alloc(&ref, p->n, nm, 0xa5) || outputs_alloc(&ref2, p->n, nm, 0x5a) ||
-		    outputs_alloc(&vec, p->n, nm, 0x5a) || outputs_alloc(&aut, p->n, nm, 0x3c)) {
-			CHECK(0, "out of memory");
-			break;
-		}
-		kg_cs_block b = block_of(&ref, all), b2 = block_of(&ref2, all);
-		CHECK(kg_cs_match_block_isa(m, p->x, p->cov, p->n, &b, KG_EST_ISA_C) == 0, "C");
-		CHECK(kg_cs_match_block_isa(m, p->x, p->cov, p->n, &b2, KG_EST_ISA_C) == 0, "C");
-		const char *what = "";
-		long at;
-		if (all) {
-			at = first_difference(&ref, &ref2, p->n, nm, &what);
-			CHECK(at < 0, "%s: the reference leaves %s[%ld] unwritten", label, what, at);
-		} else {
-			CHECK(untouched(&ref, p->n, nm, 0xa5), "%s: the reference writes outputs not asked "
-			      "for", label);
-		}
-		kg_cs_block ba = block_of(&aut, all);
-		kg_cs_match_block(m, p->x, p->cov, p->n, &ba);
-		if (have_avx2) {
-			kg_cs_block bv = block_of(&vec, all);
-			CHECK(kg_cs_match_block_isa(m, p->x, p->cov, p->n, &bv, KG_EST_ISA_AVX2) == 0,
-			      "AVX2");
-			t->blocks++;
-			if (all) {
-				at = first_difference(&ref, &vec, p->n, nm, &what);
-			} else {
-				CHECK(untouched(&vec, p->n, nm, 0x5a), "%s: AVX2 writes outputs not asked for",
-				      label);
-				outputs some = vec;
-				some.d2best = ref.d2best;
-				some.d2second = ref.d2second;
-				some.angle = ref.angle;
-				some.d2 = ref.d2;
-				at = first_difference(&ref, &some, p->n, nm, &what);
-			}
-			t->identical_blocks += at < 0;
-			if (at >= 0) {
-				size_t i = strcmp(what, "d2") ? (size_t)at : (size_t)at / (size_t)nm;
-				const float *x = p->x + 3 * i, *c = p->cov + 6 * i;
-				CHECK(0, "%s (%s outputs): C and AVX2 differ at %s[%ld]; pixel %zu x %a %a %a "
-				      "cov %a %a %a %a %a %a", label, all ? "all" : "some", what, at, i, x[0],
-				      x[1], x[2], c[0], c[1], c[2], c[3], c[4], c[5]);
-			}
-		}
-		if (all) {
-			/* kg_cs_match_block is one of the two, which agree */
-			at = first_difference(&ref, &aut, p->n, nm, &what);
-			CHECK(at < 0, "%s: kg_cs_match_block differs from the reference at %s[%ld]", label,
-			      what, at);
+	if (outputs_alloc(&vec, p->n, nm, 0x5a)) {
+		CHECK(0, "out of memory");
+		return;
+	}
+	kg_cs_block bv = block_of(&vec, all);
+	CHECK(kg_cs_match_block_method(m, p->x, p->cov, p->n, &bv, method, isa) == 0, "%s %s",
+	      method_name[method], isa_label[isa]);
+	const char *what = "";
+	long at;
+	t->blocks[method]++;
+	if (all) {
+		at = first_difference(ref, &vec, p->n, nm, &what);
+	} else {
+		CHECK(untouched(&vec, p->n, nm, 0x5a), "%s: %s %s writes outputs not asked for", label,
+		      method_name[method], isa_label[isa]);
+		outputs some = vec;
+		some.d2best = ref->d2best;
+		some.d2second = ref->d2second;
+		some.angle = ref->angle;
+		some.d2 = ref->d2;
+		at = first_difference(ref, &some, p->n, nm, &what);
+	}
+	t->identical_blocks[method] += at < 0;
+	if (at >= 0) {
+		size_t i = strcmp(what, "d2") ? (size_t)at : (size_t)at / (size_t)nm;
+		const float *x = p->x + 3 * i, *c = p->cov + 6 * i;
+		CHECK(0, "%s (%s outputs): %s C and %s differ at %s[%ld]; pixel %zu x %a %a %a "
+		      "cov %a %a %a %a %a %a", label, all ? "all" : "some", method_name[method],
+		      isa_label[isa], what, at, i, x[0], x[1], x[2], c[0], c[1], c[2], c[3], c[4],
+		      c[5]);
+	}
+	outputs_free(&vec);
+}
+
+/* The bound on how far the quadratic form's s = d - |y|^2 of a candidate is from its
+ * value in exact arithmetic: 32 eps M, M the magnitudes of the form's terms. */
+static double quad_rounding(const double Q[9], const double b[3], const double *mu, double lo,
+                            double hi)
+{
+	const double eps = FLT_EPSILON;
+	double pqp = 0, aqp = 0, pb = 0, apb = 0;
+	for (int r = 0; r < 3; r++) {
+		pb += mu[r] * b[r];
+		apb += fabs(mu[r] * b[r]);
+		for (int c = 0; c < 3; c++) {
+			pqp += mu[r] * Q[3 * r + c] * mu[c];
+			aqp += fabs(mu[r] * Q[3 * r + c] * mu[c]);
 		}
 	}
+	double a = pqp > 0 ? pb / pqp : lo;
+	a = a < lo ? lo : a > hi ? hi : a;
+	return 32 * eps * (a * a * aqp + 2 * a * apb);
+}
+
+/* The quadratic method's reference q against the exact one e (every output). */
+static void compare_methods(const kg_cs_model *m, const pixels *p, const outputs *e,
+                            const outputs *q, tally *t, const char *label)
+{
+	const double eps = FLT_EPSILON;
+	const int nm = m->n;
+	for (size_t i = 0; i < p->n; i++) {
+		int refused = e->best[i] == KG_CS_NO_MATCH;
+		CHECK(refused == (q->best[i] == KG_CS_NO_MATCH), "%s: pixel %zu refused by one method "
+		      "only", label, i);
+		if (refused)
+			continue;
+		const float *de = e->d2 + i * (size_t)nm, *dq = q->d2 + i * (size_t)nm;
+		for (int j = 0; j < nm; j++)
+			if (dq[j] < de[j] || isnan(dq[j]) != isnan(de[j])) {
+				if (t->quad_below++ < 3)
+					fprintf(stderr, "%s: pixel %zu material %d: quadratic %g, exact %g\n", label, i,
+					        j, dq[j], de[j]);
+			}
+		if (!p->clean[i])
+			continue;
+		/* Q = C^-1 and b = Q x in double, |y|^2 = x.b */
+		const double *C = p->covd + 9 * i, *x = p->xd + 3 * i;
+		double Q[9], b[3], det = C[0] * (C[4] * C[8] - C[5] * C[7]) -
+		                         C[1] * (C[3] * C[8] - C[5] * C[6]) +
+		                         C[2] * (C[3] * C[7] - C[4] * C[6]);
+		Q[0] = (C[4] * C[8] - C[5] * C[7]) / det;
+		Q[1] = Q[3] = (C[2] * C[7] - C[1] * C[8]) / det;
+		Q[2] = Q[6] = (C[1] * C[5] - C[2] * C[4]) / det;
+		Q[4] = (C[0] * C[8] - C[2] * C[6]) / det;
+		Q[5] = Q[7] = (C[2] * C[3] - C[0] * C[5]) / det;
+		Q[8] = (C[0] * C[4] - C[1] * C[3]) / det;
+		for (int r = 0; r < 3; r++)
+			b[r] = Q[3 * r] * x[0] + Q[3 * r + 1] * x[1] + Q[3 * r + 2] * x[2];
+		double ylen = whitened_length(x, C), u = 16 * eps * ylen;
+		double tol[KG_EST_MAX_MATERIALS];
+		for (int j = 0; j < nm; j++) {
+			double worst = 0;
+			for (int k = 0; k < m->nangles; k++)
+				worst = fmax(worst, quad_rounding(Q, b, m->mu + 3 * ((size_t)j * m->nangles + k),
+				                                  m->lo, m->hi));
+			double d = de[j];
+			tol[j] = 2 * worst + 2 * (1e-4 * d + u * (2 * sqrt(d) + u));
+		}
+		t->quad_compared++;
+		t->quad_labels_same += q->best[i] == e->best[i];
+		int same = q->best[i] == e->best[i] && !memcmp(dq, de, sizeof(float) * (size_t)nm);
+		t->quad_all_same += same;
+		for (int j = 0; j < nm; j++) {
+			if (!isfinite(de[j]))
+				continue;
+			double over = (double)dq[j] - de[j];
+			if (!(over <= tol[j])) {
+				if (t->quad_above++ < 3)
+					fprintf(stderr, "%s: pixel %zu material %d: quadratic %.9g, exact %.9g (tolerance "
+					        "%g)\n", label, i, j, dq[j], de[j], tol[j]);
+			} else if (tol[j] > 0) {
+				t->quad_worst = fmax(t->quad_worst, over / tol[j]);
+			}
+		}
+		int qb = q->best[i], eb = e->best[i];
+		if (qb != eb && !((double)de[qb] - de[eb] <= tol[eb]) && t->quad_tie_wrong++ < 3)
+			fprintf(stderr, "%s: pixel %zu: quadratic best %d (exact %g), exact best %d (%g)\n",
+			        label, i, qb, de[qb], eb, de[eb]);
+	}
+}
+
+/* Run every implementation of both methods over p and compare: only best and scale,
+ * then all outputs, each time into fresh buffers filled with different bytes. */
+static void check_block(const kg_cs_model *m, const pixels *p, const int have[4], tally *t,
+                        const char *label)
+{
+	outputs ref[2] = {{0}}, ref2 = {0}, aut = {0};
+	int nm = m->n;
+	for (int all = 0; all <= 1; all++) {
+		for (int me = 0; me < 2; me++) {
+			outputs_free(&ref[me]);
+			outputs_free(&ref2);
+			if (outputs_alloc(&ref[me], p->n, nm, 0xa5) || outputs_alloc(&ref2, p->n, nm, 0x5a)) {
+				CHECK(0, "out of memory");
+				return;
+			}
+			kg_cs_block b = block_of(&ref[me], all), b2 = block_of(&ref2, all);
+			CHECK(kg_cs_match_block_method(m, p->x, p->cov, p->n, &b, (kg_cs_method)me,
+			                               KG_EST_ISA_C) == 0, "C");
+			CHECK(kg_cs_match_block_method(m, p->x, p->cov, p->n, &b2, (kg_cs_method)me,
+			                               KG_EST_ISA_C) == 0, "C");
+			const char *what = "";
+			if (all) {
+				long at = first_difference(&ref[me], &ref2, p->n, nm, &what);
+				CHECK(at < 0, "%s: the %s reference leaves %s[%ld] unwritten", label,
+				      method_name[me], what, at);
+			} else {
+				CHECK(untouched(&ref[me], p->n, nm, 0xa5), "%s: the %s reference writes outputs "
+				      "not asked for", label, method_name[me]);
+			}
+			for (int isa = KG_EST_ISA_AVX2; isa <= KG_EST_ISA_AVX512; isa++)
+				if (have[isa])
+					compare_impl(m, p, &ref[me], (kg_cs_method)me, (kg_est_isa)isa, all, t, label);
+		}
+		if (all) {
+			/* kg_cs_match_block: the quadratic method where the CPU has AVX-512 */
+			outputs_free(&aut);
+			if (outputs_alloc(&aut, p->n, nm, 0x3c)) {
+				CHECK(0, "out of memory");
+				return;
+			}
+			kg_cs_block ba = block_of(&aut, all);
+			kg_cs_match_block(m, p->x, p->cov, p->n, &ba);
+			const char *what = "";
+			long at = first_difference(&ref[have[KG_EST_ISA_AVX512]], &aut, p->n, nm, &what);
+			CHECK(at < 0, "%s: kg_cs_match_block differs from the %s reference at %s[%ld]", label,
+			      method_name[have[KG_EST_ISA_AVX512]], what, at);
+		}
+	}
+	compare_methods(m, p, &ref[0], &ref[1], t, label);
 	/* coverage and the double matcher */
 	const double eps = FLT_EPSILON;
+	const outputs *e = &ref[0];
 	for (size_t i = 0; i < p->n; i++) {
 		t->pixels++;
-		if (ref.best[i] == KG_CS_NO_MATCH) {
+		if (e->best[i] == KG_CS_NO_MATCH) {
 			t->nomatch++;
 			continue;
 		}
-		t->nan_valid += isnan(ref.d2best[i]) || isnan(ref.scale[i]);
-		t->at_lo += ref.scale[i] == (float)m->lo;
-		t->at_hi += ref.scale[i] == (float)m->hi && m->hi > m->lo;
+		t->nan_valid += isnan(e->d2best[i]) || isnan(e->scale[i]);
+		t->at_lo += e->scale[i] == (float)m->lo;
+		t->at_hi += e->scale[i] == (float)m->hi && m->hi > m->lo;
 		if (!p->clean[i])
 			continue;
 		kg_cs_result r;
@@ -401,7 +530,7 @@ static void check_block(const kg_cs_model *m, const pixels *p, int have_avx2, ta
 #define TOL(d) (1e-4 * (d) + u * (2 * sqrt(d) + u))
 		int bad = 0;
 		for (int j = 0; j < nm; j++) {
-			double df = ref.d2[i * (size_t)nm + j], dd = r.d2_each[j];
+			double df = e->d2[i * (size_t)nm + j], dd = r.d2_each[j];
 			if (!(fabs(df - dd) <= TOL(dd)))
 				bad = 1;
 			else
@@ -411,23 +540,23 @@ static void check_block(const kg_cs_model *m, const pixels *p, int have_avx2, ta
 			if (dd > 1e-4 * ylen * ylen) /* not a near-perfect fit */
 				t->max_rel_fit = fmax(t->max_rel_fit, fabs(df - dd) / dd);
 		}
-		bad |= !(fabs(ref.d2best[i] - r.d2_best) <= TOL(r.d2_best));
-		bad |= !(fabs(ref.d2second[i] - r.d2_second) <= TOL(r.d2_second)) &&
-		       !(isinf(r.d2_second) && isinf(ref.d2second[i]));
+		bad |= !(fabs(e->d2best[i] - r.d2_best) <= TOL(r.d2_best));
+		bad |= !(fabs(e->d2second[i] - r.d2_second) <= TOL(r.d2_second)) &&
+		       !(isinf(r.d2_second) && isinf(e->d2second[i]));
 		if (bad && t->dist_wrong++ < 3)
 			fprintf(stderr, "%s: pixel %zu: float distances %g %g, double %g %g (|y| %g)\n",
-			        label, i, ref.d2best[i], ref.d2second[i], r.d2_best, r.d2_second, ylen);
+			        label, i, e->d2best[i], e->d2second[i], r.d2_best, r.d2_second, ylen);
 		if (r.d2_second - r.d2_best > 1e-3 * r.d2_best + 2 * TOL(r.d2_second)) {
 			t->best_checked++;
-			if (ref.best[i] != r.best && t->best_wrong++ < 3)
+			if (e->best[i] != r.best && t->best_wrong++ < 3)
 				fprintf(stderr, "%s: pixel %zu: float best %d, double best %d (%g vs %g)\n",
-				        label, i, ref.best[i], r.best, r.d2_best, r.d2_second);
+				        label, i, e->best[i], r.best, r.d2_best, r.d2_second);
 		}
 #undef TOL
 	}
-	outputs_free(&ref);
+	outputs_free(&ref[0]);
+	outputs_free(&ref[1]);
 	outputs_free(&ref2);
-	outputs_free(&vec);
 	outputs_free(&aut);
 }
 
@@ -435,7 +564,7 @@ static void check_block(const kg_cs_model *m, const pixels *p, int have_avx2, ta
  * by the reference) and readings just below, with a covariance large enough that the
  * whitened reading and the distances stay finite, so that only the refusal itself
  * (not a NaN the arithmetic makes anyway) tells the two apart. */
-static void check_overflow(int have_avx2, tally *t)
+static void check_overflow(const int have[4], tally *t)
 {
 	kg_cs_model *m = model_alloc(2, 3, 0.3, 1.0);
 	if (!m) {
@@ -451,6 +580,7 @@ static void check_overflow(int have_avx2, tally *t)
 		}
 	for (int i = 0; i < 18; i++)
 		m->mu[i] = m->muf[i];
+	CHECK(kg_cs_model_products(m) == 0, "out of memory");
 	pixels p = {0};
 	fx_rng r = {7};
 	if (make_pixels(&r, m, 1, 24, 0, &p) == 0) {
@@ -465,7 +595,7 @@ static void check_overflow(int have_avx2, tally *t)
 			c[1] = c[2] = c[4] = 1e37f;
 			p.clean[i] = 0;
 		}
-		check_block(m, &p, have_avx2, t, "sums past FLT_MAX");
+		check_block(m, &p, have, t, "sums past FLT_MAX");
 	}
 	pixels_free(&p);
 	kg_cs_model_free(&m);
@@ -508,40 +638,54 @@ int main(void)
 	CHECK(m1 != NULL, "out of memory");
 	if (!m1)
 		return kg_test_done("estimate-camspace-block");
-	int probe = kg_cs_match_block_isa(m1, NULL, NULL, 0, &empty, KG_EST_ISA_AVX2);
-	int have_avx2 = probe == 0;
-	CHECK(probe == 0 || probe == KG_ENOTSUP, "AVX2 asked for: %d", probe);
+	CHECK(kg_cs_model_products(m1) == 0, "out of memory");
+	int have[4] = {0, 1, 0, 0};
+	for (int isa = KG_EST_ISA_AVX2; isa <= KG_EST_ISA_AVX512; isa++) {
+		int probe = kg_cs_match_block_method(m1, NULL, NULL, 0, &empty, KG_CS_EXACT,
+		                                     (kg_est_isa)isa);
+		have[isa] = probe == 0;
+		CHECK(probe == 0 || probe == KG_ENOTSUP, "%s asked for: %d", isa_label[isa], probe);
+		CHECK(kg_cs_match_block_method(m1, NULL, NULL, 0, &empty, KG_CS_QUADRATIC,
+		                               (kg_est_isa)isa) == probe, "%s: both methods alike",
+		      isa_label[isa]);
+		if (!have[isa])
+			printf("SKIP (part): this CPU has no %s; its kernels are not compared\n",
+			       isa_label[isa]);
+	}
 	CHECK(kg_cs_match_block_isa(m1, NULL, NULL, 0, &empty, (kg_est_isa)7) == KG_EINVAL,
 	      "an isa out of range is refused");
+	CHECK(kg_cs_match_block_method(m1, NULL, NULL, 0, &empty, (kg_cs_method)2, KG_EST_ISA_C) ==
+	      KG_EINVAL, "a method out of range is refused");
+	free(m1->ppf);
+	m1->ppf = NULL;
+	CHECK(kg_cs_match_block_method(m1, NULL, NULL, 0, &empty, KG_CS_QUADRATIC, KG_EST_ISA_C) ==
+	      KG_EINVAL, "the quadratic method without the products is refused");
 	kg_cs_model_free(&m1);
-	if (!have_avx2)
-		printf("SKIP (part): this CPU has no AVX2; the AVX2 kernel is not compared, "
-		       "only the reference against the double matcher\n");
 
 	fx_rng r = {20261202};
 	static const double scales[] = {1, 1, 1, 1e-15, 1e15, 1e-19, 1e19, 1e25};
-	static const size_t sizes[] = {0, 1, 7, 8, 9, 15, 16, 17, 100, 1027};
+	static const size_t sizes[] = {0, 1, 7, 8, 9, 15, 16, 17, 31, 32, 33, 100, 1027};
 	tally t = {0};
-	for (int trial = 0; trial < 120; trial++) {
+	for (int trial = 0; trial < 156; trial++) {
 		double scale = scales[trial % 8];
 		kg_cs_model *m = random_model(&r, scale);
 		CHECK(m != NULL, "out of memory");
 		if (!m)
 			break;
-		size_t n = sizes[(size_t)trial % 10];
+		size_t n = sizes[(size_t)trial % 13];
 		pixels p = {0};
 		char label[64];
 		snprintf(label, sizeof(label), "trial %d (scale %g, %d x %d, %zu pixels)", trial, scale,
 		         m->n, m->nangles, n);
 		if (make_pixels(&r, m, scale, n, trial % 3 != 0, &p) == 0)
-			check_block(m, &p, have_avx2, &t, label);
+			check_block(m, &p, have, &t, label);
 		else
 			CHECK(0, "out of memory");
 		pixels_free(&p);
 		kg_cs_model_free(&m);
 	}
 
-	check_overflow(have_avx2, &t);
+	check_overflow(have, &t);
 
 	/* the library at realistic noise */
 	kg_err err = {{0}};
@@ -553,7 +697,7 @@ int main(void)
 		      m->nangles);
 		pixels p = {0};
 		if (make_pixels(&r, m, 1, 20003, 0, &p) == 0)
-			check_block(m, &p, have_avx2, &t, "library");
+			check_block(m, &p, have, &t, "library");
 		pixels_free(&p);
 	}
 	kg_cs_model_free(&m);
@@ -561,8 +705,14 @@ int main(void)
 
 	printf("%ld pixels: %ld not matched, %ld matched with NaN outputs, %ld at the low and %ld "
 	       "at the high intensity bound\n", t.pixels, t.nomatch, t.nan_valid, t.at_lo, t.at_hi);
-	if (have_avx2)
-		printf("C and AVX2 bit-identical in %ld of %ld blocks\n", t.identical_blocks, t.blocks);
+	for (int me = 0; me < 2; me++)
+		printf("%s: C and the vector kernels bit-identical in %ld of %ld blocks\n",
+		       method_name[me], t.identical_blocks[me], t.blocks[me]);
+	printf("quadratic against exact: %ld pixels, labels the same in %ld, every distance the "
+	       "same in %ld; %ld distances below the exact, %ld above by more than the rounding "
+	       "(at most %.3f of it), %ld labels different without a tie\n", t.quad_compared,
+	       t.quad_labels_same, t.quad_all_same, t.quad_below, t.quad_above, t.quad_worst,
+	       t.quad_tie_wrong);
 	printf("against the double matcher: %ld pixels; largest relative distance error %.2g "
 	       "(%.2g where d > 1e-4 |y|^2), at most %.2f of the tolerance; best material "
 	       "checked on %ld, %ld wrong; %ld with distances out of tolerance\n",
@@ -573,5 +723,13 @@ int main(void)
 	CHECK(t.best_wrong == 0, "%ld pixels with a different best material", t.best_wrong);
 	CHECK(t.dist_wrong == 0, "%ld pixels with distances out of tolerance", t.dist_wrong);
 	CHECK(t.compared > 10000, "%ld pixels compared with the double matcher", t.compared);
+	CHECK(t.quad_below == 0, "%ld quadratic distances below the exact method's", t.quad_below);
+	CHECK(t.quad_above == 0, "%ld quadratic distances above the exact method's by more than "
+	      "the rounding", t.quad_above);
+	CHECK(t.quad_tie_wrong == 0, "%ld labels different where the exact method has no tie",
+	      t.quad_tie_wrong);
+	for (int me = 0; me < 2; me++)
+		CHECK(t.identical_blocks[me] == t.blocks[me], "%s: %ld of %ld blocks differ",
+		      method_name[me], t.blocks[me] - t.identical_blocks[me], t.blocks[me]);
 	return kg_test_done("estimate-camspace-block");
 }
