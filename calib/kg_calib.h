@@ -555,7 +555,8 @@ int kg_chart_statistic_parse(const char *name, kg_chart_statistic *out, kg_err *
 
 typedef struct kg_chart_detect_options {
 	int decimate;            /* apriltag quad_decimate; 0: 2 below 4 Mpix, else 4 */
-	int threads;             /* apriltag worker threads (default 2) */
+	int threads;             /* threads for the grey picture, libapriltag, mcc and the
+	                          * sampling (default 2); results do not depend on it */
 	double sample_fraction;  /* inner fraction of each patch side to sample; 0: the
 	                          * layout's (default 0) */
 	kg_chart_statistic statistic;
