@@ -430,6 +430,10 @@ typedef struct work_image {
 	int nbn[64][3];
 	double clip_level;
 	double quantum; /* step between the source's integer codes (0: float or demosaiced) */
+	/* Values times count_scale land near integers, distinct values on distinct ones
+	 * (integer codes, and the halves and quarters of raw codes that demosaicing
+	 * averages), so the sampler can count them; 0 for float images. */
+	float count_scale;
 	int threads;
 } work_image;
 
@@ -532,8 +536,10 @@ static int prepare_image(const kg_image *img, const kg_chart_detect_options *opt
 		wi->clip_level = 1.0;
 	else
 		wi->clip_level = 1.0 - 0.5 / (double)((1L << img->bits) - 1);
-	if (!img->is_float && img->bits > 0 && img->bits <= 16)
+	if (!img->is_float && img->bits > 0 && img->bits <= 16) {
 		wi->quantum = 1.0 / (double)((1L << img->bits) - 1);
+		wi->count_scale = (float)((1L << img->bits) - 1);
+	}
 	if (img->channels == 1 && img->cfa) {
 		int cr = img->cfa_rows, cc = img->cfa_cols;
 		if (cr < 1 || cc < 1 || cr * cc > 64)
@@ -563,6 +569,7 @@ static int prepare_image(const kg_image *img, const kg_chart_detect_options *opt
 		wi->channels = 3;
 		wi->data = NULL;
 		wi->quantum = 0;
+		wi->count_scale *= 4;
 	} else if (img->channels != 1 && img->channels != 3) {
 		return kg_fail(err, KG_EINVAL, "image has %d channels: expected 1 or 3",
 		               img->channels);
@@ -585,11 +592,39 @@ typedef struct white_job {
 	int failed;
 } white_job;
 
+static const double WHITE_TOP = 4.0; /* the white level's histogram spans 0..4 */
+
+static int white_bin(double y)
+{
+	return y <= 0 || !isfinite(y) ? 0 : y >= WHITE_TOP ? GREY_BINS - 1
+	                                                   : (int)(y / WHITE_TOP * GREY_BINS);
+}
+
+/* The 99.5th percentile of the n threads' histograms (summed into hist[0]); 1 if it
+ * is 0. */
+static double white_of(long (*hist)[GREY_BINS], int n)
+{
+	long total = 0, acc = 0;
+	for (int t = 1; t < n; t++)
+		for (int b = 0; b < GREY_BINS; b++)
+			hist[0][b] += hist[t][b];
+	for (int b = 0; b < GREY_BINS; b++)
+		total += hist[0][b];
+	double white = 1.0;
+	for (int b = 0; b < GREY_BINS; b++) {
+		acc += hist[0][b];
+		if (acc >= 0.995 * total) {
+			white = (b + 1) * WHITE_TOP / GREY_BINS;
+			break;
+		}
+	}
+	return white > 1e-6 ? white : 1.0;
+}
+
 static void white_rows(void *arg, int t, int n)
 {
 	white_job *j = arg;
 	const work_image *wi = j->wi;
-	static const double top = 4.0;
 	int cols = (wi->width + WHITE_STEP - 1) / WHITE_STEP;
 	int rows = (wi->height + WHITE_STEP - 1) / WHITE_STEP;
 	float *scratch = malloc((size_t)cols * 3 * sizeof(float));
@@ -601,10 +636,7 @@ static void white_rows(void *arg, int t, int n)
 	for (int r = (int)((long)rows * t / n); r < (int)((long)rows * (t + 1) / n); r++) {
 		const float *p = image_span(wi, r * WHITE_STEP, 0, cols, WHITE_STEP, scratch);
 		for (int i = 0; i < cols; i++) {
-			double y = luminance(p + (size_t)i * wi->channels, wi->channels);
-			int b = y <= 0 || !isfinite(y) ? 0 : y >= top ? GREY_BINS - 1
-			                                             : (int)(y / top * GREY_BINS);
-			hist[b]++;
+			hist[white_bin(luminance(p + (size_t)i * wi->channels, wi->channels))]++;
 		}
 	}
 	free(scratch);
@@ -615,28 +647,14 @@ static void white_rows(void *arg, int t, int n)
  * 1/16 of the image); 1 if that is 0, or if memory ran out. */
 static double white_level(const work_image *wi)
 {
-	static const double top = 4.0;
 	int n = wi->threads;
 	white_job j = {wi, calloc((size_t)n, sizeof(*j.hist)), 0};
 	if (!j.hist)
 		return 1.0;
 	run_parallel(white_rows, &j, n);
-	long total = 0, acc = 0;
-	for (int t = 1; t < n; t++)
-		for (int b = 0; b < GREY_BINS; b++)
-			j.hist[0][b] += j.hist[t][b];
-	for (int b = 0; b < GREY_BINS; b++)
-		total += j.hist[0][b];
-	double white = 1.0;
-	for (int b = 0; b < GREY_BINS && !j.failed; b++) {
-		acc += j.hist[0][b];
-		if (acc >= 0.995 * total) {
-			white = (b + 1) * top / GREY_BINS;
-			break;
-		}
-	}
+	double white = j.failed ? 1.0 : white_of(j.hist, n);
 	free(j.hist);
-	return white > 1e-6 ? white : 1.0;
+	return white;
 }
 
 /* value / white through the sRGB curve, as 8 bits, in GREY_BINS steps over 0..1 */
@@ -647,6 +665,12 @@ static void srgb_lut(unsigned char lut[GREY_BINS])
 		double e = v <= 0.0031308 ? 12.92 * v : 1.055 * pow(v, 1 / 2.4) - 0.055;
 		lut[b] = (unsigned char)lrint(fmin(fmax(e, 0), 1) * 255);
 	}
+}
+
+/* The 8-bit code of a luminance already scaled to the table's GREY_BINS steps. */
+static unsigned char grey_code(const unsigned char lut[GREY_BINS], float v)
+{
+	return lut[!(v > 0) ? 0 : v >= GREY_BINS - 1 ? GREY_BINS - 1 : (int)v];
 }
 
 typedef struct grey_job {
@@ -666,7 +690,7 @@ static void grey_rows(void *arg, int t, int n)
 		j->failed = 1;
 		return;
 	}
-	const float k = j->k, top = GREY_BINS - 1;
+	const float k = j->k;
 	for (int y = (int)((long)wi->height * t / n); y < (int)((long)wi->height * (t + 1) / n);
 	     y++) {
 		const float *p = image_span(wi, y, 0, W, 1, scratch);
@@ -674,7 +698,7 @@ static void grey_rows(void *arg, int t, int n)
 		for (int x = 0; x < W; x++) {
 			const float *q = p + (size_t)x * C;
 			float v = (C == 1 ? q[0] : 0.2126f * q[0] + 0.7152f * q[1] + 0.0722f * q[2]) * k;
-			o[x] = j->lut[!(v > 0) ? 0 : v >= top ? GREY_BINS - 1 : (int)v];
+			o[x] = grey_code(j->lut, v);
 		}
 	}
 	free(scratch);
@@ -698,6 +722,94 @@ static unsigned char *grey8(const work_image *wi, double *scale_out)
 		return NULL;
 	}
 	*scale_out = 1.0 / white;
+	return j.g;
+}
+
+/* A 2 x 2 CFA holding R, G and B: each 2 x 2 block's luminance is a weighted sum of
+ * its four pixels (each filter's coefficient shared among the pixels behind it), so
+ * the tags can be looked for on a half-resolution grey picture built straight from the
+ * mosaic, without demosaicing. Returns 0 and the weights, or -1 for other CFAs. */
+static int block_weights(const work_image *wi, float w[4])
+{
+	static const float coef[3] = {0.2126f, 0.7152f, 0.0722f};
+	int count[3] = {0, 0, 0};
+	if (!wi->raw || wi->cfa_rows != 2 || wi->cfa_cols != 2)
+		return -1;
+	for (int k = 0; k < 4; k++)
+		count[wi->colour[k]]++;
+	if (!count[0] || !count[1] || !count[2])
+		return -1;
+	for (int k = 0; k < 4; k++)
+		w[k] = coef[wi->colour[k]] / (float)count[wi->colour[k]];
+	return 0;
+}
+
+typedef struct binned_job {
+	const work_image *wi;
+	float w[4];
+	int bw, bh; /* the blocks: bw x bh */
+	long (*hist)[GREY_BINS];
+	unsigned char *g, lut[GREY_BINS];
+	float k;
+} binned_job;
+
+static float block_luminance(const binned_job *j, const float *r0, const float *r1, int bx)
+{
+	return j->w[0] * r0[2 * bx] + j->w[1] * r0[2 * bx + 1] + j->w[2] * r1[2 * bx] +
+	       j->w[3] * r1[2 * bx + 1];
+}
+
+/* The white level's histogram over every 2nd block of every 2nd block row (1/16 of the
+ * pixels, as white_level takes of a demosaiced frame). */
+static void binned_white_rows(void *arg, int t, int n)
+{
+	binned_job *j = arg;
+	const float *d = j->wi->raw->data;
+	int W = j->wi->width, rows = (j->bh + 1) / 2;
+	long *hist = j->hist[t];
+	for (int r = (int)((long)rows * t / n); r < (int)((long)rows * (t + 1) / n); r++) {
+		const float *r0 = d + (size_t)(4 * r) * W, *r1 = r0 + W;
+		for (int bx = 0; bx < j->bw; bx += 2)
+			hist[white_bin(block_luminance(j, r0, r1, bx))]++;
+	}
+}
+
+static void binned_grey_rows(void *arg, int t, int n)
+{
+	binned_job *j = arg;
+	const float *d = j->wi->raw->data;
+	int W = j->wi->width;
+	const float k = j->k;
+	for (int by = (int)((long)j->bh * t / n); by < (int)((long)j->bh * (t + 1) / n); by++) {
+		const float *r0 = d + (size_t)(2 * by) * W, *r1 = r0 + W;
+		unsigned char *o = j->g + (size_t)by * j->bw;
+		for (int bx = 0; bx < j->bw; bx++)
+			o[bx] = grey_code(j->lut, block_luminance(j, r0, r1, bx) * k);
+	}
+}
+
+/* The tag detector's grey picture of a Bayer frame at half resolution (the blocks of
+ * block_weights; an odd last row or column is left out), white level included. */
+static unsigned char *grey8_binned(const work_image *wi, const float w[4], int *bw, int *bh)
+{
+	int n = wi->threads;
+	binned_job j = {.wi = wi, .bw = wi->width / 2, .bh = wi->height / 2};
+	memcpy(j.w, w, sizeof(j.w));
+	j.hist = calloc((size_t)n, sizeof(*j.hist));
+	j.g = malloc((size_t)j.bw * j.bh);
+	if (!j.hist || !j.g) {
+		free(j.hist);
+		free(j.g);
+		return NULL;
+	}
+	run_parallel(binned_white_rows, &j, n);
+	double white = white_of(j.hist, n);
+	free(j.hist);
+	srgb_lut(j.lut);
+	j.k = (float)(GREY_BINS / white);
+	run_parallel(binned_grey_rows, &j, n);
+	*bw = j.bw;
+	*bh = j.bh;
 	return j.g;
 }
 
@@ -755,8 +867,10 @@ static void family_destroy(apriltag_family_t *f)
 		tagCircle21h7_destroy(f);
 }
 
-static int run_apriltag(const unsigned char *grey, int width, int height, const char *family,
-                        int decimate, int threads, kg_chart_result *r, kg_err *err)
+/* Tags on grey (width x height), each of its pixels `zoom` image pixels a side. */
+static int run_apriltag(const unsigned char *grey, int width, int height, int zoom,
+                        const char *family, int decimate, int threads, kg_chart_result *r,
+                        kg_err *err)
 {
 	apriltag_family_t *tf = family_create(family);
 	if (!tf)
@@ -792,8 +906,8 @@ static int run_apriltag(const unsigned char *grey, int width, int height, const 
 		t->hamming = d->hamming;
 		t->margin = d->decision_margin;
 		for (int k = 0; k < 4; k++) {
-			t->corners[k][0] = d->p[k][0] + 0.5;
-			t->corners[k][1] = d->p[k][1] + 0.5;
+			t->corners[k][0] = (d->p[k][0] + 0.5) * zoom;
+			t->corners[k][1] = (d->p[k][1] + 0.5) * zoom;
 		}
 	}
 	if (dets)
@@ -1169,6 +1283,10 @@ typedef struct sample_buffers {
 	long cap;
 	float *row; /* one row of the region, demosaiced or gathered */
 	long row_cap;
+	/* counting (count_values): keys lo .. lo + nb - 1, their counts and values */
+	int32_t *cnt;
+	float *val;
+	long lo, nb, bins_cap;
 } sample_buffers;
 
 static int buffers_reserve(sample_buffers *b, long n, long row)
@@ -1205,6 +1323,160 @@ static void buffers_free(sample_buffers *b)
 	free(b->work);
 	free(b->keys);
 	free(b->row);
+	free(b->cnt);
+	free(b->val);
+}
+
+/* Counting instead of selecting, for values that are integers once scaled (integer
+ * images): one pass computes each value's key, floor(v scale + 1/2), a second counts
+ * the keys between the least and the greatest and keeps each key's value; then every
+ * order statistic is a walk over the counts. The key is non-decreasing in v, so the
+ * counts are in the values' order as long as no key holds two different values
+ * (checked on the bits: -0 and +0 count as two); the order statistics are then those
+ * of the values themselves, as selection finds them. Returns -1 (select instead) for
+ * such a collision, a value out of 0 .. 2^30 / scale (or not finite), a range of keys
+ * much wider than the values are many, or no memory. */
+enum { COUNT_MAX_BINS = 1 << 22 };
+
+static int count_values(const float *v, long n, float scale, sample_buffers *b)
+{
+	uint32_t lo = UINT32_MAX, hi = 0;
+	for (long i = 0; i < n; i++) {
+		float t = v[i] * scale;
+		if (!(t >= 0 && t < 1073741824.0f))
+			return -1;
+		uint32_t key = (uint32_t)(t + 0.5f);
+		b->keys[i] = key;
+		lo = key < lo ? key : lo;
+		hi = key > hi ? key : hi;
+	}
+	long nb = n ? (long)(hi - lo) + 1 : 0;
+	if (nb > COUNT_MAX_BINS || nb > 4 * n + 65536)
+		return -1;
+	if (nb > b->bins_cap) {
+		int32_t *c = realloc(b->cnt, (size_t)nb * sizeof(*c));
+		if (c)
+			b->cnt = c;
+		float *f = c ? realloc(b->val, (size_t)nb * sizeof(*f)) : NULL;
+		if (!f)
+			return -1;
+		b->val = f;
+		b->bins_cap = nb;
+	}
+	memset(b->cnt, 0, (size_t)nb * sizeof(*b->cnt));
+	uint32_t clash = 0;
+	for (long i = 0; i < n; i++) {
+		uint32_t k = b->keys[i] - lo, now, was;
+		memcpy(&now, &v[i], sizeof(now));
+		memcpy(&was, &b->val[k], sizeof(was));
+		clash |= b->cnt[k] ? now ^ was : 0;
+		b->val[k] = v[i];
+		b->cnt[k]++;
+	}
+	b->lo = lo;
+	b->nb = nb;
+	return clash ? -1 : 0;
+}
+
+/* Ranks r[0] <= r[1] picked from values arriving in ascending order, c copies each. */
+typedef struct rank_pick {
+	long r[2], seen;
+	float out[2];
+} rank_pick;
+
+static int pick(rank_pick *p, float v, long c)
+{
+	long end = p->seen + c;
+	for (int s = 0; s < 2; s++)
+		if (p->r[s] >= p->seen && p->r[s] < end)
+			p->out[s] = v;
+	p->seen = end;
+	return end > p->r[1];
+}
+
+static double pick_median(const rank_pick *p, long n)
+{
+	return n % 2 ? p->out[1] : 0.5 * ((double)p->out[1] + p->out[0]);
+}
+
+/* robust_stats from the counts of count_values: the same numbers. The median's
+ * absolute deviations come from walking outward from the median in both directions
+ * at once, each side's deviations growing as it goes. */
+static void counted_stats(const sample_buffers *b, long n, const kg_chart_detect_options *opt,
+                          double quantum, double *loc, double *sigma)
+{
+	const int32_t *cnt = b->cnt;
+	const float *val = b->val;
+	long nb = b->nb;
+	rank_pick m = {{n / 2 - 1, n / 2}, 0, {0, 0}};
+	long up = 0;
+	while (!pick(&m, val[up], cnt[up]))
+		for (up++; !cnt[up]; up++)
+			;
+	double med = pick_median(&m, n);
+	float fm = (float)med;
+	/* the deviations fabsf(v - fm), as the selection computes them */
+	for (up = 0; up < nb && !(cnt[up] && val[up] >= fm); up++)
+		;
+	long down = up - 1;
+	while (down >= 0 && !cnt[down])
+		down--;
+	rank_pick d = {{n / 2 - 1, n / 2}, 0, {0, 0}};
+	for (;;) {
+		float du = up < nb ? fabsf(val[up] - fm) : INFINITY;
+		float dd = down >= 0 ? fabsf(val[down] - fm) : INFINITY;
+		int done;
+		if (du <= dd) {
+			done = pick(&d, du, cnt[up]);
+			for (up++; up < nb && !cnt[up]; up++)
+				;
+		} else {
+			done = pick(&d, dd, cnt[down]);
+			for (down--; down >= 0 && !cnt[down]; down--)
+				;
+		}
+		if (done)
+			break;
+	}
+	*sigma = 1.4826 * pick_median(&d, n);
+	if (opt->statistic == KG_CHART_TRIMMED_MEAN) {
+		long cut = (long)floor(opt->trim * n);
+		if (2 * cut >= n)
+			cut = (n - 1) / 2;
+		double s = 0;
+		long at = 0;
+		for (long k = 0; k < nb && at < n - cut; k++) {
+			for (long i = 0; i < cnt[k] && at < n - cut; i++, at++)
+				if (at >= cut)
+					s += val[k];
+		}
+		*loc = s / (double)(n - 2 * cut);
+	} else if (quantum > 0) {
+		long below = 0, at = 0;
+		for (long k = 0; k < nb; k++) {
+			if (!cnt[k])
+				continue;
+			if (val[k] < med - 0.5 * quantum)
+				below += cnt[k];
+			else if (val[k] <= med + 0.5 * quantum)
+				at += cnt[k];
+		}
+		*loc = at ? med - 0.5 * quantum + quantum * (0.5 * n - below) / at : med;
+	} else {
+		*loc = med;
+	}
+}
+
+/* How many of the counted values exceed t. */
+static long counted_above(const sample_buffers *b, double t)
+{
+	long c = 0;
+	for (long k = b->nb - 1; k >= 0; k--)
+		if (b->cnt[k] && !(b->val[k] > t))
+			break;
+		else
+			c += b->cnt[k];
+	return c;
 }
 
 static void flag(kg_chart_sample *p, unsigned f, const char *why)
@@ -1383,19 +1655,36 @@ static int sample_patch(const work_image *wi, const double H[9], const double Hi
 	}
 	if (inside < 0.9)
 		flag(p, KG_CHART_FLAG_OUT_OF_FRAME, "partly outside the image");
-	for (int c = 0; c < 3; c++)
-		robust_stats(buf->ch[c], buf->work, buf->keys, n, opt, wi->quantum, fast, &p->rgb[c],
-		             &p->sd[c]);
+	/* Grey images repeat their one channel: counted or selected once. */
+	int count = fast && wi->count_scale > 0;
+	for (int c = 0; c < 3; c++) {
+		if (c > 0 && C == 1) {
+			p->rgb[c] = p->rgb[0];
+			p->sd[c] = p->sd[0];
+		} else if (count && !count_values(buf->ch[c], n, wi->count_scale, buf)) {
+			counted_stats(buf, n, opt, wi->quantum, &p->rgb[c], &p->sd[c]);
+		} else {
+			robust_stats(buf->ch[c], buf->work, buf->keys, n, opt, wi->quantum, fast,
+			             &p->rgb[c], &p->sd[c]);
+		}
+	}
 	/* Glare: bright outliers in the channel sum, beyond 6 sigma and 5 % of the level. */
-	double sum_med, sum_sigma;
+	double sum_med, sum_sigma, bright;
 	kg_chart_detect_options med_opt = *opt;
 	med_opt.statistic = KG_CHART_MEDIAN;
-	memcpy(buf->work, buf->sum, (size_t)n * sizeof(float)); /* keep sums for counting */
-	robust_stats(buf->work, buf->ch[0], buf->keys, n, &med_opt, 0, fast, &sum_med, &sum_sigma);
-	double bright = sum_med + fmax(6 * sum_sigma, 0.05 * fabs(sum_med));
 	long nbright = 0;
-	for (long i = 0; i < n; i++)
-		nbright += buf->sum[i] > bright;
+	if (count && !count_values(buf->sum, n, wi->count_scale, buf)) {
+		counted_stats(buf, n, &med_opt, 0, &sum_med, &sum_sigma);
+		bright = sum_med + fmax(6 * sum_sigma, 0.05 * fabs(sum_med));
+		nbright = counted_above(buf, bright);
+	} else {
+		memcpy(buf->work, buf->sum, (size_t)n * sizeof(float)); /* keep sums for counting */
+		robust_stats(buf->work, buf->ch[0], buf->keys, n, &med_opt, 0, fast, &sum_med,
+		             &sum_sigma);
+		bright = sum_med + fmax(6 * sum_sigma, 0.05 * fabs(sum_med));
+		for (long i = 0; i < n; i++)
+			nbright += buf->sum[i] > bright;
+	}
 	/* Non-uniformity: spread of the four quadrant means relative to the mean. */
 	double qmin = INFINITY, qmax = -INFINITY, total = 0;
 	for (int q = 0; q < 4; q++) {
@@ -1509,16 +1798,28 @@ static int detect_with_tags(const layout_view *L, const work_image *wi,
 {
 #if HAVE_APRILTAG
 	double t0 = now_seconds(), scale;
-	unsigned char *g = grey8(wi, &scale);
-	if (!g)
-		return kg_fail(err, KG_ENOMEM, "out of memory");
-	double t1 = now_seconds();
-	r->prepare_seconds += t1 - t0;
 	long npix = (long)wi->width * wi->height;
 	int big = wi->width > wi->height ? wi->width : wi->height;
 	int decimate = opt->decimate > 0 ? opt->decimate : npix < 4000000 ? 2 : 4;
 	while (opt->decimate == 0 && big > APRILTAG_MAX_SIDE * (long)decimate)
 		decimate *= 2; /* automatic decimation keeps within libapriltag's coordinates */
+	/* A Bayer frame decimated by an even factor: libapriltag's quads come from every
+	 * d-th pixel of every d-th row, which the half-resolution picture holds as every
+	 * (d/2)-th block; its edge refinement then works on the blocks. */
+	float bw4[4];
+	int gw = wi->width, gh = wi->height, zoom = 1;
+	unsigned char *g;
+	if (decimate % 2 == 0 && !block_weights(wi, bw4) && wi->width / 2 >= decimate + 1 &&
+	    wi->height / 2 >= decimate + 1) {
+		g = grey8_binned(wi, bw4, &gw, &gh);
+		zoom = 2;
+	} else {
+		g = grey8(wi, &scale);
+	}
+	if (!g)
+		return kg_fail(err, KG_ENOMEM, "out of memory");
+	double t1 = now_seconds();
+	r->prepare_seconds += t1 - t0;
 	const char *family = opt->family ? opt->family : L->family ? L->family : "tag36h11";
 	r->decimate = decimate;
 	/* libapriltag decimates a side s to 1 + (s - 1) / d pixels; below 3 it reads out of
@@ -1532,7 +1833,7 @@ static int detect_with_tags(const layout_view *L, const work_image *wi,
 	                          ? "; a larger --decimate takes larger images" : NULL,
 	                      err);
 	if (!ret)
-		ret = run_apriltag(g, wi->width, wi->height, family, decimate,
+		ret = run_apriltag(g, gw, gh, zoom, family, decimate / zoom,
 		                   opt->threads > 0 ? opt->threads : 1, r, err);
 	free(g);
 	r->tag_seconds = now_seconds() - t1;
