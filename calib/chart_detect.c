@@ -675,6 +675,7 @@ static unsigned char grey_code(const unsigned char lut[GREY_BINS], float v)
 
 typedef struct grey_job {
 	const work_image *wi;
+	int step, gw, gh; /* every step-th pixel of every step-th row: gw x gh */
 	unsigned char *g, lut[GREY_BINS];
 	float k;
 	int failed;
@@ -684,18 +685,18 @@ static void grey_rows(void *arg, int t, int n)
 {
 	grey_job *j = arg;
 	const work_image *wi = j->wi;
-	int W = wi->width, C = wi->channels;
-	float *scratch = wi->data ? NULL : malloc((size_t)W * 3 * sizeof(float));
-	if (!wi->data && !scratch) {
+	int gw = j->gw, C = wi->channels;
+	int direct = wi->data && j->step == 1;
+	float *scratch = direct ? NULL : malloc((size_t)gw * 3 * sizeof(float));
+	if (!direct && !scratch) {
 		j->failed = 1;
 		return;
 	}
 	const float k = j->k;
-	for (int y = (int)((long)wi->height * t / n); y < (int)((long)wi->height * (t + 1) / n);
-	     y++) {
-		const float *p = image_span(wi, y, 0, W, 1, scratch);
-		unsigned char *o = j->g + (size_t)y * W;
-		for (int x = 0; x < W; x++) {
+	for (int y = (int)((long)j->gh * t / n); y < (int)((long)j->gh * (t + 1) / n); y++) {
+		const float *p = image_span(wi, y * j->step, 0, gw, j->step, scratch);
+		unsigned char *o = j->g + (size_t)y * gw;
+		for (int x = 0; x < gw; x++) {
 			const float *q = p + (size_t)x * C;
 			float v = (C == 1 ? q[0] : 0.2126f * q[0] + 0.7152f * q[1] + 0.0722f * q[2]) * k;
 			o[x] = grey_code(j->lut, v);
@@ -706,12 +707,15 @@ static void grey_rows(void *arg, int t, int n)
 
 /* An 8-bit grey picture for tag detection and the overlay: luminance scaled so its
  * 99.5th percentile is white, then sRGB-encoded (a lookup table of 4096 steps), in
- * bands of rows over the threads. */
-static unsigned char *grey8(const work_image *wi, double *scale_out)
+ * bands of rows over the threads. step 2: every 2nd pixel of every 2nd row only
+ * (*gw x *gh), whose every 2nd pixel and row are the ones white_level reads. */
+static unsigned char *grey8(const work_image *wi, int step, int *gw, int *gh,
+                            double *scale_out)
 {
-	size_t n = (size_t)wi->width * wi->height;
-	grey_job j = {.wi = wi, .g = malloc(n ? n : 1)};
-	if (!j.g)
+	grey_job j = {.wi = wi, .step = step, .gw = (wi->width + step - 1) / step,
+	              .gh = (wi->height + step - 1) / step};
+	size_t n = (size_t)j.gw * j.gh;
+	if (!(j.g = malloc(n ? n : 1)))
 		return NULL;
 	double white = white_level(wi);
 	srgb_lut(j.lut);
@@ -721,6 +725,8 @@ static unsigned char *grey8(const work_image *wi, double *scale_out)
 		free(j.g);
 		return NULL;
 	}
+	*gw = j.gw;
+	*gh = j.gh;
 	*scale_out = 1.0 / white;
 	return j.g;
 }
@@ -1327,31 +1333,45 @@ static void buffers_free(sample_buffers *b)
 	free(b->val);
 }
 
-/* Counting instead of selecting, for values that are integers once scaled (integer
- * images): one pass computes each value's key, floor(v scale + 1/2), a second counts
- * the keys between the least and the greatest and keeps each key's value; then every
- * order statistic is a walk over the counts. The key is non-decreasing in v, so the
- * counts are in the values' order as long as no key holds two different values
- * (checked on the bits: -0 and +0 count as two); the order statistics are then those
- * of the values themselves, as selection finds them. Returns -1 (select instead) for
- * such a collision, a value out of 0 .. 2^30 / scale (or not finite), a range of keys
- * much wider than the values are many, or no memory. */
-enum { COUNT_MAX_BINS = 1 << 22 };
+/* Counting instead of selecting, for values that lie near integers once scaled
+ * (integer codes; the halves and quarters of raw codes that demosaicing averages; sums
+ * of such values, a few float steps off the integer): each value's key is its integer
+ * k = floor(v scale + 1/2) and its distance in float steps from the float of k / scale,
+ * k COUNT_SPREAD + that distance + COUNT_SPREAD / 2. Two values of one integer differ
+ * in their distance, and values of different integers are far apart, so the key
+ * grows with the value and no two values share one: counting the keys between the
+ * least and the greatest, each key's value kept, puts the values in order, and every
+ * order statistic is a walk over the counts, equal to what selection finds. Returns -1
+ * (select instead) for a value negative (-0 included) or beyond 2^26 / scale or not
+ * finite, a distance of half COUNT_SPREAD steps or more, a range of keys much wider
+ * than the values are many, or no memory. */
+enum { COUNT_SPREAD = 8, COUNT_MAX_BINS = 1 << 22 };
+
+static uint32_t float_bits(float f)
+{
+	uint32_t u;
+	memcpy(&u, &f, sizeof(u));
+	return u;
+}
 
 static int count_values(const float *v, long n, float scale, sample_buffers *b)
 {
-	uint32_t lo = UINT32_MAX, hi = 0;
+	const float inv = 1.0f / scale;
+	uint32_t lo = UINT32_MAX, hi = 0, bad = 0;
 	for (long i = 0; i < n; i++) {
 		float t = v[i] * scale;
-		if (!(t >= 0 && t < 1073741824.0f))
+		if (!(t >= 0 && t < 67108864.0f))
 			return -1;
-		uint32_t key = (uint32_t)(t + 0.5f);
+		uint32_t k = (uint32_t)(t + 0.5f);
+		uint32_t d = float_bits(v[i]) - float_bits((float)k * inv) + COUNT_SPREAD / 2;
+		bad |= d >= COUNT_SPREAD;
+		uint32_t key = k * COUNT_SPREAD + d;
 		b->keys[i] = key;
 		lo = key < lo ? key : lo;
 		hi = key > hi ? key : hi;
 	}
 	long nb = n ? (long)(hi - lo) + 1 : 0;
-	if (nb > COUNT_MAX_BINS || nb > 4 * n + 65536)
+	if (bad || nb > COUNT_MAX_BINS || nb > 4 * n + 65536)
 		return -1;
 	if (nb > b->bins_cap) {
 		int32_t *c = realloc(b->cnt, (size_t)nb * sizeof(*c));
@@ -1364,18 +1384,14 @@ static int count_values(const float *v, long n, float scale, sample_buffers *b)
 		b->bins_cap = nb;
 	}
 	memset(b->cnt, 0, (size_t)nb * sizeof(*b->cnt));
-	uint32_t clash = 0;
 	for (long i = 0; i < n; i++) {
-		uint32_t k = b->keys[i] - lo, now, was;
-		memcpy(&now, &v[i], sizeof(now));
-		memcpy(&was, &b->val[k], sizeof(was));
-		clash |= b->cnt[k] ? now ^ was : 0;
+		uint32_t k = b->keys[i] - lo;
 		b->val[k] = v[i];
 		b->cnt[k]++;
 	}
 	b->lo = lo;
 	b->nb = nb;
-	return clash ? -1 : 0;
+	return 0;
 }
 
 /* Ranks r[0] <= r[1] picked from values arriving in ascending order, c copies each. */
@@ -1803,19 +1819,18 @@ static int detect_with_tags(const layout_view *L, const work_image *wi,
 	int decimate = opt->decimate > 0 ? opt->decimate : npix < 4000000 ? 2 : 4;
 	while (opt->decimate == 0 && big > APRILTAG_MAX_SIDE * (long)decimate)
 		decimate *= 2; /* automatic decimation keeps within libapriltag's coordinates */
-	/* A Bayer frame decimated by an even factor: libapriltag's quads come from every
-	 * d-th pixel of every d-th row, which the half-resolution picture holds as every
-	 * (d/2)-th block; its edge refinement then works on the blocks. */
+	/* Decimated by an even factor d, libapriltag finds its quads on every d-th pixel of
+	 * every d-th row, which a half-resolution picture holds as its every (d/2)-th: a
+	 * Bayer frame's 2 x 2 blocks (d >= 2), or every 2nd pixel of every 2nd row of
+	 * other images (d >= 4, where the edge refinement still has 2 or more pixels per
+	 * decimated one): half the rows read, no demosaicing. The edges are refined on
+	 * that picture. */
 	float bw4[4];
-	int gw = wi->width, gh = wi->height, zoom = 1;
-	unsigned char *g;
-	if (decimate % 2 == 0 && !block_weights(wi, bw4) && wi->width / 2 >= decimate + 1 &&
-	    wi->height / 2 >= decimate + 1) {
-		g = grey8_binned(wi, bw4, &gw, &gh);
-		zoom = 2;
-	} else {
-		g = grey8(wi, &scale);
-	}
+	int blocks = !block_weights(wi, bw4), gw, gh;
+	int zoom = decimate % 2 == 0 && (blocks || decimate >= 4) &&
+	           wi->width / 2 >= decimate + 1 && wi->height / 2 >= decimate + 1 ? 2 : 1;
+	unsigned char *g = zoom == 2 && blocks ? grey8_binned(wi, bw4, &gw, &gh)
+	                                       : grey8(wi, zoom, &gw, &gh, &scale);
 	if (!g)
 		return kg_fail(err, KG_ENOMEM, "out of memory");
 	double t1 = now_seconds();
@@ -2706,7 +2721,8 @@ int kg_chart_overlay_write(const kg_chart_result *r, const kg_image *img, const 
 	}
 	/* Background: each output pixel is the mean of its step x step block, with the
 	 * exposure normalisation of the tag detector, sRGB-encoded. */
-	g = grey8(&wi, &scale_px);
+	int gw, gh;
+	g = grey8(&wi, 1, &gw, &gh, &scale_px);
 	if (!g) {
 		ret = kg_fail(err, KG_ENOMEM, "overlay: out of memory");
 		goto done;
