@@ -1,12 +1,17 @@
 /* kogei-bench-chart: chart detection and patch sampling time on 12 Mpix simulated
- * photographs, beside the patch-value error (issue 4, item 7).
+ * photographs, beside the patch-value error (issue 4, item 7; issue 17, item 2).
  *
  * `kogei sim chart` renders the ColorChecker 24 in its AprilTag frame
  * (fixtures/charts/colorchecker24-frame.json; spectra from ../shared/reference when
  * present, else built-in colours) frontally and tilted, with blur, vignetting and
- * sensor noise, as 16-bit TIFF, with its truth. Each image is read once; then
- * kg_chart_detect runs for every tag decimation (1, 2, 4) and thread count (1, 2),
- * and in tagless mode (OpenCV mcc) when it is built in. Times are the median of
+ * sensor noise, as 16-bit TIFF, with its truth, and once more as a raw Bayer (RGGB)
+ * frame. Each image is read once; then kg_chart_detect runs for every tag decimation
+ * (1, 2, 4) and thread count (1, 2), reporting its stages: image preparation (white
+ * level, 8-bit grey, demosaicing), tag detection, patch sampling and the total.
+ * The same chart on black paper (its tags vanish: an unframed ColorChecker) goes to
+ * the tagless detector twice per thread count: the default path (mcc on a reduced
+ * copy, its box refined at full resolution) and mcc on the full image
+ * (tagless_decimate 1), with the ratio of their totals. Times are the median of
  * --reps runs (CLOCK_MONOTONIC); the error is the largest and the mean
  * |measured - truth| over all patches and channels, in % of full scale. Markdown
  * goes to stdout, JSON to --json.
@@ -28,15 +33,15 @@
 
 typedef struct row {
 	const char *image;
-	const char *method; /* "apriltag" or "mcc" */
+	const char *method; /* "apriltag", "tagless" (reduced + refined) or "mcc" (full) */
 	int decimate, threads;
 	int ok;
 	char note[1024];
-	double tag_s, total_s;
+	double prepare_s, tag_s, sample_s, total_s;
 	double max_err, mean_err; /* % of full scale */
 	int patches;
+	double ratio; /* tagless rows: the full-image mcc row's total over this one's */
 } row;
-
 
 /* Errors of a result against a truth file. */
 static void errors(const kg_chart_result *r, const kg_patchset *truth, row *out)
@@ -60,16 +65,19 @@ static void errors(const kg_chart_result *r, const kg_patchset *truth, row *out)
 	out->mean_err = n ? 100.0 * sum / (3.0 * n) : NAN;
 }
 
+/* tagless: 0 tags; 1 the tagless detector at its default reduction; 2 mcc on the
+ * full image. */
 static void measure(const kg_chart_layout *l, const kg_image *img, const kg_patchset *truth,
                     int tagless, int decimate, int threads, int reps, row *out)
 {
-	double tag[MAX_REPS], total[MAX_REPS];
+	double prep[MAX_REPS], tag[MAX_REPS], samp[MAX_REPS], total[MAX_REPS];
 	kg_chart_detect_options o;
 	kg_chart_detect_options_default(&o);
-	o.tagless = tagless;
+	o.tagless = tagless > 0;
+	o.tagless_decimate = tagless == 2 ? 1 : 0;
 	o.decimate = decimate;
 	o.threads = threads;
-	out->method = tagless ? "mcc" : "apriltag";
+	out->method = tagless == 1 ? "tagless" : tagless == 2 ? "mcc" : "apriltag";
 	out->decimate = decimate;
 	out->threads = threads;
 	for (int k = 0; k < reps; k++) {
@@ -83,13 +91,20 @@ static void measure(const kg_chart_layout *l, const kg_image *img, const kg_patc
 			snprintf(out->note, sizeof(out->note), "%s", err.msg);
 			return;
 		}
+		prep[k] = r->prepare_seconds;
 		tag[k] = r->tag_seconds;
-		if (k == 0)
+		samp[k] = r->sample_seconds;
+		if (k == 0) {
 			errors(r, truth, out);
+			if (tagless)
+				out->decimate = r->tagless_decimate;
+		}
 		kg_chart_result_free(&r);
 	}
 	out->ok = 1;
+	out->prepare_s = kg_bench_percentile(prep, reps, 0.5);
 	out->tag_s = kg_bench_percentile(tag, reps, 0.5);
+	out->sample_s = kg_bench_percentile(samp, reps, 0.5);
 	out->total_s = kg_bench_percentile(total, reps, 0.5);
 }
 
@@ -174,19 +189,24 @@ int main(int argc, char **argv)
 		return 1;
 	}
 	static const struct {
-		const char *name, *tilt, *rotate;
+		const char *name, *tilt, *rotate, *cfa, *paper;
+		int tagless;
 	} images[] = {
-	    {"frontal", "0", "0"},
-	    {"tilt 35, rotate 15", "35", "15"},
+	    {"frontal", "0", "0", NULL, NULL, 0},
+	    {"tilt 35, rotate 15", "35", "15", NULL, NULL, 0},
+	    {"frontal, Bayer RGGB", "0", "0", "RGGB", NULL, 0},
+	    {"unframed, frontal", "0", "0", NULL, "0.03", 1},
+	    {"unframed, tilt 20, rotate 10", "20", "10", NULL, "0.03", 1},
 	};
+	enum { NIMAGES = sizeof(images) / sizeof(images[0]) };
 	row rows[MAX_ROWS];
 	int nrows = 0;
-	double render_s[2] = {0, 0};
-	for (size_t im = 0; im < sizeof(images) / sizeof(images[0]); im++) {
+	double render_s[NIMAGES] = {0};
+	for (int im = 0; im < NIMAGES; im++) {
 		char img[4300], truth_path[4300];
-		snprintf(img, sizeof(img), "%s/chart%zu.tif", dir, im);
-		snprintf(truth_path, sizeof(truth_path), "%s/chart%zu.cgats", dir, im);
-		char *sim[40] = {kogei, "sim", "chart", "--layout", layout_path, "--camera", camera,
+		snprintf(img, sizeof(img), "%s/chart%d.tif", dir, im);
+		snprintf(truth_path, sizeof(truth_path), "%s/chart%d.cgats", dir, im);
+		char *sim[48] = {kogei, "sim", "chart", "--layout", layout_path, "--camera", camera,
 		                 "--illuminant", "D65", "--width", wtext, "--height", htext,
 		                 "--tilt", (char *)images[im].tilt, "--rotate", (char *)images[im].rotate,
 		                 "--blur", "1.0", "--vignetting", "0.2", "--noise", "20000:5:12",
@@ -196,11 +216,21 @@ int main(int argc, char **argv)
 			sim[n++] = "--spectra";
 			sim[n++] = spectra;
 		}
+		if (images[im].cfa) {
+			sim[n++] = "--cfa";
+			sim[n++] = (char *)images[im].cfa;
+		}
+		if (images[im].paper) {
+			sim[n++] = "--paper";
+			sim[n++] = (char *)images[im].paper;
+		}
 		sim[n] = NULL;
 		double t0 = kg_bench_now();
-		if (kg_bench_run_program(sim, 0) != 0) {
-			fprintf(stderr, "kogei-bench-chart: %s sim chart failed\n", kogei);
-			return 1;
+		if (access(img, R_OK) != 0 || access(truth_path, R_OK) != 0 || !keep) {
+			if (kg_bench_run_program(sim, 0) != 0) {
+				fprintf(stderr, "kogei-bench-chart: %s sim chart failed\n", kogei);
+				return 1;
+			}
 		}
 		render_s[im] = kg_bench_now() - t0;
 		kg_image *image = NULL;
@@ -210,8 +240,21 @@ int main(int argc, char **argv)
 			return 1;
 		}
 		static const int decimations[] = {1, 2, 4}, threads[] = {1, 2};
-		for (int d = 0; d < 3; d++)
+		for (int t = 0; t < 2 && images[im].tagless; t++) {
+			row *full = &rows[nrows++], *fast = &rows[nrows++];
+			memset(full, 0, sizeof(*full));
+			memset(fast, 0, sizeof(*fast));
+			full->image = fast->image = images[im].name;
+			measure(layout, image, truth, 1, 0, threads[t], reps, fast);
+			measure(layout, image, truth, 2, 0, threads[t], reps, full);
+			fast->ratio = fast->ok && full->ok ? full->total_s / fast->total_s : NAN;
+			fprintf(stderr, "%s: tagless %.3f s, mcc on the full image %.3f s, %d thread(s)\n",
+			        fast->image, fast->total_s, full->total_s, threads[t]);
+		}
+		for (int d = 0; d < 3 && !images[im].tagless; d++)
 			for (int t = 0; t < 2; t++) {
+				if (images[im].cfa && decimations[d] != 4)
+					continue;
 				row *r = &rows[nrows++];
 				memset(r, 0, sizeof(*r));
 				r->image = images[im].name;
@@ -219,38 +262,55 @@ int main(int argc, char **argv)
 				fprintf(stderr, "%s: apriltag decimate %d, %d thread(s): %.3f s\n", r->image,
 				        r->decimate, r->threads, r->total_s);
 			}
-		for (int t = 0; t < 2; t++) {
-			row *r = &rows[nrows++];
-			memset(r, 0, sizeof(*r));
-			r->image = images[im].name;
-			measure(layout, image, truth, 1, 0, threads[t], reps, r);
-			fprintf(stderr, "%s: mcc, %d thread(s): %s\n", r->image, r->threads,
-			        r->ok ? "done" : r->note);
-		}
 		kg_image_free(&image);
 		kg_patchset_free(&truth);
 	}
 
-	printf("Chart detection + sampling, %d x %d (%.1f Mpix) 16-bit RGB, %s, layout %s, "
+	printf("Chart detection + sampling, %d x %d (%.1f Mpix) 16-bit, %s, layout %s, "
 	       "median of %d runs. Error: |measured - truth| per channel, %% of full scale.\n\n",
 	       width, height, width * (double)height / 1e6,
 	       have_spectra ? "ColorChecker spectra (BabelColor)" : "built-in colours",
 	       layout->name, reps);
-	printf("| image | method | decimate | threads | tags (s) | total (s) | max err (%%) | "
-	       "mean err (%%) |\n|---|---|---|---|---|---|---|---|\n");
+	printf("Framed chart (AprilTags):\n\n");
+	printf("| image | decimate | threads | prepare (ms) | tags (ms) | sampling (ms) | total (ms) "
+	       "| max err (%%) | mean err (%%) |\n|---|---|---|---|---|---|---|---|---|\n");
 	for (int i = 0; i < nrows; i++) {
 		const row *r = &rows[i];
-		char dec[16];
-		snprintf(dec, sizeof(dec), r->decimate ? "%d" : "-", r->decimate);
+		if (strcmp(r->method, "apriltag"))
+			continue;
 		if (r->ok)
-			printf("| %s | %s | %s | %d | %.3f | %.3f | %.3f | %.4f |\n", r->image, r->method,
-			       dec, r->threads, r->tag_s, r->total_s, r->max_err, r->mean_err);
+			printf("| %s | %d | %d | %.1f | %.1f | %.1f | %.1f | %.3f | %.4f |\n", r->image,
+			       r->decimate, r->threads, 1e3 * r->prepare_s, 1e3 * r->tag_s,
+			       1e3 * r->sample_s, 1e3 * r->total_s, r->max_err, r->mean_err);
 		else
-			printf("| %s | %s | %s | %d | - | - | - | - (%s) |\n", r->image, r->method, dec,
+			printf("| %s | %d | %d | - | - | - | - | - | - (%s) |\n", r->image, r->decimate,
 			       r->threads, r->note);
 	}
-	printf("\nRendering (kogei sim chart, all CPUs, incl. TIFF write): %.2f s and %.2f s.\n",
-	       render_s[0], render_s[1]);
+	printf("\nUnframed chart (tagless): the default path (mcc on a copy reduced by the "
+	       "decimate shown, box refined at full resolution) against mcc on the full image; "
+	       "speed-up: the full-image total over the default's.\n\n");
+	printf("| image | method | decimate | threads | prepare (ms) | detector (ms) | sampling (ms) "
+	       "| total (ms) | max err (%%) | mean err (%%) | speed-up |\n"
+	       "|---|---|---|---|---|---|---|---|---|---|---|\n");
+	for (int i = 0; i < nrows; i++) {
+		const row *r = &rows[i];
+		if (!strcmp(r->method, "apriltag"))
+			continue;
+		char ratio[32] = "";
+		if (isfinite(r->ratio))
+			snprintf(ratio, sizeof(ratio), "%.1f x", r->ratio);
+		if (r->ok)
+			printf("| %s | %s | %d | %d | %.1f | %.1f | %.1f | %.1f | %.3f | %.4f | %s |\n",
+			       r->image, r->method, r->decimate, r->threads, 1e3 * r->prepare_s,
+			       1e3 * r->tag_s, 1e3 * r->sample_s, 1e3 * r->total_s, r->max_err,
+			       r->mean_err, ratio);
+		else
+			printf("| %s | %s | - | %d | - | - | - | - | - | - (%s) | |\n", r->image,
+			       r->method, r->threads, r->note);
+	}
+	printf("\nRendering (kogei sim chart, all CPUs, incl. TIFF write; 0 when kept):");
+	for (int im = 0; im < NIMAGES; im++)
+		printf(" %.2f s%s", render_s[im], im + 1 < NIMAGES ? "," : ".\n");
 
 	if (json_path) {
 		kg_outfile out;
@@ -260,7 +320,7 @@ int main(int argc, char **argv)
 			return 1;
 		}
 		FILE *fp = out.fp;
-		fprintf(fp, "{\"format\": \"kogei-bench-chart/1\", \"width\": %d, \"height\": %d, "
+		fprintf(fp, "{\"format\": \"kogei-bench-chart/2\", \"width\": %d, \"height\": %d, "
 		            "\"reps\": %d, \"layout\": \"%s\", \"spectra\": %s, \"rows\": [\n",
 		        width, height, reps, layout->name, have_spectra ? "true" : "false");
 		for (int i = 0; i < nrows; i++) {
@@ -269,10 +329,14 @@ int main(int argc, char **argv)
 			            "\"threads\": %d, \"ok\": %s",
 			        r->image, r->method, r->decimate, r->threads, r->ok ? "true" : "false");
 			if (r->ok)
-				fprintf(fp, ", \"tag_seconds\": %.6f, \"total_seconds\": %.6f, "
+				fprintf(fp, ", \"prepare_seconds\": %.6f, \"tag_seconds\": %.6f, "
+				            "\"sample_seconds\": %.6f, \"total_seconds\": %.6f, "
 				            "\"max_error_percent\": %.6f, \"mean_error_percent\": %.6f, "
 				            "\"patches\": %d",
-				        r->tag_s, r->total_s, r->max_err, r->mean_err, r->patches);
+				        r->prepare_s, r->tag_s, r->sample_s, r->total_s, r->max_err,
+				        r->mean_err, r->patches);
+			if (r->ok && isfinite(r->ratio))
+				fprintf(fp, ", \"speedup_over_full_mcc\": %.3f", r->ratio);
 			else {
 				fprintf(fp, ", \"note\": \"");
 				for (const char *c = r->note; *c; c++)

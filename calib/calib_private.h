@@ -61,4 +61,13 @@ int calib_patchset_without(const kg_patchset *ps, const char *const *ids, int ni
 void calib_reference_derive(kg_reference *ref);
 void calib_camera_derive(kg_camera_calib *cam);
 
+/* The patches of layout l sampled in img through H (mm -> px), as kg_chart_detect
+ * samples them, by the optimised sampler (reference 0: scanline spans, radix
+ * selection, opt->threads threads) or the reference (1: every pixel of each region's
+ * bounding box through the inverse homography, quickselect): both must give the same
+ * result. The result holds H, the patches and their outline, nothing else. */
+int calib_chart_sample(const kg_chart_layout *l, const kg_image *img, const double H[9],
+                       const kg_chart_detect_options *opt, int reference,
+                       kg_chart_result **out, kg_err *err);
+
 #endif

@@ -11,6 +11,7 @@
  * pixel centres at integers; they are shifted by half a pixel on the way in. */
 #include <limits.h>
 #include <math.h>
+#include <pthread.h>
 #include <stdarg.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -20,6 +21,7 @@
 
 #include <cairo.h>
 
+#include "calib_private.h"
 #include "kg_calib.h"
 #include "kg_config.h"
 
@@ -363,53 +365,161 @@ static int check_sides(int width, int height, long min_side, long max_side, cons
 	               width, height, stage, min_side, max_side, hint ? hint : "");
 }
 
-/* Bilinear demosaic of a CFA frame of R, G and B letters: each missing colour is the
- * mean of the 3 x 3 neighbours that carry it (edges clamped). */
-static int demosaic_bilinear(const kg_image *raw, float *rgb, kg_err *err)
+/* ---- threads ----------------------------------------------------------------- */
+
+/* fn(arg, t, n) for t = 0..n-1, t = 0 on the caller's thread. Every caller splits its
+ * work by t into pieces whose results do not depend on n, so any thread count gives
+ * the same numbers. A thread that cannot be started has its share run here. */
+typedef void (*par_fn)(void *arg, int t, int n);
+
+typedef struct par_job {
+	par_fn fn;
+	void *arg;
+	int t, n;
+} par_job;
+
+static void *par_main(void *p)
 {
-	int W = raw->width, Hh = raw->height, cr = raw->cfa_rows, cc = raw->cfa_cols;
-	int colour[64];
-	if (cr * cc > 64)
-		return kg_fail(err, KG_ENOTSUP, "CFA repeat of %dx%d is too large", cr, cc);
-	for (int k = 0; k < cr * cc; k++) {
-		const char *p = strchr("RGB", raw->cfa[k]);
-		if (!p || !raw->cfa[k])
-			return kg_fail(err, KG_ENOTSUP,
-			               "CFA pattern %.*s: only R, G and B filters can be demosaiced",
-			               cr * cc, raw->cfa);
-		colour[k] = (int)(p - "RGB");
+	par_job *j = p;
+	j->fn(j->arg, j->t, j->n);
+	return NULL;
+}
+
+enum { MAX_THREADS = 64 };
+
+static int clamp_threads(int threads)
+{
+	return threads < 1 ? 1 : threads > MAX_THREADS ? MAX_THREADS : threads;
+}
+
+static void run_parallel(par_fn fn, void *arg, int threads)
+{
+	int n = clamp_threads(threads);
+	pthread_t tid[MAX_THREADS];
+	par_job job[MAX_THREADS];
+	int started[MAX_THREADS] = {0};
+	for (int t = 1; t < n; t++) {
+		job[t] = (par_job){fn, arg, t, n};
+		started[t] = pthread_create(&tid[t], NULL, par_main, &job[t]) == 0;
 	}
-	for (int y = 0; y < Hh; y++) {
-		for (int x = 0; x < W; x++) {
-			double sum[3] = {0, 0, 0};
-			int cnt[3] = {0, 0, 0};
-			int own = colour[(y % cr) * cc + x % cc];
+	fn(arg, 0, n);
+	for (int t = 1; t < n; t++) {
+		if (started[t])
+			pthread_join(tid[t], NULL);
+		else
+			fn(arg, t, n);
+	}
+}
+
+/* ---- the image as the sampler sees it ---------------------------------------- */
+
+/* Interleaved linear floats with 1 or 3 channels. A raw CFA frame is not demosaiced
+ * as a whole: the stages read it through image_span, which demosaics the pixels they
+ * ask for (the patch regions, every 4th pixel for the white level, the rows of the
+ * grey picture), so only what is looked at is converted. */
+typedef struct work_image {
+	int width, height, channels;
+	const float *data; /* NULL for a raw CFA frame until demosaic_all */
+	float *owned;
+	const kg_image *raw; /* the CFA frame, or NULL */
+	int cfa_rows, cfa_cols;
+	int colour[64];      /* the CFA repeat's filters: 0 R, 1 G, 2 B */
+	/* Per CFA phase, each colour's neighbours in the 3 x 3 window, in raster order:
+	 * the interior pixels' sums without the edge clamping. */
+	signed char nb[64][3][9][2];
+	int nbn[64][3];
+	double clip_level;
+	double quantum; /* step between the source's integer codes (0: float or demosaiced) */
+	/* Values times count_scale land near integers, distinct values on distinct ones
+	 * (integer codes, and the halves and quarters of raw codes that demosaicing
+	 * averages), so the sampler can count them; 0 for float images. */
+	float count_scale;
+	int threads;
+} work_image;
+
+/* Bilinear demosaic of pixels x0, x0 + step, ... (n of them) of row y into out (RGB):
+ * each missing colour is the mean of the 3 x 3 neighbours that carry it, edges
+ * clamped. Interior pixels take their phase's neighbour lists; the sums run in the
+ * same order as the clamped loop at the edges, so both give the same values. */
+static void demosaic_span(const work_image *wi, int y, int x0, int n, int step, float *out)
+{
+	const kg_image *raw = wi->raw;
+	int W = raw->width, Hh = raw->height, cr = wi->cfa_rows, cc = wi->cfa_cols;
+	const float *d = raw->data;
+	for (int i = 0; i < n; i++) {
+		int x = x0 + i * step;
+		int phase = (y % cr) * cc + x % cc, own = wi->colour[phase];
+		double sum[3] = {0, 0, 0};
+		int cnt[3] = {0, 0, 0};
+		if (x > 0 && y > 0 && x < W - 1 && y < Hh - 1) {
+			for (int c = 0; c < 3; c++) {
+				cnt[c] = wi->nbn[phase][c];
+				for (int k = 0; k < cnt[c]; k++)
+					sum[c] += d[(size_t)(y + wi->nb[phase][c][k][0]) * W + x +
+					             wi->nb[phase][c][k][1]];
+			}
+		} else {
 			for (int dy = -1; dy <= 1; dy++) {
 				int yy = y + dy < 0 ? 0 : y + dy >= Hh ? Hh - 1 : y + dy;
 				for (int dx = -1; dx <= 1; dx++) {
 					int xx = x + dx < 0 ? 0 : x + dx >= W ? W - 1 : x + dx;
-					int c = colour[(yy % cr) * cc + xx % cc];
-					sum[c] += raw->data[(size_t)yy * W + xx];
+					int c = wi->colour[(yy % cr) * cc + xx % cc];
+					sum[c] += d[(size_t)yy * W + xx];
 					cnt[c]++;
 				}
 			}
-			float *o = rgb + ((size_t)y * W + x) * 3;
-			for (int c = 0; c < 3; c++)
-				o[c] = c == own ? raw->data[(size_t)y * W + x]
-				                : (cnt[c] ? (float)(sum[c] / cnt[c]) : 0.0f);
 		}
+		float *o = out + (size_t)i * 3;
+		for (int c = 0; c < 3; c++)
+			o[c] = c == own ? d[(size_t)y * W + x] : (cnt[c] ? (float)(sum[c] / cnt[c]) : 0.0f);
 	}
-	return 0;
 }
 
-/* The image as the sampler sees it: interleaved linear floats with 1 or 3 channels. */
-typedef struct work_image {
-	int width, height, channels;
-	const float *data;
-	float *owned;
-	double clip_level;
-	double quantum; /* step between the source's integer codes (0: float or demosaiced) */
-} work_image;
+/* Pixels x0, x0 + step, ... (n of them) of row y, interleaved: a pointer into the
+ * image, or into scratch (n * 3 floats) where they had to be gathered or demosaiced. */
+static const float *image_span(const work_image *wi, int y, int x0, int n, int step,
+                               float *scratch)
+{
+	int C = wi->channels;
+	if (wi->data && step == 1)
+		return wi->data + ((size_t)y * wi->width + x0) * C;
+	if (!wi->data) {
+		demosaic_span(wi, y, x0, n, step, scratch);
+		return scratch;
+	}
+	for (int i = 0; i < n; i++)
+		for (int c = 0; c < C; c++)
+			scratch[(size_t)i * C + c] = wi->data[((size_t)y * wi->width + x0 + i * step) * C + c];
+	return scratch;
+}
+
+typedef struct demosaic_job {
+	work_image *wi;
+	float *out;
+} demosaic_job;
+
+static void demosaic_rows(void *arg, int t, int n)
+{
+	demosaic_job *j = arg;
+	int H = j->wi->height, W = j->wi->width;
+	for (int y = (int)((long)H * t / n); y < (int)((long)H * (t + 1) / n); y++)
+		demosaic_span(j->wi, y, 0, W, 1, j->out + (size_t)y * W * 3);
+}
+
+/* The whole frame demosaiced, for the stages that need every pixel (the overlay, mcc
+ * at full resolution). */
+static int demosaic_all(work_image *wi, kg_err *err)
+{
+	if (wi->data)
+		return 0;
+	wi->owned = malloc((size_t)wi->width * wi->height * 3 * sizeof(float));
+	if (!wi->owned)
+		return kg_fail(err, KG_ENOMEM, "demosaic: out of memory");
+	demosaic_job j = {wi, wi->owned};
+	run_parallel(demosaic_rows, &j, wi->threads);
+	wi->data = wi->owned;
+	return 0;
+}
 
 static int prepare_image(const kg_image *img, const kg_chart_detect_options *opt,
                          work_image *wi, kg_err *err)
@@ -419,28 +529,47 @@ static int prepare_image(const kg_image *img, const kg_chart_detect_options *opt
 	wi->height = img->height;
 	wi->channels = img->channels;
 	wi->data = img->data;
+	wi->threads = clamp_threads(opt->threads);
 	if (opt->clip_level > 0)
 		wi->clip_level = opt->clip_level;
 	else if (img->is_float || img->bits <= 0 || img->bits > 16)
 		wi->clip_level = 1.0;
 	else
 		wi->clip_level = 1.0 - 0.5 / (double)((1L << img->bits) - 1);
-	if (!img->is_float && img->bits > 0 && img->bits <= 16)
+	if (!img->is_float && img->bits > 0 && img->bits <= 16) {
 		wi->quantum = 1.0 / (double)((1L << img->bits) - 1);
+		wi->count_scale = (float)((1L << img->bits) - 1);
+	}
 	if (img->channels == 1 && img->cfa) {
-		size_t n = (size_t)img->width * img->height * 3;
-		wi->owned = malloc(n * sizeof(float));
-		if (!wi->owned)
-			return kg_fail(err, KG_ENOMEM, "demosaic: out of memory");
-		int ret = demosaic_bilinear(img, wi->owned, err);
-		if (ret) {
-			free(wi->owned);
-			wi->owned = NULL;
-			return ret;
+		int cr = img->cfa_rows, cc = img->cfa_cols;
+		if (cr < 1 || cc < 1 || cr * cc > 64)
+			return kg_fail(err, KG_ENOTSUP, "CFA repeat of %dx%d is too large", cr, cc);
+		for (int k = 0; k < cr * cc; k++) {
+			const char *p = strchr("RGB", img->cfa[k]);
+			if (!p || !img->cfa[k])
+				return kg_fail(err, KG_ENOTSUP,
+				               "CFA pattern %.*s: only R, G and B filters can be demosaiced",
+				               cr * cc, img->cfa);
+			wi->colour[k] = (int)(p - "RGB");
 		}
+		for (int py = 0; py < cr; py++)
+			for (int px = 0; px < cc; px++) {
+				int phase = py * cc + px;
+				for (int dy = -1; dy <= 1; dy++)
+					for (int dx = -1; dx <= 1; dx++) {
+						int c = wi->colour[((py + dy + cr) % cr) * cc + (px + dx + cc) % cc];
+						signed char *o = wi->nb[phase][c][wi->nbn[phase][c]++];
+						o[0] = (signed char)dy;
+						o[1] = (signed char)dx;
+					}
+			}
+		wi->raw = img;
+		wi->cfa_rows = cr;
+		wi->cfa_cols = cc;
 		wi->channels = 3;
-		wi->data = wi->owned;
+		wi->data = NULL;
 		wi->quantum = 0;
+		wi->count_scale *= 4;
 	} else if (img->channels != 1 && img->channels != 3) {
 		return kg_fail(err, KG_EINVAL, "image has %d channels: expected 1 or 3",
 		               img->channels);
@@ -448,67 +577,246 @@ static int prepare_image(const kg_image *img, const kg_chart_detect_options *opt
 	return 0;
 }
 
-static double luminance(const work_image *wi, size_t i)
+static double luminance(const float *p, int channels)
 {
-	const float *p = wi->data + i * wi->channels;
-	if (wi->channels == 1)
+	if (channels == 1)
 		return p[0];
 	return 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
 }
 
-enum { GREY_BINS = 4096 };
+enum { GREY_BINS = 4096, WHITE_STEP = 4 };
 
-/* The exposure shown as white to the detectors: the 99.5th percentile of the
- * luminance (a histogram over 0..4 of full scale, every 7th pixel); 1 if that is 0. */
-static double white_level(const work_image *wi)
+typedef struct white_job {
+	const work_image *wi;
+	long (*hist)[GREY_BINS];
+	int failed;
+} white_job;
+
+static const double WHITE_TOP = 4.0; /* the white level's histogram spans 0..4 */
+
+static int white_bin(double y)
 {
-	enum { BINS = GREY_BINS };
-	static const double top = 4.0;
-	size_t n = (size_t)wi->width * wi->height;
-	long hist[BINS] = {0};
-	for (size_t i = 0; i < n; i += 7) {
-		double y = luminance(wi, i);
-		int b = y <= 0 || !isfinite(y) ? 0 : y >= top ? BINS - 1 : (int)(y / top * BINS);
-		hist[b]++;
-	}
+	return y <= 0 || !isfinite(y) ? 0 : y >= WHITE_TOP ? GREY_BINS - 1
+	                                                   : (int)(y / WHITE_TOP * GREY_BINS);
+}
+
+/* The 99.5th percentile of the n threads' histograms (summed into hist[0]); 1 if it
+ * is 0. */
+static double white_of(long (*hist)[GREY_BINS], int n)
+{
 	long total = 0, acc = 0;
-	for (int b = 0; b < BINS; b++)
-		total += hist[b];
+	for (int t = 1; t < n; t++)
+		for (int b = 0; b < GREY_BINS; b++)
+			hist[0][b] += hist[t][b];
+	for (int b = 0; b < GREY_BINS; b++)
+		total += hist[0][b];
 	double white = 1.0;
-	for (int b = 0; b < BINS; b++) {
-		acc += hist[b];
+	for (int b = 0; b < GREY_BINS; b++) {
+		acc += hist[0][b];
 		if (acc >= 0.995 * total) {
-			white = (b + 1) * top / BINS;
+			white = (b + 1) * WHITE_TOP / GREY_BINS;
 			break;
 		}
 	}
 	return white > 1e-6 ? white : 1.0;
 }
 
-/* An 8-bit grey picture for tag detection and the overlay: luminance scaled so its
- * 99.5th percentile is white, then sRGB-encoded (a lookup table of 4096 steps). */
-static unsigned char *grey8(const work_image *wi, double *scale_out)
+static void white_rows(void *arg, int t, int n)
 {
-	enum { BINS = GREY_BINS };
-	size_t n = (size_t)wi->width * wi->height;
-	unsigned char *g = malloc(n ? n : 1);
-	if (!g)
-		return NULL;
-	double white = white_level(wi);
-	unsigned char lut[BINS];
-	for (int b = 0; b < BINS; b++) {
-		double v = (b + 0.5) / BINS;
+	white_job *j = arg;
+	const work_image *wi = j->wi;
+	int cols = (wi->width + WHITE_STEP - 1) / WHITE_STEP;
+	int rows = (wi->height + WHITE_STEP - 1) / WHITE_STEP;
+	float *scratch = malloc((size_t)cols * 3 * sizeof(float));
+	long *hist = j->hist[t];
+	if (!scratch) {
+		j->failed = 1;
+		return;
+	}
+	for (int r = (int)((long)rows * t / n); r < (int)((long)rows * (t + 1) / n); r++) {
+		const float *p = image_span(wi, r * WHITE_STEP, 0, cols, WHITE_STEP, scratch);
+		for (int i = 0; i < cols; i++) {
+			hist[white_bin(luminance(p + (size_t)i * wi->channels, wi->channels))]++;
+		}
+	}
+	free(scratch);
+}
+
+/* The exposure shown as white to the detectors: the 99.5th percentile of the
+ * luminance (a histogram over 0..4 of full scale of every 4th pixel of every 4th row,
+ * 1/16 of the image); 1 if that is 0, or if memory ran out. */
+static double white_level(const work_image *wi)
+{
+	int n = wi->threads;
+	white_job j = {wi, calloc((size_t)n, sizeof(*j.hist)), 0};
+	if (!j.hist)
+		return 1.0;
+	run_parallel(white_rows, &j, n);
+	double white = j.failed ? 1.0 : white_of(j.hist, n);
+	free(j.hist);
+	return white;
+}
+
+/* value / white through the sRGB curve, as 8 bits, in GREY_BINS steps over 0..1 */
+static void srgb_lut(unsigned char lut[GREY_BINS])
+{
+	for (int b = 0; b < GREY_BINS; b++) {
+		double v = (b + 0.5) / GREY_BINS;
 		double e = v <= 0.0031308 ? 12.92 * v : 1.055 * pow(v, 1 / 2.4) - 0.055;
 		lut[b] = (unsigned char)lrint(fmin(fmax(e, 0), 1) * 255);
 	}
-	double k = BINS / white;
-	for (size_t i = 0; i < n; i++) {
-		double y = luminance(wi, i) * k;
-		int b = !(y > 0) ? 0 : y >= BINS - 1 ? BINS - 1 : (int)y;
-		g[i] = lut[b];
+}
+
+/* The 8-bit code of a luminance already scaled to the table's GREY_BINS steps. */
+static unsigned char grey_code(const unsigned char lut[GREY_BINS], float v)
+{
+	return lut[!(v > 0) ? 0 : v >= GREY_BINS - 1 ? GREY_BINS - 1 : (int)v];
+}
+
+typedef struct grey_job {
+	const work_image *wi;
+	int step, gw, gh; /* every step-th pixel of every step-th row: gw x gh */
+	unsigned char *g, lut[GREY_BINS];
+	float k;
+	int failed;
+} grey_job;
+
+static void grey_rows(void *arg, int t, int n)
+{
+	grey_job *j = arg;
+	const work_image *wi = j->wi;
+	int gw = j->gw, C = wi->channels;
+	int direct = wi->data && j->step == 1;
+	float *scratch = direct ? NULL : malloc((size_t)gw * 3 * sizeof(float));
+	if (!direct && !scratch) {
+		j->failed = 1;
+		return;
 	}
+	const float k = j->k;
+	for (int y = (int)((long)j->gh * t / n); y < (int)((long)j->gh * (t + 1) / n); y++) {
+		const float *p = image_span(wi, y * j->step, 0, gw, j->step, scratch);
+		unsigned char *o = j->g + (size_t)y * gw;
+		for (int x = 0; x < gw; x++) {
+			const float *q = p + (size_t)x * C;
+			float v = (C == 1 ? q[0] : 0.2126f * q[0] + 0.7152f * q[1] + 0.0722f * q[2]) * k;
+			o[x] = grey_code(j->lut, v);
+		}
+	}
+	free(scratch);
+}
+
+/* An 8-bit grey picture for tag detection and the overlay: luminance scaled so its
+ * 99.5th percentile is white, then sRGB-encoded (a lookup table of 4096 steps), in
+ * bands of rows over the threads. step 2: every 2nd pixel of every 2nd row only
+ * (*gw x *gh), whose every 2nd pixel and row are the ones white_level reads. */
+static unsigned char *grey8(const work_image *wi, int step, int *gw, int *gh,
+                            double *scale_out)
+{
+	grey_job j = {.wi = wi, .step = step, .gw = (wi->width + step - 1) / step,
+	              .gh = (wi->height + step - 1) / step};
+	size_t n = (size_t)j.gw * j.gh;
+	if (!(j.g = malloc(n ? n : 1)))
+		return NULL;
+	double white = white_level(wi);
+	srgb_lut(j.lut);
+	j.k = (float)(GREY_BINS / white);
+	run_parallel(grey_rows, &j, wi->threads);
+	if (j.failed) {
+		free(j.g);
+		return NULL;
+	}
+	*gw = j.gw;
+	*gh = j.gh;
 	*scale_out = 1.0 / white;
-	return g;
+	return j.g;
+}
+
+/* A 2 x 2 CFA holding R, G and B: each 2 x 2 block's luminance is a weighted sum of
+ * its four pixels (each filter's coefficient shared among the pixels behind it), so
+ * the tags can be looked for on a half-resolution grey picture built straight from the
+ * mosaic, without demosaicing. Returns 0 and the weights, or -1 for other CFAs. */
+static int block_weights(const work_image *wi, float w[4])
+{
+	static const float coef[3] = {0.2126f, 0.7152f, 0.0722f};
+	int count[3] = {0, 0, 0};
+	if (!wi->raw || wi->cfa_rows != 2 || wi->cfa_cols != 2)
+		return -1;
+	for (int k = 0; k < 4; k++)
+		count[wi->colour[k]]++;
+	if (!count[0] || !count[1] || !count[2])
+		return -1;
+	for (int k = 0; k < 4; k++)
+		w[k] = coef[wi->colour[k]] / (float)count[wi->colour[k]];
+	return 0;
+}
+
+typedef struct binned_job {
+	const work_image *wi;
+	float w[4];
+	int bw, bh; /* the blocks: bw x bh */
+	long (*hist)[GREY_BINS];
+	unsigned char *g, lut[GREY_BINS];
+	float k;
+} binned_job;
+
+static float block_luminance(const binned_job *j, const float *r0, const float *r1, int bx)
+{
+	return j->w[0] * r0[2 * bx] + j->w[1] * r0[2 * bx + 1] + j->w[2] * r1[2 * bx] +
+	       j->w[3] * r1[2 * bx + 1];
+}
+
+/* The white level's histogram over every 2nd block of every 2nd block row (1/16 of the
+ * pixels, as white_level takes of a demosaiced frame). */
+static void binned_white_rows(void *arg, int t, int n)
+{
+	binned_job *j = arg;
+	const float *d = j->wi->raw->data;
+	int W = j->wi->width, rows = (j->bh + 1) / 2;
+	long *hist = j->hist[t];
+	for (int r = (int)((long)rows * t / n); r < (int)((long)rows * (t + 1) / n); r++) {
+		const float *r0 = d + (size_t)(4 * r) * W, *r1 = r0 + W;
+		for (int bx = 0; bx < j->bw; bx += 2)
+			hist[white_bin(block_luminance(j, r0, r1, bx))]++;
+	}
+}
+
+static void binned_grey_rows(void *arg, int t, int n)
+{
+	binned_job *j = arg;
+	const float *d = j->wi->raw->data;
+	int W = j->wi->width;
+	const float k = j->k;
+	for (int by = (int)((long)j->bh * t / n); by < (int)((long)j->bh * (t + 1) / n); by++) {
+		const float *r0 = d + (size_t)(2 * by) * W, *r1 = r0 + W;
+		unsigned char *o = j->g + (size_t)by * j->bw;
+		for (int bx = 0; bx < j->bw; bx++)
+			o[bx] = grey_code(j->lut, block_luminance(j, r0, r1, bx) * k);
+	}
+}
+
+/* The tag detector's grey picture of a Bayer frame at half resolution (the blocks of
+ * block_weights; an odd last row or column is left out), white level included. */
+static unsigned char *grey8_binned(const work_image *wi, const float w[4], int *bw, int *bh)
+{
+	int n = wi->threads;
+	binned_job j = {.wi = wi, .bw = wi->width / 2, .bh = wi->height / 2};
+	memcpy(j.w, w, sizeof(j.w));
+	j.hist = calloc((size_t)n, sizeof(*j.hist));
+	j.g = malloc((size_t)j.bw * j.bh);
+	if (!j.hist || !j.g) {
+		free(j.hist);
+		free(j.g);
+		return NULL;
+	}
+	run_parallel(binned_white_rows, &j, n);
+	double white = white_of(j.hist, n);
+	free(j.hist);
+	srgb_lut(j.lut);
+	j.k = (float)(GREY_BINS / white);
+	run_parallel(binned_grey_rows, &j, n);
+	*bw = j.bw;
+	*bh = j.bh;
+	return j.g;
 }
 
 /* ---- tags -------------------------------------------------------------------- */
@@ -565,8 +873,10 @@ static void family_destroy(apriltag_family_t *f)
 		tagCircle21h7_destroy(f);
 }
 
-static int run_apriltag(const unsigned char *grey, int width, int height, const char *family,
-                        int decimate, int threads, kg_chart_result *r, kg_err *err)
+/* Tags on grey (width x height), each of its pixels `zoom` image pixels a side. */
+static int run_apriltag(const unsigned char *grey, int width, int height, int zoom,
+                        const char *family, int decimate, int threads, kg_chart_result *r,
+                        kg_err *err)
 {
 	apriltag_family_t *tf = family_create(family);
 	if (!tf)
@@ -602,8 +912,8 @@ static int run_apriltag(const unsigned char *grey, int width, int height, const 
 		t->hamming = d->hamming;
 		t->margin = d->decision_margin;
 		for (int k = 0; k < 4; k++) {
-			t->corners[k][0] = d->p[k][0] + 0.5;
-			t->corners[k][1] = d->p[k][1] + 0.5;
+			t->corners[k][0] = (d->p[k][0] + 0.5) * zoom;
+			t->corners[k][1] = (d->p[k][1] + 0.5) * zoom;
 		}
 	}
 	if (dets)
@@ -777,7 +1087,7 @@ static int cmp_float(const void *a, const void *b)
 	return (x > y) - (x < y);
 }
 
-/* k-th smallest of v[0..n) (reorders v). */
+/* k-th smallest of v[0..n) (reorders v): the reference selection. */
 static float select_kth(float *v, long n, long k)
 {
 	long lo = 0, hi = n - 1;
@@ -807,8 +1117,113 @@ static float select_kth(float *v, long n, long k)
 	return v[k];
 }
 
-static double median_of(float *v, long n)
+/* Floats as unsigned keys in the same order (negative ones reversed below the
+ * positive ones). */
+static uint32_t float_key(float f)
 {
+	uint32_t u;
+	memcpy(&u, &f, sizeof(u));
+	return (u & 0x80000000u) ? ~u : u | 0x80000000u;
+}
+
+static float key_float(uint32_t k)
+{
+	uint32_t u = (k & 0x80000000u) ? k & 0x7fffffffu : ~k;
+	float f;
+	memcpy(&f, &u, sizeof(f));
+	return f;
+}
+
+enum { RADIX_BITS = 11 };
+
+/* The (k-1)-th and k-th smallest of v[0..n) (out[0], out[1]; out[0] is out[1] when
+ * k = 0) by radix selection on the keys: a histogram of the keys between their least
+ * and greatest in 2^11 bins, then only the bin holding rank k again, until a bin is
+ * one value (at most 3 rounds for 32 bits). Each round reads its set once or twice
+ * where quickselect's partitions read it about 3.4 times with unpredictable branches,
+ * and v is left as it is. The values are those select_kth returns. scratch: n keys. */
+static void radix_pair(const float *v, long n, long k, uint32_t *scratch, float out[2])
+{
+	const uint32_t *keys = NULL; /* NULL: the keys of v */
+	uint32_t lo = UINT32_MAX, hi = 0;
+	for (long i = 0; i < n; i++) {
+		uint32_t key = float_key(v[i]);
+		lo = key < lo ? key : lo;
+		hi = key > hi ? key : hi;
+	}
+	long m = n, r0 = k - 1, r1 = k;
+	for (;;) {
+		if (lo == hi) {
+			out[0] = out[1] = key_float(lo);
+			return;
+		}
+		uint32_t range = hi - lo;
+		int bits = 32 - __builtin_clz(range);
+		int shift = bits > RADIX_BITS ? bits - RADIX_BITS : 0;
+		long nb = (long)(range >> shift) + 1, hist[1 << RADIX_BITS];
+		memset(hist, 0, (size_t)nb * sizeof(hist[0]));
+		if (keys)
+			for (long i = 0; i < m; i++)
+				hist[(keys[i] - lo) >> shift]++;
+		else
+			for (long i = 0; i < m; i++)
+				hist[(float_key(v[i]) - lo) >> shift]++;
+		long cum = 0, c1 = 0, b0 = -1, b1 = -1;
+		for (long b = 0; b < nb; b++) {
+			if (b0 < 0 && r0 >= 0 && r0 < cum + hist[b])
+				b0 = b;
+			if (r1 < cum + hist[b]) {
+				b1 = b;
+				c1 = cum;
+				break;
+			}
+			cum += hist[b];
+		}
+		if (r0 < 0)
+			b0 = b1;
+		if (b0 != b1 || shift == 0) {
+			/* rank k - 1 ends bin b0, rank k starts bin b1 (one value when shift is 0) */
+			uint32_t mx = 0, mn = UINT32_MAX;
+			for (long i = 0; i < m; i++) {
+				uint32_t key = keys ? keys[i] : float_key(v[i]);
+				long b = (long)((key - lo) >> shift);
+				if (b == b0 && key > mx)
+					mx = key;
+				if (b == b1 && key < mn)
+					mn = key;
+			}
+			out[0] = key_float(mx);
+			out[1] = key_float(mn);
+			return;
+		}
+		long w = 0;
+		uint32_t nlo = UINT32_MAX, nhi = 0;
+		for (long i = 0; i < m; i++) {
+			uint32_t key = keys ? keys[i] : float_key(v[i]);
+			if ((long)((key - lo) >> shift) == b1) {
+				scratch[w++] = key;
+				nlo = key < nlo ? key : nlo;
+				nhi = key > nhi ? key : nhi;
+			}
+		}
+		keys = scratch;
+		m = w;
+		r0 -= c1;
+		r1 -= c1;
+		lo = nlo;
+		hi = nhi;
+	}
+}
+
+/* Median of v[0..n): by select_kth (reorders v) or, fast, by radix_pair; the same
+ * value either way. */
+static double median_of(float *v, long n, int fast, uint32_t *scratch)
+{
+	if (fast) {
+		float pair[2];
+		radix_pair(v, n, n / 2, scratch, pair);
+		return n % 2 ? pair[1] : 0.5 * ((double)pair[1] + pair[0]);
+	}
 	if (n % 2)
 		return select_kth(v, n, n / 2);
 	double a = select_kth(v, n, n / 2);
@@ -835,14 +1250,15 @@ static double grouped_median(const float *v, long n, double med, double q)
 }
 
 /* Robust location and spread of v[0..n): the statistic asked for and 1.4826 MAD.
- * quantum > 0: the values are integer codes that far apart. */
-static void robust_stats(float *v, float *work, long n, const kg_chart_detect_options *opt,
-                         double quantum, double *loc, double *sigma)
+ * quantum > 0: the values are integer codes that far apart. fast: radix selection. */
+static void robust_stats(float *v, float *work, uint32_t *scratch, long n,
+                         const kg_chart_detect_options *opt, double quantum, int fast,
+                         double *loc, double *sigma)
 {
-	double med = median_of(v, n);
+	double med = median_of(v, n, fast, scratch);
 	for (long i = 0; i < n; i++)
 		work[i] = fabsf(v[i] - (float)med);
-	*sigma = 1.4826 * median_of(work, n);
+	*sigma = 1.4826 * median_of(work, n, fast, scratch);
 	if (opt->statistic == KG_CHART_TRIMMED_MEAN) {
 		qsort(v, (size_t)n, sizeof(float), cmp_float);
 		long cut = (long)floor(opt->trim * n);
@@ -869,21 +1285,39 @@ typedef struct sample_buffers {
 	float *ch[3];
 	float *sum;
 	float *work;
+	uint32_t *keys;
 	long cap;
+	float *row; /* one row of the region, demosaiced or gathered */
+	long row_cap;
+	/* counting (count_values): keys lo .. lo + nb - 1, their counts and values */
+	int32_t *cnt;
+	float *val;
+	long lo, nb, bins_cap;
 } sample_buffers;
 
-static int buffers_reserve(sample_buffers *b, long n)
+static int buffers_reserve(sample_buffers *b, long n, long row)
 {
-	if (n <= b->cap)
-		return 0;
-	float **arrs[5] = {&b->ch[0], &b->ch[1], &b->ch[2], &b->sum, &b->work};
-	for (int k = 0; k < 5; k++) {
-		float *p = realloc(*arrs[k], (size_t)n * sizeof(float));
+	if (n > b->cap) {
+		float **arrs[5] = {&b->ch[0], &b->ch[1], &b->ch[2], &b->sum, &b->work};
+		for (int k = 0; k < 5; k++) {
+			float *p = realloc(*arrs[k], (size_t)n * sizeof(float));
+			if (!p)
+				return KG_ENOMEM;
+			*arrs[k] = p;
+		}
+		uint32_t *keys = realloc(b->keys, (size_t)n * sizeof(uint32_t));
+		if (!keys)
+			return KG_ENOMEM;
+		b->keys = keys;
+		b->cap = n;
+	}
+	if (row > b->row_cap) {
+		float *p = realloc(b->row, (size_t)row * 3 * sizeof(float));
 		if (!p)
 			return KG_ENOMEM;
-		*arrs[k] = p;
+		b->row = p;
+		b->row_cap = row;
 	}
-	b->cap = n;
 	return 0;
 }
 
@@ -893,6 +1327,172 @@ static void buffers_free(sample_buffers *b)
 		free(b->ch[k]);
 	free(b->sum);
 	free(b->work);
+	free(b->keys);
+	free(b->row);
+	free(b->cnt);
+	free(b->val);
+}
+
+/* Counting instead of selecting, for values that lie near integers once scaled
+ * (integer codes; the halves and quarters of raw codes that demosaicing averages; sums
+ * of such values, a few float steps off the integer): each value's key is its integer
+ * k = floor(v scale + 1/2) and its distance in float steps from the float of k / scale,
+ * k COUNT_SPREAD + that distance + COUNT_SPREAD / 2. Two values of one integer differ
+ * in their distance, and values of different integers are far apart, so the key
+ * grows with the value and no two values share one: counting the keys between the
+ * least and the greatest, each key's value kept, puts the values in order, and every
+ * order statistic is a walk over the counts, equal to what selection finds. Returns -1
+ * (select instead) for a value negative (-0 included) or beyond 2^26 / scale or not
+ * finite, a distance of half COUNT_SPREAD steps or more, a range of keys much wider
+ * than the values are many, or no memory. */
+enum { COUNT_SPREAD = 8, COUNT_MAX_BINS = 1 << 22 };
+
+static uint32_t float_bits(float f)
+{
+	uint32_t u;
+	memcpy(&u, &f, sizeof(u));
+	return u;
+}
+
+static int count_values(const float *v, long n, float scale, sample_buffers *b)
+{
+	const float inv = 1.0f / scale;
+	uint32_t lo = UINT32_MAX, hi = 0, bad = 0;
+	for (long i = 0; i < n; i++) {
+		float t = v[i] * scale;
+		if (!(t >= 0 && t < 67108864.0f))
+			return -1;
+		uint32_t k = (uint32_t)(t + 0.5f);
+		uint32_t d = float_bits(v[i]) - float_bits((float)k * inv) + COUNT_SPREAD / 2;
+		bad |= d >= COUNT_SPREAD;
+		uint32_t key = k * COUNT_SPREAD + d;
+		b->keys[i] = key;
+		lo = key < lo ? key : lo;
+		hi = key > hi ? key : hi;
+	}
+	long nb = n ? (long)(hi - lo) + 1 : 0;
+	if (bad || nb > COUNT_MAX_BINS || nb > 4 * n + 65536)
+		return -1;
+	if (nb > b->bins_cap) {
+		int32_t *c = realloc(b->cnt, (size_t)nb * sizeof(*c));
+		if (c)
+			b->cnt = c;
+		float *f = c ? realloc(b->val, (size_t)nb * sizeof(*f)) : NULL;
+		if (!f)
+			return -1;
+		b->val = f;
+		b->bins_cap = nb;
+	}
+	memset(b->cnt, 0, (size_t)nb * sizeof(*b->cnt));
+	for (long i = 0; i < n; i++) {
+		uint32_t k = b->keys[i] - lo;
+		b->val[k] = v[i];
+		b->cnt[k]++;
+	}
+	b->lo = lo;
+	b->nb = nb;
+	return 0;
+}
+
+/* Ranks r[0] <= r[1] picked from values arriving in ascending order, c copies each. */
+typedef struct rank_pick {
+	long r[2], seen;
+	float out[2];
+} rank_pick;
+
+static int pick(rank_pick *p, float v, long c)
+{
+	long end = p->seen + c;
+	for (int s = 0; s < 2; s++)
+		if (p->r[s] >= p->seen && p->r[s] < end)
+			p->out[s] = v;
+	p->seen = end;
+	return end > p->r[1];
+}
+
+static double pick_median(const rank_pick *p, long n)
+{
+	return n % 2 ? p->out[1] : 0.5 * ((double)p->out[1] + p->out[0]);
+}
+
+/* robust_stats from the counts of count_values: the same numbers. The median's
+ * absolute deviations come from walking outward from the median in both directions
+ * at once, each side's deviations growing as it goes. */
+static void counted_stats(const sample_buffers *b, long n, const kg_chart_detect_options *opt,
+                          double quantum, double *loc, double *sigma)
+{
+	const int32_t *cnt = b->cnt;
+	const float *val = b->val;
+	long nb = b->nb;
+	rank_pick m = {{n / 2 - 1, n / 2}, 0, {0, 0}};
+	long up = 0;
+	while (!pick(&m, val[up], cnt[up]))
+		for (up++; !cnt[up]; up++)
+			;
+	double med = pick_median(&m, n);
+	float fm = (float)med;
+	/* the deviations fabsf(v - fm), as the selection computes them */
+	for (up = 0; up < nb && !(cnt[up] && val[up] >= fm); up++)
+		;
+	long down = up - 1;
+	while (down >= 0 && !cnt[down])
+		down--;
+	rank_pick d = {{n / 2 - 1, n / 2}, 0, {0, 0}};
+	for (;;) {
+		float du = up < nb ? fabsf(val[up] - fm) : INFINITY;
+		float dd = down >= 0 ? fabsf(val[down] - fm) : INFINITY;
+		int done;
+		if (du <= dd) {
+			done = pick(&d, du, cnt[up]);
+			for (up++; up < nb && !cnt[up]; up++)
+				;
+		} else {
+			done = pick(&d, dd, cnt[down]);
+			for (down--; down >= 0 && !cnt[down]; down--)
+				;
+		}
+		if (done)
+			break;
+	}
+	*sigma = 1.4826 * pick_median(&d, n);
+	if (opt->statistic == KG_CHART_TRIMMED_MEAN) {
+		long cut = (long)floor(opt->trim * n);
+		if (2 * cut >= n)
+			cut = (n - 1) / 2;
+		double s = 0;
+		long at = 0;
+		for (long k = 0; k < nb && at < n - cut; k++) {
+			for (long i = 0; i < cnt[k] && at < n - cut; i++, at++)
+				if (at >= cut)
+					s += val[k];
+		}
+		*loc = s / (double)(n - 2 * cut);
+	} else if (quantum > 0) {
+		long below = 0, at = 0;
+		for (long k = 0; k < nb; k++) {
+			if (!cnt[k])
+				continue;
+			if (val[k] < med - 0.5 * quantum)
+				below += cnt[k];
+			else if (val[k] <= med + 0.5 * quantum)
+				at += cnt[k];
+		}
+		*loc = at ? med - 0.5 * quantum + quantum * (0.5 * n - below) / at : med;
+	} else {
+		*loc = med;
+	}
+}
+
+/* How many of the counted values exceed t. */
+static long counted_above(const sample_buffers *b, double t)
+{
+	long c = 0;
+	for (long k = b->nb - 1; k >= 0; k--)
+		if (b->cnt[k] && !(b->val[k] > t))
+			break;
+		else
+			c += b->cnt[k];
+	return c;
 }
 
 static void flag(kg_chart_sample *p, unsigned f, const char *why)
@@ -902,9 +1502,77 @@ static void flag(kg_chart_sample *p, unsigned f, const char *why)
 	snprintf(p->warning + at, sizeof(p->warning) - at, "%s%s", at ? "; " : "", why);
 }
 
+/* Whether the pixel centre (X, Y) maps inside the sampled rectangle (half sides hx,
+ * hy around the patch centre c, in mm) and in which quadrant: the reference test. */
+static int inside_exact(const double Hinv[9], double X, double Y, const double c[2],
+                        double hx, double hy, int *q)
+{
+	double m[2];
+	kg_homography_map(Hinv, X, Y, m);
+	double u = m[0] - c[0], v = m[1] - c[1];
+	if (!(fabs(u) <= hx && fabs(v) <= hy))
+		return 0;
+	*q = (u >= 0) + 2 * (v >= 0);
+	return 1;
+}
+
+/* The sampled rectangle along one row of pixel centres, without divisions. With G the
+ * inverse homography (signed so that its w is positive over the region), a pixel
+ * centre X maps to u = A / w, v = B / w relative to the patch centre, where A, B and
+ * w are affine in X: the pixel is inside when |A| <= hx w and |B| <= hy w, four
+ * affine inequalities whose solutions are one interval of X. */
+typedef struct span_row {
+	double a[3], b[3]; /* A, B, w = a + b X */
+} span_row;
+
+static void span_row_at(const double G[9], const double c[2], double Y, span_row *s)
+{
+	double aw = G[7] * Y + G[8];
+	s->a[0] = G[1] * Y + G[2] - c[0] * aw;
+	s->b[0] = G[0] - c[0] * G[6];
+	s->a[1] = G[4] * Y + G[5] - c[1] * aw;
+	s->b[1] = G[3] - c[1] * G[6];
+	s->a[2] = aw;
+	s->b[2] = G[6];
+}
+
+/* The columns [*x0, *x1) of pixels whose centres can be inside (one pixel of margin
+ * each side: the exact test decides there), within the bounds given. */
+static void span_columns(const span_row *s, double hx, double hy, long *x0, long *x1)
+{
+	double lo = -INFINITY, hi = INFINITY;
+	double h[2] = {hx, hy};
+	for (int k = 0; k < 2; k++)
+		for (int sign = -1; sign <= 1; sign += 2) {
+			/* sign * (a + b X) - h (aw + bw X) <= 0 */
+			double a = sign * s->a[k] - h[k] * s->a[2], b = sign * s->b[k] - h[k] * s->b[2];
+			if (b > 0)
+				hi = fmin(hi, -a / b);
+			else if (b < 0)
+				lo = fmax(lo, -a / b);
+			else if (a > 0)
+				hi = -INFINITY;
+		}
+	if (!(lo <= hi)) {
+		*x1 = *x0;
+		return;
+	}
+	double da = ceil(lo - 0.5) - 1, db = floor(hi - 0.5) + 2;
+	if (da > (double)*x0)
+		*x0 = da < (double)*x1 ? (long)da : *x1;
+	if (db < (double)*x1)
+		*x1 = db > (double)*x0 ? (long)db : *x0;
+}
+
+/* Sample one patch: every pixel whose centre maps inside the patch's centred
+ * sample_fraction. The reference maps every pixel of the region's bounding box
+ * through the inverse homography; fast rasterises the region row by row (span_row),
+ * classifies by the affine forms and falls back to the reference test within 1e-9
+ * of the patch scale of a side or a quadrant boundary, so both take the same pixels
+ * in the same order, and selects by radix_pair: the same values. */
 static int sample_patch(const work_image *wi, const double H[9], const double Hinv[9],
                         const double center[2], const double size[2],
-                        const kg_chart_detect_options *opt, sample_buffers *buf,
+                        const kg_chart_detect_options *opt, int fast, sample_buffers *buf,
                         kg_chart_sample *p)
 {
 	double hx = 0.5 * opt->sample_fraction * size[0], hy = 0.5 * opt->sample_fraction * size[1];
@@ -925,31 +1593,65 @@ static int sample_patch(const work_image *wi, const double H[9], const double Hi
 	long cap = (ix1 > ix0 && iy1 > iy0) ? (ix1 - ix0) * (iy1 - iy0) : 0;
 	if (!isfinite(expected) || cap > KG_IMAGE_MAX_PIXELS)
 		cap = 0;
-	if (buffers_reserve(buf, cap ? cap : 1))
+	if (buffers_reserve(buf, cap ? cap : 1, cap ? ix1 - ix0 : 1))
 		return KG_ENOMEM;
+	/* The fast path needs w of one sign over the box (no horizon inside it). */
+	double G[9], wsign = 0;
+	for (int k = 0; k < 4 && fast && cap; k++) {
+		double X = (k & 1 ? ix1 - 0.5 : ix0 + 0.5), Y = (k & 2 ? iy1 - 0.5 : iy0 + 0.5);
+		double w = Hinv[6] * X + Hinv[7] * Y + Hinv[8];
+		if (k == 0)
+			wsign = w > 0 ? 1 : w < 0 ? -1 : 0;
+		else if (!(w * wsign > 0))
+			wsign = 0;
+	}
+	fast = fast && wsign != 0;
+	for (int k = 0; k < 9; k++)
+		G[k] = wsign * Hinv[k];
+	double tol = 1e-9 * (fabs(cx) + fabs(cy) + hx + hy + 1);
 	long n = 0;
 	double qsum[4] = {0, 0, 0, 0};
 	long qn[4] = {0, 0, 0, 0};
 	int C = wi->channels;
 	for (long y = iy0; y < iy1 && cap; y++) {
-		for (long x = ix0; x < ix1; x++) {
-			double m[2];
-			kg_homography_map(Hinv, x + 0.5, y + 0.5, m);
-			double u = m[0] - cx, v = m[1] - cy;
-			if (!(fabs(u) <= hx && fabs(v) <= hy))
+		double Y = y + 0.5;
+		long xa = ix0, xb = ix1;
+		span_row s;
+		if (fast) {
+			span_row_at(G, center, Y, &s);
+			span_columns(&s, hx, hy, &xa, &xb);
+		}
+		if (xa >= xb)
+			continue;
+		const float *row = image_span(wi, (int)y, (int)xa, (int)(xb - xa), 1, buf->row);
+		for (long x = xa; x < xb; x++) {
+			double X = x + 0.5;
+			int q = 0, in;
+			if (fast) {
+				double A = s.a[0] + s.b[0] * X, B = s.a[1] + s.b[1] * X, w = s.a[2] + s.b[2] * X;
+				double dA = fabs(A), dB = fabs(B), t = tol * w;
+				if (fabs(dA - hx * w) <= t || fabs(dB - hy * w) <= t || dA <= t || dB <= t) {
+					in = inside_exact(Hinv, X, Y, center, hx, hy, &q);
+				} else {
+					in = dA < hx * w && dB < hy * w;
+					q = (A > 0) + 2 * (B > 0);
+				}
+			} else {
+				in = inside_exact(Hinv, X, Y, center, hx, hy, &q);
+			}
+			if (!in)
 				continue;
-			const float *px = wi->data + ((size_t)y * wi->width + x) * C;
-			double s = 0;
+			const float *px = row + (x - xa) * C;
+			double sum = 0;
 			int clipped = 0;
 			for (int c = 0; c < 3; c++) {
 				float val = px[C == 3 ? c : 0];
 				buf->ch[c][n] = val;
-				s += val;
+				sum += val;
 				clipped |= val >= wi->clip_level;
 			}
-			buf->sum[n] = (float)s;
-			int q = (u >= 0) + 2 * (v >= 0);
-			qsum[q] += s;
+			buf->sum[n] = (float)sum;
+			qsum[q] += sum;
 			qn[q]++;
 			p->clipped_fraction += clipped;
 			n++;
@@ -969,18 +1671,36 @@ static int sample_patch(const work_image *wi, const double H[9], const double Hi
 	}
 	if (inside < 0.9)
 		flag(p, KG_CHART_FLAG_OUT_OF_FRAME, "partly outside the image");
-	for (int c = 0; c < 3; c++)
-		robust_stats(buf->ch[c], buf->work, n, opt, wi->quantum, &p->rgb[c], &p->sd[c]);
+	/* Grey images repeat their one channel: counted or selected once. */
+	int count = fast && wi->count_scale > 0;
+	for (int c = 0; c < 3; c++) {
+		if (c > 0 && C == 1) {
+			p->rgb[c] = p->rgb[0];
+			p->sd[c] = p->sd[0];
+		} else if (count && !count_values(buf->ch[c], n, wi->count_scale, buf)) {
+			counted_stats(buf, n, opt, wi->quantum, &p->rgb[c], &p->sd[c]);
+		} else {
+			robust_stats(buf->ch[c], buf->work, buf->keys, n, opt, wi->quantum, fast,
+			             &p->rgb[c], &p->sd[c]);
+		}
+	}
 	/* Glare: bright outliers in the channel sum, beyond 6 sigma and 5 % of the level. */
-	double sum_med, sum_sigma;
+	double sum_med, sum_sigma, bright;
 	kg_chart_detect_options med_opt = *opt;
 	med_opt.statistic = KG_CHART_MEDIAN;
-	memcpy(buf->work, buf->sum, (size_t)n * sizeof(float)); /* keep sums for counting */
-	robust_stats(buf->work, buf->ch[0], n, &med_opt, 0, &sum_med, &sum_sigma);
-	double bright = sum_med + fmax(6 * sum_sigma, 0.05 * fabs(sum_med));
 	long nbright = 0;
-	for (long i = 0; i < n; i++)
-		nbright += buf->sum[i] > bright;
+	if (count && !count_values(buf->sum, n, wi->count_scale, buf)) {
+		counted_stats(buf, n, &med_opt, 0, &sum_med, &sum_sigma);
+		bright = sum_med + fmax(6 * sum_sigma, 0.05 * fabs(sum_med));
+		nbright = counted_above(buf, bright);
+	} else {
+		memcpy(buf->work, buf->sum, (size_t)n * sizeof(float)); /* keep sums for counting */
+		robust_stats(buf->work, buf->ch[0], buf->keys, n, &med_opt, 0, fast, &sum_med,
+		             &sum_sigma);
+		bright = sum_med + fmax(6 * sum_sigma, 0.05 * fabs(sum_med));
+		for (long i = 0; i < n; i++)
+			nbright += buf->sum[i] > bright;
+	}
 	/* Non-uniformity: spread of the four quadrant means relative to the mean. */
 	double qmin = INFINITY, qmax = -INFINITY, total = 0;
 	for (int q = 0; q < 4; q++) {
@@ -1014,8 +1734,31 @@ static int sample_patch(const work_image *wi, const double H[9], const double Hi
 	return 0;
 }
 
-static int sample_all(const layout_view *L, const work_image *wi,
-                      const kg_chart_detect_options *opt, kg_chart_result *r, kg_err *err)
+typedef struct sample_job {
+	const layout_view *L;
+	const work_image *wi;
+	const kg_chart_detect_options *opt;
+	const double *H, *Hinv;
+	kg_chart_sample *patches;
+	int fast;
+	int failed[MAX_THREADS];
+} sample_job;
+
+/* Thread t samples patches t, t + n, ...: each patch alone decides its values. */
+static void sample_patches(void *arg, int t, int n)
+{
+	sample_job *j = arg;
+	sample_buffers buf = {0};
+	for (int i = t; i < j->L->npatches && !j->failed[t]; i += n)
+		j->failed[t] = sample_patch(j->wi, j->H, j->Hinv, j->L->patch_center[i],
+		                            j->L->patch_size[i], j->opt, j->fast, &buf,
+		                            &j->patches[i]) != 0;
+	buffers_free(&buf);
+}
+
+static int sample_all_with(const layout_view *L, const work_image *wi,
+                           const kg_chart_detect_options *opt, int fast, kg_chart_result *r,
+                           kg_err *err)
 {
 	double Hinv[9];
 	if (kg_homography_invert(r->H, Hinv))
@@ -1023,24 +1766,25 @@ static int sample_all(const layout_view *L, const work_image *wi,
 	r->patches = calloc((size_t)(L->npatches ? L->npatches : 1), sizeof(*r->patches));
 	if (!r->patches)
 		return kg_fail(err, KG_ENOMEM, "out of memory");
-	sample_buffers buf = {0};
-	int ret = 0;
 	for (int i = 0; i < L->npatches; i++) {
-		kg_chart_sample *p = &r->patches[i];
 		r->npatches++;
-		if (!(p->id = strdup(L->patch_ids[i]))) {
-			ret = kg_fail(err, KG_ENOMEM, "out of memory");
-			break;
-		}
-		if (sample_patch(wi, r->H, Hinv, L->patch_center[i], L->patch_size[i], opt, &buf, p)) {
-			ret = kg_fail(err, KG_ENOMEM, "patch sampling: out of memory");
-			break;
-		}
+		if (!(r->patches[i].id = strdup(L->patch_ids[i])))
+			return kg_fail(err, KG_ENOMEM, "out of memory");
 	}
-	buffers_free(&buf);
+	sample_job j = {L, wi, opt, r->H, Hinv, r->patches, fast, {0}};
+	run_parallel(sample_patches, &j, opt->threads);
+	for (int t = 0; t < MAX_THREADS; t++)
+		if (j.failed[t])
+			return kg_fail(err, KG_ENOMEM, "patch sampling: out of memory");
 	for (int k = 0; k < 4; k++)
 		kg_homography_map(r->H, L->outline[k][0], L->outline[k][1], r->outline[k]);
-	return ret;
+	return 0;
+}
+
+static int sample_all(const layout_view *L, const work_image *wi,
+                      const kg_chart_detect_options *opt, kg_chart_result *r, kg_err *err)
+{
+	return sample_all_with(L, wi, opt, 1, r, err);
 }
 
 /* ---- the detector ------------------------------------------------------------ */
@@ -1070,14 +1814,27 @@ static int detect_with_tags(const layout_view *L, const work_image *wi,
 {
 #if HAVE_APRILTAG
 	double t0 = now_seconds(), scale;
-	unsigned char *g = grey8(wi, &scale);
-	if (!g)
-		return kg_fail(err, KG_ENOMEM, "out of memory");
 	long npix = (long)wi->width * wi->height;
 	int big = wi->width > wi->height ? wi->width : wi->height;
 	int decimate = opt->decimate > 0 ? opt->decimate : npix < 4000000 ? 2 : 4;
 	while (opt->decimate == 0 && big > APRILTAG_MAX_SIDE * (long)decimate)
 		decimate *= 2; /* automatic decimation keeps within libapriltag's coordinates */
+	/* Decimated by an even factor d, libapriltag finds its quads on every d-th pixel of
+	 * every d-th row, which a half-resolution picture holds as its every (d/2)-th: a
+	 * Bayer frame's 2 x 2 blocks (d >= 2), or every 2nd pixel of every 2nd row of
+	 * other images (d >= 4, where the edge refinement still has 2 or more pixels per
+	 * decimated one): half the rows read, no demosaicing. The edges are refined on
+	 * that picture. */
+	float bw4[4];
+	int blocks = !block_weights(wi, bw4), gw, gh;
+	int zoom = decimate % 2 == 0 && (blocks || decimate >= 4) &&
+	           wi->width / 2 >= decimate + 1 && wi->height / 2 >= decimate + 1 ? 2 : 1;
+	unsigned char *g = zoom == 2 && blocks ? grey8_binned(wi, bw4, &gw, &gh)
+	                                       : grey8(wi, zoom, &gw, &gh, &scale);
+	if (!g)
+		return kg_fail(err, KG_ENOMEM, "out of memory");
+	double t1 = now_seconds();
+	r->prepare_seconds += t1 - t0;
 	const char *family = opt->family ? opt->family : L->family ? L->family : "tag36h11";
 	r->decimate = decimate;
 	/* libapriltag decimates a side s to 1 + (s - 1) / d pixels; below 3 it reads out of
@@ -1091,10 +1848,10 @@ static int detect_with_tags(const layout_view *L, const work_image *wi,
 	                          ? "; a larger --decimate takes larger images" : NULL,
 	                      err);
 	if (!ret)
-		ret = run_apriltag(g, wi->width, wi->height, family, decimate,
+		ret = run_apriltag(g, gw, gh, zoom, family, decimate / zoom,
 		                   opt->threads > 0 ? opt->threads : 1, r, err);
 	free(g);
-	r->tag_seconds = now_seconds() - t0;
+	r->tag_seconds = now_seconds() - t1;
 	if (ret)
 		return ret;
 	int nknown = 0, nforeign = 0, foreign[16];
@@ -1325,12 +2082,241 @@ static double orientation_score(const kg_chart_sample *p, const int idx[24])
 	return score + nonuniformity / 24;
 }
 
+/* ---- tagless at reduced resolution -------------------------------------------- */
+
+typedef struct decimate_job {
+	const work_image *wi;
+	int f, w, h;
+	float *out;
+	int failed[MAX_THREADS];
+} decimate_job;
+
+static void decimate_rows(void *arg, int t, int n)
+{
+	decimate_job *j = arg;
+	const work_image *wi = j->wi;
+	int C = wi->channels, f = j->f, w = j->w;
+	float *scratch = malloc((size_t)w * f * 3 * sizeof(float));
+	double *acc = malloc((size_t)w * C * sizeof(double));
+	if (!scratch || !acc) {
+		j->failed[t] = 1;
+		free(scratch);
+		free(acc);
+		return;
+	}
+	for (int oy = (int)((long)j->h * t / n); oy < (int)((long)j->h * (t + 1) / n); oy++) {
+		memset(acc, 0, (size_t)w * C * sizeof(double));
+		for (int dy = 0; dy < f; dy++) {
+			const float *row = image_span(wi, oy * f + dy, 0, w * f, 1, scratch);
+			for (int ox = 0; ox < w; ox++)
+				for (int dx = 0; dx < f; dx++)
+					for (int c = 0; c < C; c++)
+						acc[(size_t)ox * C + c] += row[((size_t)ox * f + dx) * C + c];
+		}
+		float *o = j->out + (size_t)oy * w * C;
+		for (int i = 0; i < w * C; i++)
+			o[i] = (float)(acc[i] / ((double)f * f));
+	}
+	free(scratch);
+	free(acc);
+}
+
+/* The image averaged over f x f blocks (the last W mod f columns and H mod f rows are
+ * left out): pixel (i, j) covers [i f, (i + 1) f) x [j f, (j + 1) f) of the original,
+ * so a position x in it is x f in the original. Raw frames are demosaiced row by row
+ * on the way. NULL when out of memory. */
+static float *decimate_image(const work_image *wi, int f, int *w, int *h)
+{
+	decimate_job j = {wi, f, wi->width / f, wi->height / f, NULL, {0}};
+	j.out = malloc((size_t)j.w * j.h * wi->channels * sizeof(float));
+	if (!j.out)
+		return NULL;
+	run_parallel(decimate_rows, &j, wi->threads);
+	for (int t = 0; t < MAX_THREADS; t++)
+		if (j.failed[t]) {
+			free(j.out);
+			return NULL;
+		}
+	*w = j.w;
+	*h = j.h;
+	return j.out;
+}
+
+/* The image at (X, Y) px (pixel centres at +0.5) by bilinear interpolation, clamped
+ * at the edges, as 3 channels (grey repeated). */
+static void image_bilinear(const work_image *wi, double X, double Y, double out[3])
+{
+	float scratch[12];
+	int W = wi->width, Hh = wi->height, C = wi->channels;
+	double fx = X - 0.5, fy = Y - 0.5;
+	fx = fx < 0 ? 0 : fx > W - 1 ? W - 1 : fx;
+	fy = fy < 0 ? 0 : fy > Hh - 1 ? Hh - 1 : fy;
+	int x0 = (int)fx < W - 1 ? (int)fx : W - 2, y0 = (int)fy < Hh - 1 ? (int)fy : Hh - 2;
+	double ax = fx - x0, ay = fy - y0;
+	const float *r0 = image_span(wi, y0, x0, 2, 1, scratch);
+	const float *r1 = image_span(wi, y0 + 1, x0, 2, 1, scratch + 6);
+	for (int c = 0; c < 3; c++) {
+		int k = C == 3 ? c : 0;
+		out[c] = (1 - ay) * ((1 - ax) * r0[k] + ax * r0[C + k]) +
+		         ay * ((1 - ax) * r1[k] + ax * r1[C + k]);
+	}
+}
+
+enum { EDGE_SAMPLES = 401, EDGE_ACROSS = 7 };
+
+/* Where a patch edge crosses one profile: from e (mm, the edge as placed) along the
+ * outward normal nrm over [-R, R] mm in steps of `step`, each sample the mean of
+ * EDGE_ACROSS points over +-across mm along the edge (tan). The edge is the first
+ * local maximum of the gradient (summed over the channels) from the inside that
+ * reaches half the profile's largest and min_grad, to a fraction of a step by a
+ * parabola: the patch's own edge comes before the gap and a neighbour's edge beyond
+ * it. 1 and *t (mm along nrm), or 0 when no edge stands out. */
+static int edge_on_profile(const work_image *wi, const double H[9], const double e[2],
+                           const double nrm[2], const double tan[2], double R, double step,
+                           double across, double min_grad, double *t)
+{
+	double prof[EDGE_SAMPLES][3], g[EDGE_SAMPLES];
+	int ns = (int)(2 * R / step) + 1;
+	if (ns > EDGE_SAMPLES)
+		ns = EDGE_SAMPLES;
+	if (ns < 5)
+		return 0;
+	for (int i = 0; i < ns; i++) {
+		double s = -R + i * step, acc[3] = {0, 0, 0};
+		for (int a = 0; a < EDGE_ACROSS; a++) {
+			double d = across * (2.0 * a / (EDGE_ACROSS - 1) - 1), px[2], v[3];
+			kg_homography_map(H, e[0] + nrm[0] * s + tan[0] * d, e[1] + nrm[1] * s + tan[1] * d,
+			                  px);
+			image_bilinear(wi, px[0], px[1], v);
+			for (int c = 0; c < 3; c++)
+				acc[c] += v[c];
+		}
+		for (int c = 0; c < 3; c++)
+			prof[i][c] = acc[c] / EDGE_ACROSS;
+	}
+	double gmax = 0;
+	g[0] = g[ns - 1] = 0;
+	for (int i = 1; i < ns - 1; i++) {
+		g[i] = 0;
+		for (int c = 0; c < 3; c++)
+			g[i] += fabs(prof[i + 1][c] - prof[i - 1][c]);
+		gmax = fmax(gmax, g[i]);
+	}
+	if (!(gmax >= min_grad))
+		return 0;
+	for (int i = 2; i < ns - 2; i++) {
+		if (g[i] < 0.5 * gmax || g[i] < g[i - 1] || g[i] < g[i + 1])
+			continue;
+		double den = g[i - 1] - 2 * g[i] + g[i + 1];
+		double d = den < 0 ? 0.5 * (g[i - 1] - g[i + 1]) / den : 0;
+		*t = -R + (i + d) * step;
+		return 1;
+	}
+	return 0;
+}
+
+static int cmp_double(const void *a, const void *b)
+{
+	double x = *(const double *)a, y = *(const double *)b;
+	return (x > y) - (x < y);
+}
+
+/* Refine the chart's placement H (mm -> px, from mcc's box on the reduced image) on
+ * the patch edges at full resolution: three profiles across each side of each of the
+ * 24 patches give points of known layout position (the side as the layout draws it,
+ * at the profile's place along it); H is fitted to them (DLT and Levenberg-Marquardt),
+ * points farther than max(0.5 px, 3 x their median) dropped and H refitted, twice,
+ * the second time searching half as far. The layout's patch sides need not be the
+ * printed ones: a side found outside on the left is found outside on the right too,
+ * and the fit keeps the centres. Returns the points used (0: H is left as it was,
+ * fewer than 12 edges found or the fit moved a patch centre by more than the search
+ * range), and their RMS distance in px. */
+static int refine_on_edges(const work_image *wi, const layout_view *L, const int idx[24],
+                           double white, double H[9], double *rms)
+{
+	enum { MAXP = 24 * 4 * 3 };
+	double src[MAXP][2], dst[MAXP][2], pc[2], pd[2];
+	const double *a1 = L->patch_center[idx[0]], *a2 = L->patch_center[idx[1]];
+	double pitch = hypot(a2[0] - a1[0], a2[1] - a1[1]);
+	double side = fmin(L->patch_size[idx[0]][0], L->patch_size[idx[0]][1]);
+	double gap = fmax(pitch - side, 0);
+	double R = fmin(fmax(0.5 * gap, 0.12 * pitch), 0.45 * side);
+	kg_homography_map(H, a1[0], a1[1], pc);
+	kg_homography_map(H, a2[0], a2[1], pd);
+	double px_per_mm = hypot(pd[0] - pc[0], pd[1] - pc[1]) / pitch;
+	if (!(px_per_mm > 0) || !(R > 0))
+		return 0;
+	double Hk[9];
+	memcpy(Hk, H, sizeof(Hk));
+	int used = 0;
+	for (int pass = 0; pass < 2; pass++, R *= 0.5) {
+		double step = fmax(0.5 / px_per_mm, 2 * R / (EDGE_SAMPLES - 1));
+		int n = 0;
+		for (int i = 0; i < 24; i++) {
+			const double *c = L->patch_center[idx[i]], *s = L->patch_size[idx[i]];
+			for (int k = 0; k < 4; k++) {
+				double nrm[2] = {k == 0 ? -1 : k == 1 ? 1 : 0, k == 2 ? -1 : k == 3 ? 1 : 0};
+				double tan[2] = {nrm[1], nrm[0]};
+				double half_n = 0.5 * (k < 2 ? s[0] : s[1]), half_t = 0.5 * (k < 2 ? s[1] : s[0]);
+				for (int j = -1; j <= 1; j++) {
+					double e[2] = {c[0] + nrm[0] * half_n + tan[0] * 0.6 * j * half_t,
+					               c[1] + nrm[1] * half_n + tan[1] * 0.6 * j * half_t};
+					double t;
+					if (!edge_on_profile(wi, Hk, e, nrm, tan, R, step, 0.15 * half_t,
+					                     0.02 * white, &t))
+						continue;
+					memcpy(src[n], e, sizeof(e));
+					kg_homography_map(Hk, e[0] + nrm[0] * t, e[1] + nrm[1] * t, dst[n]);
+					n++;
+				}
+			}
+		}
+		double Hn[9], r = 0;
+		for (int round = 0; round < 2; round++) {
+			kg_err tmp;
+			if (n < 12 || kg_homography_fit((const double (*)[2])src, (const double (*)[2])dst,
+			                                n, 1, Hn, &r, &tmp))
+				goto done;
+			double d[MAXP], sorted[MAXP];
+			for (int m = 0; m < n; m++) {
+				double q[2];
+				kg_homography_map(Hn, src[m][0], src[m][1], q);
+				sorted[m] = d[m] = hypot(q[0] - dst[m][0], q[1] - dst[m][1]);
+			}
+			qsort(sorted, (size_t)n, sizeof(double), cmp_double);
+			double keep = fmax(0.5, 3 * sorted[n / 2]);
+			int w = 0;
+			for (int m = 0; m < n; m++)
+				if (d[m] <= keep) {
+					memcpy(src[w], src[m], sizeof(src[w]));
+					memcpy(dst[w], dst[m], sizeof(dst[w]));
+					w++;
+				}
+			n = w;
+		}
+		for (int i = 0; i < 24; i++) {
+			double p0[2], p1[2];
+			kg_homography_map(Hk, L->patch_center[idx[i]][0], L->patch_center[idx[i]][1], p0);
+			kg_homography_map(Hn, L->patch_center[idx[i]][0], L->patch_center[idx[i]][1], p1);
+			if (!(hypot(p1[0] - p0[0], p1[1] - p0[1]) <= R * px_per_mm))
+				goto done;
+		}
+		memcpy(Hk, Hn, sizeof(Hk));
+		used = n;
+		*rms = r;
+	}
+done:
+	if (used)
+		memcpy(H, Hk, sizeof(Hk));
+	return used;
+}
+
 /* Find a ColorChecker 24 without tags: mcc gives the box around its patches; the
  * homography from the box in layout mm to the box in the image places the patches,
  * which sample_all measures as on the tag path. Of the four ways the box's corners
  * can meet the chart's, the one whose patches look most like a ColorChecker read
  * the right way up (orientation_score) wins: mcc's own choice is not trusted. */
-static int detect_tagless(const kg_chart_layout *l, const layout_view *L, const work_image *wi,
+static int detect_tagless(const kg_chart_layout *l, const layout_view *L, work_image *wi,
                           const kg_chart_detect_options *opt, kg_chart_result *r, kg_err *err)
 {
 	int idx[24];
@@ -1344,13 +2330,50 @@ static int detect_tagless(const kg_chart_layout *l, const layout_view *L, const 
 	                      "the tagless detector (OpenCV mcc)", NULL, err);
 	if (ret)
 		return ret;
-	double t0 = now_seconds(), box_px[4][2], box_mm[4][2], cost = 0;
-	ret = kg_mcc_find_colorchecker(wi->data, wi->width, wi->height, wi->channels,
-	                               white_level(wi), opt->threads, box_px, &cost, err);
-	r->tag_seconds += now_seconds() - t0;
-	if (ret)
-		return ret;
+	double t0 = now_seconds(), box_px[4][2], box_mm[4][2], cost = 0, edge_rms = 0;
+	double white = white_level(wi);
+	int big = wi->width > wi->height ? wi->width : wi->height, small_w = 0, small_h = 0;
+	int f = opt->tagless_decimate > 0 ? opt->tagless_decimate : big / 1000, refined = 0;
+	while (f > 1 && (wi->width / f < MCC_MIN_SIDE || wi->height / f < MCC_MIN_SIDE))
+		f--;
+	r->prepare_seconds += now_seconds() - t0;
+	if (f > 1) {
+		double t1 = now_seconds();
+		float *small = decimate_image(wi, f, &small_w, &small_h);
+		if (!small)
+			return kg_fail(err, KG_ENOMEM, "out of memory");
+		double t2 = now_seconds();
+		r->prepare_seconds += t2 - t1;
+		kg_err small_err = {{0}};
+		ret = kg_mcc_find_colorchecker(small, small_w, small_h, wi->channels, white,
+		                               opt->threads, box_px, &cost, &small_err);
+		free(small);
+		r->tag_seconds += now_seconds() - t2;
+		/* Not found on the reduced copy (a chart too small there): the full image
+		 * decides, so nothing the full-resolution detector finds is refused. */
+		if (ret == KG_ENOENT)
+			f = 1;
+		else if (ret)
+			return kg_fail(err, ret, "%s", small_err.msg);
+		else
+			for (int k = 0; k < 4; k++)
+				for (int c = 0; c < 2; c++)
+					box_px[k][c] *= f;
+	}
+	if (f <= 1) {
+		double t1 = now_seconds();
+		if ((ret = demosaic_all(wi, err)))
+			return ret;
+		double t2 = now_seconds();
+		r->prepare_seconds += t2 - t1;
+		ret = kg_mcc_find_colorchecker(wi->data, wi->width, wi->height, wi->channels, white,
+		                               opt->threads, box_px, &cost, err);
+		r->tag_seconds += now_seconds() - t2;
+		if (ret)
+			return ret;
+	}
 	r->tagless = 1;
+	r->tagless_decimate = f > 1 ? f : 1;
 	r->decimate = 0;
 	r->rms_px = 0;
 	mcc24_box_mm(L, idx, box_mm);
@@ -1360,6 +2383,20 @@ static int detect_tagless(const kg_chart_layout *l, const layout_view *L, const 
 		memcpy(box_px[1], box_px[3], sizeof(t));
 		memcpy(box_px[3], t, sizeof(t));
 	}
+	if (f > 1) {
+		/* mcc's box, f times coarser than the image's pixels, refined on the patch
+		 * edges in the full image; the four turns below use the refined box. */
+		double t1 = now_seconds(), H0[9];
+		if ((ret = kg_homography_fit((const double (*)[2])box_mm, (const double (*)[2])box_px,
+		                             4, 0, H0, NULL, err)))
+			return ret;
+		refined = refine_on_edges(wi, L, idx, white, H0, &edge_rms);
+		if (refined)
+			for (int k = 0; k < 4; k++)
+				kg_homography_map(H0, box_mm[k][0], box_mm[k][1], box_px[k]);
+		r->tag_seconds += now_seconds() - t1;
+	}
+	double ts = now_seconds();
 	double score[4], H[4][9], angle[4];
 	kg_chart_sample *sampled[4] = {NULL, NULL, NULL, NULL}; /* each turn's patches */
 	int best = 0, upright = 0;
@@ -1391,6 +2428,7 @@ static int detect_tagless(const kg_chart_layout *l, const layout_view *L, const 
 	 * ColorChecker (other colours on its geometry, such as an object's tiles, or bad
 	 * light). Neither the patches nor mcc, whose choice also rests on the
 	 * ColorChecker's colours, can then say which patch is which: refused. */
+	r->sample_seconds += now_seconds() - ts;
 	int uncertain = !ret && score[best] >= 1;
 	for (int turn = 0; turn < 4; turn++)
 		if (ret || uncertain || turn != best)
@@ -1415,17 +2453,25 @@ static int detect_tagless(const kg_chart_layout *l, const layout_view *L, const 
 	for (int turn = 0; turn < 4; turn++)
 		if (turn != best)
 			next = fmin(next, score[turn]);
+	char how[200] = "";
+	if (f > 1 && refined)
+		snprintf(how, sizeof(how), " on a %d x %d copy averaged over %d x %d pixels, refined "
+		         "on %d points of the patch edges at full resolution (RMS %.2f px)", small_w,
+		         small_h, f, f, refined, edge_rms);
+	else if (f > 1)
+		snprintf(how, sizeof(how), " on a %d x %d copy averaged over %d x %d pixels (too few "
+		         "patch edges to refine it at full resolution)", small_w, small_h, f, f);
 	ret = add_warning(r, "chart placed by the tagless detector (OpenCV mcc, fit cost "
-	                  "%.3g) from the 4 corners of its box, not by tags; orientation "
+	                  "%.3g) from the 4 corners of its box%s, not by tags; orientation "
 	                  "chosen from the patches (neutral row D01-D06 darkening from D01, "
 	                  "the brightest patch): score %.3f, next best of the 4 turns %.3f, "
 	                  "%s mcc's own; row A01-A06 runs at %.0f degrees clockwise from the "
-	                  "image's x axis", cost, score[best], next,
+	                  "image's x axis", cost, how, score[best], next,
 	                  best == 0 ? "agreeing with" : "overruling", angle[best]);
 	return ret ? kg_fail(err, ret, "out of memory") : 0;
 }
 #else
-static int detect_tagless(const kg_chart_layout *l, const layout_view *L, const work_image *wi,
+static int detect_tagless(const kg_chart_layout *l, const layout_view *L, work_image *wi,
                           const kg_chart_detect_options *opt, kg_chart_result *r, kg_err *err)
 {
 	(void)L;
@@ -1498,7 +2544,10 @@ int kg_chart_detect(const kg_chart_layout *l, const kg_image *img,
 		return kg_fail(err, KG_ENOMEM, "out of memory");
 	}
 	snprintf(r->layout, sizeof(r->layout), "%s", l->name);
-	if ((ret = prepare_image(img, &opt, &wi, err)))
+	double tp = now_seconds();
+	ret = prepare_image(img, &opt, &wi, err);
+	r->prepare_seconds = now_seconds() - tp;
+	if (ret)
 		goto fail;
 	int tagless = opt.tagless || l->ntags == 0;
 	if (!tagless) {
@@ -1514,7 +2563,9 @@ int kg_chart_detect(const kg_chart_layout *l, const kg_image *img,
 		} else if (ret) {
 			kg_fail(err, ret, "%s", tag_err.msg);
 		} else {
+			double ts = now_seconds();
 			ret = sample_all(&L, &wi, &opt, r, err);
+			r->sample_seconds = now_seconds() - ts;
 		}
 		if (ret)
 			goto fail;
@@ -1534,6 +2585,39 @@ fail:
 	free(wi.owned);
 	layout_arrays_free(&arrays);
 	kg_chart_result_free(&r);
+	return ret;
+}
+
+int calib_chart_sample(const kg_chart_layout *l, const kg_image *img, const double H[9],
+                       const kg_chart_detect_options *options, int reference,
+                       kg_chart_result **out, kg_err *err)
+{
+	kg_check_arg(l && img && img->data && H && options && out, err);
+	*out = NULL;
+	kg_chart_detect_options opt = *options;
+	if (!(opt.sample_fraction > 0))
+		opt.sample_fraction = l->sample_fraction > 0 ? l->sample_fraction : 0.6;
+	layout_view L;
+	layout_arrays arrays;
+	int ret = make_view(l, &L, &arrays, err);
+	if (ret)
+		return ret;
+	work_image wi;
+	kg_chart_result *r = calloc(1, sizeof(*r));
+	if (!r)
+		ret = kg_fail(err, KG_ENOMEM, "out of memory");
+	if (!ret)
+		ret = prepare_image(img, &opt, &wi, err);
+	if (!ret) {
+		snprintf(r->layout, sizeof(r->layout), "%s", l->name);
+		memcpy(r->H, H, sizeof(r->H));
+		ret = sample_all_with(&L, &wi, &opt, !reference, r, err);
+		free(wi.owned);
+	}
+	layout_arrays_free(&arrays);
+	if (ret)
+		kg_chart_result_free(&r);
+	*out = r;
 	return ret;
 }
 
@@ -1614,8 +2698,12 @@ int kg_chart_overlay_write(const kg_chart_result *r, const kg_image *img, const 
 	kg_chart_detect_options_default(&opt);
 	work_image wi;
 	int ret = prepare_image(img, &opt, &wi, err);
-	if (ret)
+	if (!ret)
+		ret = demosaic_all(&wi, err);
+	if (ret) {
+		free(wi.owned);
 		return ret;
+	}
 	double scale_px;
 	unsigned char *g = NULL;
 	int big = img->width > img->height ? img->width : img->height;
@@ -1633,7 +2721,8 @@ int kg_chart_overlay_write(const kg_chart_result *r, const kg_image *img, const 
 	}
 	/* Background: each output pixel is the mean of its step x step block, with the
 	 * exposure normalisation of the tag detector, sRGB-encoded. */
-	g = grey8(&wi, &scale_px);
+	int gw, gh;
+	g = grey8(&wi, 1, &gw, &gh, &scale_px);
 	if (!g) {
 		ret = kg_fail(err, KG_ENOMEM, "overlay: out of memory");
 		goto done;

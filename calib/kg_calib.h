@@ -555,13 +555,18 @@ int kg_chart_statistic_parse(const char *name, kg_chart_statistic *out, kg_err *
 
 typedef struct kg_chart_detect_options {
 	int decimate;            /* apriltag quad_decimate; 0: 2 below 4 Mpix, else 4 */
-	int threads;             /* apriltag worker threads (default 2) */
+	int threads;             /* threads for the grey picture, libapriltag, mcc and the
+	                          * sampling (default 2); results do not depend on it */
 	double sample_fraction;  /* inner fraction of each patch side to sample; 0: the
 	                          * layout's (default 0) */
 	kg_chart_statistic statistic;
 	double trim;             /* trimmed mean: fraction cut at each end (0.1) */
 	const char *family;      /* tag family; NULL: the layout's */
 	int tagless;             /* 1: OpenCV mcc only (ColorChecker 24 / SG layouts) */
+	int tagless_decimate;    /* the tagless detector looks at an N x N box-averaged copy
+	                          * and its box is refined on the patch edges at full
+	                          * resolution; 1: mcc on the full image, no refinement;
+	                          * 0 (default): the longer side / 1000, at least 1 */
 	int min_tags;            /* fewest tags that place the chart; 0 (the default): 2,
 	                          * and a ColorChecker 24 layout with no tag in view falls
 	                          * back to the tagless detector; N > 0: N, no fallback */
@@ -620,11 +625,16 @@ typedef struct kg_chart_result {
 	double rms_px;            /* RMS reprojection error of the points used */
 	double outline[4][2];     /* the layout's chart area in px (tl, tr, br, bl) */
 	int decimate;             /* the quad_decimate used */
+	int tagless_decimate;     /* tagless: the reduction mcc looked at (1: full image) */
 	int npatches;
 	kg_chart_sample *patches;
 	int nwarnings;            /* what an operator should know, one sentence each */
 	char **warnings;
-	double tag_seconds;       /* grey conversion and tag detection */
+	double prepare_seconds;   /* the detectors' images: white level, 8-bit grey for the
+	                           * tags, the decimated copy for the tagless detector */
+	double tag_seconds;       /* tag detection (libapriltag), or the tagless detector
+	                           * (OpenCV mcc and the refinement of its box) */
+	double sample_seconds;    /* patch sampling (all four turns when tagless) */
 	double total_seconds;
 } kg_chart_result;
 

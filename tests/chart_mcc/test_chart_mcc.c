@@ -61,8 +61,9 @@ static int render(const char *layout, const char *spectra, const char *tilt,
 	return rc;
 }
 
-static int detect(const char *layout, const kg_image *im, int tagless, kg_chart_result **r,
-                  kg_err *err)
+/* decimate: the tagless detector's reduction (0: its default, 1 at these sizes). */
+static int detect_at(const char *layout, const kg_image *im, int tagless, int decimate,
+                     int threads, kg_chart_result **r, kg_err *err)
 {
 	kg_chart_layout *l = NULL;
 	int ret = kg_chart_layout_load(layout, &l, err);
@@ -70,10 +71,18 @@ static int detect(const char *layout, const kg_image *im, int tagless, kg_chart_
 		kg_chart_detect_options o;
 		kg_chart_detect_options_default(&o);
 		o.tagless = tagless;
+		o.tagless_decimate = decimate;
+		o.threads = threads;
 		ret = kg_chart_detect(l, im, &o, r, err);
 	}
 	kg_chart_layout_free(&l);
 	return ret;
+}
+
+static int detect(const char *layout, const kg_image *im, int tagless, kg_chart_result **r,
+                  kg_err *err)
+{
+	return detect_at(layout, im, tagless, 0, 2, r, err);
 }
 
 static int has_warning(const kg_chart_result *r, const char *text)
@@ -108,53 +117,82 @@ static double check_case(const char *name, const char *layout, const char *spect
 	int ret = kg_image_read(img, &im, &err);
 	if (!ret)
 		ret = kg_patchset_read(truth_path, 0, &truth, &err);
-	if (!ret)
-		ret = detect(layout, im, tagless, &r, &err);
 	CHECK(ret == 0, "%s: %s", name, err.msg);
 	if (ret)
 		goto done;
-	CHECK(r->tagless == 1, "%s: not found by the tagless detector", name);
-	CHECK(has_warning(r, "tagless detector (OpenCV mcc"), "%s: no warning names mcc", name);
-	CHECK(has_warning(r, "orientation chosen from the patches"),
-	      "%s: the orientation decision is not reported", name);
-	CHECK(!has_warning(r, "orientation uncertain"), "%s: orientation uncertain", name);
-	if (!tagless)
-		CHECK(has_warning(r, "fell back to the tagless detector"),
-		      "%s: the fallback is not reported", name);
-	CHECK(r->npatches == 24, "%s: %d patches", name, r->npatches);
-	worst = 0;
-	int n = 0, px = extra_column(truth, "PIXEL_X"), py = extra_column(truth, "PIXEL_Y");
-	for (int i = 0; i < r->npatches; i++) {
-		const kg_chart_sample *p = &r->patches[i];
-		/* truth ids are the layout's own, or (frame layout) its aliases' spectra ids */
-		int k = kg_patchset_find(truth, p->id);
-		CHECK(k >= 0, "%s: patch %s not in the truth", name, p->id);
-		CHECK(!(p->flags & KG_CHART_FLAG_REJECTED), "%s: patch %s rejected", name, p->id);
-		if (k < 0 || (p->flags & KG_CHART_FLAG_REJECTED))
-			continue;
-		for (int c = 0; c < 3; c++) {
-			double d = fabs(p->rgb[c] - truth->rgb[k][c]);
-			worst = fmax(worst, d);
-			CHECK(d <= TOLERANCE, "%s: patch %s channel %d: %.5f vs truth %.5f", name, p->id,
-			      c, p->rgb[c], truth->rgb[k][c]);
-		}
-		if (px >= 0 && py >= 0) {
-			double cx = 0, cy = 0;
-			for (int q = 0; q < 4; q++) {
-				cx += p->quad[q][0] / 4;
-				cy += p->quad[q][1] / 4;
+	/* mcc on the full image (the default at this size), then on a copy reduced 2 x 2
+	 * with its box refined at full resolution, at 2 and 1 threads: the same tolerance,
+	 * and the same numbers at either thread count. */
+	static const int decimate[3] = {0, 2, 2}, threads[3] = {2, 2, 1};
+	kg_chart_result *two = NULL;
+	const char *base = name;
+	for (int v = 0; v < 3; v++) {
+		char what[160];
+		snprintf(what, sizeof(what), "%s%s", base, v == 0 ? "" : v == 1 ? ", reduced 2 x 2" :
+		         ", reduced 2 x 2, 1 thread");
+		name = what;
+		kg_chart_result_free(&r);
+		ret = detect_at(layout, im, tagless, decimate[v], threads[v], &r, &err);
+		CHECK(ret == 0, "%s: %s", name, err.msg);
+		if (ret)
+			break;
+		if (v > 0)
+			CHECK(r->tagless_decimate == 2 && has_warning(r, "refined on"),
+			      "%s: reduction %d, the refinement not reported", name, r->tagless_decimate);
+		CHECK(r->tagless == 1, "%s: not found by the tagless detector", name);
+		CHECK(has_warning(r, "tagless detector (OpenCV mcc"), "%s: no warning names mcc", name);
+		CHECK(has_warning(r, "orientation chosen from the patches"),
+		      "%s: the orientation decision is not reported", name);
+		CHECK(!has_warning(r, "orientation uncertain"), "%s: orientation uncertain", name);
+		if (!tagless)
+			CHECK(has_warning(r, "fell back to the tagless detector"),
+			      "%s: the fallback is not reported", name);
+		CHECK(r->npatches == 24, "%s: %d patches", name, r->npatches);
+		worst = 0;
+		int n = 0, px = extra_column(truth, "PIXEL_X"), py = extra_column(truth, "PIXEL_Y");
+		for (int i = 0; i < r->npatches; i++) {
+			const kg_chart_sample *p = &r->patches[i];
+			/* truth ids are the layout's own, or (frame layout) its aliases' spectra ids */
+			int k = kg_patchset_find(truth, p->id);
+			CHECK(k >= 0, "%s: patch %s not in the truth", name, p->id);
+			CHECK(!(p->flags & KG_CHART_FLAG_REJECTED), "%s: patch %s rejected", name, p->id);
+			if (k < 0 || (p->flags & KG_CHART_FLAG_REJECTED))
+				continue;
+			for (int c = 0; c < 3; c++) {
+				double d = fabs(p->rgb[c] - truth->rgb[k][c]);
+				worst = fmax(worst, d);
+				CHECK(d <= TOLERANCE, "%s: patch %s channel %d: %.5f vs truth %.5f", name, p->id,
+				      c, p->rgb[c], truth->rgb[k][c]);
 			}
-			const double *e = truth->extra + (size_t)k * truth->nextra;
-			double side = sqrt(fabs((p->quad[1][0] - p->quad[0][0]) * (p->quad[3][1] - p->quad[0][1]) -
-			                        (p->quad[1][1] - p->quad[0][1]) * (p->quad[3][0] - p->quad[0][0])));
-			CHECK(hypot(cx - e[px], cy - e[py]) < 0.25 * side,
-			      "%s: patch %s sampled at (%.1f, %.1f), truth centre (%.1f, %.1f)", name,
-			      p->id, cx, cy, e[px], e[py]);
+			if (px >= 0 && py >= 0) {
+				double cx = 0, cy = 0;
+				for (int q = 0; q < 4; q++) {
+					cx += p->quad[q][0] / 4;
+					cy += p->quad[q][1] / 4;
+				}
+				const double *e = truth->extra + (size_t)k * truth->nextra;
+				double side = sqrt(fabs((p->quad[1][0] - p->quad[0][0]) * (p->quad[3][1] - p->quad[0][1]) -
+				                        (p->quad[1][1] - p->quad[0][1]) * (p->quad[3][0] - p->quad[0][0])));
+				CHECK(hypot(cx - e[px], cy - e[py]) < 0.25 * side,
+				      "%s: patch %s sampled at (%.1f, %.1f), truth centre (%.1f, %.1f)", name,
+				      p->id, cx, cy, e[px], e[py]);
+			}
+			n++;
 		}
-		n++;
+		CHECK(n == 24, "%s: %d patches compared", name, n);
+		printf("| %-44s | %14.3f | %7.2f |\n", name, 100 * worst, r->tag_seconds);
+		if (v == 1) {
+			two = r;
+			r = NULL;
+		} else if (v == 2 && two) {
+			int same = !memcmp(two->H, r->H, sizeof(r->H));
+			for (int i = 0; i < 24 && same; i++)
+				for (int c = 0; c < 3; c++)
+					same = same && two->patches[i].rgb[c] == r->patches[i].rgb[c];
+			CHECK(same, "%s: other patch values than at 2 threads", name);
+		}
 	}
-	CHECK(n == 24, "%s: %d patches compared", name, n);
-	printf("| %-44s | %14.3f | %7.2f |\n", name, 100 * worst, r->tag_seconds);
+	kg_chart_result_free(&two);
 done:
 	kg_chart_result_free(&r);
 	kg_patchset_free(&truth);
@@ -187,6 +225,11 @@ static void check_no_chart(void)
 	CHECK(strstr(err.msg, "mcc") && strstr(err.msg, "ColorChecker"),
 	      "no chart (--tagless): message: %s", err.msg);
 	printf("  no chart, tagless: %s\n", err.msg);
+	kg_chart_result_free(&r);
+	/* refused on the reduced copy, then on the full image, as before */
+	ret = detect_at(frame_layout, im, 1, 2, 2, &r, &err);
+	CHECK(ret == KG_ENOENT && strstr(err.msg, "mcc"),
+	      "no chart (--tagless, reduced 2 x 2): code %d, expected KG_ENOENT (%s)", ret, err.msg);
 	kg_chart_result_free(&r);
 	ret = detect(frame_layout, im, 0, &r, &err);
 	CHECK(ret == KG_ENOENT, "no chart: code %d, expected KG_ENOENT (%s)", ret, err.msg);
