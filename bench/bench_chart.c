@@ -297,7 +297,7 @@ int main(int argc, char **argv)
 		if (!strcmp(r->method, "apriltag"))
 			continue;
 		char ratio[32] = "";
-		if (isfinite(r->ratio))
+		if (isfinite(r->ratio) && r->ratio > 0) /* the mcc rows are the baseline */
 			snprintf(ratio, sizeof(ratio), "%.1f x", r->ratio);
 		if (r->ok)
 			printf("| %s | %s | %d | %d | %.1f | %.1f | %.1f | %.1f | %.3f | %.4f | %s |\n",
