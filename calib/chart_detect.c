@@ -731,6 +731,7 @@ static unsigned char *grey8(const work_image *wi, int step, int *gw, int *gh,
 	return j.g;
 }
 
+#if HAVE_APRILTAG /* the tags' grey picture of a mosaic */
 /* A 2 x 2 CFA holding R, G and B: each 2 x 2 block's luminance is a weighted sum of
  * its four pixels (each filter's coefficient shared among the pixels behind it), so
  * the tags can be looked for on a half-resolution grey picture built straight from the
@@ -818,6 +819,7 @@ static unsigned char *grey8_binned(const work_image *wi, const float w[4], int *
 	*bh = j.bh;
 	return j.g;
 }
+#endif /* HAVE_APRILTAG */
 
 /* ---- tags -------------------------------------------------------------------- */
 
