@@ -177,6 +177,19 @@ static kg_image *syn_image(int width, int height, int channels, float v)
 	return img;
 }
 
+/* The mosaic a camera with 2 x 2 CFA pattern pat ("RGGB", ...) records of an RGB image. */
+static kg_image *syn_mosaic(const kg_image *rgb, const char *pat)
+{
+	kg_image *raw = syn_image(rgb->width, rgb->height, 1, 0);
+	for (int y = 0; y < rgb->height; y++)
+		for (int x = 0; x < rgb->width; x++) {
+			int c = (int)(strchr("RGB", pat[(y % 2) * 2 + x % 2]) - "RGB");
+			raw->data[(size_t)y * rgb->width + x] = rgb->data[((size_t)y * rgb->width + x) * 3 + c];
+		}
+	kg_image_set_cfa(raw, pat, 2, 2, NULL);
+	return raw;
+}
+
 /* Add Gaussian-like noise (sum of uniforms) of sigma and quantise to bits. */
 static void syn_finish(kg_image *img, double sigma, int bits, unsigned seed)
 {

@@ -128,14 +128,7 @@ int main(void)
 	{
 		kg_image *rgb = syn_image(960, 720, 3, 0.3f);
 		syn_draw(rgb, l, H);
-		kg_image *raw = syn_image(960, 720, 1, 0);
-		const char *pat = "RGGB";
-		for (int y = 0; y < 720; y++)
-			for (int x = 0; x < 960; x++) {
-				int c = (int)(strchr("RGB", pat[(y % 2) * 2 + x % 2]) - "RGB");
-				raw->data[(size_t)y * 960 + x] = rgb->data[((size_t)y * 960 + x) * 3 + c];
-			}
-		kg_image_set_cfa(raw, pat, 2, 2, NULL);
+		kg_image *raw = syn_mosaic(rgb, "RGGB");
 		syn_finish(raw, 0.002, 16, 3);
 		kg_chart_result *r = detect(l, raw, 0, "bayer RGGB", &err);
 		if (r)

@@ -119,14 +119,7 @@ int main(void)
 	/* Bayer RGGB: demosaiced only where sampled, against the whole frame demosaiced */
 	{
 		kg_image *rgb = photo(l, H, 3, 32, 4);
-		kg_image *raw = syn_image(960, 720, 1, 0);
-		const char *pat = "RGGB";
-		for (int y = 0; y < 720; y++)
-			for (int x = 0; x < 960; x++) {
-				int c = (int)(strchr("RGB", pat[(y % 2) * 2 + x % 2]) - "RGB");
-				raw->data[(size_t)y * 960 + x] = rgb->data[((size_t)y * 960 + x) * 3 + c];
-			}
-		kg_image_set_cfa(raw, pat, 2, 2, NULL);
+		kg_image *raw = syn_mosaic(rgb, "RGGB");
 		syn_finish(raw, 0.0, 16, 5);
 		check_sampler(l, raw, H, KG_CHART_MEDIAN, "Bayer RGGB 16-bit, tilted");
 		kg_image_free(&raw);
@@ -150,22 +143,18 @@ int main(void)
 		check_sampler(l, img, H, KG_CHART_MEDIAN, "16-bit RGB, glare and clipping");
 		kg_image_free(&img);
 	}
-	syn_homography(l, steep, H);
-	{
-		kg_image *img = photo(l, H, 3, 16, 7);
-		check_sampler(l, img, H, KG_CHART_MEDIAN, "16-bit RGB, steep perspective");
-		kg_image_free(&img);
-	}
-	syn_homography(l, aligned, H);
-	{
-		kg_image *img = photo(l, H, 3, 8, 8);
-		check_sampler(l, img, H, KG_CHART_MEDIAN, "8-bit RGB, axis-aligned 4 px/mm");
-		kg_image_free(&img);
-	}
-	syn_homography(l, cut, H);
-	{
-		kg_image *img = photo(l, H, 3, 16, 9);
-		check_sampler(l, img, H, KG_CHART_MEDIAN, "16-bit RGB, partly out of frame");
+	/* other poses: steep, axis-aligned, partly out of frame */
+	const struct {
+		const double (*q)[2];
+		int bits;
+		const char *what;
+	} poses[] = {{steep, 16, "16-bit RGB, steep perspective"},
+	             {aligned, 8, "8-bit RGB, axis-aligned 4 px/mm"},
+	             {cut, 16, "16-bit RGB, partly out of frame"}};
+	for (int i = 0; i < 3; i++) {
+		syn_homography(l, poses[i].q, H);
+		kg_image *img = photo(l, H, 3, poses[i].bits, 7 + (unsigned)i);
+		check_sampler(l, img, H, KG_CHART_MEDIAN, poses[i].what);
 		kg_image_free(&img);
 	}
 
