@@ -88,7 +88,7 @@ static int cs_run(const kg_cs_model *m, const float *x, const float *cov, size_t
 }
 
 /* The pixels: readings and covariances, and the material each was drawn from. */
-static void cs_pixels(const kg_cs_model *fine, const kg_sim_noise *noise, uint64_t seed,
+void bench_cs_pixels(const kg_cs_model *fine, const kg_sim_noise *noise, uint64_t seed,
                       size_t n, float *x, float *cov, uint8_t *truth)
 {
 	kg_rng rng;
@@ -201,22 +201,14 @@ static int cs_response(double F[3 * KG_NBANDS], kg_err *err)
 	return ret;
 }
 
-int bench_camspace(const kg_bench_config *cfg, kg_bench_results *r, kg_err *err)
+int bench_cs_models(const char *materials, double step, kg_cs_model **m, kg_cs_model **fine,
+                    kg_err *err)
 {
-	kg_bench_camspace *cs = &r->camspace;
 	kg_material_library *lib = NULL;
-	kg_cs_model *m = NULL, *fine = NULL;
-	float *x = NULL, *cov = NULL;
-	uint8_t *truth = NULL;
-	cs_out ref = {0}, quad = {0}, vec = {0}, timed = {0};
 	const kg_material *mats[KG_EST_MAX_MATERIALS];
 	double F[3 * KG_NBANDS];
-	int ret;
-	if (!cfg->materials) {
-		bench_progress(cfg, "[camspace] skipped: no material library");
-		return 0;
-	}
-	ret = kg_material_library_load(cfg->materials, &lib, err);
+	*m = *fine = NULL;
+	int ret = kg_material_library_load(materials, &lib, err);
 	if (!ret)
 		ret = cs_response(F, err);
 	if (ret)
@@ -226,10 +218,30 @@ int bench_camspace(const kg_bench_config *cfg, kg_bench_results *r, kg_err *err)
 		n = KG_EST_MAX_MATERIALS;
 	for (int j = 0; j < n; j++)
 		mats[j] = kg_material_library_get(lib, j);
-	double step = cfg->camspace_step > 0 ? cfg->camspace_step : CS_ANGLE_STEP;
-	ret = kg_cs_model_new(F, mats, n, 0, CS_ANGLE_TO, step, CS_LO, CS_HI, &m, err);
+	ret = kg_cs_model_new(F, mats, n, 0, CS_ANGLE_TO, step, CS_LO, CS_HI, m, err);
 	if (!ret)
-		ret = kg_cs_model_new(F, mats, n, 0, CS_ANGLE_TO, 1.0, CS_LO, CS_HI, &fine, err);
+		ret = kg_cs_model_new(F, mats, n, 0, CS_ANGLE_TO, 1.0, CS_LO, CS_HI, fine, err);
+	if (ret)
+		kg_cs_model_free(m);
+done:
+	kg_material_library_free(&lib);
+	return ret;
+}
+
+int bench_camspace(const kg_bench_config *cfg, kg_bench_results *r, kg_err *err)
+{
+	kg_bench_camspace *cs = &r->camspace;
+	kg_cs_model *m = NULL, *fine = NULL;
+	float *x = NULL, *cov = NULL;
+	uint8_t *truth = NULL;
+	cs_out ref = {0}, quad = {0}, vec = {0}, timed = {0};
+	int ret;
+	if (!cfg->materials) {
+		bench_progress(cfg, "[camspace] skipped: no material library");
+		return 0;
+	}
+	double step = cfg->camspace_step > 0 ? cfg->camspace_step : CS_ANGLE_STEP;
+	ret = bench_cs_models(cfg->materials, step, &m, &fine, err);
 	if (ret)
 		goto done;
 	size_t npix = (size_t)(cfg->camspace_mpix * 1e6 + 0.5);
@@ -250,7 +262,7 @@ int bench_camspace(const kg_bench_config *cfg, kg_bench_results *r, kg_err *err)
 		ret = kg_fail(err, KG_ENOMEM, "bench: out of memory for the camera-space rows");
 		goto done;
 	}
-	cs_pixels(fine, &r->noise, r->seed + 7, npix, x, cov, truth);
+	bench_cs_pixels(fine, &r->noise, r->seed + 7, npix, x, cov, truth);
 
 	/* agreement, every output including each material's distance: each path against
 	 * its method's C reference and against the exact one */
@@ -343,7 +355,6 @@ int bench_camspace(const kg_bench_config *cfg, kg_bench_results *r, kg_err *err)
 			               threads, threads == 1 ? " " : "s", row->mpix_s);
 		}
 done:
-	kg_material_library_free(&lib);
 	kg_cs_model_free(&m);
 	kg_cs_model_free(&fine);
 	free(x);

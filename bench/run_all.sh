@@ -32,6 +32,7 @@ step "kogei bench (speed against error, camera-space matching)"
 "$KOGEI" bench -o "$OUT"
 step "kogei bench, camera-space angles every 10 degrees"
 "$KOGEI" bench --no-error --no-speed --camspace-step 10 -o "$OUT/camspace10"
+"$BUILD/bench/kogei-bench-cs-search" > "$OUT/cs-search.md"
 step "estimation kernels (every path)"
 for isa in avx512 avx2 c; do
 	"$BUILD/bench/kogei-bench-kernels" --isa "$isa" --methods 2 --json "$OUT/kernels-$isa.json" \
