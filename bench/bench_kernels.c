@@ -14,8 +14,9 @@
  * within one); the figures are the medians of each.
  *
  *   kogei-bench-kernels [--mpix N] [--reps N] [--quick] [--isa auto|c|avx2|avx512]
- *                       [--methods N] [--json PATH]
- * --methods N keeps the first N methods (1: the linear kernel only). */
+ *                       [--methods N] [--output NAME] [--json PATH]
+ * --methods N keeps the first N methods (1: the linear kernel only); --output NAME
+ * only the output of that name (e.g. "f16 BSQ"). */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -74,13 +75,16 @@ typedef struct output {
 static void usage(FILE *f)
 {
 	fprintf(f, "usage: kogei-bench-kernels [--mpix N] [--reps N] [--quick] "
-	           "[--isa auto|c|avx2|avx512] [--methods N] [--json PATH]\n");
+	           "[--isa auto|c|avx2|avx512] [--methods N] [--output NAME] [--json PATH]\n"
+	           "  --output: f32 BSQ, f32 BIP, f16 BSQ, f16 BIP, weights (K=3) or\n"
+	           "  labels (16 materials); default every one\n");
 }
 
 int main(int argc, char **argv)
 {
 	double mpix = 12;
 	int reps = 5, nmethods = 5;
+	const char *only = NULL;
 	const char *json_path = NULL;
 	kg_est_isa isa = KG_EST_ISA_AUTO;
 	kg_outfile json = {0};
@@ -100,6 +104,8 @@ int main(int argc, char **argv)
 			                                   : KG_EST_ISA_AUTO;
 		} else if (!strcmp(argv[i], "--methods") && i + 1 < argc)
 			nmethods = atoi(argv[++i]);
+		else if (!strcmp(argv[i], "--output") && i + 1 < argc)
+			only = argv[++i];
 		else if (!strcmp(argv[i], "--json") && i + 1 < argc)
 			json_path = argv[++i];
 		else if (!strcmp(argv[i], "--help")) {
@@ -168,6 +174,16 @@ int main(int argc, char **argv)
 	    {"weights (K=3)", KG_EST_WEIGHTS, 4 * 3},     {"labels (16 materials)", KG_EST_LABELS, 5},
 	};
 	const int nout = sizeof(outputs) / sizeof(outputs[0]);
+	int known = !only;
+	for (int o = 0; o < nout && !known; o++)
+		known = !strcmp(outputs[o].name, only);
+	if (!known) {
+		fprintf(stderr, "kogei-bench-kernels: --output '%s': expected one of", only);
+		for (int o = 0; o < nout; o++)
+			fprintf(stderr, "%s '%s'", o ? "," : "", outputs[o].name);
+		fprintf(stderr, "\n");
+		return 2;
+	}
 
 	float *rgb = malloc(sizeof(float) * 3 * npix);
 	size_t max_bytes = npix * 4 * KG_NBANDS;
@@ -207,6 +223,8 @@ int main(int argc, char **argv)
 	int first = 1;
 	for (int mi = 0; mi < nmethods; mi++)
 		for (int o = 0; o < nout; o++) {
+			if (only && strcmp(outputs[o].name, only))
+				continue;
 			double speed[2], limit[2];
 			for (int t = 1; t <= 2; t++) {
 				kg_est_job job;
