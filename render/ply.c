@@ -820,6 +820,7 @@ static int grow_tris(ply_reader *r, size_t need)
 	if (!t)
 		return kg_fail(r->err, KG_ENOMEM, "%s: out of memory for %zu triangles", r->name, cap);
 	m->tri = t;
+	kg_advise_huge_pages(t, cap * 3 * sizeof(*t));
 	if (m->tri_material) {
 		int32_t *tm = realloc(m->tri_material, cap * sizeof(*tm));
 		if (!tm)
@@ -1344,6 +1345,10 @@ static int allocate(ply_reader *r, const ply_elem *v, const ply_elem *f)
 			fmat |= f->props[i].role == ROLE_FMAT;
 	if (fmat)
 		m->tri_material = malloc(sizeof(int32_t));
+	/* the parse writes every value once: page faults were most of its time */
+	kg_advise_huge_pages(m->pos, nv * 3 * sizeof(float));
+	kg_advise_huge_pages(m->normal, nv * 3 * sizeof(float));
+	kg_advise_huge_pages(m->color, nv * 3 * sizeof(float));
 	if (!m->pos || ((roles & (1u << ROLE_NX)) && !m->normal) ||
 	    ((roles & (1u << ROLE_RED)) && !m->color) ||
 	    ((roles & (1u << ROLE_VMAT)) && !m->vert_material) || (fmat && !m->tri_material))

@@ -121,23 +121,6 @@ static double dot3(const double a[3], const double b[3])
 	return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
 }
 
-/* The image's pages are first touched by the workers as they store the tiles: one
- * fault per 4 KiB page was a third of a 1080p preview's time on a virtual machine
- * (perf: kernel page faults under the output stores). Ask for transparent huge pages
- * over the buffer (whole pages inside it only); harmless where they are off. */
-static void advise_huge_pages(void *p, size_t n)
-{
-#if defined(MADV_HUGEPAGE)
-	uintptr_t page = (uintptr_t)sysconf(_SC_PAGESIZE);
-	uintptr_t a = ((uintptr_t)p + page - 1) / page * page;
-	uintptr_t b = ((uintptr_t)p + n) / page * page;
-	if (b > a)
-		madvise((void *)a, b - a, MADV_HUGEPAGE);
-#else
-	(void)p, (void)n;
-#endif
-}
-
 /* ---- Embree scene ---------------------------------------------------------------- */
 
 static int build_scene(rd_ctx *c, int threads, kg_err *err)
@@ -926,7 +909,8 @@ int kg_render_full(const kg_scene *s, const kg_render_options *opt, kg_render_re
 	c.out[0] = img->data;
 	c.out[1] = xyz ? xyz->data : NULL;
 	for (int i = 0; i < 2 && c.out[i]; i++)
-		advise_huge_pages(c.out[i], sizeof(float) * 3 * (size_t)c.width * (size_t)c.height);
+		/* first touched by the workers as they store the tiles */
+		kg_advise_huge_pages(c.out[i], sizeof(float) * 3 * (size_t)c.width * (size_t)c.height);
 	c.tiles_x = (c.width + TILE - 1) / TILE;
 	c.ntiles = c.tiles_x * ((c.height + TILE - 1) / TILE);
 	atomic_init(&c.next_tile, 0);
