@@ -13,6 +13,7 @@
 #include <unistd.h>
 
 #include "fsutil.h"
+#include "memutil.h"
 #include "kg_config.h"
 
 /* The process's inputs: a short list (a command reads a handful of files), searched
@@ -447,8 +448,17 @@ int kg_read_file(const char *path, char **buf, size_t *len, kg_err *err)
 		return kg_fail(err, errno == ENOENT ? KG_ENOENT : KG_EIO, "%s: cannot open: %s",
 		               path, strerror(errno));
 	kg_inputs_add(path, fileno(fp));
+	/* a regular file's size is known: one buffer of that size (plus one byte, so that
+	 * a file that grew is still read to its end), huge pages asked for over a large
+	 * one, whose first-touch page faults otherwise cost more than the read */
+	struct stat st;
 	size_t cap = 1 << 16, n = 0;
+	if (fstat(fileno(fp), &st) == 0 && S_ISREG(st.st_mode) && st.st_size >= 0 &&
+	    (uint64_t)st.st_size < (uint64_t)SIZE_MAX / 2)
+		cap = (size_t)st.st_size + 1;
 	char *b = malloc(cap + 1);
+	if (b)
+		kg_advise_huge_pages(b, cap + 1);
 	while (b) {
 		size_t got = fread(b + n, 1, cap - n, fp);
 		n += got;
