@@ -17,7 +17,7 @@
  * goes to stdout, JSON to --json.
  *
  *   kogei-bench-chart [--kogei PATH] [--layout L] [--width W --height H] [--reps N]
- *                     [--keep DIR] [--json PATH] */
+ *                     [--keep DIR] [--only TEXT] [--json PATH] */
 #include <libgen.h>
 #include <math.h>
 #include <stdio.h>
@@ -125,7 +125,7 @@ static void write_camera(const char *path)
 int main(int argc, char **argv)
 {
 	char kogei[4096], layout_path[4096], dir[4096] = "";
-	const char *json_path = NULL, *keep = NULL;
+	const char *json_path = NULL, *keep = NULL, *only = NULL;
 	int width = 4000, height = 3000, reps = 3;
 	{
 		char self[4096];
@@ -145,6 +145,8 @@ int main(int argc, char **argv)
 			json_path = argv[++i];
 		else if (!strcmp(a, "--keep") && v)
 			keep = argv[++i];
+		else if (!strcmp(a, "--only") && v)
+			only = argv[++i];
 		else if (!strcmp(a, "--width") && v)
 			width = atoi(argv[++i]);
 		else if (!strcmp(a, "--height") && v)
@@ -154,7 +156,8 @@ int main(int argc, char **argv)
 		else {
 			fprintf(stderr,
 			        "usage: %s [--kogei PATH] [--layout L] [--width W --height H] "
-			        "[--reps N] [--keep DIR] [--json PATH]\n",
+			        "[--reps N] [--keep DIR] [--only TEXT] [--json PATH]\n"
+			        "  --only TEXT: only the images whose name contains TEXT (e.g. Bayer)\n",
 			        argv[0]);
 			return 2;
 		}
@@ -204,6 +207,8 @@ int main(int argc, char **argv)
 	double render_s[NIMAGES] = {0};
 	for (int im = 0; im < NIMAGES; im++) {
 		char img[4300], truth_path[4300];
+		if (only && !strstr(images[im].name, only))
+			continue;
 		snprintf(img, sizeof(img), "%s/chart%d.tif", dir, im);
 		snprintf(truth_path, sizeof(truth_path), "%s/chart%d.cgats", dir, im);
 		char *sim[48] = {kogei, "sim", "chart", "--layout", layout_path, "--camera", camera,
