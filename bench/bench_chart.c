@@ -18,11 +18,13 @@
  *
  *   kogei-bench-chart [--kogei PATH] [--layout L] [--width W --height H] [--reps N]
  *                     [--keep DIR] [--only TEXT] [--json PATH] */
+#include <errno.h>
 #include <libgen.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "kg_bench.h"
@@ -166,9 +168,13 @@ int main(int argc, char **argv)
 		fprintf(stderr, "kogei-bench-chart: --reps 1..%d, --width/--height >= 64\n", MAX_REPS);
 		return 2;
 	}
-	if (keep)
+	if (keep) {
 		snprintf(dir, sizeof(dir), "%s", keep);
-	else {
+		if (mkdir(dir, 0777) != 0 && errno != EEXIST) {
+			fprintf(stderr, "kogei-bench-chart: --keep %s: %s\n", dir, strerror(errno));
+			return 1;
+		}
+	} else {
 		const char *tmp = getenv("TMPDIR");
 		snprintf(dir, sizeof(dir), "%s/kogei-bench-chart-XXXXXX", tmp && *tmp ? tmp : "/tmp");
 		if (!mkdtemp(dir)) {

@@ -19,6 +19,10 @@
 #include <string.h>
 #include <time.h>
 
+#ifdef __SSE2__
+#include <emmintrin.h>
+#endif
+
 #include <cairo.h>
 
 #include "calib_private.h"
@@ -424,9 +428,10 @@ typedef struct work_image {
 	const kg_image *raw; /* the CFA frame, or NULL */
 	int cfa_rows, cfa_cols;
 	int colour[64];      /* the CFA repeat's filters: 0 R, 1 G, 2 B */
-	/* Per CFA phase, each colour's neighbours in the 3 x 3 window, in raster order:
-	 * the interior pixels' sums without the edge clamping. */
-	signed char nb[64][3][9][2];
+	/* Per CFA phase, each colour's neighbours in the 3 x 3 window, in raster order, as
+	 * offsets in the frame (dy W + dx): the interior pixels' sums without the edge
+	 * clamping. */
+	ptrdiff_t nb[64][3][9];
 	int nbn[64][3];
 	double clip_level;
 	double quantum; /* step between the source's integer codes (0: float or demosaiced) */
@@ -437,41 +442,90 @@ typedef struct work_image {
 	int threads;
 } work_image;
 
-/* Bilinear demosaic of pixels x0, x0 + step, ... (n of them) of row y into out (RGB):
- * each missing colour is the mean of the 3 x 3 neighbours that carry it, edges
- * clamped. Interior pixels take their phase's neighbour lists; the sums run in the
- * same order as the clamped loop at the edges, so both give the same values. */
-static void demosaic_span(const work_image *wi, int y, int x0, int n, int step, float *out)
+/* Bilinear demosaic: each missing colour is the mean of the 3 x 3 neighbours that
+ * carry it, edges clamped. This is one pixel (x, y) anywhere, into o (RGB). */
+static void demosaic_clamped(const work_image *wi, int y, int x, float *o)
 {
 	const kg_image *raw = wi->raw;
 	int W = raw->width, Hh = raw->height, cr = wi->cfa_rows, cc = wi->cfa_cols;
 	const float *d = raw->data;
-	for (int i = 0; i < n; i++) {
-		int x = x0 + i * step;
-		int phase = (y % cr) * cc + x % cc, own = wi->colour[phase];
-		double sum[3] = {0, 0, 0};
-		int cnt[3] = {0, 0, 0};
-		if (x > 0 && y > 0 && x < W - 1 && y < Hh - 1) {
-			for (int c = 0; c < 3; c++) {
-				cnt[c] = wi->nbn[phase][c];
-				for (int k = 0; k < cnt[c]; k++)
-					sum[c] += d[(size_t)(y + wi->nb[phase][c][k][0]) * W + x +
-					             wi->nb[phase][c][k][1]];
-			}
-		} else {
-			for (int dy = -1; dy <= 1; dy++) {
-				int yy = y + dy < 0 ? 0 : y + dy >= Hh ? Hh - 1 : y + dy;
-				for (int dx = -1; dx <= 1; dx++) {
-					int xx = x + dx < 0 ? 0 : x + dx >= W ? W - 1 : x + dx;
-					int c = wi->colour[(yy % cr) * cc + xx % cc];
-					sum[c] += d[(size_t)yy * W + xx];
-					cnt[c]++;
-				}
-			}
+	double sum[3] = {0, 0, 0};
+	int cnt[3] = {0, 0, 0};
+	for (int dy = -1; dy <= 1; dy++) {
+		int yy = y + dy < 0 ? 0 : y + dy >= Hh ? Hh - 1 : y + dy;
+		for (int dx = -1; dx <= 1; dx++) {
+			int xx = x + dx < 0 ? 0 : x + dx >= W ? W - 1 : x + dx;
+			int c = wi->colour[(yy % cr) * cc + xx % cc];
+			sum[c] += d[(size_t)yy * W + xx];
+			cnt[c]++;
 		}
-		float *o = out + (size_t)i * 3;
-		for (int c = 0; c < 3; c++)
-			o[c] = c == own ? d[(size_t)y * W + x] : (cnt[c] ? (float)(sum[c] / cnt[c]) : 0.0f);
+	}
+	int own = wi->colour[(y % cr) * cc + x % cc];
+	for (int c = 0; c < 3; c++)
+		o[c] = c == own ? d[(size_t)y * W + x] : (cnt[c] ? (float)(sum[c] / cnt[c]) : 0.0f);
+}
+
+/* Interior pixels x, x + step, ... (n of them, all with a neighbour on each side) of
+ * row y: the phase's neighbour lists, summed in the clamped loop's order, so both give
+ * the same values. A mean of 1, 2, 4 or 8 (every 2 x 2 pattern's) is a multiply by
+ * the exact reciprocal, equal to the division. */
+static void demosaic_interior(const work_image *wi, int y, int x, int n, int step, float *o)
+{
+	static const double recip[9] = {0, 1, 0.5, 0, 0.25, 0, 0, 0, 0.125};
+	const float *row = wi->raw->data + (size_t)y * wi->raw->width;
+	int cc = wi->cfa_cols, base = (y % wi->cfa_rows) * cc, px = x % cc, dpx = step % cc;
+	for (int i = 0; i < n; i++, x += step, o += 3) {
+		int phase = base + px, own = wi->colour[phase];
+		const float *p = row + x;
+		for (int c = 0; c < 3; c++) {
+			int k = wi->nbn[phase][c];
+			const ptrdiff_t *off = wi->nb[phase][c];
+			if (c == own) {
+				o[c] = *p;
+				continue;
+			}
+			double sum = 0;
+			switch (k) {
+			case 4:
+				sum += p[off[0]];
+				sum += p[off[1]];
+				sum += p[off[2]];
+				sum += p[off[3]];
+				break;
+			case 2:
+				sum += p[off[0]];
+				sum += p[off[1]];
+				break;
+			default:
+				for (int j = 0; j < k; j++)
+					sum += p[off[j]];
+			}
+			o[c] = !k ? 0.0f : recip[k] != 0 ? (float)(sum * recip[k]) : (float)(sum / k);
+		}
+		px += dpx;
+		if (px >= cc)
+			px -= cc;
+	}
+}
+
+/* Bilinear demosaic of pixels x0, x0 + step, ... (n of them) of row y into out (RGB):
+ * the runs of interior pixels through demosaic_interior, the edges clamped. */
+static void demosaic_span(const work_image *wi, int y, int x0, int n, int step, float *out)
+{
+	int W = wi->raw->width, Hh = wi->raw->height;
+	int inner_row = y > 0 && y < Hh - 1;
+	for (int i = 0; i < n;) {
+		int x = x0 + i * step;
+		if (!inner_row || x == 0 || x >= W - 1) {
+			demosaic_clamped(wi, y, x, out + (size_t)i * 3);
+			i++;
+			continue;
+		}
+		int m = (W - 2 - x) / step + 1;
+		if (m > n - i)
+			m = n - i;
+		demosaic_interior(wi, y, x, m, step, out + (size_t)i * 3);
+		i += m;
 	}
 }
 
@@ -558,9 +612,8 @@ static int prepare_image(const kg_image *img, const kg_chart_detect_options *opt
 				for (int dy = -1; dy <= 1; dy++)
 					for (int dx = -1; dx <= 1; dx++) {
 						int c = wi->colour[((py + dy + cr) % cr) * cc + (px + dx + cc) % cc];
-						signed char *o = wi->nb[phase][c][wi->nbn[phase][c]++];
-						o[0] = (signed char)dy;
-						o[1] = (signed char)dx;
+						wi->nb[phase][c][wi->nbn[phase][c]++] =
+						    (ptrdiff_t)dy * img->width + dx;
 					}
 			}
 		wi->raw = img;
@@ -1356,24 +1409,88 @@ static uint32_t float_bits(float f)
 	return u;
 }
 
-static int count_values(const float *v, long n, float scale, sample_buffers *b)
+/* The keys of v[i0 .. n) into keys, their least and greatest into *lo and *hi (kept
+ * if smaller or greater), and whether any value cannot be counted. */
+static int count_keys_scalar(const float *v, long i0, long n, float scale, uint32_t *keys,
+                             uint32_t *lo, uint32_t *hi)
 {
 	const float inv = 1.0f / scale;
-	uint32_t lo = UINT32_MAX, hi = 0, bad = 0;
-	for (long i = 0; i < n; i++) {
+	uint32_t l = *lo, h = *hi, bad = 0;
+	for (long i = i0; i < n; i++) {
 		float t = v[i] * scale;
 		if (!(t >= 0 && t < 67108864.0f))
-			return -1;
+			return 1;
 		uint32_t k = (uint32_t)(t + 0.5f);
 		uint32_t d = float_bits(v[i]) - float_bits((float)k * inv) + COUNT_SPREAD / 2;
 		bad |= d >= COUNT_SPREAD;
 		uint32_t key = k * COUNT_SPREAD + d;
-		b->keys[i] = key;
-		lo = key < lo ? key : lo;
-		hi = key > hi ? key : hi;
+		keys[i] = key;
+		l = key < l ? key : l;
+		h = key > h ? key : h;
 	}
+	*lo = l;
+	*hi = h;
+	return bad != 0;
+}
+
+#ifdef __SSE2__
+/* count_keys_scalar four values at a time (SSE2, every x86-64): the same float
+ * operations, so the same keys. A value outside the range or off its integer makes
+ * the whole call fail, whatever the other lanes hold; the keys of values that pass
+ * are below 2^30, so signed comparisons order them. */
+static int count_keys(const float *v, long n, float scale, uint32_t *keys, uint32_t *lo,
+                      uint32_t *hi)
+{
+	const float inv = 1.0f / scale;
+	const __m128 vs = _mm_set1_ps(scale), vinv = _mm_set1_ps(inv), zero = _mm_setzero_ps(),
+	             top = _mm_set1_ps(67108864.0f), half = _mm_set1_ps(0.5f);
+	const __m128i spread = _mm_set1_epi32(COUNT_SPREAD / 2),
+	              low_bits = _mm_set1_epi32(COUNT_SPREAD - 1);
+	__m128i vlo = _mm_set1_epi32(INT32_MAX), vhi = _mm_setzero_si128(),
+	        bad = _mm_setzero_si128();
+	__m128 in = _mm_castsi128_ps(_mm_set1_epi32(-1));
+	long i = 0;
+	for (; i + 4 <= n; i += 4) {
+		__m128 x = _mm_loadu_ps(v + i), t = _mm_mul_ps(x, vs);
+		in = _mm_and_ps(in, _mm_and_ps(_mm_cmpge_ps(t, zero), _mm_cmplt_ps(t, top)));
+		__m128i k = _mm_cvttps_epi32(_mm_add_ps(t, half));
+		__m128 kf = _mm_mul_ps(_mm_cvtepi32_ps(k), vinv);
+		__m128i d = _mm_add_epi32(_mm_sub_epi32(_mm_castps_si128(x), _mm_castps_si128(kf)),
+		                          spread);
+		bad = _mm_or_si128(bad, _mm_andnot_si128(low_bits, d));
+		__m128i key = _mm_add_epi32(_mm_slli_epi32(k, 3), d);
+		_mm_storeu_si128((__m128i *)(keys + i), key);
+		__m128i lt = _mm_cmplt_epi32(key, vlo), gt = _mm_cmpgt_epi32(key, vhi);
+		vlo = _mm_or_si128(_mm_and_si128(lt, key), _mm_andnot_si128(lt, vlo));
+		vhi = _mm_or_si128(_mm_and_si128(gt, key), _mm_andnot_si128(gt, vhi));
+	}
+	if (_mm_movemask_ps(in) != 0xf ||
+	    _mm_movemask_epi8(_mm_cmpeq_epi32(bad, _mm_setzero_si128())) != 0xffff)
+		return 1;
+	uint32_t l[4], h[4];
+	_mm_storeu_si128((__m128i *)l, vlo);
+	_mm_storeu_si128((__m128i *)h, vhi);
+	for (int k = 0; k < 4; k++) {
+		*lo = l[k] < *lo ? l[k] : *lo;
+		*hi = h[k] > *hi ? h[k] : *hi;
+	}
+	return count_keys_scalar(v, i, n, scale, keys, lo, hi);
+}
+#else
+static int count_keys(const float *v, long n, float scale, uint32_t *keys, uint32_t *lo,
+                      uint32_t *hi)
+{
+	return count_keys_scalar(v, 0, n, scale, keys, lo, hi);
+}
+#endif
+
+static int count_values(const float *v, long n, float scale, sample_buffers *b)
+{
+	uint32_t lo = UINT32_MAX, hi = 0;
+	if (count_keys(v, n, scale, b->keys, &lo, &hi))
+		return -1;
 	long nb = n ? (long)(hi - lo) + 1 : 0;
-	if (bad || nb > COUNT_MAX_BINS || nb > 4 * n + 65536)
+	if (nb > COUNT_MAX_BINS || nb > 4 * n + 65536)
 		return -1;
 	if (nb > b->bins_cap) {
 		int32_t *c = realloc(b->cnt, (size_t)nb * sizeof(*c));
@@ -1386,11 +1503,17 @@ static int count_values(const float *v, long n, float scale, sample_buffers *b)
 		b->bins_cap = nb;
 	}
 	memset(b->cnt, 0, (size_t)nb * sizeof(*b->cnt));
-	for (long i = 0; i < n; i++) {
-		uint32_t k = b->keys[i] - lo;
-		b->val[k] = v[i];
-		b->cnt[k]++;
-	}
+	for (long i = 0; i < n; i++)
+		b->cnt[b->keys[i] - lo]++;
+	/* A key is its value: the float of its integer over scale, moved by its distance. */
+	const float inv = 1.0f / scale;
+	for (long k = 0; k < nb; k++)
+		if (b->cnt[k]) {
+			uint32_t key = lo + (uint32_t)k, u;
+			u = float_bits((float)(key / COUNT_SPREAD) * inv) + key % COUNT_SPREAD -
+			    COUNT_SPREAD / 2;
+			memcpy(&b->val[k], &u, sizeof(u));
+		}
 	b->lo = lo;
 	b->nb = nb;
 	return 0;

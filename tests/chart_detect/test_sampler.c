@@ -2,7 +2,8 @@
  * patches over threads) against its reference (every pixel of each region's bounding
  * box through the inverse homography, quickselect) on synthetic photographs
  * (chart_synth.h): the same pixels and the same numbers, bit for bit, for 8- and
- * 16-bit, grey, float and Bayer images, both statistics, a patch half out of the
+ * 16-bit, grey, float and Bayer images (and the Bayer frame demosaiced pixel by pixel
+ * here, sampled by the reference), both statistics, a patch half out of the
  * frame, glare, a clipped patch, steep perspective and an axis-aligned view whose
  * region sides fall on pixel centres. kg_chart_detect must also give the same
  * patches at 1, 2 and 3 threads. */
@@ -35,6 +36,33 @@ static void compare(const kg_chart_result *a, const kg_chart_result *b, const ch
 		      q->pixels, p->rgb[0], p->rgb[1], p->rgb[2], q->rgb[0], q->rgb[1], q->rgb[2],
 		      p->sd[0], q->sd[0], p->flags, q->flags);
 	}
+}
+
+/* The bilinear demosaic written out pixel by pixel, independently of the sampler's:
+ * each missing colour the mean of the 3 x 3 neighbours (edges clamped) that carry it,
+ * summed in raster order in double. */
+static kg_image *demosaic_reference(const kg_image *raw)
+{
+	int W = raw->width, H = raw->height;
+	kg_image *rgb = syn_image(W, H, 3, 0);
+	for (int y = 0; y < H; y++)
+		for (int x = 0; x < W; x++) {
+			double sum[3] = {0, 0, 0};
+			int cnt[3] = {0, 0, 0};
+			for (int dy = -1; dy <= 1; dy++)
+				for (int dx = -1; dx <= 1; dx++) {
+					int yy = y + dy < 0 ? 0 : y + dy >= H ? H - 1 : y + dy;
+					int xx = x + dx < 0 ? 0 : x + dx >= W ? W - 1 : x + dx;
+					int c = (int)(strchr("RGB", raw->cfa[(yy % 2) * 2 + xx % 2]) - "RGB");
+					sum[c] += raw->data[(size_t)yy * W + xx];
+					cnt[c]++;
+				}
+			int own = (int)(strchr("RGB", raw->cfa[(y % 2) * 2 + x % 2]) - "RGB");
+			for (int c = 0; c < 3; c++)
+				rgb->data[((size_t)y * W + x) * 3 + c] =
+				    c == own ? raw->data[(size_t)y * W + x] : (float)(sum[c] / cnt[c]);
+		}
+	return rgb;
 }
 
 /* Reference against the optimised sampler at 1, 2 and 3 threads. */
@@ -122,6 +150,22 @@ int main(void)
 		kg_image *raw = syn_mosaic(rgb, "RGGB");
 		syn_finish(raw, 0.0, 16, 5);
 		check_sampler(l, raw, H, KG_CHART_MEDIAN, "Bayer RGGB 16-bit, tilted");
+		/* the frame demosaiced here, sampled by the reference: the same patches as the
+		 * optimised sampler's on the raw frame (one clip level for both) */
+		kg_image *dem = demosaic_reference(raw);
+		kg_chart_detect_options o;
+		kg_chart_detect_options_default(&o);
+		o.clip_level = 0.999;
+		o.threads = 2;
+		kg_err err = {{0}};
+		kg_chart_result *a = NULL, *b = NULL;
+		CHECK(calib_chart_sample(l, dem, H, &o, 1, &a, &err) == 0, "demosaiced: %s", err.msg);
+		CHECK(calib_chart_sample(l, raw, H, &o, 0, &b, &err) == 0, "raw: %s", err.msg);
+		if (a && b)
+			compare(a, b, "Bayer RGGB 16-bit, demosaiced here vs by the sampler", "2 threads");
+		kg_chart_result_free(&a);
+		kg_chart_result_free(&b);
+		kg_image_free(&dem);
 		kg_image_free(&raw);
 		kg_image_free(&rgb);
 	}
