@@ -1697,8 +1697,8 @@ static void span_columns(const span_row *s, double hx, double hy, long *x0, long
  * in the same order, and selects by radix_pair: the same values. */
 static int sample_patch(const work_image *wi, const double H[9], const double Hinv[9],
                         const double center[2], const double size[2],
-                        const kg_chart_detect_options *opt, int fast, sample_buffers *buf,
-                        kg_chart_sample *p)
+                        const kg_chart_detect_options *opt, int fast, int stride,
+                        sample_buffers *buf, kg_chart_sample *p)
 {
 	double hx = 0.5 * opt->sample_fraction * size[0], hy = 0.5 * opt->sample_fraction * size[1];
 	double cx = center[0], cy = center[1];
@@ -1738,18 +1738,19 @@ static int sample_patch(const work_image *wi, const double H[9], const double Hi
 	double qsum[4] = {0, 0, 0, 0};
 	long qn[4] = {0, 0, 0, 0};
 	int C = wi->channels;
-	for (long y = iy0; y < iy1 && cap; y++) {
+	for (long y = iy0; y < iy1 && cap; y += stride) {
 		double Y = y + 0.5;
 		long xa = ix0, xb = ix1;
-		span_row s;
+		span_row s = {{0, 0, 0}, {0, 0, 0}};
 		if (fast) {
 			span_row_at(G, center, Y, &s);
 			span_columns(&s, hx, hy, &xa, &xb);
 		}
 		if (xa >= xb)
 			continue;
-		const float *row = image_span(wi, (int)y, (int)xa, (int)(xb - xa), 1, buf->row);
-		for (long x = xa; x < xb; x++) {
+		const float *row = image_span(wi, (int)y, (int)xa, (int)((xb - xa - 1) / stride + 1),
+		                              stride, buf->row);
+		for (long x = xa; x < xb; x += stride) {
 			double X = x + 0.5;
 			int q = 0, in;
 			if (fast) {
@@ -1766,7 +1767,7 @@ static int sample_patch(const work_image *wi, const double H[9], const double Hi
 			}
 			if (!in)
 				continue;
-			const float *px = row + (x - xa) * C;
+			const float *px = row + (x - xa) / stride * C;
 			double sum = 0;
 			int clipped = 0;
 			for (int c = 0; c < 3; c++) {
@@ -1865,7 +1866,7 @@ typedef struct sample_job {
 	const kg_chart_detect_options *opt;
 	const double *H, *Hinv;
 	kg_chart_sample *patches;
-	int fast;
+	int fast, stride;
 	int failed[MAX_THREADS];
 } sample_job;
 
@@ -1876,14 +1877,17 @@ static void sample_patches(void *arg, int t, int n)
 	sample_buffers buf = {0};
 	for (int i = t; i < j->L->npatches && !j->failed[t]; i += n)
 		j->failed[t] = sample_patch(j->wi, j->H, j->Hinv, j->L->patch_center[i],
-		                            j->L->patch_size[i], j->opt, j->fast, &buf,
+		                            j->L->patch_size[i], j->opt, j->fast, j->stride, &buf,
 		                            &j->patches[i]) != 0;
 	buffers_free(&buf);
 }
 
+/* Every patch of L in wi through r->H into r->patches: fast or the reference, every
+ * stride-th row and column of each region (1: every pixel; more gives the patch
+ * values of a sparse sample, whose pixel counts and flags are those of the sample). */
 static int sample_all_with(const layout_view *L, const work_image *wi,
-                           const kg_chart_detect_options *opt, int fast, kg_chart_result *r,
-                           kg_err *err)
+                           const kg_chart_detect_options *opt, int fast, int stride,
+                           kg_chart_result *r, kg_err *err)
 {
 	double Hinv[9];
 	if (kg_homography_invert(r->H, Hinv))
@@ -1896,7 +1900,7 @@ static int sample_all_with(const layout_view *L, const work_image *wi,
 		if (!(r->patches[i].id = strdup(L->patch_ids[i])))
 			return kg_fail(err, KG_ENOMEM, "out of memory");
 	}
-	sample_job j = {L, wi, opt, r->H, Hinv, r->patches, fast, {0}};
+	sample_job j = {L, wi, opt, r->H, Hinv, r->patches, fast, stride > 1 ? stride : 1, {0}};
 	run_parallel(sample_patches, &j, opt->threads);
 	for (int t = 0; t < MAX_THREADS; t++)
 		if (j.failed[t])
@@ -1909,7 +1913,7 @@ static int sample_all_with(const layout_view *L, const work_image *wi,
 static int sample_all(const layout_view *L, const work_image *wi,
                       const kg_chart_detect_options *opt, kg_chart_result *r, kg_err *err)
 {
-	return sample_all_with(L, wi, opt, 1, r, err);
+	return sample_all_with(L, wi, opt, 1, 1, r, err);
 }
 
 /* ---- the detector ------------------------------------------------------------ */
@@ -2524,23 +2528,45 @@ static int detect_tagless(const kg_chart_layout *l, const layout_view *L, work_i
 	double ts = now_seconds();
 	double score[4], H[4][9], angle[4];
 	kg_chart_sample *sampled[4] = {NULL, NULL, NULL, NULL}; /* each turn's patches */
-	int best = 0, upright = 0;
-	for (int turn = 0; turn < 4; turn++) {
+	int best = 0, upright = 0, full[4] = {0, 0, 0, 0};
+	/* Each turn scored first on a sparse sample of its patches, every stride-th row
+	 * and column (about a thousand pixels a patch): the wrong turns read as far from a
+	 * ColorChecker on that as on all pixels. The best, and every turn within one point
+	 * of it (all four when even the best does not read as a ColorChecker), are then
+	 * sampled whole and scored again: those scores decide. */
+	double patch_px = fabs(quad_signed_area((const double (*)[2])box_px)) / 24 *
+	                  opt->sample_fraction * opt->sample_fraction;
+	int stride = (int)sqrt(fmax(patch_px, 1) / 1024);
+	stride = stride < 1 ? 1 : stride > 8 ? 8 : stride;
+	for (int turn = 0; turn < 4 && !ret; turn++) {
 		double dst[4][2];
 		for (int k = 0; k < 4; k++)
 			memcpy(dst[k], box_px[(k + turn) % 4], sizeof(dst[k]));
-		if ((ret = kg_homography_fit((const double (*)[2])box_mm, (const double (*)[2])dst, 4,
-		                             0, H[turn], NULL, err)))
-			break;
-		memcpy(r->H, H[turn], sizeof(r->H));
-		ret = sample_all(L, wi, opt, r, err);
-		sampled[turn] = r->patches;
-		r->patches = NULL;
-		r->npatches = 0;
-		if (ret)
-			break;
-		score[turn] = orientation_score(sampled[turn], idx);
-		if (score[turn] < score[best])
+		ret = kg_homography_fit((const double (*)[2])box_mm, (const double (*)[2])dst, 4, 0,
+		                        H[turn], NULL, err);
+	}
+	for (int pass = stride > 1 ? 0 : 1; pass < 2 && !ret; pass++) {
+		double cheapest = INFINITY;
+		for (int turn = 0; pass == 1 && stride > 1 && turn < 4; turn++)
+			cheapest = fmin(cheapest, score[turn]);
+		for (int turn = 0; turn < 4 && !ret; turn++) {
+			if (pass == 1 && stride > 1 && !(score[turn] < cheapest + 1 || !(cheapest < 1)))
+				continue;
+			memcpy(r->H, H[turn], sizeof(r->H));
+			ret = sample_all_with(L, wi, opt, 1, pass == 0 ? stride : 1, r, err);
+			samples_free(sampled[turn], L->npatches);
+			sampled[turn] = r->patches;
+			r->patches = NULL;
+			r->npatches = 0;
+			if (!ret) {
+				score[turn] = orientation_score(sampled[turn], idx);
+				full[turn] = pass == 1;
+			}
+		}
+	}
+	for (int turn = 0; turn < 4 && !ret; turn++) {
+		/* a turn never sampled whole is never the best */
+		if (full[turn] && (!full[best] || score[turn] < score[best]))
 			best = turn;
 		double a1[2], a6[2];
 		kg_homography_map(H[turn], L->patch_center[idx[0]][0], L->patch_center[idx[0]][1], a1);
@@ -2575,9 +2601,16 @@ static int detect_tagless(const kg_chart_layout *l, const layout_view *L, work_i
 	for (int k = 0; k < 4; k++)
 		kg_homography_map(r->H, L->outline[k][0], L->outline[k][1], r->outline[k]);
 	double next = INFINITY;
+	int next_sparse = 0;
 	for (int turn = 0; turn < 4; turn++)
-		if (turn != best)
-			next = fmin(next, score[turn]);
+		if (turn != best && score[turn] < next) {
+			next = score[turn];
+			next_sparse = !full[turn];
+		}
+	char sparse[80] = "";
+	if (next_sparse)
+		snprintf(sparse, sizeof(sparse), " (on every %d%s row and column)", stride,
+		         stride == 2 ? "nd" : stride == 3 ? "rd" : "th");
 	char how[200] = "";
 	if (f > 1 && refined)
 		snprintf(how, sizeof(how), " on a %d x %d copy averaged over %d x %d pixels, refined "
@@ -2589,9 +2622,9 @@ static int detect_tagless(const kg_chart_layout *l, const layout_view *L, work_i
 	ret = add_warning(r, "chart placed by the tagless detector (OpenCV mcc, fit cost "
 	                  "%.3g) from the 4 corners of its box%s, not by tags; orientation "
 	                  "chosen from the patches (neutral row D01-D06 darkening from D01, "
-	                  "the brightest patch): score %.3f, next best of the 4 turns %.3f, "
+	                  "the brightest patch): score %.3f, next best of the 4 turns %.3f%s, "
 	                  "%s mcc's own; row A01-A06 runs at %.0f degrees clockwise from the "
-	                  "image's x axis", cost, how, score[best], next,
+	                  "image's x axis", cost, how, score[best], next, sparse,
 	                  best == 0 ? "agreeing with" : "overruling", angle[best]);
 	return ret ? kg_fail(err, ret, "out of memory") : 0;
 }
@@ -2736,7 +2769,7 @@ int calib_chart_sample(const kg_chart_layout *l, const kg_image *img, const doub
 	if (!ret) {
 		snprintf(r->layout, sizeof(r->layout), "%s", l->name);
 		memcpy(r->H, H, sizeof(r->H));
-		ret = sample_all_with(&L, &wi, &opt, !reference, r, err);
+		ret = sample_all_with(&L, &wi, &opt, !reference, 1, r, err);
 		free(wi.owned);
 	}
 	layout_arrays_free(&arrays);
