@@ -1344,9 +1344,10 @@ typedef struct sample_buffers {
 	long cap;
 	float *row; /* one row of the region, demosaiced or gathered */
 	long row_cap;
-	/* counting (count_values): keys lo .. lo + nb - 1, their counts and values */
+	/* counting (count_values): keys lo .. lo + nb - 1 and their counts; a key is its
+	 * value (bin_value), inv the 1 / scale it was made with */
 	int32_t *cnt;
-	float *val;
+	float inv;
 	long lo, nb, bins_cap;
 } sample_buffers;
 
@@ -1385,7 +1386,6 @@ static void buffers_free(sample_buffers *b)
 	free(b->keys);
 	free(b->row);
 	free(b->cnt);
-	free(b->val);
 }
 
 /* Counting instead of selecting, for values that lie near integers once scaled
@@ -1494,29 +1494,30 @@ static int count_values(const float *v, long n, float scale, sample_buffers *b)
 		return -1;
 	if (nb > b->bins_cap) {
 		int32_t *c = realloc(b->cnt, (size_t)nb * sizeof(*c));
-		if (c)
-			b->cnt = c;
-		float *f = c ? realloc(b->val, (size_t)nb * sizeof(*f)) : NULL;
-		if (!f)
+		if (!c)
 			return -1;
-		b->val = f;
+		b->cnt = c;
 		b->bins_cap = nb;
 	}
 	memset(b->cnt, 0, (size_t)nb * sizeof(*b->cnt));
 	for (long i = 0; i < n; i++)
 		b->cnt[b->keys[i] - lo]++;
-	/* A key is its value: the float of its integer over scale, moved by its distance. */
-	const float inv = 1.0f / scale;
-	for (long k = 0; k < nb; k++)
-		if (b->cnt[k]) {
-			uint32_t key = lo + (uint32_t)k, u;
-			u = float_bits((float)(key / COUNT_SPREAD) * inv) + key % COUNT_SPREAD -
-			    COUNT_SPREAD / 2;
-			memcpy(&b->val[k], &u, sizeof(u));
-		}
 	b->lo = lo;
 	b->nb = nb;
+	b->inv = 1.0f / scale;
 	return 0;
+}
+
+/* The value of counting bin k: its key's integer over scale as count_keys computes
+ * it, moved by the key's distance in float steps. */
+static float bin_value(const sample_buffers *b, long k)
+{
+	uint32_t key = (uint32_t)b->lo + (uint32_t)k;
+	uint32_t u = float_bits((float)(key / COUNT_SPREAD) * b->inv) + key % COUNT_SPREAD -
+	             COUNT_SPREAD / 2;
+	float f;
+	memcpy(&f, &u, sizeof(f));
+	return f;
 }
 
 /* Ranks r[0] <= r[1] picked from values arriving in ascending order, c copies each. */
@@ -1547,25 +1548,24 @@ static void counted_stats(const sample_buffers *b, long n, const kg_chart_detect
                           double quantum, double *loc, double *sigma)
 {
 	const int32_t *cnt = b->cnt;
-	const float *val = b->val;
 	long nb = b->nb;
 	rank_pick m = {{n / 2 - 1, n / 2}, 0, {0, 0}};
 	long up = 0;
-	while (!pick(&m, val[up], cnt[up]))
+	while (!pick(&m, bin_value(b, up), cnt[up]))
 		for (up++; !cnt[up]; up++)
 			;
 	double med = pick_median(&m, n);
 	float fm = (float)med;
 	/* the deviations fabsf(v - fm), as the selection computes them */
-	for (up = 0; up < nb && !(cnt[up] && val[up] >= fm); up++)
+	for (up = 0; up < nb && !(cnt[up] && bin_value(b, up) >= fm); up++)
 		;
 	long down = up - 1;
 	while (down >= 0 && !cnt[down])
 		down--;
 	rank_pick d = {{n / 2 - 1, n / 2}, 0, {0, 0}};
 	for (;;) {
-		float du = up < nb ? fabsf(val[up] - fm) : INFINITY;
-		float dd = down >= 0 ? fabsf(val[down] - fm) : INFINITY;
+		float du = up < nb ? fabsf(bin_value(b, up) - fm) : INFINITY;
+		float dd = down >= 0 ? fabsf(bin_value(b, down) - fm) : INFINITY;
 		int done;
 		if (du <= dd) {
 			done = pick(&d, du, cnt[up]);
@@ -1589,7 +1589,7 @@ static void counted_stats(const sample_buffers *b, long n, const kg_chart_detect
 		for (long k = 0; k < nb && at < n - cut; k++) {
 			for (long i = 0; i < cnt[k] && at < n - cut; i++, at++)
 				if (at >= cut)
-					s += val[k];
+					s += bin_value(b, k);
 		}
 		*loc = s / (double)(n - 2 * cut);
 	} else if (quantum > 0) {
@@ -1597,9 +1597,9 @@ static void counted_stats(const sample_buffers *b, long n, const kg_chart_detect
 		for (long k = 0; k < nb; k++) {
 			if (!cnt[k])
 				continue;
-			if (val[k] < med - 0.5 * quantum)
+			if (bin_value(b, k) < med - 0.5 * quantum)
 				below += cnt[k];
-			else if (val[k] <= med + 0.5 * quantum)
+			else if (bin_value(b, k) <= med + 0.5 * quantum)
 				at += cnt[k];
 		}
 		*loc = at ? med - 0.5 * quantum + quantum * (0.5 * n - below) / at : med;
@@ -1613,7 +1613,7 @@ static long counted_above(const sample_buffers *b, double t)
 {
 	long c = 0;
 	for (long k = b->nb - 1; k >= 0; k--)
-		if (b->cnt[k] && !(b->val[k] > t))
+		if (b->cnt[k] && !(bin_value(b, k) > t))
 			break;
 		else
 			c += b->cnt[k];
