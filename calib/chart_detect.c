@@ -1734,10 +1734,17 @@ static int sample_patch(const work_image *wi, const double H[9], const double Hi
 	for (int k = 0; k < 9; k++)
 		G[k] = wsign * Hinv[k];
 	double tol = 1e-9 * (fabs(cx) + fabs(cy) + hx + hy + 1);
-	long n = 0;
-	double qsum[4] = {0, 0, 0, 0};
+	long n = 0, nclipped = 0;
+	/* The quadrant sums in registers (q changes a few times a row): each still adds
+	 * its pixels in order. */
+	double qs0 = 0, qs1 = 0, qs2 = 0, qs3 = 0;
 	long qn[4] = {0, 0, 0, 0};
 	int C = wi->channels;
+	float *ch0 = buf->ch[0], *ch1 = buf->ch[1], *ch2 = buf->ch[2], *sums = buf->sum;
+	/* the least float not below the clip level: v >= clip exactly when v >= the level */
+	float clip = (float)wi->clip_level;
+	if ((double)clip < wi->clip_level)
+		clip = nextafterf(clip, INFINITY);
 	for (long y = iy0; y < iy1 && cap; y += stride) {
 		double Y = y + 0.5;
 		long xa = ix0, xb = ix1;
@@ -1768,21 +1775,28 @@ static int sample_patch(const work_image *wi, const double H[9], const double Hi
 			if (!in)
 				continue;
 			const float *px = row + (x - xa) / stride * C;
+			float v0 = px[0], v1 = px[C == 3 ? 1 : 0], v2 = px[C == 3 ? 2 : 0];
 			double sum = 0;
-			int clipped = 0;
-			for (int c = 0; c < 3; c++) {
-				float val = px[C == 3 ? c : 0];
-				buf->ch[c][n] = val;
-				sum += val;
-				clipped |= val >= wi->clip_level;
+			sum += v0;
+			sum += v1;
+			sum += v2;
+			ch0[n] = v0;
+			ch1[n] = v1;
+			ch2[n] = v2;
+			sums[n] = (float)sum;
+			nclipped += (v0 >= clip) | (v1 >= clip) | (v2 >= clip);
+			switch (q) {
+			case 0: qs0 += sum; break;
+			case 1: qs1 += sum; break;
+			case 2: qs2 += sum; break;
+			default: qs3 += sum;
 			}
-			buf->sum[n] = (float)sum;
-			qsum[q] += sum;
 			qn[q]++;
-			p->clipped_fraction += clipped;
 			n++;
 		}
 	}
+	double qsum[4] = {qs0, qs1, qs2, qs3};
+	p->clipped_fraction = (double)nclipped;
 	p->pixels = n;
 	if (n > 0)
 		p->clipped_fraction /= (double)n;
