@@ -542,16 +542,16 @@ static int cht_box_line(cht_reader *r, cht_state *st, kg_err *err)
 	if (kind[0] != 'D') {
 		for (int iy = 0; iy < ny && !ret; iy++)
 			for (int ix = 0; ix < nx && !ret; ix++) {
-				char id[40];
+				/* two labels of at most 15 characters (label_range): every id fits
+				 * a patch's, checked here at compile time */
+				char id[2 * sizeof(*xl) - 1];
+				_Static_assert(sizeof(id) <= sizeof(st->patches[0].id),
+				               "a patch id holds two box labels");
 				if (kind[0] == 'X')
 					snprintf(id, sizeof(id), "%s%s", xl[ix], yl[iy]);
 				else
 					snprintf(id, sizeof(id), "%s%s", yl[iy], xl[ix]);
-				if (strlen(id) >= sizeof(st->patches[0].id))
-					ret = kg_fail(err, KG_EINVAL, "%s:%d: patch id %s is too long", r->path,
-					              r->lineno, id);
-				else if (cht_add_patch(st, id, v[2] + ix * v[4], v[3] + iy * v[5], v[0],
-				                       v[1]))
+				if (cht_add_patch(st, id, v[2] + ix * v[4], v[3] + iy * v[5], v[0], v[1]))
 					ret = kg_fail(err, KG_ENOMEM, "out of memory");
 			}
 	}
@@ -612,7 +612,7 @@ static int cht_parse(cht_reader *r, cht_state *st, kg_err *err)
 	int ret = 0, have = cht_next_line(r);
 	while (have) {
 		const char *kw = r->tok[0];
-		long n;
+		long n = 0; /* cht_count sets it on success only; GCC cannot see kg_fail is nonzero */
 		if (strcmp(kw, "BOXES") == 0) {
 			if (st->have_boxes)
 				return kg_fail(err, KG_EINVAL, "%s:%d: a second BOXES section", r->path,

@@ -178,7 +178,7 @@ int kg_cmd_acquire(int argc, char **argv)
 	optind = 1;
 	opterr = 0;
 	int opt, r = 0;
-	long n;
+	long n = 0; /* parse_long sets it on success only; GCC cannot see errors are nonzero */
 	kg_err err = {{0}};
 	while (!r && (opt = getopt_long(argc, argv, ":c:o:", opts, NULL)) != -1) {
 		switch (opt) {

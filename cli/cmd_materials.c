@@ -64,9 +64,10 @@ static int learn_view(const kg_camera_calib *cam, const char *path, double mean[
 	if (rc)
 		return rc;
 	if (img->channels != 3) {
+		int channels = img->channels; /* for the message: img is freed (and NULL) first */
 		kg_image_free(&img);
 		return kg_fail(err, KG_EINVAL, "%s: %d channel(s): expected a 3-channel linear RGB "
-		               "image (a raw frame must be demosaiced first)", path, img->channels);
+		               "image (a raw frame must be demosaiced first)", path, channels);
 	}
 	size_t np = (size_t)img->width * img->height, m = 0;
 	double *x = malloc(sizeof(double) * 3 * np), *tmp = malloc(sizeof(double) * np);
@@ -242,7 +243,8 @@ int kg_cmd_materials_learn(int argc, char **argv)
 	json_t *materials = root ? json_object_get(root, "materials") : NULL;
 	/* the views, per material, in increasing angle */
 	for (int i = 0; !rc && i < ni; i++) {
-		double mean[3], cov[9];
+		/* learn_view fills them on success only; GCC cannot see kg_fail is nonzero */
+		double mean[3] = {0}, cov[9] = {0};
 		long pixels = 0;
 		if ((rc = learn_view(cam, images[i], mean, cov, &pixels, &err)))
 			break;

@@ -108,7 +108,7 @@ int kg_cmd_render(int argc, char **argv)
 	double white_level = 0.9;
 	kg_render_options opt = {0};
 	int quiet = 0;
-	long v;
+	long v = 0; /* parse_count sets it on success only; GCC cannot see errors are nonzero */
 	static const struct option opts[] = {
 		{"scene", required_argument, NULL, 's'},
 		{"output", required_argument, NULL, 'o'},
@@ -151,8 +151,8 @@ int kg_cmd_render(int argc, char **argv)
 		case 'p': opt.mode = KG_RENDER_PREVIEW; break;
 		case 'q': quiet = 1; break;
 		case 'n':
-			bad = parse_count(optarg, "--spp", 1, 1000000, &v);
-			opt.spp = (int)v;
+			if (!(bad = parse_count(optarg, "--spp", 1, 1000000, &v)))
+				opt.spp = (int)v;
 			break;
 		case 'w':
 			if (strcmp(optarg, "all") == 0)
@@ -161,12 +161,12 @@ int kg_cmd_render(int argc, char **argv)
 				opt.wavelengths = (int)v;
 			break;
 		case 'b':
-			bad = parse_count(optarg, "--bounces", 1, 64, &v);
-			opt.bounces = (int)v;
+			if (!(bad = parse_count(optarg, "--bounces", 1, 64, &v)))
+				opt.bounces = (int)v;
 			break;
 		case 't':
-			bad = parse_count(optarg, "--threads", 1, 256, &v);
-			opt.threads = (int)v;
+			if (!(bad = parse_count(optarg, "--threads", 1, 256, &v)))
+				opt.threads = (int)v;
 			break;
 		case 'S': {
 			char *end;
@@ -179,12 +179,12 @@ int kg_cmd_render(int argc, char **argv)
 			break;
 		}
 		case 'W':
-			bad = parse_count(optarg, "--width", 1, 16384, &v);
-			opt.width = (int)v;
+			if (!(bad = parse_count(optarg, "--width", 1, 16384, &v)))
+				opt.width = (int)v;
 			break;
 		case 'H':
-			bad = parse_count(optarg, "--height", 1, 16384, &v);
-			opt.height = (int)v;
+			if (!(bad = parse_count(optarg, "--height", 1, 16384, &v)))
+				opt.height = (int)v;
 			break;
 		case 'h': puts(usage_render); return KG_EXIT_OK;
 		default: return kg_cli_usage_error(usage_render, "bad option");

@@ -82,7 +82,10 @@ typedef struct gp_state {
 
 	char *file; /* the last file downloaded */
 	size_t file_size;
-	char file_name[256];
+	/* folder "/" name of a CameraFilePath: its two arrays' NULs make room for the "/"
+	 * and the NUL here */
+	char file_name[sizeof(((CameraFilePath *)0)->folder) +
+	               sizeof(((CameraFilePath *)0)->name)];
 	kg_raw_meta meta;
 	int have_file;
 } gp_state;
@@ -157,14 +160,14 @@ static CameraWidget *get_widget(gp_state *s, const char *name)
 	return w;
 }
 
-/* The choices of a radio/menu widget (pointers into it). */
+/* The choices of a radio/menu widget (pointers into it). *out is set on every path,
+ * NULL with none or out of memory (-1), so callers can always free it. */
 static int widget_choices(CameraWidget *w, const char ***out)
 {
+	*out = NULL;
 	int n = gp_widget_count_choices(w);
-	if (n <= 0) {
-		*out = NULL;
+	if (n <= 0)
 		return 0;
-	}
 	const char **c = calloc((size_t)n, sizeof(*c));
 	if (!c)
 		return -1;
@@ -248,7 +251,7 @@ static int gp2_feature_info(void *state, kg_feature kf, kg_feature_info *out, kg
 		out->step = 1;
 		out->writable = out->writable && widget_is_choice(w);
 	} else if (f->kind == K_CHOICE) {
-		const char **c;
+		const char **c = NULL;
 		int n = widget_choices(w, &c);
 		if (n < 0)
 			ret = kg_fail(err, KG_ENOMEM, "out of memory");

@@ -546,7 +546,7 @@ static int s_ctrl(v4l2_cam *c, uint32_t id, int32_t v, kg_err *err)
  * reason this exists (auto white balance that stays on). */
 static int set_verified(v4l2_cam *c, uint32_t id, int32_t v, const char *meaning, kg_err *err)
 {
-	int32_t back;
+	int32_t back = 0; /* g_ctrl sets it on success only; GCC cannot see kg_fail is nonzero */
 	int ret = s_ctrl(c, id, v, err);
 	if (!ret)
 		ret = g_ctrl(c, id, &back, err);
@@ -582,7 +582,7 @@ static int exposure_auto_on_value(v4l2_cam *c, const struct v4l2_queryctrl *q)
 static int ensure_manual(v4l2_cam *c, uint32_t auto_id, kg_err *err)
 {
 	struct v4l2_queryctrl q;
-	int32_t v;
+	int32_t v = 0; /* g_ctrl sets it on success only; GCC cannot see kg_fail is nonzero */
 	int32_t manual = auto_id == V4L2_CID_EXPOSURE_AUTO ? V4L2_EXPOSURE_MANUAL : 0;
 	int ret = query(c, auto_id, &q, err);
 	if (ret <= 0)

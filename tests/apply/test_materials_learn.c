@@ -206,6 +206,16 @@ int main(int argc, char **argv)
 	             "--names", "silver", "-o", fx_path("bad.json")) == 1 &&
 	          strstr(fx_errs, "coupon pixels"),
 	      "a dark photograph refused: %s", fx_errs);
+	/* the message names the channel count, read before the image is freed */
+	kg_image *grey = NULL;
+	CHECK(kg_image_new(32, 32, 1, &grey, &err) == 0, "%s", err.msg);
+	CHECK(grey && kg_image_write(grey, fx_path("grey.tif"), 32, &err) == 0, "%s", err.msg);
+	kg_image_free(&grey);
+	before++;
+	CHECK(FX_RUN("materials", "learn", "--calib", cam, "--images", fx_path("grey.tif"),
+	             "--names", "silver", "-o", fx_path("bad.json")) == 1 &&
+	          strstr(fx_errs, "1 channel(s)"),
+	      "a 1-channel photograph refused: %s", fx_errs);
 	CHECK(fx_count_files() == before, "nothing written by the refused runs");
 	free(truth);
 	kg_image_free(&img);
