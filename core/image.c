@@ -768,6 +768,10 @@ static int png_write_body(struct png_job *j, int w, int h, int channels, int bit
 	if (setjmp(png_jmpbuf(j->png)))
 		return -1;
 	png_init_io(j->png, j->fp);
+	/* zlib level 3, not its default 6: `kogei process` of the demo session took
+	 * 1.74-1.85 s with 6 and 1.53-1.65 s with 3, its PNGs 3 % larger (lossless
+	 * either way; level 1 saved 0.03 s more for 10 % larger files). */
+	png_set_compression_level(j->png, 3);
 	png_set_IHDR(j->png, j->info, (png_uint_32)w, (png_uint_32)h, bits,
 	             channels == 3 ? PNG_COLOR_TYPE_RGB : PNG_COLOR_TYPE_GRAY, PNG_INTERLACE_NONE,
 	             PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
