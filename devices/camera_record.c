@@ -170,6 +170,27 @@ static int write_camera_json(const kg_frame_recorder *r, const kg_camera_info *i
 	return ret;
 }
 
+
+/* The temporaries that killed recorders left in the capture folders under frames (a
+ * kill lands between a frame's temporary and its rename; the next capture writes
+ * another folder, whose own writes sweep only it). */
+static void sweep_captures(const char *frames)
+{
+	DIR *d = opendir(frames);
+	if (!d)
+		return;
+	for (struct dirent *e; (e = readdir(d));) {
+		if (e->d_name[0] == '.')
+			continue;
+		char *sub = kg_path_join(frames, e->d_name);
+		struct stat st;
+		if (sub && lstat(sub, &st) == 0 && S_ISDIR(st.st_mode))
+			kg_atomicfile_sweep(sub);
+		free(sub);
+	}
+	closedir(d);
+}
+
 int kg_frame_recorder_open(const char *session_dir, const kg_camera_info *info,
                            const kg_frame_format *fmt, kg_frame_recorder **out, kg_err *err)
 {
@@ -185,6 +206,8 @@ int kg_frame_recorder_open(const char *session_dir, const kg_camera_info *info,
 	int ret = r->index_path ? 0 : kg_fail(err, KG_ENOMEM, "%s: out of memory", session_dir);
 	if (!ret)
 		ret = kg_mkdir_p(r->frames, err);
+	if (!ret)
+		sweep_captures(r->frames);
 	if (!ret) {
 		r->index_fd = open(r->index_path, O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
 		if (r->index_fd < 0)
