@@ -170,7 +170,6 @@ static int write_camera_json(const kg_frame_recorder *r, const kg_camera_info *i
 	return ret;
 }
 
-
 /* The temporaries that killed recorders left in the capture folders under frames (a
  * kill lands between a frame's temporary and its rename; the next capture writes
  * another folder, whose own writes sweep only it). */
@@ -295,12 +294,13 @@ static json_t *json_number_or_null(double v)
 }
 
 /* The frame's bytes to a file with no name (kg_atomicfile) that is put in place when
- * complete, so a killed recorder leaves no partial frame and no temporary. Not fsynced:
+ * complete, so a killed recorder leaves no partial frame (a kill between its link to a
+ * hidden name and the rename leaves that name, removed by sweep_captures). Not fsynced:
  * what a killed process wrote is in the page cache and survives it;
  * kg_frame_recorder_sync makes everything durable against power loss (at every capture
  * boundary, before a manifest names the frames, and at close), so the frame rate is not
  * bounded by one fsync per frame. The folder's stale temporaries are swept once, when
- * the capture begins. */
+ * the capture begins, and every capture folder's when the recorder opens. */
 static int write_frame_file(const char *path, const void *data, size_t size, kg_err *err)
 {
 	kg_atomicfile t;

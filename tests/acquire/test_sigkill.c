@@ -52,7 +52,8 @@ static int kill_after(char *const *args, double delay)
 
 /* Files anywhere under dir whose name is a temporary: the old ".tmp" suffix or
  * kogei's named pattern. Frames and outputs are written through files with no name
- * (O_TMPFILE), so a SIGKILL mid-write leaves none. */
+ * (O_TMPFILE), linked to a hidden name and renamed into place: a SIGKILL between the
+ * two leaves that name, which the next recorder removes (its process is gone). */
 static int temporaries(const char *dir, char *first, size_t len)
 {
 	DIR *d = opendir(dir);
@@ -150,12 +151,27 @@ int main(int argc, char **argv)
 	printf("short capture: %.3f s; 10 kills at 0.3..1.2 of that, %d after the manifest\n",
 	       full, killed_complete);
 
+	/* a dead recorder's hidden frame name in the first capture's folder, which no later
+	 * capture writes: the next recorder removes it */
+	pid_t dead = fork();
+	if (dead == 0)
+		_exit(0);
+	waitpid(dead, NULL, 0);
+	char stale[4600];
+	snprintf(stale, sizeof(stale), "%s/frames/chart-0001/.000099.raw.kogei-tmp.%ld.AbCdEf", s,
+	         (long)dead);
+	FILE *sf = fopen(stale, "w");
+	CHECK(sf != NULL, "%s: cannot create", stale);
+	if (sf)
+		fclose(sf);
+
 	/* the session still takes captures, with fresh names */
 	int had = ndone;
 	rc = acq_run("acquire", "--camera", rt, "--out", s, "--kind", "chart", "--frames", "2",
 	             NULL);
 	CHECK(rc == 0, "capture after the kills: exit %d: %s", rc, acq_errtext);
 	CHECK(check(s, "after the kills") == had + 1, "one more capture");
+	CHECK(access(stale, F_OK) != 0, "%s: a dead recorder's temporary is still there", stale);
 	printf("captures after the kills: %d (%s ... %s)\n", ndone, done_names[0],
 	       done_names[ndone - 1]);
 
