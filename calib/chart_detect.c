@@ -946,7 +946,11 @@ static int run_apriltag(const unsigned char *grey, int width, int height, int zo
 	apriltag_detector_add_family_bits(td, tf, 1);
 	td->quad_decimate = (float)decimate;
 	td->quad_sigma = 0;
-	td->nthreads = threads;
+	/* libapriltag's workers before 3.4.3 can run a task from a freed array when they
+	 * start late (see meson.build): there it runs on the calling thread alone, which
+	 * cost 0.4 ms at decimate 4 on 12 Mpix and a third more tag time at decimate 1-2
+	 * (docs/chart-detect.md). */
+	td->nthreads = KG_APRILTAG_THREADS_OK ? threads : 1;
 	td->refine_edges = 1;
 	td->decode_sharpening = 0.25;
 	image_u8_t im = {.width = width, .height = height, .stride = width,
