@@ -121,12 +121,96 @@ INLINE_AVX512 void bsq512_nt(const est_plan *p, const int nt, est_scratch *s, si
 	c->clamped_values += clamped;
 }
 
+/* f16 of the 3-term kernels, 64 pixels a group: each band's 64 values go to its plane
+ * as two whole lines. With one line a plane per group the kernel was store bound
+ * (alone, that pattern of streaming stores over 61 planes ran at half the rate of one
+ * contiguous stream; two lines came within 7 % of it), and 64 pixels raised these rows
+ * by a fifth (bench/bench_kernels.c, back to back). More terms (6 x 4 vectors) or
+ * 128 pixels ran slower: the terms no longer fit the registers. */
+INLINE_AVX512 void bsq512_f16_64(const est_plan *p, est_scratch *s, size_t m,
+                                 const est_dst *d, size_t at, const int stream, est_counts *c)
+{
+	enum { NT = 3, V = 4 };
+	const est_map *mp = p->map;
+	const int nb = mp->nb, clamp = mp->clamp;
+	const float *a = mp->a, *terms = s->terms;
+	const __m512 zero = _mm512_setzero_ps();
+	const __m512i one = _mm512_set1_epi32(1);
+	uint64_t clamped = 0;
+	for (size_t i = 0; i < m; i += 16 * V) {
+		const size_t left = m - i;
+		__mmask16 valid[V];
+		__m512 tv[V][NT];
+		__m512i n[V]; /* clamped bands per pixel */
+#pragma GCC unroll 4
+		for (int v = 0; v < V; v++) {
+			size_t at_v = i + 16 * (size_t)v;
+			valid[v] = at_v + 16 <= m ? (__mmask16)0xffff
+			           : at_v >= m    ? (__mmask16)0
+			                          : (__mmask16)((1u << (m - at_v)) - 1);
+			n[v] = _mm512_setzero_si512();
+#pragma GCC unroll 4
+			for (int t = 0; t < NT; t++)
+				tv[v][t] = _mm512_load_ps(terms + t * EST_TSTRIDE + at_v);
+		}
+		for (int o = 0; o < nb; o++) {
+			__m512 acc[V];
+#pragma GCC unroll 4
+			for (int v = 0; v < V; v++)
+				acc[v] = _mm512_set1_ps(mp->off[o]);
+#pragma GCC unroll 4
+			for (int t = 0; t < NT; t++) {
+				const __m512 coef = _mm512_set1_ps(a[(size_t)o * NT + t]);
+#pragma GCC unroll 4
+				for (int v = 0; v < V; v++)
+					acc[v] = _mm512_fmadd_ps(coef, tv[v][t], acc[v]);
+			}
+			if (clamp)
+#pragma GCC unroll 4
+				for (int v = 0; v < V; v++) {
+					const __mmask16 lt = _mm512_mask_cmp_ps_mask(valid[v], acc[v], zero, _CMP_LT_OQ);
+					n[v] = _mm512_mask_add_epi32(n[v], lt, n[v], one);
+					acc[v] = _mm512_max_ps(zero, acc[v]); /* as bsq512_nt */
+				}
+			uint16_t *dst = (uint16_t *)d->data + (size_t)o * d->plane_stride + at + i;
+#pragma GCC unroll 4
+			for (int v = 0; v < V; v += 2) {
+				const __m512i h = pack_f16(acc[v], acc[v + 1]);
+				const size_t off = 16 * (size_t)v;
+				if (left >= off + 32 && stream)
+					_mm512_stream_si512((void *)(dst + off), h);
+				else if (left >= off + 32)
+					_mm512_storeu_si512((void *)(dst + off), h);
+				else if (left > off) { /* the chunk's last, partial line */
+					uint16_t tmp[32];
+					_mm512_storeu_si512((void *)tmp, h);
+					memcpy(dst + off, tmp, (left - off) * sizeof(uint16_t));
+				}
+			}
+		}
+		if (clamp) {
+			clamped += (uint64_t)_mm512_reduce_add_epi32(
+			    _mm512_add_epi32(_mm512_add_epi32(n[0], n[1]), _mm512_add_epi32(n[2], n[3])));
+#pragma GCC unroll 4
+			for (int v = 0; v < V; v++) { /* n[v] by constant index: kept in registers */
+				const uint32_t hit = _mm512_test_epi32_mask(n[v], n[v]);
+				for (size_t k = 0; k < 2 && 16 * (size_t)v + 8 * k < left; k++)
+					s->clampbits[(i + 16 * (size_t)v) / 8 + k] = (uint8_t)(hit >> (8 * k));
+			}
+		}
+	}
+	c->clamped_values += clamped;
+}
+
 AVX512 static void bsq512(const est_plan *p, est_scratch *s, size_t m, const est_dst *d,
                           size_t at, int stream, est_counts *c)
 {
 	switch (p->k->nterms) {
 	case 3:
-		bsq512_nt(p, 3, s, m, d, at, stream, c);
+		if (p->format == KG_EST_F16_BSQ)
+			bsq512_f16_64(p, s, m, d, at, stream, c);
+		else
+			bsq512_nt(p, 3, s, m, d, at, stream, c);
 		break;
 	case 6:
 		bsq512_nt(p, 6, s, m, d, at, stream, c);
