@@ -80,12 +80,14 @@ DSO_STAGES = [
 ]
 SYMBOL_STAGES = [
     ("render: shading, sampling", ("render", "shade", "shading", "bsdf", "fresnel", "trace",
-                                   "camera_ray", "hero")),
-    ("camera-space matching", ("kg_cs_", "cs_match", "match16", "match8", "cam_compute")),
+                                   "camera_ray", "hero", "rd_sample", "rd_eval", "rd_material",
+                                   "kg_beckmann", "kg_lobe")),
+    ("camera-space matching", ("kg_cs_", "cs_match", "match16", "match8", "cam_compute",
+                               "quad32", "fit_subset", "composition_pixel")),
     ("labels: survey, regions, outputs", ("labels", "region", "survey", "classif", "geometry_of")),
     ("estimation kernels", ("bsq", "est_", "matrix_", "kg_est")),
     ("chart: sampling, fitting", ("chart", "sample", "grey8", "robust", "select", "radix",
-                                  "white_level", "prepare_image", "fit_subset", "homograph",
+                                  "white_level", "prepare_image", "homograph",
                                   "refine_lm")),
     ("demosaicing, dark, flat", ("demosaic", "bilinear", "capture_rows", "correct")),
     ("image rows", ("kg_image", "rows_read", "unpack")),
