@@ -948,7 +948,7 @@ static int run_apriltag(const unsigned char *grey, int width, int height, int zo
 	td->quad_sigma = 0;
 	/* libapriltag's workers before 3.4.3 can run a task from a freed array when they
 	 * start late (see meson.build): there it runs on the calling thread alone, which
-	 * cost 0.4 ms at decimate 4 on 12 Mpix and a third more tag time at decimate 1-2
+	 * cost 0.4 ms at decimate 4 on 12 Mpix and 38-46 % more tag time at decimate 1-2
 	 * (docs/chart-detect.md). */
 	td->nthreads = KG_APRILTAG_THREADS_OK ? threads : 1;
 	td->refine_edges = 1;

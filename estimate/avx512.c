@@ -125,7 +125,8 @@ INLINE_AVX512 void bsq512_nt(const est_plan *p, const int nt, est_scratch *s, si
  * as two whole lines. With one line a plane per group the kernel was store bound
  * (alone, that pattern of streaming stores over 61 planes ran at half the rate of one
  * contiguous stream; two lines came within 7 % of it), and 64 pixels raised these rows
- * by 15-20 % (bench/bench_kernels.c, back to back; docs/estimate.md). 128 pixels
+ * by about 20 % (means of three runs of bench/bench_kernels.c each, back to back;
+ * docs/estimate.md). 128 pixels
  * gained nothing more, and the 6-term kernel (24 registers of terms) or f32 (four
  * lines) in groups of 64 were no faster than in groups of 32. */
 INLINE_AVX512 void bsq512_f16_64(const est_plan *p, est_scratch *s, size_t m,
