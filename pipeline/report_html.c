@@ -30,25 +30,34 @@ void report_put_textf(FILE *fp, const char *fmt, ...)
 	report_put_text(fp, buf);
 }
 
+/* Encoded into a buffer and written a block at a time: a character at a time through
+ * the locked FILE was 3 % of `kogei process`'s CPU time (perf, the report's figures). */
 static void put_base64(FILE *fp, const unsigned char *p, size_t len)
 {
 	static const char digits[] =
 		"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-	size_t i = 0;
+	char buf[4096];
+	size_t n = 0, i = 0;
 	for (; i + 3 <= len; i += 3) {
 		uint32_t v = (uint32_t)p[i] << 16 | (uint32_t)p[i + 1] << 8 | p[i + 2];
-		fputc(digits[v >> 18], fp);
-		fputc(digits[v >> 12 & 63], fp);
-		fputc(digits[v >> 6 & 63], fp);
-		fputc(digits[v & 63], fp);
+		buf[n] = digits[v >> 18];
+		buf[n + 1] = digits[v >> 12 & 63];
+		buf[n + 2] = digits[v >> 6 & 63];
+		buf[n + 3] = digits[v & 63];
+		if ((n += 4) == sizeof(buf)) {
+			fwrite(buf, 1, n, fp);
+			n = 0;
+		}
 	}
 	if (i < len) {
 		uint32_t v = (uint32_t)p[i] << 16 | (i + 1 < len ? (uint32_t)p[i + 1] << 8 : 0);
-		fputc(digits[v >> 18], fp);
-		fputc(digits[v >> 12 & 63], fp);
-		fputc(i + 1 < len ? digits[v >> 6 & 63] : '=', fp);
-		fputc('=', fp);
+		buf[n] = digits[v >> 18];
+		buf[n + 1] = digits[v >> 12 & 63];
+		buf[n + 2] = i + 1 < len ? digits[v >> 6 & 63] : '=';
+		buf[n + 3] = '=';
+		n += 4;
 	}
+	fwrite(buf, 1, n, fp);
 }
 
 static uint32_t be32(const unsigned char *p)

@@ -3,6 +3,8 @@
  * escapes text from process.json, states missing pieces, and refuses a record with
  * a required key missing (naming the file and the key) without touching the page.
  * argv[1]: the kogei program, for `kogei report` exit statuses. */
+#include <stdint.h>
+#include <stdlib.h>
 #include <string.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -28,6 +30,48 @@ static int contains(const char *page, const char *s)
 	return strstr(page, s) != NULL;
 }
 
+/* Decodes the base64 run at p (up to its closing quote) into a whole PNG: its
+ * signature, chunks whose lengths chain to the end, and IEND last. Returns the
+ * decoded length, 0 when any of that fails. */
+static size_t check_png_payload(const char *p)
+{
+	static const char digits[] =
+		"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+	const char *end = strchr(p, '"');
+	if (!end || (end - p) % 4)
+		return 0;
+	size_t n = 0, cap = (size_t)(end - p) / 4 * 3;
+	unsigned char *png = malloc(cap ? cap : 1);
+	for (const char *q = p; png && q < end; q += 4) {
+		uint32_t v = 0;
+		int pad = 0;
+		for (int k = 0; k < 4; k++) {
+			const char *d = q[k] == '=' ? NULL : strchr(digits, q[k]);
+			if (q[k] == '=')
+				pad++;
+			else if (!d || !q[k] || pad) {
+				free(png);
+				return 0;
+			}
+			v = v << 6 | (d ? (uint32_t)(d - digits) : 0);
+		}
+		for (int k = 0; k < 3 - pad; k++)
+			png[n++] = (unsigned char)(v >> (16 - 8 * k));
+	}
+	static const unsigned char sig[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
+	size_t at = 8, ok = png && n > 8 && memcmp(png, sig, 8) == 0;
+	int iend = 0;
+	while (ok && !iend && at + 12 <= n) {
+		size_t len = (size_t)png[at] << 24 | (size_t)png[at + 1] << 16 |
+		             (size_t)png[at + 2] << 8 | png[at + 3];
+		iend = memcmp(png + at + 4, "IEND", 4) == 0;
+		at += 12 + len;
+	}
+	ok = ok && iend && at == n;
+	free(png);
+	return ok ? n : 0;
+}
+
 static void check_self_contained(const char *page)
 {
 	CHECK(!strcasestr(page, "http://") && !strcasestr(page, "https://"),
@@ -35,11 +79,17 @@ static void check_self_contained(const char *page)
 	CHECK(!strcasestr(page, "<script"), "the page holds a script element");
 	CHECK(!strcasestr(page, "url("), "the style refers to a resource");
 	int images = 0;
+	size_t largest = 0;
 	for (const char *p = page; (p = strstr(p, "src=\"")); p += 5) {
 		images++;
 		CHECK(strncmp(p + 5, "data:image/png;base64,", 22) == 0,
 		      "src that is not a data: PNG: %.60s", p);
+		size_t bytes = check_png_payload(p + 27);
+		CHECK(bytes > 0, "image %d: its base64 is not a whole PNG", images);
+		largest = bytes > largest ? bytes : largest;
 	}
+	/* the encoder writes blocks of 4096 characters: one image spans several */
+	CHECK(largest > 3 * 4096, "largest image %zu bytes", largest);
 	/* The overlay, 2 x (photo, labels, confidence), one render, the chart's figure and
 	 * the two objects' material figures, less the deleted confidence map. */
 	CHECK(images == 1 + 6 + 1 + 1 + 2 - 1, "%d images inlined", images);
