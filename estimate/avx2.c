@@ -150,9 +150,18 @@ INLINE_AVX2 __m256 cbrt8(__m256 x)
 AVX2 void est_avx2_stage_terms(const est_plan *p, est_scratch *s, const float *rgb, size_t m,
                              est_counts *c)
 {
+	est_avx2_stage_terms_part(p, s, rgb, m, 0, m, c);
+	memset(s->clampbits, 0, EST_CHUNK / 8);
+}
+
+/* Stage 1 for pixels [i0, i1) of a chunk of m (rgb its first pixel; i0 a multiple of
+ * 8), clampbits left alone. */
+AVX2 void est_avx2_stage_terms_part(const est_plan *p, est_scratch *s, const float *rgb,
+                                  size_t m, size_t i0, size_t i1, est_counts *c)
+{
 	kg_est_method method = p->k->method;
 	const __m256 zero = _mm256_setzero_ps(), nan = _mm256_set1_ps(NAN);
-	for (size_t i = 0; i < m; i += 8) {
+	for (size_t i = i0; i < i1; i += 8) {
 		__m256 r, g, b, t[KG_EST_MAX_TERMS];
 		load_rgb8(rgb + 3 * i, m - i, &r, &g, &b);
 		__m256 bad = flags8(r, g, b, p->clip, valid_lanes(i, m), s->flags + i, c);
@@ -183,7 +192,6 @@ AVX2 void est_avx2_stage_terms(const est_plan *p, est_scratch *s, const float *r
 		for (int k = 0; k < nt; k++)
 			_mm256_store_ps(s->terms + k * EST_TSTRIDE + i, _mm256_blendv_ps(t[k], nan, bad));
 	}
-	memset(s->clampbits, 0, EST_CHUNK / 8);
 }
 
 /* Stage 1 of LUT kernels: est_lut_cell for m pixels into s->cell and s->cw. */
@@ -803,6 +811,12 @@ void est_avx2_stage_terms(const est_plan *p, est_scratch *s, const float *rgb, s
                           est_counts *c)
 {
 	(void)p, (void)s, (void)rgb, (void)m, (void)c;
+}
+
+void est_avx2_stage_terms_part(const est_plan *p, est_scratch *s, const float *rgb, size_t m,
+                               size_t i0, size_t i1, est_counts *c)
+{
+	(void)p, (void)s, (void)rgb, (void)m, (void)i0, (void)i1, (void)c;
 }
 
 void est_finish_mask(const est_scratch *s, size_t m, uint8_t *mask, est_counts *c)

@@ -12,7 +12,8 @@
  * whose bytes dominate: 16 pixels per vector, two vectors (32 pixels) per group, every
  * band of the group computed from the terms and written at once into its plane (128
  * bytes of f32, 64 of f16: whole cache lines when the planes are 64-byte aligned),
- * streaming where the run asks for it. Stage 1 (flags and terms), BIP, weights,
+ * streaming where the run asks for it; stage 1 (flags and terms, the AVX2 path's code)
+ * of the next chunk runs between the groups of the current one. BIP, weights,
  * labels and LUTs are the AVX2 path's: their cost is elsewhere (terms, permutes, the
  * classifier, gathers), and they are already bit-identical. */
 #include "est_private.h"
@@ -48,8 +49,25 @@ INLINE_AVX512 __m512i pack_f16(__m512 lo, __m512 hi)
 	    _mm512_cvtps_ph(hi, _MM_FROUND_TO_NEAREST_INT), 1);
 }
 
+/* The next chunk, staged group by group while this one's bands are written: its
+ * flags and terms go to nx (NULL: no next chunk). The stores of a group leave the
+ * vector units idle while they drain; stage 1 of the next chunk fills that time. */
+typedef struct next_chunk {
+	est_scratch *nx;
+	const float *rgb;
+	size_t m;
+} next_chunk;
+
+INLINE_AVX512 void stage_next(const est_plan *p, const next_chunk *nc, size_t i0, size_t i1,
+                              est_counts *c)
+{
+	if (nc->nx && i0 < nc->m)
+		est_avx2_stage_terms_part(p, nc->nx, nc->rgb, nc->m, i0, i1 < nc->m ? i1 : nc->m, c);
+}
+
 INLINE_AVX512 void bsq512_nt(const est_plan *p, const int nt, est_scratch *s, size_t m,
-                             const est_dst *d, size_t at, const int stream, est_counts *c)
+                             const est_dst *d, size_t at, const int stream, est_counts *c,
+                             const next_chunk *nc)
 {
 	const est_map *mp = p->map;
 	const int nb = mp->nb, clamp = mp->clamp, half = p->format == KG_EST_F16_BSQ;
@@ -117,7 +135,9 @@ INLINE_AVX512 void bsq512_nt(const est_plan *p, const int nt, est_scratch *s, si
 			for (size_t b = 0; b < 4 && 8 * b < left; b++)
 				s->clampbits[i / 8 + b] = (uint8_t)(hit >> (8 * b));
 		}
+		stage_next(p, nc, i, i + 32, c);
 	}
+	stage_next(p, nc, (m + 31) & ~(size_t)31, EST_CHUNK, c);
 	c->clamped_values += clamped;
 }
 
@@ -130,7 +150,8 @@ INLINE_AVX512 void bsq512_nt(const est_plan *p, const int nt, est_scratch *s, si
  * gained nothing more, and the 6-term kernel (24 registers of terms) or f32 (four
  * lines) in groups of 64 were no faster than in groups of 32. */
 INLINE_AVX512 void bsq512_f16_64(const est_plan *p, est_scratch *s, size_t m,
-                                 const est_dst *d, size_t at, const int stream, est_counts *c)
+                                 const est_dst *d, size_t at, const int stream, est_counts *c,
+                                 const next_chunk *nc)
 {
 	enum { NT = 3, V = 4 };
 	const est_map *mp = p->map;
@@ -200,36 +221,44 @@ INLINE_AVX512 void bsq512_f16_64(const est_plan *p, est_scratch *s, size_t m,
 					s->clampbits[(i + 16 * (size_t)v) / 8 + k] = (uint8_t)(hit >> (8 * k));
 			}
 		}
+		stage_next(p, nc, i, i + 64, c);
 	}
+	stage_next(p, nc, (m + 63) & ~(size_t)63, EST_CHUNK, c);
 	c->clamped_values += clamped;
 }
 
 AVX512 static void bsq512(const est_plan *p, est_scratch *s, size_t m, const est_dst *d,
-                          size_t at, int stream, est_counts *c)
+                          size_t at, int stream, est_counts *c, const next_chunk *nc)
 {
 	switch (p->k->nterms) {
 	case 3:
 		if (p->format == KG_EST_F16_BSQ)
-			bsq512_f16_64(p, s, m, d, at, stream, c);
+			bsq512_f16_64(p, s, m, d, at, stream, c, nc);
 		else
-			bsq512_nt(p, 3, s, m, d, at, stream, c);
+			bsq512_nt(p, 3, s, m, d, at, stream, c, nc);
 		break;
 	case 6:
-		bsq512_nt(p, 6, s, m, d, at, stream, c);
+		bsq512_nt(p, 6, s, m, d, at, stream, c, nc);
 		break;
 	default:
-		bsq512_nt(p, KG_EST_MAX_TERMS, s, m, d, at, stream, c);
+		bsq512_nt(p, KG_EST_MAX_TERMS, s, m, d, at, stream, c, nc);
 		break;
 	}
 }
 
 /* BSQ matrix blocks: chunk by chunk, the 16-lane kernel where every plane's part of
  * the chunk has the first one's 64-byte alignment (streaming stores need it) or the
- * stores are cached; otherwise that chunk goes through the AVX2 path. */
+ * stores are cached; otherwise that chunk goes through the AVX2 path. The next
+ * chunk's stage 1 runs inside this one's kernel (next_chunk), into the other of two
+ * buffers of terms and flags. */
 AVX512 static void avx512_bsq_block(const est_plan *p, est_scratch *s, const float *rgb,
                                     size_t n, const est_dst *d, est_counts *c)
 {
 	const size_t es = p->format == KG_EST_F16_BSQ ? 2 : 4;
+	est_scratch cur = *s, nxt = *s;
+	nxt.terms = s->terms2;
+	nxt.flags = s->flags2;
+	int staged = 0; /* cur holds this chunk's stage 1 */
 	for (size_t at = 0; at < n; at += EST_CHUNK) {
 		size_t m = n - at < EST_CHUNK ? n - at : EST_CHUNK;
 		int aligned = (((uintptr_t)d->data + at * es) & 63) == 0 &&
@@ -238,11 +267,25 @@ AVX512 static void avx512_bsq_block(const est_plan *p, est_scratch *s, const flo
 			est_dst sub = {(char *)d->data + at * es, d->plane_stride, d->conf ? d->conf + at : NULL,
 			               d->mask ? d->mask + at : NULL};
 			est_avx2_matrix_block(p, s, rgb + 3 * at, m, &sub, c);
+			staged = 0;
 			continue;
 		}
-		est_avx2_stage_terms(p, s, rgb + 3 * at, m, c);
-		bsq512(p, s, m, d, at, p->stream, c);
-		est_finish_mask(s, m, d->mask ? d->mask + at : NULL, c);
+		if (!staged)
+			est_avx2_stage_terms_part(p, &cur, rgb + 3 * at, m, 0, m, c);
+		memset(cur.clampbits, 0, EST_CHUNK / 8);
+		const size_t nat = at + EST_CHUNK;
+		int next_ok = nat < n && (!p->stream || ((((uintptr_t)d->data + nat * es) & 63) == 0));
+		next_chunk nc = {next_ok ? &nxt : NULL, rgb + 3 * nat,
+		                 next_ok ? (n - nat < EST_CHUNK ? n - nat : EST_CHUNK) : 0};
+		bsq512(p, &cur, m, d, at, p->stream, c, &nc);
+		est_finish_mask(&cur, m, d->mask ? d->mask + at : NULL, c);
+		if (next_ok) {
+			float *t = cur.terms;
+			uint8_t *f = cur.flags;
+			cur.terms = nxt.terms, cur.flags = nxt.flags;
+			nxt.terms = t, nxt.flags = f;
+		}
+		staged = next_ok;
 	}
 	if (p->stream)
 		_mm_sfence();

@@ -90,6 +90,8 @@ typedef struct est_scratch {
 	uint8_t *flags;    /* EST_CHUNK */
 	uint8_t *clampbits; /* EST_CHUNK / 8: bit i % 8 of byte i / 8 set when pixel i
 	                       had a band clamped */
+	float *terms2;     /* as terms and flags: the next chunk's, staged while the AVX-512 */
+	uint8_t *flags2;   /* BSQ kernel writes the current one (avx512.c) */
 } est_scratch;
 
 typedef void (*est_block_fn)(const est_plan *p, est_scratch *s, const float *rgb, size_t n,
@@ -117,6 +119,8 @@ void est_dsp_init_avx512(est_dsp *dsp);
  * mask bytes and clamped-pixel count of a chunk, and the whole AVX2 matrix block. */
 void est_avx2_stage_terms(const est_plan *p, est_scratch *s, const float *rgb, size_t m,
                           est_counts *c);
+void est_avx2_stage_terms_part(const est_plan *p, est_scratch *s, const float *rgb, size_t m,
+                               size_t i0, size_t i1, est_counts *c);
 void est_finish_mask(const est_scratch *s, size_t m, uint8_t *mask, est_counts *c);
 void est_avx2_matrix_block(const est_plan *p, est_scratch *s, const float *rgb, size_t n,
                            const est_dst *d, est_counts *c);

@@ -104,7 +104,10 @@ int est_scratch_init(est_scratch *s)
 	s->cw = est_alloc_zeroed(sizeof(float) * 8 * EST_CHUNK);
 	s->flags = est_alloc_zeroed(EST_CHUNK);
 	s->clampbits = est_alloc_zeroed(EST_CHUNK / 8);
-	if (!s->terms || !s->vals || !s->rows || !s->cell || !s->cw || !s->flags || !s->clampbits) {
+	s->terms2 = est_alloc_zeroed(sizeof(float) * KG_EST_MAX_TERMS * EST_TSTRIDE);
+	s->flags2 = est_alloc_zeroed(EST_CHUNK);
+	if (!s->terms || !s->vals || !s->rows || !s->cell || !s->cw || !s->flags || !s->clampbits ||
+	    !s->terms2 || !s->flags2) {
 		est_scratch_fini(s);
 		return KG_ENOMEM;
 	}
@@ -120,6 +123,8 @@ void est_scratch_fini(est_scratch *s)
 	free(s->cw);
 	free(s->flags);
 	free(s->clampbits);
+	free(s->terms2);
+	free(s->flags2);
 	memset(s, 0, sizeof(*s));
 }
 
