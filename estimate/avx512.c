@@ -51,7 +51,9 @@ INLINE_AVX512 __m512i pack_f16(__m512 lo, __m512 hi)
 
 /* The next chunk, staged group by group while this one's bands are written: its
  * flags and terms go to nx (NULL: no next chunk). The stores of a group leave the
- * vector units idle while they drain; stage 1 of the next chunk fills that time. */
+ * vector units idle while they drain; stage 1 of the next chunk fills that time.
+ * Only the last chunk of a block is short, and it has no next one: the groups of a
+ * chunk with a next one cover all EST_CHUNK of that chunk's pixels. */
 typedef struct next_chunk {
 	est_scratch *nx;
 	const float *rgb;
@@ -137,7 +139,6 @@ INLINE_AVX512 void bsq512_nt(const est_plan *p, const int nt, est_scratch *s, si
 		}
 		stage_next(p, nc, i, i + 32, c);
 	}
-	stage_next(p, nc, (m + 31) & ~(size_t)31, EST_CHUNK, c);
 	c->clamped_values += clamped;
 }
 
@@ -223,7 +224,6 @@ INLINE_AVX512 void bsq512_f16_64(const est_plan *p, est_scratch *s, size_t m,
 		}
 		stage_next(p, nc, i, i + 64, c);
 	}
-	stage_next(p, nc, (m + 63) & ~(size_t)63, EST_CHUNK, c);
 	c->clamped_values += clamped;
 }
 
@@ -246,6 +246,13 @@ AVX512 static void bsq512(const est_plan *p, est_scratch *s, size_t m, const est
 	}
 }
 
+/* Whether every plane's part of the chunk at pixel `at` has the 64-byte alignment
+ * streaming stores need (es: bytes a value). */
+static inline int chunk_aligned(const est_dst *d, size_t at, size_t es)
+{
+	return (((uintptr_t)d->data + at * es) & 63) == 0 && ((d->plane_stride * es) & 63) == 0;
+}
+
 /* BSQ matrix blocks: chunk by chunk, the 16-lane kernel where every plane's part of
  * the chunk has the first one's 64-byte alignment (streaming stores need it) or the
  * stores are cached; otherwise that chunk goes through the AVX2 path. The next
@@ -261,9 +268,7 @@ AVX512 static void avx512_bsq_block(const est_plan *p, est_scratch *s, const flo
 	int staged = 0; /* cur holds this chunk's stage 1 */
 	for (size_t at = 0; at < n; at += EST_CHUNK) {
 		size_t m = n - at < EST_CHUNK ? n - at : EST_CHUNK;
-		int aligned = (((uintptr_t)d->data + at * es) & 63) == 0 &&
-		              ((d->plane_stride * es) & 63) == 0;
-		if (p->stream && !aligned) {
+		if (p->stream && !chunk_aligned(d, at, es)) {
 			est_dst sub = {(char *)d->data + at * es, d->plane_stride, d->conf ? d->conf + at : NULL,
 			               d->mask ? d->mask + at : NULL};
 			est_avx2_matrix_block(p, s, rgb + 3 * at, m, &sub, c);
@@ -274,7 +279,7 @@ AVX512 static void avx512_bsq_block(const est_plan *p, est_scratch *s, const flo
 			est_avx2_stage_terms_part(p, &cur, rgb + 3 * at, m, 0, m, c);
 		memset(cur.clampbits, 0, EST_CHUNK / 8);
 		const size_t nat = at + EST_CHUNK;
-		int next_ok = nat < n && (!p->stream || ((((uintptr_t)d->data + nat * es) & 63) == 0));
+		const int next_ok = nat < n && (!p->stream || chunk_aligned(d, nat, es));
 		next_chunk nc = {next_ok ? &nxt : NULL, rgb + 3 * nat,
 		                 next_ok ? (n - nat < EST_CHUNK ? n - nat : EST_CHUNK) : 0};
 		bsq512(p, &cur, m, d, at, p->stream, c, &nc);

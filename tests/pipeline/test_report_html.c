@@ -59,8 +59,8 @@ static size_t check_png_payload(const char *p)
 			png[n++] = (unsigned char)(v >> (16 - 8 * k));
 	}
 	static const unsigned char sig[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
-	size_t at = 8, ok = png && n > 8 && memcmp(png, sig, 8) == 0;
-	int iend = 0;
+	size_t at = 8;
+	int ok = png && n > 8 && memcmp(png, sig, 8) == 0, iend = 0;
 	while (ok && !iend && at + 12 <= n) {
 		size_t len = (size_t)png[at] << 24 | (size_t)png[at + 1] << 16 |
 		             (size_t)png[at + 2] << 8 | png[at + 3];
