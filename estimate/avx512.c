@@ -142,6 +142,84 @@ INLINE_AVX512 void bsq512_nt(const est_plan *p, const int nt, est_scratch *s, si
 	c->clamped_values += clamped;
 }
 
+/* One group of 64 pixels at i (left = m - i of them in the chunk). full, clamp and
+ * stream are constants at each call: a whole group compares without lane masks and
+ * stores without tests, so its loop over the bands holds nothing but the kernel (with
+ * the masks and tests kept for every group the compiler spilled the masks and
+ * reloaded them every band). */
+INLINE_AVX512 uint64_t f16_64_group(const est_map *mp, const float *terms, size_t i,
+                                    size_t left, uint16_t *dst0, size_t stride,
+                                    uint8_t *clampbits, const int full, const int clamp,
+                                    const int stream)
+{
+	enum { NT = 3, V = 4 };
+	const int nb = mp->nb;
+	const float *a = mp->a;
+	const __m512 zero = _mm512_setzero_ps();
+	const __m512i one = _mm512_set1_epi32(1);
+	__mmask16 valid[V];
+	__m512 tv[V][NT];
+	__m512i n[V]; /* clamped bands per pixel */
+#pragma GCC unroll 4
+	for (int v = 0; v < V; v++) {
+		size_t at_v = 16 * (size_t)v;
+		valid[v] = full || at_v + 16 <= left ? (__mmask16)0xffff
+		           : at_v >= left            ? (__mmask16)0
+		                                     : (__mmask16)((1u << (left - at_v)) - 1);
+		n[v] = _mm512_setzero_si512();
+#pragma GCC unroll 4
+		for (int t = 0; t < NT; t++)
+			tv[v][t] = _mm512_load_ps(terms + t * EST_TSTRIDE + i + at_v);
+	}
+	for (int o = 0; o < nb; o++) {
+		__m512 acc[V];
+#pragma GCC unroll 4
+		for (int v = 0; v < V; v++)
+			acc[v] = _mm512_set1_ps(mp->off[o]);
+#pragma GCC unroll 4
+		for (int t = 0; t < NT; t++) {
+			const __m512 coef = _mm512_set1_ps(a[(size_t)o * NT + t]);
+#pragma GCC unroll 4
+			for (int v = 0; v < V; v++)
+				acc[v] = _mm512_fmadd_ps(coef, tv[v][t], acc[v]);
+		}
+		if (clamp)
+#pragma GCC unroll 4
+			for (int v = 0; v < V; v++) {
+				const __mmask16 lt = full ? _mm512_cmp_ps_mask(acc[v], zero, _CMP_LT_OQ)
+				                          : _mm512_mask_cmp_ps_mask(valid[v], acc[v], zero,
+				                                                    _CMP_LT_OQ);
+				n[v] = _mm512_mask_add_epi32(n[v], lt, n[v], one);
+				acc[v] = _mm512_max_ps(zero, acc[v]); /* as bsq512_nt */
+			}
+		uint16_t *dst = dst0 + (size_t)o * stride;
+#pragma GCC unroll 4
+		for (int v = 0; v < V; v += 2) {
+			const __m512i h = pack_f16(acc[v], acc[v + 1]);
+			const size_t off = 16 * (size_t)v;
+			if ((full || left >= off + 32) && stream)
+				_mm512_stream_si512((void *)(dst + off), h);
+			else if (full || left >= off + 32)
+				_mm512_storeu_si512((void *)(dst + off), h);
+			else if (left > off) { /* the chunk's last, partial line */
+				uint16_t tmp[32];
+				_mm512_storeu_si512((void *)tmp, h);
+				memcpy(dst + off, tmp, (left - off) * sizeof(uint16_t));
+			}
+		}
+	}
+	if (!clamp)
+		return 0;
+#pragma GCC unroll 4
+	for (int v = 0; v < V; v++) { /* n[v] by constant index: kept in registers */
+		const uint32_t hit = _mm512_test_epi32_mask(n[v], n[v]);
+		for (size_t k = 0; k < 2 && 16 * (size_t)v + 8 * k < left; k++)
+			clampbits[(i + 16 * (size_t)v) / 8 + k] = (uint8_t)(hit >> (8 * k));
+	}
+	return (uint64_t)_mm512_reduce_add_epi32(
+	    _mm512_add_epi32(_mm512_add_epi32(n[0], n[1]), _mm512_add_epi32(n[2], n[3])));
+}
+
 /* f16 of the 3-term kernels, 64 pixels a group: each band's 64 values go to its plane
  * as two whole lines. With one line a plane per group the kernel was store bound
  * (alone, that pattern of streaming stores over 61 planes ran at half the rate of one
@@ -154,73 +232,23 @@ INLINE_AVX512 void bsq512_f16_64(const est_plan *p, est_scratch *s, size_t m,
                                  const est_dst *d, size_t at, const int stream, est_counts *c,
                                  const next_chunk *nc)
 {
-	enum { NT = 3, V = 4 };
 	const est_map *mp = p->map;
-	const int nb = mp->nb, clamp = mp->clamp;
-	const float *a = mp->a, *terms = s->terms;
-	const __m512 zero = _mm512_setzero_ps();
-	const __m512i one = _mm512_set1_epi32(1);
+	const int clamp = mp->clamp;
+	const size_t stride = d->plane_stride;
+	uint16_t *dst = (uint16_t *)d->data + at;
 	uint64_t clamped = 0;
-	for (size_t i = 0; i < m; i += 16 * V) {
+	for (size_t i = 0; i < m; i += 64) {
 		const size_t left = m - i;
-		__mmask16 valid[V];
-		__m512 tv[V][NT];
-		__m512i n[V]; /* clamped bands per pixel */
-#pragma GCC unroll 4
-		for (int v = 0; v < V; v++) {
-			size_t at_v = i + 16 * (size_t)v;
-			valid[v] = at_v + 16 <= m ? (__mmask16)0xffff
-			           : at_v >= m    ? (__mmask16)0
-			                          : (__mmask16)((1u << (m - at_v)) - 1);
-			n[v] = _mm512_setzero_si512();
-#pragma GCC unroll 4
-			for (int t = 0; t < NT; t++)
-				tv[v][t] = _mm512_load_ps(terms + t * EST_TSTRIDE + at_v);
-		}
-		for (int o = 0; o < nb; o++) {
-			__m512 acc[V];
-#pragma GCC unroll 4
-			for (int v = 0; v < V; v++)
-				acc[v] = _mm512_set1_ps(mp->off[o]);
-#pragma GCC unroll 4
-			for (int t = 0; t < NT; t++) {
-				const __m512 coef = _mm512_set1_ps(a[(size_t)o * NT + t]);
-#pragma GCC unroll 4
-				for (int v = 0; v < V; v++)
-					acc[v] = _mm512_fmadd_ps(coef, tv[v][t], acc[v]);
-			}
-			if (clamp)
-#pragma GCC unroll 4
-				for (int v = 0; v < V; v++) {
-					const __mmask16 lt = _mm512_mask_cmp_ps_mask(valid[v], acc[v], zero, _CMP_LT_OQ);
-					n[v] = _mm512_mask_add_epi32(n[v], lt, n[v], one);
-					acc[v] = _mm512_max_ps(zero, acc[v]); /* as bsq512_nt */
-				}
-			uint16_t *dst = (uint16_t *)d->data + (size_t)o * d->plane_stride + at + i;
-#pragma GCC unroll 4
-			for (int v = 0; v < V; v += 2) {
-				const __m512i h = pack_f16(acc[v], acc[v + 1]);
-				const size_t off = 16 * (size_t)v;
-				if (left >= off + 32 && stream)
-					_mm512_stream_si512((void *)(dst + off), h);
-				else if (left >= off + 32)
-					_mm512_storeu_si512((void *)(dst + off), h);
-				else if (left > off) { /* the chunk's last, partial line */
-					uint16_t tmp[32];
-					_mm512_storeu_si512((void *)tmp, h);
-					memcpy(dst + off, tmp, (left - off) * sizeof(uint16_t));
-				}
-			}
-		}
-		if (clamp) {
-			clamped += (uint64_t)_mm512_reduce_add_epi32(
-			    _mm512_add_epi32(_mm512_add_epi32(n[0], n[1]), _mm512_add_epi32(n[2], n[3])));
-#pragma GCC unroll 4
-			for (int v = 0; v < V; v++) { /* n[v] by constant index: kept in registers */
-				const uint32_t hit = _mm512_test_epi32_mask(n[v], n[v]);
-				for (size_t k = 0; k < 2 && 16 * (size_t)v + 8 * k < left; k++)
-					s->clampbits[(i + 16 * (size_t)v) / 8 + k] = (uint8_t)(hit >> (8 * k));
-			}
+		const int kind = (left >= 64 ? 4 : 0) | (clamp ? 2 : 0) | (stream ? 1 : 0);
+		switch (kind) {
+#define F16_GROUP(K)                                                                         \
+	case K:                                                                                  \
+		clamped += f16_64_group(mp, s->terms, i, left, dst + i, stride, s->clampbits,        \
+		                        (K) >> 2 & 1, (K) >> 1 & 1, (K) & 1);                         \
+		break;
+			F16_GROUP(0) F16_GROUP(1) F16_GROUP(2) F16_GROUP(3)
+			F16_GROUP(4) F16_GROUP(5) F16_GROUP(6) F16_GROUP(7)
+#undef F16_GROUP
 		}
 		stage_next(p, nc, i, i + 64, c);
 	}
