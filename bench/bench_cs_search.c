@@ -10,7 +10,11 @@
  *   - coarse 2 alone: every 2nd angle (the model of --angles 0:70:10);
  *   - planar: every angle, each prediction replaced by its projection onto the plane
  *     through the origin that fits the material's predictions best (least squares),
- *     so a candidate would cost 5 multiply-adds instead of 9.
+ *     so a candidate would cost 5 multiply-adds instead of 9;
+ *   - every angle, intensity free: each angle's distance with the intensity unclamped
+ *     (a candidate would need no clamps and, unclamped, s = -(p.b)^2 / p^T Q p: a
+ *     multiply instead of four operations);
+ *   - every angle, intensity >= lo: clamped below only (one clamp fewer).
  * For each search: the candidates it evaluates per material (mean), the share of
  * (pixel, material) pairs it puts at another angle, the pixels whose label differs,
  * and how far the distance at its angle lies above the exhaustive minimum (percentiles
@@ -88,16 +92,26 @@ static void plane_normal(const kg_cs_model *m, int j, double nrm[3])
 	memcpy(nrm, e, sizeof(e));
 }
 
-enum { S_BRACKET2, S_BRACKET3, S_BRACKET4, S_PARABOLA, S_COARSE2, S_PLANAR, NSEARCH };
+enum { S_BRACKET2, S_BRACKET3, S_BRACKET4, S_PARABOLA, S_COARSE2, S_PLANAR, S_FREE, S_LOWER, NSEARCH };
 static const char *search_name[NSEARCH] = {
 	"coarse 2, bracket", "coarse 3, bracket", "coarse 4, bracket",
 	"coarse 2, parabola", "coarse 2 alone", "planar predictions",
+	"every angle, intensity free", "every angle, intensity >= lo",
 };
 
 /* The angle search s picks among d[0 .. na - 1] (dp: the planar predictions'
  * distances); *evals gets the candidates it evaluated. */
-static int pick(int s, const double *d, const double *dp, int na, int *evals)
+static int pick(int s, const double *d, const double *dp, const double *df,
+                const double *dl, int na, int *evals)
 {
+	if (s == S_FREE || s == S_LOWER) {
+		const double *e = s == S_FREE ? df : dl;
+		int kp = 0;
+		for (int k = 1; k < na; k++)
+			kp = e[k] < e[kp] ? k : kp;
+		*evals = na;
+		return kp;
+	}
 	if (s == S_PLANAR) {
 		int kp = 0;
 		for (int k = 1; k < na; k++)
@@ -217,18 +231,20 @@ int main(int argc, char **argv)
 		for (int s = 0; s < NSEARCH; s++)
 			sbest[s] = INFINITY, sj[s] = -1;
 		for (int j = 0; j < nm; j++) {
-			double d[MAX_ANGLES], dp[MAX_ANGLES];
+			double d[MAX_ANGLES], dp[MAX_ANGLES], df[MAX_ANGLES], dl[MAX_ANGLES];
 			int ke = 0;
 			for (int k = 0; k < na; k++) {
 				d[k] = dist(&p, m->mu + 3 * ((size_t)j * na + k), m->lo, m->hi);
 				dp[k] = dist(&p, mup + 3 * ((size_t)j * na + k), m->lo, m->hi);
+				df[k] = dist(&p, m->mu + 3 * ((size_t)j * na + k), -INFINITY, INFINITY);
+				dl[k] = dist(&p, m->mu + 3 * ((size_t)j * na + k), m->lo, INFINITY);
 				ke = d[k] < d[ke] ? k : ke;
 			}
 			pairs++;
 			if (d[ke] < best)
 				best = d[ke], jbest = j;
 			for (int s = 0; s < NSEARCH; s++) {
-				int e, k = pick(s, d, dp, na, &e);
+				int e, k = pick(s, d, dp, df, dl, na, &e);
 				evals[s] += e;
 				other_angle[s] += k != ke;
 				if (d[ke] < 50)

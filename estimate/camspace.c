@@ -118,21 +118,62 @@ int kg_cs_model_new(const double *F, const kg_material *const *mats, int n, doub
 	return 0;
 }
 
+static int black(const float *p)
+{
+	return p[0] == 0.0f && p[1] == 0.0f && p[2] == 0.0f;
+}
+
+/* The component a model's predictions are scaled by for KG_CS_QUADRATIC: the one whose
+ * least magnitude over the predictions other than black (0, 0, 0) is the largest; -1
+ * where every component is 0 or not finite in one of them. */
+static int products_component(const kg_cs_model *m, size_t nc)
+{
+	int c = -1;
+	double best = 0;
+	for (int a = 0; a < 3; a++) {
+		double least = INFINITY;
+		for (size_t k = 0; k < nc; k++) {
+			double v = fabs((double)m->muf[3 * k + (size_t)a]);
+			if (!black(m->muf + 3 * k))
+				least = !isfinite(v) ? 0 : v < least ? v : least;
+		}
+		if (least > best)
+			best = least, c = a;
+	}
+	return c;
+}
+
 int kg_cs_model_products(kg_cs_model *m)
 {
 	size_t nc = (size_t)m->n * (size_t)m->nangles;
-	float *pp = realloc(m->ppf, sizeof(float) * 6 * (nc ? nc : 1));
+	free(m->ppf);
+	m->ppf = NULL;
+	int c = products_component(m, nc);
+	if (c < 0)
+		return 0; /* the quadratic method is refused */
+	float *pp = calloc(KG_CS_PP * (nc ? nc : 1), sizeof(float));
 	if (!pp)
 		return KG_ENOMEM;
+	const int i = c == 0 ? 1 : 0, j = c == 2 ? 1 : 2;
 	m->ppf = pp;
-	for (size_t c = 0; c < nc; c++, pp += 6) {
-		const double p0 = m->muf[3 * c], p1 = m->muf[3 * c + 1], p2 = m->muf[3 * c + 2];
-		pp[0] = (float)(p0 * p0);
-		pp[1] = (float)(p1 * p1);
-		pp[2] = (float)(p2 * p2);
-		pp[3] = (float)(2 * p0 * p1);
-		pp[4] = (float)(2 * p0 * p2);
-		pp[5] = (float)(2 * p1 * p2);
+	m->ppc = c;
+	for (size_t k = 0; k < nc; k++, pp += KG_CS_PP) {
+		/* black: all zero, so vv = Q_cc, vy = b_c and alpha is clamped to 0, s = 0 as
+		 * for any intensity of a zero prediction */
+		if (black(m->muf + 3 * k))
+			continue;
+		const double w = m->muf[3 * k + (size_t)c];
+		const double u = m->muf[3 * k + (size_t)i] / w, v = m->muf[3 * k + (size_t)j] / w;
+		const double lo = m->lo * w, hi = m->hi * w;
+		pp[0] = (float)(u * u);
+		pp[1] = (float)(v * v);
+		pp[2] = (float)(2 * u * v);
+		pp[3] = (float)(2 * u);
+		pp[4] = (float)(2 * v);
+		pp[5] = (float)u;
+		pp[6] = (float)v;
+		pp[7] = (float)(w > 0 ? lo : hi);
+		pp[8] = (float)(w > 0 ? hi : lo);
 	}
 	return 0;
 }
@@ -192,9 +233,12 @@ int kg_cs_match(const kg_cs_model *m, const double x[3], const double cov[9],
  * About 40 operations per candidate, none fused.
  *
  * KG_CS_QUADRATIC: the same distance is |y|^2 + a (a p^T Q p - 2 p^T b), Q = C^-1 =
- * L^-T L^-1 (6 numbers per pixel), b = Q x, p the candidate's prediction; with each
- * prediction's products p p^T stored in the model (kg_cs_model.ppf), p^T Q p is six
- * multiply-adds and the whole candidate 11 multiplies and 5 other operations. That form cancels: its
+ * L^-T L^-1 (6 numbers per pixel), b = Q x, p the candidate's prediction. Each
+ * prediction is stored scaled by one of its components, p = w (u, v, 1) (the
+ * component nonzero in every prediction, kg_cs_model_products), with the products
+ * u^2, v^2, 2uv, 2u, 2v and the intensity bounds times w: p^T Q p / w^2 is then five
+ * multiply-adds from Q's constant term, p.b / w two, and the whole candidate 9
+ * multiplies and multiply-adds, a division and 6 other operations. That form cancels: its
  * rounding is some eps |y|^2 (|y|^2 the whitened reading's length squared, 10^4 and
  * more at a camera's noise) where the exact form's is some eps |y| sqrt(d). So it only
  * chooses each material's angle, and that one candidate is then computed by
@@ -307,10 +351,32 @@ static void match_one(const kg_cs_model *m, const float *x, const float *c, size
 	store_pixel(m, &p, &f, out, i);
 }
 
+/* KG_CS_QUADRATIC's per-pixel terms for a model scaled by component c (ppc): with the
+ * other two i < j, t[0 .. 5] = Q_cc, Q_ii, Q_jj, Q_ij, Q_ci, Q_cj and t[6 .. 8] = b_c,
+ * b_i, b_j, so that for p = w (u, v, 1) (in the order i, j, c)
+ *   p^T Q p / w^2 = Q_cc + Q_ii u^2 + Q_jj v^2 + Q_ij 2uv + Q_ci 2u + Q_cj 2v,
+ *   p.b / w = b_c + b_i u + b_j v. */
+int est_cs_quad_index(int c, int k)
+{
+	/* q: q00 q11 q22 q01 q02 q12; sym[a][b] its index of Q_ab */
+	static const int sym[3][3] = {{0, 3, 4}, {3, 1, 5}, {4, 5, 2}};
+	const int i = c == 0 ? 1 : 0, j = c == 2 ? 1 : 2;
+	const int ra[6] = {c, i, j, i, c, c}, rb[6] = {c, i, j, j, i, j}, rv[3] = {c, i, j};
+	return k < 6 ? sym[ra[k]][rb[k]] : rv[k - 6];
+}
+
+void est_cs_quad_terms(int c, const float q[6], const float b[3], float t[9])
+{
+	for (int k = 0; k < 9; k++)
+		t[k] = (k < 6 ? q : b)[est_cs_quad_index(c, k)];
+}
+
 /* KG_CS_QUADRATIC on one pixel, multiply-adds fused (fmaf) where the vector kernels
  * fuse them. Q = W^T W with W = L^-1 (lower triangular, by forward substitution),
- * b = W^T y = Q x. Per candidate: vv = p^T Q p, vy = p.b, a clamped as in the exact
- * method, and the distance less |y|^2, s = a ((a vv - vy) - vy), whose least value
+ * b = W^T y = Q x. Per candidate p = w (u, v, 1) (kg_cs_model.ppf; est_cs_quad_terms
+ * orders Q and b to match): vv = p^T Q p / w^2 by five multiply-adds, vy = p.b / w by
+ * two, and for alpha = a w, clamped to the bounds of [lo, hi] w, the distance less
+ * |y|^2, s = a^2 p^T Q p - 2 a p.b = alpha ((alpha vv - vy) - vy), whose least value
  * picks the angle (the first of equals; NaN never). */
 EST_REF_CLONES static void match_one_quad(const kg_cs_model *m, const float *x, const float *c,
                                           size_t i, const kg_cs_block *out)
@@ -322,29 +388,28 @@ EST_REF_CLONES static void match_one_quad(const kg_cs_model *m, const float *x, 
 	const float w10 = -p.l3 * w00 * p.i4;
 	const float w21 = -p.l7 * w11 * p.i8;
 	const float w20 = (-p.l6 * w00 - p.l7 * w10) * p.i8;
-	const float q00 = fmaf(w20, w20, fmaf(w10, w10, w00 * w00));
-	const float q11 = fmaf(w21, w21, w11 * w11), q22 = w22 * w22;
-	const float q01 = fmaf(w20, w21, w10 * w11), q02 = w20 * w22, q12 = w21 * w22;
-	const float b0 = fmaf(w20, p.y2, fmaf(w10, p.y1, w00 * p.y0));
-	const float b1 = fmaf(w21, p.y2, w11 * p.y1), b2 = w22 * p.y2;
+	const float q[6] = {fmaf(w20, w20, fmaf(w10, w10, w00 * w00)), fmaf(w21, w21, w11 * w11),
+	                    w22 * w22, fmaf(w20, w21, w10 * w11), w20 * w22, w21 * w22};
+	const float b[3] = {fmaf(w20, p.y2, fmaf(w10, p.y1, w00 * p.y0)),
+	                    fmaf(w21, p.y2, w11 * p.y1), w22 * p.y2};
+	float t[9];
+	est_cs_quad_terms(m->ppc, q, b, t);
 	const int na = m->nangles;
 	for (int j = 0; j < m->n && p.ok; j++) {
-		const float *pp = m->ppf + 6 * (size_t)j * na, *mu = m->muf + 3 * (size_t)j * na;
+		const float *pp = m->ppf + KG_CS_PP * (size_t)j * na;
 		float sj = INFINITY;
 		int kj = 0;
-		for (int k = 0; k < na; k++, pp += 6, mu += 3) {
-			float vv = q00 * pp[0];
-			vv = fmaf(q11, pp[1], vv);
-			vv = fmaf(q22, pp[2], vv);
-			vv = fmaf(q01, pp[3], vv);
-			vv = fmaf(q02, pp[4], vv);
-			vv = fmaf(q12, pp[5], vv);
-			float vy = b0 * mu[0];
-			vy = fmaf(b1, mu[1], vy);
-			vy = fmaf(b2, mu[2], vy);
+		for (int k = 0; k < na; k++, pp += KG_CS_PP) {
+			float vv = fmaf(t[1], pp[0], t[0]);
+			vv = fmaf(t[2], pp[1], vv);
+			vv = fmaf(t[3], pp[2], vv);
+			vv = fmaf(t[4], pp[3], vv);
+			vv = fmaf(t[5], pp[4], vv);
+			float vy = fmaf(t[7], pp[5], t[6]);
+			vy = fmaf(t[8], pp[6], vy);
 			float a = vy / vv;
-			a = a > lo ? a : lo;
-			a = a < hi ? a : hi;
+			a = a > pp[7] ? a : pp[7];
+			a = a < pp[8] ? a : pp[8];
 			float s = a * (fmaf(a, vv, -vy) - vy);
 			if (s < sj) {
 				sj = s;

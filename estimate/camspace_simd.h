@@ -159,26 +159,33 @@ INLINE void exact_vectors(const kg_cs_model *m, const float *x, const float *cov
 }
 
 /* KG_CS_QUADRATIC's per-pixel terms (camspace.c's match_one_quad): Q = C^-1 and
- * b = Q x. */
+ * b = Q x, in the order est_cs_quad_terms gives them for the model's component c. */
 typedef struct quad {
-	V q00, q11, q22, q01, q02, q12, b0, b1, b2;
+	V t0, t1, t2, t3, t4, t5, t6, t7, t8;
 } quad;
 
-INLINE void quad_init(quad *q, const lanes *p)
+INLINE void quad_init(quad *q, const lanes *p, int c)
 {
 	V w00 = p->i0, w11 = p->i4, w22 = p->i8;
 	V w10 = MUL(MUL(NEG(p->l3), w00), p->i4);
 	V w21 = MUL(MUL(NEG(p->l7), w11), p->i8);
 	V w20 = MUL(SUB(MUL(NEG(p->l6), w00), MUL(p->l7, w10)), p->i8);
-	q->q00 = FMA(w20, w20, FMA(w10, w10, MUL(w00, w00)));
-	q->q11 = FMA(w21, w21, MUL(w11, w11));
-	q->q22 = MUL(w22, w22);
-	q->q01 = FMA(w20, w21, MUL(w10, w11));
-	q->q02 = MUL(w20, w22);
-	q->q12 = MUL(w21, w22);
-	q->b0 = FMA(w20, p->y2, FMA(w10, p->y1, MUL(w00, p->y0)));
-	q->b1 = FMA(w21, p->y2, MUL(w11, p->y1));
-	q->b2 = MUL(w22, p->y2);
+	V q00 = FMA(w20, w20, FMA(w10, w10, MUL(w00, w00)));
+	V q11 = FMA(w21, w21, MUL(w11, w11));
+	V q22 = MUL(w22, w22);
+	V q01 = FMA(w20, w21, MUL(w10, w11));
+	V q02 = MUL(w20, w22);
+	V q12 = MUL(w21, w22);
+	V b0 = FMA(w20, p->y2, FMA(w10, p->y1, MUL(w00, p->y0)));
+	V b1 = FMA(w21, p->y2, MUL(w11, p->y1));
+	V b2 = MUL(w22, p->y2);
+	/* Q_cc, Q_ii, Q_jj, Q_ij, Q_ci, Q_cj, b_c, b_i, b_j for the others i < j */
+	if (c == 0)
+		*q = (quad){q00, q11, q22, q12, q01, q02, b0, b1, b2};
+	else if (c == 1)
+		*q = (quad){q11, q00, q22, q02, q01, q12, b1, b0, b2};
+	else
+		*q = (quad){q22, q00, q11, q01, q02, q12, b2, b0, b1};
 }
 
 /* The chosen candidates' predictions and angles, lane by lane: from tab (each
@@ -220,7 +227,7 @@ static float *quad_table(const kg_cs_model *m)
 }
 
 /* KG_CS_QUADRATIC: pixels i .. i + VN NV - 1. Per material, the angle of least
- * s = a ((a p^T Q p - p.b) - p.b), then that candidate exactly. */
+ * s = alpha ((alpha vv - vy) - vy) (match_one_quad), then that candidate exactly. */
 INLINE void quad_vectors(const kg_cs_model *m, const float *tab, const float *x,
                          const float *cov, size_t i, const kg_cs_block *out, const int NV)
 {
@@ -231,13 +238,13 @@ INLINE void quad_vectors(const kg_cs_model *m, const float *tab, const float *x,
 #pragma GCC unroll 2
 	for (int q = 0; q < NV; q++) {
 		lanes_init(&p[q], x + 3 * (i + VN * (size_t)q), cov + 6 * (i + VN * (size_t)q));
-		quad_init(&w[q], &p[q]);
+		quad_init(&w[q], &p[q], m->ppc);
 		okbits |= MBITS(p[q].ok);
 	}
 	const V lo = SET1((float)m->lo), hi = SET1((float)m->hi);
 	const int na = m->nangles;
 	for (int j = 0; j < m->n && okbits; j++) {
-		const float *pp = m->ppf + 6 * (size_t)j * na, *mu = m->muf + 3 * (size_t)j * na;
+		const float *pp = m->ppf + KG_CS_PP * (size_t)j * na;
 		V sj[2];
 		VI kj[2];
 #pragma GCC unroll 2
@@ -245,21 +252,19 @@ INLINE void quad_vectors(const kg_cs_model *m, const float *tab, const float *x,
 			sj[q] = inf;
 			kj[q] = SET1I(0);
 		}
-		for (int k = 0; k < na; k++, pp += 6, mu += 3) {
-			const VI kv = SET1I(k);
+		VI kv = SET1I(0);
+		for (int k = 0; k < na; k++, pp += KG_CS_PP, kv = ADDI(kv, SET1I(1))) {
 #pragma GCC unroll 2
 			for (int q = 0; q < NV; q++) {
 				const quad *u = &w[q];
-				V vv = MUL(u->q00, BCAST(pp));
-				vv = FMA(u->q11, BCAST(pp + 1), vv);
-				vv = FMA(u->q22, BCAST(pp + 2), vv);
-				vv = FMA(u->q01, BCAST(pp + 3), vv);
-				vv = FMA(u->q02, BCAST(pp + 4), vv);
-				vv = FMA(u->q12, BCAST(pp + 5), vv);
-				V vy = MUL(u->b0, BCAST(mu));
-				vy = FMA(u->b1, BCAST(mu + 1), vy);
-				vy = FMA(u->b2, BCAST(mu + 2), vy);
-				V a = MIN(MAX(DIV(vy, vv), lo), hi);
+				V vv = FMA(u->t1, BCAST(pp), u->t0);
+				vv = FMA(u->t2, BCAST(pp + 1), vv);
+				vv = FMA(u->t3, BCAST(pp + 2), vv);
+				vv = FMA(u->t4, BCAST(pp + 3), vv);
+				vv = FMA(u->t5, BCAST(pp + 4), vv);
+				V vy = FMA(u->t7, BCAST(pp + 5), u->t6);
+				vy = FMA(u->t8, BCAST(pp + 6), vy);
+				V a = MIN(MAX(DIV(vy, vv), BCAST(pp + 7)), BCAST(pp + 8));
 				V s = MUL(a, SUB(FMS(a, vv, vy), vy));
 				M lt = LT(s, sj[q]);
 				sj[q] = MIN(s, sj[q]);

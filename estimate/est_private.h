@@ -139,6 +139,12 @@ size_t est_cs_quad_avx2(const kg_cs_model *m, const float *x, const float *cov, 
                         const kg_cs_block *out);
 size_t est_cs_quad_avx512(const kg_cs_model *m, const float *x, const float *cov, size_t n,
                           const kg_cs_block *out);
+/* KG_CS_QUADRATIC's nine per-pixel terms in the order of the model's scaled
+ * predictions (camspace.c), from Q (q00 q11 q22 q01 q02 q12) and b: for ppc = c, the
+ * vector kernels take their lanes' terms in the same order. */
+void est_cs_quad_terms(int c, const float q[6], const float b[3], float t[9]);
+/* Its index map: t[k] = (k < 6 ? q : b)[est_cs_quad_index(c, k)]. */
+int est_cs_quad_index(int c, int k);
 
 /* On x86-64 a reference that uses fmaf is also built for CPUs with FMA and the better
  * build is chosen when the program loads (an ifunc): there fmaf is one instruction

@@ -284,14 +284,20 @@ float kg_f32_from_f16(uint16_t h);
  * material's reflectance over a grid of incidence angles; a pixel in that space (the
  * site reading through M2) with its covariance takes the material, angle and intensity
  * of the least noise-weighted distance (camspace.c says how). */
+#define KG_CS_PP 9 /* floats per prediction in kg_cs_model.ppf */
 typedef struct kg_cs_model {
 	int n, nangles;
 	char (*names)[KG_MATERIAL_NAME_MAX];
 	double *angle_deg; /* nangles, increasing */
 	double *mu;        /* n x nangles x 3: the predicted readings at intensity 1 */
 	float *muf;        /* the same in float, for the block kernels */
-	float *ppf;        /* n x nangles x 6: each muf's products p0^2, p1^2, p2^2, 2 p0 p1,
-	                      2 p0 p2, 2 p1 p2 (KG_CS_QUADRATIC); NULL: that method refused */
+	float *ppf;        /* n x nangles x KG_CS_PP (KG_CS_QUADRATIC): each prediction
+	                      muf = w (..), w its component ppc and u, v its other two
+	                      (in order) over w: u^2, v^2, 2 u v, 2 u, 2 v, u, v, and the
+	                      bounds of a w for a in [lo, hi] (the lesser first); NULL:
+	                      that method refused (no component nonzero in every
+	                      prediction) */
+	int ppc;
 	float *anglef;
 	uint8_t *templated; /* n: the material's readings come from its coupon template */
 	double lo, hi;     /* the intensity range searched */
@@ -305,8 +311,8 @@ int kg_cs_model_new(const double *F, const kg_material *const *mats, int n, doub
                     double a1, double step, double lo, double hi, kg_cs_model **out,
                     kg_err *err);
 void kg_cs_model_free(kg_cs_model **m);
-/* (Re)computes ppf from muf (kg_cs_model_new does; for a model built field by field).
- * 0 or KG_ENOMEM. */
+/* (Re)computes ppf and ppc from muf, lo and hi (kg_cs_model_new does; for a model built
+ * field by field, or after changing them). 0 or KG_ENOMEM. */
 int kg_cs_model_products(kg_cs_model *m);
 
 typedef struct kg_cs_result {
@@ -336,8 +342,9 @@ typedef struct kg_cs_block {
 /* kg_cs_match for n pixels in float: x 3 values per pixel, cov 6 per pixel (c00 c01 c02
  * c11 c12 c22). Up to 254 materials. Two methods (camspace.c says how each computes):
  * KG_CS_EXACT, every candidate (material, angle) through the pixel's Cholesky factor;
- * KG_CS_QUADRATIC, each material's angle chosen by quadratic forms (11 multiplies and
- * 5 other operations per candidate instead of about 40), then that candidate through KG_CS_EXACT's
+ * KG_CS_QUADRATIC, each material's angle chosen by quadratic forms (9 multiplies and
+ * multiply-adds, a division and 6 other operations per candidate instead of about
+ * 40), then that candidate through KG_CS_EXACT's
  * operations, so every value it writes is the exact method's for that material at that
  * angle. They differ only where another angle of a material is within float rounding
  * (some eps |y|^2, y the whitened reading) of the best one: the quadratic method may

@@ -661,8 +661,22 @@ int main(void)
 	CHECK(kg_cs_match_block_method(m1, NULL, NULL, 0, &empty, KG_CS_QUADRATIC, KG_EST_ISA_C) ==
 	      KG_EINVAL, "the quadratic method without the products is refused");
 	kg_cs_model_free(&m1);
+	/* every component 0 in one prediction: nothing to scale the predictions by */
+	m1 = model_alloc(1, 3, 0.5, 1.0);
+	CHECK(m1 != NULL, "out of memory");
+	if (m1) {
+		static const float unscalable[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+		memcpy(m1->muf, unscalable, sizeof(unscalable));
+		CHECK(kg_cs_model_products(m1) == 0 && m1->ppf == NULL,
+		      "a model with each component 0 in one prediction has no products");
+		CHECK(kg_cs_match_block_method(m1, NULL, NULL, 0, &empty, KG_CS_QUADRATIC,
+		                               KG_EST_ISA_C) == KG_EINVAL,
+		      "and the quadratic method is refused for it");
+	}
+	kg_cs_model_free(&m1);
 
 	fx_rng r = {20261202};
+	int ppc_seen[3] = {0};
 	static const double scales[] = {1, 1, 1, 1e-15, 1e15, 1e-19, 1e19, 1e25};
 	static const size_t sizes[] = {0, 1, 7, 8, 9, 15, 16, 17, 31, 32, 33, 100, 1027};
 	tally t = {0};
@@ -672,6 +686,9 @@ int main(void)
 		CHECK(m != NULL, "out of memory");
 		if (!m)
 			break;
+		CHECK(m->ppf && m->ppc >= 0 && m->ppc < 3, "trial %d: the model has products", trial);
+		if (m->ppf && m->ppc >= 0 && m->ppc < 3)
+			ppc_seen[m->ppc]++;
 		size_t n = sizes[(size_t)trial % 13];
 		pixels p = {0};
 		char label[64];
@@ -684,6 +701,13 @@ int main(void)
 		pixels_free(&p);
 		kg_cs_model_free(&m);
 	}
+
+	/* the kernels order the per-pixel terms for each component the predictions are
+	 * scaled by: each order is compared */
+	printf("models scaled by component 0, 1, 2: %d, %d, %d\n", ppc_seen[0], ppc_seen[1],
+	       ppc_seen[2]);
+	CHECK(ppc_seen[0] > 0 && ppc_seen[1] > 0 && ppc_seen[2] > 0,
+	      "models scaled by each component: %d, %d, %d", ppc_seen[0], ppc_seen[1], ppc_seen[2]);
 
 	check_overflow(have, &t);
 
