@@ -146,6 +146,13 @@ void est_cs_quad_terms(int c, const float q[6], const float b[3], float t[9]);
 /* Its index map: t[k] = (k < 6 ? q : b)[est_cs_quad_index(c, k)]. */
 int est_cs_quad_index(int c, int k);
 
+/* The Ag, Cu, Au composition of one pixel (labels_cam.c): x (3) with covariance cf (6:
+ * c00 c01 c02 c11 c12 c22) as a non-negative mix of the model `metals`' three
+ * materials (silver, copper, gold) at angle index k. out: the 3 fractions and their
+ * Cramer-Rao standard deviations; NaN when nothing fits. */
+void est_composition_pixel(const kg_cs_model *metals, int k, const float *x, const float *cf,
+                           float out[6]);
+
 /* On x86-64 a reference that uses fmaf is also built for CPUs with FMA and the better
  * build is chosen when the program loads (an ifunc): there fmaf is one instruction
  * instead of a library call. fmaf is exact either way (one rounding), so both builds

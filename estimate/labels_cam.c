@@ -67,8 +67,19 @@ void kg_classify_camera_init(kg_classify_camera *c)
 
 typedef struct noise {
 	double M2[9], R[9];
+	double P[6][3]; /* M2[a][ch] M2[b][ch] for the covariance's 6 entries (a, b) */
 	double inv_frames, floor2, rel2;
 } noise;
+
+static const int cov_ia[6] = {0, 0, 0, 1, 1, 2}, cov_ib[6] = {0, 1, 2, 1, 2, 2};
+
+/* nz->P from nz->M2 */
+static void noise_products(noise *nz)
+{
+	for (int e = 0; e < 6; e++)
+		for (int ch = 0; ch < 3; ch++)
+			nz->P[e][ch] = nz->M2[3 * cov_ia[e] + ch] * nz->M2[3 * cov_ib[e] + ch];
+}
 
 /* x = M2 rho and its covariance (6 values) in double. */
 static void pixel_noise(const noise *nz, const float *rho, const float *var, double x[3],
@@ -82,13 +93,11 @@ static void pixel_noise(const noise *nz, const float *rho, const float *var, dou
 	for (int a = 0; a < 3; a++)
 		x[a] = nz->M2[3 * a] * rho[0] + nz->M2[3 * a + 1] * rho[1] + nz->M2[3 * a + 2] * rho[2];
 	double l2 = (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]) / 3.0;
-	static const int ia[6] = {0, 0, 0, 1, 1, 2}, ib[6] = {0, 1, 2, 1, 2, 2};
 	for (int e = 0; e < 6; e++) {
-		int a = ia[e], b = ib[e];
 		double s = 0;
 		for (int ch = 0; ch < 3; ch++)
-			s += nz->M2[3 * a + ch] * nz->M2[3 * b + ch] * v[ch];
-		c[e] = s + l2 * nz->R[3 * a + b];
+			s += nz->P[e][ch] * v[ch];
+		c[e] = s + l2 * nz->R[3 * cov_ia[e] + cov_ib[e]];
 	}
 }
 
@@ -138,9 +147,20 @@ static cam_planes cam_planes_of(const cam_run *r, void *in, size_t n)
 
 /* ---- composition -------------------------------------------------------------------- */
 
-/* Least squares of y on the columns of A (3 x 3, row-major) in the set `use` (bits),
- * the others 0; +Inf when singular or a weight is negative. */
-static double fit_subset(const double *A, const double *y, unsigned use, double w[3])
+/* One pixel's composition fit: the metals' whitened readings A (3 x 3, row-major,
+ * column j metal j), the whitened reading y, and their normal equations G = A^T A
+ * (also the Fisher information of the weights) and h = A^T y, formed once for the
+ * 7 active sets. */
+typedef struct comp_fit {
+	double A[9], y[3], G[9], h[3];
+} comp_fit;
+
+/* Least squares of y on the columns of A in the set `use` (bits), the others 0: one
+ * or two columns by their normal equations, all three by A w = y itself (3 readings,
+ * 3 weights); Cramer's rule. The residual |y - A w|^2 is computed from the weights,
+ * not from G and h (which cancel where the fit is near exact). +Inf when singular or
+ * a weight is negative. */
+static double fit_subset(const comp_fit *f, unsigned use, double w[3])
 {
 	int idx[3], k = 0;
 	for (int j = 0; j < 3; j++) {
@@ -148,41 +168,44 @@ static double fit_subset(const double *A, const double *y, unsigned use, double 
 		if (use & (1u << j))
 			idx[k++] = j;
 	}
-	double N[9] = {0}, b[3] = {0};
-	for (int a = 0; a < k; a++) {
-		for (int c = 0; c < 3; c++)
-			b[a] += A[3 * c + idx[a]] * y[c];
-		for (int bb = 0; bb < k; bb++)
-			for (int c = 0; c < 3; c++)
-				N[3 * a + bb] += A[3 * c + idx[a]] * A[3 * c + idx[bb]];
-	}
-	/* Gaussian elimination on the k x k system */
-	for (int a = 0; a < k; a++) {
-		if (!(fabs(N[3 * a + a]) > 1e-300))
-			return INFINITY;
-		for (int r = a + 1; r < k; r++) {
-			double f = N[3 * r + a] / N[3 * a + a];
-			for (int c = a; c < k; c++)
-				N[3 * r + c] -= f * N[3 * a + c];
-			b[r] -= f * b[a];
-		}
-	}
+	const double *G = f->G, *h = f->h, *A = f->A, *y = f->y;
 	double v[3];
-	for (int a = k - 1; a >= 0; a--) {
-		double t = b[a];
-		for (int c = a + 1; c < k; c++)
-			t -= N[3 * a + c] * v[c];
-		v[a] = t / N[3 * a + a];
+	if (k == 1) {
+		double g = G[4 * idx[0]];
+		if (!(g > 1e-300))
+			return INFINITY;
+		v[0] = h[idx[0]] / g;
+	} else if (k == 2) {
+		int a = idx[0], b = idx[1];
+		double gaa = G[4 * a], gab = G[3 * a + b], gbb = G[4 * b];
+		double det = gaa * gbb - gab * gab;
+		if (!(det > 1e-300))
+			return INFINITY;
+		v[0] = (h[a] * gbb - h[b] * gab) / det;
+		v[1] = (h[b] * gaa - h[a] * gab) / det;
+	} else {
+		/* cofactors of A: w = adj(A) y / det A */
+		double c00 = A[4] * A[8] - A[5] * A[7], c01 = A[5] * A[6] - A[3] * A[8],
+		       c02 = A[3] * A[7] - A[4] * A[6];
+		double det = A[0] * c00 + A[1] * c01 + A[2] * c02;
+		if (!(fabs(det) > 1e-300))
+			return INFINITY;
+		double c10 = A[2] * A[7] - A[1] * A[8], c11 = A[0] * A[8] - A[2] * A[6],
+		       c12 = A[1] * A[6] - A[0] * A[7];
+		double c20 = A[1] * A[5] - A[2] * A[4], c21 = A[2] * A[3] - A[0] * A[5],
+		       c22 = A[0] * A[4] - A[1] * A[3];
+		v[0] = (c00 * y[0] + c10 * y[1] + c20 * y[2]) / det;
+		v[1] = (c01 * y[0] + c11 * y[1] + c21 * y[2]) / det;
+		v[2] = (c02 * y[0] + c12 * y[1] + c22 * y[2]) / det;
+	}
+	for (int a = 0; a < k; a++) {
 		if (!(v[a] >= 0))
 			return INFINITY;
-	}
-	for (int a = 0; a < k; a++)
 		w[idx[a]] = v[a];
+	}
 	double res = 0;
 	for (int c = 0; c < 3; c++) {
-		double e = y[c];
-		for (int j = 0; j < 3; j++)
-			e -= A[3 * c + j] * w[j];
+		double e = y[c] - A[3 * c] * w[0] - A[3 * c + 1] * w[1] - A[3 * c + 2] * w[2];
 		res += e * e;
 	}
 	return res;
@@ -193,34 +216,41 @@ static double fit_subset(const double *A, const double *y, unsigned use, double 
  * intensity sum_i w_i), w >= 0 by the best of the 7 active sets (the full one first:
  * feasible, it fits exactly), whitened by the
  * pixel's covariance; the Cramer-Rao standard deviations of the fractions from the
- * unconstrained Fisher information (A^T A)^-1 through c = w / sum w. out: 3 fractions,
+ * unconstrained Fisher information G^-1 through c = w / sum w. out: 3 fractions,
  * 3 sds; NaN when nothing fits. */
-static void composition_pixel(const kg_cs_model *metals, int k, const float *xf,
-                              const float *cf, float out[6])
+void est_composition_pixel(const kg_cs_model *metals, int k, const float *xf,
+                           const float *cf, float out[6])
 {
 	for (int i = 0; i < 6; i++)
 		out[i] = NAN;
 	double C[9] = {cf[0], cf[1], cf[2], cf[1], cf[3], cf[4], cf[2], cf[4], cf[5]};
-	double L[9], y[3], A[9];
+	double L[9];
 	double x[3] = {xf[0], xf[1], xf[2]};
+	comp_fit f;
 	if (!est_chol3(C, L))
 		return;
-	est_forward3(L, x, y);
+	est_forward3(L, x, f.y);
 	for (int j = 0; j < 3; j++) {
 		double v[3];
 		est_forward3(L, metals->mu + 3 * ((size_t)j * metals->nangles + k), v);
-		A[j] = v[0];
-		A[3 + j] = v[1];
-		A[6 + j] = v[2];
+		f.A[j] = v[0];
+		f.A[3 + j] = v[1];
+		f.A[6 + j] = v[2];
+	}
+	for (int a = 0; a < 3; a++) {
+		f.h[a] = f.A[a] * f.y[0] + f.A[3 + a] * f.y[1] + f.A[6 + a] * f.y[2];
+		for (int b = a; b < 3; b++)
+			f.G[3 * a + b] = f.G[3 * b + a] =
+				f.A[a] * f.A[b] + f.A[3 + a] * f.A[3 + b] + f.A[6 + a] * f.A[6 + b];
 	}
 	/* all three first: when its weights are >= 0 it fits exactly (3 readings, 3
 	 * weights), the least residual there is; else the best of the smaller sets */
 	double w[3] = {0};
-	double best = fit_subset(A, y, 7, w);
+	double best = fit_subset(&f, 7, w);
 	if (!isfinite(best))
 		for (unsigned use = 1; use < 7; use++) {
 			double t[3];
-			double r = fit_subset(A, y, use, t);
+			double r = fit_subset(&f, use, t);
 			if (r < best) {
 				best = r;
 				memcpy(w, t, sizeof(w));
@@ -229,27 +259,28 @@ static void composition_pixel(const kg_cs_model *metals, int k, const float *xf,
 	double sum = w[0] + w[1] + w[2];
 	if (!isfinite(best) || !(sum > 0))
 		return;
-	double F[9] = {0}, Fi[9];
-	for (int a = 0; a < 3; a++)
-		for (int b = 0; b < 3; b++)
-			for (int c = 0; c < 3; c++)
-				F[3 * a + b] += A[3 * c + a] * A[3 * c + b];
-	int invertible = kg_mat3_inverse(F, Fi) == 0;
-	double c3[3] = {w[0] / sum, w[1] / sum, w[2] / sum};
+	double Fi[9];
+	int invertible = kg_mat3_inverse(f.G, Fi) == 0;
+	/* J = (I - c 1^T) / sum, row i (e_i - c_i 1) / sum: J_i G^-1 J_i^T =
+	 * (Fi_ii - 2 c_i r_i + c_i^2 t) / sum^2, r = Fi 1 and t = 1^T Fi 1 (Fi symmetric) */
+	double r[3], t = 0;
+	for (int a = 0; a < 3; a++) {
+		r[a] = Fi[3 * a] + Fi[3 * a + 1] + Fi[3 * a + 2];
+		t += r[a];
+	}
 	for (int i = 0; i < 3; i++) {
-		out[i] = (float)c3[i];
+		double c = w[i] / sum;
+		out[i] = (float)c;
 		if (!invertible)
 			continue;
-		/* J = (I - c 1^T) / sum: row i is (e_i - c_i 1) / sum */
-		double v = 0;
-		for (int a = 0; a < 3; a++)
-			for (int b = 0; b < 3; b++) {
-				double ja = ((a == i) - c3[i]) / sum, jb = ((b == i) - c3[i]) / sum;
-				v += ja * Fi[3 * a + b] * jb;
-			}
+		double v = (Fi[4 * i] - 2.0 * c * r[i] + c * c * t) / (sum * sum);
 		out[3 + i] = (float)sqrt(v > 0 ? v : 0);
 	}
 }
+
+/* exp(arg), with the arguments whose exp is 0 in double (below -745.2) answered without
+ * libm's underflow path: most materials' weights in a posterior are these. */
+static inline double exp_or_zero(double arg) { return arg <= -750.0 ? 0.0 : exp(arg); }
 
 static void cam_compute(void *user, void *inbuf, size_t n, uint8_t *labels, float *conf,
                         uint8_t *mask, uint64_t *nonfinite, uint64_t *clipped)
@@ -322,7 +353,7 @@ static void cam_compute(void *user, void *inbuf, size_t n, uint8_t *labels, floa
 		double step = md->nangles > 1 ? md->angle_deg[1] - md->angle_deg[0] : 1.0;
 		int ka = (int)lround((cp.angle[i] - md->angle_deg[0]) / step);
 		ka = ka < 0 ? 0 : ka >= r->metals->nangles ? r->metals->nangles - 1 : ka;
-		composition_pixel(r->metals, ka, cp.x + 3 * k, cp.cov + 6 * k, cp.comp + 6 * i);
+		est_composition_pixel(r->metals, ka, cp.x + 3 * k, cp.cov + 6 * k, cp.comp + 6 * i);
 	}
 	for (size_t i = 0; i < n; i++) {
 		const float *d2 = cp.d2 + i * (size_t)nm;
@@ -352,7 +383,7 @@ static void cam_compute(void *user, void *inbuf, size_t n, uint8_t *labels, floa
 			if (c != cb && dc[c] < second)
 				second = dc[c];
 		for (int j = 0; j < nm; j++) {
-			double w = exp(-0.5 * (d2[j] - dmin));
+			double w = exp_or_zero(-0.5 * (d2[j] - dmin));
 			sum += w;
 			if (r->group[j] == cb)
 				mine += w;
@@ -397,6 +428,8 @@ typedef struct regions {
 	/* after the run */
 	uint32_t *final;   /* id -> region number (1-based), 0 none */
 	uint32_t nfinal;
+	double *q999;      /* 1001: chi-square's 99.9 % point by degrees of freedom; 0: not
+	                      yet computed */
 } regions;
 
 static void regions_free(regions *g)
@@ -410,6 +443,7 @@ static void regions_free(regions *g)
 	free(g->prev);
 	free(g->cur);
 	free(g->final);
+	free(g->q999);
 	memset(g, 0, sizeof(*g));
 }
 
@@ -628,7 +662,7 @@ static region_decision decide(const regions *g, uint32_t id, const int *group, i
 	for (int j = 0; j < g->nm; j++)
 		dmin = fmin(dmin, D[j]);
 	for (int j = 0; j < g->nm; j++) {
-		w[j] = exp(-0.5 * s * (D[j] - dmin));
+		w[j] = exp_or_zero(-0.5 * s * (D[j] - dmin));
 		sum += w[j];
 		pc[group[j]] += w[j];
 	}
@@ -654,8 +688,13 @@ static region_decision decide(const regions *g, uint32_t id, const int *group, i
 	 * chi-square with dof N s degrees of freedom (its 99.9 % point; Wilson-Hilferty
 	 * above 1000) */
 	double dof = ceil(g->dof * N * s), q;
-	if (dof <= 1000)
-		q = kg_chi2_quantile(0.999, (int)dof);
+	if (dof <= 1000) {
+		/* one bisection per degree of freedom, not per region */
+		double *qc = g->q999 ? &g->q999[(int)dof] : NULL;
+		q = qc && *qc > 0 ? *qc : kg_chi2_quantile(0.999, (int)dof);
+		if (qc)
+			*qc = q;
+	}
 	else {
 		double h = 2.0 / (9.0 * dof), z = 3.090232306167813;
 		q = dof * pow(1.0 - h + z * sqrt(h), 3.0);
@@ -1380,6 +1419,7 @@ int kg_classify_camera_rows(const kg_est_kernel *k, const kg_est_material_set *s
 		return rc;
 	memcpy(run.nz.M2, cam->site_to_ref, sizeof(run.nz.M2));
 	memcpy(run.nz.R, cam->calib_cov, sizeof(run.nz.R));
+	noise_products(&run.nz);
 	run.nz.inv_frames = 1.0 / copt->frames;
 	run.nz.floor2 = copt->noise_floor * copt->noise_floor;
 	run.nz.rel2 = copt->noise_relative * copt->noise_relative;
@@ -1530,7 +1570,8 @@ int kg_classify_camera_rows(const kg_est_kernel *k, const kg_est_material_set *s
 	if (sink.reg.on) {
 		sink.reg.prev = malloc(sizeof(run_seg) * ((size_t)W + 1));
 		sink.reg.cur = malloc(sizeof(run_seg) * ((size_t)W + 1));
-		if (!sink.reg.prev || !sink.reg.cur) {
+		sink.reg.q999 = calloc(1001, sizeof(double));
+		if (!sink.reg.prev || !sink.reg.cur || !sink.reg.q999) {
 			rc = kg_fail(err, KG_ENOMEM, "classify: out of memory");
 			goto out;
 		}
