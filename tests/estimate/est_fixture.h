@@ -135,6 +135,32 @@ static inline void fx_kernels_free(fx_kernels *k)
 	kg_est_kernel_free(&k->lut);
 }
 
+/* A standard normal draw (Box-Muller). */
+static inline double fx_gauss(fx_rng *r)
+{
+	double u = fx_uniform(r, 0x1p-53, 1), v = fx_uniform(r, 0, 1);
+	return sqrt(-2 * log(u)) * cos(2 * M_PI * v);
+}
+
+/* A smooth synthetic camera F (3 x KG_NBANDS, row-major): Gaussian sensitivities at 600,
+ * 540 and 450 nm weighting a flat light, the perfect diffuser's brightest channel at
+ * 0.9. */
+static inline void fx_gaussian_camera(double *F)
+{
+	static const double peak[3] = {600, 540, 450}, width[3] = {30, 35, 25};
+	double white = 0;
+	for (int c = 0; c < 3; c++) {
+		double s = 0;
+		for (int b = 0; b < KG_NBANDS; b++) {
+			double z = (kg_band_nm(b) - peak[c]) / width[c];
+			s += F[c * KG_NBANDS + b] = exp(-0.5 * z * z);
+		}
+		white = fmax(white, s);
+	}
+	for (int i = 0; i < 3 * KG_NBANDS; i++)
+		F[i] *= 0.9 / white;
+}
+
 /* n material spectra: smooth curves in and out of the basis' span. */
 static inline void fx_materials(fx_rng *r, int n, double *spectra)
 {

@@ -36,12 +36,6 @@
 #include "kg_estimate.h"
 #include "kg_test.h"
 
-static double gauss(fx_rng *r)
-{
-	double u = fx_uniform(r, 0x1p-53, 1), v = fx_uniform(r, 0, 1);
-	return sqrt(-2 * log(u)) * cos(2 * M_PI * v);
-}
-
 /* A model built field by field (kg_cs_model_free frees it): mu is muf in double, so
  * the double matcher sees exactly the float model. */
 static kg_cs_model *model_alloc(int n, int na, double lo, double hi)
@@ -173,7 +167,7 @@ static int make_pixels(fx_rng *r, const kg_cs_model *m, double scale, size_t n, 
 		int k = (int)(fx_next(r) % (uint64_t)m->nangles);
 		double a = fx_uniform(r, 0.5 * m->lo, 1.5 * m->hi);
 		const double *mu = m->mu + 3 * ((size_t)j * m->nangles + k);
-		double C[9], z[3] = {gauss(r), gauss(r), gauss(r)};
+		double C[9], z[3] = {fx_gauss(r), fx_gauss(r), fx_gauss(r)};
 		random_cov(r, scale, C);
 		double l0 = sqrt(C[0]), l3 = C[3] / l0, l6 = C[6] / l0;
 		double l4 = sqrt(C[4] - l3 * l3), l7 = (C[7] - l6 * l3) / l4;
@@ -609,18 +603,8 @@ static kg_cs_model *library_model(kg_material_library **lib, kg_err *err)
 	snprintf(path, sizeof(path), "%s/fixtures/materials/default.json", KG_SOURCE_ROOT);
 	if (kg_material_library_load(path, lib, err))
 		return NULL;
-	static const double peak[3] = {600, 540, 450}, width[3] = {30, 35, 25};
-	double F[3 * KG_NBANDS], white = 0;
-	for (int c = 0; c < 3; c++) {
-		double s = 0;
-		for (int b = 0; b < KG_NBANDS; b++) {
-			double z = (kg_band_nm(b) - peak[c]) / width[c];
-			s += F[c * KG_NBANDS + b] = exp(-0.5 * z * z);
-		}
-		white = fmax(white, s);
-	}
-	for (int i = 0; i < 3 * KG_NBANDS; i++)
-		F[i] *= 0.9 / white;
+	double F[3 * KG_NBANDS];
+	fx_gaussian_camera(F);
 	int n = kg_material_library_count(*lib);
 	const kg_material *mats[KG_EST_MAX_MATERIALS];
 	for (int j = 0; j < n; j++)

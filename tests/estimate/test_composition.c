@@ -21,12 +21,6 @@
 #include "kg_estimate.h"
 #include "kg_test.h"
 
-static double gauss(fx_rng *r)
-{
-	double u = fx_uniform(r, 0x1p-53, 1), v = fx_uniform(r, 0, 1);
-	return sqrt(-2 * log(u)) * cos(2 * M_PI * v);
-}
-
 /* silver, copper and gold of the bundled library under Gaussian sensitivities (600,
  * 540, 450 nm), angles 0-70 every 5 degrees */
 static kg_cs_model *metals_model(kg_material_library **lib, kg_err *err)
@@ -35,18 +29,8 @@ static kg_cs_model *metals_model(kg_material_library **lib, kg_err *err)
 	snprintf(path, sizeof(path), "%s/fixtures/materials/default.json", KG_SOURCE_ROOT);
 	if (kg_material_library_load(path, lib, err))
 		return NULL;
-	static const double peak[3] = {600, 540, 450}, width[3] = {30, 35, 25};
-	double F[3 * KG_NBANDS], white = 0;
-	for (int c = 0; c < 3; c++) {
-		double s = 0;
-		for (int b = 0; b < KG_NBANDS; b++) {
-			double z = (kg_band_nm(b) - peak[c]) / width[c];
-			s += F[c * KG_NBANDS + b] = exp(-0.5 * z * z);
-		}
-		white = fmax(white, s);
-	}
-	for (int i = 0; i < 3 * KG_NBANDS; i++)
-		F[i] *= 0.9 / white;
+	double F[3 * KG_NBANDS];
+	fx_gaussian_camera(F);
 	static const char *names[3] = {"silver", "copper", "gold"};
 	const kg_material *mats[3];
 	for (int j = 0; j < 3; j++)
@@ -123,7 +107,7 @@ static void interior(const kg_cs_model *m, fx_rng *r, const double frac[3], doub
 	double sum[3] = {0}, sq[3] = {0}, sdsum[3] = {0};
 	long ok = 0, simplex = 0;
 	for (int it = 0; it < N; it++) {
-		double z[3] = {gauss(r), gauss(r), gauss(r)};
+		double z[3] = {fx_gauss(r), fx_gauss(r), fx_gauss(r)};
 		float x[3], out[6];
 		for (int a = 0; a < 3; a++)
 			x[a] = (float)(x0[a] + L[3 * a] * z[0] + L[3 * a + 1] * z[1] + L[3 * a + 2] * z[2]);
@@ -177,7 +161,7 @@ static void edge(const kg_cs_model *m, fx_rng *r, const double frac[3], double s
 	long fitted = 0, simplex = 0, kkt = 0, zeros = 0;
 	double worst = 0;
 	for (int it = 0; it < 4000; it++) {
-		double z[3] = {gauss(r), gauss(r), gauss(r)}, xd[3], y[3];
+		double z[3] = {fx_gauss(r), fx_gauss(r), fx_gauss(r)}, xd[3], y[3];
 		float x[3], out[6];
 		for (int a = 0; a < 3; a++) {
 			x[a] = (float)(x0[a] + L[3 * a] * z[0] + L[3 * a + 1] * z[1] + L[3 * a + 2] * z[2]);
