@@ -81,18 +81,26 @@ static void noise_products(noise *nz)
 			nz->P[e][ch] = nz->M2[3 * cov_ia[e] + ch] * nz->M2[3 * cov_ib[e] + ch];
 }
 
-/* x = M2 rho and its covariance (6 values) in double. */
-static void pixel_noise(const noise *nz, const float *rho, const float *var, double x[3],
-                        double c[6])
+/* The variances v of a site reading's channels and x = M2 rho; returns l^2 = |x|^2 / 3.
+ * The covariance of x is linear in v and l^2: c = sum_ch P[.][ch] v[ch] + l^2 R. */
+static double pixel_parts(const noise *nz, const float *rho, const float *var, double x[3],
+                          double v[3])
 {
-	double v[3];
 	for (int ch = 0; ch < 3; ch++) {
 		double r = rho[ch] > 0.0f ? rho[ch] : 0.0;
 		v[ch] = var ? var[ch] * nz->inv_frames : nz->floor2 + nz->rel2 * r * r;
 	}
 	for (int a = 0; a < 3; a++)
 		x[a] = nz->M2[3 * a] * rho[0] + nz->M2[3 * a + 1] * rho[1] + nz->M2[3 * a + 2] * rho[2];
-	double l2 = (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]) / 3.0;
+	return (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]) / 3.0;
+}
+
+/* x = M2 rho and its covariance (6 values) in double. */
+static void pixel_noise(const noise *nz, const float *rho, const float *var, double x[3],
+                        double c[6])
+{
+	double v[3];
+	double l2 = pixel_parts(nz, rho, var, x, v);
 	for (int e = 0; e < 6; e++) {
 		double s = 0;
 		for (int ch = 0; ch < 3; ch++)
@@ -147,19 +155,28 @@ static cam_planes cam_planes_of(const cam_run *r, void *in, size_t n)
 
 /* ---- composition -------------------------------------------------------------------- */
 
-/* One pixel's composition fit: the metals' whitened readings A (3 x 3, row-major,
- * column j metal j), the whitened reading y, and their normal equations G = A^T A
- * (also the Fisher information of the weights) and h = A^T y, formed once for the
- * 7 active sets. */
+/* One pixel's composition fit: the metals' readings M (3 x 3, row-major, column j
+ * metal j), the pixel's reading x and its inverse covariance Ci, and, for the active
+ * sets of one and two metals, the normal equations G = M^T Ci M and h = M^T Ci x. */
 typedef struct comp_fit {
-	double A[9], y[3], G[9], h[3];
+	double M[9], x[3], Ci[9], G[9], h[3];
 } comp_fit;
 
-/* Least squares of y on the columns of A in the set `use` (bits), the others 0: one
- * or two columns by their normal equations, all three by A w = y itself (3 readings,
- * 3 weights); Cramer's rule. The residual |y - A w|^2 is computed from the weights,
- * not from G and h (which cancel where the fit is near exact). +Inf when singular or
- * a weight is negative. */
+/* |x - M w|^2 in the metric Ci */
+static double comp_residual(const comp_fit *f, const double w[3])
+{
+	double e[3], r = 0;
+	for (int c = 0; c < 3; c++)
+		e[c] = f->x[c] - f->M[3 * c] * w[0] - f->M[3 * c + 1] * w[1] - f->M[3 * c + 2] * w[2];
+	for (int a = 0; a < 3; a++)
+		r += e[a] * (f->Ci[3 * a] * e[0] + f->Ci[3 * a + 1] * e[1] + f->Ci[3 * a + 2] * e[2]);
+	return r;
+}
+
+/* Least squares of x on one or two of the metals (the set `use`, bits; the others 0)
+ * by Cramer's rule on their normal equations, the residual from the weights (not from
+ * G and h, which cancel where the fit is near exact). +Inf when singular or a weight
+ * is negative. */
 static double fit_subset(const comp_fit *f, unsigned use, double w[3])
 {
 	int idx[3], k = 0;
@@ -168,14 +185,14 @@ static double fit_subset(const comp_fit *f, unsigned use, double w[3])
 		if (use & (1u << j))
 			idx[k++] = j;
 	}
-	const double *G = f->G, *h = f->h, *A = f->A, *y = f->y;
-	double v[3];
+	const double *G = f->G, *h = f->h;
+	double v[2];
 	if (k == 1) {
 		double g = G[4 * idx[0]];
 		if (!(g > 1e-300))
 			return INFINITY;
 		v[0] = h[idx[0]] / g;
-	} else if (k == 2) {
+	} else {
 		int a = idx[0], b = idx[1];
 		double gaa = G[4 * a], gab = G[3 * a + b], gbb = G[4 * b];
 		double det = gaa * gbb - gab * gab;
@@ -183,71 +200,64 @@ static double fit_subset(const comp_fit *f, unsigned use, double w[3])
 			return INFINITY;
 		v[0] = (h[a] * gbb - h[b] * gab) / det;
 		v[1] = (h[b] * gaa - h[a] * gab) / det;
-	} else {
-		/* cofactors of A: w = adj(A) y / det A */
-		double c00 = A[4] * A[8] - A[5] * A[7], c01 = A[5] * A[6] - A[3] * A[8],
-		       c02 = A[3] * A[7] - A[4] * A[6];
-		double det = A[0] * c00 + A[1] * c01 + A[2] * c02;
-		if (!(fabs(det) > 1e-300))
-			return INFINITY;
-		double c10 = A[2] * A[7] - A[1] * A[8], c11 = A[0] * A[8] - A[2] * A[6],
-		       c12 = A[1] * A[6] - A[0] * A[7];
-		double c20 = A[1] * A[5] - A[2] * A[4], c21 = A[2] * A[3] - A[0] * A[5],
-		       c22 = A[0] * A[4] - A[1] * A[3];
-		v[0] = (c00 * y[0] + c10 * y[1] + c20 * y[2]) / det;
-		v[1] = (c01 * y[0] + c11 * y[1] + c21 * y[2]) / det;
-		v[2] = (c02 * y[0] + c12 * y[1] + c22 * y[2]) / det;
 	}
 	for (int a = 0; a < k; a++) {
 		if (!(v[a] >= 0))
 			return INFINITY;
 		w[idx[a]] = v[a];
 	}
-	double res = 0;
-	for (int c = 0; c < 3; c++) {
-		double e = y[c] - A[3 * c] * w[0] - A[3 * c + 1] * w[1] - A[3 * c + 2] * w[2];
-		res += e * e;
-	}
-	return res;
+	return comp_residual(f, w);
 }
 
 /* One pixel's Ag, Cu, Au fractions at angle index k: x = sum_i w_i mu_i (the alloy
  * model is the fractions' weighted sum of the metals' reflectances, times the
- * intensity sum_i w_i), w >= 0 by the best of the 7 active sets (the full one first:
- * feasible, it fits exactly), whitened by the
- * pixel's covariance; the Cramer-Rao standard deviations of the fractions from the
- * unconstrained Fisher information G^-1 through c = w / sum w. out: 3 fractions,
- * 3 sds; NaN when nothing fits. */
+ * intensity sum_i w_i), w >= 0, least squares in the metric of the pixel's inverse
+ * covariance. Three readings and three weights: w = M^-1 x fits exactly, and where it
+ * is >= 0 it is the answer; else the best of the six sets of one and two metals. The
+ * Cramer-Rao standard deviations of the fractions come from the unconstrained Fisher
+ * information's inverse, (M^T C^-1 M)^-1 = M^-1 C M^-T, through c = w / sum w. out: 3
+ * fractions, 3 sds; NaN when nothing fits or the covariance is not positive
+ * definite. */
 void est_composition_pixel(const kg_cs_model *metals, int k, const float *xf,
                            const float *cf, float out[6])
 {
 	for (int i = 0; i < 6; i++)
 		out[i] = NAN;
 	double C[9] = {cf[0], cf[1], cf[2], cf[1], cf[3], cf[4], cf[2], cf[4], cf[5]};
-	double L[9];
-	double x[3] = {xf[0], xf[1], xf[2]};
+	/* positive definite: every leading minor > 0 (Sylvester) */
+	double det = C[0] * (C[4] * C[8] - C[5] * C[7]) + C[1] * (C[5] * C[6] - C[3] * C[8]) +
+	             C[2] * (C[3] * C[7] - C[4] * C[6]);
 	comp_fit f;
-	if (!est_chol3(C, L))
+	if (!(C[0] > 0) || !(C[0] * C[4] - C[1] * C[1] > 0) || !(det > 0) ||
+	    kg_mat3_inverse(C, f.Ci) != 0)
 		return;
-	est_forward3(L, x, f.y);
+	f.x[0] = xf[0], f.x[1] = xf[1], f.x[2] = xf[2];
 	for (int j = 0; j < 3; j++) {
-		double v[3];
-		est_forward3(L, metals->mu + 3 * ((size_t)j * metals->nangles + k), v);
-		f.A[j] = v[0];
-		f.A[3 + j] = v[1];
-		f.A[6 + j] = v[2];
+		const double *mu = metals->mu + 3 * ((size_t)j * metals->nangles + k);
+		for (int a = 0; a < 3; a++)
+			f.M[3 * a + j] = mu[a];
 	}
-	for (int a = 0; a < 3; a++) {
-		f.h[a] = f.A[a] * f.y[0] + f.A[3 + a] * f.y[1] + f.A[6 + a] * f.y[2];
-		for (int b = a; b < 3; b++)
-			f.G[3 * a + b] = f.G[3 * b + a] =
-				f.A[a] * f.A[b] + f.A[3 + a] * f.A[3 + b] + f.A[6 + a] * f.A[6 + b];
+	double Mi[9], w[3] = {0}, best = INFINITY;
+	int invertible = kg_mat3_inverse(f.M, Mi) == 0;
+	if (invertible) {
+		for (int a = 0; a < 3; a++)
+			w[a] = Mi[3 * a] * f.x[0] + Mi[3 * a + 1] * f.x[1] + Mi[3 * a + 2] * f.x[2];
+		if (w[0] >= 0 && w[1] >= 0 && w[2] >= 0)
+			best = 0; /* exact */
 	}
-	/* all three first: when its weights are >= 0 it fits exactly (3 readings, 3
-	 * weights), the least residual there is; else the best of the smaller sets */
-	double w[3] = {0};
-	double best = fit_subset(&f, 7, w);
-	if (!isfinite(best))
+	if (!(best == 0)) {
+		double CiM[9];
+		for (int a = 0; a < 3; a++)
+			for (int j = 0; j < 3; j++)
+				CiM[3 * a + j] = f.Ci[3 * a] * f.M[j] + f.Ci[3 * a + 1] * f.M[3 + j] +
+				                 f.Ci[3 * a + 2] * f.M[6 + j];
+		for (int a = 0; a < 3; a++) {
+			f.h[a] = CiM[a] * f.x[0] + CiM[3 + a] * f.x[1] + CiM[6 + a] * f.x[2];
+			for (int b = a; b < 3; b++)
+				f.G[3 * a + b] = f.G[3 * b + a] =
+					f.M[a] * CiM[b] + f.M[3 + a] * CiM[3 + b] + f.M[6 + a] * CiM[6 + b];
+		}
+		w[0] = w[1] = w[2] = 0;
 		for (unsigned use = 1; use < 7; use++) {
 			double t[3];
 			double r = fit_subset(&f, use, t);
@@ -256,17 +266,27 @@ void est_composition_pixel(const kg_cs_model *metals, int k, const float *xf,
 				memcpy(w, t, sizeof(w));
 			}
 		}
+	}
 	double sum = w[0] + w[1] + w[2];
 	if (!isfinite(best) || !(sum > 0))
 		return;
-	double Fi[9];
-	int invertible = kg_mat3_inverse(f.G, Fi) == 0;
-	/* J = (I - c 1^T) / sum, row i (e_i - c_i 1) / sum: J_i G^-1 J_i^T =
-	 * (Fi_ii - 2 c_i r_i + c_i^2 t) / sum^2, r = Fi 1 and t = 1^T Fi 1 (Fi symmetric) */
-	double r[3], t = 0;
-	for (int a = 0; a < 3; a++) {
-		r[a] = Fi[3 * a] + Fi[3 * a + 1] + Fi[3 * a + 2];
-		t += r[a];
+	/* Fi = M^-1 C M^-T; J = (I - c 1^T) / sum, row i (e_i - c_i 1) / sum:
+	 * J_i Fi J_i^T = (Fi_ii - 2 c_i r_i + c_i^2 t) / sum^2, r = Fi 1, t = 1^T Fi 1 */
+	double Fi[9], MC[9], r[3], t = 0;
+	if (invertible) {
+		for (int a = 0; a < 3; a++)
+			for (int b = 0; b < 3; b++)
+				MC[3 * a + b] = Mi[3 * a] * C[b] + Mi[3 * a + 1] * C[3 + b] +
+				                Mi[3 * a + 2] * C[6 + b];
+		for (int a = 0; a < 3; a++)
+			for (int b = a; b < 3; b++)
+				Fi[3 * a + b] = Fi[3 * b + a] = MC[3 * a] * Mi[3 * b] +
+				                                MC[3 * a + 1] * Mi[3 * b + 1] +
+				                                MC[3 * a + 2] * Mi[3 * b + 2];
+		for (int a = 0; a < 3; a++) {
+			r[a] = Fi[3 * a] + Fi[3 * a + 1] + Fi[3 * a + 2];
+			t += r[a];
+		}
 	}
 	for (int i = 0; i < 3; i++) {
 		double c = w[i] / sum;
@@ -840,7 +860,7 @@ static int survey(const cam_run *r, const kg_classify_camera *cam, const kg_cs_m
 {
 	memset(out, 0, sizeof(*out));
 	const kg_row_source *img = cam->survey, *var = cam->survey_variance;
-	double csum[6] = {0}, lsum = 0;
+	double vsum[3] = {0}, l2sum = 0, lsum = 0;
 	double rs[3] = {0}, rs2[3] = {0}, vs[3] = {0}, vrs[3] = {0};
 	uint64_t count = 0;
 	if (img) {
@@ -865,18 +885,21 @@ static int survey(const cam_run *r, const kg_classify_camera *cam, const kg_cs_m
 				if (var && !(vbuf[3 * i] >= 0 && vbuf[3 * i + 1] >= 0 && vbuf[3 * i + 2] >= 0 &&
 				             isfinite(vbuf[3 * i] + vbuf[3 * i + 1] + vbuf[3 * i + 2])))
 					continue; /* the run refuses it, naming the pixel */
-				double x[3], c[6];
-				pixel_noise(&r->nz, p, var ? vbuf + 3 * i : NULL, x, c);
-				for (int e = 0; e < 6; e++)
-					csum[e] += c[e];
+				/* the mean covariance from the means of its parts (it is linear
+				 * in them), not pixel by pixel */
+				double x[3], v[3];
+				double l2 = pixel_parts(&r->nz, p, var ? vbuf + 3 * i : NULL, x, v);
+				for (int ch = 0; ch < 3; ch++)
+					vsum[ch] += v[ch];
+				l2sum += l2;
 				for (int ch = 0; var && ch < 3; ch++) {
-					double rho = p[ch], v = vbuf[3 * i + ch] * r->nz.inv_frames;
+					double rho = p[ch]; /* v[ch]: the variance image's, per frame */
 					rs[ch] += rho;
 					rs2[ch] += rho * rho;
-					vs[ch] += v;
-					vrs[ch] += v * rho;
+					vs[ch] += v[ch];
+					vrs[ch] += v[ch] * rho;
 				}
-				lsum += sqrt((x[0] * x[0] + x[1] * x[1] + x[2] * x[2]) / 3.0);
+				lsum += sqrt(l2);
 				count++;
 			}
 		}
@@ -894,9 +917,14 @@ static int survey(const cam_run *r, const kg_classify_camera *cam, const kg_cs_m
 	mu_rms /= m->n * m->nangles;
 	double c[6];
 	if (count) {
-		for (int e = 0; e < 6; e++)
-			c[e] = csum[e] / (double)count;
-		out->rms = lsum / (double)count;
+		double n = (double)count;
+		for (int e = 0; e < 6; e++) {
+			double s = 0;
+			for (int ch = 0; ch < 3; ch++)
+				s += r->nz.P[e][ch] * (vsum[ch] / n);
+			c[e] = s + l2sum / n * r->nz.R[3 * cov_ia[e] + cov_ib[e]];
+		}
+		out->rms = lsum / n;
 	} else {
 		/* no survey: the noise model at the middle of the intensity range */
 		out->rms = 0.5 * (m->lo + m->hi) * mu_rms;
