@@ -360,7 +360,7 @@ static inline void est_classify_pixel(const kg_est_classifier *c, const double *
 }
 
 /* C = L L^T for a 3 x 3 covariance (row-major), L lower triangular; 0 when C is not
- * positive definite. Shared by camera-space matching and the composition fit. */
+ * positive definite. */
 static inline int est_chol3(const double cov[9], double L[9])
 {
 	memset(L, 0, 9 * sizeof(double));

@@ -710,10 +710,10 @@ static region_decision decide(const regions *g, uint32_t id, const int *group, i
 	double dof = ceil(g->dof * N * s), q;
 	if (dof <= 1000) {
 		/* one bisection per degree of freedom, not per region */
-		double *qc = g->q999 ? &g->q999[(int)dof] : NULL;
-		q = qc && *qc > 0 ? *qc : kg_chi2_quantile(0.999, (int)dof);
-		if (qc)
-			*qc = q;
+		double *qc = &g->q999[(int)dof];
+		if (!(*qc > 0))
+			*qc = kg_chi2_quantile(0.999, (int)dof);
+		q = *qc;
 	}
 	else {
 		double h = 2.0 / (9.0 * dof), z = 3.090232306167813;
@@ -934,9 +934,8 @@ static int survey(const cam_run *r, const kg_classify_camera *cam, const kg_cs_m
 			rho[ch] = (float)out->rms;
 		pixel_noise(&r->nz, rho, NULL, x, c);
 	}
-	static const int ia[6] = {0, 0, 0, 1, 1, 2}, ib[6] = {0, 1, 2, 1, 2, 2};
 	for (int e = 0; e < 6; e++)
-		out->cov[3 * ia[e] + ib[e]] = out->cov[3 * ib[e] + ia[e]] = c[e];
+		out->cov[3 * cov_ia[e] + cov_ib[e]] = out->cov[3 * cov_ib[e] + cov_ia[e]] = c[e];
 	out->pixels = count;
 	for (int ch = 0; ch < 3; ch++) {
 		if (!var || !count) {

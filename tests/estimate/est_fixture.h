@@ -9,6 +9,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "kg_config.h"
 #include "kg_estimate.h"
 
 typedef struct fx_rng {
@@ -159,6 +160,18 @@ static inline void fx_gaussian_camera(double *F)
 	}
 	for (int i = 0; i < 3 * KG_NBANDS; i++)
 		F[i] *= 0.9 / white;
+}
+
+/* The bundled material library (fixtures/materials/default.json) and the camera of
+ * fx_gaussian_camera. 0, or the library's error. */
+static inline int fx_library_camera(kg_material_library **lib, double *F, kg_err *err)
+{
+	char path[4096];
+	snprintf(path, sizeof(path), "%s/fixtures/materials/default.json", KG_SOURCE_ROOT);
+	int rc = kg_material_library_load(path, lib, err);
+	if (!rc)
+		fx_gaussian_camera(F);
+	return rc;
 }
 
 /* n material spectra: smooth curves in and out of the basis' span. */

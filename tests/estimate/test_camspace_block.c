@@ -599,12 +599,9 @@ static void check_overflow(const int have[4], tally *t)
  * flat light, the perfect diffuser's brightest channel at 0.9. */
 static kg_cs_model *library_model(kg_material_library **lib, kg_err *err)
 {
-	char path[4096];
-	snprintf(path, sizeof(path), "%s/fixtures/materials/default.json", KG_SOURCE_ROOT);
-	if (kg_material_library_load(path, lib, err))
-		return NULL;
 	double F[3 * KG_NBANDS];
-	fx_gaussian_camera(F);
+	if (fx_library_camera(lib, F, err))
+		return NULL;
 	int n = kg_material_library_count(*lib);
 	const kg_material *mats[KG_EST_MAX_MATERIALS];
 	for (int j = 0; j < n; j++)

@@ -25,12 +25,9 @@
  * 540, 450 nm), angles 0-70 every 5 degrees */
 static kg_cs_model *metals_model(kg_material_library **lib, kg_err *err)
 {
-	char path[4096];
-	snprintf(path, sizeof(path), "%s/fixtures/materials/default.json", KG_SOURCE_ROOT);
-	if (kg_material_library_load(path, lib, err))
-		return NULL;
 	double F[3 * KG_NBANDS];
-	fx_gaussian_camera(F);
+	if (fx_library_camera(lib, F, err))
+		return NULL;
 	static const char *names[3] = {"silver", "copper", "gold"};
 	const kg_material *mats[3];
 	for (int j = 0; j < 3; j++)
