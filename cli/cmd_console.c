@@ -12,7 +12,7 @@
 const char kg_console_usage[] =
 	"kogei console --session DIR [--camera URI]... [--spectro URI] [--layout L]\n"
 	"              [--listen ADDRESS:PORT] [--out OUTDIR] [--spectra-out FILE]\n"
-	"              [--reference REF.json] [--frames N]\n"
+	"              [--reference REF.json] [--frames N] [--header-timeout S]\n"
 	"  The operator's console: a web page served on ADDRESS:PORT (default\n"
 	"  127.0.0.1:8080) with the live view of the camera (clipping, histograms, focus\n"
 	"  and exposure aids), the chart check, guided dark, flat, chart and object\n"
@@ -37,6 +37,9 @@ const char kg_console_usage[] =
 	"  --reference REF     kogei process --reference (a site session); without it the\n"
 	"                      measured chart spectra make it a lab session\n"
 	"  --frames N          frames per capture offered by the page (default 10)\n"
+	"  --header-timeout S  seconds a connection has to send its request in full, from\n"
+	"                      its start or its previous answer (default 10, 0.1..3600);\n"
+	"                      at most 16 connections per client address, 256 in all\n"
 	"  Stops on Ctrl-C (SIGINT) or SIGTERM, after the job that is running.\n"
 	"  Exit 0 stopped, 1 bad input (a session in use, a layout that does not load),\n"
 	"  2 bad usage or a kogei built without the console, 3 the camera failed at start.";
@@ -98,7 +101,7 @@ int kg_cmd_console(int argc, char **argv)
 	const char *session = NULL, *out = NULL, *spectra_out = NULL, *listen = "127.0.0.1:8080";
 	o.frames = 10;
 	enum { O_SESSION = 256, O_CAMERA, O_SPECTRO, O_LAYOUT, O_LISTEN, O_OUT, O_SPECTRA_OUT,
-	       O_REFERENCE, O_FRAMES };
+	       O_REFERENCE, O_FRAMES, O_HEADER_TIMEOUT };
 	static const struct option opts[] = {
 		{"session", required_argument, NULL, O_SESSION},
 		{"camera", required_argument, NULL, O_CAMERA},
@@ -109,6 +112,7 @@ int kg_cmd_console(int argc, char **argv)
 		{"spectra-out", required_argument, NULL, O_SPECTRA_OUT},
 		{"reference", required_argument, NULL, O_REFERENCE},
 		{"frames", required_argument, NULL, O_FRAMES},
+		{"header-timeout", required_argument, NULL, O_HEADER_TIMEOUT},
 		{NULL, 0, NULL, 0},
 	};
 	optind = 1;
@@ -135,6 +139,12 @@ int kg_cmd_console(int argc, char **argv)
 			if (*end || o.frames < 1 || o.frames > 10000)
 				return kg_cli_usage_error(kg_console_usage, "--frames '%s': expected 1..10000",
 				                          optarg);
+			break;
+		case O_HEADER_TIMEOUT:
+			o.header_timeout = strtod(optarg, &end);
+			if (end == optarg || *end || !(o.header_timeout >= 0.1 && o.header_timeout <= 3600))
+				return kg_cli_usage_error(kg_console_usage, "--header-timeout '%s': expected "
+				                          "seconds 0.1..3600", optarg);
 			break;
 		case ':':
 			return kg_cli_usage_error(kg_console_usage, "option %s needs a value",

@@ -16,6 +16,17 @@
 #define CONSOLE_MAX_CAMERAS KG_CONSOLE_MAX_CAMERAS
 #define CONSOLE_PREVIEW_SIDE 1024 /* long side of the live preview, at most */
 #define CONSOLE_HIST_BINS 64
+#define CONSOLE_PER_CLIENT_MAX 16   /* connections from one address */
+#define CONSOLE_CONNECTIONS_MAX 256 /* connections in all */
+
+/* A connection, from its start to its close: its request deadline (docs/console.md,
+ * "Security"). */
+typedef struct console_conn {
+	int used;
+	int fd;
+	int armed;        /* a request is being received: deadline applies */
+	double deadline;  /* monotonic */
+} console_conn;
 
 typedef struct console {
 	/* configuration (read-only once the server runs) */
@@ -33,6 +44,15 @@ typedef struct console {
 	int need_token;
 	char token[33];
 	kg_chart_layout *chart_layout; /* loaded from layout, or NULL */
+	double header_timeout;       /* s from a connection's start (or its last answer) to
+	                              * its next request received in full */
+
+	/* connections and their deadlines: conn_lock */
+	pthread_mutex_t conn_lock;
+	console_conn conns[CONSOLE_CONNECTIONS_MAX + 16];
+	int conn_stop;
+	long conns_timed_out;
+	pthread_t reaper_thread;
 
 	kg_session *session;         /* open (and locked) for the console's lifetime */
 
@@ -41,6 +61,10 @@ typedef struct console {
 	kg_camera *cam;
 	int cam_index;
 	int streaming;
+	/* ranges of exposure_us, gain and iso per camera of the list, once it was opened
+	 * (lock) */
+	kg_feature_info feat[CONSOLE_MAX_CAMERAS][3];
+	int feat_known[CONSOLE_MAX_CAMERAS];
 
 	/* everything below: lock */
 	pthread_mutex_t lock;
@@ -90,8 +114,11 @@ void console_log(console *c, const char *fmt, ...) KG_PRINTF(2, 3); /* with c->l
 int console_live_start(console *c, kg_err *err);
 void console_live_stop(console *c);
 /* The live JSON (a new reference), waiting up to 2 s for a preview after `after`. */
-json_t *console_live_json(console *c, uint64_t after, const double *roi, double ev,
-                          int peaking);
+json_t *console_live_json(console *c, uint64_t after);
+/* POST /api/view: {"ev", "peaking", "roi"} (each optional), all checked before any is
+ * applied; 0, or 400 with *why naming the field. */
+int console_view_set(console *c, const json_t *req, char *why, size_t n);
+json_t *console_view_json(console *c);
 /* The latest preview PNG (a copy, malloc'd), or NULL. */
 unsigned char *console_live_png(console *c, size_t *size);
 /* Find the chart on a fresh decimated frame: JSON with the overlay and go/no-go. */
@@ -102,6 +129,9 @@ void console_camera_give(console *c);
 /* Open camera i of the list (with the camera taken). */
 int console_camera_select(console *c, int i, kg_err *err);
 json_t *console_settings_json(console *c); /* with the camera taken */
+/* The features the page may set, in the order of console.feat. */
+extern const kg_feature console_feats[3];
+extern const char *const console_feat_keys[3];
 
 /* console_jobs.c */
 json_t *console_state_json(console *c);

@@ -80,10 +80,26 @@ canvas.addEventListener('mouseup', (e) => {
   const r = canvas.getBoundingClientRect();
   const x = (e.clientX - r.left) / r.width, y = (e.clientY - r.top) / r.height;
   const x0 = Math.min(drag[0], x), x1 = Math.max(drag[0], x), y0 = Math.min(drag[1], y), y1 = Math.max(drag[1], y);
-  if (x1 - x0 > 0.01 && y1 - y0 > 0.01) roi = [x0, y0, x1, y1].map((v) => Math.min(1, Math.max(0, v)));
+  if (x1 - x0 > 0.01 && y1 - y0 > 0.01) { roi = [x0, y0, x1, y1].map((v) => Math.min(1, Math.max(0, v))); pushView(); }
   drag = null; draw();
 });
-$('ev').addEventListener('input', () => { $('evtext').textContent = $('ev').value; });
+$('ev').addEventListener('input', () => { $('evtext').textContent = $('ev').value; pushView(); });
+$('peaking').addEventListener('change', () => pushView());
+
+// The view (display EV, peaking, focus region) is a state change: POST /api/view,
+// one request at a time, the latest values sent when the one in flight returns.
+let viewBusy = false, viewAgain = false;
+async function pushView() {
+  if (viewBusy) { viewAgain = true; return; }
+  viewBusy = true;
+  try {
+    do {
+      viewAgain = false;
+      await api('/api/view', { ev: Number($('ev').value), peaking: $('peaking').checked, roi: roi });
+    } while (viewAgain);
+  } catch (e) { setStatus('view: ' + e.message, true); }
+  viewBusy = false;
+}
 
 function drawHist(h) {
   const c = $('hist'), g = c.getContext('2d');
@@ -128,9 +144,7 @@ async function liveLoop() {
   for (;;) {
     try {
       const t0 = performance.now();
-      const q = new URLSearchParams({ after: stats.seq, ev: $('ev').value, peaking: $('peaking').checked ? 1 : 0,
-        x0: roi[0], y0: roi[1], x1: roi[2], y1: roi[3] });
-      const j = await api('/api/live?' + q);
+      const j = await api('/api/live?after=' + stats.seq);
       showLive(j);
       if (j.preview && j.preview !== stats.seq) {
         const r = await fetch(withToken('/api/live.png?n=' + j.preview));
@@ -289,4 +303,5 @@ async function stateLoop() {
   }
 }
 stateLoop();
+pushView();
 liveLoop();

@@ -10,6 +10,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/random.h>
+#include <sys/socket.h>
 #include <sys/stat.h>
 #include <time.h>
 #include <unistd.h>
@@ -190,7 +191,78 @@ typedef struct request {
 	char *body;
 	size_t size;
 	int too_big;
+	int answered; /* received in full (or refused): the deadline is off */
 } request;
+
+/* ---- connections and their deadlines ----------------------------------------------- */
+
+/* A connection has header_timeout seconds from its start, and again from each answer
+ * it was sent (keep-alive), to send its next request in full (headers and body);
+ * past that the reaper shuts its socket down and libmicrohttpd closes it. While a
+ * request is being answered there is no deadline (a long poll, a large file).
+ * libmicrohttpd's own timeout is an idle one: a byte every few seconds resets it. */
+static void on_connection(void *cls, struct MHD_Connection *conn, void **socket_context,
+                          enum MHD_ConnectionNotificationCode code)
+{
+	console *c = cls;
+	pthread_mutex_lock(&c->conn_lock);
+	if (code == MHD_CONNECTION_NOTIFY_STARTED) {
+		const union MHD_ConnectionInfo *ci =
+			MHD_get_connection_info(conn, MHD_CONNECTION_INFO_CONNECTION_FD);
+		size_t nslots = sizeof(c->conns) / sizeof(c->conns[0]);
+		for (size_t i = 0; ci && i < nslots; i++)
+			if (!c->conns[i].used) {
+				console_conn *k = &c->conns[i];
+				k->used = 1;
+				k->fd = ci->connect_fd;
+				k->armed = 1;
+				k->deadline = console_now() + c->header_timeout;
+				*socket_context = k;
+				break;
+			}
+	} else if (*socket_context) {
+		/* libmicrohttpd closes the socket after this: it is never shut down once its
+		 * number may belong to another file */
+		((console_conn *)*socket_context)->used = 0;
+		*socket_context = NULL;
+	}
+	pthread_mutex_unlock(&c->conn_lock);
+}
+
+static void conn_deadline(console *c, struct MHD_Connection *conn, int armed)
+{
+	const union MHD_ConnectionInfo *ci =
+		MHD_get_connection_info(conn, MHD_CONNECTION_INFO_SOCKET_CONTEXT);
+	console_conn *k = ci ? ci->socket_context : NULL;
+	if (!k)
+		return;
+	pthread_mutex_lock(&c->conn_lock);
+	k->armed = armed;
+	k->deadline = console_now() + c->header_timeout;
+	pthread_mutex_unlock(&c->conn_lock);
+}
+
+static void *reaper_main(void *arg)
+{
+	console *c = arg;
+	pthread_mutex_lock(&c->conn_lock);
+	while (!c->conn_stop) {
+		double now = console_now();
+		for (size_t i = 0; i < sizeof(c->conns) / sizeof(c->conns[0]); i++) {
+			console_conn *k = &c->conns[i];
+			if (k->used && k->armed && now >= k->deadline) {
+				shutdown(k->fd, SHUT_RDWR);
+				k->armed = 0;
+				c->conns_timed_out++;
+			}
+		}
+		pthread_mutex_unlock(&c->conn_lock);
+		nanosleep(&(struct timespec){0, 50000000L}, NULL);
+		pthread_mutex_lock(&c->conn_lock);
+	}
+	pthread_mutex_unlock(&c->conn_lock);
+	return NULL;
+}
 
 static double qnum(struct MHD_Connection *conn, const char *key, double dflt)
 {
@@ -234,12 +306,13 @@ static enum MHD_Result handle_get(console *c, struct MHD_Connection *conn, const
 		if (!strcmp(url, a->path))
 			return send_asset(c, conn, a);
 	if (!strcmp(url, "/api/live")) {
-		double roi[4] = {qnum(conn, "x0", NAN), qnum(conn, "y0", NAN), qnum(conn, "x1", NAN),
-		                 qnum(conn, "y1", NAN)};
+		static const char *const view_keys[] = {"ev", "peaking", "x0", "y0", "x1", "y1", "roi"};
+		for (size_t i = 0; i < sizeof(view_keys) / sizeof(view_keys[0]); i++)
+			if (MHD_lookup_connection_value(conn, MHD_GET_ARGUMENT_KIND, view_keys[i]))
+				return send_error(conn, 405, "/api/live: '%s': the view is changed with POST "
+				                  "/api/view only", view_keys[i]);
 		uint64_t after = (uint64_t)fmax(0, qnum(conn, "after", 0));
-		return send_json(conn, 200,
-		                 console_live_json(c, after, roi, qnum(conn, "ev", 0),
-		                                   qnum(conn, "peaking", 0) != 0));
+		return send_json(conn, 200, console_live_json(c, after));
 	}
 	if (!strcmp(url, "/api/live.png")) {
 		size_t n = 0;
@@ -272,6 +345,13 @@ static enum MHD_Result handle_post(console *c, struct MHD_Connection *conn, cons
 	}
 	char why[1024] = "";
 	int status;
+	if (!strcmp(url, "/api/view")) {
+		status = console_view_set(c, req, why, sizeof(why));
+		json_decref(req);
+		if (status)
+			return send_error(conn, (unsigned)status, "%s", why);
+		return send_json(conn, 200, console_view_json(c));
+	}
 	if (!strcmp(url, "/api/capture"))
 		status = console_job_capture(c, req, why, sizeof(why));
 	else if (!strcmp(url, "/api/measure"))
@@ -292,9 +372,9 @@ static enum MHD_Result handle_post(console *c, struct MHD_Connection *conn, cons
 	return send_json(conn, 200, console_state_json(c));
 }
 
-static enum MHD_Result on_request(void *cls, struct MHD_Connection *conn, const char *url,
-                                  const char *method, const char *version,
-                                  const char *upload, size_t *upload_size, void **state)
+static enum MHD_Result serve_request(void *cls, struct MHD_Connection *conn, const char *url,
+                                     const char *method, const char *version,
+                                     const char *upload, size_t *upload_size, void **state)
 {
 	console *c = cls;
 	(void)version;
@@ -330,7 +410,8 @@ static enum MHD_Result on_request(void *cls, struct MHD_Connection *conn, const 
 		}
 		if (!strcmp(method, "GET") && !strncmp(url, "/api/", 5) &&
 		    (!strcmp(url, "/api/capture") || !strncmp(url, "/api/measure", 12) ||
-		     !strcmp(url, "/api/process") || !strcmp(url, "/api/settings")))
+		     !strcmp(url, "/api/process") || !strcmp(url, "/api/settings") ||
+		     !strcmp(url, "/api/view")))
 			return send_error(conn, 405, "%s: an action: POST only", url);
 		rq = calloc(1, sizeof(*rq));
 		if (!rq)
@@ -353,6 +434,9 @@ static enum MHD_Result on_request(void *cls, struct MHD_Connection *conn, const 
 		*upload_size = 0;
 		return MHD_YES;
 	}
+	/* received in full: no deadline while it is answered (a long poll, a large file) */
+	rq->answered = 1;
+	conn_deadline(c, conn, 0);
 	if (rq->too_big)
 		return send_error(conn, 413, "request body larger than %d bytes", MAX_BODY);
 	if (!strcmp(method, "POST"))
@@ -360,12 +444,25 @@ static enum MHD_Result on_request(void *cls, struct MHD_Connection *conn, const 
 	return handle_get(c, conn, url);
 }
 
+/* The deadline is off once the request is in (above) or refused at its headers. */
+static enum MHD_Result on_request(void *cls, struct MHD_Connection *conn, const char *url,
+                                  const char *method, const char *version,
+                                  const char *upload, size_t *upload_size, void **state)
+{
+	enum MHD_Result ret =
+		serve_request(cls, conn, url, method, version, upload, upload_size, state);
+	const request *rq = *state;
+	if (!rq || rq->answered)
+		conn_deadline(cls, conn, 0);
+	return ret;
+}
+
+/* A request answered: the connection's next one has header_timeout from now. */
 static void on_completed(void *cls, struct MHD_Connection *conn, void **state,
                          enum MHD_RequestTerminationCode toe)
 {
-	(void)cls;
-	(void)conn;
 	(void)toe;
+	conn_deadline(cls, conn, 1);
 	request *rq = *state;
 	if (rq) {
 		free(rq->body);
@@ -375,6 +472,14 @@ static void on_completed(void *cls, struct MHD_Connection *conn, void **state,
 }
 
 /* ---- running it ------------------------------------------------------------------ */
+
+static void reaper_stop(console *c)
+{
+	pthread_mutex_lock(&c->conn_lock);
+	c->conn_stop = 1;
+	pthread_mutex_unlock(&c->conn_lock);
+	pthread_join(c->reaper_thread, NULL);
+}
 
 static int make_token(char token[33])
 {
@@ -434,6 +539,10 @@ int kg_console_run(const kg_console_options *o, int *device_failure, kg_err *err
 	c->layout = o->layout;
 	c->reference = o->reference;
 	c->frames = o->frames > 0 ? o->frames : 10;
+	c->header_timeout = o->header_timeout > 0 ? o->header_timeout : 10;
+	if (!(c->header_timeout >= 0.1 && c->header_timeout <= 3600))
+		return kg_fail(err, KG_EINVAL, "console: header timeout %g s: expected 0.1..3600",
+		               c->header_timeout);
 	struct in6_addr a6;
 	struct in_addr a4;
 	int v6 = inet_pton(AF_INET6, c->host, &a6) == 1;
@@ -459,6 +568,7 @@ int kg_console_run(const kg_console_options *o, int *device_failure, kg_err *err
 	}
 	pthread_mutex_init(&c->lock, NULL);
 	pthread_mutex_init(&c->cam_lock, NULL);
+	pthread_mutex_init(&c->conn_lock, NULL);
 	pthread_cond_init(&c->cond, NULL);
 	c->job_log = json_array();
 	c->manifest = json_deep_copy(kg_session_manifest(c->session));
@@ -492,8 +602,15 @@ int kg_console_run(const kg_console_options *o, int *device_failure, kg_err *err
 			(v6 ? MHD_USE_IPv6 : 0),
 		(uint16_t)c->port, NULL, NULL, on_request, c, MHD_OPTION_SOCK_ADDR,
 		v6 ? (struct sockaddr *)&sa6 : (struct sockaddr *)&sa4, MHD_OPTION_CONNECTION_LIMIT,
-		(unsigned)64, MHD_OPTION_CONNECTION_TIMEOUT, (unsigned)60,
-		MHD_OPTION_NOTIFY_COMPLETED, on_completed, c, MHD_OPTION_END);
+		(unsigned)CONSOLE_CONNECTIONS_MAX, MHD_OPTION_PER_IP_CONNECTION_LIMIT,
+		(unsigned)CONSOLE_PER_CLIENT_MAX, MHD_OPTION_CONNECTION_TIMEOUT, (unsigned)60,
+		MHD_OPTION_NOTIFY_CONNECTION, on_connection, c, MHD_OPTION_NOTIFY_COMPLETED,
+		on_completed, c, MHD_OPTION_END);
+	if (d && pthread_create(&c->reaper_thread, NULL, reaper_main, c)) {
+		MHD_stop_daemon(d);
+		rc = kg_fail(err, KG_EIO, "console: cannot start the connection reaper thread");
+		goto done;
+	}
 	if (!d) {
 		rc = kg_fail(err, KG_EINVAL, "console: cannot listen on %s port %d: %s (address in "
 		             "use or not this machine's?)", c->host, c->port, strerror(errno));
@@ -504,6 +621,7 @@ int kg_console_run(const kg_console_options *o, int *device_failure, kg_err *err
 		c->port = info->port;
 	if ((rc = console_live_start(c, err))) {
 		MHD_stop_daemon(d);
+		reaper_stop(c);
 		goto done;
 	}
 	fprintf(announce, "kogei console: session %s, output %s\n", c->session_dir, c->outdir);
@@ -520,6 +638,7 @@ int kg_console_run(const kg_console_options *o, int *device_failure, kg_err *err
 	console_jobs_stop(c);
 	console_live_stop(c);
 	MHD_stop_daemon(d);
+	reaper_stop(c);
 done:
 	kg_camera_free(&c->cam);
 	kg_chart_layout_free(&c->chart_layout);

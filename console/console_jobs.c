@@ -257,6 +257,53 @@ static void *capture_main(void *arg)
 	return NULL;
 }
 
+/* A number field of a request: absent (0), a finite number in lo..hi (1, *out set),
+ * else -1 with *why naming the field and what was expected. */
+static int num_field(const json_t *req, const char *what, const char *key, double lo,
+                     double hi, const char *expect, double *out, char *why, size_t n)
+{
+	const json_t *v = json_object_get(req, key);
+	if (!v)
+		return 0;
+	double x = json_is_number(v) ? json_number_value(v) : NAN;
+	if (!(isfinite(x) && x >= lo && x <= hi)) {
+		snprintf(why, n, "%s: '%s': expected %s", what, key, expect);
+		return -1;
+	}
+	*out = x;
+	return 1;
+}
+
+/* Feature k of console_feats at value v against the range of camera cam of the list,
+ * when it has been opened (the others are checked by the camera when the job sets
+ * them): 0, or 400 with *why. */
+static int feat_check(console *c, int cam, int k, double v, const char *what, char *why,
+                      size_t n)
+{
+	pthread_mutex_lock(&c->lock);
+	if (cam < 0)
+		cam = c->cam_index;
+	int known = cam >= 0 && cam < c->ncameras && c->feat_known[cam];
+	kg_feature_info fi;
+	memset(&fi, 0, sizeof(fi));
+	if (known)
+		fi = c->feat[cam][k];
+	pthread_mutex_unlock(&c->lock);
+	if (!known)
+		return 0;
+	if (!fi.available) {
+		snprintf(why, n, "%s: '%s': camera %d (%s) has no such control", what,
+		         console_feat_keys[k], cam, c->cameras[cam]);
+		return 400;
+	}
+	if (fi.max > fi.min && !(v >= fi.min && v <= fi.max)) {
+		snprintf(why, n, "%s: '%s': expected %g..%g %s (the range of camera %d), got %g", what,
+		         console_feat_keys[k], fi.min, fi.max, fi.unit, cam, v);
+		return 400;
+	}
+	return 0;
+}
+
 int console_job_capture(console *c, const json_t *req, char *why, size_t n)
 {
 	kg_capture_kind kind;
@@ -266,30 +313,44 @@ int console_job_capture(console *c, const json_t *req, char *why, size_t n)
 		snprintf(why, n, "capture: 'kind': expected chart, object, dark or flat");
 		return 400;
 	}
-	double frames = jdbl(req, "frames", c->frames);
-	if (!(frames >= 1 && frames <= 10000 && frames == floor(frames))) {
+	double frames = c->frames, exp = 0, gain = NAN, target = 0.5, cam = -1;
+	if (num_field(req, "capture", "frames", 1, 10000, "a whole number 1..10000", &frames, why,
+	              n) < 0 ||
+	    frames != floor(frames)) {
 		snprintf(why, n, "capture: 'frames': expected a whole number 1..10000");
 		return 400;
 	}
-	double exp = jdbl(req, "exposure_us", 0);
-	if (!(exp >= 0 && exp <= 1e9)) {
-		snprintf(why, n, "capture: 'exposure_us': expected microseconds > 0 (or 0: keep)");
+	if (num_field(req, "capture", "camera", 0, c->ncameras - 1,
+	              "an index into the --camera list", &cam, why, n) < 0 ||
+	    cam != floor(cam)) {
+		snprintf(why, n, "capture: 'camera': expected 0..%d (the --camera list)",
+		         c->ncameras - 1);
 		return 400;
 	}
+	if (num_field(req, "capture", "exposure_us", 0, 1e9,
+	              "microseconds > 0 (or 0: keep the camera's)", &exp, why, n) < 0 ||
+	    num_field(req, "capture", "gain", -1e9, 1e9, "a number (the camera's unit)", &gain, why,
+	              n) < 0 ||
+	    num_field(req, "capture", "target", 0.01, 0.99,
+	              "the brightest patch's level 0.01..0.99 of full scale", &target, why, n) < 0)
+		return 400;
+	if ((exp > 0 && feat_check(c, (int)cam, 0, exp, "capture", why, n)) ||
+	    (isfinite(gain) && feat_check(c, (int)cam, 1, gain, "capture", why, n)))
+		return 400;
 	if (name && !kg_name_is_safe(name, KG_CAPTURE_NAME_MAX)) {
 		snprintf(why, n, "capture: 'name' '%s': expected 1 to %d letters, digits, '.', '_' or "
 		         "'-', not starting with '.'", name, KG_CAPTURE_NAME_MAX - 1);
 		return 400;
 	}
-	int auto_exp = json_is_true(json_object_get(req, "auto_exposure"));
+	const json_t *ae = json_object_get(req, "auto_exposure");
+	if (ae && !json_is_boolean(ae)) {
+		snprintf(why, n, "capture: 'auto_exposure': expected true or false");
+		return 400;
+	}
+	int auto_exp = json_is_true(ae);
 	if (auto_exp && kind == KG_CAPTURE_DARK) {
 		snprintf(why, n, "capture: a dark has no light to meter: give the exposure of the "
 		         "captures it is for");
-		return 400;
-	}
-	double cam = jdbl(req, "camera", -1);
-	if (cam != -1 && !(cam >= 0 && cam < c->ncameras && cam == floor(cam))) {
-		snprintf(why, n, "capture: 'camera': expected 0..%d (the --camera list)", c->ncameras - 1);
 		return 400;
 	}
 	char title[128];
@@ -301,11 +362,22 @@ int console_job_capture(console *c, const json_t *req, char *why, size_t n)
 
 int console_settings_set(console *c, const json_t *req, char *why, size_t n)
 {
-	double cam = jdbl(req, "camera", -1);
-	if (cam != -1 && !(cam >= 0 && cam < c->ncameras && cam == floor(cam))) {
+	double cam = -1;
+	if (num_field(req, "settings", "camera", 0, c->ncameras - 1,
+	              "an index into the --camera list", &cam, why, n) < 0 ||
+	    cam != floor(cam)) {
 		snprintf(why, n, "settings: 'camera': expected 0..%d (the --camera list)",
 		         c->ncameras - 1);
 		return 400;
+	}
+	/* Every field is checked before any is applied: a bad one changes nothing. */
+	double val[3];
+	int has[3];
+	for (int k = 0; k < 3; k++) {
+		has[k] = num_field(req, "settings", console_feat_keys[k], -1e12, 1e12, "a number",
+		                   &val[k], why, n);
+		if (has[k] < 0 || (has[k] && feat_check(c, (int)cam, k, val[k], "settings", why, n)))
+			return 400;
 	}
 	pthread_mutex_lock(&c->lock);
 	int busy = c->job_running && !strcmp(c->job_kind, "capture");
@@ -321,17 +393,9 @@ int console_settings_set(console *c, const json_t *req, char *why, size_t n)
 		ret = console_camera_select(c, (int)cam, &err);
 	if (!ret && !c->cam)
 		ret = kg_fail(&err, KG_EINVAL, "no camera");
-	static const struct { const char *key; kg_feature f; } keys[] = {
-		{"exposure_us", KG_FEAT_EXPOSURE_US}, {"gain", KG_FEAT_GAIN}, {"iso", KG_FEAT_ISO}};
-	for (size_t i = 0; !ret && i < sizeof(keys) / sizeof(keys[0]); i++) {
-		const json_t *v = json_object_get(req, keys[i].key);
-		if (!v)
-			continue;
-		if (!json_is_number(v) || !isfinite(json_number_value(v)))
-			ret = kg_fail(&err, KG_EINVAL, "settings: '%s': expected a number", keys[i].key);
-		else
-			ret = kg_camera_set(c->cam, keys[i].f, json_number_value(v), NULL, &err);
-	}
+	for (int k = 0; !ret && k < 3; k++)
+		if (has[k])
+			ret = kg_camera_set(c->cam, console_feats[k], val[k], NULL, &err);
 	console_camera_give(c);
 	if (ret) {
 		snprintf(why, n, "%s", err.msg);

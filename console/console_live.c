@@ -38,6 +38,9 @@ void console_camera_give(console *c)
 	pthread_mutex_unlock(&c->lock);
 }
 
+const kg_feature console_feats[3] = {KG_FEAT_EXPOSURE_US, KG_FEAT_GAIN, KG_FEAT_ISO};
+const char *const console_feat_keys[3] = {"exposure_us", "gain", "iso"};
+
 int console_camera_select(console *c, int i, kg_err *err)
 {
 	if (i == c->cam_index && c->cam)
@@ -52,6 +55,14 @@ int console_camera_select(console *c, int i, kg_err *err)
 		return ret;
 	}
 	c->cam_index = i;
+	kg_feature_info fi[3];
+	for (int k = 0; k < 3; k++)
+		if (kg_camera_feature_info(c->cam, console_feats[k], &fi[k], NULL))
+			memset(&fi[k], 0, sizeof(fi[k]));
+	pthread_mutex_lock(&c->lock);
+	memcpy(c->feat[i], fi, sizeof(fi));
+	c->feat_known[i] = 1;
+	pthread_mutex_unlock(&c->lock);
 	return 0;
 }
 
@@ -562,16 +573,87 @@ void console_live_stop(console *c)
 	pthread_mutex_unlock(&c->cam_lock);
 }
 
-json_t *console_live_json(console *c, uint64_t after, const double *roi, double ev, int peaking)
+/* A number field of the view: absent (0), a finite number in lo..hi (1), else -1. */
+static int view_num(const json_t *req, const char *key, double lo, double hi, double *out)
+{
+	const json_t *v = json_object_get(req, key);
+	if (!v)
+		return 0;
+	if (!json_is_number(v) || !isfinite(json_number_value(v)) || json_number_value(v) < lo ||
+	    json_number_value(v) > hi)
+		return -1;
+	*out = json_number_value(v);
+	return 1;
+}
+
+int console_view_set(console *c, const json_t *req, char *why, size_t n)
+{
+	static const char *const known[] = {"ev", "peaking", "roi"};
+	const char *key;
+	const json_t *val;
+	json_object_foreach((json_t *)req, key, val)
+	{
+		size_t k = 0;
+		while (k < 3 && strcmp(key, known[k]))
+			k++;
+		if (k == 3) {
+			snprintf(why, n, "view: '%s': unknown field (expected ev, peaking, roi)", key);
+			return 400;
+		}
+	}
+	double ev = 0;
+	int has_ev = view_num(req, "ev", -8, 8, &ev);
+	if (has_ev < 0) {
+		snprintf(why, n, "view: 'ev': expected a number of stops -8..8");
+		return 400;
+	}
+	const json_t *pk = json_object_get(req, "peaking");
+	if (pk && !json_is_boolean(pk)) {
+		snprintf(why, n, "view: 'peaking': expected true or false");
+		return 400;
+	}
+	const json_t *r = json_object_get(req, "roi");
+	double roi[4] = {0, 0, 0, 0};
+	if (r) {
+		int ok = json_is_array(r) && json_array_size(r) == 4;
+		for (size_t i = 0; ok && i < 4; i++) {
+			const json_t *x = json_array_get(r, i);
+			ok = json_is_number(x) && isfinite(json_number_value(x)) &&
+			     json_number_value(x) >= 0 && json_number_value(x) <= 1;
+			if (ok)
+				roi[i] = json_number_value(x);
+		}
+		if (!ok || !(roi[2] > roi[0] && roi[3] > roi[1])) {
+			snprintf(why, n, "view: 'roi': expected [x0, y0, x1, y1], fractions 0..1 of the "
+			         "frame with x0 < x1 and y0 < y1");
+			return 400;
+		}
+	}
+	pthread_mutex_lock(&c->lock);
+	if (has_ev)
+		c->ev = ev;
+	if (pk)
+		c->peaking = json_is_true(pk);
+	if (r)
+		memcpy(c->roi, roi, sizeof(c->roi));
+	pthread_cond_broadcast(&c->cond);
+	pthread_mutex_unlock(&c->lock);
+	return 0;
+}
+
+json_t *console_view_json(console *c)
+{
+	pthread_mutex_lock(&c->lock);
+	json_t *j = json_pack("{s:f, s:b, s:[f,f,f,f]}", "ev", c->ev, "peaking", c->peaking, "roi",
+	                      c->roi[0], c->roi[1], c->roi[2], c->roi[3]);
+	pthread_mutex_unlock(&c->lock);
+	return j;
+}
+
+json_t *console_live_json(console *c, uint64_t after)
 {
 	pthread_mutex_lock(&c->lock);
 	c->last_request = console_now();
-	if (isfinite(roi[0]) && isfinite(roi[1]) && isfinite(roi[2]) && isfinite(roi[3]) &&
-	    roi[0] >= 0 && roi[1] >= 0 && roi[2] <= 1 && roi[3] <= 1 && roi[2] > roi[0] &&
-	    roi[3] > roi[1])
-		memcpy(c->roi, roi, sizeof(c->roi));
-	c->ev = ev < -8 ? -8 : ev > 8 ? 8 : ev;
-	c->peaking = peaking;
 	pthread_cond_broadcast(&c->cond);
 	double deadline = console_now() + 2;
 	while (!c->stop && c->live_seq <= after && console_now() < deadline) {

@@ -24,6 +24,8 @@ typedef struct kg_console_options {
 	const char *host;         /* numeric IPv4 or IPv6 address; any but 127.0.0.1 gets a
 	                           * token */
 	int port;                 /* 0: a free one */
+	double header_timeout;    /* s a connection has to send a request in full, from its
+	                           * start or its previous answer (0: 10) */
 	FILE *announce;           /* the address to open is printed here (NULL: stdout) */
 } kg_console_options;
 

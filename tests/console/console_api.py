@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """The console's HTTP API without a browser: security (loopback, token, Host and
 Origin checks, POST-only actions, path traversal and symbolic links), a dark capture
-into session.json, bad requests, the session lock, and the spectrometer's guided
+into session.json, bad requests, the view changed by POST /api/view only, range checks
+of every numeric field (400 naming it, nothing changed), the session lock, and the spectrometer's guided
 chart (answers, redo, stop and resume).
 
 usage: console_api.py KOGEI PARENT_DIR [TCS.sp] (works in a new directory below it)"""
@@ -71,6 +72,91 @@ def bad_requests(c):
                          headers={"Content-Type": "application/json"})
     st, j = c.json("POST", "/api/settings", {"exposure_us": "fast"})
     check(st == 400 and "exposure_us" in j.get("error", ""), "settings: a string exposure (%d)" % st)
+
+
+def view_and_ranges(c):
+    """The live view's settings change by POST /api/view only (with the Origin and Host
+    checks); every numeric field is range-checked with a 400 naming it, and a request
+    with a bad field changes nothing."""
+    for q in ("ev=2", "peaking=1", "x0=0.1&y0=0.1&x1=0.5&y1=0.5", "after=0&ev=-3"):
+        st, j = c.json("GET", "/api/live?" + q)
+        check(st == 405 and "/api/view" in j.get("error", ""),
+              "GET /api/live?%s (a cross-site GET changing the view): expected 405, got %d"
+              % (q, st))
+    st, _ = c.request("GET", "/api/view")
+    check(st == 405, "GET /api/view: expected 405, got %d" % st)
+    view = {"ev": 1.5, "peaking": True, "roi": [0.1, 0.2, 0.5, 0.6]}
+    st, _ = c.request("POST", "/api/view", {"ev": -3}, headers={"Origin": "http://evil.example"})
+    check(st == 403, "POST /api/view from another origin: expected 403, got %d" % st)
+    st, _ = c.request("POST", "/api/view", {"ev": -3}, origin=False)
+    check(st == 403, "POST /api/view without Origin: expected 403, got %d" % st)
+    st, _ = c.request("POST", "/api/view", {"ev": -3}, headers={"Host": "evil.example:80"})
+    check(st == 403, "POST /api/view with another Host: expected 403, got %d" % st)
+    st, j = c.json("POST", "/api/view", view)
+    check(st == 200 and j == view, "POST /api/view: 200 with the view (%d %s)" % (st, j))
+    # the next previews are made with it (one under way may have the old one)
+    st, j = c.json("GET", "/api/live?after=0")
+    for _ in range(3):
+        st, j = c.json("GET", "/api/live?after=%d" % j.get("preview", 0))
+        if j.get("roi") == view["roi"]:
+            break
+    check(j.get("roi") == view["roi"], "the preview after POST /api/view uses its focus "
+          "region (%s)" % j.get("roi"))
+    for body, word in (({"ev": 9}, "ev"), ({"ev": "2"}, "ev"), ({"ev": -8.5}, "ev"),
+                       ({"peaking": "yes"}, "peaking"), ({"roi": [0.5, 0.1, 0.2, 0.5]}, "roi"),
+                       ({"roi": [0, 0, 1.5, 1]}, "roi"), ({"roi": [0, 0, 1]}, "roi"),
+                       ({"ev": -1, "peaking": False, "roi": [-0.1, 0, 1, 1]}, "roi"),
+                       ({"ev": -1, "gain": 3}, "gain")):
+        st, j = c.json("POST", "/api/view", body)
+        check(st == 400 and "'%s'" % word in j.get("error", ""),
+              "view %s: expected 400 naming '%s', got %d %s" % (body, word, st, j))
+    st, j = c.json("POST", "/api/view", {})
+    check(st == 200 and j == view, "bad view requests changed nothing (%s)" % j)
+    # camera settings against the camera's range (sim: exposure 10..1e7 us, gain 0..24 dB)
+    st, j = c.json("GET", "/api/live?after=0")
+    before = j.get("settings", {})
+    exp0 = before.get("exposure_us", {}).get("value")
+    gain0 = before.get("gain", {}).get("value")
+    check(exp0 is not None and gain0 is not None, "the live view reads back exposure and gain")
+    new_exp = 2000 if exp0 != 2000 else 3000
+    for body, word in (({"gain": 1000}, "gain"), ({"gain": -1}, "gain"),
+                       ({"exposure_us": 1}, "exposure_us"), ({"exposure_us": 2e7}, "exposure_us"),
+                       ({"exposure_us": new_exp, "gain": 99}, "gain"),
+                       ({"exposure_us": new_exp, "iso": "x"}, "iso"),
+                       ({"exposure_us": new_exp, "camera": 3}, "camera")):
+        st, j = c.json("POST", "/api/settings", body)
+        check(st == 400 and "'%s'" % word in j.get("error", ""),
+              "settings %s: expected 400 naming '%s', got %d %s" % (body, word, st, j))
+    st, j = c.json("GET", "/api/live?after=0")
+    st, j = c.json("GET", "/api/live?after=%d" % j.get("preview", 0))
+    after = j.get("settings", {})
+    check(after.get("exposure_us", {}).get("value") == exp0 and
+          after.get("gain", {}).get("value") == gain0,
+          "refused settings changed nothing (exposure %s -> %s, gain %s -> %s)"
+          % (exp0, after.get("exposure_us", {}).get("value"), gain0,
+             after.get("gain", {}).get("value")))
+    st, j = c.json("POST", "/api/settings", {"exposure_us": new_exp})
+    check(st == 200, "settings in range: 200 (%d %s)" % (st, j.get("error")))
+    # captures: every numeric field, nothing started
+    _, s0 = c.json("GET", "/api/state")
+    for body, word in (({"kind": "object", "target": 1.5}, "target"),
+                       ({"kind": "object", "target": 0}, "target"),
+                       ({"kind": "object", "auto_exposure": True, "target": "high"}, "target"),
+                       ({"kind": "dark", "gain": 1000}, "gain"),
+                       ({"kind": "dark", "gain": "high"}, "gain"),
+                       ({"kind": "dark", "exposure_us": 1}, "exposure_us"),
+                       ({"kind": "dark", "exposure_us": -5}, "exposure_us"),
+                       ({"kind": "dark", "frames": "3"}, "frames"),
+                       ({"kind": "dark", "frames": 2.5}, "frames"),
+                       ({"kind": "dark", "frames": 10001}, "frames"),
+                       ({"kind": "dark", "camera": -2}, "camera"),
+                       ({"kind": "dark", "auto_exposure": "yes"}, "auto_exposure")):
+        st, j = c.json("POST", "/api/capture", body)
+        check(st == 400 and "'%s'" % word in j.get("error", ""),
+              "capture %s: expected 400 naming '%s', got %d %s" % (body, word, st, j))
+    _, s1 = c.json("GET", "/api/state")
+    check(not s1["job"]["running"] and s1["job"]["title"] == s0["job"]["title"],
+          "refused captures started nothing (%s)" % s1["job"]["title"])
 
 
 def dark_capture(c, work):
@@ -202,6 +288,7 @@ def main():
     try:
         security(c, work)
         bad_requests(c)
+        view_and_ranges(c)
         dark_capture(c, work)
         second_console(kogei, work)
     finally:
