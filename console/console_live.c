@@ -502,13 +502,14 @@ static int live_frame(console *c, double ev, const double roi[4], int peaking)
 	c->live_error[0] = 0;
 	json_decref(c->live);
 	c->live = json_pack("{s:I, s:I, s:f, s:o, s:o, s:i, s:i, s:i, s:i, s:i, s:o, s:f, s:o, s:o, "
-	                    "s:[f,f,f,f], s:o, s:f, s:f}",
+	                    "s:[f,f,f,f], s:f, s:b, s:o, s:f, s:f}",
 	                    "preview", (json_int_t)c->live_seq, "sequence", (json_int_t)seq,
 	                    "timestamp", ts, "exposure_us", jnum(fexp), "gain", jnum(fgain),
 	                    "width", fw, "height", fh, "preview_width", p.w, "preview_height", p.h,
 	                    "binning", p.k * p.cell, "histograms", hist, "clipped_fraction",
 	                    p.clipped_fraction, "focus", jnum(p.focus), "focus_mean",
-	                    jnum(p.focus_mean), "roi", roi[0], roi[1], roi[2], roi[3], "settings",
+	                    jnum(p.focus_mean), "roi", roi[0], roi[1], roi[2], roi[3], "ev", ev,
+	                    "peaking", peaking, "settings",
 	                    settings, "server_ms", ms, "server_ms_mean", c->preview_ms_mean);
 	pthread_cond_broadcast(&c->cond);
 	pthread_mutex_unlock(&c->lock);

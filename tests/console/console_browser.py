@@ -116,6 +116,18 @@ def main():
         check(h1 != h2, "the live image changes between previews (noise of the sim sensor)")
         check(p.js("document.getElementById('focus').textContent") not in ("", "–"),
               "a focus score is shown")
+        # ---- the view (EV, peaking) goes to the console by POST /api/view ----
+        p.js("(() => { const e = document.getElementById('ev'); e.value = '2';"
+             " e.dispatchEvent(new Event('input')); const k = document.getElementById('peaking');"
+             " k.checked = true; k.dispatchEvent(new Event('change')); return 1; })()")
+        LIVE_VIEW = ("fetch('/api/live?after=0').then(r => r.json())"
+                     ".then(j => j.ev === %s && j.peaking === %s)")
+        check(p.wait(LIVE_VIEW % ("2", "true"), 20),
+              "EV 2 and peaking set on the page reach the previews (POST /api/view)")
+        p.js("(() => { const e = document.getElementById('ev'); e.value = '0';"
+             " e.dispatchEvent(new Event('input')); const k = document.getElementById('peaking');"
+             " k.checked = false; k.dispatchEvent(new Event('change')); return 1; })()")
+        check(p.wait(LIVE_VIEW % ("0", "false"), 20), "EV 0 and peaking off again")
         normal_red = p.js(RED)
         p.shot(os.path.join(shots, "console-live.png"))
         # ---- clipping overlay on a saturated scene ----

@@ -40,8 +40,9 @@ class Console:
                 break
         m = re.match(r"open http://(\[[^\]]+\]|[^:/]+):(\d+)/(?:\?token=([0-9a-f]+))?", line)
         if not m:
+            err = self.stderr()
             self.stop()
-            raise RuntimeError("kogei console did not start: %r; %s" % (line, self.stderr()))
+            raise RuntimeError("kogei console did not start: %r; %s" % (line, err))
         self.host, self.port, self.token = m.group(1), int(m.group(2)), m.group(3)
         self.hostport = "%s:%d" % (self.host, self.port)
         self.url = "http://%s/" % self.hostport
