@@ -639,6 +639,9 @@ int kg_console_run(const kg_console_options *o, int *device_failure, kg_err *err
 	console_live_stop(c);
 	MHD_stop_daemon(d);
 	reaper_stop(c);
+	if (c->conns_timed_out)
+		fprintf(stderr, "kogei console: %ld connection(s) closed at the request deadline "
+		        "(--header-timeout %g s)\n", c->conns_timed_out, c->header_timeout);
 done:
 	kg_camera_free(&c->cam);
 	kg_chart_layout_free(&c->chart_layout);

@@ -185,6 +185,10 @@ def under_load(kogei, work):
         slow.close()
         rc = c.stop()
         check(rc == 0, "the console stops on SIGTERM with 0 (got %s)" % rc)
+        with open(c.log) as f:
+            log = f.read()
+        check("closed at the request deadline" in log,
+              "the console reports the connections it closed: %r" % log[-300:])
 
 
 def long_poll(kogei, work):
