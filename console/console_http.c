@@ -311,8 +311,12 @@ static enum MHD_Result handle_get(console *c, struct MHD_Connection *conn, const
 			if (MHD_lookup_connection_value(conn, MHD_GET_ARGUMENT_KIND, view_keys[i]))
 				return send_error(conn, 405, "/api/live: '%s': the view is changed with POST "
 				                  "/api/view only", view_keys[i]);
-		uint64_t after = (uint64_t)fmax(0, qnum(conn, "after", 0));
-		return send_json(conn, 200, console_live_json(c, after));
+		double after = qnum(conn, "after", -1);
+		if (MHD_lookup_connection_value(conn, MHD_GET_ARGUMENT_KIND, "after") &&
+		    !(after >= 0 && after <= 9e15 && after == floor(after)))
+			return send_error(conn, 400, "/api/live: 'after': expected a preview count, a "
+			                  "whole number >= 0");
+		return send_json(conn, 200, console_live_json(c, after > 0 ? (uint64_t)after : 0));
 	}
 	if (!strcmp(url, "/api/live.png")) {
 		size_t n = 0;

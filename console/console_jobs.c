@@ -477,8 +477,21 @@ static void *measure_main(void *arg)
 	return NULL;
 }
 
+/* An optional boolean field: 0, or 400 with *why naming it. */
+static int bool_field(const json_t *req, const char *what, const char *key, char *why, size_t n)
+{
+	const json_t *v = json_object_get(req, key);
+	if (v && !json_is_boolean(v)) {
+		snprintf(why, n, "%s: '%s': expected true or false", what, key);
+		return 400;
+	}
+	return 0;
+}
+
 int console_job_measure(console *c, const json_t *req, char *why, size_t n)
 {
+	if (bool_field(req, "measure", "resume", why, n))
+		return 400;
 	if (!c->spectro_uri) {
 		snprintf(why, n, "measure: no spectrometer: start the console with --spectro URI");
 		return 400;
@@ -572,5 +585,7 @@ static void *process_main(void *arg)
 
 int console_job_process(console *c, const json_t *req, char *why, size_t n)
 {
+	if (bool_field(req, "process", "render", why, n))
+		return 400;
 	return job_start(c, "process", "kogei process", process_main, req, why, n);
 }

@@ -154,6 +154,15 @@ def view_and_ranges(c):
         st, j = c.json("POST", "/api/capture", body)
         check(st == 400 and "'%s'" % word in j.get("error", ""),
               "capture %s: expected 400 naming '%s', got %d %s" % (body, word, st, j))
+    for path, body, word in (("/api/measure", {"resume": "yes"}, "resume"),
+                             ("/api/process", {"render": 0}, "render")):
+        st, j = c.json("POST", path, body)
+        check(st == 400 and "'%s'" % word in j.get("error", ""),
+              "%s %s: expected 400 naming '%s', got %d %s" % (path, body, word, st, j))
+    for q in ("-1", "x", "1.5"):
+        st, j = c.json("GET", "/api/live?after=" + q)
+        check(st == 400 and "'after'" in j.get("error", ""),
+              "GET /api/live?after=%s: expected 400 naming 'after', got %d" % (q, st))
     _, s1 = c.json("GET", "/api/state")
     check(not s1["job"]["running"] and s1["job"]["title"] == s0["job"]["title"],
           "refused captures started nothing (%s)" % s1["job"]["title"])
