@@ -4,7 +4,8 @@
 #  - --assume-same-exposure fills in only what is missing: with the gain unrecorded and
 #    both exposure times recorded, the object is still scaled by the times' ratio (its
 #    cube equals the run with everything recorded);
-#  - a dark of another camera (serial) is neither subtracted by acquire nor by process,
+#  - a dark of another camera (serial) is neither subtracted by acquire nor by process
+#    (one acquire subtracted in an older session is warned),
 #    and "no matching dark" is warned on stdout, in process.json and in report.html;
 #  - --skip NAME leaves a foreign capture out without --force, listed in process.json;
 #  - warnings: a flat applied by process that acquire recorded as none, an object
@@ -168,5 +169,23 @@ assert not [x for x in w if x.startswith("capture object-full:") and
             ("clipped" in x or "all black" in x or "under-exposed" in x)], w
 assert "%d warning(s)" % len(w) in out, out
 PY
+
+# A session recorded before acquire checked the camera: its dark of another camera is
+# named, not passed over.
+S3=$T/S3
+cp -r "$S2" "$S3"
+"$PY" - "$S3/session.json" <<'PY'
+import json, sys
+m = json.load(open(sys.argv[1]))
+for c in m["captures"]:
+    if c["name"] == "object-nodark":
+        c["corrections"]["dark"] = "dark-0003"  # site-2's, as acquire once chose it
+json.dump(m, open(sys.argv[1], "w"), indent=1)
+PY
+expect_exit 0 "$KOGEI" process "$S3" --reference "$A/reference.json" -o "$T/D" --no-render \
+	--skip object-foreign
+check "acquire's dark of another camera: warned" \
+	grep -q "warning: capture object-nodark: acquire subtracted dark dark-0003, of another camera" \
+	"$T/out"
 
 exit $fail
