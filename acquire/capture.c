@@ -443,6 +443,28 @@ static int find_kind(cap_ctx *c, const char *name, const char *kind, const char 
 	return 0;
 }
 
+/* "" when capture cap of the session was taken with the camera in use (backend, model
+ * and serial of its devices.cameras entry), else what differs, into why. */
+static void camera_differs(cap_ctx *c, const json_t *cap, char *why, size_t len)
+{
+	const kg_camera_info *info = kg_camera_get_info(c->cam);
+	const char *id = json_string_value(json_object_get(cap, "camera")), *cid;
+	const json_t *cams = kg_json_find(kg_session_manifest(c->s), "devices.cameras"), *e,
+	             *found = NULL;
+	size_t i;
+	why[0] = 0;
+	json_array_foreach(cams, i, e)
+		if (id && (cid = json_string_value(json_object_get(e, "id"))) && !strcmp(cid, id))
+			found = e;
+	const char *b = json_string_value(json_object_get(found, "backend"));
+	const char *m = json_string_value(json_object_get(found, "model"));
+	const char *sn = json_string_value(json_object_get(found, "serial"));
+	if (!b || !m || !sn || strcmp(b, info->backend) || strcmp(m, info->model) ||
+	    strcmp(sn, info->serial))
+		snprintf(why, len, "camera %s %s serial %s, not %s %s serial %s", b ? b : "?",
+		         m ? m : "?", sn ? sn : "?", info->backend, info->model, info->serial);
+}
+
 /* Choose and load the dark and the flat (after the settings are final). */
 static int load_corrections(cap_ctx *c, kg_image **dark, kg_image **flat, kg_err *err)
 {
@@ -457,10 +479,12 @@ static int load_corrections(cap_ctx *c, kg_image **dark, kg_image **flat, kg_err
 			if ((ret = find_kind(c, o->dark, "dark", "--dark", &dcap, err)))
 				return ret;
 			settings_differ(dcap, &r->format, r->exposure_us, r->gain, iso, why, sizeof(why));
+			if (!why[0])
+				camera_differs(c, dcap, why, sizeof(why));
 			if (why[0])
 				return kg_fail(err, KG_EINVAL,
 				               "--dark %s: taken with %s; a dark must match the capture's "
-				               "exposure, gain, format and size",
+				               "camera, exposure, gain, format and size",
 				               o->dark, why);
 		} else {
 			json_t *caps = json_object_get(kg_session_manifest(c->s), "captures"), *cap;
@@ -469,12 +493,14 @@ static int load_corrections(cap_ctx *c, kg_image **dark, kg_image **flat, kg_err
 			{
 				const char *k = json_string_value(json_object_get(cap, "kind"));
 				settings_differ(cap, &r->format, r->exposure_us, r->gain, iso, why, sizeof(why));
+				if (!why[0])
+					camera_differs(c, cap, why, sizeof(why));
 				if (k && !strcmp(k, "dark") && !why[0])
 					dcap = cap; /* the latest wins */
 			}
 			if (!dcap)
-				note(c, "no dark subtracted: the session has no dark capture with exposure "
-				        "%.6g us, %s %.6g, %s %dx%d+%d+%d",
+				note(c, "no dark subtracted: the session has no dark capture of this camera "
+				        "with exposure %.6g us, %s %.6g, %s %dx%d+%d+%d",
 				     r->exposure_us, isnan(r->gain) && !isnan(iso) ? "ISO" : "gain",
 				     isnan(r->gain) && !isnan(iso) ? iso : r->gain,
 				     kg_pixfmt_name(r->format.pixfmt),

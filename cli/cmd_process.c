@@ -17,6 +17,7 @@ static const char usage_process[] =
 	"              [--angle DEG]\n"
 	"              [--min-tags N]\n"
 	"              [--max-residual R] [--force] [--assume-same-exposure] [--no-render]\n"
+	"              [--skip NAME[,NAME...]]\n"
 	"              [--cube f32|f16|weights|none]\n"
 	"              [--threads N] [--quiet]";
 
@@ -61,8 +62,11 @@ static const char help_process[] =
 	"                        more)\n"
 	"  --force               accept a 3-patch chart (uncheckable) and objects from\n"
 	"                        another camera than the chart's, with warnings\n"
-	"  --assume-same-exposure  captures without exposure settings are taken as the\n"
-	"                        chart's (else refused)\n"
+	"  --assume-same-exposure  an exposure time or gain not recorded for an object or\n"
+	"                        the chart is taken as equal (else refused); what is\n"
+	"                        recorded still scales the values, with a warning\n"
+	"  --skip NAME[,NAME]    leave these captures out, as if not in the session (a\n"
+	"                        foreign or failed capture; listed in process.json)\n"
 	"  --no-render           write scene.json but do not render it\n"
 	"  --cube FORMAT         each object's cube.hdr: f32 (default), f16 (half the size),\n"
 	"                        weights (the K PCA weights with their basis: s = mean + B w,\n"
@@ -72,7 +76,11 @@ static const char help_process[] =
 	"\n"
 	"Exit status 1 when the session cannot give a trustworthy result (no chart, too few\n"
 	"usable patches, M2 residual above the limit, another camera, unknown exposure); the\n"
-	"message names the capture or file and the cause, and nothing is written.";
+	"message names the capture or file and the cause, and nothing is written. Warnings\n"
+	"(also in process.json and the report) follow the summary line on standard output:\n"
+	"an object without a matching dark, a flat applied here that acquire did not, an\n"
+	"object under-exposed by more than half, all black, or with over 1 % of its pixels\n"
+	"clipped or clamped.";
 
 /* "a,b,c" into a list (the strings point into text, which is modified). */
 static int split_names(char *text, const char ***out, int *n)
@@ -91,6 +99,23 @@ static int split_names(char *text, const char ***out, int *n)
 	return 0;
 }
 
+/* The run's warnings, as process.json records them, one a line after the summary. */
+static void print_warnings(const char *outdir)
+{
+	char *path = kg_path_join(outdir, "process.json");
+	json_t *pj = NULL;
+	kg_err e = {{0}};
+	if (path && kg_json_load(path, &pj, &e) == 0) {
+		const json_t *w;
+		size_t i;
+		json_array_foreach(json_object_get(pj, "warnings"), i, w)
+			if (json_is_string(w))
+				printf("kogei process: warning: %s\n", json_string_value(w));
+	}
+	json_decref(pj);
+	free(path);
+}
+
 int kg_cmd_process(int argc, char **argv)
 {
 	if (kg_cli_wants_help(argc, argv)) {
@@ -99,7 +124,7 @@ int kg_cmd_process(int argc, char **argv)
 	}
 	enum { O_REF = 256, O_SPECTRA, O_MAT, O_ONLY, O_LAYOUT, O_CHART, O_MESH, O_ANGLE,
 	       O_MINTAGS, O_MAXRES, O_FORCE, O_SAME, O_NORENDER, O_THREADS, O_QUIET, O_MASK, O_CUBE,
-	       O_METHOD, O_ANGLES, O_INTENSITY };
+	       O_METHOD, O_ANGLES, O_INTENSITY, O_SKIP };
 	static const struct option longopts[] = {
 		{"reference", required_argument, NULL, O_REF},
 		{"spectra", required_argument, NULL, O_SPECTRA},
@@ -121,14 +146,15 @@ int kg_cmd_process(int argc, char **argv)
 		{"no-render", no_argument, NULL, O_NORENDER},
 		{"threads", required_argument, NULL, O_THREADS},
 		{"quiet", no_argument, NULL, O_QUIET},
+		{"skip", required_argument, NULL, O_SKIP},
 		{"output", required_argument, NULL, 'o'},
 		{NULL, 0, NULL, 0},
 	};
 	kg_process_options o;
 	kg_process_options_default(&o);
 	o.progress = stderr;
-	char *only = NULL;
-	const char **names = NULL;
+	char *only = NULL, *skip = NULL;
+	const char **names = NULL, **skips = NULL;
 	int quiet = 0, ch;
 	optind = 1;
 	while ((ch = getopt_long(argc, argv, "o:", longopts, NULL)) != -1) {
@@ -205,6 +231,12 @@ int kg_cmd_process(int argc, char **argv)
 			o.threads = (int)v;
 			break;
 		case O_QUIET: quiet = 1; break;
+		case O_SKIP:
+			if (!*optarg || strspn(optarg, ",") == strlen(optarg))
+				return kg_cli_usage_error(usage_process, "--skip %s: expected capture "
+				                          "names, NAME[,NAME...]", optarg);
+			skip = optarg;
+			break;
 		default: return kg_cli_usage_error(usage_process, "bad option");
 		}
 	}
@@ -222,15 +254,22 @@ int kg_cmd_process(int argc, char **argv)
 	if (only && split_names(only, &names, &o.nonly))
 		return kg_cli_usage_error(usage_process, "out of memory");
 	o.only = names;
+	if (skip && split_names(skip, &skips, &o.nskip)) {
+		free(names);
+		return kg_cli_usage_error(usage_process, "out of memory");
+	}
+	o.skip = skips;
 	kg_err err = {{0}};
 	kg_process_summary sum;
 	int ret = kg_process_run(&o, &sum, &err);
 	free(names);
+	free(skips);
 	if (ret)
 		return kg_cli_error(&err, ret);
 	printf("kogei process: %s -> %s: %d object(s), %d processed, %d unchanged; M2 residual "
 	       "%.2f %%; %d warning(s); %.1f s\n",
 	       o.session, o.outdir, sum.objects, sum.processed, sum.skipped, 100 * sum.residual,
 	       sum.warnings, sum.seconds);
+	print_warnings(o.outdir);
 	return KG_EXIT_OK;
 }

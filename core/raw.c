@@ -95,6 +95,54 @@ static int tiff_truncated(const char *path, char *why, size_t n)
 	return cut;
 }
 
+/* ISOSpeedRatings (0x8827) in a TIFF's first IFD, where some cameras and converters
+ * write it instead of in the EXIF IFD (LibRaw reads it only from there); NAN when the
+ * file has none there or is not a TIFF. */
+static double tiff_ifd0_iso(FILE *fp)
+{
+	unsigned char h[8], e[12], c[2], v[4];
+	if (fread(h, 1, 8, fp) != 8)
+		return NAN;
+	int big = h[0] == 'M';
+	if (!((h[0] == 'I' && h[1] == 'I') || (h[0] == 'M' && h[1] == 'M')) ||
+	    get_u(h + 2, 2, big) != 42)
+		return NAN;
+	if (fseek(fp, (long)get_u(h + 4, 4, big), SEEK_SET) || fread(c, 1, 2, fp) != 2)
+		return NAN;
+	unsigned n = get_u(c, 2, big);
+	for (unsigned i = 0; i < n && i < 4096; i++) {
+		if (fread(e, 1, 12, fp) != 12)
+			return NAN;
+		if (get_u(e, 2, big) != 0x8827)
+			continue;
+		unsigned type = get_u(e + 2, 2, big);
+		uint32_t count = get_u(e + 4, 4, big);
+		int size = type == 3 ? 2 : type == 4 ? 4 : 0; /* SHORT or LONG */
+		if (!size || count < 1)
+			return NAN;
+		if ((uint32_t)size * count <= 4)
+			memcpy(v, e + 8, 4);
+		else if (fseek(fp, (long)get_u(e + 8, 4, big), SEEK_SET) ||
+		         fread(v, 1, (size_t)size, fp) != (size_t)size)
+			return NAN;
+		double iso = get_u(v, size, big);
+		return iso > 0 ? iso : NAN;
+	}
+	return NAN;
+}
+
+/* The ISO of IFD 0 where LibRaw found none. */
+static void iso_from_ifd0(const char *path, const void *data, size_t size, kg_raw_meta *m)
+{
+	if (!m || !isnan(m->iso))
+		return;
+	FILE *fp = path ? fopen(path, "rb") : fmemopen((void *)(uintptr_t)data, size, "rb");
+	if (!fp)
+		return;
+	m->iso = tiff_ifd0_iso(fp);
+	fclose(fp);
+}
+
 #endif
 
 int kg_raw_is_raw(const char *path)
@@ -387,6 +435,8 @@ static int run(const char *path, const void *data, size_t size, const char *name
 			ret = lr_fail(&j, code, err, "cannot read the file's header");
 	} else {
 		ret = decode(&j, out, meta, pixels, err);
+		if (!ret)
+			iso_from_ifd0(path, data, size, meta);
 	}
 	libraw_close(j.lr);
 	return ret;

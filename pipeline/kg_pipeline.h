@@ -65,7 +65,10 @@ typedef struct kg_process_options {
 	                            * (0, 70, 5) */
 	double intensity[2];       /* camera: intensities searched (0.3, 1.0) */
 	int force;                 /* accept a 3-patch chart and another camera */
-	int assume_same_exposure;  /* accept captures whose exposure is unknown */
+	int assume_same_exposure;  /* take an exposure time or gain that is not recorded as
+	                            * the chart capture's (what is recorded still counts) */
+	const char *const *skip;   /* captures left out of the run by name (nskip) */
+	int nskip;
 	int render;                /* render each scene.json to render.png (when Embree) */
 	const char *cube;          /* per object cube: "f32" (the default), "f16", "weights"
 	                            * (the K PCA weights and their basis) or "none" */

@@ -43,6 +43,7 @@ typedef struct proc {
 	int ncaps;
 	json_t *inputs;           /* [{role, path, sha256}] */
 	json_t *warnings;         /* every warning of every step */
+	json_t *skipped;          /* [{capture, kind}] left out by --skip */
 	const proc_capture *chart;
 	kg_chart_layout *layout;
 	char *layout_path;
@@ -99,6 +100,11 @@ void proc_pass_free(proc_pass **pp);
 /* The session's latest dark for c (same camera, format, exposure and gain) and flat
  * (same camera and format), or NULL. */
 const proc_capture *proc_matching_dark(const proc *p, const proc_capture *c);
+/* 1 when d is a dark for c: same camera (backend, model, serial), format, exposure and
+ * gain. */
+int proc_dark_matches(const proc_capture *d, const proc_capture *c);
+/* The capture of that name (not left out by --skip), or NULL. */
+const proc_capture *proc_capture_named(const proc *p, const char *name);
 const proc_capture *proc_matching_flat(const proc *p, const proc_capture *c);
 void proc_image_clear(proc_image *img);
 
@@ -137,6 +143,8 @@ typedef struct proc_preview proc_preview;
 int proc_preview_new(int width, int height, int max_side, proc_preview **out, kg_err *err);
 void proc_preview_rows(proc_preview *pv, int y0, int rows, const float *rgb);
 int proc_preview_write(proc_preview *pv, const char *path, kg_err *err);
+/* The q-quantile of the samples taken so far (every channel), NAN when none. */
+double proc_preview_quantile(proc_preview *pv, double q);
 void proc_preview_free(proc_preview **pv);
 
 #endif

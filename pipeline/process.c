@@ -87,6 +87,36 @@ static const json_t *find_camera(const json_t *manifest, const char *id)
 	return NULL;
 }
 
+/* --skip: the named captures left out of the run (as if not in the session), each
+ * of which must be in it. */
+static int skip_captures(proc *p)
+{
+	for (int k = 0; k < p->o->nskip; k++) {
+		int found = 0;
+		for (int i = 0; i < p->ncaps && !found; i++)
+			found = !strcmp(p->caps[i].name, p->o->skip[k]);
+		if (!found)
+			return kg_fail(p->err, KG_EINVAL, "--skip %s: %s has no capture of that name",
+			               p->o->skip[k], p->manifest_path);
+	}
+	int n = 0;
+	for (int i = 0; i < p->ncaps; i++) {
+		int skip = 0;
+		for (int k = 0; k < p->o->nskip && !skip; k++)
+			skip = !strcmp(p->caps[i].name, p->o->skip[k]);
+		if (skip) {
+			json_array_append_new(p->skipped, json_pack("{s:s, s:s}", "capture",
+			                      p->caps[i].name, "kind",
+			                      kg_capture_kind_name(p->caps[i].kind)));
+			proc_progress(p, "%s: left out (--skip)", p->caps[i].name);
+		} else {
+			p->caps[n++] = p->caps[i];
+		}
+	}
+	p->ncaps = n;
+	return 0;
+}
+
 static int read_captures(proc *p)
 {
 	const json_t *list = json_object_get(p->manifest, "captures");
@@ -141,7 +171,7 @@ static int read_captures(proc *p)
 		c->dark = json_string_value(kg_json_find(c->j, "corrections.dark"));
 		c->flat = json_string_value(kg_json_find(c->j, "corrections.flat"));
 	}
-	return 0;
+	return skip_captures(p);
 }
 
 /* ---- a capture's image ----------------------------------------------------------- */
@@ -194,18 +224,30 @@ int proc_same_camera(const proc_capture *a, const proc_capture *b)
 	return 1;
 }
 
+int proc_dark_matches(const proc_capture *d, const proc_capture *c)
+{
+	return d->kind == KG_CAPTURE_DARK && proc_same_camera(d, c) && same_format(d, c) &&
+	       fabs(d->exposure_us - c->exposure_us) <= 1e-6 * c->exposure_us &&
+	       (d->gain_linear == c->gain_linear ||
+	        (isnan(d->gain_linear) && isnan(c->gain_linear) &&
+	         ((isnan(d->gain) && isnan(c->gain)) || d->gain == c->gain)));
+}
+
+const proc_capture *proc_capture_named(const proc *p, const char *name)
+{
+	for (int i = 0; name && i < p->ncaps; i++)
+		if (!strcmp(p->caps[i].name, name))
+			return &p->caps[i];
+	return NULL;
+}
+
 /* The latest dark of the session for c: same camera, format, exposure and gain. */
 const proc_capture *proc_matching_dark(const proc *p, const proc_capture *c)
 {
 	const proc_capture *best = NULL;
-	for (int i = 0; i < p->ncaps; i++) {
-		const proc_capture *d = &p->caps[i];
-		if (d->kind == KG_CAPTURE_DARK && proc_same_camera(d, c) && same_format(d, c) &&
-		    fabs(d->exposure_us - c->exposure_us) <= 1e-6 * c->exposure_us &&
-		    (d->gain_linear == c->gain_linear ||
-		     (isnan(d->gain_linear) && isnan(c->gain_linear))))
-			best = d;
-	}
+	for (int i = 0; i < p->ncaps; i++)
+		if (proc_dark_matches(&p->caps[i], c))
+			best = &p->caps[i];
 	return best;
 }
 
@@ -285,6 +327,14 @@ static int cmp_float_asc(const void *a, const void *b)
 {
 	float x = *(const float *)a, y = *(const float *)b;
 	return (x > y) - (x < y);
+}
+
+double proc_preview_quantile(proc_preview *pv, double q)
+{
+	if (pv->nsamp <= 0)
+		return NAN;
+	qsort(pv->samp, (size_t)pv->nsamp, sizeof(float), cmp_float_asc);
+	return pv->samp[(int)(q * (pv->nsamp - 1))];
 }
 
 int proc_preview_write(proc_preview *pv, const char *path, kg_err *err)
@@ -375,6 +425,7 @@ static void proc_free(proc *p)
 	free(p->caps);
 	json_decref(p->inputs);
 	json_decref(p->warnings);
+	json_decref(p->skipped);
 	kg_chart_layout_free(&p->layout);
 	free(p->layout_path);
 	kg_reference_free(&p->ref);
@@ -400,8 +451,11 @@ static json_t *parameters_json(const kg_process_options *o, const char *material
 		for (int i = 0; i < o->nonly; i++)
 			json_array_append_new(only, json_string(o->only[i]));
 	}
+	json_t *skip = json_array();
+	for (int i = 0; i < o->nskip; i++)
+		json_array_append_new(skip, json_string(o->skip[i]));
 	return json_pack("{s:o, s:o, s:s, s:o, s:o, s:o, s:o, s:f, s:i, s:b, s:b, s:f, s:o, s:s, "
-	                 "s:s, s:[fff], s:[ff]}",
+	                 "s:s, s:[fff], s:[ff], s:o}",
 	                 "reference", jstr_or_null(o->reference), "spectra", jstr_or_null(o->spectra),
 	                 "materials", materials, "only", only, "layout", jstr_or_null(o->layout),
 	                 "mesh", jstr_or_null(o->mesh), "mask", jstr_or_null(o->mask),
@@ -409,7 +463,8 @@ static json_t *parameters_json(const kg_process_options *o, const char *material
 	                 "assume_same_exposure", o->assume_same_exposure, "angle_deg", o->angle_deg,
 	                 "chart", jstr_or_null(o->chart), "cube", o->cube ? o->cube : "f32",
 	                 "method", o->method ? o->method : "camera", "angles", o->angles[0],
-	                 o->angles[1], o->angles[2], "intensity", o->intensity[0], o->intensity[1]);
+	                 o->angles[1], o->angles[2], "intensity", o->intensity[0], o->intensity[1],
+	                 "skip", skip);
 }
 
 static void iso_time(char *buf, size_t n)
@@ -489,8 +544,9 @@ int kg_process_run(const kg_process_options *o, kg_process_summary *summary, kg_
 	json_t *objects = json_array(), *root = NULL;
 	p.inputs = json_array();
 	p.warnings = json_array();
+	p.skipped = json_array();
 	p.manifest_path = kg_path_join(o->session, KG_SESSION_MANIFEST);
-	int ret = p.manifest_path && objects && p.inputs && p.warnings
+	int ret = p.manifest_path && objects && p.inputs && p.warnings && p.skipped
 	              ? 0 : kg_fail(err, KG_ENOMEM, "out of memory");
 	if (!ret && access(p.manifest_path, R_OK) != 0)
 		ret = kg_fail(err, KG_ENOENT, "%s: not a kogei session (no readable %s)", o->session,
@@ -534,6 +590,8 @@ int kg_process_run(const kg_process_options *o, kg_process_summary *summary, kg_
 			ret = kg_fail(err, KG_ENOMEM, "out of memory");
 		if (!ret && o->command)
 			json_object_set_new(root, "command", json_string(o->command));
+		if (!ret)
+			json_object_set(root, "skipped_captures", p.skipped);
 	}
 	char *pj = kg_path_join(o->outdir, "process.json");
 	if (!ret)

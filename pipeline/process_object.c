@@ -26,6 +26,11 @@ static void remove_tree(const char *dir)
 	nftw(dir, remove_entry, 16, FTW_DEPTH | FTW_PHYS);
 }
 
+/* Warned above these (fractions of the object's pixels, of full scale). */
+#define PROC_MAX_CLIPPED 0.01
+#define PROC_BLACK_LEVEL 0.01
+#define PROC_UNDER_LEVEL 0.5
+
 static const char *cam_str(const proc_capture *c, const char *key)
 {
 	const char *v = c->camera ? json_string_value(json_object_get(c->camera, key)) : NULL;
@@ -67,33 +72,41 @@ static double gain_ratio(const proc_capture *chart, const proc_capture *c)
 }
 
 /* Camera values of c relative to the chart capture's: (t g / N^2)_chart over the
- * object's, N the f-number where both record one. */
+ * object's, N the f-number where both record one. --assume-same-exposure fills in only
+ * what is not recorded (an exposure time or a gain taken as equal, ratio 1); what is
+ * recorded still scales the values. */
 static int exposure_scale(proc *p, const proc_capture *c, json_t *warnings, double *scale)
 {
 	const proc_capture *k = p->chart;
 	double t = k->exposure_us / c->exposure_us, g = gain_ratio(k, c);
-	if (isfinite(t) && t > 0 && isfinite(g) && g > 0) {
-		*scale = t * g;
-		if (isfinite(k->aperture) && isfinite(c->aperture) &&
-		    fabs(k->aperture - c->aperture) > 1e-6 * k->aperture) {
-			double a = (c->aperture / k->aperture) * (c->aperture / k->aperture);
-			*scale *= a;
-			proc_warn(p, warnings, "capture %s: aperture f/%g, the chart capture %s f/%g: "
-			          "values scaled by %.4g for the aperture; marked f-numbers are nominal "
-			          "(a lens may be off by a sixth of a stop, 8 %%), so the reflectance "
-			          "scale is uncertain by as much: shoot the chart and the object at one "
-			          "aperture", c->name, c->aperture, k->name, k->aperture, a);
-		}
-		return 0;
+	int t_ok = isfinite(t) && t > 0, g_ok = isfinite(g) && g > 0;
+	if ((!t_ok || !g_ok) && !p->o->assume_same_exposure)
+		return kg_fail(p->err, KG_EINVAL, "capture %s: %s not recorded for it or for the "
+		               "chart capture %s, so its values cannot be normalised to the chart's; "
+		               "--assume-same-exposure if they were equal",
+		               c->name, !t_ok && !g_ok ? "exposure time and gain (dB or ISO)"
+		               : !t_ok        ? "exposure time"
+		                              : "gain (dB or ISO)",
+		               k->name);
+	*scale = (t_ok ? t : 1) * (g_ok ? g : 1);
+	if (isfinite(k->aperture) && isfinite(c->aperture) &&
+	    fabs(k->aperture - c->aperture) > 1e-6 * k->aperture) {
+		double a = (c->aperture / k->aperture) * (c->aperture / k->aperture);
+		*scale *= a;
+		proc_warn(p, warnings, "capture %s: aperture f/%g, the chart capture %s f/%g: "
+		          "values scaled by %.4g for the aperture; marked f-numbers are nominal "
+		          "(a lens may be off by a sixth of a stop, 8 %%), so the reflectance "
+		          "scale is uncertain by as much: shoot the chart and the object at one "
+		          "aperture", c->name, c->aperture, k->name, k->aperture, a);
 	}
-	if (!p->o->assume_same_exposure)
-		return kg_fail(p->err, KG_EINVAL, "capture %s: exposure time or gain (dB or ISO) not "
-		               "recorded for it or for the chart capture %s, so its values cannot be "
-		               "normalised to the chart's; --assume-same-exposure if they were equal",
-		               isfinite(c->exposure_us) ? k->name : c->name, k->name);
-	*scale = 1;
-	proc_warn(p, warnings, "capture %s: exposure unknown, assumed equal to the chart "
-	          "capture's (--assume-same-exposure)", c->name);
+	if (!t_ok || !g_ok)
+		proc_warn(p, warnings, "capture %s: %s unknown (not recorded for it or for the chart "
+		          "capture %s), assumed equal to the chart capture's "
+		          "(--assume-same-exposure); values scaled by %.6g%s",
+		          c->name, !t_ok && !g_ok ? "exposure time and gain" : !t_ok ? "exposure time"
+		                                                              : "gain",
+		          k->name, *scale,
+		          t_ok ? " for the recorded exposure times" : g_ok ? " for the recorded gains" : "");
 	return 0;
 }
 
@@ -113,7 +126,7 @@ int proc_cube_format(const proc *p, kg_est_format *format)
 /* What an object's result depends on; equal keys mean the files can be kept. */
 static json_t *object_key(proc *p, const proc_capture *c)
 {
-	return json_pack("{s:O, s:s, s:O, s:O, s:o, s:s}", "calibration", p->calib_key, "capture",
+	json_t *key = json_pack("{s:O, s:s, s:O, s:O, s:o, s:s}", "calibration", p->calib_key, "capture",
 	                 c->name, "outputs", json_object_get(c->j, "outputs"), "corrections",
 	                 json_object_get(c->j, "corrections"), "parameters",
 	                 json_pack("{s:s, s:f, s:o, s:o, s:b, s:b, s:s, s:s, s:[fff], s:[ff]}",
@@ -128,6 +141,14 @@ static json_t *object_key(proc *p, const proc_capture *c)
 	                 "session", json_string_value(json_object_get(p->manifest, "created"))
 	                                ? json_string_value(json_object_get(p->manifest, "created"))
 	                                : "");
+	/* captures left out change the darks and flats at hand */
+	if (key && p->o->nskip > 0) {
+		json_t *skip = json_array();
+		for (int i = 0; i < p->o->nskip; i++)
+			json_array_append_new(skip, json_string(p->o->skip[i]));
+		json_object_set_new(json_object_get(key, "parameters"), "skip", skip);
+	}
+	return key;
 }
 
 static const json_t *previous_object(const proc *p, const char *name)
@@ -376,6 +397,69 @@ static void stats_json(proc *p, const proc_capture *c, const kg_est_stats *stats
 	                    (json_int_t)stats->pixels, "nonfinite", (json_int_t)stats->nonfinite,
 	                    "clipped", (json_int_t)stats->clipped, "clamped",
 	                    (json_int_t)stats->clamped_pixels));
+	json_t *warnings = json_object_get(object, "warnings");
+	double n = (double)stats->pixels;
+	if (n > 0 && (double)stats->clipped > PROC_MAX_CLIPPED * n)
+		proc_warn(p, warnings, "capture %s: %.1f %% of its pixels clipped (%llu of %llu with "
+		          "a channel at full scale; over %g %%): their colour and reflectance are "
+		          "wrong; shorten the exposure or lower the gain",
+		          c->name, 100 * (double)stats->clipped / n,
+		          (unsigned long long)stats->clipped, (unsigned long long)stats->pixels,
+		          100 * PROC_MAX_CLIPPED);
+	if (n > 0 && (double)stats->clamped_pixels > PROC_MAX_CLIPPED * n)
+		proc_warn(p, warnings, "capture %s: %.1f %% of its pixels clamped (%llu of %llu with "
+		          "a negative reflectance set to 0; over %g %%): expected where it shows "
+		          "black or unlit ground (noise about 0); elsewhere the capture does not fit "
+		          "the calibration (dark missing or another camera's, another light)",
+		          c->name, 100 * (double)stats->clamped_pixels / n,
+		          (unsigned long long)stats->clamped_pixels, (unsigned long long)stats->pixels,
+		          100 * PROC_MAX_CLIPPED);
+}
+
+/* The capture's level from the photograph's samples (every channel, after the dark and
+ * the flat, before the exposure normalisation): its 99.5th percentile against full
+ * scale. Under PROC_BLACK_LEVEL: all black; under PROC_UNDER_LEVEL: under-exposed. */
+static void level_warnings(proc *p, const proc_capture *c, proc_preview *pv, double scale,
+                           json_t *object)
+{
+	json_t *warnings = json_object_get(object, "warnings");
+	double top = proc_preview_quantile(pv, 0.995) / scale;
+	json_object_set_new(object, "level", isfinite(top) ? json_real(top) : json_null());
+	if (!(top >= PROC_BLACK_LEVEL))
+		proc_warn(p, warnings, "capture %s: all black: its brightest pixels (99.5th "
+		          "percentile) reach %.2g %% of full scale: no light reached the sensor "
+		          "(light off, lens capped, or a dark recorded as an object?)",
+		          c->name, isfinite(top) ? 100 * top : 0.0);
+	else if (top < PROC_UNDER_LEVEL)
+		proc_warn(p, warnings, "capture %s: under-exposed by more than 50 %%: its brightest "
+		          "pixels (99.5th percentile) reach %.1f %% of full scale, so its noise is "
+		          "%.1fx what a full exposure gives; expose about %.1fx longer",
+		          c->name, 100 * top, sqrt(0.9 / top), 0.9 / top);
+}
+
+/* What was (not) done to the capture's dark and flat that the operator should know. */
+static void corrections_warnings(proc *p, const proc_capture *c, const proc_image_info *info,
+                                 json_t *warnings)
+{
+	const proc_capture *d = proc_capture_named(p, info->dark);
+	if (!info->dark[0])
+		proc_warn(p, warnings, "capture %s: no matching dark (same camera, serial %s, "
+		          "exposure %.6g us and gain %.6g %s) in the session: not dark-corrected, its "
+		          "values keep the sensor's offset",
+		          c->name, cam_str(c, "serial"), c->exposure_us, c->gain,
+		          c->gain_unit ? c->gain_unit : "");
+	else if (!info->dark_by_process && (!d || !proc_dark_matches(d, c)))
+		proc_warn(p, warnings, "capture %s: acquire subtracted dark %s, %s: not a matching "
+		          "dark (same camera serial, exposure and gain); record the capture again "
+		          "with a matching dark",
+		          c->name, info->dark,
+		          !d ? "which is not in the session (or left out)"
+		          : !proc_same_camera(d, c) ? "of another camera"
+		                                    : "taken with another exposure, gain or format");
+	if (info->flat_by_process)
+		proc_warn(p, warnings, "capture %s: flat %s applied by kogei process, where acquire "
+		          "recorded \"flat: none\" (acquire --flat %s applies it at capture)",
+		          c->name, info->flat, info->flat);
 }
 
 /* Estimate the capture into the cube (--cube f32, f16 or weights). */
@@ -412,7 +496,7 @@ static int estimate_pass(proc *p, const proc_capture *c, proc_source *src,
 
 /* Classify the capture, with its variance and the mask read alongside, and the
  * photograph's preview built on the way. */
-static int classify_pass(proc *p, const proc_capture *c, proc_source *src,
+static int classify_pass(proc *p, const proc_capture *c, proc_source *src, double scale,
                          const proc_image_info *info, const kg_apply_options *opt,
                          const kg_est_material_set *set, const char *labels,
                          const char *photo, json_t *object)
@@ -514,6 +598,8 @@ static int classify_pass(proc *p, const proc_capture *c, proc_source *src,
 		kg_classify_result_free(&cres);
 	}
 	if (!ret)
+		level_warnings(p, c, tap.pv, scale, object);
+	if (!ret)
 		ret = proc_preview_write(tap.pv, photo, err);
 	proc_preview_free(&tap.pv);
 	kg_image_rows_free(&mask);
@@ -550,6 +636,7 @@ static int process_into(proc *p, const proc_capture *c, const char *dir, double 
 		json_object_set_new(object, "height", json_integer(info.height));
 		json_object_set_new(object, "dark", info.dark[0] ? json_string(info.dark) : json_null());
 		json_object_set_new(object, "flat", info.flat[0] ? json_string(info.flat) : json_null());
+		corrections_warnings(p, c, &info, json_object_get(object, "warnings"));
 	}
 	kg_apply_options opt;
 	kg_apply_options_init(&opt);
@@ -564,7 +651,7 @@ static int process_into(proc *p, const proc_capture *c, const char *dir, double 
 	if (!ret && proc_cube_format(p, &format))
 		ret = estimate_pass(p, c, src, &info, &opt, format, cube, object);
 	if (!ret)
-		ret = classify_pass(p, c, src, &info, &opt, set, labels, photo, object);
+		ret = classify_pass(p, c, src, scale, &info, &opt, set, labels, photo, object);
 	const char *fallback = set->names[set->n - 1];
 	if (!ret)
 		ret = classes_json(p, ljson, set, object, class_map, fallback);

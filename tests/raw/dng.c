@@ -56,6 +56,17 @@ int test_dng_write(const char *path, const test_dng *d, char *msg, size_t n)
 	TIFFSetField(t, TIFFTAG_BLACKLEVEL, nb, black);
 	uint32_t white = (uint32_t)d->white;
 	TIFFSetField(t, TIFFTAG_WHITELEVEL, 1, &white);
+	if (d->iso_ifd0 > 0) {
+		/* not a baseline tag of IFD 0 for libtiff: registered for this file */
+		static const TIFFFieldInfo iso_field[] = {
+			{34855, -1, -1, TIFF_SHORT, FIELD_CUSTOM, 1, 1, "ISOSpeedRatings"}};
+		uint16_t iso = (uint16_t)d->iso_ifd0;
+		if (TIFFMergeFieldInfo(t, iso_field, 1) || !TIFFSetField(t, 34855, 1, &iso)) {
+			TIFFClose(t);
+			snprintf(msg, n, "%s: cannot set ISOSpeedRatings in IFD 0", path);
+			return -1;
+		}
+	}
 	int exif = d->exposure_s > 0 || d->fnumber > 0 || d->iso > 0 || d->focal_mm > 0 || d->lens;
 	if (exif)
 		TIFFSetField(t, TIFFTAG_EXIFIFD, (uint64_t)0); /* filled in below */

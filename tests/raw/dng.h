@@ -3,7 +3,8 @@
  * the tags LibRaw reads: DNGVersion, Make, Model, UniqueCameraModel,
  * CameraSerialNumber, CFARepeatPatternDim/CFAPattern, BlackLevel (one value or a 2x2
  * repeat), WhiteLevel, and in an EXIF directory ExposureTime, FNumber,
- * ISOSpeedRatings, FocalLength and LensModel. A
+ * ISOSpeedRatings, FocalLength and LensModel (iso_ifd0: ISOSpeedRatings in IFD 0
+ * instead, as some cameras and converters write it). A
  * photometric of 34892 (LinearRaw) with 3 samples writes an already demosaiced DNG. */
 #ifndef KG_TEST_DNG_H
 #define KG_TEST_DNG_H
@@ -21,6 +22,7 @@ typedef struct test_dng {
 	double exposure_s, iso, fnumber, focal_mm; /* <= 0: tag left out */
 	const char *make, *model, *serial, *lens;  /* NULL: tag left out */
 	int linear_raw;         /* 1: PhotometricInterpretation LinearRaw, 3 samples */
+	double iso_ifd0;        /* > 0: ISOSpeedRatings (0x8827) written in IFD 0 */
 } test_dng;
 
 /* 0, or -1 with a message in msg. */

@@ -135,6 +135,35 @@ static void test_meta_and_readers(void)
 	      m.focal_length_mm);
 	CHECK(!strncmp(m.format, "DNG 1.4", 7), "format '%s'", m.format);
 
+	/* ISOSpeedRatings in IFD 0 rather than the EXIF IFD: read too (LibRaw alone
+	 * misses it), from a file and from memory */
+	test_dng g0 = g;
+	g0.iso = 0;
+	g0.iso_ifd0 = 250;
+	const char *f0 = path_of("iso_ifd0.dng");
+	write_or_die(f0, &g0);
+	kg_raw_meta m0;
+	CHECK(kg_raw_read_meta(f0, &m0, &err) == 0, "meta, ISO in IFD 0: %s", err.msg);
+	CHECK(m0.iso == 250 && m0.exposure_s == 0.008, "ISO in IFD 0 read as %g (exposure %g s)",
+	      m0.iso, m0.exposure_s);
+	{
+		FILE *fp = fopen(f0, "rb");
+		static unsigned char buf[1 << 20];
+		size_t nb = fp ? fread(buf, 1, sizeof(buf), fp) : 0;
+		if (fp)
+			fclose(fp);
+		kg_image *im0 = NULL;
+		memset(&m0, 0, sizeof(m0));
+		CHECK(kg_raw_read_memory(buf, nb, "iso_ifd0.dng", &im0, &m0, &err) == 0,
+		      "memory, ISO in IFD 0: %s", err.msg);
+		CHECK(m0.iso == 250, "ISO in IFD 0 from memory read as %g", m0.iso);
+		kg_image_free(&im0);
+	}
+	/* and neither: unknown, not 0 */
+	g0.iso_ifd0 = 0;
+	write_or_die(f0, &g0);
+	CHECK(kg_raw_read_meta(f0, &m0, &err) == 0 && isnan(m0.iso), "no ISO read as %g", m0.iso);
+
 	/* kg_image_read: by extension, and by DNGVersion under a .tif name */
 	kg_image *a = NULL, *b = NULL, *c = NULL;
 	CHECK(kg_raw_read(f, &a, NULL, &err) == 0, "raw read: %s", err.msg);
