@@ -210,8 +210,11 @@ int kg_session_open(const char *dir, kg_session **out, kg_err *err)
 	if (!ret)
 		ret = kg_mkdir_p(dir, err);
 	if (!ret) {
-		s->lock_fd = open(lock, O_RDWR | O_CREAT | O_CLOEXEC, 0644);
-		if (s->lock_fd < 0)
+		s->lock_fd = open(lock, O_RDWR | O_CREAT | O_CLOEXEC | O_NOFOLLOW, 0644);
+		if (s->lock_fd < 0 && errno == ELOOP)
+			ret = kg_fail(err, KG_EINVAL, "%s: is a symbolic link; kogei writes and reads "
+			              "only real files and folders inside %s (remove the link)", lock, dir);
+		else if (s->lock_fd < 0)
 			ret = kg_fail(err, KG_EIO, "%s: cannot create: %s", lock, strerror(errno));
 		else if (flock(s->lock_fd, LOCK_EX | LOCK_NB) != 0)
 			ret = kg_fail(err, errno == EWOULDBLOCK ? KG_EINVAL : KG_EIO,

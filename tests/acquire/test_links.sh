@@ -61,6 +61,16 @@ rc=$?
 check "dangling captures/NAME: exit 1 (got $rc)" '[ $rc -eq 1 ]'
 check "dangling captures/NAME: nothing created outside" '[ ! -e "$tmp/not-yet" ]'
 
+# .lock a link to a file elsewhere: not opened through (nothing created there)
+s="$tmp/s-lock"
+cp -a "$base" "$s"
+rm -f "$s/.lock"
+ln -s "$tmp/lock-outside" "$s/.lock"
+acq "$s"
+rc=$?
+check ".lock linked: exit 1 (got $rc)" '[ $rc -eq 1 ]'
+check ".lock linked: nothing created outside" '[ ! -e "$tmp/lock-outside" ]'
+
 # 3: frames/index.jsonl a link to a file elsewhere: not appended through
 s="$tmp/s-index"
 cp -a "$base" "$s"
