@@ -6,6 +6,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 #include <sys/stat.h>
 #include <time.h>
 #include <unistd.h>
@@ -70,6 +71,7 @@ typedef struct cap_ctx {
 	json_t *steps;  /* exposure helper */
 	json_t *sources; /* files the frames were read from: [{file, sha256}] */
 	char source_note[256]; /* how the first of them was decoded */
+	char layout_rel[KG_CAPTURE_NAME_MAX + 32]; /* chart_layout as the manifest records it */
 } cap_ctx;
 
 static void note(const cap_ctx *c, const char *fmt, ...) KG_PRINTF(2, 3);
@@ -568,9 +570,10 @@ static int write_output(cap_ctx *c, const kg_image *img, const char *file,
 
 static void remove_outputs(cap_ctx *c)
 {
-	static const char *const files[] = {"mean.tif", "variance.tif", "rgb.tif"};
+	static const char *const files[] = {"mean.tif", "variance.tif", "rgb.tif", "layout.json",
+	                                    "layout.cht"};
 	char rel[KG_CAPTURE_NAME_MAX + 32];
-	for (size_t i = 0; i < 3; i++) {
+	for (size_t i = 0; i < sizeof(files) / sizeof(files[0]); i++) {
 		snprintf(rel, sizeof(rel), "captures/%s/%s", c->res->name, files[i]);
 		char *p = kg_session_path(c->s, rel);
 		if (p)
@@ -582,6 +585,42 @@ static void remove_outputs(cap_ctx *c)
 	if (p)
 		rmdir(p);
 	free(p);
+}
+
+/* The chart layout the manifest records: a bundled layout's name as it is; a layout
+ * file (--layout FILE: a name with a '/', or a file that exists) copied into
+ * captures/<name>/layout.json (layout.cht for an ArgyllCMS template), so that what the
+ * manifest names is inside the session. */
+static int copy_layout(cap_ctx *c, kg_err *err)
+{
+	const char *l = c->o->chart_layout;
+	struct stat st;
+	c->layout_rel[0] = 0;
+	if (!l)
+		return 0;
+	if (!strchr(l, '/') && stat(l, &st) != 0) {
+		snprintf(c->layout_rel, sizeof(c->layout_rel), "%s", l);
+		return 0;
+	}
+	size_t n = strlen(l);
+	snprintf(c->layout_rel, sizeof(c->layout_rel), "captures/%s/%s", c->res->name,
+	         n > 4 && !strcasecmp(l + n - 4, ".cht") ? "layout.cht" : "layout.json");
+	char *buf = NULL, *path = kg_session_path(c->s, c->layout_rel);
+	size_t len = 0;
+	kg_outfile o;
+	int ret = path ? kg_read_file(l, &buf, &len, err) : KG_ENOMEM;
+	if (!ret)
+		ret = kg_outfile_open(&o, path, 0, err);
+	if (!ret) {
+		if (fwrite(buf, 1, len, o.fp) != len) {
+			ret = kg_fail_write(err, errno, path, "write failed");
+			kg_outfile_abort(&o);
+		} else
+			ret = kg_outfile_commit(&o, err);
+	}
+	free(buf);
+	free(path);
+	return ret;
 }
 
 static json_t *format_json(const kg_frame_format *f)
@@ -792,8 +831,11 @@ static json_t *capture_json(cap_ctx *c, const char *started, const char *ended,
 			          "measure", o->measure && o->measure_name ? o->measure_name
 			                     : "99.5th percentile of 5x5 same-colour means",
 			          "iterations", r->nsteps, "steps", c->steps, "locked", 1));
-	if (cap && o->chart_layout)
-		json_object_set_new(cap, "chart_layout", json_string(o->chart_layout));
+	if (cap && c->layout_rel[0]) {
+		json_object_set_new(cap, "chart_layout", json_string(c->layout_rel));
+		if (strcmp(c->layout_rel, o->chart_layout)) /* copied: where from */
+			json_object_set_new(cap, "chart_layout_source", json_string(o->chart_layout));
+	}
 	if (cap && json_array_size(c->sources))
 		json_object_set_new(cap, "sources",
 		                    json_pack("{s:O, s:s}", "files", c->sources, "decoding",
@@ -911,10 +953,8 @@ int kg_capture_run(kg_session *s, kg_camera *camera, const kg_capture_options *o
 	/* Outputs, then the manifest entry that references them. */
 	char rel[KG_CAPTURE_NAME_MAX + 16];
 	snprintf(rel, sizeof(rel), "captures/%s", res->name);
-	char *dir = kg_session_path(s, rel);
-	ret = dir ? kg_mkdir_p(dir, err) : KG_ENOMEM;
-	free(dir);
-	if (ret)
+	/* a real folder below the session, no symbolic link on the way */
+	if ((ret = kg_mkdir_below(kg_session_dir(s), rel, err)))
 		goto done;
 	wrote = 1;
 	json_t *outputs = json_object();
@@ -931,6 +971,8 @@ int kg_capture_run(kg_session *s, kg_camera *camera, const kg_capture_options *o
 	if (!ret && res->rgb)
 		ret = write_output(&c, res->rgb, "rgb.tif", "the mean demosaiced to RGB", outputs,
 		                   "rgb", err);
+	if (!ret)
+		ret = copy_layout(&c, err);
 	/* The outputs' directory entries reach the disk before the manifest names them. */
 	for (int k = 0; k < 2 && !ret; k++) {
 		char *d = kg_session_path(s, k ? "captures" : rel);

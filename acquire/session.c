@@ -135,6 +135,42 @@ static int check_entries(kg_session *s, kg_err *err)
 	return ret;
 }
 
+/* No symbolic link where kogei writes or reads: the manifest, frames/, captures/,
+ * spectra/, frames/index.jsonl and every entry of frames/ and captures/ (a linked folder
+ * would have frames and outputs written outside the session, a linked index appended
+ * through the link). */
+static int check_links(const kg_session *s, kg_err *err)
+{
+	static const char *const top[] = {KG_SESSION_MANIFEST, "frames", "captures", "spectra",
+	                                  "frames/index.jsonl", "frames/camera.json"};
+	int ret = 0;
+	for (size_t i = 0; !ret && i < sizeof(top) / sizeof(top[0]); i++)
+		ret = kg_check_below(s->dir, top[i], err);
+	for (int k = 0; !ret && k < 2; k++) {
+		const char *sub = k ? "captures" : "frames";
+		int fd = kg_open_below(s->dir, sub, O_RDONLY | O_DIRECTORY, 0, NULL);
+		DIR *d = fd >= 0 ? fdopendir(fd) : NULL;
+		if (!d) {
+			if (fd >= 0)
+				close(fd);
+			continue; /* not there (yet) */
+		}
+		for (struct dirent *e; !ret && (e = readdir(d));) {
+			if (!strcmp(e->d_name, ".") || !strcmp(e->d_name, ".."))
+				continue;
+			struct stat st;
+			if (fstatat(dirfd(d), e->d_name, &st, AT_SYMLINK_NOFOLLOW) == 0 &&
+			    S_ISLNK(st.st_mode)) {
+				char rel[512];
+				snprintf(rel, sizeof(rel), "%s/%s", sub, e->d_name);
+				ret = kg_check_below(s->dir, rel, err);
+			}
+		}
+		closedir(d);
+	}
+	return ret;
+}
+
 static int load_manifest(kg_session *s, kg_err *err)
 {
 	const char *f = s->manifest_path;
@@ -174,8 +210,11 @@ int kg_session_open(const char *dir, kg_session **out, kg_err *err)
 	if (!ret)
 		ret = kg_mkdir_p(dir, err);
 	if (!ret) {
-		s->lock_fd = open(lock, O_RDWR | O_CREAT | O_CLOEXEC, 0644);
-		if (s->lock_fd < 0)
+		s->lock_fd = open(lock, O_RDWR | O_CREAT | O_CLOEXEC | O_NOFOLLOW, 0644);
+		if (s->lock_fd < 0 && errno == ELOOP)
+			ret = kg_fail(err, KG_EINVAL, "%s: is a symbolic link; kogei writes and reads "
+			              "only real files and folders inside %s (remove the link)", lock, dir);
+		else if (s->lock_fd < 0)
 			ret = kg_fail(err, KG_EIO, "%s: cannot create: %s", lock, strerror(errno));
 		else if (flock(s->lock_fd, LOCK_EX | LOCK_NB) != 0)
 			ret = kg_fail(err, errno == EWOULDBLOCK ? KG_EINVAL : KG_EIO,
@@ -184,6 +223,8 @@ int kg_session_open(const char *dir, kg_session **out, kg_err *err)
 	}
 	if (!ret)
 		ret = check_entries(s, err);
+	if (!ret)
+		ret = check_links(s, err);
 	if (!ret) {
 		if (stat(s->manifest_path, &st) == 0)
 			ret = load_manifest(s, err);
@@ -224,7 +265,7 @@ static int exists(const kg_session *s, const char *sub, const char *name)
 	snprintf(rel, sizeof(rel), "%s/%s", sub, name);
 	char *p = kg_session_path(s, rel);
 	struct stat st;
-	int r = p && stat(p, &st) == 0;
+	int r = p && lstat(p, &st) == 0;
 	free(p);
 	return r;
 }

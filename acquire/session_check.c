@@ -57,11 +57,15 @@ static int file_entry(check_ctx *c, const char *key, const char *prefix)
 	if (!is_hex64(sha))
 		return kg_fail(c->err, KG_EINVAL, "%s: %s: '%s': expected 64 lower-case hex digits",
 		               c->file, k, sha);
-	char *p = kg_path_join(c->dir, file);
 	struct stat st;
-	int there = p && lstat(p, &st) == 0 && S_ISREG(st.st_mode);
-	free(p);
-	if (!there)
+	kg_err e = {{0}};
+	int r = kg_stat_below(c->dir, file, &st, &e);
+	if (r && r != KG_ENOENT) { /* a symbolic link on the way */
+		if (c->err)
+			*c->err = e;
+		return r;
+	}
+	if (r || !S_ISREG(st.st_mode))
 		return kg_fail(c->err, KG_EINVAL,
 		               "%s: %s.file: '%s': expected a regular file in the session %s", c->file,
 		               key, file, c->dir);
@@ -171,6 +175,36 @@ static int check_correction(check_ctx *c, size_t i, const char *which)
 	               c->file, k, which);
 }
 
+/* chart_layout: absent or null, a layout's name (one component: the readers take only
+ * a bundled layout's), or a regular file under prefix ("captures/NAME/", where acquire
+ * copies a --layout FILE) reached with no symbolic link on the way. Never a path
+ * elsewhere: a manifest must not make kogei open any file it names. */
+static int check_layout(check_ctx *c, const char *key, const char *prefix)
+{
+	const json_t *v = kg_json_find(c->root, key);
+	if (!v || json_is_null(v))
+		return 0;
+	const char *l = json_string_value(v);
+	if (l && kg_name_is_safe(l, KG_CAPTURE_NAME_MAX))
+		return 0;
+	if (l && !strncmp(l, prefix, strlen(prefix)) && kg_relpath_is_safe(l, KG_CAPTURE_NAME_MAX)) {
+		struct stat st;
+		kg_err e = {{0}};
+		int r = kg_stat_below(c->dir, l, &st, &e);
+		if (!r && S_ISREG(st.st_mode))
+			return 0;
+		if (r && r != KG_ENOENT) { /* a symbolic link on the way */
+			if (c->err)
+				*c->err = e;
+			return r;
+		}
+	}
+	return kg_fail(c->err, KG_EINVAL,
+	               "%s: %s: '%s': expected a bundled chart layout's name or a regular file "
+	               "%s<file> inside the session (no absolute path, no '..')",
+	               c->file, key, l ? l : "(not a string)", prefix);
+}
+
 static int check_capture(check_ctx *c, size_t i)
 {
 	char k[PATH_KEY], prefix[KG_CAPTURE_NAME_MAX + 16];
@@ -268,7 +302,8 @@ static int check_capture(check_ctx *c, size_t i)
 	}
 	if ((ret = check_correction(c, i, "dark")) || (ret = check_correction(c, i, "flat")))
 		return ret;
-	return 0;
+	snprintf(k, sizeof(k), "captures[%zu].chart_layout", i);
+	return check_layout(c, k, prefix);
 }
 
 int kg_session_manifest_validate(const char *file, const json_t *root, kg_err *err)

@@ -7,6 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
+#include <sys/stat.h>
 
 #include "kg_calib.h"
 
@@ -777,6 +778,55 @@ int kg_chart_layout_resolve(const char *arg, char **path, kg_err *err)
 	return kg_data_resolve(arg, "chart layout", bundled_layouts,
 	                       (int)(sizeof(bundled_layouts) / sizeof(bundled_layouts[0])), path,
 	                       err);
+}
+
+/* The bundled layout named name (a ".json" suffix allowed), or NULL. */
+static const kg_data_name *bundled_layout(const char *name)
+{
+	size_t len = strlen(name);
+	if (len > 5 && !strcmp(name + len - 5, ".json"))
+		len -= 5;
+	for (size_t i = 0; i < sizeof(bundled_layouts) / sizeof(bundled_layouts[0]); i++)
+		if (strlen(bundled_layouts[i].name) == len && !strncmp(bundled_layouts[i].name, name, len))
+			return &bundled_layouts[i];
+	return NULL;
+}
+
+int kg_chart_layout_is_bundled(const char *name)
+{
+	return name && !strchr(name, '/') && bundled_layout(name) != NULL;
+}
+
+int kg_chart_layout_resolve_session(const char *session_dir, const char *manifest,
+                                    const char *key, const char *value, char **path,
+                                    kg_err *err)
+{
+	kg_check_arg(session_dir && manifest && key && value && path, err);
+	*path = NULL;
+	if (kg_chart_layout_is_bundled(value)) {
+		*path = kg_data_path(bundled_layout(value)->file);
+		return *path ? 0 : kg_fail(err, KG_ENOMEM, "%s: out of memory", manifest);
+	}
+	struct stat st;
+	kg_err e = {{0}};
+	int ret = !strncmp(value, "captures/", 9) && kg_relpath_is_safe(value, 256)
+	                  ? kg_stat_below(session_dir, value, &st, &e)
+	                  : KG_EINVAL;
+	if (!ret && !S_ISREG(st.st_mode))
+		ret = KG_EINVAL;
+	if (ret) {
+		char names[256] = "";
+		for (size_t i = 0, at = 0;
+		     i < sizeof(bundled_layouts) / sizeof(bundled_layouts[0]) && at < sizeof(names); i++)
+			at += (size_t)snprintf(names + at, sizeof(names) - at, "%s%s", i ? ", " : "",
+			                       bundled_layouts[i].name);
+		return kg_fail(err, KG_EINVAL,
+		               "%s: %s: '%s': expected a bundled chart layout (%s) or a regular file "
+		               "captures/<capture>/<file> inside the session %s%s%s",
+		               manifest, key, value, names, session_dir, e.msg[0] ? ": " : "", e.msg);
+	}
+	*path = kg_path_join(session_dir, value);
+	return *path ? 0 : kg_fail(err, KG_ENOMEM, "%s: out of memory", manifest);
 }
 
 static int load_json(const char *path, kg_chart_layout **out, kg_err *err)

@@ -481,6 +481,16 @@ typedef struct kg_chart_layout {
  * KG_ENOENT listing them. *path is newly allocated. Every command that takes a layout
  * goes through this (kg_chart_layout_load calls it). */
 int kg_chart_layout_resolve(const char *arg, char **path, kg_err *err);
+/* 1 when name is a bundled layout's name (no '/', a ".json" suffix allowed). */
+int kg_chart_layout_is_bundled(const char *name);
+/* The layout a session's manifest names (value at key, e.g. "captures[2].chart_layout"):
+ * a bundled layout's name, or a regular file captures/<capture>/<file> of the session
+ * reached with no symbolic link on the way (acquire copies a --layout FILE there).
+ * Anything else (an absolute path, "..", a file elsewhere) fails with KG_EINVAL naming
+ * the manifest, the key and what was expected. *path is newly allocated. */
+int kg_chart_layout_resolve_session(const char *session_dir, const char *manifest,
+                                    const char *key, const char *value, char **path,
+                                    kg_err *err);
 /* Load a layout (a file or a bundled name, kg_chart_layout_resolve): "kogei-chart/1"
  * JSON, or (by the .cht extension, any case) an ArgyllCMS template in its own units. The
  * geometry is checked (kg_chart_layout_check). Errors name the file, the key or line,

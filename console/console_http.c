@@ -562,7 +562,19 @@ int kg_console_run(const kg_console_options *o, int *device_failure, kg_err *err
 		return code;
 	static char layout_copy[PATH_MAX];
 	if (!c->layout && session_layout(c->session)) {
-		snprintf(layout_copy, sizeof(layout_copy), "%s", session_layout(c->session));
+		/* the manifest's: a bundled name, or a file inside the session (never elsewhere) */
+		const char *lay = session_layout(c->session);
+		char *lp = NULL, *mf = kg_path_join(c->session_dir, KG_SESSION_MANIFEST);
+		if (mf && !kg_chart_layout_is_bundled(lay) &&
+		    (code = kg_chart_layout_resolve_session(c->session_dir, mf, "chart_layout", lay,
+		                                            &lp, err))) {
+			free(mf);
+			kg_session_free(&c->session);
+			return code;
+		}
+		snprintf(layout_copy, sizeof(layout_copy), "%s", lp ? lp : lay);
+		free(lp);
+		free(mf);
 		c->layout = layout_copy;
 	}
 	int rc = 0;

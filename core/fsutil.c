@@ -614,3 +614,204 @@ int kg_cpu_count(int max)
 		n = 1;
 	return max > 0 && n > max ? max : (int)n;
 }
+
+/* ---- paths below a root, no symbolic link on the way ------------------------------ */
+
+/* The error for a component that is a symbolic link (or not a folder where one must
+ * be): names root/rel up to that component. */
+static int below_fail(kg_err *err, const char *root, const char *rel, size_t upto, int errnum,
+                      int is_link)
+{
+	char shown[4096];
+	snprintf(shown, sizeof(shown), "%s%s%.*s", root,
+	         (*root && root[strlen(root) - 1] != '/') ? "/" : "", (int)upto, rel);
+	if (is_link)
+		return kg_fail(err, KG_EINVAL,
+		               "%s: is a symbolic link; kogei writes and reads only real files and "
+		               "folders inside %s (remove the link)",
+		               shown, root);
+	if (errnum == ENOTDIR)
+		return kg_fail(err, KG_EINVAL, "%s: expected a folder", shown);
+	return kg_fail(err, errnum == ENOENT ? KG_ENOENT : KG_EIO, "%s: %s", shown,
+	               strerror(errnum));
+}
+
+/* Walk rel below root: *dirfd is left open on the folder that holds the last component,
+ * *last points at that component. Every folder on the way is opened with O_NOFOLLOW;
+ * with create, missing folders are made. */
+static int walk_below(const char *root, const char *rel, int create, int *dirfd,
+                      const char **last, kg_err *err)
+{
+	*dirfd = -1;
+	if (!rel || !*rel || rel[0] == '/')
+		return kg_fail(err, KG_EINVAL, "%s: '%s': expected a relative path inside it", root,
+		               rel ? rel : "");
+	int fd = open(root, O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+	if (fd < 0)
+		return below_fail(err, root, "", 0, errno, 0);
+	const char *p = rel;
+	for (const char *slash; (slash = strchr(p, '/'));) {
+		size_t n = (size_t)(slash - p);
+		char part[256];
+		if (!n || n >= sizeof(part) || (n == 1 && p[0] == '.') ||
+		    (n == 2 && p[0] == '.' && p[1] == '.')) {
+			close(fd);
+			return kg_fail(err, KG_EINVAL, "%s: '%s': expected a path inside it (no '..', "
+			               "'.' or empty component)", root, rel);
+		}
+		memcpy(part, p, n);
+		part[n] = 0;
+		if (create && mkdirat(fd, part, 0755) != 0 && errno != EEXIST) {
+			int e = errno;
+			close(fd);
+			return below_fail(err, root, rel, (size_t)(slash - rel), e, 0);
+		}
+		int next = openat(fd, part, O_RDONLY | O_DIRECTORY | O_NOFOLLOW | O_CLOEXEC);
+		if (next < 0) {
+			int e = errno;
+			struct stat st;
+			int link = (e == ELOOP || e == ENOTDIR) &&
+			           fstatat(fd, part, &st, AT_SYMLINK_NOFOLLOW) == 0 && S_ISLNK(st.st_mode);
+			close(fd);
+			return below_fail(err, root, rel, (size_t)(slash - rel), e, link);
+		}
+		close(fd);
+		fd = next;
+		p = slash + 1;
+	}
+	if (!*p || !strcmp(p, ".") || !strcmp(p, "..")) {
+		close(fd);
+		return kg_fail(err, KG_EINVAL, "%s: '%s': expected a path inside it (no '..', '.' "
+		               "or empty component)", root, rel);
+	}
+	*dirfd = fd;
+	*last = p;
+	return 0;
+}
+
+int kg_open_below(const char *root, const char *rel, int flags, int mode, kg_err *err)
+{
+	kg_check_arg(root, err);
+	int dfd;
+	const char *last;
+	int ret = walk_below(root, rel, (flags & O_CREAT) != 0, &dfd, &last, err);
+	if (ret)
+		return ret;
+	int fd = openat(dfd, last, flags | O_NOFOLLOW | O_CLOEXEC, mode);
+	if (fd < 0) {
+		int e = errno;
+		struct stat st;
+		int link = fstatat(dfd, last, &st, AT_SYMLINK_NOFOLLOW) == 0 && S_ISLNK(st.st_mode);
+		close(dfd);
+		return below_fail(err, root, rel, strlen(rel), e, link);
+	}
+	close(dfd);
+	return fd;
+}
+
+int kg_stat_below(const char *root, const char *rel, struct stat *st, kg_err *err)
+{
+	kg_check_arg(root && st, err);
+	int dfd;
+	const char *last;
+	int ret = walk_below(root, rel, 0, &dfd, &last, err);
+	if (ret)
+		return ret;
+	if (fstatat(dfd, last, st, AT_SYMLINK_NOFOLLOW) != 0) {
+		int e = errno;
+		close(dfd);
+		return below_fail(err, root, rel, strlen(rel), e, 0);
+	}
+	close(dfd);
+	if (S_ISLNK(st->st_mode))
+		return below_fail(err, root, rel, strlen(rel), ELOOP, 1);
+	return 0;
+}
+
+int kg_check_below(const char *root, const char *rel, kg_err *err)
+{
+	struct stat st;
+	kg_err e = {{0}};
+	int ret = kg_stat_below(root, rel, &st, &e);
+	if (ret == KG_ENOENT)
+		return 0;
+	if (ret && err)
+		*err = e;
+	return ret;
+}
+
+int kg_mkdir_below(const char *root, const char *rel, kg_err *err)
+{
+	kg_check_arg(root && rel, err);
+	size_t n = strlen(rel);
+	char *with_slash = malloc(n + 3);
+	if (!with_slash)
+		return kg_fail(err, KG_ENOMEM, "%s: out of memory", root);
+	/* walk "rel/x" so that every component of rel is a folder made or opened */
+	snprintf(with_slash, n + 3, "%s/x", rel);
+	int dfd;
+	const char *last;
+	int ret = walk_below(root, with_slash, 1, &dfd, &last, err);
+	free(with_slash);
+	if (!ret)
+		close(dfd);
+	return ret;
+}
+
+int kg_read_below(const char *root, const char *rel, char **buf, size_t *len, kg_err *err)
+{
+	kg_check_arg(root && buf, err);
+	*buf = NULL;
+	int fd = kg_open_below(root, rel, O_RDONLY, 0, err);
+	if (fd < 0)
+		return fd;
+	char *path = kg_path_join(root, rel);
+	struct stat st;
+	int ret = 0;
+	if (!path)
+		ret = kg_fail(err, KG_ENOMEM, "%s: out of memory", root);
+	else if (fstat(fd, &st) != 0 || !S_ISREG(st.st_mode))
+		ret = kg_fail(err, KG_EINVAL, "%s: expected a regular file", path);
+	if (ret) {
+		close(fd);
+		free(path);
+		return ret;
+	}
+	kg_inputs_add(path, fd);
+	size_t cap = (size_t)st.st_size + 1, n = 0;
+	char *b = malloc(cap + 1);
+	while (b) {
+		ssize_t got = read(fd, b + n, cap - n);
+		if (got < 0 && errno == EINTR)
+			continue;
+		if (got < 0) {
+			ret = kg_fail(err, KG_EIO, "%s: read error: %s", path, strerror(errno));
+			break;
+		}
+		if (got == 0)
+			break;
+		n += (size_t)got;
+		if (n == cap) {
+			cap *= 2;
+			char *nb = realloc(b, cap + 1);
+			if (!nb) {
+				free(b);
+				b = NULL;
+			} else
+				b = nb;
+		}
+	}
+	close(fd);
+	if (!b && !ret)
+		ret = kg_fail(err, KG_ENOMEM, "%s: out of memory reading file", path);
+	free(path);
+	if (ret) {
+		free(b);
+		return ret;
+	}
+	b[n] = '\0';
+	*buf = b;
+	if (len)
+		*len = n;
+	return 0;
+}

@@ -117,6 +117,26 @@ int kg_relpath_is_safe(const char *rel, size_t max_len);
  * ("write failed", "cannot create"). Returns the code. */
 int kg_fail_write(kg_err *err, int errnum, const char *path, const char *what);
 
+/* Paths below a root (a session, an output folder) with no symbolic link on the way:
+ * rel is walked one component at a time from root with openat(O_NOFOLLOW), so neither a
+ * folder of rel nor its last component may be a symbolic link (root itself may be). A
+ * link fails with KG_EINVAL and "<root>/<rel up to the link>: is a symbolic link; ...";
+ * an absolute rel or a "..", "." or empty component fails with KG_EINVAL.
+ *
+ * kg_open_below: open root/rel with flags (O_NOFOLLOW and O_CLOEXEC added; with O_CREAT
+ * the missing folders of rel are made too); the fd, or minus the error code. */
+int kg_open_below(const char *root, const char *rel, int flags, int mode, kg_err *err);
+/* lstat of root/rel (KG_ENOENT, with a message, when it does not exist). */
+struct stat;
+int kg_stat_below(const char *root, const char *rel, struct stat *st, kg_err *err);
+/* 0 when root/rel does not exist or is reached and is no symbolic link; else the error. */
+int kg_check_below(const char *root, const char *rel, kg_err *err);
+/* Make root/rel and its missing parents below root (like mkdir -p); each must be a
+ * real folder. */
+int kg_mkdir_below(const char *root, const char *rel, kg_err *err);
+/* kg_read_file of root/rel, opened as kg_open_below does (noted as an input). */
+int kg_read_below(const char *root, const char *rel, char **buf, size_t *len, kg_err *err);
+
 /* Join dir and name into a newly allocated path. */
 char *kg_path_join(const char *dir, const char *name);
 

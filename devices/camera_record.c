@@ -26,6 +26,7 @@
 #define DEFAULT_CAPTURE "capture"
 
 struct kg_frame_recorder {
+	char *session;     /* the session folder */
 	char *frames;      /* <session>/frames */
 	char *index_path;  /* <session>/frames/index.jsonl */
 	int index_fd;      /* O_APPEND */
@@ -200,17 +201,26 @@ int kg_frame_recorder_open(const char *session_dir, const kg_camera_info *info,
 		return kg_fail(err, KG_ENOMEM, "%s: out of memory", session_dir);
 	r->index_fd = -1;
 	snprintf(r->capture, sizeof(r->capture), "%s", DEFAULT_CAPTURE);
+	r->session = strdup(session_dir);
 	r->frames = kg_path_join(session_dir, "frames");
 	r->index_path = r->frames ? kg_path_join(r->frames, "index.jsonl") : NULL;
-	int ret = r->index_path ? 0 : kg_fail(err, KG_ENOMEM, "%s: out of memory", session_dir);
+	int ret = r->session && r->index_path
+	                  ? 0
+	                  : kg_fail(err, KG_ENOMEM, "%s: out of memory", session_dir);
+	/* frames/ and its index real files of the session: a symbolic link is refused */
 	if (!ret)
-		ret = kg_mkdir_p(r->frames, err);
+		ret = kg_mkdir_below(session_dir, "frames", err);
+	if (!ret)
+		ret = kg_check_below(session_dir, "frames/camera.json", err);
 	if (!ret)
 		sweep_captures(r->frames);
 	if (!ret) {
-		r->index_fd = open(r->index_path, O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
-		if (r->index_fd < 0)
-			ret = kg_fail(err, KG_EIO, "%s: cannot open: %s", r->index_path, strerror(errno));
+		r->index_fd = kg_open_below(session_dir, "frames/index.jsonl",
+		                            O_WRONLY | O_CREAT | O_APPEND, 0644, err);
+		if (r->index_fd < 0) {
+			ret = r->index_fd;
+			r->index_fd = -1;
+		}
 	}
 	if (!ret)
 		ret = index_repair(r, err);
@@ -252,7 +262,9 @@ static int capture_begin(kg_frame_recorder *r, kg_err *err)
 	r->capture_dir = kg_path_join(r->frames, r->capture);
 	if (!r->capture_dir)
 		return kg_fail(err, KG_ENOMEM, "%s: out of memory", r->frames);
-	int ret = kg_mkdir_p(r->capture_dir, err);
+	char rel[CAPTURE_MAX + 16];
+	snprintf(rel, sizeof(rel), "frames/%s", r->capture);
+	int ret = kg_mkdir_below(r->session, rel, err); /* no symbolic link on the way */
 	if (!ret)
 		ret = fsync_dir(r->frames, err);
 	if (ret) {
@@ -405,6 +417,7 @@ int kg_frame_recorder_close(kg_frame_recorder **pr, kg_err *err)
 	free(r->capture_dir);
 	free(r->index_path);
 	free(r->frames);
+	free(r->session);
 	free(r);
 	return ret;
 }
@@ -425,7 +438,12 @@ int kg_camera_recording_discard(const char *session_dir, const char *capture, kg
 	size_t len = 0;
 	kg_outfile out = {0};
 	struct stat st;
+	char rel[CAPTURE_MAX + 16];
+	snprintf(rel, sizeof(rel), "frames/%s", capture);
 	int ret = index ? 0 : kg_fail(err, KG_ENOMEM, "%s: out of memory", session_dir);
+	/* nothing is removed or rewritten through a symbolic link */
+	if (!ret && !(ret = kg_check_below(session_dir, "frames/index.jsonl", err)))
+		ret = kg_check_below(session_dir, rel, err);
 	if (ret || stat(index, &st) != 0) { /* nothing was recorded */
 		free(index);
 		free(frames);

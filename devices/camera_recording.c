@@ -156,6 +156,10 @@ int kg_camera_recording_validate(const char *session_dir, kg_err *err)
 	int ret = 0;
 	char *buf = NULL;
 	size_t len = 0;
+	/* the recording's files are real files of the session: no symbolic link */
+	if ((ret = kg_check_below(session_dir, "frames/index.jsonl", err)) ||
+	    (ret = kg_check_below(session_dir, "frames/camera.json", err)))
+		goto done;
 	if (stat(index, &st) != 0)
 		goto done; /* nothing recorded */
 	kg_frame_format fmt0;
@@ -185,12 +189,18 @@ int kg_camera_recording_validate(const char *session_dir, kg_err *err)
 		if ((ret = kg_rec_parse_line(index, line, lineno, &fr, err)))
 			break;
 		char *p = kg_path_join(session_dir, fr.file);
+		kg_err e = {{0}};
+		int r = p ? kg_stat_below(session_dir, fr.file, &st, &e) : 0;
 		if (!p)
 			ret = kg_fail(err, KG_ENOMEM, "%s: out of memory", index);
-		else if (lstat(p, &st) != 0 || !S_ISREG(st.st_mode))
+		else if (r && r != KG_ENOENT) { /* a symbolic link on the way */
+			ret = r;
+			if (err)
+				*err = e;
+		} else if (r || !S_ISREG(st.st_mode))
 			ret = kg_fail(err, KG_EINVAL, "%s: line %d: file '%s': expected a regular file "
 			              "in the session (%s)", index, lineno, fr.file,
-			              lstat(p, &st) != 0 ? "missing" : "not a regular file");
+			              r ? "missing" : "not a regular file");
 		else if ((size_t)st.st_size != fr.bytes)
 			ret = kg_fail(err, KG_EINVAL, "%s: line %d: file '%s' holds %lld bytes: "
 			              "expected bytes %zu", index, lineno, fr.file,

@@ -35,11 +35,27 @@ static char *resolve_layout(const char *name)
 static int load_layout(proc *p)
 {
 	const char *name = p->o->layout;
-	if (!name)
+	if (!name) {
+		/* the manifest's: a bundled name or a file inside the session, nothing else */
 		name = json_string_value(json_object_get(p->chart->j, "chart_layout"));
-	if (!name)
-		return kg_fail(p->err, KG_EINVAL, "%s: chart capture %s records no chart layout "
-		               "(acquire --layout L): give --layout", p->manifest_path, p->chart->name);
+		if (!name)
+			return kg_fail(p->err, KG_EINVAL, "%s: chart capture %s records no chart layout "
+			               "(acquire --layout L): give --layout",
+			               p->manifest_path, p->chart->name);
+		const json_t *caps = json_object_get(p->manifest, "captures");
+		size_t i = 0;
+		while (i < json_array_size(caps) && json_array_get(caps, i) != p->chart->j)
+			i++;
+		char key[64];
+		snprintf(key, sizeof(key), "captures[%zu].chart_layout", i);
+		int ret = kg_chart_layout_resolve_session(p->o->session, p->manifest_path, key, name,
+		                                          &p->layout_path, p->err);
+		if (!ret)
+			ret = proc_input(p, "layout", p->layout_path, NULL);
+		if (!ret)
+			ret = kg_chart_layout_load(p->layout_path, &p->layout, p->err);
+		return ret;
+	}
 	p->layout_path = resolve_layout(name);
 	if (!p->layout_path)
 		return kg_fail(p->err, KG_ENOENT, "chart layout '%s': no such file and not a bundled "

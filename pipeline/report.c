@@ -9,6 +9,7 @@
 #include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "report_private.h"
@@ -251,26 +252,37 @@ static void rowf(report *r, const char *key, const char *fmt, ...)
 	row(r, key, buf);
 }
 
-/* A PNG of OUTDIR (path relative to it, or absolute) inlined, or a sentence saying
- * why it is not there. */
+/* A path process.json names is read only inside OUTDIR: relative, no "..", no
+ * absolute path, no symbolic link on the way (kg_read_below); anything else would let
+ * a process.json put any file of the machine into the page. */
+#define REPORT_REL_MAX 256
+
+/* A PNG of OUTDIR (path relative to it) inlined, or a sentence saying why it is not
+ * there: missing, unreadable, or refused as a path outside OUTDIR (a warning). */
 static void put_image_file(report *r, const char *rel, const char *alt, const char *cls)
 {
-	char *path = rel[0] == '/' ? strdup(rel) : kg_path_join(r->outdir, rel);
+	if (!kg_relpath_is_safe(rel, REPORT_REL_MAX)) {
+		html(r, "<p class=\"missing\"><span class=\"fail\">warning</span> ");
+		textf(r, "%s: not shown: %s names '%s', expected a path inside %s (relative, no "
+		      "'..', no absolute path)", alt, r->file, rel, r->outdir);
+		html(r, "</p>");
+		return;
+	}
 	char *data = NULL;
 	size_t len = 0;
 	kg_err e = {{0}};
-	int ret = path ? kg_read_file(path, &data, &len, &e) : KG_ENOMEM;
+	int ret = kg_read_below(r->outdir, rel, &data, &len, &e);
 	if (!ret)
 		ret = report_put_png(r->fp, (unsigned char *)data, len, alt, cls, rel, &e);
-	if (ret) {
-		html(r, "<p class=\"missing\">");
+	if (ret) { /* a symbolic link on the way, or not a regular file: a warning */
+		html(r, "<p class=\"missing\">%s",
+		     ret == KG_EINVAL ? "<span class=\"fail\">warning</span> " : "");
 		textf(r, "%s: not shown: %s", alt, ret == KG_ENOENT ? "the file is missing" : e.msg);
 		html(r, " (");
 		text(r, rel);
 		html(r, ")</p>");
 	}
 	free(data);
-	free(path);
 }
 
 /* The files of an object capture the page does not show (cube, label map, scene):
@@ -291,12 +303,14 @@ static void put_file_list(report *r, int i)
 			html(r, "%s no %s", k ? "," : "", files[k].label);
 			continue;
 		}
-		char *path = rel[0] == '/' ? strdup(rel) : kg_path_join(r->outdir, rel);
+		struct stat st;
+		int inside = kg_relpath_is_safe(rel, REPORT_REL_MAX);
 		html(r, "%s %s <code>", k ? "," : "", files[k].label);
 		text(r, rel);
-		html(r, "</code>%s", path && access(path, F_OK) == 0
-		                         ? "" : " <span class=\"fail\">missing</span>");
-		free(path);
+		html(r, "</code>%s",
+		     !inside ? " <span class=\"fail\">not inside the output folder: not read</span>"
+		     : kg_stat_below(r->outdir, rel, &st, NULL) == 0
+		             ? "" : " <span class=\"fail\">missing</span>");
 	}
 	html(r, ".</p>\n");
 }

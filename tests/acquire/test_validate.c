@@ -1,7 +1,8 @@
 /* Every reader of a session validates it first (kg_session_manifest_validate,
  * kg_camera_recording_validate): a session.json, frames/index.jsonl or
  * frames/camera.json with a wrong type, a value out of range, an unsafe or duplicate
- * capture name, a path leaving the session or a referenced file that is not there is
+ * capture name, a path leaving the session or a referenced file that is not there, a
+ * chart_layout that is neither a bundled layout's name nor a file of captures/NAME/ is
  * refused, naming the file and the key, by `kogei acquire` adding a capture (exit 1,
  * the session left as it was), by replay: and by kg_session_image_identify. A --name
  * outside [A-Za-z0-9._-] is a usage error that creates nothing. */
@@ -102,6 +103,24 @@ static void m_unknown_dark(json_t *r)
 static void m_unknown_camera(json_t *r)
 {
 	json_object_set_new(cap(r, 1), "camera", json_string("camera-9"));
+}
+/* chart_layout: only a bundled layout's name or a file under captures/<name>/ */
+static void m_layout_passwd(json_t *r)
+{
+	json_object_set_new(cap(r, 1), "chart_layout", json_string("/etc/passwd"));
+}
+static void m_layout_dotdot(json_t *r)
+{
+	json_object_set_new(cap(r, 1), "chart_layout", json_string("../layout.json"));
+}
+static void m_layout_escape(json_t *r)
+{
+	json_object_set_new(cap(r, 1), "chart_layout",
+	                    json_string("captures/object-0001/../../../etc/passwd"));
+}
+static void m_layout_other(json_t *r) /* a real file of the session, not this capture's */
+{
+	json_object_set_new(cap(r, 1), "chart_layout", json_string("frames/camera.json"));
 }
 static void m_line_capture(json_t *o) { json_object_set_new(o, "capture", json_string("..")); }
 static void m_line_file(json_t *o)
@@ -217,6 +236,14 @@ int main(int argc, char **argv)
 		 1},
 		{"unknown dark", "session.json", m_unknown_dark, "captures[1].corrections.dark", 1},
 		{"unknown camera", "session.json", m_unknown_camera, "captures[1].camera", 1},
+		{"chart_layout /etc/passwd", "session.json", m_layout_passwd,
+		 "captures[1].chart_layout: '/etc/passwd': expected a bundled chart layout", 1},
+		{"chart_layout ../", "session.json", m_layout_dotdot,
+		 "captures[1].chart_layout: '../layout.json'", 1},
+		{"chart_layout leaving captures/NAME", "session.json", m_layout_escape,
+		 "captures[1].chart_layout: 'captures/object-0001/../../../etc/passwd'", 1},
+		{"chart_layout elsewhere in the session", "session.json", m_layout_other,
+		 "captures[1].chart_layout: 'frames/camera.json'", 1},
 		{"index: capture ..", NULL, m_line_capture, "line 1: capture '..'", 0},
 		{"index: file leaving frames/", NULL, m_line_file,
 		 "line 1: file 'frames/dark-0001/../../session.json'", 0},

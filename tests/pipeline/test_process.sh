@@ -260,7 +260,13 @@ expect_refusal "$T/r2" "chart-0001" "$KOGEI" process "$S" --spectra "$T/chart.cg
 # against the lab's reference.
 R=$T/resid
 cp -r "$S" "$R"
-sim_acquire "$R" chart "$T/chart.tif" 10000 '&seed=5' --layout cie-tcs-frame --name chart-again || fail=1
+# (--layout a file: copied into captures/chart-again/, which process reads)
+sim_acquire "$R" chart "$T/chart.tif" 10000 '&seed=5' --layout "$FIX/demo/cie-tcs-frame.json" \
+	--name chart-again || fail=1
+check "the layout file copied into the session" \
+	cmp -s "$R/captures/chart-again/layout.json" "$FIX/demo/cie-tcs-frame.json"
+check "the manifest names the copy" \
+	grep -q '"chart_layout": *"captures/chart-again/layout.json"' "$R/session.json"
 expect_refusal "$T/r3" "residual" "$KOGEI" process "$R" --reference "$O/reference.json" \
 	--chart chart-again -o "$T/r3" --max-residual 0.00001
 # A 3-patch chart cannot be checked: refused unless --force.

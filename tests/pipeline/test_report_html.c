@@ -1,7 +1,8 @@
 /* kg_report_write on a synthetic OUTDIR (report_fixture.h): the page is
  * self-contained, has every section, shows the per-patch numbers and the grades,
  * escapes text from process.json, states missing pieces, and refuses a record with
- * a required key missing (naming the file and the key) without touching the page.
+ * a required key missing (naming the file and the key) without touching the page, and
+ * inlines no image whose path leaves OUTDIR (absolute, "..", a symbolic link).
  * argv[1]: the kogei program, for `kogei report` exit statuses. */
 #include <stdint.h>
 #include <stdlib.h>
@@ -201,6 +202,82 @@ static void check_refusal(const char *kogei, const char *outdir, const char *obj
 	free(path);
 }
 
+static int count(const char *page, const char *needle)
+{
+	int n = 0;
+	for (const char *p = page; (p = strstr(p, needle)); p += strlen(needle))
+		n++;
+	return n;
+}
+
+/* Images process.json names are read only inside OUTDIR: an absolute path, a "../"
+ * path and a path through a symbolic link to a folder elsewhere (each naming a real
+ * PNG), and /etc/passwd, are left out with a warning naming the path; the page is still
+ * written (exit 0). */
+static void check_outside(const char *kogei, const char *outdir)
+{
+	char outside[256], cmd[1024];
+	snprintf(outside, sizeof(outside), "%s-outside", outdir);
+	snprintf(cmd, sizeof(cmd), "mkdir -p '%s' && cp '%s/object-0001/photo.png' '%s/secret.png' "
+	         "&& ln -s '%s' '%s/linked'", outside, outdir, outside, outside, outdir);
+	CHECK(system(cmd) == 0, "%s", cmd);
+	char *path = kg_path_join(outdir, "process.json");
+	char *page_path = kg_path_join(outdir, "report.html");
+	kg_err err = {{0}};
+	kg_inputs_reset();
+	CHECK(kg_report_write(outdir, &err) == 0, "%s", err.msg);
+	char *page = read_text(page_path);
+	int before = page ? count(page, "data:image/png;base64,") : 0;
+	free(page);
+
+	json_t *root = NULL;
+	CHECK(kg_json_load(path, &root, &err) == 0, "%s", err.msg);
+	char abs[300], up[300];
+	snprintf(abs, sizeof(abs), "%s/secret.png", outside);
+	snprintf(up, sizeof(up), "../%s/secret.png", strrchr(outside, '/') + 1);
+	json_t *o0 = kg_json_find(root, "objects[0]"), *o1 = kg_json_find(root, "objects[1]");
+	json_object_set_new(o0, "photo", json_string(abs));
+	json_object_set_new(o0, "labels_png", json_string(up));
+	json_object_set_new(o1, "photo", json_string("linked/secret.png"));
+	json_object_set_new(json_object_get(root, "calibration"), "overlay",
+	                    json_string("/etc/passwd"));
+	json_object_set_new(o1, "cube", json_string("/etc/passwd"));
+	kg_inputs_reset();
+	CHECK(kg_json_write(root, path, &err) == 0, "%s", err.msg);
+	kg_inputs_reset();
+	int ret = kg_report_write(outdir, &err);
+	CHECK(ret == 0, "kg_report_write with paths outside OUTDIR: %s", err.msg);
+	page = read_text(page_path);
+	if (page) {
+		int after = count(page, "data:image/png;base64,");
+		CHECK(after == before - 4, "%d images inlined, expected %d (4 outside OUTDIR left out)",
+		      after, before - 4);
+		char want[600];
+		snprintf(want, sizeof(want), "photograph: not shown: %s names &#39;%s&#39;, expected a "
+		         "path inside %s", path, abs, outdir);
+		CHECK(contains(page, want), "no warning for the absolute path: %s", want);
+		snprintf(want, sizeof(want), "label map: not shown: %s names &#39;%s&#39;, expected", path,
+		         up);
+		CHECK(contains(page, want), "no warning for the ../ path: %s", want);
+		CHECK(contains(page, "chart overlay: not shown: ") &&
+		      contains(page, "names &#39;/etc/passwd&#39;, expected a path inside"),
+		      "no warning for /etc/passwd");
+		snprintf(want, sizeof(want), "<span class=\"fail\">warning</span> photograph: not "
+		         "shown: %s/linked: is a symbolic link", outdir);
+		CHECK(contains(page, want), "no warning for the linked folder: %s", want);
+		CHECK(contains(page, "not inside the output folder: not read"),
+		      "the cube at /etc/passwd is not flagged");
+	}
+	free(page);
+	if (kogei)
+		CHECK(run(kogei, outdir) == 0, "kogei report with paths outside OUTDIR: not exit 0");
+	json_decref(root);
+	free(path);
+	free(page_path);
+	snprintf(cmd, sizeof(cmd), "rm -rf '%s' '%s/linked'", outside, outdir);
+	CHECK(system(cmd) == 0, "%s", cmd);
+}
+
 int main(int argc, char **argv)
 {
 	const char *kogei = argc > 1 ? argv[1] : NULL;
@@ -233,6 +310,7 @@ int main(int argc, char **argv)
 	check_refusal(kogei, outdir, "objects[1]", "classes", "objects[1].classes");
 	check_refusal(kogei, outdir, "calibration.patches[5]", "de00_d50",
 	              "calibration.patches[5].de00_d50");
+	check_outside(kogei, outdir);
 
 	char cmd[128];
 	snprintf(cmd, sizeof(cmd), "rm -rf '%s'", outdir);
