@@ -72,6 +72,9 @@ typedef struct kg_process_options {
 	int threads;               /* 0: all */
 	FILE *progress;            /* progress lines, or NULL */
 	const char *command;       /* how it was invoked, for process.json (may be NULL) */
+	int accept_rerecorded;     /* an OUTDIR holding the results of an earlier recording
+	                            * of a session at the same path counts as this
+	                            * session's (the demo records its sessions anew) */
 } kg_process_options;
 
 void kg_process_options_default(kg_process_options *o);
@@ -87,6 +90,13 @@ typedef struct kg_process_summary {
 } kg_process_summary;
 
 int kg_process_run(const kg_process_options *o, kg_process_summary *summary, kg_err *err);
+
+/* For a program that runs kg_process_run as its one job (kogei process): SIGINT,
+ * SIGTERM and SIGHUP (those not ignored) are blocked in the calling thread and taken
+ * by a thread of their own, which prints what OUTDIR keeps, removes the run's staging
+ * folder and ends the process by the signal (exit status 128 + the signal). Call it
+ * before any other thread starts. -1 if the thread cannot be started. */
+int kg_process_watch_signals(void);
 
 /* ==== Report ====================================================================== */
 

@@ -15,6 +15,7 @@
 
 typedef struct report {
 	const char *outdir;
+	const char *stage; /* a run's staging folder, looked in first; NULL: none */
 	char *file;   /* OUTDIR/process.json, named in messages */
 	json_t *root;
 	FILE *fp;
@@ -251,11 +252,26 @@ static void rowf(report *r, const char *key, const char *fmt, ...)
 	row(r, key, buf);
 }
 
+/* A file process.json names (relative to OUTDIR, or absolute): a run's staged copy
+ * where there is one, else OUTDIR's (caller frees). */
+static char *file_path(report *r, const char *rel)
+{
+	if (rel[0] == '/')
+		return strdup(rel);
+	if (r->stage) {
+		char *staged = kg_path_join(r->stage, rel);
+		if (!staged || access(staged, F_OK) == 0)
+			return staged;
+		free(staged);
+	}
+	return kg_path_join(r->outdir, rel);
+}
+
 /* A PNG of OUTDIR (path relative to it, or absolute) inlined, or a sentence saying
  * why it is not there. */
 static void put_image_file(report *r, const char *rel, const char *alt, const char *cls)
 {
-	char *path = rel[0] == '/' ? strdup(rel) : kg_path_join(r->outdir, rel);
+	char *path = file_path(r, rel);
 	char *data = NULL;
 	size_t len = 0;
 	kg_err e = {{0}};
@@ -291,7 +307,7 @@ static void put_file_list(report *r, int i)
 			html(r, "%s no %s", k ? "," : "", files[k].label);
 			continue;
 		}
-		char *path = rel[0] == '/' ? strdup(rel) : kg_path_join(r->outdir, rel);
+		char *path = file_path(r, rel);
 		html(r, "%s %s <code>", k ? "," : "", files[k].label);
 		text(r, rel);
 		html(r, "</code>%s", path && access(path, F_OK) == 0
@@ -1170,11 +1186,16 @@ static void write_page(report *r)
 
 int kg_report_write(const char *outdir, kg_err *err)
 {
+	return report_write_staged(outdir, NULL, err);
+}
+
+int report_write_staged(const char *outdir, const char *stage, kg_err *err)
+{
 	kg_check_arg(outdir, err);
 	kg_err local;
-	report r = {.outdir = outdir, .err = err ? err : &local};
-	char *out = kg_path_join(outdir, "report.html");
-	r.file = kg_path_join(outdir, "process.json");
+	report r = {.outdir = outdir, .stage = stage, .err = err ? err : &local};
+	char *out = kg_path_join(stage ? stage : outdir, "report.html");
+	r.file = kg_path_join(stage ? stage : outdir, "process.json");
 	if (!out || !r.file) {
 		free(out);
 		free(r.file);
