@@ -464,7 +464,7 @@ int kg_process_run(const kg_process_options *o, kg_process_summary *summary, kg_
 		char created[32];
 		iso_time(created, sizeof(created));
 		const char *recorded = json_string_value(json_object_get(p.manifest, "created"));
-		root = json_pack("{s:s, s:s, s:{s:s, s:s, s:s, s:o}, s:{s:s, s:s}, s:o, s:O, s:o, "
+		root = json_pack("{s:s, s:s, s:{s:s, s:s}, s:{s:s, s:s, s:s, s:o}, s:o, s:O, s:o, "
 		                 "s:O, s:O, s:O, s:O}",
 		                 "format", KG_PROCESS_FORMAT, "created", created, "software", "name",
 		                 "kogei", "version", KG_VERSION, "session", "path", o->session,
