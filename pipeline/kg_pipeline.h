@@ -27,7 +27,14 @@
  * cause; nothing is written under a final name.
  *
  * Re-running skips objects whose inputs and parameters are unchanged (the key of each
- * object is in process.json); objects recorded later are the only ones processed. */
+ * object is in process.json); objects recorded later are the only ones processed.
+ *
+ * OUTDIR (process_outdir.c, docs/formats.md): new, empty or this session's earlier
+ * output, not inside the session; nothing there that process did not write is
+ * replaced, and no input may lie inside what a run replaces (refused, KG_EINVAL,
+ * before anything is written). A run is staged in OUTDIR/.kogei-run.PID and put in
+ * place through a journal when complete, process.json and report.html last; the next
+ * run removes or completes what a killed run left. */
 #ifndef KG_PIPELINE_H
 #define KG_PIPELINE_H
 
