@@ -511,8 +511,8 @@ static void describe_kept_locked(proc *p)
 	char *k = watch.kept;
 	size_t size = sizeof(watch.kept), at = 0;
 	if (!p->previous) {
-		snprintf(k, size, "nothing was written%s", p->ncreated ? " (OUTDIR, which this run "
-		         "created, removed)" : "; OUTDIR is as it was");
+		snprintf(k, size, p->ncreated ? "nothing was written (%s, which this run created, "
+		         "removed)" : "nothing was written; %s is as it was", p->o->outdir);
 		return;
 	}
 	const json_t *e;
