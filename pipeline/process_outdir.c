@@ -707,6 +707,27 @@ static int check_tree(const char *path, int depth, kg_err *err)
 	return ret;
 }
 
+/* The files under path are this tool's outputs, some read back while they were made
+ * (labels.json, the report's images): not inputs of a later job in this process (the
+ * console), whose swap would otherwise refuse to replace them. */
+static void forget_tree(const char *path, int depth)
+{
+	DIR *d = opendir(path);
+	if (!d) {
+		kg_inputs_forget(path);
+		return;
+	}
+	char sub[4200];
+	for (struct dirent *e; (e = readdir(d));) {
+		if (!strcmp(e->d_name, ".") || !strcmp(e->d_name, ".."))
+			continue;
+		snprintf(sub, sizeof(sub), "%s/%s", path, e->d_name);
+		if (depth < 8)
+			forget_tree(sub, depth + 1);
+	}
+	closedir(d);
+}
+
 int proc_outdir_commit(proc *p, json_t *root)
 {
 	const char *out = p->o->outdir;
@@ -751,9 +772,19 @@ int proc_outdir_commit(proc *p, json_t *root)
 			p->committed = 1;
 	}
 	pthread_mutex_unlock(&watch.lock);
-	if (!ret)
-		watch_set(p, PHASE_DONE);
-	return ret;
+	if (ret)
+		return ret;
+	watch_set(p, PHASE_DONE);
+	for (int i = 0; i < NTOP; i++) {
+		snprintf(to, sizeof(to), "%s/%s", out, top_files[i]);
+		kg_inputs_forget(to);
+	}
+	for (int i = 0; i < p->ncaps; i++)
+		if (p->caps[i].kind == KG_CAPTURE_OBJECT) {
+			snprintf(to, sizeof(to), "%s/%s", out, p->caps[i].name);
+			forget_tree(to, 0);
+		}
+	return 0;
 }
 
 void proc_outdir_close(proc *p, int failed)
