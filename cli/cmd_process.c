@@ -33,6 +33,12 @@ static const char help_process[] =
 	"  capture <capture>/cube.hdr, labels.hdr (+ .json, .png, _confidence), photo.png,\n"
 	"  confidence.png, scene.json (renders with `kogei render --scene`), render.png.\n"
 	"Running it again keeps the objects whose inputs and parameters are unchanged.\n"
+	"OUTDIR must be new, empty or this session's earlier output (its process.json), and\n"
+	"not inside the session; nothing there that kogei process did not write is replaced,\n"
+	"and no input may lie inside what a run replaces. A run is staged in\n"
+	"OUTDIR/.kogei-run.PID and put in place only when complete: a failed, interrupted\n"
+	"(SIGINT, SIGTERM, SIGHUP: it says what OUTDIR keeps) or killed run leaves OUTDIR's\n"
+	"earlier results as they were, and the next run removes its leftovers.\n"
 	"\n"
 	"  --reference REF.json  the reference calibration (kogei calib reference)\n"
 	"  --spectra CHART       the chart's measured spectra (kogei measure --chart): without\n"
@@ -261,6 +267,9 @@ int kg_cmd_process(int argc, char **argv)
 	o.skip = skips;
 	kg_err err = {{0}};
 	kg_process_summary sum;
+	if (kg_process_watch_signals() != 0)
+		fprintf(stderr, "kogei process: warning: cannot watch for signals: an interrupted "
+		        "run leaves its staging folder to the next run\n");
 	int ret = kg_process_run(&o, &sum, &err);
 	free(names);
 	free(skips);

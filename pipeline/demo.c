@@ -281,6 +281,7 @@ static int demo_process(demo_ctx *d, const char *session, const char *reference,
 	memcpy(d->angles, po.angles, sizeof(d->angles));
 	po.progress = stdout;
 	po.command = "kogei demo";
+	po.accept_rerecorded = 1; /* the sessions are recorded anew at every run */
 	kg_process_summary sum;
 	if (!ret)
 		ret = kg_process_run(&po, &sum, &d->err);

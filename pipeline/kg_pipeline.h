@@ -27,7 +27,14 @@
  * cause; nothing is written under a final name.
  *
  * Re-running skips objects whose inputs and parameters are unchanged (the key of each
- * object is in process.json); objects recorded later are the only ones processed. */
+ * object is in process.json); objects recorded later are the only ones processed.
+ *
+ * OUTDIR (process_outdir.c, docs/formats.md): new, empty or this session's earlier
+ * output, not inside the session; nothing there that process did not write is
+ * replaced, and no input may lie inside what a run replaces (refused, KG_EINVAL,
+ * before anything is written). A run is staged in OUTDIR/.kogei-run.PID and put in
+ * place through a journal when complete, process.json and report.html last; the next
+ * run removes or completes what a killed run left. */
 #ifndef KG_PIPELINE_H
 #define KG_PIPELINE_H
 
@@ -75,6 +82,9 @@ typedef struct kg_process_options {
 	int threads;               /* 0: all */
 	FILE *progress;            /* progress lines, or NULL */
 	const char *command;       /* how it was invoked, for process.json (may be NULL) */
+	int accept_rerecorded;     /* an OUTDIR holding the results of an earlier recording
+	                            * of a session at the same path counts as this
+	                            * session's (the demo records its sessions anew) */
 } kg_process_options;
 
 void kg_process_options_default(kg_process_options *o);
@@ -90,6 +100,13 @@ typedef struct kg_process_summary {
 } kg_process_summary;
 
 int kg_process_run(const kg_process_options *o, kg_process_summary *summary, kg_err *err);
+
+/* For a program that runs kg_process_run as its one job (kogei process): SIGINT,
+ * SIGTERM and SIGHUP (those not ignored) are blocked in the calling thread and taken
+ * by a thread of their own, which prints what OUTDIR keeps, removes the run's staging
+ * folder and ends the process by the signal (exit status 128 + the signal). Call it
+ * before any other thread starts. -1 if the thread cannot be started. */
+int kg_process_watch_signals(void);
 
 /* ==== Report ====================================================================== */
 

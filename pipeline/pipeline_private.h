@@ -57,6 +57,13 @@ typedef struct proc {
 	kg_material_library *lib; /* the materials (--materials) */
 	kg_est_material_set *set; /* those declared (--only) */
 	json_t *previous;         /* the last run's process.json, or NULL */
+	/* OUTDIR (process_outdir.c) */
+	char *stage;              /* where this run writes: OUTDIR/.kogei-run.PID */
+	int lock_fd;              /* OUTDIR, locked for the run; -1 */
+	char **created;           /* folders created for OUTDIR, parents first */
+	int ncreated;
+	char *session_abs;        /* the session's absolute path */
+	int committed;            /* the results are in place */
 } proc;
 
 /* A warning: kept for process.json and the report, and printed on progress. */
@@ -107,6 +114,19 @@ int proc_dark_matches(const proc_capture *d, const proc_capture *c);
 const proc_capture *proc_capture_named(const proc *p, const char *name);
 const proc_capture *proc_matching_flat(const proc *p, const proc_capture *c);
 void proc_image_clear(proc_image *img);
+
+/* OUTDIR for a run (process_outdir.c): checked (not the session nor inside it; new,
+ * empty or this session's earlier output; no input inside what the run replaces),
+ * created, locked, cleared of dead runs' leftovers, the previous process.json loaded
+ * into p->previous and the staging folder p->stage made. Every output of the run is
+ * written under p->stage. */
+int proc_outdir_open(proc *p);
+/* root as process.json and the report staged, then everything staged put in place
+ * (object folders, the files, process.json and report.html last). */
+int proc_outdir_commit(proc *p, json_t *root);
+/* The end of the run: the staging folder removed, and on failure the folders made for
+ * OUTDIR; the lock released. */
+void proc_outdir_close(proc *p, int failed);
 
 /* Chart capture -> chart found, calibrations fitted and written (process_calib.c). */
 int proc_calibrate(proc *p);

@@ -2,13 +2,11 @@
  * (kg_pipeline.h). This file reads the session and its images and runs the steps;
  * process_calib.c finds the chart and calibrates, process_object.c does each object. */
 #include <errno.h>
-#include <fcntl.h>
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/file.h>
 #include <sys/stat.h>
 #include <time.h>
 #include <unistd.h>
@@ -475,61 +473,6 @@ static void iso_time(char *buf, size_t n)
 	strftime(buf, n, "%Y-%m-%dT%H:%M:%SZ", &tm);
 }
 
-static int load_previous(proc *p)
-{
-	char *path = kg_path_join(p->o->outdir, "process.json");
-	if (!path)
-		return kg_fail(p->err, KG_ENOMEM, "out of memory");
-	if (access(path, F_OK) == 0) {
-		kg_err e = {{0}};
-		json_t *prev = NULL;
-		if (kg_json_load(path, &prev, &e) == 0) {
-			kg_inputs_forget(path); /* our own record: rewritten at the end */
-			const char *f = json_string_value(json_object_get(prev, "format"));
-			if (f && !strcmp(f, KG_PROCESS_FORMAT))
-				p->previous = prev;
-			else
-				json_decref(prev);
-		}
-		if (!p->previous) {
-			int ret = kg_fail(p->err, KG_EINVAL, "%s: exists but is not a %s file: refusing "
-			                  "to write into %s", path, KG_PROCESS_FORMAT, p->o->outdir);
-			free(path);
-			return ret;
-		}
-	}
-	free(path);
-	return 0;
-}
-
-/* OUTDIR may be new, empty, or a previous run's; nothing else is overwritten. It is
- * created, then locked for the run (flock on the directory itself, so nothing is left
- * in it): a second kogei process into the same OUTDIR is refused while the first runs.
- * *lock_fd holds the lock until the caller closes it. */
-static int check_outdir(proc *p, int *lock_fd)
-{
-	struct stat st;
-	if (stat(p->o->outdir, &st) == 0 && !S_ISDIR(st.st_mode))
-		return kg_fail(p->err, KG_EINVAL, "%s: exists and is not a directory", p->o->outdir);
-	struct stat ss;
-	if (stat(p->o->session, &ss) == 0 && stat(p->o->outdir, &st) == 0 &&
-	    ss.st_dev == st.st_dev && ss.st_ino == st.st_ino)
-		return kg_fail(p->err, KG_EINVAL, "%s: is the session directory: choose another -o",
-		               p->o->outdir);
-	int ret = kg_mkdir_p(p->o->outdir, p->err);
-	if (ret)
-		return ret;
-	*lock_fd = open(p->o->outdir, O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-	if (*lock_fd < 0)
-		return kg_fail(p->err, KG_EIO, "%s: cannot open: %s", p->o->outdir, strerror(errno));
-	if (flock(*lock_fd, LOCK_EX | LOCK_NB) != 0)
-		return kg_fail(p->err, errno == EWOULDBLOCK ? KG_EINVAL : KG_EIO,
-		               "%s: in use by another kogei process (the folder is locked); wait "
-		               "for it to finish or choose another -o",
-		               p->o->outdir);
-	return load_previous(p);
-}
-
 int kg_process_run(const kg_process_options *o, kg_process_summary *summary, kg_err *err)
 {
 	kg_check_arg(o && o->session && o->outdir && (o->reference || o->spectra), err);
@@ -540,7 +483,7 @@ int kg_process_run(const kg_process_options *o, kg_process_summary *summary, kg_
 	struct timespec t0, t1;
 	clock_gettime(CLOCK_MONOTONIC, &t0);
 	kg_process_summary sum = {0};
-	proc p = {.o = o, .err = err};
+	proc p = {.o = o, .err = err, .lock_fd = -1};
 	json_t *objects = json_array(), *root = NULL;
 	p.inputs = json_array();
 	p.warnings = json_array();
@@ -565,9 +508,8 @@ int kg_process_run(const kg_process_options *o, kg_process_summary *summary, kg_
 		ret = kg_file_sha256(p.manifest_path, p.manifest_sha, err);
 	if (!ret)
 		ret = read_captures(&p);
-	int lock_fd = -1;
 	if (!ret)
-		ret = check_outdir(&p, &lock_fd);
+		ret = proc_outdir_open(&p);
 	if (!ret) {
 		proc_progress(&p, "session %s: %d captures", o->session, p.ncaps);
 		ret = proc_calibrate(&p);
@@ -577,11 +519,14 @@ int kg_process_run(const kg_process_options *o, kg_process_summary *summary, kg_
 	if (!ret) {
 		char created[32];
 		iso_time(created, sizeof(created));
-		root = json_pack("{s:s, s:s, s:{s:s, s:s}, s:{s:s, s:s}, s:o, s:O, s:o, s:O, s:O, "
-		                 "s:O, s:O}",
+		const char *recorded = json_string_value(json_object_get(p.manifest, "created"));
+		root = json_pack("{s:s, s:s, s:{s:s, s:s}, s:{s:s, s:s, s:s, s:o}, s:o, s:O, s:o, "
+		                 "s:O, s:O, s:O, s:O}",
 		                 "format", KG_PROCESS_FORMAT, "created", created, "software", "name",
 		                 "kogei", "version", KG_VERSION, "session", "path", o->session,
-		                 "manifest_sha256", p.manifest_sha, "parameters",
+		                 "realpath", p.session_abs, "manifest_sha256", p.manifest_sha,
+		                 "created", recorded ? json_string(recorded) : json_null(),
+		                 "parameters",
 		                 parameters_json(o, p.library_path), "inputs", p.inputs, "devices",
 		                 devices_json(&p), "calibration", p.calibration,
 		                 "calibration_key", p.calib_key, "objects", objects, "warnings",
@@ -593,16 +538,11 @@ int kg_process_run(const kg_process_options *o, kg_process_summary *summary, kg_
 		if (!ret)
 			json_object_set(root, "skipped_captures", p.skipped);
 	}
-	char *pj = kg_path_join(o->outdir, "process.json");
 	if (!ret)
-		ret = pj ? kg_json_write(root, pj, err) : kg_fail(err, KG_ENOMEM, "out of memory");
-	if (!ret) {
-		proc_progress(&p, "wrote %s", pj);
-		ret = kg_report_write(o->outdir, err);
-		if (!ret)
-			proc_progress(&p, "wrote %s/report.html", o->outdir);
-	}
-	free(pj);
+		ret = proc_outdir_commit(&p, root);
+	if (!ret)
+		proc_progress(&p, "wrote %s/process.json and %s/report.html", o->outdir, o->outdir);
+	proc_outdir_close(&p, ret != 0);
 	clock_gettime(CLOCK_MONOTONIC, &t1);
 	sum.seconds = (double)(t1.tv_sec - t0.tv_sec) + 1e-9 * (double)(t1.tv_nsec - t0.tv_nsec);
 	sum.warnings = p.warnings ? (int)json_array_size(p.warnings) : 0;
@@ -612,7 +552,5 @@ int kg_process_run(const kg_process_options *o, kg_process_summary *summary, kg_
 	json_decref(root);
 	json_decref(objects);
 	proc_free(&p);
-	if (lock_fd >= 0)
-		close(lock_fd);
 	return ret;
 }

@@ -229,9 +229,9 @@ int proc_calibrate(proc *p)
 	kg_camera_calib *cam = NULL;
 	char **flagged = NULL;
 	int nflagged = 0, ret = 0;
-	char *ref_out = kg_path_join(o->outdir, "reference.json");
-	char *cam_out = kg_path_join(o->outdir, "camera.json");
-	char *overlay = kg_path_join(o->outdir, "chart_overlay.png");
+	char *ref_out = kg_path_join(p->stage, "reference.json");
+	char *cam_out = kg_path_join(p->stage, "camera.json");
+	char *overlay = kg_path_join(p->stage, "chart_overlay.png");
 	if (!ref_out || !cam_out || !overlay)
 		return kg_fail(err, KG_ENOMEM, "out of memory");
 
@@ -360,11 +360,12 @@ int proc_calibrate(proc *p)
 	if (!o->reference) {
 		if ((ret = kg_reference_save(p->ref, ref_out, err)))
 			goto done;
-		proc_progress(p, "wrote %s", ref_out);
+		proc_progress(p, "reference calibration: %s/reference.json", o->outdir);
 	}
 	if ((ret = kg_camera_save(p->cam, cam_out, err)))
 		goto done;
-	proc_progress(p, "wrote %s (M2 residual %.2f %%, %d patches)", cam_out,
+	proc_progress(p, "site calibration: %s/camera.json (M2 residual %.2f %%, %d patches)",
+	              o->outdir,
 	              100 * p->cam->residual_relative, p->cam->k);
 	if ((ret = kg_chart_overlay_write(res, img.rgb, overlay, 0, err)))
 		goto done;

@@ -1,7 +1,8 @@
 /* kogei process, the objects: each object capture checked against the chart's camera,
  * normalised by exposure, estimated, classified, previewed and given a scene; written
  * into a temporary folder renamed into place when complete; skipped when its inputs
- * and parameters have not changed since the last run (kg_pipeline.h). */
+ * and parameters have not changed since the last run (kg_pipeline.h); the run puts
+ * the folders in place when every one is complete (process_outdir.c). */
 #include <ftw.h>
 #include <math.h>
 #include <stdio.h>
@@ -371,7 +372,6 @@ static int classes_json(proc *p, const char *labels_json, const kg_est_material_
 	return 0;
 }
 
-/* One object into dir (a temporary folder). */
 /* A source whose rows also go to the photograph's preview as they pass. */
 typedef struct preview_tap {
 	kg_row_source in;
@@ -700,25 +700,6 @@ static void set_paths(json_t *object, const char *name, int rendered, int cube)
 		json_object_set_new(object, "cube", json_null());
 }
 
-/* Move dir into place as OUTDIR/name, replacing a previous run's folder. */
-static int commit_dir(proc *p, const char *tmp, const char *final, const char *name)
-{
-	char old[4200];
-	snprintf(old, sizeof(old), "%s/.%s.old-%ld", p->o->outdir, name, (long)getpid());
-	int had = access(final, F_OK) == 0;
-	if (had && rename(final, old) != 0)
-		return kg_fail(p->err, KG_EIO, "%s: cannot move the previous run's folder aside",
-		               final);
-	if (rename(tmp, final) != 0) {
-		if (had)
-			rename(old, final);
-		return kg_fail(p->err, KG_EIO, "%s: cannot rename %s into place", final, tmp);
-	}
-	if (had)
-		remove_tree(old);
-	return 0;
-}
-
 /* The material library (a file or a bundled name) and the declared set, into p. */
 static int load_materials(proc *p)
 {
@@ -843,7 +824,7 @@ int proc_objects(proc *p, json_t *objects, kg_process_summary *sum)
 			              p->chart->gain, p->chart->gain_unit ? p->chart->gain_unit : "",
 			              scale);
 		char tmp[4200];
-		snprintf(tmp, sizeof(tmp), "%s/.%s.partial-%ld", p->o->outdir, c->name, (long)getpid());
+		snprintf(tmp, sizeof(tmp), "%s/%s", p->stage, c->name); /* put in place at the end */
 		remove_tree(tmp);
 		if (!final || !labels)
 			ret = kg_fail(p->err, KG_ENOMEM, "out of memory");
@@ -851,8 +832,6 @@ int proc_objects(proc *p, json_t *objects, kg_process_summary *sum)
 			ret = kg_fail(p->err, KG_EIO, "%s: cannot create it", tmp);
 		if (!ret)
 			ret = process_into(p, c, tmp, scale, set, object);
-		if (!ret)
-			ret = commit_dir(p, tmp, final, c->name);
 		if (ret)
 			remove_tree(tmp);
 		else {

@@ -16,6 +16,7 @@
 
 typedef struct report {
 	const char *outdir;
+	const char *stage; /* a run's staging folder, looked in first; NULL: none */
 	char *file;   /* OUTDIR/process.json, named in messages */
 	json_t *root;
 	FILE *fp;
@@ -257,6 +258,16 @@ static void rowf(report *r, const char *key, const char *fmt, ...)
  * a process.json put any file of the machine into the page. */
 #define REPORT_REL_MAX 256
 
+/* The folder a file process.json names is read from: a run's staging folder where it
+ * holds that file, else OUTDIR. */
+static const char *file_base(report *r, const char *rel)
+{
+	struct stat st;
+	if (r->stage && kg_stat_below(r->stage, rel, &st, NULL) == 0)
+		return r->stage;
+	return r->outdir;
+}
+
 /* A PNG of OUTDIR (path relative to it) inlined, or a sentence saying why it is not
  * there: missing, unreadable, or refused as a path outside OUTDIR (a warning). */
 static void put_image_file(report *r, const char *rel, const char *alt, const char *cls)
@@ -271,7 +282,7 @@ static void put_image_file(report *r, const char *rel, const char *alt, const ch
 	char *data = NULL;
 	size_t len = 0;
 	kg_err e = {{0}};
-	int ret = kg_read_below(r->outdir, rel, &data, &len, &e);
+	int ret = kg_read_below(file_base(r, rel), rel, &data, &len, &e);
 	if (!ret)
 		ret = report_put_png(r->fp, (unsigned char *)data, len, alt, cls, rel, &e);
 	if (ret) { /* a symbolic link on the way, or not a regular file: a warning */
@@ -309,7 +320,7 @@ static void put_file_list(report *r, int i)
 		text(r, rel);
 		html(r, "</code>%s",
 		     !inside ? " <span class=\"fail\">not inside the output folder: not read</span>"
-		     : kg_stat_below(r->outdir, rel, &st, NULL) == 0
+		     : kg_stat_below(file_base(r, rel), rel, &st, NULL) == 0
 		             ? "" : " <span class=\"fail\">missing</span>");
 	}
 	html(r, ".</p>\n");
@@ -1184,11 +1195,16 @@ static void write_page(report *r)
 
 int kg_report_write(const char *outdir, kg_err *err)
 {
+	return report_write_staged(outdir, NULL, err);
+}
+
+int report_write_staged(const char *outdir, const char *stage, kg_err *err)
+{
 	kg_check_arg(outdir, err);
 	kg_err local;
-	report r = {.outdir = outdir, .err = err ? err : &local};
-	char *out = kg_path_join(outdir, "report.html");
-	r.file = kg_path_join(outdir, "process.json");
+	report r = {.outdir = outdir, .stage = stage, .err = err ? err : &local};
+	char *out = kg_path_join(stage ? stage : outdir, "report.html");
+	r.file = kg_path_join(stage ? stage : outdir, "process.json");
 	if (!out || !r.file) {
 		free(out);
 		free(r.file);

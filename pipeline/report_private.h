@@ -7,6 +7,11 @@
 
 #include "kg_pipeline.h"
 
+/* kg_report_write for a run of kogei process that is not yet in place: stage's
+ * process.json to stage/report.html, each file it names taken from stage where the
+ * run staged it, else from outdir (process_outdir.c). */
+int report_write_staged(const char *outdir, const char *stage, kg_err *err);
+
 /* Text with & < > " ' replaced by entities: safe in element content and in quoted
  * attribute values. NULL writes nothing. */
 void report_put_text(FILE *fp, const char *s);

@@ -88,6 +88,14 @@ def main():
               "process: one object, the report written")
         st, body = c.request("GET", "/out/report.html")
         check(st == 200 and b"<section" in body, "the report is served (%d)" % st)
+        # A second job of the same console: the object again (render is part of its
+        # key), its earlier folder replaced although the first job read files in it.
+        st, j = c.json("POST", "/api/process", {"render": True})
+        check(st == 200, "process again started: %d %s" % (st, j.get("error")))
+        s = c.wait_job(150)
+        check(s and not s["job"]["error"], "process again: %s" % (s and s["job"]["error"]))
+        check(s and s["job"]["result"] and s["job"]["result"]["processed"] == 1,
+              "process again: the object processed anew")
         _, m = c.json("GET", "/api/session")
         kinds = sorted(x["kind"] for x in m["manifest"]["captures"])
         check(kinds == ["chart", "dark", "flat", "object"], "the session holds %s" % kinds)

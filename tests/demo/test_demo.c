@@ -45,6 +45,7 @@
  * their random numbers). One large region in a wrong metal gives 1.5-3.2 (seppa-dai
  * silver as gold 1.50, plate shakudo as gold 2.61, rim copper as gold 3.15, measured
  * the same way); DEMO_DE00_CEILING, 1, is below those and six times the measured.
+ * The demo runs twice into one folder: a re-run works and leaves what a first run does.
  * Skipped (77) without colord-data, whose chart the demo photographs.
  * Argument: the path of the kogei program. */
 #include <stdlib.h>
@@ -470,6 +471,11 @@ int main(int argc, char **argv)
 
 	int status = run_demo(argv[1], dir);
 	CHECK(status == 0, "kogei demo -o %s exited %d", dir, status);
+	/* Run again into the same folder (its sessions are recorded anew, and kogei
+	 * process takes its earlier lab/ and site/ as theirs); what follows checks the
+	 * second run's outputs. */
+	status = run_demo(argv[1], dir);
+	CHECK(status == 0, "kogei demo -o %s, run again into it, exited %d", dir, status);
 	for (size_t i = 0; i < sizeof(files) / sizeof(files[0]); i++) {
 		char *p = in_dir(dir, files[i]);
 		CHECK(kg_test_file_exists(p), "%s was not written", p);
