@@ -365,10 +365,12 @@ static int decode(raw_job *j, kg_image **out, kg_raw_meta *meta, int pixels, kg_
 	return 0;
 }
 
-/* path: the file the bytes came from (for the diagnosis of a header LibRaw cannot
- * read), or NULL. LibRaw reads from memory only: its file and memory streams differ on
- * damaged data (a read past the end, a seek beyond it), so one decoder for both keeps
- * a file and the same bytes from a camera (gphoto2:) decoding alike or both refused. */
+/* data: the bytes to decode; path: the file they came from (for the diagnosis of a
+ * header LibRaw cannot read), or NULL. Pixels are always decoded from memory: LibRaw's
+ * file and memory streams differ on damaged data (a read past the end, a seek beyond
+ * it), so one stream for both keeps a file and the same bytes from a camera (gphoto2:)
+ * decoding alike or both refused. Without data (the header only, for a folder's
+ * listing), LibRaw opens the file itself and reads no more than the header. */
 static int run(const char *path, const void *data, size_t size, const char *name,
                kg_image **out, kg_raw_meta *meta, int pixels, kg_err *err)
 {
@@ -379,7 +381,8 @@ static int run(const char *path, const void *data, size_t size, const char *name
 	if (!j.lr)
 		return kg_fail(err, KG_ENOMEM, "%s: cannot start LibRaw", name);
 	libraw_set_dataerror_handler(j.lr, on_data_error, &j);
-	int code = libraw_open_buffer(j.lr, (void *)(uintptr_t)data, size);
+	int code = data ? libraw_open_buffer(j.lr, (void *)(uintptr_t)data, size)
+	                : libraw_open_file(j.lr, path);
 	int ret;
 	if (code != LIBRAW_SUCCESS) {
 		char why[160];
@@ -403,8 +406,7 @@ static int too_short(const char *name, size_t size, kg_err *err)
 }
 
 /* The whole file, decoded from memory as kg_raw_read_memory decodes it. */
-static int run_file(const char *path, kg_image **out, kg_raw_meta *meta, int pixels,
-                    kg_err *err)
+static int run_file(const char *path, kg_image **out, kg_raw_meta *meta, kg_err *err)
 {
 	if (out)
 		*out = NULL;
@@ -414,7 +416,7 @@ static int run_file(const char *path, kg_image **out, kg_raw_meta *meta, int pix
 	if (ret)
 		return ret;
 	ret = size < 16 ? too_short(path, size, err)
-	                : run(path, data, size, path, out, meta, pixels, err);
+	                : run(path, data, size, path, out, meta, 1, err);
 	free(data);
 	return ret;
 }
@@ -422,7 +424,7 @@ static int run_file(const char *path, kg_image **out, kg_raw_meta *meta, int pix
 int kg_raw_read(const char *path, kg_image **out, kg_raw_meta *meta, kg_err *err)
 {
 	kg_check_arg(path && out, err);
-	return run_file(path, out, meta, 1, err);
+	return run_file(path, out, meta, err);
 }
 
 int kg_raw_read_memory(const void *data, size_t size, const char *name, kg_image **out,
@@ -437,7 +439,7 @@ int kg_raw_read_memory(const void *data, size_t size, const char *name, kg_image
 int kg_raw_read_meta(const char *path, kg_raw_meta *meta, kg_err *err)
 {
 	kg_check_arg(path && meta, err);
-	return run_file(path, NULL, meta, 0, err);
+	return run(path, NULL, 0, path, NULL, meta, 0, err);
 }
 
 #else /* without LibRaw */
