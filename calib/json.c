@@ -881,6 +881,8 @@ static int load_camera(const char *file, const json_t *root, kg_camera_calib *ca
 		              cam->rgb_mean, err);
 	if (!ret)
 		ret = get_mat(file, root, "M2", 3, 3, cam->M2, 3, 1, err);
+	if (!ret)
+		ret = kg_mat3_check_invertible(cam->M2, file, "M2", err);
 	for (int j = 0; !ret && j < KG_METHOD_COUNT; j++) {
 		kg_site_map *mp = &cam->maps[j];
 		mp->method = (kg_method)j;

@@ -198,6 +198,11 @@ static int solve_m2(kg_camera_calib *cam, double rtol, kg_err *err)
 					v += cam->rho0[i][r] * P->a[i * 3 + c];
 				cam->M2[r * 3 + c] = v;
 			}
+		/* rho_r has rank 3, but rho0 (the reference's readings) may not: the same
+		 * refusal as a loaded calibration's */
+		ret = kg_mat3_check_invertible(cam->M2, NULL, "M2", err);
+	}
+	if (ret == 0) {
 		double res2 = 0, ref2 = 0;
 		for (int i = 0; i < k; i++)
 			for (int r = 0; r < 3; r++) {

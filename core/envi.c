@@ -229,9 +229,14 @@ static int render_header(const kg_envi_meta *m, char **text, kg_err *err)
 	}
 	if (m->n_extra < 0 || (m->n_extra > 0 && !m->extra))
 		return kg_fail(err, KG_EINVAL, "ENVI header: %d extra keys without a list", m->n_extra);
-	for (int i = 0; i < m->n_extra; i++)
+	for (int i = 0; i < m->n_extra; i++) {
 		if ((ret = check_extra(&m->extra[i], err)))
 			return ret;
+		for (int j = 0; j < i; j++)
+			if (strcmp(m->extra[i].key, m->extra[j].key) == 0)
+				return kg_fail(err, KG_EINVAL, "ENVI header: extra key '%s' given twice: "
+				               "expected each key once", m->extra[i].key);
+	}
 
 	size_t len;
 	FILE *f = open_memstream(text, &len);
@@ -725,6 +730,7 @@ static int parse_text(const char *hdr, const char *text, struct kg_envi_store *s
 			continue;
 		}
 		char *key = normalise_key(p, eq);
+		int key_line = line;
 		const char *v = eq + 1;
 		while (v < eol && isspace((unsigned char)*v))
 			v++;
@@ -749,6 +755,16 @@ static int parse_text(const char *hdr, const char *text, struct kg_envi_store *s
 			free(val);
 			return kg_fail(err, KG_EINVAL, "%s: line %d: expected 'key = value', found no key",
 			               hdr, line);
+		}
+		const char *before = key ? store_get(s, key) : NULL;
+		if (before) {
+			int r = kg_fail(err, KG_EINVAL, "%s: line %d: key '%s' given twice (before as "
+			                "'%.40s%s', now '%.40s%s'): expected each key once", hdr, key_line,
+			                key, before, strlen(before) > 40 ? "..." : "", val ? val : "",
+			                val && strlen(val) > 40 ? "..." : "");
+			free(key);
+			free(val);
+			return r;
 		}
 		if (store_set(s, key, val))
 			return kg_fail(err, KG_ENOMEM, "%s: out of memory", hdr);
@@ -1076,11 +1092,13 @@ int kg_envi_open(const char *path, kg_envi **out, kg_err *err)
 		goto fail;
 	}
 	unsigned long long need = (unsigned long long)e->header_offset + px * m->bands * ts;
-	if ((unsigned long long)st.st_size < need) {
-		ret = kg_fail(err, KG_EINVAL, "%s: file is %lld bytes: expected at least %llu for %d "
-		              "samples x %d lines x %d bands of %zu-byte data after a %lld-byte header",
-		              e->data_path, (long long)st.st_size, need, m->samples, m->lines, m->bands,
-		              ts, e->header_offset);
+	if ((unsigned long long)st.st_size != need) {
+		ret = kg_fail(err, KG_EINVAL, "%s: file is %lld bytes (%s): expected %llu for %d "
+		              "samples x %d lines x %d bands of %zu-byte data after a %lld-byte header "
+		              "offset, as %s says",
+		              e->data_path, (long long)st.st_size,
+		              (unsigned long long)st.st_size < need ? "too short" : "too long",
+		              need, m->samples, m->lines, m->bands, ts, e->header_offset, e->hdr_path);
 		goto fail;
 	}
 	*out = e;

@@ -7,6 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
+#include <sys/stat.h>
 #include <tiffio.h>
 #include <unistd.h>
 
@@ -108,6 +109,10 @@ static inline unsigned quantise(float v, float full)
 
 struct tiff_msg {
 	char text[512];
+	/* libtiff's warning that it replaced StripByteCounts or TileByteCounts it found
+	 * inconsistent with the declared size by its own estimate ("Bogus" or "Wrong
+	 * \"StripByteCounts\" field, ignoring and calculating from imagelength") */
+	char counts[256];
 };
 
 static int tiff_error(TIFF *tif, void *user, const char *module, const char *fmt, va_list ap)
@@ -120,7 +125,14 @@ static int tiff_error(TIFF *tif, void *user, const char *module, const char *fmt
 
 static int tiff_warning(TIFF *tif, void *user, const char *module, const char *fmt, va_list ap)
 {
-	return 1; /* unknown tags and the like: not worth a message */
+	/* unknown tags and the like: not worth a message; byte counts replaced: kept */
+	struct tiff_msg *m = user;
+	char text[256];
+	vsnprintf(text, sizeof(text), fmt, ap);
+	if (!m->counts[0] && strstr(text, "ByteCounts") &&
+	    (strstr(text, "Bogus") || strstr(text, "Wrong")))
+		snprintf(m->counts, sizeof(m->counts), "%s", text);
+	return 1;
 }
 
 static TIFF *tiff_open_fd(int fd, const char *path, const char *mode, struct tiff_msg *msg)
@@ -244,9 +256,11 @@ static int tiff_band(kg_image_rows *r, uint32_t cy, kg_err *err)
 			uint32_t cols = w - cx < tw ? w - cx : tw;
 			size_t need = (((size_t)rows - 1) * tw + cols) * (size_t)spc * bps;
 			if (got < 0 || (size_t)got < need)
-				return kg_fail(err, KG_EINVAL, "%s: %s at row %u: %s", r->path,
-				               r->tiled ? "tile" : "strip", cy,
-				               got < 0 ? tiff_why(&r->msg) : "data truncated");
+				return kg_fail(err, KG_EINVAL, "%s: %s at row %u: %s (%s %u, ImageLength "
+				               "%u)", r->path, r->tiled ? "tile" : "strip", cy,
+				               got < 0 ? tiff_why(&r->msg)
+				                       : "decoded to fewer rows than declared",
+				               r->tiled ? "TileLength" : "RowsPerStrip", th, h);
 			for (uint32_t y = 0; y < rows; y++) {
 				const unsigned char *src = r->chunk + (size_t)y * tw * spc * bps;
 				float *dst = r->band + ((size_t)y * w + cx) * C;
@@ -268,6 +282,76 @@ static int tiff_band(kg_image_rows *r, uint32_t cy, kg_err *err)
 			}
 		}
 	r->band_y0 = cy;
+	return 0;
+}
+
+/* Every strip or tile the declared size implies is in the file: an offset past the
+ * header and data inside the file, and, uncompressed, at least the bytes its rows
+ * need. libtiff fills the entries of a StripOffsets/TileOffsets shorter than the
+ * image implies with zeros and may invent byte counts for them (a bit flipped in
+ * ImageLength would otherwise read the header as pixels, for millions of rows). */
+static int tiff_check_chunks(kg_image_rows *r, uint32_t w, uint32_t h, kg_err *err)
+{
+	TIFF *tif = r->tif;
+	const char *path = r->path;
+	struct stat st;
+	if (fstat(TIFFFileno(tif), &st) != 0)
+		return kg_fail(err, KG_EIO, "%s: cannot stat: %s", path, strerror(errno));
+	uint64_t file_size = (uint64_t)st.st_size;
+	uint16_t compression = COMPRESSION_NONE;
+	TIFFGetFieldDefaulted(tif, TIFFTAG_COMPRESSION, &compression);
+	const char *kind = r->tiled ? "tile" : "strip";
+	const char *off_tag = r->tiled ? "TileOffsets" : "StripOffsets";
+	const char *cnt_tag = r->tiled ? "TileByteCounts" : "StripByteCounts";
+	uint32_t n = r->tiled ? TIFFNumberOfTiles(tif) : TIFFNumberOfStrips(tif);
+	uint32_t per_plane = r->tiled ? 0 : (h + r->th - 1) / r->th;
+	uint32_t planes = r->separate ? (uint32_t)r->spp : 1;
+	uint64_t expect_n = r->tiled ? (uint64_t)((w + r->tw - 1) / r->tw) *
+	                                       (uint64_t)((h + r->th - 1) / r->th) * planes
+	                             : (uint64_t)per_plane * planes;
+	if (n == 0 || (uint64_t)n != expect_n)
+		return kg_fail(err, KG_EINVAL, "%s: %u %ss: expected %llu for ImageWidth %u, "
+		               "ImageLength %u and %s %u", path, n, kind,
+		               (unsigned long long)expect_n, w, h,
+		               r->tiled ? "TileLength" : "RowsPerStrip", r->th);
+	for (uint32_t i = 0; i < n; i++) {
+		int err_code = 0;
+		uint64_t off = TIFFGetStrileOffsetWithErr(tif, i, &err_code);
+		uint64_t cnt = err_code ? 0 : TIFFGetStrileByteCountWithErr(tif, i, &err_code);
+		uint32_t y0 = r->tiled ? 0 : (i % per_plane) * r->th;
+		uint32_t rows = r->tiled ? r->th : (h - y0 < r->th ? h - y0 : r->th);
+		char where[96];
+		if (r->tiled)
+			snprintf(where, sizeof(where), "tile %u of %u", i, n);
+		else
+			snprintf(where, sizeof(where), "strip %u of %u (rows %u to %u)", i, n, y0,
+			         y0 + rows - 1);
+		if (err_code || off < 8 || cnt == 0)
+			return kg_fail(err, KG_EINVAL, "%s: %s has no data (%s %llu, %s %llu): the "
+			               "file's %ss do not cover the %u x %u pixels ImageWidth and "
+			               "ImageLength declare", path, where, off_tag,
+			               (unsigned long long)off, cnt_tag, (unsigned long long)cnt, kind,
+			               w, h);
+		if (off > file_size || cnt > file_size - off)
+			return kg_fail(err, KG_EINVAL, "%s: %s lies beyond the end of the %llu-byte "
+			               "file (%s %llu, %s %llu): truncated, or ImageLength %u is wrong",
+			               path, where, (unsigned long long)file_size, off_tag,
+			               (unsigned long long)off, cnt_tag, (unsigned long long)cnt, h);
+		if (compression == COMPRESSION_NONE) {
+			uint64_t need = r->tiled ? (uint64_t)TIFFTileSize64(tif)
+			                         : (uint64_t)TIFFVStripSize64(tif, rows);
+			if (cnt < need)
+				return kg_fail(err, KG_EINVAL, "%s: %s: %s %llu, expected %llu for "
+				               "uncompressed data: the %ss do not cover the %u x %u pixels "
+				               "ImageWidth and ImageLength declare", path, where, cnt_tag,
+				               (unsigned long long)cnt, (unsigned long long)need, kind, w, h);
+		}
+	}
+	if (r->msg.counts[0])
+		return kg_fail(err, KG_EINVAL, "%s: the %s's %s do not match the %u x %u pixels "
+		               "ImageWidth and ImageLength declare (libtiff: %s): truncated, or "
+		               "ImageLength %u is wrong", path, kind,
+		               cnt_tag, w, h, r->msg.counts, h);
 	return 0;
 }
 
@@ -346,6 +430,8 @@ static int tiff_rows_open(kg_image_rows *r, kg_err *err)
 	if (r->chunk_size <= 0)
 		return kg_fail(err, KG_EINVAL, "%s: strip or tile size invalid: %s", path,
 		               tiff_why(&r->msg));
+	if ((ret = tiff_check_chunks(r, w, h, err)))
+		return ret;
 	uint32_t band_rows = r->th < h ? r->th : h;
 	r->chunk = _TIFFmalloc(r->chunk_size);
 	r->band = malloc((size_t)band_rows * w * channels * sizeof(float));
@@ -383,7 +469,8 @@ int kg_image_write_tiff(const kg_image *img, const char *path, int bits, kg_err 
 	int ret = kg_outfile_open(&o, path, 0, err);
 	if (ret)
 		return ret;
-	struct tiff_msg msg = {{0}};
+	struct tiff_msg msg;
+	memset(&msg, 0, sizeof(msg));
 	int fd = dup(fileno(o.fp));
 	size_t C = (size_t)img->channels, W = (size_t)img->width, bps = (size_t)bits / 8;
 	int big = (uint64_t)W * img->height * C * bps > ((uint64_t)1 << 32) - ((uint64_t)1 << 28);

@@ -393,3 +393,32 @@ int kg_mat3_inverse(const double a[9], double out[9])
 	out[8] = (a[0] * a[4] - a[1] * a[3]) * id;
 	return 0;
 }
+
+int kg_mat3_check_invertible(const double a[9], const char *file, const char *what,
+                             kg_err *err)
+{
+	kg_check_arg(a && what, err);
+	const char *f = file ? file : "", *sep = file ? ": " : "";
+	for (int i = 0; i < 9; i++)
+		if (!isfinite(a[i]))
+			return kg_fail(err, KG_EINVAL, "%s%s%s is singular (element [%d][%d] is %g): "
+			               "expected a finite, invertible 3 x 3 matrix; recalibrate",
+			               f, sep, what, i / 3, i % 3, a[i]);
+	kg_mat *m = NULL, *s = NULL;
+	int ret = kg_mat_from(3, 3, a, &m, err);
+	if (!ret)
+		ret = kg_svd(m, NULL, &s, NULL, err);
+	kg_mat_free(&m);
+	if (ret)
+		return ret;
+	double sv[3] = { s->a[0], s->a[1], s->a[2] };
+	kg_mat_free(&s);
+	int rank = 0;
+	for (int i = 0; i < 3; i++)
+		rank += sv[0] > 0 && sv[i] > KG_MAT3_RCOND_MIN * sv[0];
+	if (rank < 3)
+		return kg_fail(err, KG_EINVAL, "%s%s%s is singular (rank %d < 3; singular values "
+		               "%.3g %.3g %.3g): expected an invertible 3 x 3 matrix; recalibrate",
+		               f, sep, what, rank, sv[0], sv[1], sv[2]);
+	return 0;
+}

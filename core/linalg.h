@@ -56,6 +56,17 @@ int kg_pinv(const kg_mat *a, double rtol, kg_mat **pinv, int *rank, kg_mat **s, 
  * is singular or not finite. */
 int kg_mat3_inverse(const double a[9], double out[9]);
 
+/* Smallest singular value over the largest below which a 3 x 3 matrix counts as
+ * singular (kg_mat3_check_invertible). */
+#define KG_MAT3_RCOND_MIN 1e-10
+
+/* Refuse a 3 x 3 matrix (row-major) that is not finite or whose smallest singular
+ * value is at or below KG_MAT3_RCOND_MIN times its largest, with one message for
+ * every caller: "FILE: WHAT is singular (rank r < 3; singular values ...)". file may
+ * be NULL (the message then starts with what). */
+int kg_mat3_check_invertible(const double a[9], const char *file, const char *what,
+                             kg_err *err);
+
 /* Condition number smax / smin over the min(rows, cols) singular values; +inf when
  * the matrix is rank deficient (smin <= rtol * smax). */
 int kg_cond(const kg_mat *a, double rtol, double *cond, kg_err *err);

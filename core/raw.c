@@ -11,6 +11,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "fsutil.h"
 #include "raw.h"
 
 #if HAVE_LIBRAW
@@ -412,6 +413,12 @@ static int decode(raw_job *j, kg_image **out, kg_raw_meta *meta, int pixels, kg_
 	return 0;
 }
 
+/* data: the bytes to decode; path: the file they came from (for the diagnosis of a
+ * header LibRaw cannot read), or NULL. Pixels are always decoded from memory: LibRaw's
+ * file and memory streams differ on damaged data (a read past the end, a seek beyond
+ * it), so one stream for both keeps a file and the same bytes from a camera (gphoto2:)
+ * decoding alike or both refused. Without data (the header only, for a folder's
+ * listing), LibRaw opens the file itself and reads no more than the header. */
 static int run(const char *path, const void *data, size_t size, const char *name,
                kg_image **out, kg_raw_meta *meta, int pixels, kg_err *err)
 {
@@ -422,8 +429,8 @@ static int run(const char *path, const void *data, size_t size, const char *name
 	if (!j.lr)
 		return kg_fail(err, KG_ENOMEM, "%s: cannot start LibRaw", name);
 	libraw_set_dataerror_handler(j.lr, on_data_error, &j);
-	int code = path ? libraw_open_file(j.lr, path)
-	                : libraw_open_buffer(j.lr, (void *)(uintptr_t)data, size);
+	int code = data ? libraw_open_buffer(j.lr, (void *)(uintptr_t)data, size)
+	                : libraw_open_file(j.lr, path);
 	int ret;
 	if (code != LIBRAW_SUCCESS) {
 		char why[160];
@@ -442,10 +449,32 @@ static int run(const char *path, const void *data, size_t size, const char *name
 	return ret;
 }
 
+static int too_short(const char *name, size_t size, kg_err *err)
+{
+	return kg_fail(err, KG_EINVAL, "%s: %zu bytes: too short for a raw file",
+	               name ? name : "raw data", size);
+}
+
+/* The whole file, decoded from memory as kg_raw_read_memory decodes it. */
+static int run_file(const char *path, kg_image **out, kg_raw_meta *meta, kg_err *err)
+{
+	if (out)
+		*out = NULL;
+	char *data = NULL;
+	size_t size = 0;
+	int ret = kg_read_file(path, &data, &size, err);
+	if (ret)
+		return ret;
+	ret = size < 16 ? too_short(path, size, err)
+	                : run(path, data, size, path, out, meta, 1, err);
+	free(data);
+	return ret;
+}
+
 int kg_raw_read(const char *path, kg_image **out, kg_raw_meta *meta, kg_err *err)
 {
 	kg_check_arg(path && out, err);
-	return run(path, NULL, 0, path, out, meta, 1, err);
+	return run_file(path, out, meta, err);
 }
 
 int kg_raw_read_memory(const void *data, size_t size, const char *name, kg_image **out,
@@ -453,8 +482,7 @@ int kg_raw_read_memory(const void *data, size_t size, const char *name, kg_image
 {
 	kg_check_arg(data && out, err);
 	if (size < 16)
-		return kg_fail(err, KG_EINVAL, "%s: %zu bytes: too short for a raw file",
-		               name ? name : "raw data", size);
+		return too_short(name, size, err);
 	return run(NULL, data, size, name ? name : "raw data", out, meta, 1, err);
 }
 

@@ -1410,9 +1410,12 @@ int kg_classify_camera_rows(const kg_est_kernel *k, const kg_est_material_set *s
 	if (set->n > 254)
 		return kg_fail(err, KG_EINVAL, "%s: %d materials: camera-space matching takes at most "
 		               "254", out_hdr, set->n);
+	int bad = kg_mat3_check_invertible(cam->site_to_ref, NULL, "M2", err);
+	if (bad)
+		return bad;
 	for (int i = 0; i < 9; i++)
-		if (!isfinite(cam->site_to_ref[i]) || !isfinite(cam->calib_cov[i]))
-			return kg_fail(err, KG_EINVAL, "%s: M2 and the calibration covariance: expected "
+		if (!isfinite(cam->calib_cov[i]))
+			return kg_fail(err, KG_EINVAL, "%s: the calibration covariance: expected "
 			               "finite values", out_hdr);
 	if (cam->region_map && (cam->region_map->width != src->width ||
 	                        cam->region_map->height != src->height ||

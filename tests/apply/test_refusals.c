@@ -17,6 +17,15 @@ static void expect_refusal(int status, const char *what, const char *frag1, cons
 	      fx_count_files(), fx_dir, ninputs);
 }
 
+/* The line of stderr that says M2 is singular, or "". */
+static void m2_line(char *out, size_t n)
+{
+	const char *m = strstr(fx_errs, "M2 is singular"), *a = m;
+	while (a && a > fx_errs && a[-1] != '\n')
+		a--;
+	snprintf(out, n, "%.*s", a ? (int)strcspn(a, "\n") : 0, a ? a : "");
+}
+
 int main(int argc, char **argv)
 {
 	fx_setup(argc, argv);
@@ -33,6 +42,22 @@ int main(int argc, char **argv)
 	CHECK(kg_image_write_tiff(grey, grey_tif, 16, &err) == 0, "%s", err.msg);
 	char lib[4096];
 	snprintf(lib, sizeof(lib), "%s/fixtures/materials/default.json", KG_SOURCE_ROOT);
+	/* Calibrations whose M2 cannot be right: all zeros, rank 2 (a row repeated), and
+	 * nearly singular (a row repeated to 1e-13). */
+	const char *bad_m2_path[3] = {fx_path("cam-zero-m2.json"), fx_path("cam-rank2-m2.json"),
+	                              fx_path("cam-near-m2.json")};
+	double good_m2[9];
+	memcpy(good_m2, cam->M2, sizeof(good_m2));
+	for (int k = 0; k < 3; k++) {
+		memcpy(cam->M2, good_m2, sizeof(good_m2));
+		for (int i = 0; i < 9; i++)
+			if (k == 0)
+				cam->M2[i] = 0;
+			else if (i >= 6)
+				cam->M2[i] = cam->M2[i - 3] * (k == 2 ? 1 + 1e-13 : 1);
+		CHECK(kg_camera_save(cam, bad_m2_path[k], &err) == 0, "%s", err.msg);
+	}
+	memcpy(cam->M2, good_m2, sizeof(good_m2));
 	ninputs = fx_count_files();
 	const char *out = fx_path("out.hdr"), *labels = fx_path("labels.hdr");
 
@@ -48,6 +73,21 @@ int main(int argc, char **argv)
 	expect_refusal(FX_RUN("classify", "--calib", cam_path, "--materials", lib, grey_tif, "-o",
 	                      labels),
 	               "classify, grey image", "expected a 3-channel", "demosaic");
+	/* A singular M2: refused by estimate and classify with one message naming the file. */
+	for (int k = 0; k < 3; k++) {
+		char est_msg[1024], cls_msg[1024];
+		expect_refusal(FX_RUN("estimate", "--calib", bad_m2_path[k], tif, "-o", out),
+		               "estimate, singular M2", "M2 is singular (rank ", bad_m2_path[k]);
+		m2_line(est_msg, sizeof(est_msg));
+		expect_refusal(FX_RUN("classify", "--calib", bad_m2_path[k], "--materials", lib, tif,
+		                      "-o", labels),
+		               "classify, singular M2", "M2 is singular (rank ", bad_m2_path[k]);
+		m2_line(cls_msg, sizeof(cls_msg));
+		CHECK(est_msg[0] && strstr(est_msg, bad_m2_path[k]) && strcmp(est_msg, cls_msg) == 0,
+		      "singular M2 %d: estimate and classify differ:\n  %s\n  %s", k, est_msg, cls_msg);
+		CHECK(strstr(est_msg, k == 0 ? "rank 0 < 3" : "rank 2 < 3"), "M2 %d: rank: %s", k,
+		      est_msg);
+	}
 	expect_refusal(FX_RUN("estimate", "--calib", tif, tif, "-o", out),
 	               "an image given as calibration", "img.tif", NULL);
 	expect_refusal(FX_RUN("classify", "--calib", cam_path, "--materials", lib, "--only",

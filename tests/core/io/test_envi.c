@@ -145,6 +145,15 @@ static void test_incomplete_and_abort(void)
 	m.extra = &ex;
 	CHECK(kg_envi_writer_open(io_path("bad.hdr"), &m, &w, &err) == KG_EINVAL,
 	      "extra key clashing with a standard key refused");
+	/* the reader refuses a key given twice: so does the writer */
+	kg_envi_pair twice[2] = {{"kogei note", "a"}, {"kogei note", "b"}};
+	m.n_extra = 2;
+	m.extra = twice;
+	CHECK(kg_envi_writer_open(io_path("bad.hdr"), &m, &w, &err) == KG_EINVAL && !w &&
+	          strstr(err.msg, "'kogei note' given twice"),
+	      "extra key given twice refused: %s", err.msg);
+	m.n_extra = 0;
+	m.extra = NULL;
 	CHECK(io_count_files() == before, "nothing left behind");
 }
 
@@ -255,7 +264,7 @@ static void test_errors(void)
 	io_write_bytes(io_path("e6.img"), "12345678", 8);
 	expect_open_error("e1.hdr", "ENVI\nlines = 2\nbands = 1\ndata type = 4\n", "'samples' is missing");
 	expect_open_error("e2.hdr", "ENVI\nsamples = 2\nlines = 2\nbands = 1\ndata type = 4\n",
-	                  "expected at least 16");
+	                  "e2.img: file is 8 bytes (too short): expected 16");
 	expect_open_error("e3.hdr", "ENVI\nsamples = 1\nlines = 1\nbands = 1\ndata type = 4\n"
 	                  "wavelength = {1, 2\n", "never closed");
 	expect_open_error("e4.hdr", "not an envi header\n", "expected 'ENVI'");
@@ -267,6 +276,30 @@ static void test_errors(void)
 	                  "no data file");
 	expect_open_error("e8.hdr", "ENVI\nsamples = 1\nlines = 1\nbands = 1\ndata type = 6\n",
 	                  "not supported");
+	/* a data file larger than the header says, with and without a header offset */
+	io_write_bytes(io_path("e9.img"), "12345678", 8);
+	expect_open_error("e9.hdr", "ENVI\nsamples = 1\nlines = 1\nbands = 1\ndata type = 4\n",
+	                  "e9.img: file is 8 bytes (too long): expected 4");
+	io_write_bytes(io_path("e10.img"), "123456789", 9);
+	expect_open_error("e10.hdr", "ENVI\nsamples = 1\nlines = 1\nbands = 1\ndata type = 4\n"
+	                  "header offset = 4\n", "e10.img: file is 9 bytes (too long): expected 8");
+	/* the same key twice, also when spelt differently; the key and the header named */
+	io_write_bytes(io_path("e11.img"), "1234", 4);
+	expect_open_error("e11.hdr", "ENVI\nsamples = 1\nlines = 1\nbands = 1\ndata type = 4\n"
+	                  "lines = 2\n", "e11.hdr: line 6: key 'lines' given twice");
+	io_write_bytes(io_path("e12.img"), "1234", 4);
+	expect_open_error("e12.hdr", "ENVI\nsamples = 1\nlines = 1\nbands = 1\ndata type = 4\n"
+	                  "wavelength = {500}\nWavelength  = {\n 600}\n",
+	                  "e12.hdr: line 7: key 'wavelength' given twice");
+	/* the same sizes, once each: accepted (the cases above fail for their reason only) */
+	io_write_bytes(io_path("e13.img"), "1234", 4);
+	const char *e13 = "ENVI\nsamples = 1\nlines = 1\nbands = 1\ndata type = 4\n"
+	                  "wavelength = {500}\n";
+	io_write_bytes(io_path("e13.hdr"), e13, strlen(e13));
+	kg_envi *ok = NULL;
+	kg_err err = {{0}};
+	CHECK(kg_envi_open(io_path("e13.hdr"), &ok, &err) == 0, "e13: %s", err.msg);
+	kg_envi_close(&ok);
 }
 
 static void test_paths(void)

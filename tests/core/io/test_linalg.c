@@ -362,8 +362,41 @@ static void test_mat3_inverse(void)
 	CHECK(!strcmp(e.msg, "dir: a.json: bad value"), "prefix ending in ': ': '%s'", e.msg);
 }
 
+/* kg_mat3_check_invertible: a well-conditioned but badly scaled matrix passes (its
+ * condition number far below 1e10); zeros, rank 1 and 2, a row repeated to 1e-13 and
+ * a NaN are refused with one message naming the file, the matrix and the rank. */
+static void test_mat3_check(void)
+{
+	kg_err e = {{0}};
+	const double ok[9] = {1e-6, 0, 0, 0, 2e-6, 1e-7, 0, 0, 3e-6};
+	CHECK(kg_mat3_check_invertible(ok, "cam.json", "M2", &e) == 0, "invertible: %s", e.msg);
+	const double scaled[9] = {1e8, 0, 0, 0, 1, 0, 0, 0, 1e-1}; /* condition 1e9 */
+	CHECK(kg_mat3_check_invertible(scaled, "cam.json", "M2", &e) == 0, "cond 1e9: %s", e.msg);
+	const struct {
+		double a[9];
+		const char *want;
+	} bad[] = {
+		{{0, 0, 0, 0, 0, 0, 0, 0, 0}, "cam.json: M2 is singular (rank 0 < 3;"},
+		{{1, 2, 3, 2, 4, 6, 3, 6, 9}, "cam.json: M2 is singular (rank 1 < 3;"},
+		{{1, 2, 3, 2, 4, 6, 0, 1, 1}, "cam.json: M2 is singular (rank 2 < 3;"},
+		{{1, 0.5, 0.2, 0.1, 1, 0.3, 0.1, 1 + 1e-13, 0.3}, "cam.json: M2 is singular (rank 2 < 3;"},
+		{{1e11, 0, 0, 0, 1, 0, 0, 0, 1e-1}, "cam.json: M2 is singular (rank 1 < 3;"},
+		{{1, 0, 0, 0, NAN, 0, 0, 0, 1}, "cam.json: M2 is singular (element [1][1] is nan)"},
+	};
+	for (size_t i = 0; i < sizeof(bad) / sizeof(bad[0]); i++) {
+		memset(&e, 0, sizeof(e));
+		CHECK(kg_mat3_check_invertible(bad[i].a, "cam.json", "M2", &e) == KG_EINVAL &&
+		          strncmp(e.msg, bad[i].want, strlen(bad[i].want)) == 0,
+		      "case %zu: '%s', expected it to start '%s'", i, e.msg, bad[i].want);
+	}
+	CHECK(kg_mat3_check_invertible(bad[0].a, NULL, "M2", &e) == KG_EINVAL &&
+	          strncmp(e.msg, "M2 is singular (rank 0", 22) == 0,
+	      "no file: '%s'", e.msg);
+}
+
 int main(void)
 {
+	test_mat3_check();
 	test_mat3_inverse();
 	test_basics();
 	check_svd(7, 4);
