@@ -372,6 +372,8 @@ typedef struct est_sink {
 	kg_envi_writer *cube, *mask;
 	staging stage;
 	progress prog;
+	const feed *in;
+	const kg_apply_options *opt;
 } est_sink;
 
 static int est_sink_fn(void *user, const kg_est_block *b, kg_err *err)
@@ -379,6 +381,11 @@ static int est_sink_fn(void *user, const kg_est_block *b, kg_err *err)
 	est_sink *s = user;
 	size_t n = (size_t)b->rows * b->width * b->bands;
 	int rc;
+	if (s->opt->observe) {
+		planes pl = ap_feed_planes(s->in, b->input, (size_t)b->rows * b->width);
+		if ((rc = s->opt->observe(s->opt->observe_user, b, pl.raw, err)))
+			return rc;
+	}
 	switch (b->format) {
 	case KG_EST_F32_BSQ:
 		rc = kg_envi_writer_put(s->cube, b->y0, b->y0 + b->rows, KG_LAYOUT_PLANAR, b->data, err);
@@ -558,6 +565,8 @@ int kg_estimate_rows(const kg_est_kernel *k, const kg_row_source *src, kg_est_fo
 	job.isa = opt->isa;
 	sink.cube = ws[0];
 	sink.mask = ws[1];
+	sink.in = &in;
+	sink.opt = opt;
 	ap_progress_init(&sink.prog, opt, "estimate", src->width, src->height);
 	rc = kg_est_run_stream(&job, NULL, src->width, src->height, est_sink_fn, &sink, stats,
 	                       err);

@@ -452,10 +452,16 @@ typedef struct kg_apply_options {
 	FILE *progress;
 	/* Written as the cube's ENVI "description" (no braces), or NULL. */
 	const char *description;
+	/* kg_estimate_rows only: called with each finished block, in row order from the
+	 * calling thread, before it is written: its pixel flags (block->mask) and the
+	 * image's own values of its pixels (raw: 3 per pixel, before pre). NULL: none. An
+	 * error it returns stops the run, with nothing written. */
+	int (*observe)(void *user, const kg_est_block *block, const float *raw, kg_err *err);
+	void *observe_user;
 } kg_apply_options;
 
 /* pre NULL, clip_level 0.999, threads 0, block_rows 0, isa AUTO, progress NULL,
- * description NULL. */
+ * description NULL, observe NULL. */
 void kg_apply_options_init(kg_apply_options *o);
 
 /* A side file of an output: the output name without its extension (".hdr", ".img"

@@ -31,6 +31,8 @@ static void remove_tree(const char *dir)
 #define PROC_MAX_CLIPPED 0.01
 #define PROC_BLACK_LEVEL 0.01
 #define PROC_UNDER_LEVEL 0.5
+/* A pixel is lit when a channel is above this many sigmas of its noise. */
+#define PROC_LIT_SIGMAS 5.0
 
 static const char *cam_str(const proc_capture *c, const char *key)
 {
@@ -387,16 +389,154 @@ static int tap_read(void *user, int y0, int rows, float *out, kg_err *err)
 	return ret;
 }
 
+/* The clamp count that means something: over the lit pixels only. Black or unlit
+ * ground is noise about 0, and a reflectance estimate of noise is negative in some
+ * band about every other pixel; the rim of a lit region mixes object and ground
+ * (lens blur, demosaicing), whose false colours are negative too. A lit pixel clamped
+ * is one the calibration does not fit. Lit: inside the --mask (when one is given),
+ * estimated (finite, not clipped), and it and its 8 neighbours (those in the image)
+ * above the noise: a channel c above PROC_LIT_SIGMAS sigma_c, sigma_c from the
+ * capture's variance of the mean when recorded, else the classifier's noise model
+ * (floor and relative part). Counted from the estimate's blocks as they are written
+ * (observe), a row decided when the next one has arrived. */
+enum { LIT_ABOVE = 1, LIT_COUNTED = 2, LIT_CLAMPED = 4 };
+
+typedef struct lit_count {
+	proc_pass *var_pass;
+	kg_row_source var, mask;
+	kg_image_rows *mask_rows;
+	int has_var, has_mask;
+	int width, height;
+	float *vbuf, *mbuf;
+	size_t vcap, mcap;
+	uint8_t *row[3]; /* LIT_* of rows y mod 3 */
+	double floor2, rel2;
+	uint64_t lit, clamped;
+} lit_count;
+
+static int lit_grow(float **buf, size_t *cap, size_t n, kg_err *err)
+{
+	if (n <= *cap)
+		return 0;
+	float *b = realloc(*buf, n * sizeof(float));
+	if (!b)
+		return kg_fail(err, KG_ENOMEM, "out of memory");
+	*buf = b;
+	*cap = n;
+	return 0;
+}
+
+/* Row y, its neighbours above (y > 0) and below (y + 1 < height) already classed. */
+static void lit_decide(lit_count *l, int y)
+{
+	const uint8_t *r[3] = {y > 0 ? l->row[(y - 1) % 3] : NULL, l->row[y % 3],
+	                       y + 1 < l->height ? l->row[(y + 1) % 3] : NULL};
+	const int W = l->width;
+	for (int x = 0; x < W; x++) {
+		if (!(r[1][x] & LIT_COUNTED))
+			continue;
+		int lit = 1;
+		for (int j = 0; j < 3 && lit; j++)
+			for (int dx = -1; dx <= 1 && lit && r[j]; dx++)
+				if (x + dx >= 0 && x + dx < W && !(r[j][x + dx] & LIT_ABOVE))
+					lit = 0;
+		if (lit) {
+			l->lit++;
+			l->clamped += (r[1][x] & LIT_CLAMPED) != 0;
+		}
+	}
+}
+
+static int lit_observe(void *user, const kg_est_block *b, const float *raw, kg_err *err)
+{
+	lit_count *l = user;
+	size_t n = (size_t)b->rows * b->width;
+	int ret = 0;
+	if (b->width != l->width || !raw || !b->mask)
+		return kg_fail(err, KG_EINVAL, "lit pixels: a block of %d pixels a row, expected %d",
+		               b->width, l->width);
+	if (l->has_var && !(ret = lit_grow(&l->vbuf, &l->vcap, 3 * n, err)))
+		ret = l->var.read(l->var.user, b->y0, b->rows, l->vbuf, err);
+	if (!ret && l->has_mask &&
+	    !(ret = lit_grow(&l->mbuf, &l->mcap, (size_t)l->mask.channels * n, err)))
+		ret = l->mask.read(l->mask.user, b->y0, b->rows, l->mbuf, err);
+	if (ret)
+		return ret;
+	const double k2 = PROC_LIT_SIGMAS * PROC_LIT_SIGMAS;
+	for (int yr = 0; yr < b->rows; yr++) {
+		int y = b->y0 + yr;
+		uint8_t *out = l->row[y % 3];
+		for (int x = 0; x < l->width; x++) {
+			size_t i = (size_t)yr * l->width + x;
+			uint8_t f = 0;
+			for (int ch = 0; ch < 3 && !f; ch++) {
+				double v = raw[3 * i + ch];
+				double var = l->has_var ? l->vbuf[3 * i + ch] : l->floor2 + l->rel2 * v * v;
+				if (v > 0 && v * v > k2 * var)
+					f = LIT_ABOVE;
+			}
+			if (!(b->mask[i] & (KG_EST_MASK_NONFINITE | KG_EST_MASK_CLIPPED)) &&
+			    (!l->has_mask || l->mbuf[(size_t)l->mask.channels * i] != 0.0f))
+				f |= LIT_COUNTED | (b->mask[i] & KG_EST_MASK_CLAMPED ? LIT_CLAMPED : 0);
+			out[x] = f;
+		}
+		if (y > 0)
+			lit_decide(l, y - 1);
+		if (y + 1 == l->height)
+			lit_decide(l, y);
+	}
+	return 0;
+}
+
+static int lit_open(proc *p, proc_source *src, const proc_image_info *info, lit_count *l)
+{
+	memset(l, 0, sizeof(*l));
+	kg_classify_options copt;
+	kg_classify_options_init(&copt);
+	l->floor2 = copt.noise_floor * copt.noise_floor;
+	l->rel2 = copt.noise_relative * copt.noise_relative;
+	l->width = info->width;
+	l->height = info->height;
+	for (int j = 0; j < 3; j++)
+		if (!(l->row[j] = malloc((size_t)info->width)))
+			return kg_fail(p->err, KG_ENOMEM, "out of memory");
+	int ret = 0;
+	if (info->has_variance && !(ret = proc_pass_open(src, 1, &l->var_pass, &l->var)))
+		l->has_var = 1;
+	if (!ret && p->o->mask && !(ret = kg_image_rows_open(p->o->mask, &l->mask_rows, p->err))) {
+		kg_row_source_of_rows(l->mask_rows, &l->mask);
+		l->has_mask = 1;
+	}
+	return ret;
+}
+
+static void lit_free(lit_count *l)
+{
+	proc_pass_free(&l->var_pass);
+	kg_image_rows_free(&l->mask_rows);
+	free(l->vbuf);
+	free(l->mbuf);
+	for (int j = 0; j < 3; j++)
+		free(l->row[j]);
+}
+
+/* The estimate's counts into object's "estimate" and its warnings; lit: the clamp count
+ * over the lit pixels (NULL when no cube was estimated: labels clamp nothing). */
 static void stats_json(proc *p, const proc_capture *c, const kg_est_stats *stats,
-                       const char *what, json_t *object)
+                       const lit_count *lit, const char *what, json_t *object)
 {
 	char line[256];
 	kg_est_stats_format(stats, line, sizeof(line));
 	proc_progress(p, "%s: %s: %s", c->name, what, line);
-	json_object_set_new(object, "estimate", json_pack("{s:I, s:I, s:I, s:I}", "pixels",
-	                    (json_int_t)stats->pixels, "nonfinite", (json_int_t)stats->nonfinite,
-	                    "clipped", (json_int_t)stats->clipped, "clamped",
-	                    (json_int_t)stats->clamped_pixels));
+	json_t *est = json_pack("{s:I, s:I, s:I, s:I}", "pixels", (json_int_t)stats->pixels,
+	                        "nonfinite", (json_int_t)stats->nonfinite, "clipped",
+	                        (json_int_t)stats->clipped, "clamped",
+	                        (json_int_t)stats->clamped_pixels);
+	if (lit) {
+		json_object_set_new(est, "lit", json_integer((json_int_t)lit->lit));
+		json_object_set_new(est, "clamped_lit", json_integer((json_int_t)lit->clamped));
+	}
+	json_object_set_new(object, "estimate", est);
 	json_t *warnings = json_object_get(object, "warnings");
 	double n = (double)stats->pixels;
 	if (n > 0 && (double)stats->clipped > PROC_MAX_CLIPPED * n)
@@ -406,14 +546,17 @@ static void stats_json(proc *p, const proc_capture *c, const kg_est_stats *stats
 		          c->name, 100 * (double)stats->clipped / n,
 		          (unsigned long long)stats->clipped, (unsigned long long)stats->pixels,
 		          100 * PROC_MAX_CLIPPED);
-	if (n > 0 && (double)stats->clamped_pixels > PROC_MAX_CLIPPED * n)
-		proc_warn(p, warnings, "capture %s: %.1f %% of its pixels clamped (%llu of %llu with "
-		          "a negative reflectance set to 0; over %g %%): expected where it shows "
-		          "black or unlit ground (noise about 0); elsewhere the capture does not fit "
-		          "the calibration (dark missing or another camera's, another light)",
-		          c->name, 100 * (double)stats->clamped_pixels / n,
-		          (unsigned long long)stats->clamped_pixels, (unsigned long long)stats->pixels,
-		          100 * PROC_MAX_CLIPPED);
+	double nl = lit ? (double)lit->lit : 0;
+	if (nl > 0 && (double)lit->clamped > PROC_MAX_CLIPPED * nl)
+		proc_warn(p, warnings, "capture %s: %.1f %% of its lit pixels clamped (%llu of %llu "
+		          "lit pixels%s with a negative reflectance set to 0; over %g %%; lit: it and "
+		          "its 8 neighbours have a channel over %g sigma of their noise, so black or "
+		          "unlit ground is not counted): the capture does not fit the "
+		          "calibration (dark missing or another camera's, another light, a colour "
+		          "outside the chart's)",
+		          c->name, 100 * (double)lit->clamped / nl, (unsigned long long)lit->clamped,
+		          (unsigned long long)lit->lit, lit->has_mask ? " inside the mask" : "",
+		          100 * PROC_MAX_CLIPPED, PROC_LIT_SIGMAS);
 }
 
 /* The capture's level from the photograph's samples (every channel, after the dark and
@@ -474,11 +617,17 @@ static int estimate_pass(proc *p, const proc_capture *c, proc_source *src,
 	proc_pass *pass = NULL;
 	kg_row_source rows;
 	kg_apply_options o = *opt;
+	lit_count lit;
 	/* weights are the PCA kernel's; the spectra the calibration's own method */
 	int ret = kg_camera_kernel(p->cam, format == KG_EST_WEIGHTS ? KG_METHOD_PCA : KG_METHOD_AUTO,
 	                           0, &kern, pre, &pre_needed, err);
 	if (!ret)
 		ret = proc_pass_open(src, 0, &pass, &rows);
+	int lit_ret = lit_open(p, src, info, &lit);
+	if (!ret)
+		ret = lit_ret;
+	o.observe = lit_observe;
+	o.observe_user = &lit;
 	kg_est_stats stats;
 	if (!ret) {
 		o.pre = pre_needed ? pre : NULL;
@@ -488,7 +637,8 @@ static int estimate_pass(proc *p, const proc_capture *c, proc_source *src,
 		ret = kg_estimate_rows(kern, &rows, format, &o, cube, &stats, err);
 	}
 	if (!ret)
-		stats_json(p, c, &stats, "cube written", object);
+		stats_json(p, c, &stats, &lit, "cube written", object);
+	lit_free(&lit);
 	proc_pass_free(&pass);
 	kg_est_kernel_free(&kern);
 	return ret;
@@ -594,7 +744,7 @@ static int classify_pass(proc *p, const proc_capture *c, proc_source *src, doubl
 				                              set->n));
 		}
 		if (!ret && !json_object_get(object, "estimate")) /* no cube: the labels' counts */
-			stats_json(p, c, &cres.stats, "labels written", object);
+			stats_json(p, c, &cres.stats, NULL, "labels written", object);
 		kg_classify_result_free(&cres);
 	}
 	if (!ret)

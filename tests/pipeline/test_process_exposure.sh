@@ -10,7 +10,9 @@
 #  - --skip NAME leaves a foreign capture out without --force, listed in process.json;
 #  - warnings: a flat applied by process that acquire recorded as none, an object
 #    under-exposed by more than 50 %, one with over 1 % of its pixels clipped, an all
-#    black one.
+#    black one, one lit by another light (a green LED: over 1 % of its lit pixels
+#    clamped, counted inside the --mask), and not a normal one on black ground (its
+#    ground clamped, its lit pixels not).
 # usage: test_process_exposure.sh KOGEI SOURCE_ROOT HAVE_TAGS_AND_DEMOSAIC
 set -u
 KOGEI=$1
@@ -72,6 +74,15 @@ assert not [x for x in w if "object-full" in x and ("under-exposed" in x or "cli
 assert 0.3 < o["object-half"]["level"] < 0.5 < o["object-full"]["level"] < 0.95, \
     (o["object-half"]["level"], o["object-full"]["level"])
 assert "capture object-half: under-exposed by more than 50 %" in out, out
+# on its black ground most pixels' estimates are noise about 0, clamped; the lit ones
+# (the patches' inner pixels) are not: no clamp warning
+for c in ("object-full", "object-half"):
+    e = o[c]["estimate"]
+    assert e["clamped"] > 0.5 * e["pixels"], (c, e)
+    assert 0.05 * e["pixels"] < e["lit"] < 0.3 * e["pixels"], (c, e)
+    assert e["clamped_lit"] <= 0.01 * e["lit"], (c, e)
+    assert not [x for x in o[c]["warnings"] if "clamped" in x], (c, o[c]["warnings"])
+assert "clamped" not in out, out
 PY
 
 # ---- the gain not recorded: --assume-same-exposure fills in only the gain ---------
@@ -187,5 +198,77 @@ expect_exit 0 "$KOGEI" process "$S3" --reference "$A/reference.json" -o "$T/D" -
 check "acquire's dark of another camera: warned" \
 	grep -q "warning: capture object-nodark: acquire subtracted dark dark-0003, of another camera" \
 	"$T/out"
+
+# ---- another light: the object under a green LED, the chart under A -----------------
+# Its lit pixels read pure green, a colour the calibration under A cannot give without
+# negative reflectance: clamped, warned. The --mask counts only what it keeps: half of
+# the lit pixels (left of the middle column), or none (only ground rows kept).
+"$PY" - "$T/green.csv" "$T/mask-left.png" "$T/mask-ground.png" <<'PY'
+import struct, sys, zlib
+import numpy as np
+with open(sys.argv[1], "w") as f:
+    f.write("wavelength_nm,power\n")
+    for nm in range(380, 781, 5):
+        f.write("%d,%g\n" % (nm, 1.0 if 510 <= nm <= 550 else 0.0))
+def png(path, a):
+    raw = b"".join(b"\0" + bytes(r) for r in a.astype(np.uint8))
+    def chunk(t, x):
+        return struct.pack(">I", len(x)) + t + x + struct.pack(">I", zlib.crc32(t + x))
+    ihdr = struct.pack(">IIBBBBB", a.shape[1], a.shape[0], 8, 0, 0, 0, 0)  # 8-bit grey
+    open(path, "wb").write(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) +
+                           chunk(b"IDAT", zlib.compress(raw)) + chunk(b"IEND", b""))
+m = np.zeros((120, 160))
+m[:, :80] = 255
+png(sys.argv[2], m)
+m = np.zeros((120, 160))
+m[:20, :] = 255
+png(sys.argv[3], m)
+PY
+"$KOGEI" sim image --materials default --camera "$FIX/demo/site_camera.csv" \
+	--illuminant "$T/green.csv" --angle 30 --patch-size 16 --gap 4 --columns 5 \
+	--background 0 --white-level 0.9 --size 160x120 --noise none --depth float \
+	-o "$T/object-green.tif" >/dev/null || { echo "FAIL: simulated green-lit scene"; exit 1; }
+S4=$T/S4
+cp -r "$S" "$S4"
+sim_acquire "$S4" object "$T/object-green.tif" 10000 '' --name object-green || exit 1
+for m in none left ground; do
+	mopt=; [ $m = none ] || mopt="--mask $T/mask-$m.png"
+	# shellcheck disable=SC2086
+	expect_exit 0 "$KOGEI" process "$S4" --reference "$A/reference.json" -o "$T/G-$m" \
+		--no-render $mopt
+	cp "$T/out" "$T/out-G-$m"
+done
+check "another light: lit pixels clamped, warned; counted inside the mask only" \
+	"$PY" - "$T" <<'PY'
+import json, sys
+t = sys.argv[1]
+def run(m):
+    d = json.load(open("%s/G-%s/process.json" % (t, m)))
+    return {x["capture"]: x for x in d["objects"]}, d["warnings"], open("%s/out-G-%s" % (t, m)).read()
+o, w, out = run("none")
+g, f = o["object-green"]["estimate"], o["object-full"]["estimate"]
+print("object-green: %d lit, %d of them clamped; object-full: %d lit, %d clamped"
+      % (g["lit"], g["clamped_lit"], f["lit"], f["clamped_lit"]))
+assert g["lit"] > 0.05 * g["pixels"], g
+assert g["clamped_lit"] > 0.5 * g["lit"], g
+hits = [x for x in w if x.startswith("capture object-green: ") and "of its lit pixels clamped" in x]
+assert len(hits) == 1 and hits[0] in o["object-green"]["warnings"], w
+assert "(%d of %d lit pixels with a negative reflectance" % (g["clamped_lit"], g["lit"]) in hits[0], hits
+assert "8 neighbours" in hits[0] and "sigma" in hits[0], hits
+assert "kogei process: warning: " + hits[0] in out, out
+assert not [x for x in w if "clamped" in x and not x.startswith("capture object-green:")], w
+# the left half of the image: about half of the lit pixels, still warned, "inside the mask"
+o, w, out = run("left")
+h = o["object-green"]["estimate"]
+assert 0.3 * g["lit"] < h["lit"] < 0.7 * g["lit"], (h, g)
+assert h["clamped_lit"] <= h["lit"], h
+assert [x for x in w if x.startswith("capture object-green: ") and
+        "lit pixels inside the mask with a negative" in x], w
+# only ground kept: nothing lit, no clamp warning (the clamped count stays over all pixels)
+o, w, out = run("ground")
+z = o["object-green"]["estimate"]
+assert z["lit"] == 0 and z["clamped_lit"] == 0 and z["clamped"] == g["clamped"], (z, g)
+assert not [x for x in w if "clamped" in x], w
+PY
 
 exit $fail
