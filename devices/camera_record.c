@@ -208,6 +208,8 @@ int kg_frame_recorder_open(const char *session_dir, const kg_camera_info *info,
 	                  ? 0
 	                  : kg_fail(err, KG_ENOMEM, "%s: out of memory", session_dir);
 	/* frames/ and its index real files of the session: a symbolic link is refused */
+	if (!ret) /* the session folder itself may be new (recording without a manifest) */
+		ret = kg_mkdir_p(session_dir, err);
 	if (!ret)
 		ret = kg_mkdir_below(session_dir, "frames", err);
 	if (!ret)
