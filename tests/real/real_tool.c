@@ -10,15 +10,21 @@
  *                                          2 x 2 block, the c sample(s) of the GBRG
  *                                          mosaic given for c (the two G averaged):
  *                                          narrowband frames of one chart, each
- *                                          read in the channel its light falls on */
+ *                                          read in the channel its light falls on
+ *   real_tool compare A B                  B against A sample by sample: the slope of
+ *                                          B = k A (least squares) and the largest
+ *                                          |B - k A|, over samples A < 0.999 (a raw
+ *                                          import keeps a fixture's values linear) */
 #include "image.h"
 
+#include <math.h>
 #include <stdio.h>
 #include <string.h>
 
 static int usage(void)
 {
-	fprintf(stderr, "usage: real_tool cfa IN OUT PATTERN | real_tool stats IN\n");
+	fprintf(stderr, "usage: real_tool cfa IN OUT PATTERN | stats IN | compose OUT R G B | "
+	                "compare A B\n");
 	return 2;
 }
 
@@ -73,6 +79,46 @@ done:
 	return ret;
 }
 
+static int compare(int argc, char **argv)
+{
+	kg_err err = {0};
+	kg_image *a = NULL, *b = NULL;
+	int ret = 1;
+	if (argc != 4)
+		return usage();
+	if (kg_image_read(argv[2], &a, &err) || kg_image_read(argv[3], &b, &err)) {
+		fprintf(stderr, "real_tool: %s\n", err.msg);
+		goto done;
+	}
+	if (a->width != b->width || a->height != b->height || a->channels != b->channels) {
+		fprintf(stderr, "real_tool: %s is %d x %d x %d, %s %d x %d x %d: expected the "
+		        "same size\n", argv[2], a->width, a->height, a->channels, argv[3],
+		        b->width, b->height, b->channels);
+		goto done;
+	}
+	size_t n = (size_t)a->width * a->height * a->channels, used = 0;
+	double sab = 0, saa = 0, worst = 0;
+	for (size_t i = 0; i < n; i++)
+		if (a->data[i] < 0.999f) {
+			sab += (double)a->data[i] * b->data[i];
+			saa += (double)a->data[i] * a->data[i];
+			used++;
+		}
+	double k = saa > 0 ? sab / saa : 0;
+	for (size_t i = 0; i < n; i++)
+		if (a->data[i] < 0.999f) {
+			double d = fabs(b->data[i] - k * a->data[i]);
+			if (d > worst)
+				worst = d;
+		}
+	printf("slope %.7f max_dev %.3g samples %zu\n", k, worst, used);
+	ret = 0;
+done:
+	kg_image_free(&a);
+	kg_image_free(&b);
+	return ret;
+}
+
 int main(int argc, char **argv)
 {
 	kg_err err = {0};
@@ -81,6 +127,8 @@ int main(int argc, char **argv)
 		return usage();
 	if (!strcmp(argv[1], "compose"))
 		return compose(argc, argv);
+	if (!strcmp(argv[1], "compare"))
+		return compare(argc, argv);
 	if (kg_image_read(argv[2], &img, &err)) {
 		fprintf(stderr, "real_tool: %s\n", err.msg);
 		return 1;

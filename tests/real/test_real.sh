@@ -24,14 +24,26 @@
 #   calib       calib reference on the composite (leave-one-out dE00 under D65) and
 #               calib camera of a composite at other exposures: M2 = the exposure
 #               ratios; the JPEG's leave-one-out dE00 once linearised as sRGB
+#   raw         the sensor's values as a camera's raw file: the 550 nm mosaics written
+#               as DNG (tests/raw/make_dng: black 64, the 8-bit codes exact in 12
+#               bits) through kogei acquire (files:, LibRaw) come back exactly
+#               linear; the 100 ms frame, whose saturated samples are stored at 4092
+#               of a WhiteLevel of 4095 (a sensor that saturates below its nominal
+#               white), keeps its pile-up, and acquire's clipped share is printed
+#               beside the data's
 #
-# usage: test_real.sh MODE KOGEI SOURCE_ROOT REAL_TOOL HAVE_MCC
+# usage: test_real.sh MODE KOGEI SOURCE_ROOT REAL_TOOL HAVE_MCC [MAKE_DNG HAVE_LIBRAW]
 set -u
 MODE=$1
 KOGEI=$2
 SRC=$3
 TOOL=$4
-[ "${5:-1}" = 1 ] || { echo "SKIP: built without OpenCV mcc (the tagless detector finds these unframed charts)"; exit 77; }
+MAKE_DNG=${6:-}
+if [ "$MODE" = raw ]; then
+	[ "${7:-0}" = 1 ] || { echo "SKIP: built without LibRaw"; exit 77; }
+else
+	[ "${5:-1}" = 1 ] || { echo "SKIP: built without OpenCV mcc (the tagless detector finds these unframed charts)"; exit 77; }
+fi
 REF=${KOGEI_REFERENCE:-$SRC/../shared/reference}
 SPECTRA=$REF/charts/colorchecker24_babelcolor_avg.csv
 PY=/usr/bin/python3; [ -x "$PY" ] || PY=python3
@@ -161,8 +173,81 @@ PY
 		fi
 	fi
 	;;
+raw)
+	mkdir -p "$T/shoot"
+	# 8-bit code c becomes raw 64 + round(c / 255 * 4028): saturation (c = 255) at 4092
+	"$MAKE_DNG" "$(frame 550 25)" "$T/shoot/g25.dng" --cfa GBRG --black 64 --white 4095 \
+		--scale 0.99925577 --exposure 0.025 --make "Point Grey" --model "Flea3 FL3-GE-50S5C" &&
+	"$MAKE_DNG" "$(frame 550 100)" "$T/shoot/g100.dng" --cfa GBRG --black 64 --white 4095 \
+		--scale 0.99925577 --exposure 0.1 --make "Point Grey" --model "Flea3 FL3-GE-50S5C" ||
+		{ echo "FAIL: make_dng"; exit 1; }
+	for t in 25 100; do
+		if "$KOGEI" acquire --camera "files:$T/shoot/g$t.dng" --out "$T/s" --kind chart \
+			--name g$t --dark none >"$T/acq$t.log" 2>&1; then
+			echo "ok: acquire the DNG of the 550 nm $t ms frame"
+			grep -E 'clipped|full scale' "$T/acq$t.log"
+		else
+			echo "FAIL: acquire g$t.dng"; cat "$T/acq$t.log"; fail=1
+		fi
+	done
+	for t in 25 100; do
+		"$TOOL" compare "$(frame 550 $t)" "$T/s/captures/g$t/mean.tif" >"$T/cmp$t" ||
+			{ echo "FAIL: compare g$t"; fail=1; continue; }
+		"$TOOL" cfa "$(frame 550 $t)" "$T/f$t.tif" GBRG && "$TOOL" stats "$T/f$t.tif" >"$T/fst$t" &&
+			"$TOOL" stats "$T/s/captures/g$t/mean.tif" >"$T/st$t" || { echo "FAIL: stats g$t"; fail=1; }
+		"$PY" - "$t" "$T/cmp$t" "$T/fst$t" "$T/st$t" "$T/acq$t.log" <<'PY' || fail=1
+import re, sys
+t, cmp_, fst, st, log = sys.argv[1:]
+k, dev, n = open(cmp_).read().split()[1:6:2]
+k, dev = float(k), float(dev)
+step = 1 / 4031
+want = 4028 / 4031
+bad = 0
+def check(ok, what):
+    global bad
+    print(("ok: " if ok else "FAIL: ") + what)
+    bad |= not ok
+check(abs(k - want) <= 0.02 * step, f"{t} ms: raw import slope {k:.7f} against the DNG's "
+      f"{want:.7f} (within 2 % of a raw step)")
+check(dev <= step, f"{t} ms: largest deviation from that line {dev:.3g} = "
+      f"{dev / step:.2f} raw steps (<= 1; rounding to 12 bits is half)")
+g = lambda p: [l.split() for l in open(p) if l.startswith("G ")][0]
+fg, sg = g(fst), g(st)
+# Samples at the sensor's saturation in the file and after the import
+pile, top = float(sg[6]), float(sg[4])
+check(abs(pile - float(fg[6])) < 1e-6, f"{t} ms: green samples at the top code: "
+      f"{100 * pile:.2f} % after import, {100 * float(fg[6]):.2f} % in the fixture")
+samples = {c: int(l.split()[8]) for c, l in ((l[0], l) for l in open(st))}
+at = {l[0]: float(l.split()[6]) * int(l.split()[8]) for l in open(st)
+      if float(l.split()[4]) >= top - 1e-6}
+share = 100 * sum(at.values()) / sum(samples.values())
+m = re.search(r"clipped ([0-9.]+) %", open(log).read())
+rep = float(m.group(1)) if m else float("nan")
+if pile > 0.05:
+    print(f"note: {t} ms: the data saturate at {top:.4f} of full scale (4092 of 4095): "
+          f"{share:.2f} % of all samples sit there; acquire reports clipped {rep:.4f} % "
+          "(issue 34 item 2: saturation from the data)")
+check(m is not None and rep <= share + 0.5, f"{t} ms: acquire's clipped share {rep:.4f} % "
+      f"does not exceed the samples at saturation, {share:.2f} %")
+sys.exit(1 if bad else 0)
+PY
+	done
+	# A DNG whose WhiteLevel LibRaw's camera table overrides (issue 34 item 2): the
+	# slope measured here is 1 once the file's own WhiteLevel is used.
+	if "$MAKE_DNG" "$(frame 550 25)" "$T/shoot/d5100.dng" --cfa GBRG --black 600 \
+		--white 15520 --make NIKON --model "NIKON D5100" --exposure 0.025 &&
+		"$KOGEI" acquire --camera "files:$T/shoot/d5100.dng" --out "$T/s" --kind chart \
+			--name d5100 --dark none >"$T/acqn.log" 2>&1 &&
+		"$TOOL" compare "$(frame 550 25)" "$T/s/captures/d5100/mean.tif" >"$T/cmpn"; then
+		echo "note: NIKON D5100 DNG, WhiteLevel 15520, black 600: kogei's values / the file's:" \
+			"$(cut -d' ' -f1-4 "$T/cmpn") (1 when the DNG's WhiteLevel wins;" \
+			"(15520 - 600) / (14504 - 600) = 1.0731 when LibRaw's table does)"
+	else
+		echo "FAIL: the NIKON D5100 DNG"; cat "$T/acqn.log"; fail=1
+	fi
+	;;
 *)
-	echo "usage: test_real.sh detect|linearity|saturation|calib KOGEI SOURCE_ROOT REAL_TOOL HAVE_MCC"
+	echo "usage: test_real.sh detect|linearity|saturation|calib|raw KOGEI SOURCE_ROOT REAL_TOOL HAVE_MCC [MAKE_DNG HAVE_LIBRAW]"
 	exit 2
 	;;
 esac
