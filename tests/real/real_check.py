@@ -136,6 +136,19 @@ def cmd_detect(name, path, spectra=None):
             check(ok, f"{name}: {what} (R G B {r:.3f} {g:.3f} {b:.3f})")
         return
     ref = read_spectra(spectra)
+    # The light over the chart, as the patches see it: value / reflectance at the
+    # band (patches reflecting at least 15 %), relative to its mean, by column. A
+    # record for issue 34 item 1 (uneven light), not a check.
+    for ch in "RGB":
+        ratio = {i: value(p[i], ch) / ref[i][BAND[ch]] for i in IDS if ref[i][BAND[ch]] >= 0.15}
+        mean = sum(ratio.values()) / len(ratio)
+        cols = []
+        for c in range(1, 7):
+            v = [r / mean for i, r in ratio.items() if int(i[1:]) == c]
+            cols.append(f"{sum(v) / len(v):.2f}" if v else "-")
+        lo, hi = min(ratio.values()) / mean, max(ratio.values()) / mean
+        print(f"note: {name}: {ch} light over the chart by column 1..6 (value / reflectance, "
+              f"{len(ratio)} patches): {' '.join(cols)}; range {lo:.2f}-{hi:.2f}")
     turned = {IDS[k]: IDS[23 - k] for k in range(24)}
     for ch in "RGB":
         x = [ref[i][BAND[ch]] for i in IDS]
