@@ -520,7 +520,7 @@ static void section_calibration(report *r)
 	row(r, "Chart spectra", opt_str(r, "calibration.spectra_source"));
 	/* the light over the chart: removed from the patch values, and the flat's */
 	html(r, "<tr><th scope=\"row\">Light over the chart</th><td>");
-	if (flag(r, "calibration.light_field.fitted")) {
+	if (has(r, "calibration.light_field") && flag(r, "calibration.light_field.fitted")) {
 		html(r, "varies by ");
 		put_num(r, 100 * num(r, "calibration.light_field.variation"), 1);
 		html(r, " %% (");
@@ -534,7 +534,9 @@ static void section_calibration(report *r)
 		html(r, "not estimated");
 	}
 	html(r, "</td></tr>\n<tr><th scope=\"row\">Flat: illuminance non-uniformity</th><td>");
-	double fnu = opt_num(r, "calibration.flat_illuminance_nonuniformity");
+	double fnu = has(r, "calibration.flat_illuminance_nonuniformity")
+	                 ? opt_num(r, "calibration.flat_illuminance_nonuniformity")
+	                 : NAN;
 	if (isfinite(fnu)) {
 		put_num(r, 100 * fnu, 2);
 		html(r, " %%");

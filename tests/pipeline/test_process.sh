@@ -80,6 +80,8 @@ o = {x["capture"]: x for x in d["objects"]}
 assert o["object-half"]["dark"] == "dark-0002", o["object-half"]["dark"]
 assert abs(o["object-half"]["exposure_scale"] - 2) < 1e-9
 PY
+check "report: the light over the chart" grep -q "Light over the chart</th><td>varies by" "$O/report.html"
+check "report: the flat's non-uniformity" grep -q "Flat: illuminance non-uniformity</th><td>0.0" "$O/report.html"
 # The half-exposure object gives the same reflectance within 1 %.
 check "exposure normalised: half exposure within 1 %" "$PY" - "$O" <<'PY'
 import sys, numpy as np
