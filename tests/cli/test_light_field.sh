@@ -100,6 +100,12 @@ detect() { # name on|off
 		"$T/$1.$2.cgats" > "$T/$1.$2.ids.cgats"
 	expect_exit 0 "$KOGEI" calib camera --reference "$T/ref.json" --rgb "$T/$1.$2.ids.cgats" \
 		--max-residual 5 -o "$T/$1.$2.json"
+	res=$(residual)
+	# the chart's own leave-one-out error: a reference fitted on these patch values
+	# (the default method's LOO dE00 under D65)
+	expect_exit 0 "$KOGEI" calib reference --spectra "$SPECTRA" --rgb "$T/$1.$2.ids.cgats" \
+		-o "$T/$1.$2.ref.json"
+	loo=$(awk '/<- default/ { print $4 }' "$T/out")
 }
 
 sim even 0
@@ -107,13 +113,14 @@ sim vignetted 0.6
 for n in even vignetted; do
 	for m in on off; do
 		detect $n $m
-		eval "res_${n}_$m=\$(residual)"
+		eval "res_${n}_$m=\$res"
+		eval "loo_${n}_$m=\$loo"
 		eval "err_${n}_$m=\$(patch_error '$T/$n.$m.cgats' '$T/$n.truth.cgats')"
 		eval "nu_${n}_$m=\$(nonuniform '$T/$n.$m.cgats')"
 	done
 done
-echo "even light:        patch error on $err_even_on % off $err_even_off %, M2 residual on $res_even_on % off $res_even_off %, non-uniform on $nu_even_on off $nu_even_off"
-echo "vignetting 0.6:    patch error on $err_vignetted_on % off $err_vignetted_off %, M2 residual on $res_vignetted_on % off $res_vignetted_off %, non-uniform on $nu_vignetted_on off $nu_vignetted_off"
+echo "even light:        patch error on $err_even_on % off $err_even_off %, M2 residual on $res_even_on % off $res_even_off %, LOO dE00 on $loo_even_on off $loo_even_off, non-uniform on $nu_even_on off $nu_even_off"
+echo "vignetting 0.6:    patch error on $err_vignetted_on % off $err_vignetted_off %, M2 residual on $res_vignetted_on % off $res_vignetted_off %, LOO dE00 on $loo_vignetted_on off $loo_vignetted_off, non-uniform on $nu_vignetted_on off $nu_vignetted_off"
 grep "^LIGHT_FIELD" "$T/vignetted.on.cgats"
 check "the field's variation is in the patch file" grep -q '^LIGHT_FIELD_VARIATION_PERCENT "[0-9.]*"' "$T/vignetted.on.cgats"
 check "off is recorded" grep -q '^LIGHT_FIELD "off"' "$T/vignetted.off.cgats"
@@ -129,6 +136,10 @@ check "corrected patch error $err_vignetted_on % <= 1.5 x even light's $err_even
 	le "$err_vignetted_on" "$(awk -v a="$err_even_on" 'BEGIN { print 1.5 * a + 0.2 }')"
 check "corrected M2 residual $res_vignetted_on % <= 1.2 x even light's $res_even_on % + 0.2" \
 	le "$res_vignetted_on" "$(awk -v a="$res_even_on" 'BEGIN { print 1.2 * a + 0.2 }')"
+check "uncorrected LOO dE00 $loo_vignetted_off > 1.5 x corrected $loo_vignetted_on" \
+	le "$(awk -v a="$loo_vignetted_on" 'BEGIN { print 1.5 * a }')" "$loo_vignetted_off"
+check "corrected LOO dE00 $loo_vignetted_on <= 1.1 x even light's $loo_even_on + 0.1" \
+	le "$loo_vignetted_on" "$(awk -v a="$loo_even_on" 'BEGIN { print 1.1 * a + 0.1 }')"
 check "even light: the field changes little ($err_even_on vs $err_even_off)" \
 	le "$err_even_on" "$(awk -v a="$err_even_off" 'BEGIN { print a + 0.2 }')"
 # the greys are not dropped as non-uniform once the light is removed
