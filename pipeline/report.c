@@ -527,9 +527,11 @@ static void section_calibration(report *r)
 		put_num(r, num(r, "calibration.light_field.min"), 3);
 		html(r, " to ");
 		put_num(r, num(r, "calibration.light_field.max"), 3);
-		html(r, " of its mean; degree %d, from %d patches), removed from the patch values",
-		     (int)num(r, "calibration.light_field.degree"),
-		     (int)num(r, "calibration.light_field.patches"));
+		html(r, " of its mean; degree ");
+		put_num(r, num(r, "calibration.light_field.degree"), 0);
+		html(r, ", from ");
+		put_num(r, num(r, "calibration.light_field.patches"), 0);
+		html(r, " patches), removed from the patch values");
 	} else {
 		html(r, "not estimated");
 	}
