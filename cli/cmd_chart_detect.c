@@ -278,6 +278,10 @@ int kg_cmd_chart_detect(int argc, char **argv)
 		        res->ntags_used, res->ntags_used == 1 ? "" : "s", res->rms_px, ps->n,
 		        res->npatches, 1e3 * res->total_seconds, 1e3 * res->tag_seconds,
 		        res->decimate);
+	if (!quiet && lf->fitted)
+		fprintf(stderr, "kogei: the light over the chart varies by %.1f %% (%.3f to %.3f of "
+		        "its mean; degree %d from %d patches): removed from the patch values\n",
+		        100 * lf->variation, lf->min, lf->max, lf->degree, lf->used);
 fail:
 	kg_patchset_free(&ps);
 	kg_chart_result_free(&res);
