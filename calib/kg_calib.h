@@ -596,7 +596,7 @@ typedef struct kg_chart_detect_options {
 
 /* The largest light variation across a chart that the light-field correction is
  * trusted to remove (docs/chart-detect.md, "Uneven light"). */
-#define KG_CHART_MAX_LIGHT_VARIATION 0.8
+#define KG_CHART_MAX_LIGHT_VARIATION 1.0
 
 void kg_chart_detect_options_default(kg_chart_detect_options *o);
 

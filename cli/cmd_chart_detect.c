@@ -59,7 +59,7 @@ static const char help_detect[] =
 	"                       what it does not explain; keywords LIGHT_FIELD_*; off: the\n"
 	"                       values as sampled\n"
 	"  --max-light-variation F  refuse a chart whose light field varies by more than F\n"
-	"                       (peak to peak over the patches / mean; default 0.8)\n"
+	"                       (peak to peak over the patches / mean; default 1)\n"
 	"  --quiet              no summary on standard error (warnings still shown)\n"
 	"\n"
 	"IMAGE inside a kogei session (SESSION/captures/NAME/rgb.tif, mean.tif) also gives\n"
