@@ -817,6 +817,9 @@ static json_t *capture_json(cap_ctx *c, const char *started, const char *ended,
 		"percentiles", "p1", jnum(s->p01), "p50", jnum(s->p50), "p99", jnum(s->p99), "p99.9",
 		jnum(s->p999), "nonfinite", (json_int_t)s->nonfinite, "flat_invalid",
 		(json_int_t)r->flat_invalid, "stream", stream_json(&r->stream));
+	if (stats && o->kind == KG_CAPTURE_FLAT)
+		json_object_set_new(stats, "illuminance_nonuniformity",
+		                    jnum(r->illuminance_nonuniformity));
 	json_t *corr = json_pack("{s:o, s:o}", "dark", r->dark[0] ? json_string(r->dark) : json_null(),
 	                         "flat", r->flat[0] ? json_string(r->flat) : json_null());
 	json_t *cap = json_pack("{s:s, s:s, s:s, s:s, s:o, s:b, s:O, s:o, s:o}", "name", r->name,
@@ -922,6 +925,14 @@ int kg_capture_run(kg_session *s, kg_camera *camera, const kg_capture_options *o
 		goto done;
 	if (flat && ((ret = kg_correct_flat(res->mean, res->variance, flat, &res->flat_invalid, err))))
 		goto done;
+	res->illuminance_nonuniformity = NAN;
+	if (o->kind == KG_CAPTURE_FLAT) {
+		if ((ret = kg_flat_nonuniformity(res->mean, &res->illuminance_nonuniformity, err)))
+			goto done;
+		note(&c, "%s: the light over the frame departs from its mean by up to %.1f %% "
+		         "(illuminance non-uniformity, %d x %d blocks)",
+		     res->name, 100 * res->illuminance_nonuniformity, KG_FLAT_BLOCKS, KG_FLAT_BLOCKS);
+	}
 	if (res->clipped_fraction > 0 && o->kind != KG_CAPTURE_DARK)
 		note(&c, "%s: %.3f %% of the samples reached full scale in at least one frame: "
 		         "values there are wrong; lower the exposure or gain",

@@ -107,6 +107,67 @@ int kg_correct_flat(kg_image *mean, kg_image *variance, const kg_image *flat, lo
 	return 0;
 }
 
+int kg_flat_nonuniformity(const kg_image *flat, double *out, kg_err *err)
+{
+	kg_check_arg(flat && flat->data && out, err);
+	*out = NAN;
+	size_t n = (size_t)flat->width * (size_t)flat->height * (size_t)flat->channels;
+	double sum[4] = {0}, cut[4];
+	long count[4] = {0};
+	for (size_t i = 0; i < n; i++) {
+		float v = flat->data[i];
+		if (isfinite(v) && v > 0) {
+			int c = colour_class(flat, i);
+			sum[c] += v;
+			count[c]++;
+		}
+	}
+	for (int c = 0; c < 4; c++) {
+		cut[c] = count[c] ? KG_FLAT_VALID_FRACTION * sum[c] / (double)count[c] : INFINITY;
+		sum[c] = 0;
+		count[c] = 0;
+	}
+	for (size_t i = 0; i < n; i++) {
+		float v = flat->data[i];
+		int c = colour_class(flat, i);
+		if (isfinite(v) && v > cut[c]) {
+			sum[c] += v;
+			count[c]++;
+		}
+	}
+	enum { B = KG_FLAT_BLOCKS };
+	double bsum[B][B] = {{0}};
+	long bcount[B][B] = {{0}};
+	size_t C = (size_t)flat->channels, W = (size_t)flat->width, H = (size_t)flat->height;
+	for (size_t i = 0; i < n; i++) {
+		float v = flat->data[i];
+		int c = colour_class(flat, i);
+		if (!(isfinite(v) && v > cut[c]))
+			continue;
+		size_t p = i / C, x = p % W, y = p / W;
+		bsum[y * B / H][x * B / W] += v / (sum[c] / (double)count[c]);
+		bcount[y * B / H][x * B / W]++;
+	}
+	double mean = 0;
+	int nb = 0;
+	for (int a = 0; a < B; a++)
+		for (int b = 0; b < B; b++)
+			if (bcount[a][b]) {
+				mean += bsum[a][b] / (double)bcount[a][b];
+				nb++;
+			}
+	if (!nb)
+		return 0;
+	mean /= nb;
+	double worst = 0;
+	for (int a = 0; a < B; a++)
+		for (int b = 0; b < B; b++)
+			if (bcount[a][b])
+				worst = fmax(worst, fabs(bsum[a][b] / (double)bcount[a][b] - mean));
+	*out = worst / mean;
+	return 0;
+}
+
 /* ---- order statistics ------------------------------------------------------------ */
 
 /* Rearrange v so v[k] is the k-th smallest, smaller ones before it, larger after

@@ -71,6 +71,13 @@ int kg_correct_flat(kg_image *mean, kg_image *variance, const kg_image *flat, lo
 /* A flat sample below this fraction of its colour's mean is not usable (dust, a dead
  * pixel, the edge of the illumination). */
 #define KG_FLAT_VALID_FRACTION 0.05
+/* The illuminance non-uniformity of a flat capture (FADGI's "illuminance
+ * non-uniformity", docs/acquire.md): each colour normalised to its mean over the
+ * valid samples, the frame cut into KG_FLAT_BLOCKS x KG_FLAT_BLOCKS blocks, and the
+ * largest deviation of a block mean from the mean of the blocks, relative to it
+ * (0.03: 3 %). NaN when no block has a valid sample. */
+#define KG_FLAT_BLOCKS 8
+int kg_flat_nonuniformity(const kg_image *flat, double *out, kg_err *err);
 /* The colour class the flat normalises sample `channel` of pixel (x, y) by: the channel
  * of an image of several, the CFA letter of a mosaic (R 0, G 1, B 2, others 3; cfa of
  * rows x cols letters), 0 for mono (cfa NULL). */
@@ -236,6 +243,7 @@ typedef struct kg_capture_result {
 	double clipped_fraction;
 	kg_image_stats stats; /* of the uncorrected mean */
 	long flat_invalid;
+	double illuminance_nonuniformity; /* a flat capture's (kg_flat_nonuniformity), else NaN */
 	char dark[KG_CAPTURE_NAME_MAX], flat[KG_CAPTURE_NAME_MAX]; /* "" when none */
 	int nsteps;
 	kg_exposure_step steps[KG_EXPOSURE_MAX_STEPS];

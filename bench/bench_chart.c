@@ -56,7 +56,8 @@ static void errors(const kg_chart_result *r, const kg_patchset *truth, row *out)
 			if (strcmp(s->id, truth->ids[i]) || (s->flags & KG_CHART_FLAG_REJECTED))
 				continue;
 			for (int c = 0; c < 3; c++) {
-				double d = fabs(s->rgb[c] - truth->rgb[i][c]);
+				/* as sampled: the reported value times the light field removed */
+				double d = fabs(s->rgb[c] * s->light - truth->rgb[i][c]);
 				worst = fmax(worst, d);
 				sum += d;
 			}

@@ -70,4 +70,11 @@ int calib_chart_sample(const kg_chart_layout *l, const kg_image *img, const doub
                        const kg_chart_detect_options *opt, int reference,
                        kg_chart_result **out, kg_err *err);
 
+/* Estimate the light over the chart from the patches' quadrant means (each patch's
+ * own gradient), divide every patch's values by it, judge the "non-uniform" flag on
+ * what the field does not explain, and fill r->light (calib/light_field.c). A field
+ * varying more than opt->max_light_variation is refused (KG_EINVAL). */
+int calib_light_field_apply(kg_chart_result *r, const kg_chart_detect_options *opt,
+                            kg_err *err);
+
 #endif

@@ -282,6 +282,8 @@ void kg_chart_detect_options_default(kg_chart_detect_options *o)
 	o->clip_level = 0;
 	o->nonuniformity_limit = 0.05;
 	o->glare_fraction = 0.01;
+	o->light_field = 1;
+	o->max_light_variation = 0;
 }
 
 const char *kg_chart_statistic_name(kg_chart_statistic s)
@@ -1800,6 +1802,13 @@ static int sample_patch(const work_image *wi, const double H[9], const double Hi
 		}
 	}
 	double qsum[4] = {qs0, qs1, qs2, qs3};
+	p->centre_mm[0] = cx;
+	p->centre_mm[1] = cy;
+	p->half_mm[0] = hx;
+	p->half_mm[1] = hy;
+	p->light = 1;
+	for (int q = 0; q < 4; q++)
+		p->quadrant[q] = NAN;
 	p->clipped_fraction = (double)nclipped;
 	p->pixels = n;
 	if (n > 0)
@@ -1856,6 +1865,8 @@ static int sample_patch(const work_image *wi, const double H[9], const double Hi
 	}
 	double mean = total / n;
 	p->nonuniformity = fabs(mean) > 1e-12 ? (qmax - qmin) / fabs(mean) : 0;
+	for (int q = 0; q < 4; q++)
+		p->quadrant[q] = qn[q] > 0 ? qsum[q] / qn[q] : NAN;
 	char why[96];
 	if (p->clipped_fraction > 0) {
 		snprintf(why, sizeof(why), "clipped (%.1f %% of pixels)", 100 * p->clipped_fraction);
@@ -2764,6 +2775,8 @@ int kg_chart_detect(const kg_chart_layout *l, const kg_image *img,
 	} else if ((ret = detect_tagless(l, &L, &wi, &opt, r, err))) {
 		goto fail;
 	}
+	if (opt.light_field && (ret = calib_light_field_apply(r, &opt, err)))
+		goto fail;
 	if ((ret = patch_summary_warnings(r))) {
 		ret = kg_fail(err, ret, "out of memory");
 		goto fail;

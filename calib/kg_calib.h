@@ -586,7 +586,17 @@ typedef struct kg_chart_detect_options {
 	                          * for float) */
 	double nonuniformity_limit; /* quadrant spread above this flags a patch (0.05) */
 	double glare_fraction;   /* more bright outliers than this flag glare (0.01) */
+	int light_field;         /* 1 (default): estimate the light over the chart from the
+	                          * patches' own gradients and divide the patch values by it
+	                          * (calib/light_field.c); 0: patch values as sampled */
+	double max_light_variation; /* a fitted light field varying more than this (peak to
+	                          * peak over the patches, relative to its mean) is refused
+	                          * (KG_EINVAL); 0: KG_CHART_MAX_LIGHT_VARIATION */
 } kg_chart_detect_options;
+
+/* The largest light variation across a chart that the light-field correction is
+ * trusted to remove (docs/chart-detect.md, "Uneven light"). */
+#define KG_CHART_MAX_LIGHT_VARIATION 1.0
 
 void kg_chart_detect_options_default(kg_chart_detect_options *o);
 
@@ -623,7 +633,34 @@ typedef struct kg_chart_sample {
 	unsigned flags;          /* KG_CHART_FLAG_* */
 	char warning[256];       /* the reasons, "" when not flagged */
 	double quad[4][2];       /* the sampled region in px (tl, tr, br, bl of the layout) */
+	double quadrant[4];      /* mean r+g+b of each quadrant of the sampled region (chart
+	                          * u < 0 / >= 0, v < 0 / >= 0: index (u >= 0) + 2 (v >= 0)),
+	                          * as sampled (before any light-field correction) */
+	double centre_mm[2], half_mm[2]; /* the sampled region on the chart */
+	double light;            /* the light field at the patch centre the values were
+	                          * divided by (1: none) */
 } kg_chart_sample;
+
+/* The light over the chart as estimated from the patches (calib/light_field.c):
+ * ln L(u, v) = c0 + c1 u + c2 v + c3 u^2 + c4 u v + c5 v^2 + c6 u^3 + c7 u^2 v +
+ * c8 u v^2 + c9 v^3 + c10 u^4 + c11 u^3 v + c12 u^2 v^2 + c13 u v^3 + c14 v^4 (terms
+ * up to `degree`, the others 0), u = (x - origin_mm[0]) / scale_mm, v = (y -
+ * origin_mm[1]) / scale_mm in chart millimetres, normalised so that L averages 1
+ * over the patch centres. */
+typedef struct kg_chart_light {
+	int fitted;              /* 0: not estimated (turned off or too few patches) */
+	int degree;              /* of the polynomial in ln L, 1..4 */
+	double origin_mm[2], scale_mm;
+	double coef[15];
+	int used;                /* patches whose gradients entered the fit */
+	double min, max;         /* of L over the patches' area (mean 1 over the centres) */
+	double variation;        /* max - min */
+	double rms;              /* weighted RMS residual of the gradients, in units of
+	                          * their noise */
+} kg_chart_light;
+
+/* ln L at chart position (x, y) mm (0 when not fitted). */
+double kg_chart_light_log(const kg_chart_light *f, double x_mm, double y_mm);
 
 typedef struct kg_chart_result {
 	char layout[64];
@@ -646,6 +683,7 @@ typedef struct kg_chart_result {
 	                           * (OpenCV mcc and the refinement of its box) */
 	double sample_seconds;    /* patch sampling (all four turns when tagless) */
 	double total_seconds;
+	kg_chart_light light;     /* the light field removed from the patch values */
 } kg_chart_result;
 
 /* Find the chart of layout l in img and sample its patches. img: 1 channel (grey,

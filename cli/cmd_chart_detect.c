@@ -11,7 +11,8 @@
 static const char usage_detect[] =
 	"kogei chart detect --layout L IMAGE -o P.cgats [--overlay O.png] [--decimate N]\n"
 	"                   [--threads N] [--sample-fraction F] [--statistic median|trimmed-mean]\n"
-	"                   [--family NAME] [--min-tags N] [--clip-level V] [--tagless] [--quiet]";
+	"                   [--family NAME] [--min-tags N] [--clip-level V] [--tagless]\n"
+	"                   [--light-field on|off] [--max-light-variation F] [--quiet]";
 
 static const char help_detect[] =
 	"\n"
@@ -52,6 +53,13 @@ static const char help_detect[] =
 	"  --clip-level V       a channel at or above V is clipped (default: full scale)\n"
 	"  --tagless            find an unframed ColorChecker with OpenCV mcc; a box whose\n"
 	"                       patches do not read as the layout in any turn is refused\n"
+	"  --light-field on|off on (default): estimate the light over the chart from each\n"
+	"                       patch's own gradient (a smooth quadratic field in ln L),\n"
+	"                       divide the patch values by it and flag non-uniform only\n"
+	"                       what it does not explain; keywords LIGHT_FIELD_*; off: the\n"
+	"                       values as sampled\n"
+	"  --max-light-variation F  refuse a chart whose light field varies by more than F\n"
+	"                       (peak to peak over the patches / mean; default 1)\n"
 	"  --quiet              no summary on standard error (warnings still shown)\n"
 	"\n"
 	"IMAGE inside a kogei session (SESSION/captures/NAME/rgb.tif, mean.tif) also gives\n"
@@ -91,6 +99,8 @@ int kg_cmd_chart_detect(int argc, char **argv)
 		{"clip-level", required_argument, NULL, 'c'},
 		{"tagless", no_argument, NULL, 'T'},
 		{"quiet", no_argument, NULL, 'q'},
+		{"light-field", required_argument, NULL, 'L'},
+		{"max-light-variation", required_argument, NULL, 'V'},
 		{NULL, 0, NULL, 0},
 	};
 	const char *layout_path = NULL, *out_path = NULL, *overlay = NULL;
@@ -151,6 +161,19 @@ int kg_cmd_chart_detect(int argc, char **argv)
 		case 'q':
 			quiet = 1;
 			break;
+		case 'L':
+			if (strcmp(optarg, "on") && strcmp(optarg, "off"))
+				return kg_cli_usage_error(usage_detect, "--light-field %s: expected on or off",
+				                          optarg);
+			opt.light_field = strcmp(optarg, "on") == 0;
+			break;
+		case 'V':
+			opt.max_light_variation = strtod(optarg, &end);
+			if (*end || !(opt.max_light_variation > 0))
+				return kg_cli_usage_error(usage_detect,
+				                          "--max-light-variation %s: expected a number > 0",
+				                          optarg);
+			break;
 		default:
 			return kg_cli_usage_error(usage_detect, "unknown option");
 		}
@@ -176,7 +199,8 @@ int kg_cmd_chart_detect(int argc, char **argv)
 	if ((code = kg_cli_image_identity(image_path, &id, &err)))
 		goto fail;
 	if ((code = kg_chart_detect(layout, img, &opt, &res, &err))) {
-		kg_err_prefix(&err, "%s: chart %s not found", image_path, layout->name);
+		kg_err_prefix(&err, "%s: chart %s %s", image_path, layout->name,
+		              code == KG_ENOENT ? "not found" : "refused");
 		goto fail;
 	}
 	for (int i = 0; i < res->nwarnings; i++)
@@ -193,6 +217,24 @@ int kg_cmd_chart_detect(int argc, char **argv)
 			                       res->tags[i].id);
 	char white[24];
 	snprintf(white, sizeof(white), "%ld", id.white_level);
+	/* the light field removed from the values */
+	const kg_chart_light *lf = &res->light;
+	char lf_kind[24], lf_var[24] = "none", lf_range[48] = "none", lf_coef[400] = "none",
+	     lf_frame[64] = "none";
+	if (!opt.light_field || !lf->fitted)
+		snprintf(lf_kind, sizeof(lf_kind), "%s", !opt.light_field ? "off" : "none");
+	else
+		snprintf(lf_kind, sizeof(lf_kind), "polynomial %d", lf->degree);
+	if (lf->fitted) {
+		snprintf(lf_var, sizeof(lf_var), "%.2f", 100 * lf->variation);
+		snprintf(lf_range, sizeof(lf_range), "%.4f %.4f", lf->min, lf->max);
+		size_t len = 0;
+		for (int k = 0; k < 15 && len < sizeof(lf_coef); k++)
+			len += (size_t)snprintf(lf_coef + len, sizeof(lf_coef) - len, "%s%.6g", k ? " " : "",
+			                       lf->coef[k]);
+		snprintf(lf_frame, sizeof(lf_frame), "%.3f %.3f %.3f", lf->origin_mm[0],
+		         lf->origin_mm[1], lf->scale_mm);
+	}
 	const char *keywords[] = {
 		"ORIGINATOR", "kogei chart detect",
 		"CHART_LAYOUT", layout->name,
@@ -204,6 +246,13 @@ int kg_cmd_chart_detect(int argc, char **argv)
 		"TAGS_USED", used[0] ? used : "none",
 		"HOMOGRAPHY_RMS_PX", rms,
 		"PATCH_STATISTIC", kg_chart_statistic_name(opt.statistic),
+		/* ln L = c0 + c1 u + c2 v + c3 u^2 + ... (kg_chart_light), u = (x - x0) / s,
+		 * v = (y - y0) / s in chart mm (docs/chart-detect.md) */
+		"LIGHT_FIELD", lf_kind,
+		"LIGHT_FIELD_VARIATION_PERCENT", lf_var,
+		"LIGHT_FIELD_RANGE", lf_range,
+		"LIGHT_FIELD_COEFFICIENTS", lf_coef,
+		"LIGHT_FIELD_ORIGIN_SCALE_MM", lf_frame,
 		/* the camera, when the image is a session's capture */
 		"CAMERA_BACKEND", id.backend,
 		"CAMERA_MODEL", id.model,
@@ -229,6 +278,10 @@ int kg_cmd_chart_detect(int argc, char **argv)
 		        res->ntags_used, res->ntags_used == 1 ? "" : "s", res->rms_px, ps->n,
 		        res->npatches, 1e3 * res->total_seconds, 1e3 * res->tag_seconds,
 		        res->decimate);
+	if (!quiet && lf->fitted)
+		fprintf(stderr, "kogei: the light over the chart varies by %.1f %% (%.3f to %.3f of "
+		        "its mean; degree %d from %d patches): removed from the patch values\n",
+		        100 * lf->variation, lf->min, lf->max, lf->degree, lf->used);
 fail:
 	kg_patchset_free(&ps);
 	kg_chart_result_free(&res);

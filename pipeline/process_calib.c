@@ -219,6 +219,33 @@ static int measured_spectra(proc *p, kg_patchset **out)
 	return ret;
 }
 
+/* The light field removed from the chart's patch values (calib/light_field.c). */
+static json_t *light_field_json(const kg_chart_light *f)
+{
+	if (!f->fitted)
+		return json_pack("{s:b}", "fitted", 0);
+	json_t *coef = json_array();
+	for (int k = 0; k < 15; k++)
+		json_array_append_new(coef, json_real(f->coef[k]));
+	return json_pack("{s:b, s:i, s:f, s:f, s:f, s:i, s:[ff], s:f, s:o}", "fitted", 1, "degree",
+	                 f->degree, "variation", f->variation, "min", f->min, "max", f->max,
+	                 "patches", f->used, "origin_mm", f->origin_mm[0], f->origin_mm[1],
+	                 "scale_mm", f->scale_mm, "coefficients", coef);
+}
+
+/* The illuminance non-uniformity acquire measured on the flat named (null when none
+ * or not recorded). */
+static json_t *flat_nonuniformity(const proc *p, const char *flat)
+{
+	for (int i = 0; flat && flat[0] && i < p->ncaps; i++)
+		if (p->caps[i].name && strcmp(p->caps[i].name, flat) == 0) {
+			const json_t *v =
+				kg_json_find(p->caps[i].j, "statistics.illuminance_nonuniformity");
+			return json_is_number(v) ? json_real(json_number_value(v)) : json_null();
+		}
+	return json_null();
+}
+
 int proc_calibrate(proc *p)
 {
 	const kg_process_options *o = p->o;
@@ -411,6 +438,9 @@ int proc_calibrate(proc *p)
 		json_array_append_new(fl, json_string(flagged[i]));
 	json_object_set_new(p->calibration, "patches_flagged", fl);
 	json_object_set_new(p->calibration, "decimate", json_integer(res->decimate));
+	json_object_set_new(p->calibration, "light_field", light_field_json(&res->light));
+	json_object_set_new(p->calibration, "flat_illuminance_nonuniformity",
+	                    flat_nonuniformity(p, img.flat));
 	json_object_set_new(p->calibration, "detect_seconds", json_real(res->total_seconds));
 	if (!o->reference)
 		json_object_set_new(p->calibration, "reference_file", json_string("reference.json"));

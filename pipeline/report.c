@@ -518,6 +518,34 @@ static void section_calibration(report *r)
 	put_num(r, num(r, "calibration.homography_rms_px"), 2);
 	html(r, " px</td></tr>\n");
 	row(r, "Chart spectra", opt_str(r, "calibration.spectra_source"));
+	/* the light over the chart: removed from the patch values, and the flat's */
+	html(r, "<tr><th scope=\"row\">Light over the chart</th><td>");
+	if (has(r, "calibration.light_field") && flag(r, "calibration.light_field.fitted")) {
+		html(r, "varies by ");
+		put_num(r, 100 * num(r, "calibration.light_field.variation"), 1);
+		html(r, " %% (");
+		put_num(r, num(r, "calibration.light_field.min"), 3);
+		html(r, " to ");
+		put_num(r, num(r, "calibration.light_field.max"), 3);
+		html(r, " of its mean; degree ");
+		put_num(r, num(r, "calibration.light_field.degree"), 0);
+		html(r, ", from ");
+		put_num(r, num(r, "calibration.light_field.patches"), 0);
+		html(r, " patches), removed from the patch values");
+	} else {
+		html(r, "not estimated");
+	}
+	html(r, "</td></tr>\n<tr><th scope=\"row\">Flat: illuminance non-uniformity</th><td>");
+	double fnu = has(r, "calibration.flat_illuminance_nonuniformity")
+	                 ? opt_num(r, "calibration.flat_illuminance_nonuniformity")
+	                 : NAN;
+	if (isfinite(fnu)) {
+		put_num(r, 100 * fnu, 2);
+		html(r, " %%");
+	} else {
+		html(r, "no flat measured");
+	}
+	html(r, "</td></tr>\n");
 	html(r, "<tr><th scope=\"row\">Condition number of M</th><td>");
 	put_num(r, num(r, "calibration.cond_M"), 2);
 	html(r, "</td></tr>\n<tr><th scope=\"row\">Condition number of M2</th><td>");

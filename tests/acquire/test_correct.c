@@ -3,6 +3,10 @@
  *   dark offset: the corrected image must be scene x gain x (mean vignetting of that
  *   colour), the variance divided by the squared normalised flat, unusable flat
  *   samples NaN and counted;
+ * - the illuminance non-uniformity of a flat (kg_flat_nonuniformity): a Bayer flat
+ *   with per-colour gains and a 20 % ramp across the frame departs from its mean by
+ *   the ramp's value at the outer blocks' centres (8.9 %), a flat frame by about 0,
+ *   a quadratic falloff by its analytic block extreme;
  * - percentiles and the under-exposed fraction against a sorted copy;
  * - the bright level against a brute-force same-colour box mean and a sorted copy;
  * - demosaicing (when built with OpenCV): uniform colours and a ramp come back for each
@@ -307,9 +311,60 @@ static void test_demosaic_bands(void)
 	kg_image_free(&whole);
 }
 
+static void test_flat_nonuniformity(void)
+{
+	const int W = 64, H = 48;
+	const char *cfa = "GRBG";
+	const double gain[3] = {0.8, 1.0, 0.6};
+	kg_err err = {{0}};
+	kg_image *flat = NULL;
+	CHECK(kg_image_new(W, H, 1, &flat, &err) == 0, "image: %s", err.msg);
+	kg_image_set_cfa(flat, cfa, 2, 2, &err);
+	kg_rng rng;
+	kg_rng_seed(&rng, 11);
+	for (int kind = 0; kind < 3; kind++) {
+		for (int y = 0; y < H; y++)
+			for (int x = 0; x < W; x++) {
+				double dx = (x - (W - 1) / 2.0) / (W - 1); /* the light varies along x */
+				double F = kind == 0 ? 1 + 0.2 * dx : kind == 1 ? 1 : 1 - 0.4 * dx * dx;
+				double noise = 1 + 0.002 * (kg_rng_uniform(&rng) - 0.5);
+				flat->data[y * W + x] = (float)(0.6 * F * gain[colour_of(cfa, x, y)] * noise);
+			}
+		flat->data[3 * W + 3] = NAN; /* a dead sample is left out */
+		double nu = -1;
+		CHECK(kg_flat_nonuniformity(flat, &nu, &err) == 0, "non-uniformity: %s", err.msg);
+		/* the outer blocks' centres: x = 3.5 and 59.5 of 0..63 */
+		double edge = (3.5 - 31.5) / 63;
+		double want = kind == 0 ? 0.2 * -edge : kind == 1 ? 0 : NAN;
+		if (kind == 2) {
+			/* block means of 1 - 0.4 dx^2 over 8 columns; the mean of all blocks is the
+			 * mean over the frame */
+			double mean = 0, bmin = INFINITY, bmax = -INFINITY;
+			for (int b = 0; b < 8; b++) {
+				double s = 0;
+				for (int x = 8 * b; x < 8 * b + 8; x++) {
+					double dx = (x - 31.5) / 63;
+					s += 1 - 0.4 * dx * dx;
+				}
+				s /= 8;
+				mean += s / 8;
+				bmin = fmin(bmin, s);
+				bmax = fmax(bmax, s);
+			}
+			want = fmax(bmax - mean, mean - bmin) / mean;
+		}
+		printf("flat non-uniformity (%s): %.4f, expected %.4f\n",
+		       kind == 0 ? "20 % ramp" : kind == 1 ? "even" : "falloff", nu, want);
+		CHECK(fabs(nu - want) < 0.003, "flat %d: non-uniformity %.4f, expected %.4f", kind, nu,
+		      want);
+	}
+	kg_image_free(&flat);
+}
+
 int main(void)
 {
 	test_dark_flat();
+	test_flat_nonuniformity();
 	test_stats();
 	test_bright_level();
 	test_demosaic();

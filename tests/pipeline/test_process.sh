@@ -67,10 +67,21 @@ import json, sys
 d = json.load(open(sys.argv[1]))
 c = d["calibration"]
 assert c["dark"] and c["flat"], (c["dark"], c["flat"])
+# the flat is a uniform target: its illuminance non-uniformity is noise; the chart's
+# vignetting (0.1) stays after it and is estimated from the patches and removed
+nu = c["flat_illuminance_nonuniformity"]
+lf = c["light_field"]
+print("flat non-uniformity %.4f, light field over the chart %s" % (nu, lf))
+assert isinstance(nu, float) and 0 <= nu < 0.01, nu
+assert lf["fitted"] and 0.005 < lf["variation"] < 0.15, lf
+assert lf["min"] < 1 < lf["max"] and lf["patches"] >= 10, lf
+assert len(lf["coefficients"]) == 15, lf
 o = {x["capture"]: x for x in d["objects"]}
 assert o["object-half"]["dark"] == "dark-0002", o["object-half"]["dark"]
 assert abs(o["object-half"]["exposure_scale"] - 2) < 1e-9
 PY
+check "report: the light over the chart" grep -q "Light over the chart</th><td>varies by" "$O/report.html"
+check "report: the flat's non-uniformity" grep -q "Flat: illuminance non-uniformity</th><td>0.0" "$O/report.html"
 # The half-exposure object gives the same reflectance within 1 %.
 check "exposure normalised: half exposure within 1 %" "$PY" - "$O" <<'PY'
 import sys, numpy as np
