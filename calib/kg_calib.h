@@ -586,6 +586,9 @@ typedef struct kg_chart_detect_options {
 	                          * for float) */
 	double nonuniformity_limit; /* quadrant spread above this flags a patch (0.05) */
 	double glare_fraction;   /* more bright outliers than this flag glare (0.01) */
+	int keep_refused;        /* 1: when the chart is not found (KG_ENOENT), *out still
+	                          * gets a result with refused = 1: the refusal, the region
+	                          * searched, tags and candidates seen, for the overlay */
 } kg_chart_detect_options;
 
 void kg_chart_detect_options_default(kg_chart_detect_options *o);
@@ -625,6 +628,12 @@ typedef struct kg_chart_sample {
 	double quad[4][2];       /* the sampled region in px (tl, tr, br, bl of the layout) */
 } kg_chart_sample;
 
+/* Something the detector tried and did not take (kept on a refusal). */
+typedef struct kg_chart_candidate {
+	double quad[4][2]; /* px */
+	char why[256];     /* what it was and why it failed */
+} kg_chart_candidate;
+
 typedef struct kg_chart_result {
 	char layout[64];
 	int tagless;              /* found by OpenCV mcc, not by tags */
@@ -646,6 +655,14 @@ typedef struct kg_chart_result {
 	                           * (OpenCV mcc and the refinement of its box) */
 	double sample_seconds;    /* patch sampling (all four turns when tagless) */
 	double total_seconds;
+	/* a refusal (options.keep_refused): patches, when present, are the regions of the
+	 * best reading tried, not a chart found */
+	int refused;
+	char refusal[1024];       /* the error message */
+	int has_searched;
+	double searched[4][2];    /* the region searched, px */
+	int ncandidates;
+	kg_chart_candidate *candidates;
 } kg_chart_result;
 
 /* Find the chart of layout l in img and sample its patches. img: 1 channel (grey,

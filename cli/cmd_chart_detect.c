@@ -34,7 +34,11 @@ static const char help_detect[] =
 	"                       8 partly out of frame, 16 non-uniform\n"
 	"  --overlay O.png      what an operator checks: tags (green used, orange ignored),\n"
 	"                       the chart outline, each sampled region with its id, flagged\n"
-	"                       patches in red with the reason\n"
+	"                       patches in red with the reason; written also when the chart\n"
+	"                       is not found: the region searched (dashed yellow), the tags\n"
+	"                       and candidates seen (magenta: the tagless detector's box and\n"
+	"                       A01 of each of its turns) with why each failed, the reason\n"
+	"                       at the top (the exit status is still 1)\n"
 	"  --decimate N         tag search on an image N times smaller (corners are refined\n"
 	"                       at full resolution); default 2 below 4 Mpix, else 4\n"
 	"  --threads N          threads for the grey picture, mcc and the patch sampling,\n"
@@ -50,8 +54,12 @@ static const char help_detect[] =
 	"                       ColorChecker 24 layout with no tag in view falls back to\n"
 	"                       the tagless detector; N given: N tags, no fallback\n"
 	"  --clip-level V       a channel at or above V is clipped (default: full scale)\n"
-	"  --tagless            find an unframed ColorChecker with OpenCV mcc; a box whose\n"
-	"                       patches do not read as the layout in any turn is refused\n"
+	"  --tagless            find an unframed ColorChecker with OpenCV mcc; its turn is\n"
+	"                       the one whose patch colours fit the layout's best through\n"
+	"                       one 3 x 3 matrix (any camera and white balance; each patch's\n"
+	"                       level free, so uneven light and exposure do not matter); a\n"
+	"                       box with no turn fitting, or two fitting about as well, is\n"
+	"                       refused\n"
 	"  --quiet              no summary on standard error (warnings still shown)\n"
 	"\n"
 	"IMAGE inside a kogei session (SESSION/captures/NAME/rgb.tif, mean.tif) also gives\n"
@@ -175,8 +183,21 @@ int kg_cmd_chart_detect(int argc, char **argv)
 	kg_camera_identity id;
 	if ((code = kg_cli_image_identity(image_path, &id, &err)))
 		goto fail;
+	/* a refusal keeps what was searched, for the overlay */
+	opt.keep_refused = overlay != NULL;
 	if ((code = kg_chart_detect(layout, img, &opt, &res, &err))) {
 		kg_err_prefix(&err, "%s: chart %s not found", image_path, layout->name);
+		if (res && overlay) {
+			kg_err oerr = {{0}};
+			int oc = kg_inputs_check_output(overlay, &oerr);
+			if (!oc)
+				oc = kg_chart_overlay_write(res, img, overlay, 0, &oerr);
+			if (oc)
+				fprintf(stderr, "kogei: %s: overlay not written: %s\n", overlay, oerr.msg);
+			else
+				fprintf(stderr, "kogei: the overlay %s shows where the chart was looked "
+				        "for and why each candidate failed\n", overlay);
+		}
 		goto fail;
 	}
 	for (int i = 0; i < res->nwarnings; i++)
