@@ -2777,8 +2777,8 @@ static int detect_tagless(const kg_chart_layout *l, const layout_view *L, work_i
 		snprintf(why, sizeof(why), "its patches have next to no colour (spread %.3f, a "
 		         "ColorChecker has more than %.2f)", spread, KG_ORIENT_SPREAD_MIN);
 	else if (!(score[best] <= KG_ORIENT_SCORE_MAX))
-		snprintf(why, sizeof(why), "their colours do not match layout %s in any of its 4 "
-		         "turns (best colour misfit %.3f, a ColorChecker fits below %.2f)", l->name,
+		snprintf(why, sizeof(why), "the colours of its patches do not match layout %s in any "
+		         "of its 4 turns (best colour misfit %.3f, a ColorChecker fits below %.2f)", l->name,
 		         score[best], KG_ORIENT_SCORE_MAX);
 	else if (!(next >= KG_ORIENT_MARGIN * score[best]))
 		snprintf(why, sizeof(why), "two of its turns match layout %s about as well (colour "
