@@ -2879,6 +2879,39 @@ static int tagless_fallback(const kg_chart_layout *l, const kg_chart_result *r, 
 #endif
 }
 
+/* A refusal: each tag seen becomes a candidate with why it did not place the chart
+ * (added after the tagless detector's, if any). Out of memory: left as it is. */
+static void refused_tags(const layout_view *L, const kg_chart_detect_options *opt,
+                         kg_chart_result *r)
+{
+	if (r->ntags <= 0)
+		return;
+	kg_chart_candidate *c = realloc(r->candidates,
+	                                (size_t)(r->ncandidates + r->ntags) * sizeof(*c));
+	if (!c)
+		return;
+	r->candidates = c;
+	for (int i = 0; i < r->ntags; i++) {
+		const kg_chart_tag_found *t = &r->tags[i];
+		kg_chart_candidate *k = &c[r->ncandidates++];
+		memset(k, 0, sizeof(*k));
+		memcpy(k->quad, t->corners, sizeof(k->quad));
+		const char *family = opt->family ? opt->family : L->family;
+		if (layout_tag_index(L, t->id) < 0)
+			snprintf(k->why, sizeof(k->why), "tag %d (%s): not one of layout %s's tags",
+			         t->id, family, L->name);
+		else if (t->used)
+			snprintf(k->why, sizeof(k->why), "tag %d: of the layout, used, but the chart "
+			         "needs %d", t->id, opt->min_tags);
+		else if (isfinite(t->error) && t->error > 0)
+			snprintf(k->why, sizeof(k->why), "tag %d: of the layout, %.1f px off the chart "
+			         "the other tags place", t->id, t->error);
+		else
+			snprintf(k->why, sizeof(k->why), "tag %d: of the layout, too few with it to "
+			         "place the chart (%d needed)", t->id, opt->min_tags);
+	}
+}
+
 int kg_chart_detect(const kg_chart_layout *l, const kg_image *img,
                     const kg_chart_detect_options *options, kg_chart_result **out,
                     kg_err *err)
@@ -2961,6 +2994,8 @@ int kg_chart_detect(const kg_chart_layout *l, const kg_image *img,
 	return 0;
 fail:
 	free(wi.owned);
+	if (ret == KG_ENOENT && opt.keep_refused)
+		refused_tags(&L, &opt, r);
 	layout_arrays_free(&arrays);
 	if (ret == KG_ENOENT && opt.keep_refused) {
 		/* what was searched and seen stays, for the overlay */
