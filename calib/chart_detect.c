@@ -2897,7 +2897,10 @@ static void refused_tags(const layout_view *L, const kg_chart_detect_options *op
 		memset(k, 0, sizeof(*k));
 		memcpy(k->quad, t->corners, sizeof(k->quad));
 		const char *family = opt->family ? opt->family : L->family;
-		if (layout_tag_index(L, t->id) < 0)
+		int of_layout = 0;
+		for (int j = 0; j < L->ntags; j++)
+			of_layout |= L->tag_ids[j] == t->id;
+		if (!of_layout)
 			snprintf(k->why, sizeof(k->why), "tag %d (%s): not one of layout %s's tags",
 			         t->id, family, L->name);
 		else if (t->used)
