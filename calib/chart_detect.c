@@ -2774,15 +2774,15 @@ static int detect_tagless(const kg_chart_layout *l, const layout_view *L, work_i
 		snprintf(why, sizeof(why), "only %d of its 24 patches can be read (the others are "
 		         "clipped, rejected or out of the image; 12 are needed)", used[best]);
 	else if (spread < KG_ORIENT_SPREAD_MIN)
-		snprintf(why, sizeof(why), "its patches have next to no colour (spread %.3f, a "
+		snprintf(why, sizeof(why), "they have next to no colour (spread %.3f, a "
 		         "ColorChecker has more than %.2f)", spread, KG_ORIENT_SPREAD_MIN);
 	else if (!(score[best] <= KG_ORIENT_SCORE_MAX))
-		snprintf(why, sizeof(why), "the colours of its patches do not match layout %s in any "
-		         "of its 4 turns (best colour misfit %.3f, a ColorChecker fits below %.2f)", l->name,
-		         score[best], KG_ORIENT_SCORE_MAX);
+		snprintf(why, sizeof(why), "their colours match the layout's in none of its 4 turns "
+		         "(best colour misfit %.3f, a ColorChecker fits below %.2f)", score[best],
+		         KG_ORIENT_SCORE_MAX);
 	else if (!(next >= KG_ORIENT_MARGIN * score[best]))
-		snprintf(why, sizeof(why), "two of its turns match layout %s about as well (colour "
-		         "misfit %.3f and %.3f, the best must be %.1f times better)", l->name,
+		snprintf(why, sizeof(why), "two of its turns match the layout's colours about as "
+		         "well (colour misfit %.3f and %.3f, the best must be %.1f times better)",
 		         score[best], next, KG_ORIENT_MARGIN);
 	int uncertain = !ret && why[0];
 	if (uncertain) {
@@ -2790,7 +2790,8 @@ static int detect_tagless(const kg_chart_layout *l, const layout_view *L, work_i
 		kg_chart_candidate *c = calloc(5, sizeof(*c));
 		if (c) {
 			memcpy(c[0].quad, box_px, sizeof(c[0].quad));
-			snprintf(c[0].why, sizeof(c[0].why), "mcc's box (fit cost %.3g): %s", cost, why);
+			snprintf(c[0].why, sizeof(c[0].why), "mcc's box (fit cost %.3g): its patches do "
+			         "not read as the layout: %s", cost, why);
 			for (int turn = 0; turn < 4; turn++) {
 				kg_chart_sample *a = &sampled[turn][idx[0]];
 				memcpy(c[1 + turn].quad, a->quad, sizeof(c[1 + turn].quad));
@@ -2815,10 +2816,10 @@ static int detect_tagless(const kg_chart_layout *l, const layout_view *L, work_i
 			kg_homography_map(r->H, L->outline[k][0], L->outline[k][1], r->outline[k]);
 		return kg_fail(err, KG_ENOENT,
 		               "the tagless detector (OpenCV mcc, fit cost %.3g) found a box, but "
-		               "%s: no ColorChecker in view (other colours on its geometry), or "
-		               "light too coloured, clipped or processed to tell; row A01-A06 "
-		               "would run at %.0f degrees from the image's x axis", cost, why,
-		               angle[upright]);
+		               "its patches do not read as layout %s: %s. No ColorChecker in view "
+		               "(other colours on its geometry), or light too coloured, clipped or "
+		               "processed to tell; row A01-A06 would run at %.0f degrees from the "
+		               "image's x axis", cost, l->name, why, angle[upright]);
 	}
 	r->patches = sampled[best];
 	r->npatches = L->npatches;
