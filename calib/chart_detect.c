@@ -39,6 +39,8 @@
 #define KG_ORIENT_SCORE_MAX 0.15
 #define KG_ORIENT_MARGIN 1.5
 #define KG_ORIENT_SPREAD_MIN 0.05
+/* mcc's candidate boxes tried, its best first */
+#define MCC_CANDIDATES 3
 #endif
 #if HAVE_APRILTAG
 /* The largest side libapriltag's segmentation takes after decimation. */
@@ -2611,6 +2613,12 @@ done:
 	return used;
 }
 
+static int tagless_box(const kg_chart_layout *l, const layout_view *L, work_image *wi,
+                       const kg_chart_detect_options *opt, const int idx[24],
+                       const double box_in[4][2], double cost, int f, int small_w,
+                       int small_h, double white, int turns_too, kg_chart_result *r,
+                       kg_err *err);
+
 /* Find a ColorChecker 24 without tags: mcc gives the box around its patches; the
  * homography from the box in layout mm to the box in the image places the patches,
  * which sample_all measures as on the tag path. Of the four ways the box's corners
@@ -2630,8 +2638,9 @@ static int detect_tagless(const kg_chart_layout *l, const layout_view *L, work_i
 	                      "the tagless detector (OpenCV mcc)", NULL, err);
 	if (ret)
 		return ret;
-	double t0 = now_seconds(), box_px[4][2], box_mm[4][2], cost = 0, edge_rms = 0;
+	double t0 = now_seconds(), boxes[MCC_CANDIDATES][4][2], costs[MCC_CANDIDATES];
 	double white = white_level(wi);
+	int nboxes = 0;
 	/* the region searched (all of the image), for the overlay of a refusal */
 	r->searched[0][0] = r->searched[3][0] = 0;
 	r->searched[1][0] = r->searched[2][0] = wi->width;
@@ -2639,7 +2648,7 @@ static int detect_tagless(const kg_chart_layout *l, const layout_view *L, work_i
 	r->searched[2][1] = r->searched[3][1] = wi->height;
 	r->has_searched = 1;
 	int big = wi->width > wi->height ? wi->width : wi->height, small_w = 0, small_h = 0;
-	int f = opt->tagless_decimate > 0 ? opt->tagless_decimate : big / 1000, refined = 0;
+	int f = opt->tagless_decimate > 0 ? opt->tagless_decimate : big / 1000;
 	while (f > 1 && (wi->width / f < MCC_MIN_SIDE || wi->height / f < MCC_MIN_SIDE))
 		f--;
 	r->prepare_seconds += now_seconds() - t0;
@@ -2651,8 +2660,9 @@ static int detect_tagless(const kg_chart_layout *l, const layout_view *L, work_i
 		double t2 = now_seconds();
 		r->prepare_seconds += t2 - t1;
 		kg_err small_err = {{0}};
-		ret = kg_mcc_find_colorchecker(small, small_w, small_h, wi->channels, white,
-		                               opt->threads, box_px, &cost, &small_err);
+		ret = kg_mcc_find_colorcheckers(small, small_w, small_h, wi->channels, white,
+		                                opt->threads, MCC_CANDIDATES, boxes, costs, &nboxes,
+		                                &small_err);
 		free(small);
 		r->tag_seconds += now_seconds() - t2;
 		/* Not found on the reduced copy (a chart too small there): the full image
@@ -2662,9 +2672,10 @@ static int detect_tagless(const kg_chart_layout *l, const layout_view *L, work_i
 		else if (ret)
 			return kg_fail(err, ret, "%s", small_err.msg);
 		else
-			for (int k = 0; k < 4; k++)
-				for (int c = 0; c < 2; c++)
-					box_px[k][c] *= f;
+			for (int b = 0; b < nboxes; b++)
+				for (int k = 0; k < 4; k++)
+					for (int c = 0; c < 2; c++)
+						boxes[b][k][c] *= f;
 	}
 	if (f <= 1) {
 		double t1 = now_seconds();
@@ -2672,8 +2683,9 @@ static int detect_tagless(const kg_chart_layout *l, const layout_view *L, work_i
 			return ret;
 		double t2 = now_seconds();
 		r->prepare_seconds += t2 - t1;
-		ret = kg_mcc_find_colorchecker(wi->data, wi->width, wi->height, wi->channels, white,
-		                               opt->threads, box_px, &cost, err);
+		ret = kg_mcc_find_colorcheckers(wi->data, wi->width, wi->height, wi->channels, white,
+		                                opt->threads, MCC_CANDIDATES, boxes, costs, &nboxes,
+		                                err);
 		r->tag_seconds += now_seconds() - t2;
 		if (ret)
 			return ret;
@@ -2682,6 +2694,65 @@ static int detect_tagless(const kg_chart_layout *l, const layout_view *L, work_i
 	r->tagless_decimate = f > 1 ? f : 1;
 	r->decimate = 0;
 	r->rms_px = 0;
+	/* mcc's boxes, its best first: the first whose patches read as the layout is
+	 * taken; a refusal reports the best box's reason, and every box tried stays a
+	 * candidate for the overlay */
+	kg_chart_sample *first_patches = NULL;
+	double first_H[9], first_outline[4][2];
+	char first_msg[sizeof(err->msg)] = "";
+	for (int b = 0; b < nboxes; b++) {
+		kg_err box_err = {{0}};
+		ret = tagless_box(l, L, wi, opt, idx, boxes[b], costs[b], f, small_w, small_h,
+		                  white, b == 0, r, &box_err);
+		if (ret == 0) {
+			samples_free(first_patches, L->npatches);
+			if (b > 0 && add_warning(r, "mcc's best box (fit cost %.3g) was refused (%s); "
+			                         "its candidate %d of %d (fit cost %.3g) was taken",
+			                         costs[0], first_msg, b + 1, nboxes, costs[b]))
+				return kg_fail(err, KG_ENOMEM, "out of memory");
+			return 0;
+		}
+		if (ret != KG_ENOENT) {
+			samples_free(first_patches, L->npatches);
+			return kg_fail(err, ret, "%s", box_err.msg);
+		}
+		if (b == 0) {
+			/* the best box's regions stay in the result, for the overlay */
+			snprintf(first_msg, sizeof(first_msg), "%s", box_err.msg);
+			first_patches = r->patches;
+			memcpy(first_H, r->H, sizeof(first_H));
+			memcpy(first_outline, r->outline, sizeof(first_outline));
+		} else {
+			samples_free(r->patches, L->npatches);
+		}
+		r->patches = NULL;
+		r->npatches = 0;
+	}
+	r->patches = first_patches;
+	r->npatches = first_patches ? L->npatches : 0;
+	memcpy(r->H, first_H, sizeof(r->H));
+	memcpy(r->outline, first_outline, sizeof(r->outline));
+	if (nboxes > 1)
+		return kg_fail(err, KG_ENOENT, "%s; mcc's %d other candidate%s refused too",
+		               first_msg, nboxes - 1, nboxes > 2 ? "s were" : " was");
+	return kg_fail(err, KG_ENOENT, "%s", first_msg);
+}
+
+/* One of mcc's boxes (px, full resolution; found on a copy reduced f x f when f > 1)
+ * placed as layout l: its winding fixed, refined on the patch edges (f > 1), each of
+ * its 4 turns sampled and the orientation chosen from the patches' colours. 0 with
+ * the patches in r; KG_ENOENT when its patches do not read as the layout (the reason
+ * in err; the best turn's patches in r and the box, with A01 of each turn when
+ * turns_too, added to r's candidates). */
+static int tagless_box(const kg_chart_layout *l, const layout_view *L, work_image *wi,
+                       const kg_chart_detect_options *opt, const int idx[24],
+                       const double box_in[4][2], double cost, int f, int small_w,
+                       int small_h, double white, int turns_too, kg_chart_result *r,
+                       kg_err *err)
+{
+	double box_px[4][2], box_mm[4][2], edge_rms = 0;
+	int ret = 0, refined = 0;
+	memcpy(box_px, box_in, sizeof(box_px));
 	mcc24_box_mm(L, idx, box_mm);
 	/* A photograph does not mirror the chart: give mcc's corners the layout's winding. */
 	if ((quad_signed_area(box_mm) > 0) != (quad_signed_area((const double (*)[2])box_px) > 0)) {
@@ -2787,19 +2858,23 @@ static int detect_tagless(const kg_chart_layout *l, const layout_view *L, work_i
 	int uncertain = !ret && why[0];
 	if (uncertain) {
 		/* what was tried, for the overlay: mcc's box, A01's corner of each turn */
-		kg_chart_candidate *c = calloc(5, sizeof(*c));
+		int add = turns_too ? 5 : 1;
+		kg_chart_candidate *c = realloc(r->candidates,
+		                                (size_t)(r->ncandidates + add) * sizeof(*c));
 		if (c) {
+			r->candidates = c;
+			c += r->ncandidates;
+			r->ncandidates += add;
+			memset(c, 0, (size_t)add * sizeof(*c));
 			memcpy(c[0].quad, box_px, sizeof(c[0].quad));
 			snprintf(c[0].why, sizeof(c[0].why), "mcc's box (fit cost %.3g): its patches do "
 			         "not read as the layout: %s", cost, why);
-			for (int turn = 0; turn < 4; turn++) {
+			for (int turn = 0; turn < 4 && turns_too; turn++) {
 				kg_chart_sample *a = &sampled[turn][idx[0]];
 				memcpy(c[1 + turn].quad, a->quad, sizeof(c[1 + turn].quad));
 				snprintf(c[1 + turn].why, sizeof(c[1 + turn].why), "A01 if turn %d: misfit "
 				         "%.3f%s", turn, score[turn], full[turn] ? "" : " (sparse)");
 			}
-			r->candidates = c;
-			r->ncandidates = 5;
 		}
 	}
 	for (int turn = 0; turn < 4; turn++)

@@ -28,13 +28,15 @@
 static const char *kogei;
 static char camera[4200], spectra[4200], layout[4200];
 
+static const char *render_width = "1200";
+
 static int render(const char *spec, const char *tilt, const char *rotate, const char *img,
                   const char *truth)
 {
 	char log[8192];
 	char *argv[] = {(char *)kogei, "sim", "chart", "--layout", layout, "--spectra",
 	                (char *)spec, "--camera", camera, "--illuminant", "D65", "--paper",
-	                "0.03", "--background", "0.3", "--width", "1200", "--height", "900",
+	                "0.03", "--background", "0.3", "--width", (char *)render_width, "--height", "900",
 	                "--fill", "0.7", "--tilt", (char *)tilt, "--rotate", (char *)rotate,
 	                "--noise", "20000:5:12", "--blur", "0.8", "--seed", "9", "-o", (char *)img,
 	                "--truth", (char *)truth, NULL};
@@ -391,6 +393,72 @@ int main(int argc, char **argv)
 		kg_image_free(&im);
 		check_refusal_overlay("shuffled colours", img, 1200, 900, 1);
 	}
+	/* two charts side by side, the shuffled one on the left and a ColorChecker on the
+	 * right: whichever box mcc ranks first, the ColorChecker is found, every patch
+	 * where its truth puts it */
+	render_width = "700";
+	char *left = strdup(cs_path("left.tif")), *right = strdup(cs_path("right.tif"));
+	char *rtruth = strdup(cs_path("right.cgats"));
+	kg_image *a = NULL, *b = NULL, *both = NULL;
+	kg_patchset *rt = NULL;
+	kg_chart_layout *l2 = NULL;
+	kg_chart_result *r2 = NULL;
+	if (render(shuf, "10", "0", left, truth) == 0 && render(spectra, "10", "180", right, rtruth) == 0 &&
+	    kg_image_read(left, &a, &err) == 0 && kg_image_read(right, &b, &err) == 0 &&
+	    kg_patchset_read(rtruth, 0, &rt, &err) == 0 &&
+	    kg_image_new(a->width + b->width, a->height, 3, &both, &err) == 0 &&
+	    kg_chart_layout_load(layout, &l2, &err) == 0) {
+		for (int y = 0; y < both->height; y++) {
+			memcpy(both->data + (size_t)y * both->width * 3, a->data + (size_t)y * a->width * 3,
+			       (size_t)a->width * 3 * sizeof(float));
+			memcpy(both->data + ((size_t)y * both->width + a->width) * 3,
+			       b->data + (size_t)y * b->width * 3, (size_t)b->width * 3 * sizeof(float));
+		}
+		both->bits = a->bits;
+		/* the ColorChecker under light falling 8 x across it, its bright end at 1.6 x
+		 * the exposure (clipped) */
+		for (int y = 0; y < both->height; y++)
+			for (int x = a->width; x < both->width; x++)
+				for (int c = 0; c < 3; c++) {
+					float *v = both->data + ((size_t)y * both->width + x) * 3 + c;
+					double t = (double)(x - a->width) / b->width;
+					*v = (float)fmin(1.0, *v * 0.2 * pow(8, 1 - t));
+				}
+		kg_chart_detect_options o;
+		kg_chart_detect_options_default(&o);
+		o.tagless = 1;
+		int ret = kg_chart_detect(l2, both, &o, &r2, &err);
+		CHECK(ret == 0, "two charts: the ColorChecker not found: %s", err.msg);
+		int right_place = 0;
+		for (int i = 0; !ret && i < r2->npatches; i++) {
+			const kg_chart_sample *p = &r2->patches[i];
+			double cx = 0, cy = 0, t[2];
+			for (int q = 0; q < 4; q++) {
+				cx += p->quad[q][0] / 4;
+				cy += p->quad[q][1] / 4;
+			}
+			truth_centre(rt, p->id, t);
+			right_place += hypot(cx - (t[0] + a->width), cy - t[1]) < 15;
+		}
+		CHECK(ret || right_place == 24, "two charts: %d of 24 patches where the truth puts them",
+		      right_place);
+		printf("  two charts: %d of 24 patches in place%s\n", right_place,
+		       !ret && has_warning(r2, "was refused") ? " (mcc's best box refused, another taken)"
+		                                               : " (mcc's best box)");
+	} else {
+		CHECK(0, "two charts: %s", err.msg);
+	}
+	kg_chart_result_free(&r2);
+	kg_chart_layout_free(&l2);
+	kg_patchset_free(&rt);
+	kg_image_free(&a);
+	kg_image_free(&b);
+	kg_image_free(&both);
+	free(left);
+	free(right);
+	free(rtruth);
+	render_width = "1200";
+
 	/* the tag path: two of the frame's four tags covered, four asked for; each tag
 	 * seen is kept with why it did not place the chart */
 	char log[8192];
