@@ -59,7 +59,7 @@ static const char help_detect[] =
 	"                       one 3 x 3 matrix (any camera and white balance; each patch's\n"
 	"                       level free, so uneven light and exposure do not matter); a\n"
 	"                       box with no turn fitting, or two fitting about as well, is\n"
-	"                       refused\n"
+	"                       refused, and mcc's next box (of up to 3) is tried\n"
 	"  --quiet              no summary on standard error (warnings still shown)\n"
 	"\n"
 	"IMAGE inside a kogei session (SESSION/captures/NAME/rgb.tif, mean.tif) also gives\n"

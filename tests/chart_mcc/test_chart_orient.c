@@ -15,7 +15,11 @@
  * written: the image's size, with drawn pixels (the dashed yellow frame of the
  * region searched; magenta for the rejected box) that the grey input does not have.
  * The library keeps the refusal (keep_refused): refused, the region searched, the
- * candidates with their reasons.
+ * candidates with their reasons. On the tag path (two of four tags covered, four
+ * asked for), each tag seen is kept as a candidate with its reason.
+ *
+ * Two charts side by side (the shuffled one and a relit ColorChecker): whichever of
+ * mcc's boxes comes first, the ColorChecker is found with every patch in place.
  *
  * Skipped (77) when built without OpenCV mcc or without the reference spectra.
  * Argument: the kogei program. */
