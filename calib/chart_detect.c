@@ -3331,10 +3331,12 @@ int kg_chart_overlay_write(const kg_chart_result *r, const kg_image *img, const 
 		cairo_stroke(cr);
 		cairo_set_dash(cr, NULL, 0, 0);
 	}
+	double box_text = 0; /* below the last box's reason: mcc's boxes often overlap */
 	for (int i = 0; r->refused && i < r->ncandidates; i++) {
 		const kg_chart_candidate *c = &r->candidates[i];
+		int box = strncmp(c->why, "mcc's box", 9) == 0, turn = !strncmp(c->why, "A01 if", 6);
 		cairo_set_source_rgb(cr, 1, 0.2, 1);
-		cairo_set_line_width(cr, (i == 0 ? 2.5 : 1.5) * lw);
+		cairo_set_line_width(cr, (box ? 2.5 : 1.5) * lw);
 		path_quad(cr, c->quad, s);
 		cairo_stroke(cr);
 		double x0 = INFINITY, x1 = -INFINITY, y0 = INFINITY, y1 = -INFINITY;
@@ -3344,13 +3346,15 @@ int kg_chart_overlay_write(const kg_chart_result *r, const kg_image *img, const 
 			y0 = fmin(y0, c->quad[k][1] * s);
 			y1 = fmax(y1, c->quad[k][1] * s);
 		}
-		double size = i == 0 ? font : font * 0.8;
+		double size = turn ? font * 0.8 : font;
 		double maxw = fmax(x1 - x0, 12 * size);
 		if (x0 + maxw > W)
 			x0 = fmax(0, W - maxw);
-		/* the box's reason below it, each turn's at its A01 region */
-		wrapped_text(cr, x0, i == 0 ? fmin(y1 + size * 1.3, Hh - 2 * size) : y1 + size,
-		             maxw, size, c->why, 1, 0.5, 1);
+		/* a box's reason below it, each turn's at its A01 region, a tag's below it */
+		double y = box ? fmax(fmin(y1 + size * 1.3, Hh - 3 * size), box_text) : y1 + size;
+		y = wrapped_text(cr, x0, y, maxw, size, c->why, 1, 0.5, 1);
+		if (box)
+			box_text = y + 0.3 * size;
 	}
 	/* chart outline */
 	if (r->npatches > 0 && !r->refused) {
