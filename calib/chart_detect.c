@@ -32,6 +32,15 @@
 #if KG_HAVE_MCC
 #include "chart_mcc.h"
 #define MCC_MIN_SIDE 100L
+/* The tagless detector's orientation (orientation_score): the best of the 4 turns
+ * must fit the layout's colours with an RMS sine below KG_ORIENT_SCORE_MAX, be
+ * KG_ORIENT_MARGIN times better than the next, and its patches must spread by more
+ * than KG_ORIENT_SPREAD_MIN (RMS sine from their mean direction). */
+#define KG_ORIENT_SCORE_MAX 0.15
+#define KG_ORIENT_MARGIN 1.5
+#define KG_ORIENT_SPREAD_MIN 0.05
+/* mcc's candidate boxes tried, its best first */
+#define MCC_CANDIDATES 3
 #endif
 #if HAVE_APRILTAG
 /* The largest side libapriltag's segmentation takes after decimation. */
@@ -315,6 +324,7 @@ void kg_chart_result_free(kg_chart_result **pr)
 	for (int i = 0; i < r->nwarnings; i++)
 		free(r->warnings[i]);
 	free(r->warnings);
+	free(r->candidates);
 	free(r);
 	*pr = NULL;
 }
@@ -2203,41 +2213,170 @@ static void samples_free(kg_chart_sample *p, int n)
 	free(p);
 }
 
-static double patch_level(const kg_chart_sample *p)
+/* The ColorChecker 24's colours as X-Rite publishes them in sRGB (8 bit, D65),
+ * row-major from A01 (dark skin) to D06 (black 2). Only their directions in RGB
+ * matter below: the camera's own primaries, white balance and exposure are fitted. */
+static const unsigned char cc24_srgb8[24][3] = {
+	{115, 82, 68},   {194, 150, 130}, {98, 122, 157},  {87, 108, 67},   {133, 128, 177},
+	{103, 189, 170}, {214, 126, 44},  {80, 91, 166},   {193, 90, 99},   {94, 60, 108},
+	{157, 188, 64},  {224, 163, 46},  {56, 61, 150},   {70, 148, 73},   {175, 54, 60},
+	{231, 199, 31},  {187, 86, 149},  {8, 133, 161},   {243, 243, 242}, {200, 200, 200},
+	{160, 160, 160}, {122, 122, 121}, {85, 85, 85},    {52, 52, 52},
+};
+
+/* A patch whose value can say which colour it is: sampled, in the frame, fewer than
+ * half of its pixels clipped (so the median is not), every channel above zero. */
+static int colour_usable(const kg_chart_sample *p)
 {
-	return p->rgb[0] + p->rgb[1] + p->rgb[2];
+	return !(p->flags & (KG_CHART_FLAG_REJECTED | KG_CHART_FLAG_OUT_OF_FRAME)) &&
+	       p->clipped_fraction < 0.5 && p->rgb[0] > 0 && p->rgb[1] > 0 && p->rgb[2] > 0 &&
+	       isfinite(p->rgb[0] + p->rgb[1] + p->rgb[2]);
 }
 
-/* How far the sampled patches are from a ColorChecker read the right way up; lower
- * is better. One point for each step of the neutral row D01..D06 that does not
- * darken and for each patch brighter than the white D01 (a missing value counts as
- * wrong); plus the spread of log(r/g) and log(b/g) over D01..D05, which share one
- * chromaticity whatever the white balance; plus the mean non-uniformity, high when
- * the sampled regions straddle patches. */
-static double orientation_score(const kg_chart_sample *p, const int idx[24])
+static void unit3(const double v[3], double u[3])
 {
-	double score = 0;
-	for (int k = 18; k < 23; k++)
-		score += !(patch_level(&p[idx[k]]) >= patch_level(&p[idx[k + 1]]));
-	for (int i = 0; i < 18; i++)
-		score += !(patch_level(&p[idx[18]]) >= patch_level(&p[idx[i]]));
-	double sum[2] = {0, 0}, sq[2] = {0, 0};
-	for (int k = 18; k < 23; k++) {
-		const double *c = p[idx[k]].rgb;
-		if (!(c[0] > 0 && c[1] > 0 && c[2] > 0))
-			return score + 10;
-		double v[2] = {log(c[0] / c[1]), log(c[2] / c[1])};
-		for (int j = 0; j < 2; j++) {
-			sum[j] += v[j];
-			sq[j] += v[j] * v[j];
+	double n = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+	for (int c = 0; c < 3; c++)
+		u[c] = n > 0 ? v[c] / n : 0;
+}
+
+/* sin^2 of the angle between u (unit) and M e, 1 when M e points away from u. */
+static double colour_sin2(const double M[9], const double e[3], const double u[3])
+{
+	double p[3], pp = 0, up = 0;
+	for (int r = 0; r < 3; r++) {
+		p[r] = M[3 * r] * e[0] + M[3 * r + 1] * e[1] + M[3 * r + 2] * e[2];
+		pp += p[r] * p[r];
+		up += u[r] * p[r];
+	}
+	return up > 0 && pp > 0 ? fmax(0, 1 - up * up / pp) : 1;
+}
+
+/* M (3 x 3) and per-patch scales s_i minimising sum |u_i - s_i M e_i|^2 over the
+ * patches with use[i], by alternating least squares from the plain regression of u
+ * on e: the colours up to any camera primaries, white balance and light level per
+ * patch. Returns the mean sin^2 of the angles left. */
+static double colour_fit(const double u[24][3], const double e[24][3], const int use[24],
+                         double M[9])
+{
+	double s[24];
+	for (int i = 0; i < 24; i++)
+		s[i] = 1;
+	for (int iter = 0; iter < 40; iter++) {
+		double A[9] = {0}, B[9] = {0}, Binv[9];
+		for (int i = 0; i < 24; i++) {
+			if (!use[i])
+				continue;
+			for (int r = 0; r < 3; r++)
+				for (int c = 0; c < 3; c++) {
+					A[3 * r + c] += u[i][r] * s[i] * e[i][c];
+					B[3 * r + c] += s[i] * s[i] * e[i][r] * e[i][c];
+				}
+		}
+		if (kg_mat3_inverse(B, Binv))
+			return 1;
+		double F = 0;
+		for (int r = 0; r < 3; r++)
+			for (int c = 0; c < 3; c++) {
+				M[3 * r + c] = A[3 * r] * Binv[c] + A[3 * r + 1] * Binv[3 + c] +
+				               A[3 * r + 2] * Binv[6 + c];
+				F += M[3 * r + c] * M[3 * r + c];
+			}
+		if (!(F > 0) || !isfinite(F))
+			return 1;
+		for (int k = 0; k < 9; k++)
+			M[k] /= sqrt(F);
+		for (int i = 0; i < 24; i++) {
+			if (!use[i])
+				continue;
+			double p[3], pp = 0, up = 0;
+			for (int r = 0; r < 3; r++) {
+				p[r] = M[3 * r] * e[i][0] + M[3 * r + 1] * e[i][1] + M[3 * r + 2] * e[i][2];
+				pp += p[r] * p[r];
+				up += u[i][r] * p[r];
+			}
+			/* a scale stays positive: a colour pointing away is not explained */
+			s[i] = pp > 0 ? fmax(up / pp, 1e-3) : 1e-3;
 		}
 	}
-	for (int j = 0; j < 2; j++)
-		score += sqrt(fmax(sq[j] / 5 - (sum[j] / 5) * (sum[j] / 5), 0));
-	double nonuniformity = 0;
+	double sum = 0;
+	int n = 0;
 	for (int i = 0; i < 24; i++)
-		nonuniformity += isfinite(p[idx[i]].nonuniformity) ? p[idx[i]].nonuniformity : 1.0;
-	return score + nonuniformity / 24;
+		if (use[i]) {
+			sum += colour_sin2(M, e[i], u[i]);
+			n++;
+		}
+	return n ? sum / n : 1;
+}
+
+/* How far the sampled patches are from a ColorChecker read in this orientation:
+ * the RMS sine of the angles between each patch's colour (camera RGB as a
+ * direction: free of its level, so of the light's falloff and the exposure) and the
+ * layout's colour through the 3 x 3 matrix that fits them best (any camera, any
+ * white balance). The 2 worst patches of 14 or more usable ones are left out of the
+ * final fit (glare, dirt). 0 is a perfect match; a wrong orientation must map six
+ * greys onto six colours and reads far worse. *used: the patches fitted. */
+static double orientation_score(const kg_chart_sample *p, const int idx[24], int *used)
+{
+	double u[24][3], e[24][3], M[9];
+	int use[24], n = 0;
+	for (int i = 0; i < 24; i++) {
+		const kg_chart_sample *q = &p[idx[i]];
+		double lin[3];
+		for (int c = 0; c < 3; c++) {
+			double v = cc24_srgb8[i][c] / 255.0;
+			lin[c] = v <= 0.04045 ? v / 12.92 : pow((v + 0.055) / 1.055, 2.4);
+		}
+		unit3(lin, e[i]);
+		use[i] = colour_usable(q);
+		if (use[i])
+			unit3(q->rgb, u[i]);
+		n += use[i];
+	}
+	*used = n;
+	if (n < 12)
+		return 1;
+	double ms = colour_fit(u, e, use, M);
+	if (n >= 14) {
+		for (int drop = 0; drop < 2; drop++) {
+			int worst = -1;
+			double w = -1;
+			for (int i = 0; i < 24; i++)
+				if (use[i] && colour_sin2(M, e[i], u[i]) > w) {
+					w = colour_sin2(M, e[i], u[i]);
+					worst = i;
+				}
+			use[worst] = 0;
+		}
+		ms = colour_fit(u, e, use, M);
+	}
+	return sqrt(ms);
+}
+
+/* How much colour the sampled patches have: the RMS angle (as a sine) of the usable
+ * patches' directions from their mean. A grey picture, or an object of one colour,
+ * has next to none, and then fits any orientation. */
+static double colour_spread(const kg_chart_sample *p, const int idx[24])
+{
+	double mean[3] = {0, 0, 0}, u[24][3];
+	int use[24], n = 0;
+	for (int i = 0; i < 24; i++)
+		if ((use[i] = colour_usable(&p[idx[i]]))) {
+			unit3(p[idx[i]].rgb, u[i]);
+			for (int c = 0; c < 3; c++)
+				mean[c] += u[i][c];
+			n++;
+		}
+	if (!n)
+		return 0;
+	double m[3], sum = 0;
+	unit3(mean, m);
+	for (int i = 0; i < 24; i++)
+		if (use[i]) {
+			double d = u[i][0] * m[0] + u[i][1] * m[1] + u[i][2] * m[2];
+			sum += fmax(0, 1 - d * d);
+		}
+	return sqrt(sum / n);
 }
 
 /* ---- tagless at reduced resolution -------------------------------------------- */
@@ -2485,6 +2624,12 @@ done:
 	return used;
 }
 
+static int tagless_box(const kg_chart_layout *l, const layout_view *L, work_image *wi,
+                       const kg_chart_detect_options *opt, const int idx[24],
+                       const double box_in[4][2], double cost, int f, int small_w,
+                       int small_h, double white, int turns_too, kg_chart_result *r,
+                       kg_err *err);
+
 /* Find a ColorChecker 24 without tags: mcc gives the box around its patches; the
  * homography from the box in layout mm to the box in the image places the patches,
  * which sample_all measures as on the tag path. Of the four ways the box's corners
@@ -2504,10 +2649,17 @@ static int detect_tagless(const kg_chart_layout *l, const layout_view *L, work_i
 	                      "the tagless detector (OpenCV mcc)", NULL, err);
 	if (ret)
 		return ret;
-	double t0 = now_seconds(), box_px[4][2], box_mm[4][2], cost = 0, edge_rms = 0;
+	double t0 = now_seconds(), boxes[MCC_CANDIDATES][4][2], costs[MCC_CANDIDATES];
 	double white = white_level(wi);
+	int nboxes = 0;
+	/* the region searched (all of the image), for the overlay of a refusal */
+	r->searched[0][0] = r->searched[3][0] = 0;
+	r->searched[1][0] = r->searched[2][0] = wi->width;
+	r->searched[0][1] = r->searched[1][1] = 0;
+	r->searched[2][1] = r->searched[3][1] = wi->height;
+	r->has_searched = 1;
 	int big = wi->width > wi->height ? wi->width : wi->height, small_w = 0, small_h = 0;
-	int f = opt->tagless_decimate > 0 ? opt->tagless_decimate : big / 1000, refined = 0;
+	int f = opt->tagless_decimate > 0 ? opt->tagless_decimate : big / 1000;
 	while (f > 1 && (wi->width / f < MCC_MIN_SIDE || wi->height / f < MCC_MIN_SIDE))
 		f--;
 	r->prepare_seconds += now_seconds() - t0;
@@ -2519,8 +2671,9 @@ static int detect_tagless(const kg_chart_layout *l, const layout_view *L, work_i
 		double t2 = now_seconds();
 		r->prepare_seconds += t2 - t1;
 		kg_err small_err = {{0}};
-		ret = kg_mcc_find_colorchecker(small, small_w, small_h, wi->channels, white,
-		                               opt->threads, box_px, &cost, &small_err);
+		ret = kg_mcc_find_colorcheckers(small, small_w, small_h, wi->channels, white,
+		                                opt->threads, MCC_CANDIDATES, boxes, costs, &nboxes,
+		                                &small_err);
 		free(small);
 		r->tag_seconds += now_seconds() - t2;
 		/* Not found on the reduced copy (a chart too small there): the full image
@@ -2530,9 +2683,10 @@ static int detect_tagless(const kg_chart_layout *l, const layout_view *L, work_i
 		else if (ret)
 			return kg_fail(err, ret, "%s", small_err.msg);
 		else
-			for (int k = 0; k < 4; k++)
-				for (int c = 0; c < 2; c++)
-					box_px[k][c] *= f;
+			for (int b = 0; b < nboxes; b++)
+				for (int k = 0; k < 4; k++)
+					for (int c = 0; c < 2; c++)
+						boxes[b][k][c] *= f;
 	}
 	if (f <= 1) {
 		double t1 = now_seconds();
@@ -2540,8 +2694,9 @@ static int detect_tagless(const kg_chart_layout *l, const layout_view *L, work_i
 			return ret;
 		double t2 = now_seconds();
 		r->prepare_seconds += t2 - t1;
-		ret = kg_mcc_find_colorchecker(wi->data, wi->width, wi->height, wi->channels, white,
-		                               opt->threads, box_px, &cost, err);
+		ret = kg_mcc_find_colorcheckers(wi->data, wi->width, wi->height, wi->channels, white,
+		                                opt->threads, MCC_CANDIDATES, boxes, costs, &nboxes,
+		                                err);
 		r->tag_seconds += now_seconds() - t2;
 		if (ret)
 			return ret;
@@ -2550,6 +2705,65 @@ static int detect_tagless(const kg_chart_layout *l, const layout_view *L, work_i
 	r->tagless_decimate = f > 1 ? f : 1;
 	r->decimate = 0;
 	r->rms_px = 0;
+	/* mcc's boxes, its best first: the first whose patches read as the layout is
+	 * taken; a refusal reports the best box's reason, and every box tried stays a
+	 * candidate for the overlay */
+	kg_chart_sample *first_patches = NULL;
+	double first_H[9], first_outline[4][2];
+	char first_msg[sizeof(err->msg)] = "";
+	for (int b = 0; b < nboxes; b++) {
+		kg_err box_err = {{0}};
+		ret = tagless_box(l, L, wi, opt, idx, boxes[b], costs[b], f, small_w, small_h,
+		                  white, b == 0, r, &box_err);
+		if (ret == 0) {
+			samples_free(first_patches, L->npatches);
+			if (b > 0 && add_warning(r, "mcc's best box (fit cost %.3g) was refused (%s); "
+			                         "its candidate %d of %d (fit cost %.3g) was taken",
+			                         costs[0], first_msg, b + 1, nboxes, costs[b]))
+				return kg_fail(err, KG_ENOMEM, "out of memory");
+			return 0;
+		}
+		if (ret != KG_ENOENT) {
+			samples_free(first_patches, L->npatches);
+			return kg_fail(err, ret, "%s", box_err.msg);
+		}
+		if (b == 0) {
+			/* the best box's regions stay in the result, for the overlay */
+			snprintf(first_msg, sizeof(first_msg), "%s", box_err.msg);
+			first_patches = r->patches;
+			memcpy(first_H, r->H, sizeof(first_H));
+			memcpy(first_outline, r->outline, sizeof(first_outline));
+		} else {
+			samples_free(r->patches, L->npatches);
+		}
+		r->patches = NULL;
+		r->npatches = 0;
+	}
+	r->patches = first_patches;
+	r->npatches = first_patches ? L->npatches : 0;
+	memcpy(r->H, first_H, sizeof(r->H));
+	memcpy(r->outline, first_outline, sizeof(r->outline));
+	if (nboxes > 1)
+		return kg_fail(err, KG_ENOENT, "%s; mcc's %d other candidate%s refused too",
+		               first_msg, nboxes - 1, nboxes > 2 ? "s were" : " was");
+	return kg_fail(err, KG_ENOENT, "%s", first_msg);
+}
+
+/* One of mcc's boxes (px, full resolution; found on a copy reduced f x f when f > 1)
+ * placed as layout l: its winding fixed, refined on the patch edges (f > 1), each of
+ * its 4 turns sampled and the orientation chosen from the patches' colours. 0 with
+ * the patches in r; KG_ENOENT when its patches do not read as the layout (the reason
+ * in err; the best turn's patches in r and the box, with A01 of each turn when
+ * turns_too, added to r's candidates). */
+static int tagless_box(const kg_chart_layout *l, const layout_view *L, work_image *wi,
+                       const kg_chart_detect_options *opt, const int idx[24],
+                       const double box_in[4][2], double cost, int f, int small_w,
+                       int small_h, double white, int turns_too, kg_chart_result *r,
+                       kg_err *err)
+{
+	double box_px[4][2], box_mm[4][2], edge_rms = 0;
+	int ret = 0, refined = 0;
+	memcpy(box_px, box_in, sizeof(box_px));
 	mcc24_box_mm(L, idx, box_mm);
 	/* A photograph does not mirror the chart: give mcc's corners the layout's winding. */
 	if ((quad_signed_area(box_mm) > 0) != (quad_signed_area((const double (*)[2])box_px) > 0)) {
@@ -2573,12 +2787,12 @@ static int detect_tagless(const kg_chart_layout *l, const layout_view *L, work_i
 	double ts = now_seconds();
 	double score[4], H[4][9], angle[4];
 	kg_chart_sample *sampled[4] = {NULL, NULL, NULL, NULL}; /* each turn's patches */
-	int best = 0, upright = 0, full[4] = {0, 0, 0, 0};
+	int best = 0, upright = 0, full[4] = {0, 0, 0, 0}, used[4] = {0, 0, 0, 0};
 	/* Each turn scored first on a sparse sample of its patches, every stride-th row
 	 * and column (about a thousand pixels a patch): the wrong turns read as far from a
-	 * ColorChecker on that as on all pixels. The best, and every turn within one point
-	 * of it (all four when even the best does not read as a ColorChecker), are then
-	 * sampled whole and scored again: those scores decide. */
+	 * ColorChecker on that as on all pixels. The best, and every turn within 1.5 times
+	 * its score (all four when even the best does not read as a ColorChecker), are
+	 * then sampled whole and scored again: those scores decide. */
 	double patch_px = fabs(quad_signed_area((const double (*)[2])box_px)) / 24 *
 	                  opt->sample_fraction * opt->sample_fraction;
 	int stride = (int)sqrt(fmax(patch_px, 1) / 1024);
@@ -2595,7 +2809,9 @@ static int detect_tagless(const kg_chart_layout *l, const layout_view *L, work_i
 		for (int turn = 0; pass == 1 && stride > 1 && turn < 4; turn++)
 			cheapest = fmin(cheapest, score[turn]);
 		for (int turn = 0; turn < 4 && !ret; turn++) {
-			if (pass == 1 && stride > 1 && !(score[turn] < cheapest + 1 || !(cheapest < 1)))
+			if (pass == 1 && stride > 1 &&
+			    !(score[turn] <= KG_ORIENT_MARGIN * cheapest + 0.01 ||
+			      !(cheapest <= KG_ORIENT_SCORE_MAX)))
 				continue;
 			memcpy(r->H, H[turn], sizeof(r->H));
 			ret = sample_all_with(L, wi, opt, 1, pass == 0 ? stride : 1, r, err);
@@ -2604,7 +2820,7 @@ static int detect_tagless(const kg_chart_layout *l, const layout_view *L, work_i
 			r->patches = NULL;
 			r->npatches = 0;
 			if (!ret) {
-				score[turn] = orientation_score(sampled[turn], idx);
+				score[turn] = orientation_score(sampled[turn], idx, &used[turn]);
 				full[turn] = pass == 1;
 			}
 		}
@@ -2620,38 +2836,83 @@ static int detect_tagless(const kg_chart_layout *l, const layout_view *L, work_i
 		if (fabs(angle[turn]) < fabs(angle[upright]))
 			upright = turn;
 	}
-	/* One step out of order or a patch brighter than the white: no turn reads as a
-	 * ColorChecker (other colours on its geometry, such as an object's tiles, or bad
-	 * light). Neither the patches nor mcc, whose choice also rests on the
-	 * ColorChecker's colours, can then say which patch is which: refused. */
+	/* The best turn must read as a ColorChecker (its colours fit the layout's through
+	 * one 3 x 3 matrix), have colour at all (a grey picture fits every turn), and read
+	 * clearly better than the next best turn; otherwise neither the patches nor mcc,
+	 * whose choice rests on the same colours, can say which patch is which. */
 	r->sample_seconds += now_seconds() - ts;
-	int uncertain = !ret && score[best] >= 1;
+	double next = INFINITY;
+	int next_turn = -1;
+	for (int turn = 0; turn < 4 && !ret; turn++)
+		if (turn != best && score[turn] < next) {
+			next = score[turn];
+			next_turn = turn;
+		}
+	double spread = ret ? 0 : colour_spread(sampled[best], idx);
+	char why[400] = "";
+	if (ret)
+		;
+	else if (used[best] < 12)
+		snprintf(why, sizeof(why), "only %d of its 24 patches can be read (the others are "
+		         "clipped, rejected or out of the image; 12 are needed)", used[best]);
+	else if (spread < KG_ORIENT_SPREAD_MIN)
+		snprintf(why, sizeof(why), "they have next to no colour (spread %.3f, a "
+		         "ColorChecker has more than %.2f)", spread, KG_ORIENT_SPREAD_MIN);
+	else if (!(score[best] <= KG_ORIENT_SCORE_MAX))
+		snprintf(why, sizeof(why), "their colours match the layout's in none of its 4 turns "
+		         "(best colour misfit %.3f, a ColorChecker fits below %.2f)", score[best],
+		         KG_ORIENT_SCORE_MAX);
+	else if (!(next >= KG_ORIENT_MARGIN * score[best]))
+		snprintf(why, sizeof(why), "two of its turns match the layout's colours about as "
+		         "well (colour misfit %.3f and %.3f, the best must be %.1f times better)",
+		         score[best], next, KG_ORIENT_MARGIN);
+	int uncertain = !ret && why[0];
+	if (uncertain) {
+		/* what was tried, for the overlay: mcc's box, A01's corner of each turn */
+		int add = turns_too ? 5 : 1;
+		kg_chart_candidate *c = realloc(r->candidates,
+		                                (size_t)(r->ncandidates + add) * sizeof(*c));
+		if (c) {
+			r->candidates = c;
+			c += r->ncandidates;
+			r->ncandidates += add;
+			memset(c, 0, (size_t)add * sizeof(*c));
+			memcpy(c[0].quad, box_px, sizeof(c[0].quad));
+			snprintf(c[0].why, sizeof(c[0].why), "mcc's box (fit cost %.3g): its patches do "
+			         "not read as the layout: %s", cost, why);
+			for (int turn = 0; turn < 4 && turns_too; turn++) {
+				kg_chart_sample *a = &sampled[turn][idx[0]];
+				memcpy(c[1 + turn].quad, a->quad, sizeof(c[1 + turn].quad));
+				snprintf(c[1 + turn].why, sizeof(c[1 + turn].why), "A01 if turn %d: misfit "
+				         "%.3f%s", turn, score[turn], full[turn] ? "" : " (sparse)");
+			}
+		}
+	}
 	for (int turn = 0; turn < 4; turn++)
-		if (ret || uncertain || turn != best)
+		if (ret || turn != best)
 			samples_free(sampled[turn], L->npatches);
 	if (ret)
 		return ret;
-	if (uncertain)
+	if (uncertain) {
+		/* the best turn's regions stay in the result, for the overlay */
+		r->patches = sampled[best];
+		r->npatches = L->npatches;
+		memcpy(r->H, H[best], sizeof(r->H));
+		for (int k = 0; k < 4; k++)
+			kg_homography_map(r->H, L->outline[k][0], L->outline[k][1], r->outline[k]);
 		return kg_fail(err, KG_ENOENT,
 		               "the tagless detector (OpenCV mcc, fit cost %.3g) found a box, but "
-		               "its patches do not read as layout %s in any of its 4 turns: the "
-		               "neutral row D01-D06 does not darken from D01, the brightest patch "
-		               "(best score %.3f, a ColorChecker scores below 1). No ColorChecker "
-		               "in view (other colours on its geometry), or light too uneven or "
-		               "clipped to tell; row A01-A06 would run at %.0f degrees from the "
-		               "image's x axis", cost, l->name, score[best], angle[upright]);
+		               "its patches do not read as layout %s: %s. No ColorChecker in view "
+		               "(other colours on its geometry), or light too coloured, clipped or "
+		               "processed to tell; row A01-A06 would run at %.0f degrees from the "
+		               "image's x axis", cost, l->name, why, angle[upright]);
+	}
 	r->patches = sampled[best];
 	r->npatches = L->npatches;
 	memcpy(r->H, H[best], sizeof(r->H));
 	for (int k = 0; k < 4; k++)
 		kg_homography_map(r->H, L->outline[k][0], L->outline[k][1], r->outline[k]);
-	double next = INFINITY;
-	int next_sparse = 0;
-	for (int turn = 0; turn < 4; turn++)
-		if (turn != best && score[turn] < next) {
-			next = score[turn];
-			next_sparse = !full[turn];
-		}
+	int next_sparse = next_turn >= 0 && !full[next_turn];
 	char sparse[80] = "";
 	if (next_sparse)
 		snprintf(sparse, sizeof(sparse), " (on every %d%s row and column)", stride,
@@ -2666,11 +2927,12 @@ static int detect_tagless(const kg_chart_layout *l, const layout_view *L, work_i
 		         "patch edges to refine it at full resolution)", small_w, small_h, f, f);
 	ret = add_warning(r, "chart placed by the tagless detector (OpenCV mcc, fit cost "
 	                  "%.3g) from the 4 corners of its box%s, not by tags; orientation "
-	                  "chosen from the patches (neutral row D01-D06 darkening from D01, "
-	                  "the brightest patch): score %.3f, next best of the 4 turns %.3f%s, "
-	                  "%s mcc's own; row A01-A06 runs at %.0f degrees clockwise from the "
-	                  "image's x axis", cost, how, score[best], next, sparse,
-	                  best == 0 ? "agreeing with" : "overruling", angle[best]);
+	                  "chosen from the patches' colours (%d patches fitted to the layout's "
+	                  "through one 3 x 3 matrix, light level free): colour misfit %.3f, "
+	                  "next best of the 4 turns %.3f%s, %s mcc's own; row A01-A06 runs at "
+	                  "%.0f degrees clockwise from the image's x axis", cost, how, used[best],
+	                  score[best], next, sparse, best == 0 ? "agreeing with" : "overruling",
+	                  angle[best]);
 	return ret ? kg_fail(err, ret, "out of memory") : 0;
 }
 #else
@@ -2702,6 +2964,42 @@ static int tagless_fallback(const kg_chart_layout *l, const kg_chart_result *r, 
 	(void)ret;
 	return 0;
 #endif
+}
+
+/* A refusal: each tag seen becomes a candidate with why it did not place the chart
+ * (added after the tagless detector's, if any). Out of memory: left as it is. */
+static void refused_tags(const layout_view *L, const kg_chart_detect_options *opt,
+                         kg_chart_result *r)
+{
+	if (r->ntags <= 0)
+		return;
+	kg_chart_candidate *c = realloc(r->candidates,
+	                                (size_t)(r->ncandidates + r->ntags) * sizeof(*c));
+	if (!c)
+		return;
+	r->candidates = c;
+	for (int i = 0; i < r->ntags; i++) {
+		const kg_chart_tag_found *t = &r->tags[i];
+		kg_chart_candidate *k = &c[r->ncandidates++];
+		memset(k, 0, sizeof(*k));
+		memcpy(k->quad, t->corners, sizeof(k->quad));
+		const char *family = opt->family ? opt->family : L->family;
+		int of_layout = 0;
+		for (int j = 0; j < L->ntags; j++)
+			of_layout |= L->tag_ids[j] == t->id;
+		if (!of_layout)
+			snprintf(k->why, sizeof(k->why), "tag %d (%s): not one of layout %s's tags",
+			         t->id, family, L->name);
+		else if (t->used)
+			snprintf(k->why, sizeof(k->why), "tag %d: of the layout, used, but the chart "
+			         "needs %d", t->id, opt->min_tags);
+		else if (isfinite(t->error) && t->error > 0)
+			snprintf(k->why, sizeof(k->why), "tag %d: of the layout, %.1f px off the chart "
+			         "the other tags place", t->id, t->error);
+		else
+			snprintf(k->why, sizeof(k->why), "tag %d: of the layout, too few with it to "
+			         "place the chart (%d needed)", t->id, opt->min_tags);
+	}
 }
 
 int kg_chart_detect(const kg_chart_layout *l, const kg_image *img,
@@ -2788,7 +3086,24 @@ int kg_chart_detect(const kg_chart_layout *l, const kg_image *img,
 	return 0;
 fail:
 	free(wi.owned);
+	if (ret == KG_ENOENT && opt.keep_refused)
+		refused_tags(&L, &opt, r);
 	layout_arrays_free(&arrays);
+	if (ret == KG_ENOENT && opt.keep_refused) {
+		/* what was searched and seen stays, for the overlay */
+		r->refused = 1;
+		snprintf(r->refusal, sizeof(r->refusal), "%s", err ? err->msg : "chart not found");
+		if (!r->has_searched) {
+			r->searched[0][0] = r->searched[3][0] = 0;
+			r->searched[1][0] = r->searched[2][0] = img->width;
+			r->searched[0][1] = r->searched[1][1] = 0;
+			r->searched[2][1] = r->searched[3][1] = img->height;
+			r->has_searched = 1;
+		}
+		r->total_seconds = now_seconds() - t0;
+		*out = r;
+		return ret;
+	}
 	kg_chart_result_free(&r);
 	return ret;
 }
@@ -2893,6 +3208,59 @@ static void label(cairo_t *cr, double x, double y, double size, const char *text
 	cairo_show_text(cr, text);
 }
 
+/* text from (x, y) (the first line's baseline) in lines no wider than maxw, broken
+ * at spaces, outlined in black; the baseline below the last line. */
+static double wrapped_text(cairo_t *cr, double x, double y, double maxw, double size,
+                           const char *text, double r, double g, double b)
+{
+	char line[1100];
+	size_t n = 0;
+	cairo_set_font_size(cr, size);
+	const char *p = text;
+	while (*p) {
+		/* the next word, with the spaces before it */
+		const char *w = p;
+		while (*w == ' ')
+			w++;
+		const char *end = w;
+		while (*end && *end != ' ')
+			end++;
+		char trial[1100];
+		int len = snprintf(trial, sizeof(trial), "%.*s%.*s", (int)n, line,
+		                   (int)(n ? end - p : end - w), n ? p : w);
+		cairo_text_extents_t ext;
+		cairo_text_extents(cr, trial, &ext);
+		if (n && (ext.x_advance > maxw || len >= (int)sizeof(line) - 1)) {
+			line[n] = '\0';
+			cairo_move_to(cr, x, y);
+			cairo_text_path(cr, line);
+			cairo_set_source_rgb(cr, 0, 0, 0);
+			cairo_set_line_width(cr, fmax(1.5, size / 6));
+			cairo_stroke(cr);
+			cairo_move_to(cr, x, y);
+			cairo_set_source_rgb(cr, r, g, b);
+			cairo_show_text(cr, line);
+			y += size * 1.2;
+			n = (size_t)snprintf(line, sizeof(line), "%.*s", (int)(end - w), w);
+		} else {
+			n = (size_t)snprintf(line, sizeof(line), "%s", trial);
+		}
+		p = end;
+	}
+	if (n) {
+		cairo_move_to(cr, x, y);
+		cairo_text_path(cr, line);
+		cairo_set_source_rgb(cr, 0, 0, 0);
+		cairo_set_line_width(cr, fmax(1.5, size / 6));
+		cairo_stroke(cr);
+		cairo_move_to(cr, x, y);
+		cairo_set_source_rgb(cr, r, g, b);
+		cairo_show_text(cr, line);
+		y += size * 1.2;
+	}
+	return y;
+}
+
 int kg_chart_overlay_write(const kg_chart_result *r, const kg_image *img, const char *path,
                            int max_side, kg_err *err)
 {
@@ -2959,8 +3327,50 @@ int kg_chart_overlay_write(const kg_chart_result *r, const kg_image *img, const 
 	cairo_select_font_face(cr, "DejaVu Sans", CAIRO_FONT_SLANT_NORMAL, CAIRO_FONT_WEIGHT_BOLD);
 	double lw = fmax(1.5, W / 800.0);
 	double font = fmax(10, W / 90.0);
+	/* a refusal: the region searched (dashed yellow) and each candidate tried
+	 * (magenta) with why it failed */
+	if (r->refused && r->has_searched) {
+		double dash[2] = {4 * lw, 3 * lw};
+		cairo_set_dash(cr, dash, 2, 0);
+		cairo_set_source_rgb(cr, 1, 0.9, 0.2);
+		cairo_set_line_width(cr, 2 * lw);
+		double q[4][2];
+		for (int k = 0; k < 4; k++) {
+			/* inset by a line width so the frame of the whole image shows */
+			q[k][0] = r->searched[k][0] + (k == 0 || k == 3 ? 1 : -1) * 1.5 * lw / s;
+			q[k][1] = r->searched[k][1] + (k < 2 ? 1 : -1) * 1.5 * lw / s;
+		}
+		path_quad(cr, q, s);
+		cairo_stroke(cr);
+		cairo_set_dash(cr, NULL, 0, 0);
+	}
+	double box_text = 0; /* below the last box's reason: mcc's boxes often overlap */
+	for (int i = 0; r->refused && i < r->ncandidates; i++) {
+		const kg_chart_candidate *c = &r->candidates[i];
+		int box = strncmp(c->why, "mcc's box", 9) == 0, turn = !strncmp(c->why, "A01 if", 6);
+		cairo_set_source_rgb(cr, 1, 0.2, 1);
+		cairo_set_line_width(cr, (box ? 2.5 : 1.5) * lw);
+		path_quad(cr, c->quad, s);
+		cairo_stroke(cr);
+		double x0 = INFINITY, x1 = -INFINITY, y0 = INFINITY, y1 = -INFINITY;
+		for (int k = 0; k < 4; k++) {
+			x0 = fmin(x0, c->quad[k][0] * s);
+			x1 = fmax(x1, c->quad[k][0] * s);
+			y0 = fmin(y0, c->quad[k][1] * s);
+			y1 = fmax(y1, c->quad[k][1] * s);
+		}
+		double size = turn ? font * 0.8 : font;
+		double maxw = fmax(x1 - x0, 12 * size);
+		if (x0 + maxw > W)
+			x0 = fmax(0, W - maxw);
+		/* a box's reason below it, each turn's at its A01 region, a tag's below it */
+		double y = box ? fmax(fmin(y1 + size * 1.3, Hh - 3 * size), box_text) : y1 + size;
+		y = wrapped_text(cr, x0, y, maxw, size, c->why, 1, 0.5, 1);
+		if (box)
+			box_text = y + 0.3 * size;
+	}
 	/* chart outline */
-	if (r->npatches > 0) {
+	if (r->npatches > 0 && !r->refused) {
 		cairo_set_source_rgb(cr, 0.2, 0.6, 1.0);
 		cairo_set_line_width(cr, lw);
 		path_quad(cr, r->outline, s);
@@ -3023,6 +3433,13 @@ int kg_chart_overlay_write(const kg_chart_result *r, const kg_image *img, const 
 	char title[160];
 	snprintf(title, sizeof(title), "%s: %d tags used, RMS %.2f px%s", r->layout, r->ntags_used,
 	         r->rms_px, r->tagless ? " (tagless)" : "");
+	if (r->refused) {
+		snprintf(title, sizeof(title), "%s NOT FOUND (%d tag%s seen, %d candidate%s)",
+		         r->layout, r->ntags, r->ntags == 1 ? "" : "s", r->ncandidates,
+		         r->ncandidates == 1 ? "" : "s");
+		wrapped_text(cr, font * 0.5, font * 2.9, W - font, font * 0.9, r->refusal, 1, 0.6,
+		             0.3);
+	}
 	cairo_set_font_size(cr, font);
 	cairo_move_to(cr, font * 0.5 + 1, font * 1.5 + 1);
 	cairo_set_source_rgb(cr, 0, 0, 0);

@@ -1,6 +1,7 @@
 /* OpenCV's mcc ColorChecker detector behind chart_mcc.h. Only the chart's box is
  * taken from mcc: chart_detect.c places and samples the patches itself. */
 #include <math.h>
+#include <string.h>
 
 #include <exception>
 #include <new>
@@ -38,11 +39,13 @@ static void encode_bgr8(const float *data, int width, int height, int channels, 
 	}
 }
 
-extern "C" int kg_mcc_find_colorchecker(const float *data, int width, int height, int channels,
-                                        double white, int threads, double box[4][2],
-                                        double *cost, kg_err *err)
+extern "C" int kg_mcc_find_colorcheckers(const float *data, int width, int height,
+                                         int channels, double white, int threads, int max,
+                                         double (*boxes)[4][2], double *costs, int *found,
+                                         kg_err *err)
 {
-	if (!data || width <= 0 || height <= 0 || (channels != 1 && channels != 3))
+	*found = 0;
+	if (!data || width <= 0 || height <= 0 || (channels != 1 && channels != 3) || max < 1)
 		return kg_fail(err, KG_EINVAL, "mcc: invalid image (%d x %d x %d)", width, height,
 		               channels);
 	int previous_threads = cv::getNumThreads();
@@ -53,24 +56,34 @@ extern "C" int kg_mcc_find_colorchecker(const float *data, int width, int height
 		if (threads > 0)
 			cv::setNumThreads(threads);
 		cv::Ptr<cv::mcc::CCheckerDetector> detector = cv::mcc::CCheckerDetector::create();
-		bool found = detector->process(bgr, cv::mcc::MCC24, 1);
-		cv::Ptr<cv::mcc::CChecker> checker = found ? detector->getBestColorChecker()
-		                                           : cv::Ptr<cv::mcc::CChecker>();
-		std::vector<cv::Point2f> corners;
-		if (checker)
-			corners = checker->getBox();
-		if (corners.size() != 4) {
+		bool any = detector->process(bgr, cv::mcc::MCC24, max);
+		std::vector<cv::Ptr<cv::mcc::CChecker>> list;
+		if (any) {
+			/* mcc's best first, then its other candidates */
+			cv::Ptr<cv::mcc::CChecker> best = detector->getBestColorChecker();
+			list.push_back(best);
+			for (const cv::Ptr<cv::mcc::CChecker> &c : detector->getListColorChecker())
+				if (c && c != best)
+					list.push_back(c);
+		}
+		for (size_t i = 0; i < list.size() && *found < max; i++) {
+			std::vector<cv::Point2f> corners;
+			if (list[i])
+				corners = list[i]->getBox();
+			if (corners.size() != 4)
+				continue;
+			for (int k = 0; k < 4; k++) {
+				boxes[*found][k][0] = corners[k].x + 0.5;
+				boxes[*found][k][1] = corners[k].y + 0.5;
+			}
+			if (costs)
+				costs[*found] = list[i]->getCost();
+			++*found;
+		}
+		if (!*found)
 			ret = kg_fail(err, KG_ENOENT, "OpenCV mcc found no ColorChecker 24 in the image "
 			              "(%d x %d): is the whole chart in view, lit and in focus?", width,
 			              height);
-		} else {
-			for (int k = 0; k < 4; k++) {
-				box[k][0] = corners[k].x + 0.5;
-				box[k][1] = corners[k].y + 0.5;
-			}
-			if (cost)
-				*cost = checker->getCost();
-		}
 	} catch (const std::bad_alloc &) {
 		ret = kg_fail(err, KG_ENOMEM, "mcc: out of memory");
 	} catch (const std::exception &e) {
@@ -78,5 +91,21 @@ extern "C" int kg_mcc_find_colorchecker(const float *data, int width, int height
 	}
 	if (threads > 0)
 		cv::setNumThreads(previous_threads);
+	return ret;
+}
+
+extern "C" int kg_mcc_find_colorchecker(const float *data, int width, int height, int channels,
+                                        double white, int threads, double box[4][2],
+                                        double *cost, kg_err *err)
+{
+	int found = 0;
+	double boxes[1][4][2], costs[1] = {0};
+	int ret = kg_mcc_find_colorcheckers(data, width, height, channels, white, threads, 1,
+	                                    boxes, costs, &found, err);
+	if (!ret) {
+		memcpy(box, boxes[0], sizeof(boxes[0]));
+		if (cost)
+			*cost = costs[0];
+	}
 	return ret;
 }

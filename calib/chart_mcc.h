@@ -29,6 +29,12 @@ int kg_mcc_find_colorchecker(const float *data, int width, int height, int chann
                              double white, int threads, double box[4][2], double *cost,
                              kg_err *err);
 
+/* The same, up to max charts (mcc's candidates, in its order: the best first): their
+ * boxes and costs (costs may be NULL), *found of them. */
+int kg_mcc_find_colorcheckers(const float *data, int width, int height, int channels,
+                              double white, int threads, int max, double (*boxes)[4][2],
+                              double *costs, int *found, kg_err *err);
+
 #ifdef __cplusplus
 }
 #endif

@@ -592,6 +592,9 @@ typedef struct kg_chart_detect_options {
 	double max_light_variation; /* a fitted light field varying more than this (peak to
 	                          * peak over the patches, relative to its mean) is refused
 	                          * (KG_EINVAL); 0: KG_CHART_MAX_LIGHT_VARIATION */
+	int keep_refused;        /* 1: when the chart is not found (KG_ENOENT), *out still
+	                          * gets a result with refused = 1: the refusal, the region
+	                          * searched, tags and candidates seen, for the overlay */
 } kg_chart_detect_options;
 
 /* The largest light variation across a chart that the light-field correction is
@@ -661,6 +664,11 @@ typedef struct kg_chart_light {
 
 /* ln L at chart position (x, y) mm (0 when not fitted). */
 double kg_chart_light_log(const kg_chart_light *f, double x_mm, double y_mm);
+/* Something the detector tried and did not take (kept on a refusal). */
+typedef struct kg_chart_candidate {
+	double quad[4][2]; /* px */
+	char why[256];     /* what it was and why it failed */
+} kg_chart_candidate;
 
 typedef struct kg_chart_result {
 	char layout[64];
@@ -684,6 +692,14 @@ typedef struct kg_chart_result {
 	double sample_seconds;    /* patch sampling (all four turns when tagless) */
 	double total_seconds;
 	kg_chart_light light;     /* the light field removed from the patch values */
+	/* a refusal (options.keep_refused): patches, when present, are the regions of the
+	 * best reading tried, not a chart found */
+	int refused;
+	char refusal[1024];       /* the error message */
+	int has_searched;
+	double searched[4][2];    /* the region searched, px */
+	int ncandidates;
+	kg_chart_candidate *candidates;
 } kg_chart_result;
 
 /* Find the chart of layout l in img and sample its patches. img: 1 channel (grey,

@@ -35,7 +35,11 @@ static const char help_detect[] =
 	"                       8 partly out of frame, 16 non-uniform\n"
 	"  --overlay O.png      what an operator checks: tags (green used, orange ignored),\n"
 	"                       the chart outline, each sampled region with its id, flagged\n"
-	"                       patches in red with the reason\n"
+	"                       patches in red with the reason; written also when the chart\n"
+	"                       is not found: the region searched (dashed yellow), the tags\n"
+	"                       and candidates seen (magenta: the tagless detector's box and\n"
+	"                       A01 of each of its turns) with why each failed, the reason\n"
+	"                       at the top (the exit status is still 1)\n"
 	"  --decimate N         tag search on an image N times smaller (corners are refined\n"
 	"                       at full resolution); default 2 below 4 Mpix, else 4\n"
 	"  --threads N          threads for the grey picture, mcc and the patch sampling,\n"
@@ -51,10 +55,14 @@ static const char help_detect[] =
 	"                       ColorChecker 24 layout with no tag in view falls back to\n"
 	"                       the tagless detector; N given: N tags, no fallback\n"
 	"  --clip-level V       a channel at or above V is clipped (default: full scale)\n"
-	"  --tagless            find an unframed ColorChecker with OpenCV mcc; a box whose\n"
-	"                       patches do not read as the layout in any turn is refused\n"
+	"  --tagless            find an unframed ColorChecker with OpenCV mcc; its turn is\n"
+	"                       the one whose patch colours fit the layout's best through\n"
+	"                       one 3 x 3 matrix (any camera and white balance; each patch's\n"
+	"                       level free, so uneven light and exposure do not matter); a\n"
+	"                       box with no turn fitting, or two fitting about as well, is\n"
+	"                       refused, and mcc's next box (of up to 3) is tried\n"
 	"  --light-field on|off on (default): estimate the light over the chart from each\n"
-	"                       patch's own gradient (a smooth quadratic field in ln L),\n"
+	"                       patch's own gradient (ln L a polynomial of degree <= 4),\n"
 	"                       divide the patch values by it and flag non-uniform only\n"
 	"                       what it does not explain; keywords LIGHT_FIELD_*; off: the\n"
 	"                       values as sampled\n"
@@ -198,9 +206,22 @@ int kg_cmd_chart_detect(int argc, char **argv)
 	kg_camera_identity id;
 	if ((code = kg_cli_image_identity(image_path, &id, &err)))
 		goto fail;
+	/* a refusal keeps what was searched, for the overlay */
+	opt.keep_refused = overlay != NULL;
 	if ((code = kg_chart_detect(layout, img, &opt, &res, &err))) {
 		kg_err_prefix(&err, "%s: chart %s %s", image_path, layout->name,
 		              code == KG_ENOENT ? "not found" : "refused");
+		if (res && overlay) {
+			kg_err oerr = {{0}};
+			int oc = kg_inputs_check_output(overlay, &oerr);
+			if (!oc)
+				oc = kg_chart_overlay_write(res, img, overlay, 0, &oerr);
+			if (oc)
+				fprintf(stderr, "kogei: %s: overlay not written: %s\n", overlay, oerr.msg);
+			else
+				fprintf(stderr, "kogei: the overlay %s shows where the chart was looked "
+				        "for and why each candidate failed\n", overlay);
+		}
 		goto fail;
 	}
 	for (int i = 0; i < res->nwarnings; i++)
