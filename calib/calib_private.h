@@ -70,4 +70,8 @@ int calib_chart_sample(const kg_chart_layout *l, const kg_image *img, const doub
                        const kg_chart_detect_options *opt, int reference,
                        kg_chart_result **out, kg_err *err);
 
+/* Refuse a patch file (CGATS) whose IMAGE_ENCODING is "jpeg-unstated": patches of a
+ * JPEG read without a stated encoding (kogei chart detect --encoding). */
+int calib_check_encoding(const char *path, kg_err *err);
+
 #endif

@@ -255,6 +255,9 @@ int kg_cmd_calib_reference(int argc, char **argv)
 	int ret = kg_reference_fit_files(spectra, rgb, field, &opt, &ref, &err);
 	if (!ret)
 		ret = kg_reference_save(ref, out, &err);
+	if (!ret && ref->id_rule[0])
+		fprintf(stderr, "kogei: note: %s and %s: patch ids paired as %s\n", spectra, rgb,
+		        ref->id_rule);
 	if (!ret)
 		print_reference(report_stream(out), ref, out);
 	kg_reference_free(&ref);
@@ -375,6 +378,9 @@ int kg_cmd_calib_camera(int argc, char **argv)
 	int ret = kg_camera_fit_files(refpath, rgb, &opt, &cam, &err);
 	if (!ret && method != KG_METHOD_AUTO)
 		ret = kg_camera_set_method(cam, method, &err);
+	if (!ret && cam->id_rule[0])
+		fprintf(stderr, "kogei: note: %s: patch ids matched with the reference's as %s\n",
+		        rgb, cam->id_rule);
 	if (!ret && cam->nflagged)
 		note_flagged(cam, rgb);
 	if (!ret && cam->k == 3)
