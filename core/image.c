@@ -916,7 +916,7 @@ static int rows_open_kind(const char *path, int kind, const kg_image_encoding *e
 {
 	kg_check_arg(path && out, err);
 	*out = NULL;
-	kg_image_rows *r;
+	kg_image_rows *r = NULL;
 	int ret = rows_new(path, &r, err);
 	if (ret)
 		return ret;

@@ -63,6 +63,14 @@ check "JPEG: overlay written" test -s "$T/overlay.png"
 check "JPEG: IMAGE_ENCODING jpeg-unstated" grep -q 'IMAGE_ENCODING "*jpeg-unstated' "$T/unstated.cgats"
 check "JPEG: a note on standard error" grep -q "not for calibration" "$T/err"
 
+# A truncated JPEG is refused (libjpeg's warning about the missing end is an error),
+# naming the file; nothing written.
+size=$(wc -c < "$T/chart.jpg")
+head -c $((size / 2)) "$T/chart.jpg" > "$T/cut.jpg"
+expect_exit 1 "$KOGEI" chart detect --layout "$LAYOUT" "$T/cut.jpg" -o "$T/cut.cgats"
+check "truncated JPEG: refused naming the file" grep -q "cut.jpg: not a readable JPEG file" "$T/err"
+check "truncated JPEG: nothing written" test ! -e "$T/cut.cgats"
+
 # 2. ... and calibration refuses it, naming the file and the reason; nothing written.
 expect_exit 1 "$KOGEI" calib camera --reference "$T/ref.json" --rgb "$T/unstated.cgats" \
 	-o "$T/cam_unstated.json"
