@@ -1312,13 +1312,34 @@ static int ids_all(char *const *ids, int n, int kind, long *max_number)
 	return n > 0;
 }
 
+/* The number of letters a grid spans (A.. its last letter). */
+static long grid_letters(char *const *ids, int n)
+{
+	long last = 0;
+	for (int i = 0; i < n; i++) {
+		int letter;
+		long number;
+		if (id_parts(ids[i], &letter, &number) == 2 && letter - 'A' + 1 > last)
+			last = letter - 'A' + 1;
+	}
+	return last;
+}
+
 static int match_rule(char *const *a, int na, char *const *b, int nb, int rule, int *match)
 {
-	long per_letter = 0, dummy;
+	long per_letter = 0, max_number = 0, letters = 0;
 	if (rule == 2) {
-		if (ids_all(a, na, 1, &dummy) && ids_all(b, nb, 2, &per_letter))
-			;
-		else if (!(ids_all(a, na, 2, &per_letter) && ids_all(b, nb, 1, &dummy)))
+		if (ids_all(a, na, 1, &max_number) && ids_all(b, nb, 2, &per_letter))
+			letters = grid_letters(b, nb);
+		else if (ids_all(a, na, 2, &per_letter) && ids_all(b, nb, 1, &max_number))
+			letters = grid_letters(a, na);
+		else
+			return 0;
+		/* The grid's width is taken as its largest number, which must seat every
+		 * number within its letters (24 patches over A..D: 6 a letter). A grid file
+		 * missing its last column, or a few ids, would need more letters than it has:
+		 * no pairing rather than a wrong one. */
+		if (per_letter < 1 || (max_number + per_letter - 1) / per_letter > letters)
 			return 0;
 	}
 	int count = 0;

@@ -192,7 +192,8 @@ int kg_patchset_find(const kg_patchset *ps, const char *id);
  * other all letter + number, as patch numbers in letter-major order: n is the n-th id
  * of A1..A<N>, B1..B<N>, ... with N the largest number on the grid side (ArgyllCMS
  * chartread's "1".."24" and the .cht's or kogei's ids of the ColorChecker: 7 = B1 =
- * B01). The rule matching the most ids wins (the earlier on a tie). Returns the number
+ * B01), provided every number then falls within the grid's letters (else the grid's
+ * width is unknown and this rule pairs nothing). The rule matching the most ids wins (the earlier on a tie). Returns the number
  * matched (-1 out of memory); *rule (may be NULL) gets NULL for exact ids, else a
  * description of the rule used. */
 int kg_patch_ids_match(char *const *a, int na, char *const *b, int nb, int *match,

@@ -54,6 +54,16 @@ static void synthetic(void)
 	char *some[3] = {buf[0][0], buf[0][6], buf[0][23]};
 	CHECK(kg_patch_ids_match(some, 3, pad, 24, m, NULL) == 3 && m[0] == 0 && m[1] == 6 &&
 	      m[2] == 23, "1, 7, 24 to A01, B01, D06: %d %d %d", m[0], m[1], m[2]);
+	/* a grid whose width cannot be told (its last column missing: A01..D05, numbers up
+	 * to 24 would need 5 letters) pairs nothing rather than something wrong */
+	char *nolast[20];
+	for (int i = 0, k = 0; i < 24; i++)
+		if (i % 6 != 5)
+			nolast[k++] = pad[i];
+	CHECK(kg_patch_ids_match(num, 24, nolast, 20, m, NULL) == 0,
+	      "1..24 against A01..D05: nothing paired");
+	char *one[1] = {"B1"};
+	CHECK(kg_patch_ids_match(one, 1, num, 24, m, NULL) == 0, "B1 alone against 1..24: no pair");
 	/* ids of another kind are not forced onto a grid */
 	char *tcs[2] = {"TCS01", "TCS02"};
 	CHECK(kg_patch_ids_match(tcs, 2, num, 24, m, NULL) == 0 && m[0] == -1 && m[1] == -1,
