@@ -76,5 +76,8 @@ int calib_chart_sample(const kg_chart_layout *l, const kg_image *img, const doub
  * varying more than opt->max_light_variation is refused (KG_EINVAL). */
 int calib_light_field_apply(kg_chart_result *r, const kg_chart_detect_options *opt,
                             kg_err *err);
+/* Refuse a patch file (CGATS) whose IMAGE_ENCODING is "jpeg-unstated": patches of a
+ * JPEG read without a stated encoding (kogei chart detect --encoding). */
+int calib_check_encoding(const char *path, kg_err *err);
 
 #endif

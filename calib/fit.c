@@ -656,8 +656,11 @@ static int fit_reference(const kg_patchset *train, const kg_patchset *field,
 
 	if (opt->method == KG_METHOD_AUTO) {
 		double errs[KG_METHOD_COUNT];
+		/* The colour error people judge a chart by (mean leave-one-out CIEDE2000
+		 * under D65), not the spectral RMSE: the RMSE favours a smooth spectrum
+		 * that misses the hue (docs/calib-camera.md, "--method auto"). */
 		for (int j = 0; j < KG_METHOD_COUNT; j++)
-			errs[j] = ref->maps[j].available ? ref->maps[j].loo_rmse : NAN;
+			errs[j] = ref->maps[j].available ? ref->maps[j].loo_de00 : NAN;
 		int best = choose_simplest(errs, KG_METHOD_COUNT, KG_CALIB_K_TOLERANCE);
 		if (best < 0) {
 			ret = kg_fail(err, KG_EINVAL,

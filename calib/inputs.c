@@ -132,6 +132,26 @@ int calib_source_add(kg_calib_source **sources, int *n, const char *role,
 	return 0;
 }
 
+int calib_check_encoding(const char *path, kg_err *err)
+{
+	if (has_suffix(path, ".csv") || has_suffix(path, ".json"))
+		return 0;
+	kg_cgats *cg = NULL;
+	int ret = kg_cgats_read(path, &cg, err);
+	if (ret)
+		return ret;
+	const char *v = cg->ntables > 0 ? kg_cgats_keyword(cg->tables[0], "IMAGE_ENCODING") : NULL;
+	if (v && strcmp(v, "jpeg-unstated") == 0)
+		ret = kg_fail(err, KG_EINVAL, "%s: IMAGE_ENCODING \"%s\": the patches come from a "
+		              "JPEG whose encoding was not stated; a JPEG is gamma-encoded and "
+		              "white-balanced by the camera, so its values are not linear camera "
+		              "responses. Expected a raw, TIFF or PNG capture, or run kogei chart "
+		              "detect with --encoding srgb|linear|gamma:G if you know how the JPEG "
+		              "was encoded", path, v);
+	kg_cgats_free(&cg);
+	return ret;
+}
+
 /* Refuse a patch set whose ids repeat. */
 static int check_unique(const kg_patchset *ps, const char *what, kg_err *err)
 {
@@ -146,7 +166,15 @@ static int check_unique(const kg_patchset *ps, const char *what, kg_err *err)
 int kg_calib_pair(const kg_patchset *spectra, const kg_patchset *rgb, kg_patchset **out,
                   kg_err *err)
 {
+	return kg_calib_pair_rule(spectra, rgb, out, NULL, err);
+}
+
+int kg_calib_pair_rule(const kg_patchset *spectra, const kg_patchset *rgb,
+                       kg_patchset **out, const char **rule, kg_err *err)
+{
 	kg_check_arg(spectra && rgb && out, err);
+	if (rule)
+		*rule = NULL;
 	*out = NULL;
 	const char *sname = spectra->source ? spectra->source : "spectra";
 	const char *rname = rgb->source ? rgb->source : "RGB patch file";
@@ -163,10 +191,10 @@ int kg_calib_pair(const kg_patchset *spectra, const kg_patchset *rgb, kg_patchse
 	int *match = malloc((spectra->n > 0 ? (size_t)spectra->n : 1) * sizeof(int));
 	if (!match)
 		return kg_fail(err, KG_ENOMEM, "out of memory");
-	int n = 0;
-	for (int i = 0; i < spectra->n; i++) {
-		match[i] = kg_patchset_find(rgb, spectra->ids[i]);
-		n += match[i] >= 0;
+	int n = kg_patch_ids_match(spectra->ids, spectra->n, rgb->ids, rgb->n, match, rule);
+	if (n < 0) {
+		free(match);
+		return kg_fail(err, KG_ENOMEM, "out of memory");
 	}
 	if (n == 0) {
 		char a[256] = "", b[256] = "";
@@ -175,7 +203,8 @@ int kg_calib_pair(const kg_patchset *spectra, const kg_patchset *rgb, kg_patchse
 		free(match);
 		return kg_fail(err, KG_EINVAL,
 		               "%s and %s: no SAMPLE_ID in common (spectra: %s; RGB: %s); expected the "
-		               "same chart's patch names in both",
+		               "same chart's patch names in both (as written, A1 = A01, or patch "
+		               "numbers 1..n against letter-and-number ids)",
 		               sname, rname, a, b);
 	}
 	kg_patchset *ps = NULL;
@@ -183,7 +212,8 @@ int kg_calib_pair(const kg_patchset *spectra, const kg_patchset *rgb, kg_patchse
 	for (int i = 0, j = 0; ret == 0 && i < spectra->n; i++) {
 		if (match[i] < 0)
 			continue;
-		ret = kg_patchset_set_id(ps, j, spectra->ids[i], err);
+		/* the camera file's spelling, which the field chart (rho0) shares */
+		ret = kg_patchset_set_id(ps, j, rgb->ids[match[i]], err);
 		ps->spectra[j] = spectra->spectra[i];
 		memcpy(ps->rgb[j], rgb->rgb[match[i]], sizeof(ps->rgb[j]));
 		j++;
@@ -266,6 +296,10 @@ int kg_reference_fit_files(const char *spectra_path, const char *rgb_path,
 	kg_reference *ref = NULL;
 	int ret = read_spectra(spectra_path, &spectra, err);
 	if (ret == 0)
+		ret = calib_check_encoding(rgb_path, err);
+	if (ret == 0 && field_rgb_path)
+		ret = calib_check_encoding(field_rgb_path, err);
+	if (ret == 0)
 		ret = kg_patchset_read(rgb_path, 0, &rgb, err);
 	if (ret == 0 && field_rgb_path)
 		ret = kg_patchset_read(field_rgb_path, 0, &field, err);
@@ -277,10 +311,13 @@ int kg_reference_fit_files(const char *spectra_path, const char *rgb_path,
 		ret = KG_ENOMEM;
 	if (ret == KG_ENOMEM)
 		kg_fail(err, ret, "out of memory");
+	const char *rule = NULL;
 	if (ret == 0)
-		ret = kg_calib_pair(spectra, rgb, &train, err);
+		ret = kg_calib_pair_rule(spectra, rgb, &train, &rule, err);
 	if (ret == 0)
 		ret = kg_reference_fit(train, field ? field : rgb, opt, &ref, err);
+	if (ret == 0 && rule)
+		snprintf(ref->id_rule, sizeof(ref->id_rule), "%s", rule);
 	if (ret == 0)
 		ret = calib_source_add(&ref->sources, &ref->nsources, "spectra", spectra_path, err);
 	if (ret == 0)

@@ -200,13 +200,19 @@ typedef struct kg_reference {
 
 	int nsources;
 	kg_calib_source *sources;
+	char id_rule[256];         /* how the spectra's and RGB's ids were paired when not
+	                            * as written (kg_patch_ids_match), else "" */
 } kg_reference;
 
 /* Pair spectra and RGB by SAMPLE_ID into one patch set (spectra + rgb), in the order
- * of `spectra`. Patches missing from either are left out; no id in common and
- * duplicate ids are errors naming the files and ids. */
+ * of `spectra`, with the RGB file's ids. Ids match as written, else through
+ * kg_patch_ids_match's aliases (A1 = A01; chartread's 1..24 = A1..D6). Patches missing
+ * from either are left out; no id in common and duplicate ids are errors naming the
+ * files and ids. kg_calib_pair_rule also gives the alias rule used (NULL: exact). */
 int kg_calib_pair(const kg_patchset *spectra, const kg_patchset *rgb, kg_patchset **out,
                   kg_err *err);
+int kg_calib_pair_rule(const kg_patchset *spectra, const kg_patchset *rgb,
+                       kg_patchset **out, const char **rule, kg_err *err);
 
 /* Fit everything on a training chart (spectra + rgb) for a field chart (rgb; may be
  * the training set itself). Refused (KG_EINVAL, naming the patches): non-finite or
@@ -344,6 +350,8 @@ typedef struct kg_camera_calib {
 	unsigned *flagged_flags;  /* their FLAGS (KG_CHART_FLAG_*) */
 
 	kg_camera_identity identity; /* the site camera */
+	char id_rule[256];    /* how the site file's ids were matched with the reference's
+	                       * when not as written (kg_patch_ids_match), else "" */
 	kg_response response;        /* the reference camera's (from the reference) */
 
 	int nsources;

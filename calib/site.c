@@ -100,7 +100,7 @@ static int check_options(const kg_camera_options *opt, kg_err *err)
  * receive the pairs in the reference's order. */
 static int match_patches(const kg_reference *ref, const kg_patchset *site,
                          const kg_camera_options *opt, const char *what, int *idx_ref,
-                         int *idx_site, int *k, kg_err *err)
+                         int *idx_site, int *k, const char **id_rule, kg_err *err)
 {
 	int n = site->n, nunknown = 0, nmissing = 0;
 	int *unknown = malloc((n > 0 ? (size_t)n : 1) * sizeof(int));
@@ -125,8 +125,16 @@ static int match_patches(const kg_reference *ref, const kg_patchset *site,
 			              opt->exclude[e], what);
 			goto done;
 		}
+	/* the site file's ids as the reference's (kg_patch_ids_match: A1 = A01 = 1) */
+	int *alias = malloc((n > 0 ? (size_t)n : 1) * sizeof(int));
+	if (!alias || kg_patch_ids_match(site->ids, n, ref->field_ids, ref->k, alias,
+	                                 id_rule) < 0) {
+		free(alias);
+		ret = kg_fail(err, KG_ENOMEM, "out of memory");
+		goto done;
+	}
 	for (int i = 0; i < n; i++)
-		if (!is_excluded(opt, site->ids[i]) && find_id(ref->field_ids, ref->k, site->ids[i]) < 0)
+		if (!is_excluded(opt, site->ids[i]) && alias[i] < 0)
 			unknown[nunknown++] = i;
 	if (nunknown) {
 		char a[400] = "", b[300] = "";
@@ -143,7 +151,12 @@ static int match_patches(const kg_reference *ref, const kg_patchset *site,
 	for (int j = 0; j < ref->k; j++) {
 		if (is_excluded(opt, ref->field_ids[j]))
 			continue;
-		int i = find_id(site->ids, n, ref->field_ids[j]);
+		int i = -1;
+		for (int t = 0; t < n && i < 0; t++)
+			if (alias[t] == j)
+				i = t;
+		if (i >= 0 && is_excluded(opt, site->ids[i]))
+			continue;
 		if (i < 0) {
 			missing[nmissing++] = j;
 			continue;
@@ -152,6 +165,7 @@ static int match_patches(const kg_reference *ref, const kg_patchset *site,
 		idx_site[*k] = i;
 		(*k)++;
 	}
+	free(alias);
 	if (*k < 3) {
 		char a[300] = "", b[400] = "";
 		int *common = malloc(((size_t)*k + 1) * sizeof(int));
@@ -361,7 +375,10 @@ int kg_camera_fit(const kg_reference *ref, const kg_patchset *site,
 		ret = kg_fail(err, KG_ENOMEM, "out of memory");
 		goto error;
 	}
-	ret = match_patches(ref, site, opt, what, idx_ref, idx_site, &k, err);
+	const char *id_rule = NULL;
+	ret = match_patches(ref, site, opt, what, idx_ref, idx_site, &k, &id_rule, err);
+	if (!ret && id_rule)
+		snprintf(cam->id_rule, sizeof(cam->id_rule), "%s", id_rule);
 	if (!ret)
 		ret = drop_flagged(site, what, idx_ref, idx_site, &k, ref, cam, err);
 	if (ret)
@@ -441,6 +458,8 @@ int kg_camera_fit_files(const char *reference_path, const char *site_rgb_path,
 	kg_patchset *site = NULL;
 	kg_camera_calib *cam = NULL;
 	int ret = kg_reference_load(reference_path, &ref, err);
+	if (ret == 0)
+		ret = calib_check_encoding(site_rgb_path, err);
 	if (ret == 0)
 		ret = kg_patchset_read(site_rgb_path, 0, &site, err);
 	if (ret == 0 && !site->source && !(site->source = strdup(site_rgb_path)))

@@ -24,7 +24,9 @@ static const char usage_reference[] =
 	"    rootpoly2, rootpoly3  root-polynomial regression (Finlayson et al. 2015)\n"
 	"  --basis K (1-8, default 3) or auto: the K with the lowest leave-one-out\n"
 	"  spectral RMSE (the smallest within 1 %). --method (default pca) sets the\n"
-	"  method estimate uses by default; auto takes the lowest leave-one-out error.\n"
+	"  method estimate uses by default; auto takes the method with the lowest mean\n"
+	"  leave-one-out dE00 (CIEDE2000 under D65, the LOO dE00 column); of the methods\n"
+	"  within 1 % of it, the first in the order above (the simplest).\n"
 	"  --ridge L >= 0 (default 0), --noise SIGMA > 0 (camera noise, 0..1 scale,\n"
 	"  default 0.01). rho0, the reference camera's values of the field chart, come\n"
 	"  from --field-rgb, else from --rgb. --exclude leaves patches out of both.\n"
@@ -255,6 +257,9 @@ int kg_cmd_calib_reference(int argc, char **argv)
 	int ret = kg_reference_fit_files(spectra, rgb, field, &opt, &ref, &err);
 	if (!ret)
 		ret = kg_reference_save(ref, out, &err);
+	if (!ret && ref->id_rule[0])
+		fprintf(stderr, "kogei: note: %s and %s: patch ids paired as %s\n", spectra, rgb,
+		        ref->id_rule);
 	if (!ret)
 		print_reference(report_stream(out), ref, out);
 	kg_reference_free(&ref);
@@ -375,6 +380,9 @@ int kg_cmd_calib_camera(int argc, char **argv)
 	int ret = kg_camera_fit_files(refpath, rgb, &opt, &cam, &err);
 	if (!ret && method != KG_METHOD_AUTO)
 		ret = kg_camera_set_method(cam, method, &err);
+	if (!ret && cam->id_rule[0])
+		fprintf(stderr, "kogei: note: %s: patch ids matched with the reference's as %s\n",
+		        rgb, cam->id_rule);
 	if (!ret && cam->nflagged)
 		note_flagged(cam, rgb);
 	if (!ret && cam->k == 3)

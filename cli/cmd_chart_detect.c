@@ -12,7 +12,8 @@ static const char usage_detect[] =
 	"kogei chart detect --layout L IMAGE -o P.cgats [--overlay O.png] [--decimate N]\n"
 	"                   [--threads N] [--sample-fraction F] [--statistic median|trimmed-mean]\n"
 	"                   [--family NAME] [--min-tags N] [--clip-level V] [--tagless]\n"
-	"                   [--light-field on|off] [--max-light-variation F] [--quiet]";
+	"                   [--light-field on|off] [--max-light-variation F] [--quiet]\n"
+	"                   [--encoding srgb|linear|gamma:G]";
 
 static const char help_detect[] =
 	"\n"
@@ -22,7 +23,13 @@ static const char help_detect[] =
 	"Levenberg-Marquardt on the reprojection error), and samples each patch over its\n"
 	"inner region with robust statistics. IMAGE is a TIFF or PNG: 8/16-bit or float,\n"
 	"grey (patch values come out grey), RGB, or a raw frame with a CFA pattern\n"
-	"(demosaiced bilinearly). Values are linear on the 0..1 scale of the image.\n"
+	"(demosaiced bilinearly), a camera raw file, or a JPEG (builds with libjpeg).\n"
+	"Values are linear on the 0..1 scale of the image.\n"
+	"A JPEG is gamma-encoded and white-balanced by the camera: without --encoding it\n"
+	"is read as sRGB for detection and the overlay, and its patch file says\n"
+	"IMAGE_ENCODING \"jpeg-unstated\", which kogei calib refuses. --encoding states how\n"
+	"it was encoded (srgb, linear, or gamma:G meaning linear = code^G) and makes the\n"
+	"patches usable for calibration (IMAGE_ENCODING jpeg-srgb, ...).\n"
 	"\n"
 	"  --layout L           chart layout (kogei-chart/1 JSON, an ArgyllCMS .cht, or a\n"
 	"                       bundled layout's name: colorchecker24-frame,\n"
@@ -109,10 +116,12 @@ int kg_cmd_chart_detect(int argc, char **argv)
 		{"quiet", no_argument, NULL, 'q'},
 		{"light-field", required_argument, NULL, 'L'},
 		{"max-light-variation", required_argument, NULL, 'V'},
+		{"encoding", required_argument, NULL, 'E'},
 		{NULL, 0, NULL, 0},
 	};
 	const char *layout_path = NULL, *out_path = NULL, *overlay = NULL;
 	int quiet = 0;
+	kg_image_encoding enc = {KG_ENCODING_UNSTATED, 0};
 	kg_chart_detect_options opt;
 	kg_chart_detect_options_default(&opt);
 	kg_err err = {{0}};
@@ -166,6 +175,10 @@ int kg_cmd_chart_detect(int argc, char **argv)
 		case 'T':
 			opt.tagless = 1;
 			break;
+		case 'E':
+			if (kg_image_encoding_parse(optarg, &enc, &err))
+				return kg_cli_usage_error(usage_detect, "%s", err.msg);
+			break;
 		case 'q':
 			quiet = 1;
 			break;
@@ -201,8 +214,14 @@ int kg_cmd_chart_detect(int argc, char **argv)
 	if ((code = kg_chart_layout_resolve(layout_path, &layout_file, &err)) ||
 	    (code = kg_chart_layout_load(layout_file, &layout, &err)))
 		goto fail;
-	if ((code = kg_image_read(image_path, &img, &err)))
+	if ((code = kg_image_read_as(image_path, &enc, &img, &err)))
 		goto fail;
+	char encoding[32];
+	kg_image_encoding_name(img, encoding, sizeof(encoding));
+	if (img->jpeg && enc.curve == KG_ENCODING_UNSTATED && !quiet)
+		fprintf(stderr, "kogei: note: %s: a JPEG, read as sRGB for detection; its patch "
+		        "values are not for calibration unless --encoding states how it was "
+		        "encoded\n", image_path);
 	kg_camera_identity id;
 	if ((code = kg_cli_image_identity(image_path, &id, &err)))
 		goto fail;
@@ -274,6 +293,7 @@ int kg_cmd_chart_detect(int argc, char **argv)
 		"LIGHT_FIELD_RANGE", lf_range,
 		"LIGHT_FIELD_COEFFICIENTS", lf_coef,
 		"LIGHT_FIELD_ORIGIN_SCALE_MM", lf_frame,
+		"IMAGE_ENCODING", encoding,
 		/* the camera, when the image is a session's capture */
 		"CAMERA_BACKEND", id.backend,
 		"CAMERA_MODEL", id.model,

@@ -14,7 +14,8 @@
 static const char usage_estimate[] =
 	"kogei estimate --calib CAM.json IMAGE -o CUBE.hdr [--format f32|f16|weights]\n"
 	"               [--interleave bsq|bip] [--method NAME|lut|auto] [--lut-size N]\n"
-	"               [--threads N] [--block-rows N] [--clip-level V] [--force] [--quiet]";
+	"               [--threads N] [--block-rows N] [--clip-level V] [--force] [--quiet]\n"
+	"               [--encoding srgb|linear|gamma:G]";
 
 static const char help_estimate[] =
 	"\n"
@@ -47,6 +48,9 @@ static const char help_estimate[] =
 	"  --force              apply the calibration to an image of another camera\n"
 	"                       (a warning instead of the refusal)\n"
 	"  --quiet              no summary line or progress on standard error\n"
+	"  --encoding E         how a JPEG IMAGE was encoded: srgb, linear, or gamma:G\n"
+	"                       (linear = code^G). A JPEG is gamma-encoded and white-\n"
+	"                       balanced by the camera, so without it a JPEG is refused\n"
 	"\n"
 	"An IMAGE inside a kogei session (SESSION/captures/NAME/rgb.tif) names its camera;\n"
 	"when it is not the one CAM.json calibrates (backend, model and serial), nothing is\n"
@@ -67,7 +71,8 @@ static const char usage_classify[] =
 	"               [--distance plain|scale-free] [--angle DEG]\n"
 	"               [--variance VAR.tif] [--frames N] [--mask MASK.png]\n"
 	"               [--background-level L|none] [--unknown-threshold T|none]\n"
-	"               [--threads N] [--block-rows N] [--clip-level V] [--force] [--quiet]";
+	"               [--threads N] [--block-rows N] [--clip-level V] [--force] [--quiet]\n"
+	"               [--encoding srgb|linear|gamma:G]";
 
 static const char help_classify[] =
 	"\n"
@@ -158,7 +163,8 @@ static const char help_classify[] =
 	"                       LABELS_regions.csv (region, pixels, class, decided\n"
 	"                       label, posterior); LABELS.json also holds the\n"
 	"                       separability table and the merges\n"
-	"  --threads, --block-rows, --clip-level, --force, --quiet   as for kogei estimate\n"
+	"  --threads, --block-rows, --clip-level, --force, --quiet, --encoding   as for\n"
+	"                       kogei estimate (a JPEG only with --encoding)\n"
 	"                       (an image of another camera is refused unless --force)\n"
 	"\n"
 	"Prints the classes with their pixel counts and median margins. Exit status 1 on\n"
@@ -190,9 +196,13 @@ static int parse_clip(const char *text, float *out)
 
 /* Options both commands take. Returns 1 when the option was one of them, 0 when not,
  * and KG_EXIT_USAGE (after the message) when its value is bad. */
+/* A JPEG's encoding as the user states it (--encoding); UNSTATED: refused. */
+static kg_image_encoding stated_encoding;
+
 static int common_option(int c, const char *usage, kg_apply_options *opt, int *quiet,
                          int *force)
 {
+	kg_err local = {{0}};
 	switch (c) {
 	case 't':
 		if (parse_int(optarg, 1, 256, &opt->threads))
@@ -210,6 +220,10 @@ static int common_option(int c, const char *usage, kg_apply_options *opt, int *q
 		return 1;
 	case 'q': *quiet = 1; return 1;
 	case 'F': *force = 1; return 1;
+	case 'E':
+		if (kg_image_encoding_parse(optarg, &stated_encoding, &local))
+			return -kg_cli_usage_error(usage, "%s", local.msg);
+		return 1;
 	default: return 0;
 	}
 }
@@ -218,7 +232,7 @@ static int common_option(int c, const char *usage, kg_apply_options *opt, int *q
 	{"calib", required_argument, NULL, 'C'}, {"threads", required_argument, NULL, 't'}, \
 	{"block-rows", required_argument, NULL, 'b'},                                    \
 	{"clip-level", required_argument, NULL, 'c'}, {"quiet", no_argument, NULL, 'q'},  \
-	{"force", no_argument, NULL, 'F'},                                                \
+	{"force", no_argument, NULL, 'F'}, {"encoding", required_argument, NULL, 'E'},    \
 	{"output", required_argument, NULL, 'o'}, {"help", no_argument, NULL, 'h'}
 
 /* An input image opened to be read a band of rows at a time (memory stays bounded
@@ -252,7 +266,12 @@ static int open_image(const char *path, int channels, kg_image_rows **rows,
 {
 	if (channels == 3 && kg_raw_is_raw(path))
 		return open_raw_photograph(path, src, err);
-	int rc = kg_image_rows_open(path, rows, err);
+	if (kg_image_is_jpeg(path) && stated_encoding.curve == KG_ENCODING_UNSTATED)
+		return kg_fail(err, KG_EINVAL, "%s: a JPEG: gamma-encoded and white-balanced by the "
+		               "camera, so its values are not the linear camera responses the "
+		               "calibration maps; expected a raw, TIFF or PNG capture, or --encoding "
+		               "srgb|linear|gamma:G stating how the JPEG was encoded", path);
+	int rc = kg_image_rows_open_as(path, &stated_encoding, rows, err);
 	if (rc)
 		return rc;
 	const kg_image *h = kg_image_rows_header(*rows);
@@ -286,6 +305,7 @@ int kg_cmd_estimate(int argc, char **argv)
 	};
 	int c;
 	optind = 1;
+	memset(&stated_encoding, 0, sizeof(stated_encoding));
 	while ((c = getopt_long(argc, argv, "o:h", opts, NULL)) != -1) {
 		int r = common_option(c, usage_estimate, &opt, &quiet, &force);
 		if (r < 0)
@@ -429,6 +449,7 @@ int kg_cmd_classify(int argc, char **argv)
 	};
 	int c;
 	optind = 1;
+	memset(&stated_encoding, 0, sizeof(stated_encoding));
 	while ((c = getopt_long(argc, argv, "o:h", opts, NULL)) != -1) {
 		int r = common_option(c, usage_classify, &opt, &quiet, &force);
 		if (r < 0)

@@ -5,6 +5,7 @@
 #include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 
 #include "cgats.h"
 #include "fsutil.h"
@@ -690,16 +691,32 @@ int kg_cgats_number(const kg_cgats_table *t, int set, int field, double *out,
 	               "'%.40s'%s", t->path, set + 1, t->fields[field], c, not_a_number_hint(c));
 }
 
-/* Wavelength in a SPEC_<nm> name: 1 and *nm for a spectral field, 0 for a field of
- * another kind, -1 for a SPEC_ name without a finite positive wavelength (SPEC_abc,
- * SPEC_Inf, SPEC_), which must not be passed over: dropping a band would interpolate
- * across the gap. colord writes picometres (SPEC_300000 = 300 nm). */
+/* The wavelength part of a spectral field name, or NULL for a field of another kind:
+ * CGATS.17's SPEC_<nm> (ArgyllCMS, colord), X-Rite i1Profiler's SPECTRAL_NM<nm> (also
+ * SPECTRAL_NM_<nm>) and X-Rite MeasureTool's nm<nm> (any case). */
+static const char *spec_name_number(const char *name)
+{
+	if (strncmp(name, "SPEC_", 5) == 0)
+		return name + 5;
+	if (strncasecmp(name, "SPECTRAL_NM", 11) == 0)
+		return name + 11 + (name[11] == '_');
+	if (strncasecmp(name, "NM", 2) == 0 && name[2] >= '0' && name[2] <= '9')
+		return name + 2;
+	return NULL;
+}
+
+/* Wavelength in a spectral field name (spec_name_number): 1 and *nm for a spectral
+ * field, 0 for a field of another kind, -1 for a SPEC_ (or SPECTRAL_NM) name without a
+ * finite positive wavelength (SPEC_abc, SPEC_Inf, SPEC_), which must not be passed
+ * over: dropping a band would interpolate across the gap. colord writes picometres
+ * (SPEC_300000 = 300 nm). */
 static int spec_name_nm(const char *name, double *nm)
 {
-	if (strncmp(name, "SPEC_", 5) != 0)
+	const char *num = spec_name_number(name);
+	if (!num)
 		return 0;
 	double v;
-	if (kg_cgats_parse_number(name + 5, &v) != 0 || !(v > 0))
+	if (kg_cgats_parse_number(num, &v) != 0 || !(v > 0))
 		return -1;
 	if (v >= 10000)
 		v /= 1000;
@@ -780,8 +797,9 @@ int kg_cgats_spectral_fields(const kg_cgats_table *t, int **fields, double **wl,
 	for (int i = 0; i < t->nfields; i++) {
 		int kind = spec_name_nm(t->fields[i], &nm);
 		if (kind < 0)
-			return kg_fail(err, KG_EINVAL, "%s: field %.60s: expected SPEC_<nm> with a "
-			               "finite wavelength in nm (e.g. SPEC_550)", t->path, t->fields[i]);
+			return kg_fail(err, KG_EINVAL, "%s: field %.60s: expected SPEC_<nm> (or X-Rite's "
+			               "SPECTRAL_NM<nm>, nm<nm>) with a finite wavelength in nm (e.g. "
+			               "SPEC_550)", t->path, t->fields[i]);
 		count += kind;
 	}
 	if (count == 0)
@@ -1237,6 +1255,146 @@ int kg_patchset_find(const kg_patchset *ps, const char *id)
 		if (strcmp(ps->ids[i], id) == 0)
 			return i;
 	return -1;
+}
+
+/* A patch id's parts: "A01", "a1" -> letter 'A', number 1 (kind 2); "7", "07" ->
+ * number 7 (kind 1); anything else kind 0. */
+static int id_parts(const char *id, int *letter, long *number)
+{
+	const char *p = id;
+	*letter = 0;
+	if (isalpha((unsigned char)*p)) {
+		*letter = toupper((unsigned char)*p);
+		p++;
+	}
+	if (!isdigit((unsigned char)*p))
+		return 0;
+	char *end;
+	long v = strtol(p, &end, 10);
+	if (*end || v < 1 || v > 100000)
+		return 0;
+	*number = v;
+	return *letter ? 2 : 1;
+}
+
+/* Key of an id under a rule: 0 exact (no key), 1 the same letter and number whatever
+ * the zero padding and case, 2 a plain number n and the grid id of the n-th patch in
+ * letter-major order (A1..A<N>, B1.., N the largest number on the grid side). -1 if
+ * the id has no key under the rule. */
+static long id_key(const char *id, int rule, long per_letter)
+{
+	int letter;
+	long number;
+	int kind = id_parts(id, &letter, &number);
+	if (kind == 0)
+		return -1;
+	if (rule == 1)
+		return kind == 2 ? (long)(letter - 'A' + 1) * 1000000L + number : number;
+	if (kind == 1)
+		return number;
+	if (number > per_letter)
+		return -1;
+	return (long)(letter - 'A') * per_letter + number;
+}
+
+/* All ids of a kind (1 numbers, 2 letter + number); the largest number of a grid. */
+static int ids_all(char *const *ids, int n, int kind, long *max_number)
+{
+	*max_number = 0;
+	for (int i = 0; i < n; i++) {
+		int letter;
+		long number;
+		if (id_parts(ids[i], &letter, &number) != kind)
+			return 0;
+		if (number > *max_number)
+			*max_number = number;
+	}
+	return n > 0;
+}
+
+/* The number of letters a grid spans (A.. its last letter). */
+static long grid_letters(char *const *ids, int n)
+{
+	long last = 0;
+	for (int i = 0; i < n; i++) {
+		int letter;
+		long number;
+		if (id_parts(ids[i], &letter, &number) == 2 && letter - 'A' + 1 > last)
+			last = letter - 'A' + 1;
+	}
+	return last;
+}
+
+static int match_rule(char *const *a, int na, char *const *b, int nb, int rule, int *match)
+{
+	long per_letter = 0, max_number = 0, letters = 0;
+	if (rule == 2) {
+		if (ids_all(a, na, 1, &max_number) && ids_all(b, nb, 2, &per_letter))
+			letters = grid_letters(b, nb);
+		else if (ids_all(a, na, 2, &per_letter) && ids_all(b, nb, 1, &max_number))
+			letters = grid_letters(a, na);
+		else
+			return 0;
+		/* The grid's width is taken as its largest number, which must seat every
+		 * number within its letters (24 patches over A..D: 6 a letter). A grid file
+		 * missing its last column, or a few ids, would need more letters than it has:
+		 * no pairing rather than a wrong one. */
+		if (per_letter < 1 || (max_number + per_letter - 1) / per_letter > letters)
+			return 0;
+	}
+	int count = 0;
+	for (int i = 0; i < na; i++) {
+		match[i] = -1;
+		long ka = rule ? id_key(a[i], rule, per_letter) : 0;
+		if (rule && ka < 0)
+			continue;
+		for (int j = 0; j < nb; j++) {
+			if (rule == 0 ? strcmp(a[i], b[j]) == 0 : id_key(b[j], rule, per_letter) == ka) {
+				match[i] = j;
+				count++;
+				break;
+			}
+		}
+	}
+	return count;
+}
+
+int kg_patch_ids_match(char *const *a, int na, char *const *b, int nb, int *match,
+                       const char **rule)
+{
+	static const char *const rules[3] = {
+		NULL,
+		"the same letter and number (A1 = A01)",
+		"patch numbers in letter-major order (1 = A1/A01, 2 = A2, ... as ArgyllCMS "
+		"chartread and X-Rite number the ColorChecker)",
+	};
+	if (rule)
+		*rule = NULL;
+	if (na <= 0 || !match)
+		return 0;
+	int *tmp = malloc((size_t)na * sizeof(int));
+	if (!tmp)
+		return -1;
+	int best = -1, best_count = -1;
+	for (int r = 0; r < 3; r++) {
+		int c = match_rule(a, na, b, nb, r, tmp);
+		if (c > best_count) {
+			best_count = c;
+			best = r;
+			memcpy(match, tmp, (size_t)na * sizeof(int));
+		}
+		if (c == na)
+			break;
+	}
+	free(tmp);
+	if (best_count <= 0) {
+		for (int i = 0; i < na; i++)
+			match[i] = -1;
+		return 0;
+	}
+	if (rule)
+		*rule = rules[best];
+	return best_count;
 }
 
 int kg_patchset_extra_index(const kg_patchset *ps, const char *name)

@@ -185,6 +185,19 @@ int kg_patchset_write(const char *path, const kg_patchset *ps, unsigned fields,
                       const char *const *keywords, kg_err *err);
 /* Index of the patch with this id, or -1. */
 int kg_patchset_find(const kg_patchset *ps, const char *id);
+/* Match the patch ids of one chart file (a, na) with another's (b, nb): match[i] is
+ * the index in b of a[i]'s patch, or -1. Ids are compared as written; when that leaves
+ * patches unmatched, as the same letter and number whatever the zero padding and case
+ * ("A1" = "a01" = kogei's "A01"), then, when one side is all plain numbers and the
+ * other all letter + number, as patch numbers in letter-major order: n is the n-th id
+ * of A1..A<N>, B1..B<N>, ... with N the largest number on the grid side (ArgyllCMS
+ * chartread's "1".."24" and the .cht's or kogei's ids of the ColorChecker: 7 = B1 =
+ * B01), provided every number then falls within the grid's letters (else the grid's
+ * width is unknown and this rule pairs nothing). The rule matching the most ids wins (the earlier on a tie). Returns the number
+ * matched (-1 out of memory); *rule (may be NULL) gets NULL for exact ids, else a
+ * description of the rule used. */
+int kg_patch_ids_match(char *const *a, int na, char *const *b, int nb, int *match,
+                       const char **rule);
 /* Index of an extra column by name, or -1. */
 int kg_patchset_extra_index(const kg_patchset *ps, const char *name);
 void kg_patchset_free(kg_patchset **ps);

@@ -16,6 +16,11 @@
 #include "raw.h"
 #include "kg_config.h"
 
+#if HAVE_JPEG
+#include <setjmp.h>
+#include <jpeglib.h>
+#endif
+
 #define MAX_SIDE (1L << 20)
 
 static int check_dims(const char *path, long w, long h, kg_err *err)
@@ -692,7 +697,176 @@ static void png_job_end(struct png_job *j, int reading)
 
 /* ---- the row reader and the whole-image readers on it ------------------------------ */
 
-enum image_kind { KIND_TIFF = 1, KIND_PNG, KIND_RAW };
+enum image_kind { KIND_TIFF = 1, KIND_PNG, KIND_RAW, KIND_JPEG };
+
+/* ---- JPEG (libjpeg-turbo), decoded whole when opened ------------------------------ */
+
+int kg_image_encoding_parse(const char *text, kg_image_encoding *enc, kg_err *err)
+{
+	kg_check_arg(enc, err);
+	memset(enc, 0, sizeof(*enc));
+	if (text && strcmp(text, "srgb") == 0)
+		enc->curve = KG_ENCODING_SRGB;
+	else if (text && strcmp(text, "linear") == 0)
+		enc->curve = KG_ENCODING_LINEAR;
+	else if (text && strncmp(text, "gamma:", 6) == 0) {
+		char *end;
+		double g = strtod(text + 6, &end);
+		if (end == text + 6 || *end || !(g >= 0.2 && g <= 5))
+			return kg_fail(err, KG_EINVAL, "--encoding %s: expected gamma:G with G from 0.2 "
+			               "to 5 (e.g. gamma:2.2: linear = code^2.2)", text);
+		enc->curve = KG_ENCODING_GAMMA;
+		enc->gamma = g;
+	} else
+		return kg_fail(err, KG_EINVAL, "--encoding %s: expected srgb, linear or gamma:G",
+		               text ? text : "");
+	return 0;
+}
+
+void kg_image_encoding_name(const kg_image *img, char *buf, size_t size)
+{
+	if (!img->jpeg)
+		snprintf(buf, size, "linear");
+	else if (img->encoding.curve == KG_ENCODING_UNSTATED)
+		snprintf(buf, size, "jpeg-unstated");
+	else if (img->encoding.curve == KG_ENCODING_SRGB)
+		snprintf(buf, size, "jpeg-srgb");
+	else if (img->encoding.curve == KG_ENCODING_LINEAR)
+		snprintf(buf, size, "jpeg-linear");
+	else
+		snprintf(buf, size, "jpeg-gamma-%g", img->encoding.gamma);
+}
+
+#if HAVE_JPEG
+typedef struct {
+	struct jpeg_error_mgr pub;
+	jmp_buf jump;
+	char msg[JMSG_LENGTH_MAX];
+} jpeg_err;
+
+static void jpeg_on_error(j_common_ptr cinfo)
+{
+	jpeg_err *e = (jpeg_err *)cinfo->err;
+	(*cinfo->err->format_message)(cinfo, e->msg);
+	longjmp(e->jump, 1);
+}
+
+/* Warnings (corrupt data libjpeg guesses over) are errors too: a measurement must not
+ * read a damaged file. */
+static void jpeg_on_message(j_common_ptr cinfo, int level)
+{
+	if (level < 0)
+		jpeg_on_error(cinfo);
+}
+
+static int jpeg_decode(kg_image_rows *r, FILE *fp, const kg_image_encoding *enc,
+                       kg_err *err)
+{
+	struct jpeg_decompress_struct cinfo;
+	jpeg_err e;
+	memset(&e, 0, sizeof(e));
+	unsigned char *volatile row = NULL;
+	float lut[256];
+	cinfo.err = jpeg_std_error(&e.pub);
+	e.pub.error_exit = jpeg_on_error;
+	e.pub.emit_message = jpeg_on_message;
+	if (setjmp(e.jump)) {
+		jpeg_destroy_decompress(&cinfo);
+		free(row);
+		return kg_fail(err, KG_EINVAL, "%s: not a readable JPEG file: %s", r->path, e.msg);
+	}
+	jpeg_create_decompress(&cinfo);
+	jpeg_stdio_src(&cinfo, fp);
+	jpeg_read_header(&cinfo, TRUE);
+	int channels;
+	if (cinfo.jpeg_color_space == JCS_GRAYSCALE) {
+		cinfo.out_color_space = JCS_GRAYSCALE;
+		channels = 1;
+	} else if (cinfo.jpeg_color_space == JCS_YCbCr || cinfo.jpeg_color_space == JCS_RGB) {
+		cinfo.out_color_space = JCS_RGB;
+		channels = 3;
+	} else {
+		jpeg_destroy_decompress(&cinfo);
+		return kg_fail(err, KG_ENOTSUP, "%s: a CMYK or YCCK JPEG: expected a grey or colour "
+		               "(YCbCr, RGB) photograph", r->path);
+	}
+	cinfo.dct_method = JDCT_ISLOW; /* the accurate integer IDCT: the same on every CPU */
+	int ret = check_dims(r->path, (long)cinfo.image_width, (long)cinfo.image_height, err);
+	if (ret) {
+		jpeg_destroy_decompress(&cinfo);
+		return ret;
+	}
+	jpeg_start_decompress(&cinfo);
+	int w = (int)cinfo.output_width, h = (int)cinfo.output_height;
+	if ((ret = kg_image_new(w, h, channels, &r->whole, err))) {
+		jpeg_destroy_decompress(&cinfo);
+		return ret;
+	}
+	for (int i = 0; i < 256; i++) {
+		float v = (float)i / 255.0f;
+		lut[i] = enc->curve == KG_ENCODING_LINEAR ? v
+		         : enc->curve == KG_ENCODING_GAMMA ? powf(v, (float)enc->gamma)
+		                                           : srgb_to_linear(v);
+	}
+	row = malloc((size_t)w * channels);
+	if (!row) {
+		jpeg_destroy_decompress(&cinfo);
+		return kg_fail(err, KG_ENOMEM, "%s: out of memory", r->path);
+	}
+	while (cinfo.output_scanline < cinfo.output_height) {
+		JSAMPROW rp = (JSAMPROW)row;
+		int y = (int)cinfo.output_scanline;
+		if (jpeg_read_scanlines(&cinfo, &rp, 1) != 1)
+			break;
+		float *d = r->whole->data + (size_t)y * w * channels;
+		for (size_t k = 0; k < (size_t)w * channels; k++)
+			d[k] = lut[row[k]];
+	}
+	jpeg_finish_decompress(&cinfo);
+	jpeg_destroy_decompress(&cinfo);
+	free(row);
+	return 0;
+}
+#endif
+
+static int jpeg_rows_open(kg_image_rows *r, const kg_image_encoding *enc, kg_err *err)
+{
+	static const kg_image_encoding unstated = {KG_ENCODING_UNSTATED, 0};
+	if (!enc)
+		enc = &unstated;
+#if HAVE_JPEG
+	FILE *fp = fopen(r->path, "rb");
+	if (!fp)
+		return kg_fail(err, errno == ENOENT ? KG_ENOENT : KG_EIO, "%s: cannot open: %s",
+		               r->path, strerror(errno));
+	kg_inputs_add(r->path, fileno(fp));
+	int ret = jpeg_decode(r, fp, enc, err);
+	fclose(fp);
+	if (ret)
+		return ret;
+	kg_image *h = r->head, *w = r->whole;
+	h->width = w->width;
+	h->height = w->height;
+	h->channels = w->channels;
+	h->bits = w->bits = 8;
+	h->is_float = w->is_float = 0;
+	h->jpeg = w->jpeg = 1;
+	h->encoding = w->encoding = *enc;
+	add_note(h, enc->curve == KG_ENCODING_UNSTATED
+	                ? "JPEG: encoding not stated, linearised as sRGB for detection and "
+	                  "previews only"
+	            : enc->curve == KG_ENCODING_SRGB   ? "JPEG: linearised from sRGB (stated)"
+	            : enc->curve == KG_ENCODING_LINEAR ? "JPEG: code values taken as linear (stated)"
+	                                               : "JPEG: linearised from a stated gamma");
+	memcpy(w->note, h->note, sizeof(w->note));
+	return 0;
+#else
+	(void)enc;
+	return kg_fail(err, KG_ENOTSUP, "%s: a JPEG file, but this kogei was built without "
+	               "libjpeg (meson option jpeg): convert it to a 16-bit TIFF or PNG, or "
+	               "build with libjpeg-turbo", r->path);
+#endif
+}
 
 static int image_kind(const char *path, kg_err *err)
 {
@@ -715,8 +889,10 @@ static int image_kind(const char *path, kg_err *err)
 	               (magic[0] == 'M' && magic[1] == 'M' && magic[2] == 0 &&
 	                (magic[3] == 42 || magic[3] == 43))))
 		return KIND_TIFF;
-	return kg_fail(err, KG_EINVAL, "%s: unknown image format: expected a TIFF, PNG or camera "
-	               "raw file (DNG, CR2, CR3, NEF, ARW, ...)", path);
+	if (n >= 3 && magic[0] == 0xFF && magic[1] == 0xD8 && magic[2] == 0xFF)
+		return KIND_JPEG;
+	return kg_fail(err, KG_EINVAL, "%s: unknown image format: expected a TIFF, PNG, JPEG or "
+	               "camera raw file (DNG, CR2, CR3, NEF, ARW, ...)", path);
 }
 
 /* A raw file is decoded whole (LibRaw has no row interface); the header copies it. */
@@ -735,17 +911,19 @@ static int raw_rows_open(kg_image_rows *r, kg_err *err)
 	return w->cfa ? kg_image_set_cfa(h, w->cfa, w->cfa_rows, w->cfa_cols, err) : 0;
 }
 
-static int rows_open_kind(const char *path, int kind, kg_image_rows **out, kg_err *err)
+static int rows_open_kind(const char *path, int kind, const kg_image_encoding *enc,
+                          kg_image_rows **out, kg_err *err)
 {
 	kg_check_arg(path && out, err);
 	*out = NULL;
-	kg_image_rows *r;
+	kg_image_rows *r = NULL;
 	int ret = rows_new(path, &r, err);
 	if (ret)
 		return ret;
-	ret = kind == KIND_PNG ? png_rows_open(r, err)
-	      : kind == KIND_RAW ? raw_rows_open(r, err)
-	                         : tiff_rows_open(r, err);
+	ret = kind == KIND_PNG    ? png_rows_open(r, err)
+	      : kind == KIND_RAW  ? raw_rows_open(r, err)
+	      : kind == KIND_JPEG ? jpeg_rows_open(r, enc, err)
+	                          : tiff_rows_open(r, err);
 	if (ret)
 		kg_image_rows_free(&r);
 	*out = r;
@@ -757,7 +935,22 @@ int kg_image_rows_open(const char *path, kg_image_rows **out, kg_err *err)
 	kg_check_arg(path && out, err);
 	*out = NULL;
 	int kind = image_kind(path, err);
-	return kind < 0 ? kind : rows_open_kind(path, kind, out, err);
+	return kind < 0 ? kind : rows_open_kind(path, kind, NULL, out, err);
+}
+
+int kg_image_rows_open_as(const char *path, const kg_image_encoding *enc,
+                          kg_image_rows **out, kg_err *err)
+{
+	kg_check_arg(path && out, err);
+	*out = NULL;
+	int kind = image_kind(path, err);
+	return kind < 0 ? kind : rows_open_kind(path, kind, enc, out, err);
+}
+
+int kg_image_is_jpeg(const char *path)
+{
+	kg_err e = {{0}};
+	return image_kind(path, &e) == KIND_JPEG;
 }
 
 const kg_image *kg_image_rows_header(const kg_image_rows *r)
@@ -803,12 +996,13 @@ void kg_image_rows_free(kg_image_rows **pr)
 }
 
 /* The whole image through the row reader. */
-static int read_whole(const char *path, int kind, kg_image **out, kg_err *err)
+static int read_whole(const char *path, int kind, const kg_image_encoding *enc,
+                      kg_image **out, kg_err *err)
 {
 	kg_check_arg(path && out, err);
 	*out = NULL;
 	kg_image_rows *r;
-	int ret = rows_open_kind(path, kind, &r, err);
+	int ret = rows_open_kind(path, kind, enc, &r, err);
 	if (ret)
 		return ret;
 	const kg_image *h = r->head;
@@ -819,6 +1013,8 @@ static int read_whole(const char *path, int kind, kg_image **out, kg_err *err)
 	if (!ret) {
 		img->bits = h->bits;
 		img->is_float = h->is_float;
+		img->jpeg = h->jpeg;
+		img->encoding = h->encoding;
 		memcpy(img->note, h->note, sizeof(img->note));
 		ret = kg_image_rows_read(r, h->height, img->data, err);
 	}
@@ -836,17 +1032,28 @@ int kg_image_read(const char *path, kg_image **out, kg_err *err)
 	int kind = image_kind(path, err);
 	if (kind == KIND_RAW)
 		return kg_raw_read(path, out, NULL, err);
-	return kind < 0 ? kind : read_whole(path, kind, out, err);
+	return kind < 0 ? kind : read_whole(path, kind, NULL, out, err);
+}
+
+int kg_image_read_as(const char *path, const kg_image_encoding *enc, kg_image **out,
+                     kg_err *err)
+{
+	kg_check_arg(path && out, err);
+	*out = NULL;
+	int kind = image_kind(path, err);
+	if (kind == KIND_RAW)
+		return kg_raw_read(path, out, NULL, err);
+	return kind < 0 ? kind : read_whole(path, kind, enc, out, err);
 }
 
 int kg_image_read_tiff(const char *path, kg_image **out, kg_err *err)
 {
-	return read_whole(path, KIND_TIFF, out, err);
+	return read_whole(path, KIND_TIFF, NULL, out, err);
 }
 
 int kg_image_read_png(const char *path, kg_image **out, kg_err *err)
 {
-	return read_whole(path, KIND_PNG, out, err);
+	return read_whole(path, KIND_PNG, NULL, out, err);
 }
 
 /* Write rows of 8- or 16-bit samples prepared by the caller in j->rows. */

@@ -9,6 +9,21 @@
 
 #include "error.h"
 
+/* How a display-encoded file (JPEG) maps to linear values. A JPEG is gamma-encoded
+ * and white-balanced by the camera: read without a stated encoding it is linearised as
+ * sRGB for chart detection and previews, and calibration and estimation refuse it. */
+typedef enum kg_encoding_curve {
+	KG_ENCODING_UNSTATED = 0, /* read as sRGB, not for measurement */
+	KG_ENCODING_SRGB,         /* stated: IEC 61966-2-1 */
+	KG_ENCODING_LINEAR,       /* stated: code / 255 */
+	KG_ENCODING_GAMMA,        /* stated: (code / 255)^gamma */
+} kg_encoding_curve;
+
+typedef struct kg_image_encoding {
+	kg_encoding_curve curve;
+	double gamma;
+} kg_image_encoding;
+
 typedef struct kg_image {
 	int width, height;
 	int channels;    /* 1 (grey or raw Bayer) or 3 (RGB) */
@@ -19,6 +34,8 @@ typedef struct kg_image {
 	                    "RGBCMYW" (e.g. "RGGB"); NULL when the file has none */
 	int cfa_rows, cfa_cols; /* size of the CFA repeat (2 x 2 for Bayer) */
 	char note[256];  /* what the reader changed (alpha dropped, ...), "" if nothing */
+	int jpeg;        /* read from a JPEG: display-encoded by the camera */
+	kg_image_encoding encoding; /* a JPEG's encoding as read (UNSTATED: not stated) */
 } kg_image;
 
 /* Largest image accepted: 2^28 pixels per image and 2^20 per side. */
@@ -30,8 +47,19 @@ void kg_image_free(kg_image **img);
 /* Attach a CFA pattern of rows x cols letters from "RGBCMYW" (copied). */
 int kg_image_set_cfa(kg_image *img, const char *pattern, int rows, int cols, kg_err *err);
 
-/* Read a TIFF or PNG, recognised by its first bytes. */
+/* Read a TIFF, PNG, JPEG or camera raw, recognised by its first bytes. */
 int kg_image_read(const char *path, kg_image **out, kg_err *err);
+/* The same, with a JPEG decoded through a stated encoding (NULL: not stated). JPEG
+ * needs a build with libjpeg (KG_ENOTSUP without). */
+int kg_image_read_as(const char *path, const kg_image_encoding *enc, kg_image **out,
+                     kg_err *err);
+/* "srgb", "linear" or "gamma:G" (0.2 <= G <= 5). */
+int kg_image_encoding_parse(const char *text, kg_image_encoding *enc, kg_err *err);
+/* "linear" (not a JPEG), "jpeg-unstated", "jpeg-srgb", "jpeg-linear", "jpeg-gamma-G":
+ * the IMAGE_ENCODING keyword chart detect writes. */
+void kg_image_encoding_name(const kg_image *img, char *buf, size_t size);
+/* 1 when the file is a JPEG (by its first bytes). */
+int kg_image_is_jpeg(const char *path);
 /* TIFF: 8/16-bit unsigned or 32-bit float, 1 or 3 colour samples (further samples such
  * as alpha are dropped with a note), strips or tiles, contiguous or separate planes.
  * The first image of a multi-page file. CFA pattern tags (33421/33422) are read. */
@@ -45,6 +73,9 @@ int kg_image_read_png(const char *path, kg_image **out, kg_err *err);
  * those kg_image_read gives. */
 typedef struct kg_image_rows kg_image_rows;
 int kg_image_rows_open(const char *path, kg_image_rows **out, kg_err *err);
+/* The same with a JPEG's stated encoding (kg_image_read_as); a JPEG is decoded whole. */
+int kg_image_rows_open_as(const char *path, const kg_image_encoding *enc,
+                          kg_image_rows **out, kg_err *err);
 /* What the file holds: size, channels, bits, CFA and note; data is NULL. */
 const kg_image *kg_image_rows_header(const kg_image_rows *r);
 /* The next `rows` rows (width * channels floats each) into out. */

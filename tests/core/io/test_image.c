@@ -681,7 +681,7 @@ static void test_malformed(void)
 	torture("tile8.tif", "tif");
 	torture("rt_3_16.png", "png");
 	io_write_bytes(io_path("text.tif"), "hello, world\n", 13);
-	expect_read_error("text.tif", "expected a TIFF, PNG or camera raw file", NULL);
+	expect_read_error("text.tif", "expected a TIFF, PNG, JPEG or camera raw file", NULL);
 	kg_image *img = NULL;
 	kg_err err;
 	CHECK(kg_image_read(io_path("missing.png"), &img, &err) == KG_ENOENT && !img, "missing file");
