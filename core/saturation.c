@@ -19,6 +19,37 @@ static uint64_t window(const uint64_t *hist, int lo, int hi, int *occupied)
 	return s;
 }
 
+/* The data's code spacing in bins: the most common gap between consecutive occupied
+ * bins (1 for data quantised as the histogram is; 257 for 8-bit values scaled to 16
+ * bits; ~17 for a 12-bit raw scaled to 16 bits). Ties go to the smaller gap. */
+static int code_spacing(const uint64_t *hist, int nbins)
+{
+	enum { MAXGAP = 1024 };
+	static _Thread_local unsigned count[MAXGAP + 1];
+	memset(count, 0, sizeof(count));
+	int prev = -1;
+	for (int b = 0; b < nbins; b++) {
+		if (!hist[b])
+			continue;
+		if (prev >= 0) {
+			int g = b - prev;
+			count[g > MAXGAP ? MAXGAP : g]++;
+		}
+		prev = b;
+	}
+	int best = 1;
+	unsigned n = 0;
+	for (int g = 1; g < MAXGAP; g++) /* a gap of MAXGAP or more is not a code spacing */
+		if (count[g] > n) {
+			n = count[g];
+			best = g;
+		}
+	/* codes that round to neighbouring bins alternate two gaps (17, 18): the pair's */
+	if (best + 1 < MAXGAP && count[best + 1] * 2 > count[best])
+		best++;
+	return best;
+}
+
 int kg_saturation_detect(const uint64_t *hist, int nbins)
 {
 	if (!hist || nbins < 16)
@@ -31,7 +62,8 @@ int kg_saturation_detect(const uint64_t *hist, int nbins)
 		top--;
 	if (top < 0)
 		return -1;
-	int lo = top - (KG_SAT_CLUSTER_BINS - 1);
+	int q = code_spacing(hist, nbins);
+	int lo = top - (KG_SAT_CLUSTER_BINS - 1) * q;
 	if (lo < 0)
 		lo = 0;
 	int occ_top;
@@ -39,8 +71,8 @@ int kg_saturation_detect(const uint64_t *hist, int nbins)
 	if (n_top < KG_SAT_MIN_COUNT || (double)n_top < KG_SAT_MIN_FRACTION * (double)total)
 		return -1;
 	int w = (int)lround(KG_SAT_WINDOW_FRACTION * (double)(nbins - 1));
-	if (w < 8)
-		w = 8;
+	if (w < 8 * q)
+		w = 8 * q;
 	int wlo = lo - w, whi = lo - 1;
 	if (whi < 0)
 		return -1;
@@ -48,12 +80,12 @@ int kg_saturation_detect(const uint64_t *hist, int nbins)
 		wlo = 0;
 	int occ;
 	uint64_t n_below = window(hist, wlo, whi, &occ);
-	int span = whi - wlo + 1;
-	if (occ < 1 || (double)occ < KG_SAT_MIN_OCCUPANCY * (double)span)
+	double codes = (double)(whi - wlo + 1) / q; /* codes the window can hold */
+	if (occ < 1 || (double)occ < KG_SAT_MIN_OCCUPANCY * codes)
 		return -1;
 	double mean = (double)n_below / (double)occ; /* per occupied bin */
 	double limit = KG_SAT_RATIO * mean;
-	/* The cluster, not the bin: a ceiling that jitters spreads its pile over 2-3 bins. */
+	/* The cluster, not the bin: a ceiling that jitters spreads its pile over 2-3 codes. */
 	if ((double)n_top <= limit * (occ_top > 0 ? occ_top : 1))
 		return -1;
 	/* The lowest bin of the cluster that is itself a pile-up (at least one is: the

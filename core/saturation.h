@@ -9,13 +9,16 @@
  * Clipping leaves a mark in every channel's histogram: the samples a brighter scene
  * would have spread above the ceiling pile up in the highest occupied bin(s), while a
  * natural distribution thins out towards its top. kg_saturation_detect looks at the
- * top of one channel's histogram (one bin per quantisation step of the data): the
- * highest occupied bins (a cluster of KG_SAT_CLUSTER_BINS, for a ceiling that jitters
- * by a count or two) must hold
+ * top of one channel's histogram (one bin per quantisation step of the data, or
+ * coarser codes spaced evenly in it, such as a 12-bit raw scaled to 16 bits: the
+ * "code spacing", the most common gap between occupied bins, scales the windows):
+ * the highest occupied codes (a cluster of KG_SAT_CLUSTER_BINS, for a ceiling that
+ * jitters by a count or two) must hold
  *   - at least KG_SAT_MIN_COUNT samples and KG_SAT_MIN_FRACTION of the channel's, and
  *   - more than KG_SAT_RATIO times the mean count of the occupied bins in the window
  *     of KG_SAT_WINDOW_FRACTION of full scale just below the cluster,
- * and that window must be occupied in at least KG_SAT_MIN_OCCUPANCY of its bins (the
+ * and that window (at least 8 codes) must be occupied in at least KG_SAT_MIN_OCCUPANCY
+ * of the codes it can hold (the
  * distribution runs into the ceiling: a noise-free synthetic patch that happens to be
  * the brightest thing in an image is a spike with an empty window under it, not a
  * clipped one). The level is the lowest bin of the cluster that is itself a pile-up;

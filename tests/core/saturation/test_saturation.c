@@ -213,11 +213,43 @@ static void test_fixtures(const char *root)
 	}
 }
 
+/* Coarser codes in a finer histogram: a 12-bit raw with black 256, scaled to 16 bits
+ * as the files: backend serves it (codes ~17 bins apart), saturating at 4092; and a
+ * natural 8-bit scene scaled to 16 bits (codes 257 apart) with no pile-up. */
+static void test_sparse_codes(void)
+{
+	long clipped[3];
+	kg_image *img = scene(3, 12, 1.3, 4092, 1.0, 11, clipped);
+	for (size_t i = 0; i < (size_t)W * H * 3; i++) {
+		double dn = round(img->data[i] * 4095);
+		img->data[i] = (float)(round((dn - 256) / (4095 - 256) * 65535) / 65535);
+	}
+	img->bits = 16;
+	kg_saturation s;
+	kg_err err = {{0}};
+	CHECK(kg_saturation_of_image(img, 1.0, &s, &err) == 0, "%s", err.msg);
+	double want = round((4092.0 - 256) / (4095 - 256) * 65535) / 65535;
+	CHECK(s.found[0] && fabs(s.level[0] - want) < 1e-9,
+	      "12-bit codes in 16 bits: saturation at %.6f not found (level %g)", want, s.level[0]);
+	CHECK(fabs(s.fraction[0] * W * H - clipped[0]) < 0.5, "fraction %.5f, want %ld",
+	      s.fraction[0], clipped[0]);
+	kg_image_free(&img);
+	for (unsigned seed = 1; seed <= 3; seed++) {
+		kg_image *e = scene(3, 8, 0.95, 1e9, 50.0, seed, NULL);
+		e->bits = 16;
+		no_pileup("8-bit scene scaled to 16 bits", e);
+		kg_image_free(&e);
+	}
+	printf("  codes coarser than the histogram: 12-bit raw in 16 bits found, 8-bit in 16 "
+	       "clean\n");
+}
+
 int main(int argc, char **argv)
 {
 	test_pileup_12bit();
 	test_natural();
 	test_nominal();
+	test_sparse_codes();
 	if (argc > 1)
 		test_fixtures(argv[1]);
 	return kg_test_done("saturation");
