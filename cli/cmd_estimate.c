@@ -300,6 +300,24 @@ static int data_saturation(const char *cmd, const char *path, const kg_row_sourc
 		rc = kg_saturation_of_rows(&again, kg_saturation_steps(kg_image_rows_header(rows)),
 		                           opt->clip_level, &sat, err);
 		kg_image_rows_free(&rows);
+		/* the flat-object guard needs the pixels: once more, in bands */
+		if (!rc && sat.channels == 3 && kg_saturation_below(&sat, opt->clip_level) &&
+		    !(rc = kg_image_rows_open(path, &rows, err))) {
+			kg_row_source_of_rows(rows, &again);
+			kg_sat_flat f;
+			kg_sat_flat_init(&f, &sat);
+			float *buf = malloc(sizeof(float) * 3 * 64 * (size_t)again.width);
+			rc = buf ? 0 : kg_fail(err, KG_ENOMEM, "out of memory");
+			for (int y = 0; y < again.height && !rc; y += 64) {
+				int n = again.height - y < 64 ? again.height - y : 64;
+				if (!(rc = again.read(again.user, y, n, buf, err)))
+					kg_sat_flat_add(&f, buf, (size_t)n * (size_t)again.width);
+			}
+			free(buf);
+			kg_image_rows_free(&rows);
+			if (!rc)
+				kg_sat_flat_result(&f, &sat);
+		}
 	}
 	if (rc || !kg_saturation_below(&sat, opt->clip_level))
 		return rc;

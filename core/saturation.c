@@ -164,6 +164,7 @@ void kg_sat_hist_result(const kg_sat_hist *h, double nominal_clip, kg_saturation
 	memset(out, 0, sizeof(*out));
 	out->channels = h->channels;
 	out->steps = h->steps;
+	out->nominal = nominal_clip;
 	for (int c = 0; c < h->channels; c++) {
 		out->clip[c] = nominal_clip;
 		out->level[c] = NAN;
@@ -172,7 +173,7 @@ void kg_sat_hist_result(const kg_sat_hist *h, double nominal_clip, kg_saturation
 			double level = (double)b / h->steps;
 			double clip = ((double)b - 0.5) / h->steps;
 			out->level[c] = level;
-			if (clip < nominal_clip) {
+			if (clip < nominal_clip && level >= KG_SAT_MIN_LEVEL) {
 				out->found[c] = 1;
 				out->clip[c] = clip;
 			}
@@ -186,6 +187,62 @@ void kg_sat_hist_result(const kg_sat_hist *h, double nominal_clip, kg_saturation
 			n += h->bins[c][k];
 		out->fraction[c] = h->total[c] ? (double)n / (double)h->total[c] : 0;
 	}
+}
+
+void kg_sat_flat_init(kg_sat_flat *f, const kg_saturation *s)
+{
+	memset(f, 0, sizeof(*f));
+	f->sat = *s;
+}
+
+void kg_sat_flat_add(kg_sat_flat *f, const float *px, size_t n)
+{
+	const kg_saturation *s = &f->sat;
+	if (s->channels != 3)
+		return;
+	for (size_t i = 0; i < n; i++) {
+		const float *p = px + 3 * i;
+		for (int c = 0; c < 3; c++) {
+			if (!s->found[c] || !(p[c] >= s->clip[c]))
+				continue;
+			f->piled[c]++;
+			for (int d = 0; d < 3; d++) {
+				if (d == c || !(p[d] < s->clip[d]) || !isfinite(p[d]))
+					continue;
+				if (!f->n[c][d])
+					f->ref[c][d] = p[d];
+				f->n[c][d]++;
+				double dv = p[d] - f->ref[c][d];
+				f->sum[c][d] += dv;
+				f->sumsq[c][d] += dv * dv;
+			}
+		}
+	}
+}
+
+int kg_sat_flat_result(const kg_sat_flat *f, kg_saturation *out)
+{
+	*out = f->sat;
+	int dropped = 0;
+	double step = out->steps > 0 ? 1.0 / out->steps : 1.0 / 65535;
+	for (int c = 0; c < out->channels && out->channels == 3; c++) {
+		if (!out->found[c] || !f->piled[c])
+			continue;
+		for (int d = 0; d < 3; d++) {
+			double n = (double)f->n[c][d];
+			if (d == c || n < 0.5 * (double)f->piled[c])
+				continue;
+			double m = f->sum[c][d] / n, var = f->sumsq[c][d] / n - m * m;
+			if (var < 0.25 * step * step) { /* flat where it is not clipped: an object */
+				out->found[c] = 0;
+				out->clip[c] = out->nominal;
+				out->fraction[c] = 0;
+				dropped = 1;
+				break;
+			}
+		}
+	}
+	return dropped;
 }
 
 /* Channel of pixel (x, y): the CFA position of a 1-channel 2x2 mosaic, else c. */
@@ -218,6 +275,12 @@ int kg_saturation_of_image(const kg_image *img, double nominal_clip, kg_saturati
 	}
 	kg_sat_hist_result(&h, nominal_clip, out);
 	kg_sat_hist_free(&h);
+	if (!mosaic && C == 3 && kg_saturation_below(out, nominal_clip)) {
+		kg_sat_flat f;
+		kg_sat_flat_init(&f, out);
+		kg_sat_flat_add(&f, img->data, W * H);
+		kg_sat_flat_result(&f, out);
+	}
 	size_t any = 0, n = W * H;
 	for (size_t y = 0; y < H; y++)
 		for (size_t x = 0; x < W; x++) {

@@ -22,7 +22,15 @@
  * distribution runs into the ceiling: a noise-free synthetic patch that happens to be
  * the brightest thing in an image is a spike with an empty window under it, not a
  * clipped one). The level is the lowest bin of the cluster that is itself a pile-up;
- * samples at or above it, less half a quantisation step, are clipped. */
+ * samples at or above it, less half a quantisation step, are clipped.
+ *
+ * Two guards against flat synthetic objects (noise-free renders, where a patch is one
+ * value in every channel): a ceiling below KG_SAT_MIN_LEVEL of full scale is not taken
+ * for saturation, and in an RGB image a channel's pile-up whose pixels are flat (within
+ * half a step) in another channel that is not clipped there is an object, not a
+ * ceiling: a real sensor's unclipped channel always carries noise. A noise-free image
+ * whose brightest object is flat in all channels above KG_SAT_MIN_LEVEL still reads as
+ * saturated there; a clip level given by the user (--clip-level) replaces the search. */
 #ifndef KG_SATURATION_H
 #define KG_SATURATION_H
 
@@ -37,6 +45,7 @@
 #define KG_SAT_RATIO 8.0
 #define KG_SAT_WINDOW_FRACTION 0.01
 #define KG_SAT_MIN_OCCUPANCY 0.1
+#define KG_SAT_MIN_LEVEL 0.75
 
 /* The most channels a saturation search reports (4 CFA positions, or 3 colours). */
 #define KG_SAT_MAX_CHANNELS 4
@@ -56,7 +65,20 @@ typedef struct kg_saturation {
 	double fraction[KG_SAT_MAX_CHANNELS];/* of the channel's samples >= clip */
 	double fraction_any;                 /* of pixels with any channel >= its clip */
 	int steps;                           /* quantisation steps of full scale (bins - 1) */
+	double nominal;                      /* the nominal clip level searched below */
 } kg_saturation;
+
+/* The flat-object guard over an RGB image's pixels, in bands (see above). */
+typedef struct kg_sat_flat {
+	kg_saturation sat;
+	uint64_t piled[3];
+	uint64_t n[3][3];
+	double ref[3][3], sum[3][3], sumsq[3][3];
+} kg_sat_flat;
+void kg_sat_flat_init(kg_sat_flat *f, const kg_saturation *s);
+void kg_sat_flat_add(kg_sat_flat *f, const float *px, size_t n);
+/* The levels with flat objects' pile-ups dropped; returns 1 when one was dropped. */
+int kg_sat_flat_result(const kg_sat_flat *f, kg_saturation *out);
 
 /* The histogram resolution of an image's values: 2^bits - 1 steps for integer
  * sources of 8..16 bits (one bin per count), 65535 for float or unknown depths. */

@@ -162,6 +162,20 @@ static void test_natural(void)
 				c->data[((size_t)y * W + x) * 3 + (size_t)k] = (float)v;
 		}
 	no_pileup("noise-free synthetic chart", c);
+	/* a noise-free render of coloured patches with soft edges: each channel's brightest
+	 * patch is a spike with edge pixels of every value below it */
+	for (int y = 0; y < H; y++)
+		for (int x = 0; x < W; x++) {
+			int px = x / (W / 6), py = y / (H / 4), ex = x % (W / 6), ey = y % (H / 4);
+			double edge = fmin(1.0, fmin(ex, ey) / 12.0);
+			int k = py * 6 + px;
+			double rgb[3] = {0.05 + 0.3 * (k % 5) / 4.0, 0.05 + 0.75 * (k % 7) / 6.0,
+			                 0.05 + 0.6 * (k % 3) / 2.0};
+			for (int q = 0; q < 3; q++)
+				c->data[((size_t)y * W + x) * 3 + (size_t)q] =
+					(float)(round(rgb[q] * (0.2 + 0.8 * edge) * 65535) / 65535);
+		}
+	no_pileup("noise-free coloured chart with soft edges", c);
 	kg_image_free(&c);
 	printf("  no pile-up on natural 8/12/16-bit and float scenes or a noise-free chart\n");
 }
