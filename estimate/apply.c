@@ -1102,6 +1102,14 @@ static int write_json(const char *path, const kg_est_material_set *set,
 	json_object_set_new(root, "distance", json_string(distance_name(copt->distance)));
 	json_object_set_new(root, "angle_deg", json_real(set->angle_deg));
 	json_object_set_new(root, "clip_level", ap_json_num(opt->clip_level));
+	{ /* per channel: the clip level, or the saturation found from the data below it */
+		json_t *cl = json_array();
+		for (int c = 0; c < 3; c++)
+			json_array_append_new(cl, ap_json_num(opt->clip_rgb[c] > 0 &&
+			                                      opt->clip_rgb[c] < opt->clip_level
+			                                          ? opt->clip_rgb[c] : opt->clip_level));
+		json_object_set_new(root, "clip_levels", cl);
+	}
 	json_object_set_new(root, "width", json_integer(img->width));
 	json_object_set_new(root, "height", json_integer(img->height));
 	json_object_set_new(root, "pixels", json_integer((json_int_t)res->stats.pixels));

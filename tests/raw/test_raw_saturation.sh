@@ -123,5 +123,7 @@ run "$KOGEI" classify --calib "$T/cam.json" --materials "$SRC/fixtures/materials
 check "classify: says where saturation was found" grep -q "saturation found from the data" "$T/err"
 check "classify: pixels at 3900 flagged clipped" \
 	sh -c "grep -o '\"clipped\": *[0-9]*' '$T/labels.json' | head -1 | awk '{exit !(\$2 > 1000)}'"
+check "classify: labels.json records the per-channel clip levels (below 0.95)" \
+	"${PY:-python3}" -c "import json, sys; c = json.load(open(sys.argv[1]))['clip_levels']; sys.exit(not (len(c) == 3 and min(c) < 0.95 and max(c) < 0.9991))" "$T/labels.json"
 [ $fail = 0 ] || exit 1
 echo "test_raw_saturation: ok"
