@@ -1,9 +1,12 @@
 /* Frame averaging: per-sample running mean and variance (Welford's update in double
- * precision, so long runs of nearly equal 16-bit values lose nothing to cancellation)
- * and a flag for samples that reached full scale. */
+ * precision, so long runs of nearly equal 16-bit values lose nothing to cancellation),
+ * each sample's largest value, and per channel (CFA position for a Bayer mosaic) a
+ * histogram of every value seen, from which the saturation level is found
+ * (core/saturation.h): a sensor that stops at 4092 of 4095 clips there. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include <stdint.h>
 
 #include "kg_acquire.h"
 
@@ -16,7 +19,10 @@ struct kg_frame_accum {
 	double fullscale; /* DN of full scale (1 for YUYV, converted to 0..1) */
 	double *mean;     /* running mean, DN */
 	double *m2;       /* sum of squared deviations, DN^2 */
-	unsigned char *clipped;
+	unsigned char *clipped; /* YUYV/MJPEG: reached full scale */
+	uint16_t *peak;         /* integer formats: the largest value of each sample, DN */
+	int hist_channels;      /* 4 CFA positions for Bayer, else the channels */
+	uint64_t *hist[KG_SAT_MAX_CHANNELS]; /* fullscale + 1 bins each, DN */
 };
 
 static int same_format(const kg_frame_format *a, const kg_frame_format *b)
@@ -60,7 +66,16 @@ int kg_frame_accum_new(const kg_frame_format *fmt, int allow_nonlinear, kg_frame
 	a->mean = calloc(a->nsamples, sizeof(double));
 	a->m2 = calloc(a->nsamples, sizeof(double));
 	a->clipped = calloc(a->nsamples, 1);
-	if (!a->mean || !a->m2 || !a->clipped) {
+	int bayer = fmt->pixfmt == KG_PIX_BAYER8 || fmt->pixfmt == KG_PIX_BAYER16;
+	int hist_ok = 1;
+	if (kg_pixfmt_is_linear(fmt->pixfmt) && fmt->bits >= 4) {
+		a->peak = calloc(a->nsamples, sizeof(uint16_t));
+		a->hist_channels = bayer ? 4 : ch;
+		for (int c = 0; c < a->hist_channels && c < KG_SAT_MAX_CHANNELS; c++)
+			hist_ok &= (a->hist[c] = calloc((size_t)a->fullscale + 1, sizeof(uint64_t))) != NULL;
+		hist_ok &= a->peak != NULL && a->hist_channels <= KG_SAT_MAX_CHANNELS;
+	}
+	if (!a->mean || !a->m2 || !a->clipped || !hist_ok) {
 		kg_frame_accum_free(&a);
 		return kg_fail(err, KG_ENOMEM, "out of memory for %dx%d x %d samples", fmt->width,
 		               fmt->height, ch);
@@ -76,6 +91,9 @@ void kg_frame_accum_free(kg_frame_accum **pa)
 	free((*pa)->mean);
 	free((*pa)->m2);
 	free((*pa)->clipped);
+	free((*pa)->peak);
+	for (int c = 0; c < KG_SAT_MAX_CHANNELS; c++)
+		free((*pa)->hist[c]);
 	free(*pa);
 	*pa = NULL;
 }
@@ -128,12 +146,17 @@ int kg_frame_accum_add(kg_frame_accum *a, const kg_frame *f, kg_err *err)
 	for (int y = 0; y < fmt->height; y++) {
 		const uint8_t *row = (const uint8_t *)f->data + fmt->stride * (size_t)y;
 		size_t i0 = (size_t)y * row_samples;
-		if (wide)
-			for (size_t x = 0; x < row_samples; x++)
-				welford(a, i0 + x, (double)(row[2 * x] | row[2 * x + 1] << 8), inv_n);
-		else
-			for (size_t x = 0; x < row_samples; x++)
-				welford(a, i0 + x, (double)row[x], inv_n);
+		int bayer = a->hist_channels == 4 && a->channels == 1;
+		for (size_t x = 0; x < row_samples; x++) {
+			unsigned v = wide ? (unsigned)(row[2 * x] | row[2 * x + 1] << 8) : row[x];
+			welford(a, i0 + x, (double)v, inv_n);
+			if (!a->peak)
+				continue;
+			if (v > a->peak[i0 + x])
+				a->peak[i0 + x] = (uint16_t)v;
+			int c = bayer ? (y & 1) * 2 + (int)(x & 1) : (int)(x % (size_t)a->channels);
+			a->hist[c][v < a->fullscale ? v : (unsigned)a->fullscale]++;
+		}
 	}
 	return 0;
 }
@@ -177,10 +200,68 @@ int kg_frame_accum_result(const kg_frame_accum *a, kg_image **mean, kg_image **v
 	return 0;
 }
 
+/* Samples whose largest value reached clip[channel] (0..1): per channel, and pixels
+ * with any channel there (the return value). */
+static size_t count_clipped(const kg_frame_accum *a, const double *clip, size_t *per,
+                            size_t *tot)
+{
+	size_t any = 0;
+	int W = a->fmt.width, C = a->channels, bayer = a->hist_channels == 4 && C == 1;
+	double lim[KG_SAT_MAX_CHANNELS];
+	for (int c = 0; c < a->hist_channels; c++)
+		lim[c] = clip[c] * a->fullscale;
+	for (size_t i = 0, px = 0; i < a->nsamples; px++) {
+		int hit = 0;
+		for (int k = 0; k < C; k++, i++) {
+			int c = bayer ? (int)((px / (size_t)W) & 1) * 2 + (int)((px % (size_t)W) & 1) : k;
+			int h = a->peak[i] >= lim[c];
+			per[c] += (size_t)h;
+			tot[c]++;
+			hit |= h;
+		}
+		any += (size_t)hit;
+	}
+	return any;
+}
+
+int kg_frame_accum_saturation(const kg_frame_accum *a, kg_saturation *out)
+{
+	memset(out, 0, sizeof(*out));
+	if (!a || !a->peak || !a->n)
+		return -1;
+	int steps = (int)a->fullscale;
+	out->channels = a->hist_channels;
+	out->steps = steps;
+	for (int c = 0; c < a->hist_channels; c++) {
+		int b = kg_saturation_detect(a->hist[c], steps + 1);
+		out->level[c] = b >= 0 ? (double)b / steps : NAN;
+		out->found[c] = b >= 0;
+		out->clip[c] = b >= 0 ? ((double)b - 0.5) / steps : 1.0;
+	}
+	/* fractions of samples whose largest value reached the level */
+	size_t per[KG_SAT_MAX_CHANNELS] = {0}, tot[KG_SAT_MAX_CHANNELS] = {0};
+	size_t any = count_clipped(a, out->clip, per, tot);
+	for (int c = 0; c < a->hist_channels; c++)
+		out->fraction[c] = tot[c] ? (double)per[c] / (double)tot[c] : 0;
+	int C = a->channels;
+	size_t npx = a->nsamples / (size_t)C;
+	out->fraction_any = npx ? (double)any / (double)npx : 0;
+	return 0;
+}
+
 double kg_frame_accum_clipped_fraction(const kg_frame_accum *a)
 {
 	if (!a || !a->nsamples)
 		return 0;
+	kg_saturation s;
+	if (!kg_frame_accum_saturation(a, &s)) {
+		/* samples at the saturation level found from the data, or at full scale */
+		size_t per[KG_SAT_MAX_CHANNELS] = {0}, tot[KG_SAT_MAX_CHANNELS] = {0}, n = 0;
+		count_clipped(a, s.clip, per, tot);
+		for (int c = 0; c < s.channels; c++)
+			n += per[c];
+		return (double)n / (double)a->nsamples;
+	}
 	size_t n = 0;
 	for (size_t i = 0; i < a->nsamples; i++)
 		n += a->clipped[i];

@@ -777,8 +777,11 @@ static int average(cap_ctx *c, int timeout_ms, kg_err *err)
 		ret = sret;
 	if (!ret)
 		ret = kg_frame_accum_result(acc, &r->mean, &r->variance, err);
-	if (!ret)
+	if (!ret) {
 		r->clipped_fraction = kg_frame_accum_clipped_fraction(acc);
+		if (kg_frame_accum_saturation(acc, &r->saturation))
+			memset(&r->saturation, 0, sizeof(r->saturation));
+	}
 	kg_frame_accum_free(&acc);
 	return ret;
 }
@@ -820,6 +823,19 @@ static json_t *capture_json(cap_ctx *c, const char *started, const char *ended,
 	if (stats && o->kind == KG_CAPTURE_FLAT)
 		json_object_set_new(stats, "illuminance_nonuniformity",
 		                    jnum(r->illuminance_nonuniformity));
+	if (stats && r->saturation.channels > 0) {
+		/* per channel (CFA position): where samples pile up (null: nowhere), the clip
+		 * level used and the fraction of samples at it */
+		json_t *sat = json_array();
+		for (int k = 0; k < r->saturation.channels; k++)
+			json_array_append_new(
+				sat, json_pack("{s:o, s:f, s:f}", "level",
+				               r->saturation.found[k] ? json_real(r->saturation.level[k])
+				                                      : json_null(),
+				               "clip_level", r->saturation.clip[k], "clipped_fraction",
+				               r->saturation.fraction[k]));
+		json_object_set_new(stats, "saturation", sat);
+	}
 	json_t *corr = json_pack("{s:o, s:o}", "dark", r->dark[0] ? json_string(r->dark) : json_null(),
 	                         "flat", r->flat[0] ? json_string(r->flat) : json_null());
 	json_t *cap = json_pack("{s:s, s:s, s:s, s:s, s:o, s:b, s:O, s:o, s:o}", "name", r->name,
@@ -933,10 +949,23 @@ int kg_capture_run(kg_session *s, kg_camera *camera, const kg_capture_options *o
 		         "(illuminance non-uniformity, %d x %d blocks)",
 		     res->name, 100 * res->illuminance_nonuniformity, KG_FLAT_BLOCKS, KG_FLAT_BLOCKS);
 	}
-	if (res->clipped_fraction > 0 && o->kind != KG_CAPTURE_DARK)
-		note(&c, "%s: %.3f %% of the samples reached full scale in at least one frame: "
-		         "values there are wrong; lower the exposure or gain",
-		     res->name, 100 * res->clipped_fraction);
+	if (res->clipped_fraction > 0 && o->kind != KG_CAPTURE_DARK) {
+		char where[256] = "";
+		if (kg_saturation_below(&res->saturation, 1.0 - 0.5 / res->saturation.steps))
+			kg_saturation_format(&res->saturation,
+			                     res->format.cfa[0] && res->saturation.channels == 4
+			                         ? res->format.cfa : "RGB",
+			                     where, sizeof(where));
+		if (where[0])
+			note(&c, "%s: %.3f %% of the samples reached the sensor's saturation in at "
+			         "least one frame (found from the data, below full scale: %s): values "
+			         "there are wrong; lower the exposure or gain",
+			     res->name, 100 * res->clipped_fraction, where);
+		else
+			note(&c, "%s: %.3f %% of the samples reached full scale in at least one frame: "
+			         "values there are wrong; lower the exposure or gain",
+			     res->name, 100 * res->clipped_fraction);
+	}
 	if (res->stats.underexposed_fraction > 0.5 && o->kind != KG_CAPTURE_DARK)
 		note(&c, "%s: %.1f %% of the samples are below %.0f %% of full scale: under-exposed",
 		     res->name, 100 * res->stats.underexposed_fraction, 100 * KG_UNDEREXPOSED_LEVEL);

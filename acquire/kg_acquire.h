@@ -53,8 +53,14 @@ long kg_frame_accum_count(const kg_frame_accum *a);
  * their CFA pattern attached. Either output may be NULL. */
 int kg_frame_accum_result(const kg_frame_accum *a, kg_image **mean, kg_image **variance,
                           kg_err *err);
-/* Fraction of samples that reached full scale in at least one frame. */
+/* Fraction of samples that reached the saturation level in at least one frame: the
+ * level found from the data per channel (CFA position) where the samples pile up below
+ * full scale (kg_frame_accum_saturation), else full scale. */
 double kg_frame_accum_clipped_fraction(const kg_frame_accum *a);
+/* The saturation found in the frames added so far (integer formats; -1 for YUYV/MJPEG
+ * or before a frame): per channel, or per CFA position of a Bayer format ("RGGB" order
+ * of the format's cfa), the pile-up level and the fraction of samples at it. */
+int kg_frame_accum_saturation(const kg_frame_accum *a, kg_saturation *out);
 void kg_frame_accum_free(kg_frame_accum **a);
 
 /* ==== Corrections and statistics ===================================================== */
@@ -240,7 +246,8 @@ typedef struct kg_capture_result {
 	kg_frame_format format; /* as read back */
 	double exposure_us, gain;
 	kg_stream_stats stream;
-	double clipped_fraction;
+	double clipped_fraction; /* samples at the saturation level (found from the data) */
+	kg_saturation saturation; /* per channel / CFA position; channels 0 when unknown */
 	kg_image_stats stats; /* of the uncorrected mean */
 	long flat_invalid;
 	double illuminance_nonuniformity; /* a flat capture's (kg_flat_nonuniformity), else NaN */

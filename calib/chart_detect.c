@@ -446,6 +446,9 @@ typedef struct work_image {
 	ptrdiff_t nb[64][3][9];
 	int nbn[64][3];
 	double clip_level;
+	double clip_ch[3];   /* per colour: the clip level, or the saturation found from the
+	                      * data below it (core/saturation.h) */
+	char sat_note[200];  /* where saturation was found below full scale, else "" */
 	double quantum; /* step between the source's integer codes (0: float or demosaiced) */
 	/* Values times count_scale land near integers, distinct values on distinct ones
 	 * (integer codes, and the halves and quarters of raw codes that demosaicing
@@ -602,6 +605,26 @@ static int prepare_image(const kg_image *img, const kg_chart_detect_options *opt
 		wi->clip_level = 1.0;
 	else
 		wi->clip_level = 1.0 - 0.5 / (double)((1L << img->bits) - 1);
+	for (int c = 0; c < 3; c++)
+		wi->clip_ch[c] = wi->clip_level;
+	kg_saturation sat;
+	int ret0;
+	if (!(opt->clip_level > 0) && (img->channels == 3 || img->channels == 1) &&
+	    (ret0 = kg_saturation_of_image(img, wi->clip_level, &sat, err)))
+		return ret0;
+	if (!(opt->clip_level > 0) && kg_saturation_below(&sat, wi->clip_level)) {
+		/* each colour clips where its samples pile up (a mosaic's sites by colour) */
+		int mosaic = sat.channels == 4 && img->cfa && strlen(img->cfa) >= 4;
+		for (int k = 0; k < sat.channels; k++) {
+			int c = !mosaic ? (img->channels == 1 ? -1 : k)
+			        : img->cfa[k] == 'R' ? 0 : img->cfa[k] == 'G' ? 1 : img->cfa[k] == 'B' ? 2 : -1;
+			for (int cc = 0; cc < 3; cc++)
+				if ((c < 0 || cc == c) && sat.clip[k] < wi->clip_ch[cc])
+					wi->clip_ch[cc] = sat.clip[k];
+		}
+		kg_saturation_format(&sat, mosaic ? img->cfa : img->channels == 1 ? "Y" : "RGB",
+		                     wi->sat_note, sizeof(wi->sat_note));
+	}
 	if (!img->is_float && img->bits > 0 && img->bits <= 16) {
 		wi->quantum = 1.0 / (double)((1L << img->bits) - 1);
 		wi->count_scale = (float)((1L << img->bits) - 1);
@@ -1758,9 +1781,14 @@ static int sample_patch(const work_image *wi, const double H[9], const double Hi
 	int C = wi->channels;
 	float *ch0 = buf->ch[0], *ch1 = buf->ch[1], *ch2 = buf->ch[2], *sums = buf->sum;
 	/* the least float not below the clip level: v >= clip exactly when v >= the level */
-	float clip = (float)wi->clip_level;
-	if ((double)clip < wi->clip_level)
-		clip = nextafterf(clip, INFINITY);
+	float clip3[3];
+	for (int c = 0; c < 3; c++) {
+		clip3[c] = (float)wi->clip_ch[c];
+		if ((double)clip3[c] < wi->clip_ch[c])
+			clip3[c] = nextafterf(clip3[c], INFINITY);
+	}
+	if (C != 3) /* grey: one channel, its level */
+		clip3[1] = clip3[2] = clip3[0];
 	for (long y = iy0; y < iy1 && cap; y += stride) {
 		double Y = y + 0.5;
 		long xa = ix0, xb = ix1;
@@ -1800,7 +1828,7 @@ static int sample_patch(const work_image *wi, const double H[9], const double Hi
 			ch1[n] = v1;
 			ch2[n] = v2;
 			sums[n] = (float)sum;
-			nclipped += (v0 >= clip) | (v1 >= clip) | (v2 >= clip);
+			nclipped += (v0 >= clip3[0]) | (v1 >= clip3[1]) | (v2 >= clip3[2]);
 			switch (q) {
 			case 0: qs0 += sum; break;
 			case 1: qs1 += sum; break;
@@ -3048,6 +3076,10 @@ int kg_chart_detect(const kg_chart_layout *l, const kg_image *img,
 	double tp = now_seconds();
 	ret = prepare_image(img, &opt, &wi, err);
 	r->prepare_seconds = now_seconds() - tp;
+	if (!ret && wi.sat_note[0] &&
+	    add_warning(r, "saturation found from the data below full scale: %s; samples there "
+	                   "count as clipped", wi.sat_note))
+		ret = kg_fail(err, KG_ENOMEM, "out of memory");
 	if (ret)
 		goto fail;
 	int tagless = opt.tagless || l->ntags == 0;

@@ -130,6 +130,14 @@ static void print_summary(const kg_capture_result *r, const kg_capture_options *
 	printf("  clipped %.4f %%, under-exposed %.2f %%, max %.4f, p99 %.4f, p50 %.4f\n",
 	       100 * r->clipped_fraction, 100 * r->stats.underexposed_fraction, r->stats.max,
 	       r->stats.p99, r->stats.p50);
+	if (kg_saturation_below(&r->saturation, 1.0 - 0.5 / r->saturation.steps)) {
+		char where[256];
+		kg_saturation_format(&r->saturation,
+		                     r->format.cfa[0] && r->saturation.channels == 4 ? r->format.cfa
+		                                                                     : "RGB",
+		                     where, sizeof(where));
+		printf("  saturation found from the data below full scale: %s\n", where);
+	}
 	printf("  stream: %llu completed, %llu dropped, %llu incomplete, %llu failed, %llu "
 	       "timeouts, %llu packets resent, %llu packets missing\n",
 	       (unsigned long long)r->stream.completed, (unsigned long long)r->stream.dropped,

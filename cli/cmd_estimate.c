@@ -44,7 +44,9 @@ static const char help_estimate[] =
 	"  --threads N          worker threads (default: online CPUs)\n"
 	"  --block-rows N       rows per block (default: about 4 MiB of output)\n"
 	"  --clip-level V       pixels with a channel >= V are flagged clipped and not\n"
-	"                       estimated (default 0.999; 'none' disables)\n"
+	"                       estimated (default 0.999, lower per channel where the\n"
+	"                       image's values pile up below it: saturation found from\n"
+	"                       the data; 'none' disables)\n"
 	"  --force              apply the calibration to an image of another camera\n"
 	"                       (a warning instead of the refusal)\n"
 	"  --quiet              no summary line or progress on standard error\n"
@@ -180,6 +182,9 @@ static int parse_int(const char *text, int lo, int hi, int *out)
 	return 0;
 }
 
+/* 1 once --clip-level was given: the user's level is kept as it is. */
+static int clip_given;
+
 static int parse_clip(const char *text, float *out)
 {
 	if (strcmp(text, "none") == 0) {
@@ -214,6 +219,7 @@ static int common_option(int c, const char *usage, kg_apply_options *opt, int *q
 			                           optarg);
 		return 1;
 	case 'c':
+		clip_given = 1;
 		if (parse_clip(optarg, &opt->clip_level))
 			return -kg_cli_usage_error(usage, "--clip-level %s: expected a number > 0 or none",
 			                           optarg);
@@ -285,6 +291,66 @@ static int open_image(const char *path, int channels, kg_image_rows **rows,
 		return rc;
 	}
 	kg_row_source_of_rows(*rows, src);
+	return 0;
+}
+
+/* Saturation from the data: a pile-up of the photograph's values below the clip level
+ * (a sensor that stops short of full scale) becomes each channel's clip level, so
+ * pixels at it are flagged clipped (core/saturation.h). The photograph is read once
+ * more for its histogram (a file through a second row reader; a raw file's demosaiced
+ * image in memory). */
+static int data_saturation(const char *cmd, const char *path, const kg_row_source *src,
+                           kg_apply_options *opt, int quiet, kg_err *err)
+{
+	if (clip_given || !isfinite(opt->clip_level))
+		return 0;
+	kg_saturation sat;
+	int rc;
+	const kg_image *mem = NULL;
+	for (int i = 3; i >= 0 && !mem; i--)
+		if (demosaiced[i] && src->user == demosaiced[i])
+			mem = demosaiced[i];
+	if (mem) {
+		rc = kg_saturation_of_image(mem, opt->clip_level, &sat, err);
+	} else {
+		kg_image_rows *rows = NULL;
+		if ((rc = kg_image_rows_open(path, &rows, err)))
+			return rc;
+		kg_row_source again;
+		kg_row_source_of_rows(rows, &again);
+		rc = kg_saturation_of_rows(&again, kg_saturation_steps(kg_image_rows_header(rows)),
+		                           opt->clip_level, &sat, err);
+		kg_image_rows_free(&rows);
+		/* the flat-object guard needs the pixels: once more, in bands */
+		if (!rc && sat.channels == 3 && kg_saturation_below(&sat, opt->clip_level) &&
+		    !(rc = kg_image_rows_open(path, &rows, err))) {
+			kg_row_source_of_rows(rows, &again);
+			kg_sat_flat f;
+			kg_sat_flat_init(&f, &sat);
+			float *buf = malloc(sizeof(float) * 3 * 64 * (size_t)again.width);
+			rc = buf ? 0 : kg_fail(err, KG_ENOMEM, "out of memory");
+			for (int y = 0; y < again.height && !rc; y += 64) {
+				int n = again.height - y < 64 ? again.height - y : 64;
+				if (!(rc = again.read(again.user, y, n, buf, err)))
+					kg_sat_flat_add(&f, buf, (size_t)n * (size_t)again.width);
+			}
+			free(buf);
+			kg_image_rows_free(&rows);
+			if (!rc)
+				kg_sat_flat_result(&f, &sat);
+		}
+	}
+	if (rc || !kg_saturation_below(&sat, opt->clip_level))
+		return rc;
+	for (int c = 0; c < 3 && c < sat.channels; c++)
+		if (sat.found[c])
+			opt->clip_rgb[c] = (float)sat.clip[c];
+	if (!quiet) {
+		char line[256];
+		kg_saturation_format(&sat, "RGB", line, sizeof(line));
+		fprintf(stderr, "%s: %s: saturation found from the data below full scale: %s; pixels "
+		        "there are flagged clipped\n", cmd, path, line);
+	}
 	return 0;
 }
 
@@ -380,6 +446,8 @@ int kg_cmd_estimate(int argc, char **argv)
 		             calib, lut ? "lut" : kg_method_name(m == KG_METHOD_AUTO ? cam->method : m));
 	if (!rc)
 		rc = open_image(image, 3, &img, &src, &err);
+	if (!rc)
+		rc = data_saturation("estimate", image, &src, &opt, quiet, &err);
 	if (!rc) {
 		char desc[256];
 		snprintf(desc, sizeof(desc), "kogei estimate: %s, method %s%s, calibration %s",
@@ -612,6 +680,8 @@ int kg_cmd_classify(int argc, char **argv)
 		                             &set, &err);
 	if (!rc)
 		rc = open_image(image, 3, &img, &src, &err);
+	if (!rc)
+		rc = data_saturation("classify", image, &src, &opt, quiet, &err);
 	if (!rc && variance && (rc = open_image(variance, 0, &var_img, &var_src, &err)) == 0)
 		copt.variance = &var_src;
 	if (!rc && mask && (rc = open_image(mask, 0, &mask_img, &mask_src, &err)) == 0)

@@ -17,5 +17,6 @@
 #include "json.h"
 #include "plot.h"
 #include "rng.h"
+#include "saturation.h"
 
 #endif

@@ -144,6 +144,147 @@ static void iso_from_ifd0(const char *path, const void *data, size_t size, kg_ra
 	fclose(fp);
 }
 
+/* ---- a DNG's own black and white levels -------------------------------------------- */
+
+/* What the raw IFD of a DNG says (DNG 1.4 tags BlackLevelRepeatDim 0xC619, BlackLevel
+ * 0xC61A, BlackLevelDeltaH/V 0xC61B/0xC61C, WhiteLevel 0xC61D), read from the bytes
+ * themselves: LibRaw may replace the white level by its camera table's (a "NIKON
+ * D5100" DNG with WhiteLevel 15520 comes out at 14504) and rounds a fractional black. */
+typedef struct dng_levels {
+	int has_black, has_white, has_deltas;
+	int dim_r, dim_c;  /* BlackLevelRepeatDim */
+	double black[4];   /* dim_r x dim_c, row-major (at most 2 x 2 kept) */
+	double white;      /* the first sample's */
+} dng_levels;
+
+typedef struct tiff_buf {
+	const unsigned char *p;
+	size_t n;
+	int big;
+} tiff_buf;
+
+static int tb_u(const tiff_buf *t, size_t off, int size, uint32_t *v)
+{
+	if (off > t->n || (size_t)size > t->n - off)
+		return -1;
+	*v = get_u(t->p + off, size, t->big);
+	return 0;
+}
+
+/* Value i of an entry (SHORT, LONG, RATIONAL, SRATIONAL) as a double; -1 if out of
+ * range or of another type. */
+static int tb_value(const tiff_buf *t, size_t entry, uint32_t i, double *out)
+{
+	uint32_t type, count, v, d;
+	if (tb_u(t, entry + 2, 2, &type) || tb_u(t, entry + 4, 4, &count) || i >= count)
+		return -1;
+	int size = type == 3 ? 2 : type == 4 ? 4 : type == 5 || type == 10 ? 8 : 0;
+	if (!size || count > (1u << 20))
+		return -1;
+	size_t data = entry + 8;
+	if ((uint64_t)size * count > 4) {
+		uint32_t off;
+		if (tb_u(t, entry + 8, 4, &off))
+			return -1;
+		data = off;
+	}
+	size_t at = data + (size_t)i * (size_t)size;
+	if (size <= 4) {
+		if (tb_u(t, at, size, &v))
+			return -1;
+		*out = v;
+		return 0;
+	}
+	if (tb_u(t, at, 4, &v) || tb_u(t, at + 4, 4, &d) || d == 0)
+		return -1;
+	*out = type == 10 ? (double)(int32_t)v / (double)(int32_t)d : (double)v / (double)d;
+	return isfinite(*out) ? 0 : -1;
+}
+
+/* The levels of the IFD at off when it holds a CFA image of NewSubFileType 0; 1 when it
+ * does, 0 when not, -1 when damaged. */
+static int dng_ifd_levels(const tiff_buf *t, size_t off, dng_levels *L, uint32_t *subifds,
+                          int *nsub)
+{
+	uint32_t n, tag, photometric = 0, subfile = 0, v;
+	if (tb_u(t, off, 2, &n) || n > 4096)
+		return -1;
+	dng_levels l = {.dim_r = 1, .dim_c = 1};
+	size_t black_entry = 0, white_entry = 0;
+	for (uint32_t i = 0; i < n; i++) {
+		size_t e = off + 2 + 12 * (size_t)i;
+		if (tb_u(t, e, 2, &tag))
+			return -1;
+		double x;
+		if (tag == 0xFE && !tb_value(t, e, 0, &x))
+			subfile = (uint32_t)x;
+		else if (tag == 0x106 && !tb_value(t, e, 0, &x))
+			photometric = (uint32_t)x;
+		else if (tag == 0x14A && subifds && nsub) { /* SubIFDs: LONG or IFD offsets */
+			uint32_t count, type;
+			if (tb_u(t, e + 2, 2, &type) || tb_u(t, e + 4, 4, &count))
+				return -1;
+			for (uint32_t k = 0; k < count && *nsub < 8; k++) {
+				size_t at = count == 1 ? e + 8 : 0;
+				if (count > 1) {
+					if (tb_u(t, e + 8, 4, &v))
+						return -1;
+					at = (size_t)v + 4 * (size_t)k;
+				}
+				if (tb_u(t, at, 4, &v))
+					return -1;
+				subifds[(*nsub)++] = v;
+			}
+		} else if (tag == 0xC619) {
+			double r, c;
+			if (tb_value(t, e, 0, &r) || tb_value(t, e, 1, &c) || r < 1 || c < 1)
+				return -1;
+			l.dim_r = (int)r;
+			l.dim_c = (int)c;
+		} else if (tag == 0xC61A)
+			black_entry = e;
+		else if (tag == 0xC61B || tag == 0xC61C)
+			l.has_deltas = 1;
+		else if (tag == 0xC61D)
+			white_entry = e;
+	}
+	if (subfile != 0 || photometric != 32803)
+		return 0;
+	if (white_entry && !tb_value(t, white_entry, 0, &l.white) && l.white > 0)
+		l.has_white = 1;
+	if (black_entry && l.dim_r <= 2 && l.dim_c <= 2) {
+		l.has_black = 1;
+		for (int k = 0; k < l.dim_r * l.dim_c; k++)
+			if (tb_value(t, black_entry, (uint32_t)k, &l.black[k]))
+				l.has_black = 0;
+	}
+	*L = l;
+	return 1;
+}
+
+/* The raw (CFA) IFD's levels of a DNG in memory: IFD 0 or one of its SubIFDs. 0 when
+ * found. */
+static int dng_levels_of(const void *data, size_t size, dng_levels *L)
+{
+	memset(L, 0, sizeof(*L));
+	const unsigned char *p = data;
+	if (!p || size < 8 || !((p[0] == 'I' && p[1] == 'I') || (p[0] == 'M' && p[1] == 'M')))
+		return -1;
+	tiff_buf t = {p, size, p[0] == 'M'};
+	uint32_t magic, ifd0;
+	if (tb_u(&t, 2, 2, &magic) || magic != 42 || tb_u(&t, 4, 4, &ifd0))
+		return -1;
+	uint32_t sub[8];
+	int nsub = 0;
+	int r = dng_ifd_levels(&t, ifd0, L, sub, &nsub);
+	if (r)
+		return r > 0 ? 0 : -1;
+	for (int i = 0; i < nsub; i++)
+		if ((r = dng_ifd_levels(&t, sub[i], L, NULL, NULL)) != 0)
+			return r > 0 ? 0 : -1;
+	return -1;
+}
+
 #endif
 
 int kg_raw_is_raw(const char *path)
@@ -176,6 +317,8 @@ const char *kg_raw_version(void)
 typedef struct raw_job {
 	libraw_data_t *lr;
 	const char *name;
+	const void *data; /* the file's bytes (pixels decoded), or NULL */
+	size_t size;
 	int data_error;
 	char data_where[128];
 } raw_job;
@@ -367,6 +510,30 @@ static int decode(raw_job *j, kg_image **out, kg_raw_meta *meta, int pixels, kg_
 	}
 	const unsigned *cb = lr->color.cblack;
 	int pattern = cb[4] && cb[5] && (cb[4] > 2 || cb[5] > 2 || (2 % cb[4]) || (2 % cb[5]));
+	/* A DNG's own WhiteLevel and BlackLevel (fractional ones as they are) win over
+	 * LibRaw's: it may take the white level from its camera table and rounds the black.
+	 * The black pattern repeats from the active area's corner, the visible area's. */
+	dng_levels L;
+	char levels_note[96] = "";
+	if (lr->idata.dng_version && j->data && !dng_levels_of(j->data, j->size, &L)) {
+		if (L.has_white && L.white != white[0])
+			snprintf(levels_note, sizeof(levels_note), " (the file's WhiteLevel %g, not "
+			         "LibRaw's %g)", L.white, white[0]);
+		double nb[4], nw[4];
+		for (int k = 0; k < 4; k++) {
+			nb[k] = L.has_black && !L.has_deltas
+			        ? L.black[(k / 2 % L.dim_r) * L.dim_c + (k % 2 % L.dim_c)] : black[k];
+			nw[k] = L.has_white ? L.white : white[k];
+			if (!(nw[k] > nb[k]))
+				return kg_fail(err, KG_EINVAL, "%s: WhiteLevel %g not above BlackLevel %g",
+				               j->name, nw[k], nb[k]);
+		}
+		memcpy(white, nw, sizeof(nw));
+		if (L.has_black && !L.has_deltas) {
+			memcpy(black, nb, sizeof(nb));
+			pattern = 0;
+		}
+	}
 	kg_image *img = NULL;
 	if ((ret = kg_image_new(w, h, 1, &img, err)) ||
 	    (ret = kg_image_set_cfa(img, cfa, 2, 2, err))) {
@@ -407,8 +574,8 @@ static int decode(raw_job *j, kg_image **out, kg_raw_meta *meta, int pixels, kg_
 		}
 		meta->raw_bits = img->bits;
 	}
-	snprintf(img->note, sizeof(img->note), "raw %s decoded by LibRaw %s: black %g, white %g",
-	         meta ? meta->format : "file", libraw_version(), black[0], white[0]);
+	snprintf(img->note, sizeof(img->note), "raw %s decoded by LibRaw %s: black %g, white %g%s",
+	         meta ? meta->format : "file", libraw_version(), black[0], white[0], levels_note);
 	*out = img;
 	return 0;
 }
@@ -424,7 +591,7 @@ static int run(const char *path, const void *data, size_t size, const char *name
 {
 	if (out)
 		*out = NULL;
-	raw_job j = {.name = name};
+	raw_job j = {.name = name, .data = data, .size = size};
 	j.lr = libraw_init(0);
 	if (!j.lr)
 		return kg_fail(err, KG_ENOMEM, "%s: cannot start LibRaw", name);

@@ -109,12 +109,23 @@ int ap_feed_init(feed *f, const kg_row_source *src, const kg_apply_options *opt,
 	f->src = src;
 	f->what = what;
 	f->clip = f->job_clip = opt->clip_level;
-	if (!opt->pre || is_identity(opt->pre))
+	int per_channel = 0;
+	for (int c = 0; c < 3; c++) {
+		f->clip3[c] = f->clip;
+		if (opt->clip_rgb[c] > 0 && opt->clip_rgb[c] < f->clip) {
+			f->clip3[c] = opt->clip_rgb[c];
+			per_channel = 1;
+		}
+	}
+	static const double identity[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+	/* per-channel levels go through the pre path's test on the image's own values */
+	if ((!opt->pre || is_identity(opt->pre)) && !per_channel)
 		return 0;
+	const double *P = opt->pre ? opt->pre : identity;
 	for (int i = 0; i < 9; i++)
-		if (!isfinite(opt->pre[i]))
+		if (!isfinite(P[i]))
 			return kg_fail(err, KG_EINVAL, "%s: pre-transform: expected finite values", what);
-	memcpy(f->pre, opt->pre, sizeof(f->pre));
+	memcpy(f->pre, P, sizeof(f->pre));
 	f->has_pre = 1;
 	f->job_clip = isinf(opt->clip_level) ? INFINITY : FLT_MAX;
 	return 0;
@@ -147,12 +158,12 @@ int ap_feed_fill(void *user, int y0, int rows, void *in, kg_err *err)
 	if (!f->has_pre)
 		return 0;
 	const double *P = f->pre;
-	const float clip = f->clip;
+	const float c0 = f->clip3[0], c1 = f->clip3[1], c2 = f->clip3[2];
 	for (size_t i = 0; i < n; i++) {
 		const float *p = pl.raw + 3 * i;
 		float *q = kin + 3 * i;
 		int finite = isfinite(p[0]) && isfinite(p[1]) && isfinite(p[2]);
-		if (finite && (p[0] >= clip || p[1] >= clip || p[2] >= clip)) {
+		if (finite && (p[0] >= c0 || p[1] >= c1 || p[2] >= c2)) {
 			q[0] = q[1] = q[2] = FLT_MAX;
 			continue;
 		}
@@ -1100,6 +1111,14 @@ static int write_json(const char *path, const kg_est_material_set *set,
 	json_object_set_new(root, "distance", json_string(distance_name(copt->distance)));
 	json_object_set_new(root, "angle_deg", json_real(set->angle_deg));
 	json_object_set_new(root, "clip_level", ap_json_num(opt->clip_level));
+	{ /* per channel: the clip level, or the saturation found from the data below it */
+		json_t *cl = json_array();
+		for (int c = 0; c < 3; c++)
+			json_array_append_new(cl, ap_json_num(opt->clip_rgb[c] > 0 &&
+			                                      opt->clip_rgb[c] < opt->clip_level
+			                                          ? opt->clip_rgb[c] : opt->clip_level));
+		json_object_set_new(root, "clip_levels", cl);
+	}
 	json_object_set_new(root, "width", json_integer(img->width));
 	json_object_set_new(root, "height", json_integer(img->height));
 	json_object_set_new(root, "pixels", json_integer((json_int_t)res->stats.pixels));

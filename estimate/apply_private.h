@@ -16,6 +16,7 @@ typedef struct feed {
 	double pre[9];
 	int has_pre;
 	float clip;     /* on the image's values */
+	float clip3[3]; /* per channel: clip, or the saturation found below it */
 	float job_clip; /* what the framework tests kin against */
 } feed;
 

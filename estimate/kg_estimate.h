@@ -444,6 +444,10 @@ typedef struct kg_apply_options {
 	/* A pixel with a channel >= clip_level, tested on the image's values before pre,
 	 * is flagged KG_EST_MASK_CLIPPED; INFINITY disables the test. */
 	float clip_level;
+	/* Per channel (R, G, B): a lower clip level where the image's own values say the
+	 * sensor saturates below full scale (core/saturation.h); 0 (the default): none.
+	 * Tested on the image's values like clip_level; the lower of the two applies. */
+	float clip_rgb[3];
 	int threads;    /* 0: online CPUs */
 	int block_rows; /* 0: automatic (kg_est_job) */
 	kg_est_isa isa;

@@ -308,7 +308,7 @@ static void cam_compute(void *user, void *inbuf, size_t n, uint8_t *labels, floa
 	const cam_run *r = user;
 	planes pl = ap_feed_planes(&r->in, inbuf, n);
 	cam_planes cp = cam_planes_of(r, inbuf, n);
-	const float clip = r->in.clip;
+	const float c0 = r->in.clip3[0], c1 = r->in.clip3[1], c2 = r->in.clip3[2];
 	const double Rtr = r->nz.R[0] + r->nz.R[4] + r->nz.R[8];
 	/* Pixels refused before matching (masked out, flagged, dark) are labelled here;
 	 * the others are packed to the front of x and cov (their indices in idx, which
@@ -321,7 +321,7 @@ static void cam_compute(void *user, void *inbuf, size_t n, uint8_t *labels, floa
 		if (!isfinite(px[0]) || !isfinite(px[1]) || !isfinite(px[2])) {
 			mask[i] = KG_EST_MASK_NONFINITE;
 			++*nonfinite;
-		} else if (px[0] >= clip || px[1] >= clip || px[2] >= clip) {
+		} else if (px[0] >= c0 || px[1] >= c1 || px[2] >= c2) {
 			mask[i] = KG_EST_MASK_CLIPPED;
 			++*clipped;
 		} else {
@@ -878,8 +878,8 @@ static int survey(const cam_run *r, const kg_classify_camera *cam, const kg_cs_m
 			size_t n = (size_t)rows * W;
 			for (size_t i = 0; i < n && !rc; i++) {
 				const float *p = buf + 3 * i;
-				if (!isfinite(p[0] + p[1] + p[2]) || p[0] >= r->in.clip ||
-				    p[1] >= r->in.clip || p[2] >= r->in.clip ||
+				if (!isfinite(p[0] + p[1] + p[2]) || p[0] >= r->in.clip3[0] ||
+				    p[1] >= r->in.clip3[1] || p[2] >= r->in.clip3[2] ||
 				    fmaxf(p[0], fmaxf(p[1], p[2])) < fmaxf(r->background_level, 1e-6f))
 					continue;
 				if (var && !(vbuf[3 * i] >= 0 && vbuf[3 * i + 1] >= 0 && vbuf[3 * i + 2] >= 0 &&
@@ -1035,6 +1035,14 @@ static int write_json(const char *path, const kg_est_material_set *set,
 	for (int i = 0; i < 4; i++)
 		json_object_set_new(root, keys[i], vals[i] ? json_string(vals[i]) : json_null());
 	json_object_set_new(root, "clip_level", ap_json_num(opt->clip_level));
+	{ /* per channel: the clip level, or the saturation found from the data below it */
+		json_t *cl = json_array();
+		for (int c = 0; c < 3; c++)
+			json_array_append_new(cl, ap_json_num(opt->clip_rgb[c] > 0 &&
+			                                      opt->clip_rgb[c] < opt->clip_level
+			                                          ? opt->clip_rgb[c] : opt->clip_level));
+		json_object_set_new(root, "clip_levels", cl);
+	}
 	json_object_set_new(root, "width", json_integer(img->width));
 	json_object_set_new(root, "height", json_integer(img->height));
 	json_object_set_new(root, "pixels", json_integer((json_int_t)res->stats.pixels));
@@ -1442,6 +1450,9 @@ int kg_classify_camera_rows(const kg_est_kernel *k, const kg_est_material_set *s
 	int rc = ap_feed_init(&run.in, src, &o, "classify", err);
 	if (rc)
 		return rc;
+	/* no pre here: per-channel clip levels are tested on the image's values below */
+	run.in.has_pre = 0;
+	run.in.job_clip = run.in.clip;
 	run.in.var = copt->variance;
 	run.in.var_name = info && info->variance ? info->variance : "the variance image";
 	run.in.mask = copt->mask;

@@ -2,8 +2,12 @@
  * by two passes in long double over the same frames, for 8- and 16-bit formats with
  * padded rows, values close to full scale (where a single-pass float sum of squares
  * loses everything to cancellation), the clipped fraction counted directly, and the
- * refusals (format change, MJPEG, YUYV unless forced). */
+ * refusals (format change, MJPEG, YUYV unless forced); a 12-bit Bayer sensor that
+ * saturates at 4092 of 4095: the saturation found from the data and the clipped
+ * fraction counted at it, per CFA position. */
 #include <stdint.h>
+#include <math.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "kg_acquire.h"
@@ -127,6 +131,63 @@ out:
 	free(buf);
 }
 
+/* A 12-bit RGGB sensor whose ADC stops at 4092: a smooth scene with shot noise whose
+ * brightest part saturates the R sites (and a little of G). */
+static void test_saturating_sensor(void)
+{
+	enum { SW = 120, SH = 80, NF = 4 };
+	kg_frame_format fmt = {.pixfmt = KG_PIX_BAYER16, .width = SW, .height = SH, .bits = 12};
+	snprintf(fmt.cfa, sizeof(fmt.cfa), "RGGB");
+	kg_frame_format_fill(&fmt);
+	kg_frame_accum *acc = NULL;
+	kg_err err = {{0}};
+	CHECK(kg_frame_accum_new(&fmt, 0, &acc, &err) == 0, "%s", err.msg);
+	if (!acc)
+		return;
+	uint8_t *buf = calloc(1, fmt.size);
+	unsigned char *hit = calloc((size_t)SW * SH, 1);
+	kg_rng rng;
+	kg_rng_seed(&rng, 34);
+	for (int f = 0; f < NF; f++) {
+		for (int y = 0; y < SH; y++)
+			for (int x = 0; x < SW; x++) {
+				int site = (y & 1) * 2 + (x & 1);
+				double gain = site == 0 ? 1.0 : site == 3 ? 0.5 : 0.75;
+				double mean = 4800.0 * gain * (0.1 + 0.9 * x / (double)SW) *
+				              (1 - 0.2 * (y - SH / 2.0) * (y - SH / 2.0) / (SH * SH / 4.0));
+				double v = floor(mean + sqrt(mean + 9) * kg_rng_normal(&rng) + 0.5);
+				v = v < 0 ? 0 : v > 4092 ? 4092 : v;
+				hit[y * SW + x] |= v >= 4092;
+				uint8_t *p = buf + fmt.stride * (size_t)y + 2 * (size_t)x;
+				p[0] = (uint8_t)((unsigned)v & 0xff);
+				p[1] = (uint8_t)((unsigned)v >> 8);
+			}
+		kg_frame fr = {.fmt = fmt, .data = buf, .size = fmt.size, .sequence = (uint64_t)f + 1};
+		CHECK(kg_frame_accum_add(acc, &fr, &err) == 0, "%s", err.msg);
+	}
+	size_t n = 0, nr = 0;
+	for (int i = 0; i < SW * SH; i++) {
+		n += hit[i];
+		nr += hit[i] && (i / SW % 2 == 0) && (i % SW % 2 == 0);
+	}
+	double want = (double)n / (SW * SH);
+	kg_saturation s;
+	CHECK(kg_frame_accum_saturation(acc, &s) == 0 && s.channels == 4, "no saturation result");
+	CHECK(s.found[0] && fabs(s.level[0] * 4095 - 4092) < 1e-6,
+	      "R site: saturation at 4092 of 4095 not found (level %g)", s.level[0] * 4095);
+	CHECK(!s.found[3], "B site never reaches 4092, yet found at %g", s.level[3] * 4095);
+	CHECK(fabs(s.fraction[0] - (double)nr / (SW * SH / 4)) < 1e-12, "R fraction %g, want %g",
+	      s.fraction[0], (double)nr / (SW * SH / 4));
+	CHECK(want > 0.01, "the scene should clip more than 1 %% (%g)", want);
+	CHECK_NEAR(kg_frame_accum_clipped_fraction(acc), want, 1e-12,
+	           "clipped fraction at the sensor's saturation (4092 of 4095)");
+	printf("bayer16/12 saturating at 4092: clipped %.4f %% (R site %.3f %%)\n",
+	       100 * kg_frame_accum_clipped_fraction(acc), 100 * s.fraction[0]);
+	free(buf);
+	free(hit);
+	kg_frame_accum_free(&acc);
+}
+
 int main(void)
 {
 	static const case_ cases[] = {
@@ -138,6 +199,7 @@ int main(void)
 	};
 	for (size_t i = 0; i < sizeof(cases) / sizeof(cases[0]); i++)
 		run_case(&cases[i], 100 + i);
+	test_saturating_sensor();
 
 	/* one frame: variance 0 */
 	kg_frame_format fmt = {.pixfmt = KG_PIX_MONO8, .width = 4, .height = 2, .bits = 8};

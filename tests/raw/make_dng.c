@@ -7,7 +7,10 @@
  * usage: make_dng IN OUT.dng [--cfa RGGB] [--black B|B0,B1,B2,B3] [--white W]
  *        [--scale F] [--noise FULLWELL:SEED] [--exposure S] [--iso I] [--fnumber F]
  *        [--focal MM] [--make M] [--model X] [--serial S] [--lens L] [--linear-raw]
- * raw = black + round(value * scale * (white - black)), clipped to 0..65535; with
+ *        [--saturate DN]
+ * raw = black + round(value * scale * (white - black)), clipped to 0..65535 (to DN
+ * with --saturate: a sensor that stops short of the white level; the samples held
+ * there are counted on standard output, "saturated N of M samples, P pixels"); with
  * noise, value * scale * FULLWELL electrons are drawn from a Poisson distribution. */
 #include <math.h>
 #include <stdio.h>
@@ -30,7 +33,7 @@ int main(int argc, char **argv)
 		return 2;
 	}
 	test_dng d = {.cfa = "RGGB", .black = {256, 256, 256, 256}, .black_dim = 1, .white = 4095};
-	double scale = 1, fullwell = 0;
+	double scale = 1, fullwell = 0, saturate = 65535;
 	unsigned long long seed = 1;
 	for (int i = 3; i + 1 < argc || (i < argc && !strcmp(argv[i], "--linear-raw")); i += 2) {
 		const char *k = argv[i], *v = i + 1 < argc ? argv[i + 1] : "";
@@ -47,6 +50,8 @@ int main(int argc, char **argv)
 				d.black[1] = d.black[2] = d.black[3] = d.black[0];
 		} else if (!strcmp(k, "--white"))
 			d.white = atof(v);
+		else if (!strcmp(k, "--saturate"))
+			saturate = atof(v);
 		else if (!strcmp(k, "--scale"))
 			scale = atof(v);
 		else if (!strcmp(k, "--noise"))
@@ -89,6 +94,7 @@ int main(int argc, char **argv)
 		return 1;
 	kg_rng rng;
 	kg_rng_seed(&rng, seed);
+	long nsat = 0;
 	for (int y = 0; y < img->height; y++)
 		for (int x = 0; x < img->width; x++)
 			for (int s = 0; s < spp; s++) {
@@ -102,8 +108,14 @@ int main(int argc, char **argv)
 					v = kg_rng_poisson(&rng, v * fullwell) / fullwell;
 				double b = d.black_dim == 2 ? d.black[site] : d.black[0];
 				double dn = b + round(v * (d.white - b));
+				if (dn >= saturate) {
+					dn = saturate;
+					nsat++;
+				}
 				raw[i * (size_t)spp + (size_t)s] = (uint16_t)(dn < 0 ? 0 : dn > 65535 ? 65535 : dn);
 			}
+	if (saturate < 65535)
+		printf("saturated %ld of %zu samples\n", nsat, n * (size_t)spp);
 	d.width = img->width;
 	d.height = img->height;
 	d.data = raw;

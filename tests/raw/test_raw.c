@@ -115,6 +115,60 @@ static void test_linear(void)
 	printf("  linear to the count for 4 CFA patterns, common and 2x2 black\n");
 }
 
+/* The file's own WhiteLevel and BlackLevel win over LibRaw's camera table: a "NIKON
+ * D5100" DNG with WhiteLevel 15520 (LibRaw's table for that model says otherwise), a
+ * fractional BlackLevel 12.5 kept as it is, and a 2x2 fractional black pattern. */
+static void test_dng_levels(void)
+{
+	static uint16_t d[W * H];
+	fill(d, 3, 15520);
+	d[2] = 15520;
+	d[3] = 14504;
+	for (int pattern = 0; pattern < 2; pattern++) {
+		test_dng g = base(d);
+		g.make = "NIKON CORPORATION";
+		g.model = "NIKON D5100";
+		g.white = 15520;
+		if (pattern) {
+			double b[4] = {12.5, 13.25, 14.75, 15.5};
+			memcpy(g.black, b, sizeof(b));
+			g.black_dim = 2;
+		} else {
+			double b[4] = {12.5, 12.5, 12.5, 12.5};
+			memcpy(g.black, b, sizeof(b));
+		}
+		const char *f = path_of("d5100.dng");
+		write_or_die(f, &g);
+		kg_image *img = NULL;
+		kg_raw_meta m;
+		kg_err err = {{0}};
+		int ret = kg_raw_read(f, &img, &m, &err);
+		CHECK(ret == 0, "D5100 DNG: %s", err.msg);
+		if (ret)
+			continue;
+		for (int k = 0; k < 4; k++)
+			CHECK(m.white[k] == 15520 && m.black[k] == g.black[pattern ? k : 0],
+			      "D5100 DNG pattern %d site %d: white %g black %g, expected the file's "
+			      "15520 and %g", pattern, k, m.white[k], m.black[k], g.black[pattern ? k : 0]);
+		double worst = 0;
+		long over = 0;
+		for (int y = 0; y < H; y++)
+			for (int x = 0; x < W; x++) {
+				int site = (y & 1) * 2 + (x & 1);
+				double b = g.black[pattern ? site : 0];
+				double want = ((double)d[y * W + x] - b) / (15520 - b);
+				worst = fmax(worst, fabs(img->data[y * W + x] - want));
+				over += img->data[y * W + x] > 1.0f + 1e-6f;
+			}
+		CHECK(worst < 1e-6, "D5100 DNG pattern %d: worst error %.3g of full scale", pattern,
+		      worst);
+		CHECK(over == 0, "D5100 DNG: %ld samples above white (white level too low)", over);
+		CHECK(fabs(img->data[2] - 1) < 1e-6, "WhiteLevel 15520 reads 1 (%g)", img->data[2]);
+		kg_image_free(&img);
+	}
+	printf("  DNG WhiteLevel/BlackLevel from the file (NIKON D5100 15520, black 12.5)\n");
+}
+
 static void test_meta_and_readers(void)
 {
 	static uint16_t d[W * H];
@@ -430,6 +484,7 @@ int main(void)
 	mkdir(path_of("cams"), 0777);
 	mkdir(path_of("sizes"), 0777);
 	test_linear();
+	test_dng_levels();
 	test_meta_and_readers();
 	test_refusals();
 	test_files_backend();
