@@ -1240,9 +1240,11 @@ static int write_json(const char *path, const kg_est_material_set *set,
 	                                "(f: the calibration's share of a pixel's noise, which "
 	                                "pooling does not reduce); a compound class resolves to "
 	                                "a member whose share of its posterior is >= 0.99; "
-	                                "'unknown' when the best material's summed d2, scaled "
-	                                "the same, exceeds the 99.9 % point of chi-square with "
-	                                "dof N / (1 + N f) degrees of freedom"));
+	                                "'unknown' when the decided material's summed d2, scaled "
+	                                "by 1 / (1 + N f') with f' the calibration's and the "
+	                                "material's own model error's (model_rsd) share, "
+	                                "exceeds the 99.9 % point of chi-square with dof "
+	                                "N / (1 + N f') degrees of freedom"));
 	json_t *table = json_array();
 	if (reg->on && !reg->overflow && reg->final) {
 		int listed = 0;
@@ -1259,12 +1261,16 @@ static int write_json(const char *path, const kg_est_material_set *set,
 				               ap_json_num(c[1]), "au", ap_json_num(c[2]), "sd_ag",
 				               ap_json_num(c[3]), "sd_cu", ap_json_num(c[4]), "sd_au",
 				               ap_json_num(c[5]));
+			/* connected components: the class its pixels hold */
+			int pc = reg->user ? -1 : (int)reg->label[id] - 1;
 			json_array_append_new(
-				table, json_pack("{s:I,s:I,s:s,s:s,s:o,s:o}", "region", (json_int_t)f,
+				table, json_pack("{s:I,s:I,s:s,s:s,s:o,s:o,s:o}", "region", (json_int_t)f,
 				                 "pixels", (json_int_t)reg->count[id], "class",
 				                 classes->names[d.cls], "label",
 				                 region_label(&d, set, classes), "posterior",
-				                 ap_json_num(d.posterior), "composition", cj));
+				                 ap_json_num(d.posterior), "composition", cj, "pixel_class",
+				                 pc >= 0 && pc < nc ? json_string(classes->names[pc])
+				                                    : json_null()));
 			listed++;
 		}
 	}

@@ -115,6 +115,51 @@ PYEOF
 
 session "$T/site" "$FIX/demo/site_camera.csv" A || { echo "FAIL: the README's session"; exit 1; }
 check_regions "$T/site" "site camera, A"
+# warnings WHAT OUTDIR PATTERN WANT: process.json (object and session lists) and
+# report.html hold a warning matching PATTERN (WANT 1) or none (WANT 0)
+warnings() {
+	"$PY" - "$@" <<'PYEOF' || fail=1
+import json, re, sys
+what, out, pat, want = sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[4] == "1"
+pj = json.load(open(out + "/process.json"))
+obj = [w for o in pj["objects"] for w in o.get("warnings", [])]
+top = pj.get("warnings", [])
+html = open(out + "/report.html").read()
+hit = [w for w in obj if re.search(pat, w)]
+for w in hit:
+    print("%s: warning: %s" % (what, w))
+ok = bool(hit) == want and bool([w for w in top if re.search(pat, w)]) == want
+if want and hit:
+    # the report escapes the text; its first words are enough
+    ok = ok and hit[0][:40] in html
+if not ok:
+    print("FAIL: %s: a warning /%s/ %s in process.json and the report" %
+          (what, pat, "expected" if want else "not expected")); sys.exit(1)
+PYEOF
+}
+S=$T/site
+warnings "site camera, A" "$S/out" "decided unknown|region.*decided otherwise" 0
+# the pooled test without the model's error (model_rsd removed): unknown regions, warned
+"$PY" -c 'import json, sys
+d = json.load(open(sys.argv[1]))
+for m in d["materials"]: m.pop("model_rsd", None)
+json.dump(d, open(sys.argv[2], "w"))' "$FIX/materials/default.json" "$T/norsd.json"
+"$KOGEI" process "$S/S" --spectra "$S/chart.cgats" -o "$T/norsd" --materials "$T/norsd.json" \
+	>"$T/norsd.log" 2>&1 || { cat "$T/norsd.log"; fail=1; }
+n=$(grep -c ',unknown,' "$T"/norsd/*/labels_regions.csv)
+echo "without model_rsd: $n of the 10 tile regions unknown"
+check_n() { [ "$n" -ge 1 ] || { echo "FAIL: expected unknown regions without model_rsd"; fail=1; }; }
+check_n
+warnings "without model_rsd" "$T/norsd" "$n regions? of 100 pixels or more decided unknown" 1
+grep -q "warning: .*decided unknown" "$T/norsd.log" ||
+	{ echo "FAIL: the summary does not print the unknown regions"; fail=1; }
+# copper and shakudo not declared: their pixels unknown, a large share of the object's
+"$KOGEI" process "$S/S" --spectra "$S/chart.cgats" -o "$T/only" \
+	--only gold,silver,shibuichi-nami,shibuichi-shiro,shibuichi-jo,shibuichi-nami-uchisanbu,shibuichi-nami-sotosanbu,urushi \
+	>"$T/only.log" 2>&1 || { cat "$T/only.log"; fail=1; }
+warnings "copper and shakudo undeclared" "$T/only" "% of the object's pixels are unknown" 1
+warnings "site camera, A (all declared)" "$S/out" "% of the object's pixels are unknown" 0
+
 D5100=$ROOT/../shared/reference/cameras/Nikon_D5100.csv
 if [ -r "$D5100" ]; then
 	session "$T/nikon" "$D5100" D50 || { echo "FAIL: the session through a D5100"; exit 1; }
