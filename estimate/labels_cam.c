@@ -23,7 +23,9 @@
  * its share of a pixel's variance, N pixels weigh as N / (1 + N f) independent ones, so
  * the pooled differences are scaled by 1 / (1 + N f). A compound class resolves into
  * one material where that material's share of the class's pooled posterior is 0.99 or
- * more. */
+ * more. The region's "unknown" test adds the decided material's own model error (its
+ * model_rsd: the spread of published optical constants, the alloy rule, a template's
+ * scatter), also one error for the whole region, to f. */
 #include <float.h>
 #include <math.h>
 #include <stdlib.h>
