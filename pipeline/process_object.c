@@ -5,6 +5,7 @@
  * the folders in place when every one is complete (process_outdir.c). */
 #include <ftw.h>
 #include <math.h>
+#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -384,21 +385,34 @@ static int classes_json(proc *p, const char *labels_json, const kg_est_material_
  * hold. Regions of the table only (100 pixels or more); at most PROC_LABEL_LIST named
  * per warning. */
 #define PROC_LABEL_LIST 8
-static void label_warnings(proc *p, const proc_capture *c, json_t *object)
+static void add_warning(json_t *list, const char *fmt, ...) KG_PRINTF(2, 3);
+static void add_warning(json_t *list, const char *fmt, ...)
 {
-	json_t *warnings = json_object_get(object, "warnings");
+	char msg[2048];
+	va_list ap;
+	va_start(ap, fmt);
+	vsnprintf(msg, sizeof(msg), fmt, ap);
+	va_end(ap);
+	json_array_append_new(list, json_string(msg));
+}
+
+json_t *proc_label_warnings(const char *capture, const json_t *object)
+{
+	json_t *warnings = json_array();
+	if (!warnings)
+		return NULL;
 	double unk = json_number_value(json_object_get(object, "unknown_fraction"));
 	double bg = json_number_value(json_object_get(object, "background_fraction"));
 	double unc = json_number_value(json_object_get(object, "unclassified_fraction"));
 	double obj = 1.0 - bg - unc;
 	if (obj > 0 && unk / obj >= PROC_UNKNOWN_SHARE)
-		proc_warn(p, warnings, "capture %s: %.1f %% of the object's pixels are unknown "
+		add_warning(warnings, "capture %s: %.1f %% of the object's pixels are unknown "
 		          "(%.1f %% of the frame): no declared material explains them within its "
 		          "noise; declare the missing material or check the calibration",
-		          c->name, 100 * unk / obj, 100 * unk);
+		          capture, 100 * unk / obj, 100 * unk);
 	if (bg >= PROC_BACKGROUND_SHARE)
-		proc_warn(p, warnings, "capture %s: %.1f %% of the pixels are background (masked "
-		          "out or dark): the object covers little of the frame", c->name, 100 * bg);
+		add_warning(warnings, "capture %s: %.1f %% of the pixels are background (masked "
+		          "out or dark): the object covers little of the frame", capture, 100 * bg);
 	const json_t *table = json_object_get(json_object_get(object, "regions"), "table");
 	char unknown_list[512] = "", changed_list[1024] = "";
 	int nunknown = 0, nchanged = 0;
@@ -436,16 +450,17 @@ static void label_warnings(proc *p, const proc_capture *c, json_t *object)
 		}
 	}
 	if (nunknown)
-		proc_warn(p, warnings, "capture %s: %d region%s of 100 pixels or more decided "
+		add_warning(warnings, "capture %s: %d region%s of 100 pixels or more decided "
 		          "unknown (%ld pixels; no declared material explains the region within its "
-		          "noise, calibration and model error): %s%s", c->name, nunknown,
+		          "noise, calibration and model error): %s%s", capture, nunknown,
 		          nunknown == 1 ? "" : "s", unknown_px, unknown_list,
 		          nunknown > PROC_LABEL_LIST ? ", ..." : "");
 	if (nchanged)
-		proc_warn(p, warnings, "capture %s: %d region%s decided otherwise than the class "
-		          "%s pixels hold (the pooled likelihood over the region): %s%s", c->name,
+		add_warning(warnings, "capture %s: %d region%s decided otherwise than the class "
+		          "%s pixels hold (the pooled likelihood over the region): %s%s", capture,
 		          nchanged, nchanged == 1 ? "" : "s", nchanged == 1 ? "its" : "their",
 		          changed_list, nchanged > PROC_LABEL_LIST ? "; ..." : "");
+	return warnings;
 }
 
 /* A source whose rows also go to the photograph's preview as they pass. */
@@ -879,8 +894,14 @@ static int process_into(proc *p, const proc_capture *c, const char *dir, double 
 	const char *fallback = set->names[set->n - 1];
 	if (!ret)
 		ret = classes_json(p, ljson, set, object, class_map, fallback);
-	if (!ret)
-		label_warnings(p, c, object);
+	if (!ret) {
+		json_t *lw = proc_label_warnings(c->name, object);
+		size_t i;
+		json_t *w;
+		json_array_foreach(lw, i, w)
+			proc_warn(p, json_object_get(object, "warnings"), "%s", json_string_value(w));
+		json_decref(lw);
+	}
 	if (!ret)
 		ret = confidence_png(conf, confpng, 1200, err);
 	if (!ret)
