@@ -443,20 +443,24 @@ static int parse_template(const char *label, const json_t *t, kg_material_templa
 	return 0;
 }
 
-/* A coupon template's own scatter: its pixels' sd per channel relative to the mean,
- * the largest over its views (it replaces the published constants' spread). */
+/* A coupon template's own scatter: its pixels' sd per channel over the mean reading's
+ * level l = |mean| / sqrt(3) (as model_rsd), the largest over its views (it replaces
+ * the published constants' spread). */
 static void template_rsd(const kg_material_template *t, double out[3])
 {
 	if (t->n < 1)
 		return;
 	for (int c = 0; c < 3; c++)
 		out[c] = 0;
-	for (int v = 0; v < t->n; v++)
+	for (int v = 0; v < t->n; v++) {
+		const double *m = t->mean[v];
+		double l = sqrt((m[0] * m[0] + m[1] * m[1] + m[2] * m[2]) / 3.0);
 		for (int c = 0; c < 3; c++) {
-			double m = t->mean[v][c], var = t->cov[v][4 * c];
-			if (m > 0 && var > 0)
-				out[c] = fmax(out[c], fmin(1.0, sqrt(var) / m));
+			double var = t->cov[v][4 * c];
+			if (l > 0 && var > 0)
+				out[c] = fmax(out[c], fmin(1.0, sqrt(var) / l));
 		}
+	}
 }
 
 static int parse_common(const char *file, int i, const json_t *entry,

@@ -365,12 +365,15 @@ static void library_files(void)
 		          cu->tmpl.cov[1][0] == 2e-4 && cu->tmpl.mean[0][2] == 0.3 &&
 		          cu->tmpl.pixels[0] == 500,
 		      "the template read back");
-		/* a template's own scatter is its model error: sd / mean, the largest view */
-		CHECK(cu && fabs(cu->model_rsd[0] - sqrt(2e-4) / 0.5) < 1e-12 &&
-		          fabs(cu->model_rsd[2] - sqrt(1e-4) / 0.3) < 1e-12,
+		/* a template's own scatter is its model error: sd over the mean's level
+		 * |mean| / sqrt(3), the largest view */
+		double l = sqrt((0.5 * 0.5 + 0.4 * 0.4 + 0.3 * 0.3) / 3.0);
+		CHECK(cu && fabs(cu->model_rsd[0] - sqrt(2e-4) / l) < 1e-12 &&
+		          fabs(cu->model_rsd[1] - sqrt(1e-4) / l) < 1e-12 &&
+		          fabs(cu->model_rsd[2] - sqrt(1e-4) / l) < 1e-12,
 		      "template model_rsd %g %g %g, expected %g, %g, %g", cu ? cu->model_rsd[0] : 0,
-		      cu ? cu->model_rsd[1] : 0, cu ? cu->model_rsd[2] : 0, sqrt(2e-4) / 0.5,
-		      sqrt(1e-4) / 0.4, sqrt(1e-4) / 0.3);
+		      cu ? cu->model_rsd[1] : 0, cu ? cu->model_rsd[2] : 0, sqrt(2e-4) / l,
+		      sqrt(1e-4) / l, sqrt(1e-4) / l);
 		kg_material_library_free(&lib);
 	}
 #undef VIEW
