@@ -23,7 +23,9 @@
  * its share of a pixel's variance, N pixels weigh as N / (1 + N f) independent ones, so
  * the pooled differences are scaled by 1 / (1 + N f). A compound class resolves into
  * one material where that material's share of the class's pooled posterior is 0.99 or
- * more. */
+ * more. The region's "unknown" test adds the decided material's own model error (its
+ * model_rsd: the spread of published optical constants, the alloy rule, a template's
+ * scatter), also one error for the whole region, to f. */
 #include <float.h>
 #include <math.h>
 #include <stdlib.h>
@@ -120,6 +122,7 @@ typedef struct cam_run {
 	int nm, nc;   /* materials, classes */
 	int group[KG_EST_MAX_MATERIALS];   /* material -> class index */
 	double threshold;                  /* unknown above; +Inf: no test */
+	double model_tr[KG_EST_MAX_MATERIALS]; /* the materials' model relative variances */
 	int dof;                           /* of a pixel's d2 */
 	/* composition: the pure metals' readings (silver, copper, gold) at the model's
 	 * angles, and which materials are made of them */
@@ -147,7 +150,7 @@ static cam_planes cam_planes_of(const cam_run *r, void *in, size_t n)
 	c.angle = p + 10 * n;
 	c.scale = p + 11 * n;
 	c.best = p + 12 * n;
-	c.fshare = p + 13 * n; /* the calibration's share of the pixel's noise */
+	c.fshare = p + 13 * n; /* l^2 / tr(C): a systematic term's share per unit trace */
 	c.comp = p + 14 * n;   /* 6 per pixel: Ag, Cu, Au fractions, their sds */
 	c.d2 = p + 20 * n;
 	return c;
@@ -309,7 +312,6 @@ static void cam_compute(void *user, void *inbuf, size_t n, uint8_t *labels, floa
 	planes pl = ap_feed_planes(&r->in, inbuf, n);
 	cam_planes cp = cam_planes_of(r, inbuf, n);
 	const float c0 = r->in.clip3[0], c1 = r->in.clip3[1], c2 = r->in.clip3[2];
-	const double Rtr = r->nz.R[0] + r->nz.R[4] + r->nz.R[8];
 	/* Pixels refused before matching (masked out, flagged, dark) are labelled here;
 	 * the others are packed to the front of x and cov (their indices in idx, which
 	 * borrows the posterior plane), matched, and their results spread back. */
@@ -341,9 +343,11 @@ static void cam_compute(void *user, void *inbuf, size_t n, uint8_t *labels, floa
 				cp.x[3 * m + a] = (float)x[a];
 			for (int e = 0; e < 6; e++)
 				cp.cov[6 * m + e] = (float)c[e];
+			/* l^2 / tr(C): times a relative variance's trace, its share of the
+			 * pixel's noise */
 			double tot = c[0] + c[3] + c[5];
-			double cal = (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]) / 3.0 * Rtr;
-			cp.fshare[i] = tot > 0 && isfinite(tot) ? (float)(cal / tot) : 0.0f;
+			double lev = (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]) / 3.0;
+			cp.fshare[i] = tot > 0 && isfinite(tot) ? (float)(lev / tot) : 0.0f;
 			labels[i] = 0xff; /* to be matched */
 			idx[m++] = (uint32_t)i;
 		}
@@ -440,7 +444,9 @@ typedef struct regions {
 	uint8_t *label;
 	uint64_t *count;
 	double *d2;        /* nm per id */
-	double *f_sum;     /* calibration share of the pixel's noise, summed */
+	double *f_sum;     /* l^2 / tr(C) of the pixels, summed */
+	double cal_tr;     /* the calibration residual's relative covariance: its trace */
+	const double *model_tr; /* per material, its model's relative covariance's trace */
 	double *comp;      /* 6 per id: sum of c / sd^2 and of 1 / sd^2 for Ag, Cu, Au */
 	uint32_t n, cap;
 	run_seg *prev, *cur;
@@ -676,8 +682,10 @@ typedef struct region_decision {
 static region_decision decide(const regions *g, uint32_t id, const int *group, int nc)
 {
 	const double *D = g->d2 + (size_t)id * g->nm;
-	double N = (double)g->count[id], f = g->f_sum[id] / N;
-	double s = 1.0 / (1.0 + N * f);
+	double N = (double)g->count[id], lev = g->f_sum[id] / N;
+	/* the comparison between materials: the calibration's error is one error for the
+	 * whole region */
+	double s = 1.0 / (1.0 + N * lev * g->cal_tr);
 	double dmin = INFINITY, pc[KG_EST_MAX_MATERIALS] = {0}, sum = 0, w[KG_EST_MAX_MATERIALS];
 	for (int j = 0; j < g->nm; j++)
 		dmin = fmin(dmin, D[j]);
@@ -703,10 +711,13 @@ static region_decision decide(const regions *g, uint32_t id, const int *group, i
 		r.posterior = w[jbest] / sum;
 	}
 	r.d2_mean = D[jbest] / N;
-	/* the pooled unknown test: the best material's summed d2, scaled like the
-	 * differences (the calibration's error is one error for the whole region), against
-	 * chi-square with dof N s degrees of freedom (its 99.9 % point; Wilson-Hilferty
-	 * above 1000) */
+	/* the pooled unknown test: the decided member's summed d2 against chi-square with
+	 * dof N s degrees of freedom (its 99.9 % point; Wilson-Hilferty above 1000), s
+	 * now with the material's own model error beside the calibration's: both are one
+	 * error for the whole region. (The model error is left out of the comparison
+	 * between materials: the published constants' spread moves the predictions of
+	 * every material made of the same metals together.) */
+	s = 1.0 / (1.0 + N * lev * (g->cal_tr + (g->model_tr ? g->model_tr[jbest] : 0.0)));
 	double dof = ceil(g->dof * N * s), q;
 	if (dof <= 1000) {
 		/* one bisection per degree of freedom, not per region */
@@ -719,7 +730,7 @@ static region_decision decide(const regions *g, uint32_t id, const int *group, i
 		double h = 2.0 / (9.0 * dof), z = 3.090232306167813;
 		q = dof * pow(1.0 - h + z * sqrt(h), 3.0);
 	}
-	r.unknown = s * dmin > q;
+	r.unknown = s * D[jbest] > q;
 	return r;
 }
 
@@ -729,7 +740,7 @@ static region_decision decide(const regions *g, uint32_t id, const int *group, i
 static void region_composition(const regions *g, uint32_t id, double gold_range, double out[6])
 {
 	const double *a = g->comp + 6 * (size_t)id;
-	double N = (double)g->count[id], f = g->f_sum[id] / N;
+	double N = (double)g->count[id], f = g->f_sum[id] / N * g->cal_tr;
 	for (int q = 0; q < 3; q++) {
 		out[q] = a[3 + q] > 0 ? a[q] / a[3 + q] : NAN;
 		out[3 + q] = a[3 + q] > 0 ? sqrt((1.0 + N * f) / a[3 + q]) : NAN;
@@ -1239,9 +1250,11 @@ static int write_json(const char *path, const kg_est_material_set *set,
 	                                "(f: the calibration's share of a pixel's noise, which "
 	                                "pooling does not reduce); a compound class resolves to "
 	                                "a member whose share of its posterior is >= 0.99; "
-	                                "'unknown' when the best material's summed d2, scaled "
-	                                "the same, exceeds the 99.9 % point of chi-square with "
-	                                "dof N / (1 + N f) degrees of freedom"));
+	                                "'unknown' when the decided material's summed d2, scaled "
+	                                "by 1 / (1 + N f') with f' the calibration's and the "
+	                                "material's own model error's (model_rsd) share, "
+	                                "exceeds the 99.9 % point of chi-square with dof "
+	                                "N / (1 + N f') degrees of freedom"));
 	json_t *table = json_array();
 	if (reg->on && !reg->overflow && reg->final) {
 		int listed = 0;
@@ -1258,12 +1271,16 @@ static int write_json(const char *path, const kg_est_material_set *set,
 				               ap_json_num(c[1]), "au", ap_json_num(c[2]), "sd_ag",
 				               ap_json_num(c[3]), "sd_cu", ap_json_num(c[4]), "sd_au",
 				               ap_json_num(c[5]));
+			/* connected components: the class its pixels hold */
+			int pc = reg->user ? -1 : (int)reg->label[id] - 1;
 			json_array_append_new(
-				table, json_pack("{s:I,s:I,s:s,s:s,s:o,s:o}", "region", (json_int_t)f,
+				table, json_pack("{s:I,s:I,s:s,s:s,s:o,s:o,s:o}", "region", (json_int_t)f,
 				                 "pixels", (json_int_t)reg->count[id], "class",
 				                 classes->names[d.cls], "label",
 				                 region_label(&d, set, classes), "posterior",
-				                 ap_json_num(d.posterior), "composition", cj));
+				                 ap_json_num(d.posterior), "composition", cj, "pixel_class",
+				                 pc >= 0 && pc < nc ? json_string(classes->names[pc])
+				                                    : json_null()));
 			listed++;
 		}
 	}
@@ -1584,6 +1601,12 @@ int kg_classify_camera_rows(const kg_est_kernel *k, const kg_est_material_set *s
 	local.unknown_threshold = run.threshold;
 	local.dof = run.dof;
 	sink.reg.dof = run.dof;
+	sink.reg.cal_tr = run.nz.R[0] + run.nz.R[4] + run.nz.R[8];
+	for (int j = 0; j < nm; j++) {
+		const double *u = set->mats[j]->model_rsd;
+		run.model_tr[j] = u[0] * u[0] + u[1] * u[1] + u[2] * u[2];
+	}
+	sink.reg.model_tr = run.model_tr;
 
 	if ((rc = kg_apply_side_path(out_hdr, "_confidence.hdr", &conf_path, err)) ||
 	    (rc = kg_apply_side_path(out_hdr, ".json", &json_path, err)) ||

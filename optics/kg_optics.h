@@ -189,6 +189,10 @@ typedef struct kg_material {
 	double gloss;
 	double mirror;
 	kg_material_template tmpl; /* optional, any kind ("template" in the library file) */
+	/* The prediction's own relative sd per camera channel (r, g, b): the spread of the
+	 * published optical constants, the alloy mixing rule ("model_rsd"); for a coupon
+	 * template, its pixels' relative scatter. 0: none known. */
+	double model_rsd[3];
 } kg_material;
 
 /* Check a material: finite n >= 0 and k >= 0, alloy fractions in [0, 1] summing to 1

@@ -219,7 +219,7 @@ const kg_material *kg_material_library_find(const kg_material_library *lib, cons
 /* Keys an entry may have, by kind (the common ones first). */
 static const char *const common_keys[] = {"name", "kind", "note", "source", "roughness",
                                           "mirror_width", "gloss", "mirror", "template",
-                                          NULL};
+                                          "model_rsd", NULL};
 static const char *const metal_keys[] = {"nk", "extrapolate", NULL};
 static const char *const alloy_keys[] = {"components", NULL};
 static const char *const dielectric_keys[] = {"n", "body", NULL};
@@ -443,6 +443,26 @@ static int parse_template(const char *label, const json_t *t, kg_material_templa
 	return 0;
 }
 
+/* A coupon template's own scatter: its pixels' sd per channel over the mean reading's
+ * level l = |mean| / sqrt(3) (as model_rsd), the largest over its views (it replaces
+ * the published constants' spread). */
+static void template_rsd(const kg_material_template *t, double out[3])
+{
+	if (t->n < 1)
+		return;
+	for (int c = 0; c < 3; c++)
+		out[c] = 0;
+	for (int v = 0; v < t->n; v++) {
+		const double *m = t->mean[v];
+		double l = sqrt((m[0] * m[0] + m[1] * m[1] + m[2] * m[2]) / 3.0);
+		for (int c = 0; c < 3; c++) {
+			double var = t->cov[v][4 * c];
+			if (l > 0 && var > 0)
+				out[c] = fmax(out[c], fmin(1.0, sqrt(var) / l));
+		}
+	}
+}
+
 static int parse_common(const char *file, int i, const json_t *entry,
                         const kg_material_library *lib, kg_material *m, char *label,
                         size_t labelsz, kg_err *err)
@@ -482,8 +502,26 @@ static int parse_common(const char *file, int i, const json_t *entry,
 	    (r = opt_number(label, entry, "gloss", DEFAULT_GLOSS, &m->gloss, err)) ||
 	    (r = opt_number(label, entry, "mirror", DEFAULT_MIRROR, &m->mirror, err)))
 		return r;
-	if (json_object_get(entry, "template"))
-		return parse_template(label, json_object_get(entry, "template"), &m->tmpl, err);
+	const json_t *u = json_object_get(entry, "model_rsd");
+	if (u) {
+		if (!json_is_array(u) || json_array_size(u) != 3)
+			return kg_fail(err, KG_EINVAL, "%s: field model_rsd: expected an array of 3 "
+			               "relative sds (r, g, b), each from 0 to 1", label);
+		for (size_t c = 0; c < 3; c++) {
+			const json_t *v = json_array_get(u, c);
+			double d = json_is_number(v) ? json_number_value(v) : NAN;
+			if (!(d >= 0 && d <= 1))
+				return kg_fail(err, KG_EINVAL, "%s: field model_rsd[%zu]: expected a "
+				               "relative sd from 0 to 1", label, c);
+			m->model_rsd[c] = d;
+		}
+	}
+	if (json_object_get(entry, "template")) {
+		r = parse_template(label, json_object_get(entry, "template"), &m->tmpl, err);
+		if (r)
+			return r;
+		template_rsd(&m->tmpl, m->model_rsd);
+	}
 	return 0;
 }
 

@@ -68,6 +68,10 @@ typedef struct proc {
 
 /* A warning: kept for process.json and the report, and printed on progress. */
 void proc_warn(proc *p, json_t *list, const char *fmt, ...) KG_PRINTF(3, 4);
+/* What an object's labels do not know (process_object.c; its process.json entry with
+ * unknown_fraction, background_fraction, unclassified_fraction and regions.table): a
+ * new array of warning strings, maybe empty; NULL when out of memory. */
+json_t *proc_label_warnings(const char *capture, const json_t *object);
 /* A progress line ("kogei process: ..."). */
 void proc_progress(proc *p, const char *fmt, ...) KG_PRINTF(2, 3);
 

@@ -5,6 +5,7 @@
  * the folders in place when every one is complete (process_outdir.c). */
 #include <ftw.h>
 #include <math.h>
+#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -33,6 +34,9 @@ static void remove_tree(const char *dir)
 #define PROC_UNDER_LEVEL 0.5
 /* A pixel is lit when a channel is above this many sigmas of its noise. */
 #define PROC_LIT_SIGMAS 5.0
+/* label warnings: unknown pixels among the object's, background pixels in the frame */
+#define PROC_UNKNOWN_SHARE 0.25
+#define PROC_BACKGROUND_SHARE 0.99
 
 static const char *cam_str(const proc_capture *c, const char *key)
 {
@@ -372,6 +376,91 @@ static int classes_json(proc *p, const char *labels_json, const kg_est_material_
 			json_object_set(object, keep[k], json_object_get(lj, keep[k]));
 	json_decref(lj);
 	return 0;
+}
+
+/* What the labels do not know, as warnings (process.json's object and session lists,
+ * the report, the summary): regions decided unknown, a large share of unknown pixels
+ * among the object's (those not background or unclassified) or of background pixels
+ * in the frame, and regions whose decided label is not in the class their pixels
+ * hold. Regions of the table only (100 pixels or more); at most PROC_LABEL_LIST named
+ * per warning. */
+#define PROC_LABEL_LIST 8
+static void add_warning(json_t *list, const char *fmt, ...) KG_PRINTF(2, 3);
+static void add_warning(json_t *list, const char *fmt, ...)
+{
+	char msg[2048];
+	va_list ap;
+	va_start(ap, fmt);
+	vsnprintf(msg, sizeof(msg), fmt, ap);
+	va_end(ap);
+	json_array_append_new(list, json_string(msg));
+}
+
+json_t *proc_label_warnings(const char *capture, const json_t *object)
+{
+	json_t *warnings = json_array();
+	if (!warnings)
+		return NULL;
+	double unk = json_number_value(json_object_get(object, "unknown_fraction"));
+	double bg = json_number_value(json_object_get(object, "background_fraction"));
+	double unc = json_number_value(json_object_get(object, "unclassified_fraction"));
+	double obj = 1.0 - bg - unc;
+	if (obj > 0 && unk / obj >= PROC_UNKNOWN_SHARE)
+		add_warning(warnings, "capture %s: %.1f %% of the object's pixels are unknown "
+		          "(%.1f %% of the frame): no declared material explains them within its "
+		          "noise; declare the missing material or check the calibration",
+		          capture, 100 * unk / obj, 100 * unk);
+	if (bg >= PROC_BACKGROUND_SHARE)
+		add_warning(warnings, "capture %s: %.1f %% of the pixels are background (masked "
+		          "out or dark): the object covers little of the frame", capture, 100 * bg);
+	const json_t *table = json_object_get(json_object_get(object, "regions"), "table");
+	char unknown_list[512] = "", changed_list[1024] = "";
+	int nunknown = 0, nchanged = 0;
+	long unknown_px = 0;
+	size_t i;
+	const json_t *r;
+	json_array_foreach(table, i, r)
+	{
+		const char *label = json_string_value(json_object_get(r, "label"));
+		const char *pc = json_string_value(json_object_get(r, "pixel_class"));
+		long id = (long)json_integer_value(json_object_get(r, "region"));
+		long px = (long)json_integer_value(json_object_get(r, "pixels"));
+		if (!label)
+			continue;
+		if (!strcmp(label, "unknown")) {
+			if (nunknown < PROC_LABEL_LIST) {
+				size_t u = strlen(unknown_list);
+				snprintf(unknown_list + u, sizeof(unknown_list) - u, "%s%ld (%ld px%s%s)",
+				         nunknown ? ", " : "", id, px, pc ? ", pixels " : "", pc ? pc : "");
+			}
+			nunknown++;
+			unknown_px += px;
+			continue;
+		}
+		/* a compound label is its class; a member is in it */
+		int held = !pc || !strcmp(label, pc) || kg_class_holds(pc, label);
+		if (!held) {
+			if (nchanged < PROC_LABEL_LIST) {
+				size_t u = strlen(changed_list);
+				snprintf(changed_list + u, sizeof(changed_list) - u,
+				         "%s%ld (%ld px): pixels %s, region %s", nchanged ? "; " : "", id, px,
+				         pc, label);
+			}
+			nchanged++;
+		}
+	}
+	if (nunknown)
+		add_warning(warnings, "capture %s: %d region%s of 100 pixels or more decided "
+		          "unknown (%ld pixels; no declared material explains the region within its "
+		          "noise, calibration and model error): %s%s", capture, nunknown,
+		          nunknown == 1 ? "" : "s", unknown_px, unknown_list,
+		          nunknown > PROC_LABEL_LIST ? ", ..." : "");
+	if (nchanged)
+		add_warning(warnings, "capture %s: %d region%s decided otherwise than the class "
+		          "%s pixels hold (the pooled likelihood over the region): %s%s", capture,
+		          nchanged, nchanged == 1 ? "" : "s", nchanged == 1 ? "its" : "their",
+		          changed_list, nchanged > PROC_LABEL_LIST ? "; ..." : "");
+	return warnings;
 }
 
 /* A source whose rows also go to the photograph's preview as they pass. */
@@ -805,6 +894,14 @@ static int process_into(proc *p, const proc_capture *c, const char *dir, double 
 	const char *fallback = set->names[set->n - 1];
 	if (!ret)
 		ret = classes_json(p, ljson, set, object, class_map, fallback);
+	if (!ret) {
+		json_t *lw = proc_label_warnings(c->name, object);
+		size_t i;
+		json_t *w;
+		json_array_foreach(lw, i, w)
+			proc_warn(p, json_object_get(object, "warnings"), "%s", json_string_value(w));
+		json_decref(lw);
+	}
 	if (!ret)
 		ret = confidence_png(conf, confpng, 1200, err);
 	if (!ret)

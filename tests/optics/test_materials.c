@@ -111,6 +111,11 @@ static void default_library(void)
 		CHECK(kg_material_library_find(lib, default_names[i]) == m, "find %s",
 		      default_names[i]);
 		CHECK(kg_material_validate(m, &e) == 0, "%s", e.msg);
+		/* every library material carries its prediction's own error (README.md) */
+		CHECK(m->model_rsd[0] > 0 && m->model_rsd[1] > 0 && m->model_rsd[2] > 0 &&
+		          m->model_rsd[0] < 0.2 && m->model_rsd[1] < 0.2 && m->model_rsd[2] < 0.2,
+		      "%s: model_rsd %g %g %g, expected in (0, 0.2)", m->name, m->model_rsd[0],
+		      m->model_rsd[1], m->model_rsd[2]);
 		reflectance_sweep(m);
 		kg_spectrum r0;
 		kg_material_reflectance(m, 0, &r0, NULL);
@@ -328,6 +333,13 @@ static void library_files(void)
 	bad_library(HEAD "{\"name\": \"l\", \"kind\": \"dielectric\", \"n\": 1.5, \"body\": "
 	            "1.5}]}", "'l'", "body");
 	bad_library(HEAD "]}", "materials", NULL);
+	/* the prediction's own error */
+	bad_library(HEAD "{\"name\": \"cu\", \"kind\": \"metal\", \"model_rsd\": [0.01, 0.02], "
+	            "\"nk\": {\"model\": \"rakic1998-ld\", \"element\": \"Cu\"}}]}", "'cu'",
+	            "model_rsd");
+	bad_library(HEAD "{\"name\": \"cu\", \"kind\": \"metal\", \"model_rsd\": [0.01, -1, 0], "
+	            "\"nk\": {\"model\": \"rakic1998-ld\", \"element\": \"Cu\"}}]}", "'cu'",
+	            "model_rsd[1]");
 	/* coupon templates (kogei materials learn) */
 #define CU_T(views) "{\"name\": \"cu\", \"kind\": \"metal\", " \
 	"\"nk\": {\"model\": \"rakic1998-ld\", \"element\": \"Cu\"}, " \
@@ -353,6 +365,15 @@ static void library_files(void)
 		          cu->tmpl.cov[1][0] == 2e-4 && cu->tmpl.mean[0][2] == 0.3 &&
 		          cu->tmpl.pixels[0] == 500,
 		      "the template read back");
+		/* a template's own scatter is its model error: sd over the mean's level
+		 * |mean| / sqrt(3), the largest view */
+		double l = sqrt((0.5 * 0.5 + 0.4 * 0.4 + 0.3 * 0.3) / 3.0);
+		CHECK(cu && fabs(cu->model_rsd[0] - sqrt(2e-4) / l) < 1e-12 &&
+		          fabs(cu->model_rsd[1] - sqrt(1e-4) / l) < 1e-12 &&
+		          fabs(cu->model_rsd[2] - sqrt(1e-4) / l) < 1e-12,
+		      "template model_rsd %g %g %g, expected %g, %g, %g", cu ? cu->model_rsd[0] : 0,
+		      cu ? cu->model_rsd[1] : 0, cu ? cu->model_rsd[2] : 0, sqrt(2e-4) / l,
+		      sqrt(1e-4) / l, sqrt(1e-4) / l);
 		kg_material_library_free(&lib);
 	}
 #undef VIEW
