@@ -35,6 +35,12 @@
 #define MAX_USER_REGIONS 65536
 #define RESOLVE_POSTERIOR 0.99
 #define TABLE_MIN_PIXELS 100 /* regions listed in LABELS.json */
+/* The neutral-diffuse alternative takes a pixel a material also fits only when its d2
+ * is less by this: the 99 % point of chi-square with 1 degree of freedom (the
+ * likelihood-ratio test of the flat spectrum against the material). A material that
+ * fits as well keeps the pixel: black lacquer at grazing incidence is mostly its
+ * neutral surface reflection. */
+#define NEUTRAL_MARGIN 6.63
 
 int kg_class_holds(const char *cls, const char *m)
 {
@@ -464,9 +470,11 @@ static void cam_compute(void *user, void *inbuf, size_t n, uint8_t *labels, floa
 			if (r->group[j] == cb)
 				mine += w;
 		}
-		if (cp.flat[i] < dmin && cp.flat[i] <= r->threshold) {
-			/* a flat spectrum fits better than every material: a neutral diffuse
-			 * surface (grey card, paper, cloth), not the nearest material */
+		if (cp.flat[i] <= r->threshold &&
+		    (dmin > r->threshold || cp.flat[i] + NEUTRAL_MARGIN < dmin)) {
+			/* a flat spectrum explains the pixel and fits clearly better than every
+			 * material (or no material fits): a neutral diffuse surface (grey card,
+			 * paper, cloth), not the nearest material */
 			labels[i] = r->background;
 			cp.post[i] = cp.angle[i] = cp.scale[i] = NAN;
 			for (int e = 0; e < 6; e++)
