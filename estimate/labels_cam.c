@@ -831,8 +831,8 @@ static void region_why(json_t *row, const regions *g, uint32_t id, const region_
 		why[0] = 0;
 	else if (d->unknown)
 		snprintf(why, sizeof(why), "refused as unknown on the pooled test: its pixels' mean "
-		         "d2 against the nearest material is %.2f (%d expected), and a misfit that "
-		         "small per pixel is certain over %llu pixels; each pixel alone reads %s",
+		         "d2 against the nearest material is %.2f (%d expected), a misfit that, "
+		         "pooled over %llu pixels, exceeds the bound; each pixel alone reads %s",
 		         d->d2_mean, g->dof, (unsigned long long)g->count[id], px);
 	else if (kg_class_holds(px, label))
 		snprintf(why, sizeof(why), "resolved: the pooled pixels single out %s within the "

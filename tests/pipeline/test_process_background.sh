@@ -140,6 +140,28 @@ aspect = key("samples") / key("lines")
 print("labels.png %dx%d, aspect %.3f, the capture's %.3f" % (w, h, w / h, aspect))
 assert abs(w / h - aspect) < 0.02 * aspect, (w, h, aspect)
 PY
+# One answer on every page: each region whose decision differs from its pixels' class
+# says so in labels.json (pixel_class, why), and the report says the map, legend,
+# spectra and render show the pixels' labels and gives the same why.
+check "regions that differ say why, in labels.json and the report" \
+	"$PY" - "$O/on-card/labels.json" "$O/report.html" <<'PY'
+import json, sys, html
+lj = json.load(open(sys.argv[1]))
+page = html.unescape(open(sys.argv[2]).read())
+rows = lj["regions"]["table"]
+assert rows and all("pixel_class" in r and "differs" in r for r in rows), rows[:2]
+diff = [r for r in rows if r["differs"]]
+for r in rows:
+    assert r["differs"] == (r["pixel_class"] != r["label"]), r
+    assert (r["why"] is not None) == r["differs"], r
+for r in rows[:40]:  # the report lists the first 40
+    if r["differs"]:
+        assert r["why"] in page, r["why"]
+if diff:
+    assert "show each pixel's own label. %d region" % len(diff) in page
+print("regions: %d listed, %d differ from their pixels' class, each with its why" % (
+    len(rows), len(diff)))
+PY
 sh "$(dirname "$0")/report_browser.sh" "$O/report.html" "$T/report.png" >"$T/out" 2>"$T/err"
 rc=$?
 if [ $rc = 77 ]; then echo "note: report in Chromium skipped: $(cat "$T/err")"
