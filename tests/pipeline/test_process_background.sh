@@ -30,7 +30,8 @@ run() { # command...: must exit 0
 	"$@" >"$T/out" 2>"$T/err" || { echo "FAIL: '$*' exited $?"; cat "$T/err"; fail=1; }
 }
 
-# The chart as the sim session has it; the materials on a 20 % grey card; and the card
+# The chart as the sim session has it (the site camera under CIE A); the materials on a
+# 20 % grey card (and again through the reference camera under D50); and the card
 # alone (one tile of a "material" that is the card itself: no surface reflection, the
 # card's flat body), for the background capture.
 sim_scenes "$T" || { echo "FAIL: simulated scenes"; exit 1; }
@@ -167,6 +168,26 @@ rc=$?
 if [ $rc = 77 ]; then echo "note: report in Chromium skipped: $(cat "$T/err")"
 elif [ $rc != 0 ]; then echo "FAIL: the report in Chromium"; cat "$T/out" "$T/err"; fail=1
 else cat "$T/out"; fi
+
+# ---- another camera and light: the reference camera under D50 -------------------------
+"$KOGEI" sim chart --layout cie-tcs-frame --spectra "$TCS" \
+	--camera "$FIX/demo/reference_camera.csv" --illuminant D50 --tilt 25 --tilt-axis 120 \
+	--rotate 5 --blur 1 --vignetting 0.1 --seed 2 --width 800 --height 600 --fov 40 \
+	--fill 0.85 --paper 0.85 --ink 0.03 --background 0.2 --white-level 0.9 \
+	--noise none --depth float -o "$T/chart2.tif" >/dev/null &&
+"$KOGEI" sim image --materials default --camera "$FIX/demo/reference_camera.csv" \
+	--illuminant D50 --angle 30 --patch-size 40 --gap 10 --columns 5 --background 0.2 \
+	--white-level 0.9 --size 800x600 --noise none --depth float \
+	-o "$T/card_object2.tif" --truth-labels "$T/card_truth2.hdr" >/dev/null ||
+	{ echo "FAIL: sim scenes of the second camera"; exit 1; }
+S2=$T/S2
+sim_acquire "$S2" dark "$T/chart2.tif" 10000 '&light=0' || fail=1
+sim_acquire "$S2" flat "$T/chart2.tif" 10000 '&uniform=0.6' || fail=1
+sim_acquire "$S2" chart "$T/chart2.tif" 10000 '' --layout cie-tcs-frame || fail=1
+sim_acquire "$S2" object "$T/card_object2.tif" 10000 '&seed=4' --name on-card || fail=1
+run "$KOGEI" process "$S2" --spectra "$T/chart.cgats" -o "$T/lab-d50" --quiet
+check "reference camera under D50: the card reads background, the materials keep theirs" \
+	"$PY" "$T/labels_check.py" "$T/lab-d50/on-card" "$T/card_truth2.hdr" "reference camera, D50"
 
 # ---- a background capture: the card alone gives the mask -----------------------------
 sim_acquire "$S" background "$T/card_alone.tif" 10000 '&seed=5' || fail=1
