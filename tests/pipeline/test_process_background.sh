@@ -63,6 +63,7 @@ run "$KOGEI" process "$S" --spectra "$T/chart.cgats" -o "$O" --quiet
 cat >"$T/labels_check.py" <<'PY'
 import json, sys, numpy as np
 d, truth_hdr, mode = sys.argv[1:4]
+least = float(sys.argv[4]) if len(sys.argv) > 4 else 0.95
 def envi(hdr):
     h = open(hdr).read()
     key = lambda k: h.split(k)[1].split("=")[1].split("\n")[0].strip()
@@ -79,7 +80,7 @@ share = (lab[card] == bg).mean()
 print("%s: card pixels read background: %.4f (%d pixels); urushi: %.4f" % (
     mode, share, card.sum(),
     np.mean([lnames[v].split("|").count("urushi") > 0 for v in lab[card]])))
-assert share >= 0.95, share
+assert share >= least, (share, least)
 # The tiles keep their labels: none is taken for the card (background at most 1 %),
 # and of the pixels the matcher labels (not unknown: how many are unknown is the
 # material model's error, not the background's) >= 95 % hold the tile's material.
@@ -109,6 +110,15 @@ for c in lj["classes"]:
 PY
 check "labels: the card reads background, the materials keep their labels" \
 	"$PY" "$T/labels_check.py" "$O/on-card" "$T/card_truth.hdr" "no mask"
+
+# The same capture through kogei classify with the noise model (no variance image: a
+# larger noise, where black lacquer at grazing incidence fits a grey card nearly as
+# well): the card still reads background (>= 90 %; 98.5 % measured).
+mkdir -p "$T/cls"
+run "$KOGEI" classify --calib "$O/camera.json" --materials default \
+	"$S/captures/on-card/rgb.tif" -o "$T/cls/labels.hdr"
+check "kogei classify, noise model: the card reads background" \
+	"$PY" "$T/labels_check.py" "$T/cls" "$T/card_truth.hdr" "classify, noise model" 0.90
 
 # scene.json: unknown and background are no library material; neither is the fallback.
 check "scene.json: unknown and background render as no library material" \
