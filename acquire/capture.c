@@ -20,21 +20,21 @@
 /* Below this there is too little signal to scale from. */
 #define HELPER_DARK 0.005
 
-static const char *const kind_names[] = {"chart", "object", "dark", "flat"};
+static const char *const kind_names[] = {"chart", "object", "dark", "flat", "background"};
 
 const char *kg_capture_kind_name(kg_capture_kind k)
 {
-	return (unsigned)k < 4 ? kind_names[k] : "unknown";
+	return (unsigned)k < 5 ? kind_names[k] : "unknown";
 }
 
 int kg_capture_kind_parse(const char *text, kg_capture_kind *out, kg_err *err)
 {
-	for (int i = 0; i < 4; i++)
+	for (int i = 0; i < 5; i++)
 		if (text && !strcmp(text, kind_names[i])) {
 			*out = (kg_capture_kind)i;
 			return 0;
 		}
-	return kg_fail(err, KG_EINVAL, "kind '%s': expected chart, object, dark or flat",
+	return kg_fail(err, KG_EINVAL, "kind '%s': expected chart, object, dark, flat or background",
 	               text ? text : "(none)");
 }
 

@@ -184,9 +184,11 @@ typedef enum kg_capture_kind {
 	KG_CAPTURE_OBJECT,
 	KG_CAPTURE_DARK,
 	KG_CAPTURE_FLAT,
+	KG_CAPTURE_BACKGROUND, /* the scene without the object: kogei process masks the
+	                          objects by their difference from it */
 } kg_capture_kind;
 
-/* "chart", "object", "dark", "flat". */
+/* "chart", "object", "dark", "flat", "background". */
 const char *kg_capture_kind_name(kg_capture_kind k);
 int kg_capture_kind_parse(const char *text, kg_capture_kind *out, kg_err *err);
 

@@ -12,7 +12,8 @@
 #include "kg_pipeline.h"
 
 static const char usage_acquire[] =
-	"kogei acquire --camera URI --out SESSION --kind chart|object|dark|flat [options]\n"
+	"kogei acquire --camera URI --out SESSION --kind chart|object|dark|flat|background\n"
+	"              [options]\n"
 	"  Take one capture: N frames averaged (mean and per-pixel variance, float32 TIFF),\n"
 	"  dark-subtracted and flat-field corrected, demosaiced when Bayer, and recorded\n"
 	"  into the session directory with its manifest (SESSION/session.json).\n"
@@ -244,7 +245,7 @@ int kg_cmd_acquire(int argc, char **argv)
 	if (!out)
 		return kg_cli_usage_error(usage_acquire, "--out SESSION is required");
 	if (!kind)
-		return kg_cli_usage_error(usage_acquire, "--kind chart|object|dark|flat is required");
+		return kg_cli_usage_error(usage_acquire, "--kind chart|object|dark|flat|background is required");
 	if (kg_capture_kind_parse(kind, &o.kind, &err))
 		return kg_cli_usage_error(usage_acquire, "--kind: %s", err.msg);
 	if (o.name && !kg_name_is_safe(o.name, KG_CAPTURE_NAME_MAX))

@@ -6,7 +6,7 @@
 #include "kg_config.h"
 
 static const kg_command commands[] = {
-	{"acquire", kg_cmd_acquire, "record camera frames into a session (chart, object, dark, flat)"},
+	{"acquire", kg_cmd_acquire, "record camera frames into a session (chart, object, dark, flat, background)"},
 	{"console", kg_cmd_console, "the operator's web console: live view, guided capture, processing"},
 	{"measure", kg_cmd_measure, "reflectance readings with a USB spectrometer (single spot or chart)"},
 	{"spectra xyz", kg_cmd_spectra_xyz, "CIE XYZ and CIELAB of the spectra in a CGATS file"},

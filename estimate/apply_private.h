@@ -100,6 +100,7 @@ int ap_check_options(const kg_classify_options *o, const kg_row_source *img, con
 json_t *ap_json_num(double v);
 json_t *ap_refusal_class(const kg_est_material_set *set, int label, uint64_t pixels, uint64_t total);
 void ap_preview_size(int width, int height, int *pw, int *ph);
-int ap_write_preview(const char *path, const kg_est_material_set *set, const uint8_t *labels, int pw, int ph, const kg_classify_result *res, kg_err *err);
+int ap_write_preview(const char *path, const kg_est_material_set *set, const uint8_t *labels,
+                     int pw, int ph, const kg_classify_result *res, int legend, kg_err *err);
 
 #endif

@@ -593,6 +593,9 @@ typedef struct kg_classify_options {
 	double unknown_threshold; /* > 0; 0: the 99.9 % point; INFINITY: no unknown test */
 	double background_level;  /* 0..1; 0: no low-signal test */
 	const kg_row_source *mask; /* 1 channel, the image's size; 0 = background, or NULL */
+	int preview_no_legend;    /* 1: the preview PNG is the map alone (a page that shows
+	                             it carries the legend itself, e.g. kogei process's
+	                             report) */
 } kg_classify_options;
 
 /* Defaults: distance plain, no variance (the noise model: noise_relative 0.01 and
@@ -691,6 +694,10 @@ typedef struct kg_classify_camera {
 	 * (kg_camera_reference_sha256), or NULL: a declared material's coupon template
 	 * learned through another reference is refused */
 	const char *reference_sha256;
+	/* 1: no neutral-diffuse alternative. By default a pixel that a flat reflectance
+	 * (at any level: F times a constant spectrum) fits better than every declared
+	 * material is `background` (a grey card, paper, cloth), not the nearest material. */
+	int no_neutral;
 } kg_classify_camera;
 
 /* 1 when class name cls ("a", or a compound "a|b|c") holds material m. */

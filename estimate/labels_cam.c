@@ -37,6 +37,14 @@
 #define MAX_USER_REGIONS 65536
 #define RESOLVE_POSTERIOR 0.99
 #define TABLE_MIN_PIXELS 100 /* regions listed in LABELS.json */
+/* The neutral-diffuse alternative takes a pixel a material also fits only when its d2
+ * is less by this (a likelihood ratio of e^0.5 = 1.65 in its favour). A material that
+ * fits about as well keeps the pixel: black lacquer at grazing incidence is mostly its
+ * neutral surface reflection. Measured (docs/estimate.md): a margin of 0 gives 994 of
+ * the 2303 urushi dome pixels of apply-classify-camera to background, 1 gives 11, 2
+ * gives 4; of a 20 % grey card's pixels under the noise model (no variance image)
+ * 99.4 %, 98.5 %, 95.2 % read background, 67 % at 4, 11 % at 6.63. */
+#define NEUTRAL_MARGIN 1.0
 
 int kg_class_holds(const char *cls, const char *m)
 {
@@ -131,14 +139,17 @@ typedef struct cam_run {
 	double gold_range;         /* of the declared Ag-Cu-Au materials' gold fractions */
 	float background_level;
 	uint8_t unknown, background;
+	int neutral;      /* the neutral-diffuse alternative is on */
+	uint8_t metal[KG_EST_MAX_MATERIALS]; /* the material is a metal or an alloy */
+	double white[3];  /* its reading: F times a flat reflectance of 1 */
 } cam_run;
 
 /* The extra planes after the feed's, per block of n pixels. */
 typedef struct cam_planes {
-	float *x, *cov, *post, *angle, *scale, *best, *fshare, *comp, *d2;
+	float *x, *cov, *post, *angle, *scale, *best, *fshare, *comp, *flat, *d2;
 } cam_planes;
 
-static size_t extra_floats(int nm) { return 3 + 6 + 5 + 6 + (size_t)nm; }
+static size_t extra_floats(int nm) { return 3 + 6 + 5 + 6 + 1 + (size_t)nm; }
 
 static cam_planes cam_planes_of(const cam_run *r, void *in, size_t n)
 {
@@ -152,7 +163,8 @@ static cam_planes cam_planes_of(const cam_run *r, void *in, size_t n)
 	c.best = p + 12 * n;
 	c.fshare = p + 13 * n; /* l^2 / tr(C): a systematic term's share per unit trace */
 	c.comp = p + 14 * n;   /* 6 per pixel: Ag, Cu, Au fractions, their sds */
-	c.d2 = p + 20 * n;
+	c.flat = p + 20 * n;   /* the neutral-diffuse alternative's d2 */
+	c.d2 = p + 21 * n;
 	return c;
 }
 
@@ -301,6 +313,28 @@ void est_composition_pixel(const kg_cs_model *metals, int k, const float *xf,
 	}
 }
 
+/* The neutral-diffuse alternative: min over s > 0 of (x - s w)^T C^-1 (x - s w), w the
+ * reading of a flat reflectance of 1 (any level: a grey card, paper, cloth); +Inf where
+ * C is not positive definite or the best level is not positive. */
+static double neutral_d2(const double w[3], const float *xf, const float *cf)
+{
+	double C[9] = {cf[0], cf[1], cf[2], cf[1], cf[3], cf[4], cf[2], cf[4], cf[5]}, Ci[9];
+	if (!(C[0] > 0) || kg_mat3_inverse(C, Ci) != 0)
+		return INFINITY;
+	double x[3] = {xf[0], xf[1], xf[2]}, Cw[3], Cx[3];
+	for (int a = 0; a < 3; a++) {
+		Cw[a] = Ci[3 * a] * w[0] + Ci[3 * a + 1] * w[1] + Ci[3 * a + 2] * w[2];
+		Cx[a] = Ci[3 * a] * x[0] + Ci[3 * a + 1] * x[1] + Ci[3 * a + 2] * x[2];
+	}
+	double ww = w[0] * Cw[0] + w[1] * Cw[1] + w[2] * Cw[2];
+	double wx = x[0] * Cw[0] + x[1] * Cw[1] + x[2] * Cw[2];
+	double xx = x[0] * Cx[0] + x[1] * Cx[1] + x[2] * Cx[2];
+	if (!(ww > 0) || !(wx > 0) || !(xx > 0))
+		return INFINITY;
+	double d = xx - wx * wx / ww;
+	return d > 0 ? d : 0;
+}
+
 /* exp(arg), with the arguments whose exp is 0 in double (below -745.2) answered without
  * libm's underflow path: most materials' weights in a posterior are these. */
 static inline double exp_or_zero(double arg) { return arg <= -750.0 ? 0.0 : exp(arg); }
@@ -356,6 +390,31 @@ static void cam_compute(void *user, void *inbuf, size_t n, uint8_t *labels, floa
 	kg_cs_block out = {best, NULL, NULL, cp.angle, cp.scale, cp.d2};
 	kg_cs_match_block(r->model, cp.x, cp.cov, m, &out);
 	const int nm = r->nm;
+	/* The neutral-diffuse alternative (x, cov and the match still packed). It is not
+	 * offered where the best material is a metal or an alloy whose own prediction (at
+	 * its fitted angle and intensity) is itself within the unknown bound of a flat
+	 * spectrum at this pixel's noise: a near-neutral metal (silver, a silvery alloy)
+	 * and a grey surface as bright are not told apart by colour, and the pixel stays
+	 * the metal's (or unknown). A dielectric's near-neutral part is its surface
+	 * reflection, which a card shares: there the distances decide. */
+	for (size_t k = 0; k < m; k++) {
+		double d = INFINITY;
+		int near = 0;
+		if (r->neutral && best[k] != KG_CS_NO_MATCH && r->metal[best[k]]) {
+			const kg_cs_model *md = r->model;
+			double step = md->nangles > 1 ? md->angle_deg[1] - md->angle_deg[0] : 1.0;
+			int ka = (int)lround((cp.angle[k] - md->angle_deg[0]) / step);
+			ka = ka < 0 ? 0 : ka >= md->nangles ? md->nangles - 1 : ka;
+			const double *mu = md->mu + 3 * ((size_t)best[k] * md->nangles + ka);
+			float pred[3];
+			for (int a = 0; a < 3; a++)
+				pred[a] = (float)(cp.scale[k] * mu[a]);
+			near = neutral_d2(r->white, pred, cp.cov + 6 * k) <= r->threshold;
+		}
+		if (r->neutral && !near)
+			d = neutral_d2(r->white, cp.x + 3 * k, cp.cov + 6 * k);
+		cp.flat[idx[k]] = (float)d;
+	}
 	for (size_t k = m; k-- > 0;) { /* idx[k] >= k: from the back, nothing is overwritten early */
 		size_t i = idx[k];
 		if (i == k)
@@ -382,6 +441,11 @@ static void cam_compute(void *user, void *inbuf, size_t n, uint8_t *labels, floa
 	for (size_t i = 0; i < n; i++) {
 		const float *d2 = cp.d2 + i * (size_t)nm;
 		if (labels[i] != 0xff) {
+			cp.post[i] = cp.angle[i] = cp.scale[i] = NAN;
+			continue;
+		}
+		if (best[i] == KG_CS_NO_MATCH && cp.flat[i] <= r->threshold) {
+			labels[i] = r->background; /* a flat spectrum explains it, no material does */
 			cp.post[i] = cp.angle[i] = cp.scale[i] = NAN;
 			continue;
 		}
@@ -412,7 +476,16 @@ static void cam_compute(void *user, void *inbuf, size_t n, uint8_t *labels, floa
 			if (r->group[j] == cb)
 				mine += w;
 		}
-		if (dmin > r->threshold) {
+		if (cp.flat[i] <= r->threshold &&
+		    (dmin > r->threshold || cp.flat[i] + NEUTRAL_MARGIN < dmin)) {
+			/* a flat spectrum explains the pixel and fits clearly better than every
+			 * material (or no material fits): a neutral diffuse surface (grey card,
+			 * paper, cloth), not the nearest material */
+			labels[i] = r->background;
+			cp.post[i] = cp.angle[i] = cp.scale[i] = NAN;
+			for (int e = 0; e < 6; e++)
+				cp.comp[6 * i + e] = NAN;
+		} else if (dmin > r->threshold) {
 			labels[i] = r->unknown;
 			cp.post[i] = cp.angle[i] = cp.scale[i] = NAN;
 			for (int e = 0; e < 6; e++)
@@ -756,6 +829,36 @@ static const char *region_label(const region_decision *d, const kg_est_material_
 	                                                 : classes->names[d->cls];
 }
 
+/* A connected region's pixels' class beside its decision, and why they differ:
+ * "pixel_class", "differs", "why" (null when they agree). The label map shows the
+ * pixels' classes; the decision is the table's. */
+static void region_why(json_t *row, const regions *g, uint32_t id, const region_decision *d,
+                       const char *label, const kg_est_material_set *classes)
+{
+	if (g->user || g->label[id] == 0 || g->label[id] > classes->n)
+		return;
+	const char *px = classes->names[g->label[id] - 1];
+	int differs = strcmp(px, label) != 0;
+	char why[320];
+	if (!differs)
+		why[0] = 0;
+	else if (d->unknown)
+		snprintf(why, sizeof(why), "refused as unknown on the pooled test: its pixels' mean "
+		         "d2 against the nearest material is %.2f (%d expected), a misfit that, "
+		         "pooled over %llu pixels, exceeds the bound; each pixel alone reads %s",
+		         d->d2_mean, g->dof, (unsigned long long)g->count[id], px);
+	else if (kg_class_holds(px, label))
+		snprintf(why, sizeof(why), "resolved: the pooled pixels single out %s within the "
+		         "merged class %s (its share of the class's posterior >= %.2f)", label, px,
+		         RESOLVE_POSTERIOR);
+	else
+		snprintf(why, sizeof(why), "the pooled likelihood of its pixels prefers %s to %s, "
+		         "which each pixel alone reads", label, px);
+	json_object_set_new(row, "pixel_class", json_string(px));
+	json_object_set_new(row, "differs", json_boolean(differs));
+	json_object_set_new(row, "why", differs ? json_string(why) : json_null());
+}
+
 /* ---- the sink -------------------------------------------------------------------- */
 
 typedef struct cam_sink {
@@ -1075,6 +1178,13 @@ static int write_json(const char *path, const kg_est_material_set *set,
 			json_array_append_new(tm, json_string(m->names[j]));
 	json_object_set_new(cs, "coupon_templates", tm);
 	json_object_set_new(cs, "calibration_covariance", mat3(cam->calib_cov));
+	json_object_set_new(cs, "neutral_diffuse",
+	                    cam->no_neutral
+	                        ? json_false()
+	                        : json_string("a pixel a flat reflectance at any level fits "
+	                                      "better than every declared material (and within "
+	                                      "the unknown bound) is background: a grey card, "
+	                                      "paper, cloth"));
 	json_object_set_new(cs, "response", json_string(cam->response_source[0]
 	                                                    ? cam->response_source
 	                                                    : "given"));
@@ -1271,16 +1381,15 @@ static int write_json(const char *path, const kg_est_material_set *set,
 				               ap_json_num(c[1]), "au", ap_json_num(c[2]), "sd_ag",
 				               ap_json_num(c[3]), "sd_cu", ap_json_num(c[4]), "sd_au",
 				               ap_json_num(c[5]));
-			/* connected components: the class its pixels hold */
-			int pc = reg->user ? -1 : (int)reg->label[id] - 1;
-			json_array_append_new(
-				table, json_pack("{s:I,s:I,s:s,s:s,s:o,s:o,s:o}", "region", (json_int_t)f,
-				                 "pixels", (json_int_t)reg->count[id], "class",
-				                 classes->names[d.cls], "label",
-				                 region_label(&d, set, classes), "posterior",
-				                 ap_json_num(d.posterior), "composition", cj, "pixel_class",
-				                 pc >= 0 && pc < nc ? json_string(classes->names[pc])
-				                                    : json_null()));
+			json_t *row = json_pack("{s:I,s:I,s:s,s:s,s:o,s:o}", "region", (json_int_t)f,
+			                        "pixels", (json_int_t)reg->count[id], "class",
+			                        classes->names[d.cls], "label",
+			                        region_label(&d, set, classes), "posterior",
+			                        ap_json_num(d.posterior), "composition", cj);
+			region_why(row, reg, id, &d, region_label(&d, set, classes), classes);
+			if (!json_object_get(row, "pixel_class")) /* user regions: none */
+				json_object_set_new(row, "pixel_class", json_null());
+			json_array_append_new(table, row);
 			listed++;
 		}
 	}
@@ -1483,6 +1592,15 @@ int kg_classify_camera_rows(const kg_est_kernel *k, const kg_est_material_set *s
 	run.nz.rel2 = copt->noise_relative * copt->noise_relative;
 	run.background_level = (float)copt->background_level;
 	run.nm = set->n;
+	run.neutral = !cam->no_neutral;
+	for (int j = 0; j < set->n; j++)
+		run.metal[j] = set->mats && set->mats[j] && (set->mats[j]->kind == KG_MATERIAL_METAL ||
+		                                             set->mats[j]->kind == KG_MATERIAL_ALLOY);
+	for (int a = 0; a < 3; a++) {
+		run.white[a] = 0;
+		for (int b = 0; b < KG_NBANDS; b++)
+			run.white[a] += cam->response[a * KG_NBANDS + b];
+	}
 
 	kg_cs_model *model = NULL, *metals = NULL;
 	double *sep = NULL;
@@ -1736,6 +1854,7 @@ int kg_classify_camera_rows(const kg_est_kernel *k, const kg_est_material_set *s
 		goto out;
 	ap_written_add(&done, json_path);
 	if ((rc = ap_write_preview(png_path, &classes, sink.preview, sink.pw, sink.ph, &local,
+	                           !copt->preview_no_legend,
 	                           err)))
 		goto out;
 	ap_written_add(&done, png_path);

@@ -59,6 +59,8 @@ typedef struct proc {
 	json_t *previous;         /* the last run's process.json, or NULL */
 	/* OUTDIR (process_outdir.c) */
 	char *stage;              /* where this run writes: OUTDIR/.kogei-run.PID */
+	const char *object_mask;  /* the object being processed: its mask (--mask, or the
+	                             difference from its background capture), or NULL */
 	int lock_fd;              /* OUTDIR, locked for the run; -1 */
 	char **created;           /* folders created for OUTDIR, parents first */
 	int ncreated;

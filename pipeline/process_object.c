@@ -78,6 +78,28 @@ static double gain_ratio(const proc_capture *chart, const proc_capture *c)
 	return NAN;
 }
 
+/* The background capture for object c (the scene without it): the session's latest
+ * background capture before c of the same camera and size, else the first after it;
+ * NULL when there is none. */
+static const proc_capture *background_of(const proc *p, const proc_capture *c)
+{
+	const proc_capture *before = NULL, *after = NULL;
+	int seen = 0;
+	for (int i = 0; i < p->ncaps; i++) {
+		const proc_capture *b = &p->caps[i];
+		if (b == c)
+			seen = 1;
+		if (b->kind != KG_CAPTURE_BACKGROUND || !proc_same_camera(b, c) ||
+		    b->width != c->width || b->height != c->height)
+			continue;
+		if (!seen)
+			before = b;
+		else if (!after)
+			after = b;
+	}
+	return before ? before : after;
+}
+
 /* Camera values of c relative to the chart capture's: (t g / N^2)_chart over the
  * object's, N the f-number where both record one. --assume-same-exposure fills in only
  * what is not recorded (an exposure time or a gain taken as equal, ratio 1); what is
@@ -139,7 +161,9 @@ static json_t *object_key(proc *p, const proc_capture *c)
 	                 json_pack("{s:s, s:f, s:o, s:o, s:b, s:b, s:s, s:s, s:[fff], s:[ff]}",
 	                           "materials", p->library_path, "angle_deg", p->o->angle_deg,
 	                           "mesh", p->o->mesh ? json_string(p->o->mesh) : json_null(),
-	                           "mask", p->o->mask ? json_string(p->o->mask) : json_null(),
+	                           "mask", p->o->mask ? json_string(p->o->mask)
+	                                   : background_of(p, c) ? json_string(background_of(p, c)->name)
+	                                                         : json_null(),
 	                           "render", p->o->render, "assume_same_exposure",
 	                           p->o->assume_same_exposure, "cube", proc_cube_name(p), "method",
 	                           p->o->method ? p->o->method : "camera", "angles",
@@ -592,7 +616,8 @@ static int lit_open(proc *p, proc_source *src, const proc_image_info *info, lit_
 	int ret = 0;
 	if (info->has_variance && !(ret = proc_pass_open(src, 1, &l->var_pass, &l->var)))
 		l->has_var = 1;
-	if (!ret && p->o->mask && !(ret = kg_image_rows_open(p->o->mask, &l->mask_rows, p->err))) {
+	if (!ret && p->object_mask &&
+	    !(ret = kg_image_rows_open(p->object_mask, &l->mask_rows, p->err))) {
 		kg_row_source_of_rows(l->mask_rows, &l->mask);
 		l->has_mask = 1;
 	}
@@ -751,6 +776,9 @@ static int classify_pass(proc *p, const proc_capture *c, proc_source *src, doubl
 	kg_classify_options copt;
 	kg_classify_options_init(&copt);
 	copt.frames = 1; /* the variance is already of the mean, normalised */
+	/* the report shows labels.png beside its own legend (HTML, full names, readable at
+	 * any scale): the map alone */
+	copt.preview_no_legend = 1;
 	copt.residual_relative = p->cam->residual_relative;
 	kg_apply_options o = *opt;
 	o.description = NULL;
@@ -762,7 +790,7 @@ static int classify_pass(proc *p, const proc_capture *c, proc_source *src, doubl
 		img_src = (kg_row_source){tap.in.width, tap.in.height, tap.in.channels, tap_read, &tap};
 	if (!ret && info->has_variance && !(ret = proc_pass_open(src, 1, &var_pass, &var_src)))
 		copt.variance = &var_src;
-	if (!ret && p->o->mask && !(ret = kg_image_rows_open(p->o->mask, &mask, err))) {
+	if (!ret && p->object_mask && !(ret = kg_image_rows_open(p->object_mask, &mask, err))) {
 		kg_row_source_of_rows(mask, &mask_src);
 		copt.mask = &mask_src;
 	}
@@ -810,7 +838,7 @@ static int classify_pass(proc *p, const proc_capture *c, proc_source *src, doubl
 		kg_classify_info cinfo = {.calib = "camera.json", .materials = p->library_path,
 		                          .method = "pca", .image = c->name,
 		                          .variance = info->has_variance ? "the capture's variance" : NULL,
-		                          .mask = p->o->mask};
+		                          .mask = p->object_mask};
 		o.pre = pre_needed ? pre : NULL;
 		proc_progress(p, "%s: classifying among %d materials (%s)", c->name, set->n,
 		              info->has_variance ? "noise from the capture's variance" : "noise model");
@@ -851,6 +879,88 @@ static int classify_pass(proc *p, const proc_capture *c, proc_source *src, doubl
 	return ret;
 }
 
+/* The mask of c from a background capture b (the scene without the object): a pixel
+ * is the object's where some channel differs from b's by more than
+ * BG_DIFF_RELATIVE of the larger of the two plus BG_DIFF_FLOOR (both normalised to the
+ * chart's exposure); written to path (8-bit grey PNG, 255 object, 0 background). */
+#define BG_DIFF_RELATIVE 0.05
+#define BG_DIFF_FLOOR 0.005
+static int background_mask(proc *p, const proc_capture *c, proc_source *src, double scale,
+                           const proc_capture *b, const char *path, json_t *object)
+{
+	kg_err *err = p->err;
+	proc_source *bsrc = NULL;
+	proc_pass *op = NULL, *bp = NULL;
+	kg_row_source os, bs;
+	proc_image_info binfo;
+	kg_image *mask = NULL;
+	float *ob = NULL, *bb = NULL;
+	double bscale = 1;
+	json_t *scratch = json_array();
+	int ret = scratch ? exposure_scale(p, b, scratch, &bscale) : kg_fail(err, KG_ENOMEM,
+	                                                                   "out of memory");
+	if (!ret)
+		ret = proc_source_open(p, b, bscale, 0, &bsrc, &binfo);
+	if (!ret)
+		ret = proc_pass_open(src, 0, &op, &os);
+	if (!ret)
+		ret = proc_pass_open(bsrc, 0, &bp, &bs);
+	if (!ret && (bs.width != os.width || bs.height != os.height || bs.channels != os.channels))
+		ret = kg_fail(err, KG_EINVAL, "background capture %s is %dx%d with %d channels, capture "
+		              "%s %dx%d with %d: expected the same size", b->name, bs.width, bs.height,
+		              bs.channels, c->name, os.width, os.height, os.channels);
+	const int W = os.width, H = os.height, ch = os.channels, band = 64;
+	if (!ret)
+		ret = kg_image_new(W, H, 1, &mask, err);
+	if (!ret && (!(ob = malloc(sizeof(float) * (size_t)W * band * ch)) ||
+	             !(bb = malloc(sizeof(float) * (size_t)W * band * ch))))
+		ret = kg_fail(err, KG_ENOMEM, "out of memory");
+	size_t on = 0;
+	for (int y0 = 0; !ret && y0 < H; y0 += band) {
+		int rows = H - y0 < band ? H - y0 : band;
+		if ((ret = os.read(os.user, y0, rows, ob, err)) || (ret = bs.read(bs.user, y0, rows, bb, err)))
+			break;
+		for (size_t i = 0; i < (size_t)W * rows; i++) {
+			int differs = 0;
+			for (int k = 0; k < ch; k++) {
+				double x = ob[i * ch + k], y = bb[i * ch + k];
+				/* a pixel either image cannot read (non-finite) is not the object's */
+				if (isfinite(x) && isfinite(y) &&
+				    fabs(x - y) > BG_DIFF_RELATIVE * fmax(fabs(x), fabs(y)) + BG_DIFF_FLOOR * scale)
+					differs = 1;
+			}
+			mask->data[(size_t)y0 * W + i] = differs ? 1.0f : 0.0f;
+			on += (size_t)differs;
+		}
+	}
+	if (!ret)
+		ret = kg_image_write_png(mask, path, 8, err);
+	if (!ret) {
+		double frac = (double)on / ((double)W * H);
+		json_object_set_new(object, "mask_from_background",
+		                    json_pack("{s:s, s:f, s:f, s:f, s:s}", "capture", b->name,
+		                              "object_fraction", frac, "relative", BG_DIFF_RELATIVE,
+		                              "floor", BG_DIFF_FLOOR, "file", "mask.png"));
+		proc_progress(p, "%s: masked by its difference from the background capture %s: "
+		              "%.1f %% of the pixels are the object's", c->name, b->name, 100 * frac);
+		if (frac < 0.001 || frac > 0.95)
+			proc_warn(p, json_object_get(object, "warnings"),
+			          "%s: %.1f %% of its pixels differ from the background capture %s: is "
+			          "that capture the same scene without the object, under the same light?",
+			          c->name, 100 * frac, b->name);
+	}
+	if (ret)
+		kg_err_prefix(err, "%s: mask from the background capture %s: ", c->name, b->name);
+	free(ob);
+	free(bb);
+	kg_image_free(&mask);
+	proc_pass_free(&op);
+	proc_pass_free(&bp);
+	proc_source_free(&bsrc);
+	json_decref(scratch);
+	return ret;
+}
+
 /* One object into dir (a temporary folder). Its image is read a band of rows at a
  * time, once for the cube and the photograph's preview and once for the labels, so
  * memory does not grow with the image. */
@@ -870,6 +980,14 @@ static int process_into(proc *p, const proc_capture *c, const char *dir, double 
 	              ? 0 : kg_fail(err, KG_ENOMEM, "out of memory");
 	if (!ret)
 		ret = proc_source_open(p, c, scale, 0, &src, &info);
+	/* the mask: --mask, else the difference from a background capture */
+	const proc_capture *bgc = p->o->mask ? NULL : background_of(p, c);
+	char *bgmask = bgc ? kg_path_join(dir, "mask.png") : NULL;
+	p->object_mask = p->o->mask;
+	if (!ret && bgc && !bgmask)
+		ret = kg_fail(err, KG_ENOMEM, "out of memory");
+	if (!ret && bgc && !(ret = background_mask(p, c, src, scale, bgc, bgmask, object)))
+		p->object_mask = bgmask;
 	if (!ret) {
 		json_object_set_new(object, "width", json_integer(info.width));
 		json_object_set_new(object, "height", json_integer(info.height));
@@ -891,7 +1009,9 @@ static int process_into(proc *p, const proc_capture *c, const char *dir, double 
 		ret = estimate_pass(p, c, src, &info, &opt, format, cube, object);
 	if (!ret)
 		ret = classify_pass(p, c, src, scale, &info, &opt, set, labels, photo, object);
-	const char *fallback = set->names[set->n - 1];
+	/* unknown, background, unclassified and unseen pixels are no library material:
+	 * the render shows them as a neutral grey diffuser */
+	const char *fallback = KG_SCENE_NEUTRAL_GREY;
 	if (!ret)
 		ret = classes_json(p, ljson, set, object, class_map, fallback);
 	if (!ret) {
@@ -917,6 +1037,8 @@ static int process_into(proc *p, const proc_capture *c, const char *dir, double 
 		kg_err_prefix(err, "capture %s: ", c->name);
 	proc_source_free(&src);
 	json_decref(class_map);
+	p->object_mask = NULL;
+	free(bgmask);
 	free(cube);
 	free(labels);
 	free(ljson);

@@ -837,21 +837,27 @@ static void put_regions(report *r, int i)
 		html(r, "<p class=\"missing\">No region of 100 pixels or more.</p>\n");
 		return;
 	}
-	html(r, "<table class=\"num\"><thead><tr><th>region</th><th>pixels</th><th>label</th>"
-	        "<th>posterior</th><th>Ag</th><th>Cu</th><th>Au</th></tr></thead><tbody>\n");
+	html(r, "<table class=\"num regions\"><thead><tr><th>region</th><th>pixels</th>"
+	        "<th>label</th><th>pixels read</th><th>posterior</th><th>Ag</th><th>Cu</th>"
+	        "<th>Au</th><th>why the region differs</th></tr></thead><tbody>\n");
 	size_t k;
 	json_t *e;
 	json_array_foreach(table, k, e) {
 		if (k == 40) {
-			html(r, "<tr class=\"aggregate\"><td colspan=\"7\">");
+			html(r, "<tr class=\"aggregate\"><td colspan=\"9\">");
 			textf(r, "%zu more in the labels' regions table", json_array_size(table) - 40);
 			html(r, "</td></tr>\n");
 			break;
 		}
-		html(r, "<tr><td>%.0f</td><td>", jnum(e, "region"));
+		int differs = json_is_true(json_object_get(e, "differs"));
+		html(r, "<tr%s><td>%.0f</td><td>", differs ? " class=\"differs\"" : "",
+		     jnum(e, "region"));
 		put_num(r, jnum(e, "pixels"), 0);
 		html(r, "</td><td class=\"name\">");
 		text(r, json_string_value(json_object_get(e, "label")));
+		html(r, "</td><td class=\"name\">");
+		const char *pxc = json_string_value(json_object_get(e, "pixel_class"));
+		text(r, pxc ? pxc : "");
 		html(r, "</td><td>");
 		put_num(r, jnum(e, "posterior"), 3);
 		json_t *c = json_object_get(e, "composition");
@@ -867,9 +873,24 @@ static void put_regions(report *r, int i)
 				html(r, "&mdash;");
 			}
 		}
+		html(r, "</td><td class=\"why\">");
+		const char *why = json_string_value(json_object_get(e, "why"));
+		text(r, why ? why : "");
 		html(r, "</td></tr>\n");
 	}
 	html(r, "</tbody></table>\n");
+}
+
+/* The regions (of the table) whose decision differs from their pixels' class. */
+static int regions_differing(report *r, int i)
+{
+	json_t *table = json_object_get(object_key(r, i, "regions"), "table");
+	size_t k;
+	json_t *e;
+	int n = 0;
+	json_array_foreach(table, k, e)
+		n += json_is_true(json_object_get(e, "differs"));
+	return n;
 }
 
 static void put_object(report *r, int i)
@@ -893,13 +914,23 @@ static void put_object(report *r, int i)
 	html(r, "<figcaption>Photograph (site camera, display sRGB).</figcaption></figure>\n"
 	        "<figure>");
 	put_image_file(r, str(r, "objects[%d].labels_png", i), "label map", "map");
-	html(r, "<figcaption>Label map; colours as in the legend below.</figcaption></figure>\n"
-	        "<figure>");
+	html(r, "<figcaption>Label map: each pixel's class; colours as in the legend below "
+	        "(the legend in the image is the same).</figcaption></figure>\n<figure>");
 	put_image_file(r, str(r, "objects[%d].confidence_png", i), "confidence map", "map");
 	html(r, "<figcaption>Confidence map (camera-space labels: the posterior of the "
 	        "chosen class, black 0 to white 1; eq. 11 labels: the margin to the runner-up "
 	        "material; brighter is more certain).</figcaption></figure>\n</div>\n");
 
+	int differing = regions_differing(r, i);
+	if (differing) {
+		html(r, "<p class=\"note differs\">");
+		textf(r, "The label map, this legend, labels.json's classes, the spectra and the "
+		      "render show each pixel's own label. %d region%s %s decided otherwise on "
+		      "%s pooled pixels: see the Regions table, which says why.", differing,
+		      differing == 1 ? "" : "s", differing == 1 ? "is" : "are",
+		      differing == 1 ? "its" : "their");
+		html(r, "</p>\n");
+	}
 	int nclasses;
 	arr(r, &nclasses, "objects[%d].classes", i);
 	html(r, "<table class=\"num legend\"><caption>Materials: legend, pixel counts and "
@@ -911,7 +942,15 @@ static void put_object(report *r, int i)
 			rgb[k] = fmin(fmax(num(r, "objects[%d].classes[%d].colour[%d]", i, c, k), 0), 255);
 		html(r, "<tr><td><span class=\"swatch\" style=\"background:rgb(%d,%d,%d)\"></span>"
 		        "</td><td class=\"name\">", (int)rgb[0], (int)rgb[1], (int)rgb[2]);
-		text(r, str(r, "objects[%d].classes[%d].name", i, c));
+		/* the full name; a compound class may break after each '|' */
+		const char *cname = str(r, "objects[%d].classes[%d].name", i, c);
+		for (const char *q = cname; q;) {
+			const char *bar = strchr(q, '|');
+			textf(r, "%.*s", bar ? (int)(bar - q + 1) : (int)strlen(q), q);
+			if (bar)
+				html(r, "<wbr>");
+			q = bar ? bar + 1 : NULL;
+		}
 		html(r, "</td><td>");
 		put_num(r, num(r, "objects[%d].classes[%d].pixels", i, c), 0);
 		html(r, "</td><td>");
@@ -981,7 +1020,9 @@ static void put_object(report *r, int i)
 		html(r, "<figure>");
 		put_image_file(r, render, "render", "photo");
 		html(r, "<figcaption>");
-		textf(r, "%s rendered as it is (spectral, white-balanced to the scene's light).",
+		textf(r, "%s rendered as it is (spectral, white-balanced to the scene's light): "
+		      "each pixel's class as in the label map; unknown, background and unclassified "
+		      "pixels are no library material and render as a neutral grey diffuser.",
 		      str(r, "objects[%d].scene", i));
 		html(r, "</figcaption></figure>\n");
 	} else {
@@ -1170,7 +1211,9 @@ static const char style[] =
 	"th,td{border:1px solid #bbb;padding:3px 8px;text-align:left;vertical-align:top}"
 	"thead th{background:#eee}table.kv th{background:#f5f5f5;font-weight:600;width:16em}"
 	"table.num td{text-align:right;font-variant-numeric:tabular-nums}"
-	"table.num td.name,table.num td:first-child{text-align:left}table.matrix td{text-align:right;min-width:6em;"
+	"table.num td.name,table.num td:first-child{text-align:left}table.num td.why{"
+	"text-align:left;font-size:12px;min-width:14em}tr.differs td{background:#fff6e0}"
+	"table.legend td.name{overflow-wrap:normal}table.matrix td{text-align:right;min-width:6em;"
 	"font-variant-numeric:tabular-nums}caption{caption-side:top;text-align:left;"
 	"color:#444;padding:2px 0 4px}tr.aggregate th,tr.aggregate td{background:#f5f5f5}"
 	"td.hash,td.path{font-family:'DejaVu Sans Mono',monospace;font-size:12px;"

@@ -15,6 +15,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "kg_render.h"
 #include "pipeline_private.h"
 
 #define DEFAULT_VFOV_DEG 40.0
@@ -180,14 +181,17 @@ int proc_scene_write(proc *p, const char *path, const char *labels_file, int wid
 	json_t *render_camera = json_deep_copy(camera);
 	json_object_set_new(render_camera, "width", json_integer(rw));
 	json_object_set_new(render_camera, "height", json_integer(rh));
-	char note[512];
+	char note[1024];
 	snprintf(note, sizeof(note),
 	         "kogei process: %s's label map projected from the chart capture %s's camera pose "
 	         "(%s focal length %.0f px); the object is taken to lie in the chart's plane "
-	         "(%s). Units: metres, the chart's frame.",
+	         "(%s). Pixels labelled unknown or background, unclassified pixels and what "
+	         "the map does not see are no library material: they render as %s, a "
+	         "Lambertian grey of reflectance %.2f. Units: metres, the chart's frame.",
 	         json_string_value(json_object_get(object, "capture")), p->chart->name,
 	         ps.f_measured ? "measured" : "assumed", ps.f,
-	         p->o->mesh ? "the mesh given, in that frame" : "a plane");
+	         p->o->mesh ? "the mesh given, in that frame" : "a plane", fallback,
+	         KG_SCENE_NEUTRAL_GREY_LEVEL);
 	json_t *classes = json_deep_copy(class_map);
 	/* the light comes from behind the camera, raised */
 	double light[3] = {-d[0] + 0.3 * up[0], -d[1] + 0.3 * up[1], -d[2] + 0.3 * up[2]};

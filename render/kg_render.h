@@ -51,6 +51,13 @@ void kg_scene_xyz_observer(const kg_scene *s, kg_spectrum out[3]);
 /* Surface interactions per path: 1 to this many. */
 #define KG_RENDER_MAX_BOUNCES 64
 
+/* A material every scene knows besides its library's (a library entry of the same name
+ * wins): a neutral grey Lambertian diffuser of reflectance KG_SCENE_NEUTRAL_GREY_LEVEL
+ * at every wavelength, with no surface reflection. It is no library material: kogei
+ * process renders its unknown and background pixels with it. */
+#define KG_SCENE_NEUTRAL_GREY "neutral-grey"
+#define KG_SCENE_NEUTRAL_GREY_LEVEL 0.18
+
 typedef enum kg_render_mode {
 	KG_RENDER_FULL,    /* spectral path tracing (the default) */
 	KG_RENDER_PREVIEW, /* primary rays only, grey N.V shading: a quick look at camera

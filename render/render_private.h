@@ -101,6 +101,7 @@ struct kg_scene {
 
 	int nmat;
 	const kg_material **mat; /* library entries, in the order first used */
+	kg_material neutral;     /* KG_SCENE_NEUTRAL_GREY, when the scene names it */
 	rd_assign assign;
 	uint16_t *tri_mat;       /* ntris entries (FACE, VERTEX), else NULL */
 	rd_label_map label;      /* LABEL_MAP */

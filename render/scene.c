@@ -202,6 +202,19 @@ int rd_scene_material_index(kg_scene *s, const char *name, const char *field, kg
 		if (strcmp(s->mat[i]->name, name) == 0)
 			return i;
 	const kg_material *m = kg_material_library_find(s->lib, name);
+	if (!m && strcmp(name, KG_SCENE_NEUTRAL_GREY) == 0) {
+		/* n = 1: no surface reflection; the flat body alone, a Lambertian grey */
+		kg_material *g = &s->neutral;
+		memset(g, 0, sizeof(*g));
+		snprintf(g->name, sizeof(g->name), "%s", KG_SCENE_NEUTRAL_GREY);
+		g->kind = KG_MATERIAL_DIELECTRIC;
+		g->nk.n = kg_spectrum_const(1.0);
+		g->nk.k = kg_spectrum_const(0.0);
+		g->body = kg_spectrum_const(KG_SCENE_NEUTRAL_GREY_LEVEL);
+		g->roughness = 0.1;
+		g->mirror_width = 0.02;
+		m = g;
+	}
 	if (!m) {
 		char known[512] = "";
 		for (int i = 0; i < kg_material_library_count(s->lib); i++) {
@@ -210,7 +223,8 @@ int rd_scene_material_index(kg_scene *s, const char *name, const char *field, kg
 			         kg_material_library_get(s->lib, i)->name);
 		}
 		return kg_fail(err, KG_EINVAL, "%s: key '%s': no material named '%s' in %s (it "
-		               "has: %s)", s->path, field, name, s->library_path, known);
+		               "has: %s; and every scene has %s)", s->path, field, name,
+		               s->library_path, known, KG_SCENE_NEUTRAL_GREY);
 	}
 	if (s->nmat >= MAX_MATERIALS)
 		return kg_fail(err, KG_EINVAL, "%s: key '%s': more than %d materials", s->path,

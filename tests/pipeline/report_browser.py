@@ -140,6 +140,10 @@ def main():
       images: Array.from(document.images).map(i => ({alt: i.alt,
         data: i.src.startsWith('data:image/png;base64,'), complete: i.complete,
         w: i.naturalWidth, h: i.naturalHeight})),
+      legend: Array.from(document.querySelectorAll('table.legend td.name')).map(
+        td => ({text: td.textContent, clipped: td.scrollWidth > td.clientWidth + 1,
+                font: parseFloat(getComputedStyle(td).fontSize),
+                shown: td.getBoundingClientRect().width > 0})),
       width: document.documentElement.scrollWidth,
       height: document.documentElement.scrollHeight})"""
     result = cdp.call("Runtime.evaluate", {"expression": probe, "returnByValue": True},
@@ -156,6 +160,24 @@ def main():
             fail("image %d (%s) is not an inline PNG" % (i, img["alt"]))
         if not img["complete"] or img["w"] <= 0 or img["h"] <= 0:
             fail("image %d (%s) did not decode" % (i, img["alt"]))
+
+    # The legend, in HTML: every name whole (not clipped, no ellipsis), at a readable
+    # size, and, when process.json is beside the report, every class of every object
+    # named in full.
+    for cell in page["legend"]:
+        if cell["clipped"] or "\u2026" in cell["text"] or "..." in cell["text"]:
+            fail("legend name %r is cut off" % cell["text"])
+        if not cell["shown"] or cell["font"] < 11:
+            fail("legend name %r is not readable (font %s px)" % (cell["text"], cell["font"]))
+    pj = os.path.join(os.path.dirname(os.path.abspath(report)), "process.json")
+    if os.path.exists(pj):
+        names = {c["text"] for c in page["legend"]}
+        with open(pj) as f:
+            for o in json.load(f).get("objects", []):
+                for c in o.get("classes", []):
+                    if c["name"] not in names:
+                        fail("class %r of %s is not named in full in a legend" %
+                             (c["name"], o.get("capture")))
 
     width, height = 1280, page["height"]
     if max_height > 0:
@@ -175,8 +197,10 @@ def main():
     except (ValueError, zlib.error) as e:
         fail("screenshot %s: %s" % (shot, e))
     cdp.call("Target.closeTarget", {"targetId": target})
-    print("%s: %d sections, %d images, page %dx%d, screenshot %s %dx%d: %s" % (
-        report, len(ids), len(page["images"]), page["width"], page["height"], shot,
+    print("%s: %d sections, %d images, %d legend names, page %dx%d, screenshot %s "
+          "%dx%d: %s" % (
+        report, len(ids), len(page["images"]), len(page["legend"]), page["width"],
+        page["height"], shot,
         width, height, "FAIL" if failures else "ok"))
     return 1 if failures else 0
 
