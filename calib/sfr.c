@@ -143,7 +143,6 @@ int kg_sfr_measure(const kg_image *img, const kg_sfr_roi *roi, kg_sfr_result *ou
 	int rc = KG_EINVAL;
 	double *pos = malloc(sizeof(double) * L);
 	int *ok = malloc(sizeof(int) * L);
-	double *d = malloc(sizeof(double) * W);
 	int nb_max = 4 * KG_SFR_OVERSAMPLE * (W + 2);
 	double *sum = calloc((size_t)nb_max * (nch + 1), sizeof(double));
 	double *sq = calloc((size_t)nb_max * (nch + 1), sizeof(double));
@@ -151,7 +150,7 @@ int kg_sfr_measure(const kg_image *img, const kg_sfr_roi *roi, kg_sfr_result *ou
 	double *lsf = malloc(sizeof(double) * nb_max);
 	int nf = (int)lround(FMAX / FSTEP) + 1;
 	double *m = malloc(sizeof(double) * nf);
-	if (!pos || !ok || !d || !sum || !sq || !cnt || !lsf || !m) {
+	if (!pos || !ok || !sum || !sq || !cnt || !lsf || !m) {
 		rc = kg_fail(err, KG_ENOMEM, "%s: out of memory", ctx);
 		goto done;
 	}
@@ -372,7 +371,6 @@ int kg_sfr_measure(const kg_image *img, const kg_sfr_roi *roi, kg_sfr_result *ou
 done:
 	free(pos);
 	free(ok);
-	free(d);
 	free(sum);
 	free(sq);
 	free(cnt);

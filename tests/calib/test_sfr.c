@@ -12,8 +12,8 @@
  *    close to the region's side, a region outside the image;
  *  - the chart edge finder: the sides of a tag slanted 5 degrees are offered with
  *    their slant, and measure to the blur they were drawn with (MTF50 within 2 %);
- *    tags square to the
- *    sensor or slanted 20 degrees give none; a layout without tags is refused. */
+ *    tags square to the sensor or slanted 20 degrees give none; a layout without
+ *    tags is refused. */
 #include <stdlib.h>
 #include <string.h>
 
