@@ -174,7 +174,8 @@ static void check_refused(kg_image *img, kg_sfr_roi roi, const char *expect, con
 		fprintf(stderr, "refused (%s): %s\n", what, err.msg);
 }
 
-/* A black tag square of side `side` px, centred, rotated deg, on white, blurred. */
+/* A tag's black border ring (outer side `side` px, one cell of side / 8 wide), centred,
+ * rotated deg, on white, blurred. */
 static kg_image *tag_image(int W, int H, double side, double deg, double sigma,
                            double corners[4][2])
 {
@@ -201,7 +202,12 @@ static kg_image *tag_image(int W, int H, double side, double deg, double sigma,
 					/* inside: product of 1-D blurred boxes (separable in the tag frame) */
 					double in = (phi((u + h) / sigma) - phi((u - h) / sigma)) *
 					            (phi((w + h) / sigma) - phi((w - h) / sigma));
-					v += 0.9 - 0.85 * in;
+					/* a white inside one cell (side / 8) in: the border is a black
+					 * ring, as tag36h11's, and its inner edge must not be measured */
+					double hi = h - side / 8;
+					double inner = (phi((u + hi) / sigma) - phi((u - hi) / sigma)) *
+					               (phi((w + hi) / sigma) - phi((w - hi) / sigma));
+					v += 0.9 - 0.85 * (in - inner);
 				}
 			img->data[(size_t)y * W + x] = (float)(v / (S * S));
 		}
@@ -241,6 +247,7 @@ static void check_finder(void)
 		if (degs[i] == 5) {
 			CHECK(n == 4, "5 degrees: %d edges", n);
 			double f50 = model_crossing(0.5, 1.5, 5 * M_PI / 180);
+			double f10 = model_crossing(0.1, 1.5, 5 * M_PI / 180);
 			for (int k = 0; k < n; k++) {
 				CHECK_NEAR(e[k].angle_deg, 5, 0.01, "edge slant");
 				CHECK(e[k].length_px >= 100, "length %g", e[k].length_px);
@@ -249,9 +256,11 @@ static void check_finder(void)
 				CHECK(rc == 0, "tag side %d: %s", e[k].side, err.msg);
 				if (rc == 0) {
 					fprintf(stderr, "tag side %d: roi %d,%d,%d,%d slant %.2f MTF50 %.4f "
-					        "(model %.4f) MTF10 %.4f\n", e[k].side, e[k].roi.x, e[k].roi.y,
-					        e[k].roi.w, e[k].roi.h, e[k].angle_deg, sr.mtf50, f50, sr.mtf10);
+					        "(model %.4f) MTF10 %.4f (model %.4f)\n", e[k].side, e[k].roi.x,
+					        e[k].roi.y, e[k].roi.w, e[k].roi.h, e[k].angle_deg, sr.mtf50, f50,
+					        sr.mtf10, f10);
 					CHECK_NEAR(sr.mtf50, f50, 0.02 * f50, "tag side MTF50");
+					CHECK_NEAR(sr.mtf10, f10, 0.02 * f10, "tag side MTF10");
 				}
 			}
 		} else {
