@@ -270,6 +270,34 @@ int kg_sfr_measure(const kg_image *img, const kg_sfr_roi *roi, kg_sfr_result *ou
 	out->centre[1] = v.vertical ? roi->y + tc : roi->y + uc;
 	out->channels = nch;
 
+	/* the window for the edge positions: 3 times the 10-90 % rise of the mean
+	 * channel's ESF (at least 4 px), in bins; a centroid over the whole band would
+	 * gather the flat parts' noise */
+	double wpos;
+	{
+		const double *s = sum + (size_t)nch * nb_max;
+		int qn = nb / 4, k50 = -1;
+		double lo = 0, hi = 0;
+		for (int k = 0; k < qn; k++) {
+			lo += cnt[k] ? s[k] / cnt[k] : 0;
+			hi += cnt[nb - 1 - k] ? s[nb - 1 - k] / cnt[nb - 1 - k] : 0;
+		}
+		lo /= qn;
+		hi /= qn;
+		/* normalised ESF value of bin k (rises from 0 to 1) */
+#define ESFN(k) (cnt[k] ? (s[k] / cnt[k] - lo) / (hi - lo) : NAN)
+		for (int k = 0; k + 1 < nb; k++)
+			if (ESFN(k) < 0.5 && ESFN(k + 1) >= 0.5 &&
+			    (k50 < 0 || abs(k - nb / 2) < abs(k50 - nb / 2)))
+				k50 = k;
+		int k10 = k50 < 0 ? 0 : k50, k90 = k50 < 0 ? nb - 1 : k50;
+		while (k10 > 0 && !(ESFN(k10) <= 0.1))
+			k10--;
+		while (k90 < nb - 1 && !(ESFN(k90) >= 0.9))
+			k90++;
+#undef ESFN
+		wpos = fmax(3.0 * (k90 - k10), 4.0 * KG_SFR_OVERSAMPLE);
+	}
 	for (int ch = 0; ch < nch; ch++) {
 		double *s = sum + (size_t)ch * nb_max, *q = sq + (size_t)ch * nb_max;
 		double *e = malloc(sizeof(double) * nb);
@@ -337,7 +365,20 @@ int kg_sfr_measure(const kg_image *img, const kg_sfr_roi *roi, kg_sfr_result *ou
 			c1 += lsf[k] * k;
 		}
 		double cw = c0 != 0 ? c1 / c0 : cen;
-		o->position = r0 + (cw + 1) * BIN;
+		double cp = cw;
+		for (int it = 0; it < 4; it++) {
+			double p0 = 0, p1 = 0;
+			for (int k = 0; k < n; k++) {
+				double w = hamming(k - cp, fmin(wpos, n / 2.0));
+				if (fabs(k - cp) >= fmin(wpos, n / 2.0))
+					continue;
+				p0 += lsf[k] * w;
+				p1 += lsf[k] * w * k;
+			}
+			if (p0 > 0)
+				cp = p1 / p0;
+		}
+		o->position = r0 + (cp + 1) * BIN;
 		/* DFT at FSTEP cycles/px, normalised at 0, derivative's sinc removed */
 		double f0 = 0;
 		for (int k = 0; k < n; k++)

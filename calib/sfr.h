@@ -53,7 +53,8 @@ typedef struct kg_sfr_channel {
 	                      * mtf10_reached = 0 when it stays above 0.1 up to 1 cy/px */
 	int mtf10_reached;
 	double efficiency;   /* sampling efficiency: min(mtf10 / 0.5, 1) */
-	double position;     /* the edge (centroid of the line spread function), px
+	double position;     /* the edge (centroid of the line spread function within
+	                      * 3 times the edge's 10-90 % rise of its peak), px
 	                      * across the edge from the reference line (the line fitted
 	                      * to the mean of the channels), signed along +x (vertical
 	                      * edge) or +y (horizontal edge) */

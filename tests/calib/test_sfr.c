@@ -293,10 +293,29 @@ int main(void)
 	check_blur(1.2, 5, 0, 0, 0.005, 0.03);
 	check_blur(2.0, 5, 1, 0, 0.005, 0.03);
 
+	/* a sharp edge: MTF10 beyond Nyquist, the efficiency capped at 1 */
+	{
+		double zero[3] = {0, 0, 0};
+		kg_image *img = edge_image(96, 96, 1, 5, 0, 0.3, zero, 0.1, 0.8, 0);
+		kg_sfr_roi roi = {8, 8, 80, 80, 0, {0, 0}, {0, 0}, 0};
+		kg_sfr_result r;
+		kg_err err = {{0}};
+		int rc = kg_sfr_measure(img, &roi, &r, &err);
+		CHECK(rc == 0, "sharp edge: %s", err.msg);
+		double f10 = model_crossing(0.1, 0.3, 5 * M_PI / 180);
+		fprintf(stderr, "sigma 0.30: MTF10 %.4f (model %.4f) efficiency %.3f\n", r.mtf10,
+		        f10, r.efficiency);
+		CHECK(f10 > 0.5, "model f10 %g", f10);
+		CHECK_NEAR(r.mtf10, f10, 0.03 * f10, "sharp MTF10");
+		CHECK(r.efficiency == 1.0, "efficiency %g, expected capped at 1", r.efficiency);
+		kg_image_free(&img);
+	}
+
 	/* channel shifts */
 	check_shift(0.3, -0.2, 0, 0);
 	check_shift(-0.15, 0.45, 0, 1);
 	check_shift(0.25, 0.1, 0.005, 0);
+	check_shift(-0.1, 0.2, 0.01, 1);
 
 	/* refusals */
 	kg_err err = {{0}};
