@@ -138,10 +138,19 @@ static json_t *colour_record(const json_t *patches)
 	kg_de_summary in, out;
 	json_t *used = json_array();
 	summarise_key(patches, "de00_d50", &in, NULL);
+	kg_de_summary ver;
+	json_t *vused = json_array();
+	summarise_key(patches, "de00_d50_verify", &ver, vused);
 	summarise_key(patches, "de00_d50_heldout", &out, used);
-	const kg_de_summary *g = out.n ? &out : &in;
-	const char *basis = out.n ? "held-out" : "in-sample";
-	if (!out.n) {
+	const kg_de_summary *g = ver.n ? &ver : out.n ? &out : &in;
+	const char *basis = ver.n ? "verify" : out.n ? "held-out" : "in-sample";
+	if (ver.n) {
+		json_decref(used);
+		used = vused;
+	} else {
+		json_decref(vused);
+	}
+	if (!ver.n && !out.n) {
 		json_decref(used);
 		used = json_array();
 		summarise_key(patches, "de00_d50", &in, used);
@@ -159,13 +168,15 @@ static json_t *colour_record(const json_t *patches)
 	json_t *r = record("colour_accuracy", "ΔE00", measured ? g->mean : NAN, 0, tol,
 	                   level_json(lvl), st, used, measured,
 	                   measured ? "CIEDE2000 of the spectral estimate against the measured "
-	                              "spectra; value is the mean; graded on the held-out figures "
-	                              "(leave-one-out: M2 refitted without each patch) when there "
-	                              "are any, else in-sample"
+	                              "spectra; value is the mean; graded on the verification "
+	                              "capture's patches (--verify) when given, else held-out "
+	                              "(leave-one-out: the calibration refitted without each "
+	                              "patch), else in-sample"
 	                            : "no measured chart spectra: not measured");
 	json_object_set_new(r, "graded_on", json_string(basis));
 	json_object_set_new(r, "in_sample", summary_json(&in));
 	json_object_set_new(r, "held_out", summary_json(&out));
+	json_object_set_new(r, "verify", summary_json(&ver));
 	json_object_set_new(r, "cielab",
 	                    json_pack("{s:s, s:s, s:s}", "illuminant", "CIE D50", "observer",
 	                              "CIE 1931 2°", "white", "the perfect reflecting diffuser "

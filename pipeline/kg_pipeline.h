@@ -60,6 +60,7 @@ typedef struct kg_process_options {
 	int nonly;
 	const char *layout;        /* chart layout path or name; NULL: the chart capture's */
 	const char *chart;         /* chart capture name; NULL: the latest chart capture */
+	const char *verify;        /* a second chart capture graded through the calibration */
 	const char *mesh;          /* PLY for the scenes, or NULL: a plane */
 	const char *mask;          /* object mask image (0 = background), or NULL */
 	const char *outdir;

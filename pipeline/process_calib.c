@@ -176,10 +176,35 @@ static int heldout_estimates(proc *p, const kg_chart_result *res, const kg_patch
 	return 0;
 }
 
+/* The --verify capture: the chart found and sampled in it as in the chart capture. */
+static int verify_chart(proc *p, const kg_chart_detect_options *dopt, kg_chart_result **out)
+{
+	const proc_capture *c = NULL;
+	for (int i = 0; i < p->ncaps; i++)
+		if (p->caps[i].name && !strcmp(p->caps[i].name, p->o->verify))
+			c = &p->caps[i];
+	if (!c)
+		return kg_fail(p->err, KG_EINVAL, "%s: --verify %s: no capture of that name (expected "
+		               "a second capture of the chart)", p->manifest_path, p->o->verify);
+	if (c == p->chart)
+		return kg_fail(p->err, KG_EINVAL, "--verify %s: is the chart capture the calibration "
+		               "is fitted to (expected another capture of the chart)", p->o->verify);
+	proc_image img = {0};
+	int bin = 1;
+	int ret = proc_chart_image(p, c, CHART_MAX_PIXELS, 1.0f, &img, &bin);
+	if (!ret && (ret = kg_chart_detect(p->layout, img.rgb, dopt, out, p->err)))
+		kg_err_prefix(p->err, "--verify %s: no chart %s: ", c->name, p->layout->name);
+	proc_image_clear(&img);
+	if (!ret)
+		proc_progress(p, "verification: chart found in capture %s", c->name);
+	return ret;
+}
+
 /* The patches of the chart with their flags, and where measured spectra are known,
  * the site estimate against them (ΔE00 under D50 and D65; ΔL*, ΔE(a*b*) under D50). */
 static int patches_json(proc *p, const kg_chart_result *res, const kg_patchset *measured,
-                        const kg_spectrum *heldout, json_t **out)
+                        const kg_spectrum *heldout, const kg_chart_result *verify,
+                        json_t **out)
 {
 	kg_illuminant *d50 = NULL, *d65 = NULL;
 	kg_xyz_weights w50, w65;
@@ -228,6 +253,14 @@ static int patches_json(proc *p, const kg_chart_result *res, const kg_patchset *
 				json_object_set_new(e, "de00_d50_heldout", json_real(kg_ciede2000(a50, h50)));
 			} else {
 				json_object_set_new(e, "de00_d50_heldout", json_null());
+			}
+			const kg_chart_sample *v = verify && i < verify->npatches ? &verify->patches[i]
+			                                                          : NULL;
+			if (v && !v->flags && !strcmp(v->id, s->id)) {
+				kg_spectrum ve;
+				kg_site_map_apply(map, v->rgb, &ve);
+				kg_lab v50 = lab_of(&w50, white50, &ve);
+				json_object_set_new(e, "de00_d50_verify", json_real(kg_ciede2000(a50, v50)));
 			}
 			/* neutral: the measured patch's chroma C*ab under D50 below 4 */
 			json_object_set_new(e, "neutral", json_boolean(chroma < 4.0));
@@ -487,7 +520,16 @@ int proc_calibrate(proc *p)
 	if (measured && (ret = heldout_estimates(p, res, ps, o->reference ? NULL : train, flagged,
 	                                              nflagged, &heldout)))
 		goto done;
-	ret = patches_json(p, res, measured, heldout, &patches);
+	kg_chart_result *vres = NULL;
+	if (o->verify && !measured)
+		proc_warn(p, NULL, "--verify %s: no measured chart spectra, nothing to verify against",
+		          o->verify);
+	if (measured && o->verify && (ret = verify_chart(p, &dopt, &vres))) {
+		free(heldout);
+		goto done;
+	}
+	ret = patches_json(p, res, measured, heldout, vres, &patches);
+	kg_chart_result_free(&vres);
 	free(heldout);
 	if (ret)
 		goto done;

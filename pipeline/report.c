@@ -29,6 +29,7 @@ typedef struct report {
 	kg_de_summary held;  /* held-out ΔE00 D50 (leave-one-out); n 0: none */
 	const kg_de_summary *g; /* what the verdicts grade: held when it has values */
 	const char *basis;      /* "held-out" or "in-sample" */
+	const char *held_how;   /* "leave-one-out" or "verification capture" */
 	int accepted, forced;
 	long warnings;
 } report;
@@ -406,9 +407,14 @@ static int summarise(report *r)
 	}
 	r->g = &r->d50;
 	r->basis = "in-sample";
+	/* held out: a verification capture's patches (--verify), else leave-one-out */
+	const char *key = "de00_d50_heldout";
 	for (int i = 0; i < n && !r->ret; i++)
-		d50[i] = has(r, "calibration.patches[%d].de00_d50_heldout", i)
-		             ? opt_num(r, "calibration.patches[%d].de00_d50_heldout", i)
+		if (has(r, "calibration.patches[%d].de00_d50_verify", i))
+			key = "de00_d50_verify";
+	for (int i = 0; i < n && !r->ret; i++)
+		d50[i] = has(r, "calibration.patches[%d].%s", i, key)
+		             ? opt_num(r, "calibration.patches[%d].%s", i, key)
 		             : NAN;
 	int nheld = 0;
 	for (int i = 0; i < n; i++)
@@ -417,7 +423,8 @@ static int summarise(report *r)
 		if (kg_de_summarise(d50, n, &r->held, &e))
 			failed(r, KG_EINVAL, "%s: calibration.patches: %s", r->file, e.msg);
 		r->g = &r->held;
-		r->basis = "held-out";
+		r->basis = strcmp(key, "de00_d50_verify") ? "held-out" : "held-out, verification capture";
+		r->held_how = strcmp(key, "de00_d50_verify") ? "leave-one-out" : "verification capture";
 	}
 	free(d50);
 	free(d65);
@@ -732,8 +739,8 @@ static void section_color_accuracy(report *r)
 	html(r, "<h3>Grades</h3>\n");
 	if (r->graded) {
 		html(r, "<table id=\"heldout\" class=\"num\"><thead><tr><th>&Delta;E<sub>00</sub> "
-		        "D50</th><th>in-sample</th><th>held-out (leave-one-out)</th></tr></thead>"
-		        "<tbody>\n");
+		        "D50</th><th>in-sample</th><th>held-out (%s)</th></tr></thead>"
+		        "<tbody>\n", r->held_how ? r->held_how : "leave-one-out");
 		const char *agg[] = {"mean", "90th percentile", "maximum"};
 		double in[] = {r->d50.mean, r->d50.p90, r->d50.max};
 		double out[] = {r->held.mean, r->held.p90, r->held.max};
@@ -744,8 +751,9 @@ static void section_color_accuracy(report *r)
 			put_num(r, r->held.n ? out[k] : NAN, 2);
 			html(r, "</td></tr>\n");
 		}
-		html(r, "</tbody></table>\n<p>In-sample: the patches M2 was fitted to. Held-out: "
-		        "each patch through M2 refitted without it. Graded on the %s figures, "
+		html(r, "</tbody></table>\n<p>In-sample: the patches the calibration was fitted "
+		        "to. Held-out: each patch through the calibration refitted without it, or "
+		        "a second capture of the chart (--verify) through the calibration. Graded on the %s figures, "
 		        "&Delta;E<sub>00</sub> under D50 over the %d patches with a value.</p>\n"
 		        "<table><thead><tr><th>standard</th><th>criterion</th>"
 		        "<th>requirement</th><th>value</th><th>verdict</th></tr></thead><tbody>\n",

@@ -6,7 +6,8 @@
 # patches scales with the simulated noise (ratio of standard deviations near
 # sqrt(10)); the OECF and white balance records are the worst |ΔL*| and ΔE(a*b*) of the
 # neutral patches; the held-out (leave-one-out) colour accuracy is no better than the
-# in-sample one and the verdicts grade it; sfr and misregistration are not measured.
+# in-sample one and the verdicts grade it; --verify CAPTURE grades a second capture of
+# the chart instead, and a name that is no capture is refused; sfr and misregistration are not measured.
 # A chart with neutral patches is needed for the tone, white balance and noise records.
 # usage: test_conformance.sh KOGEI SOURCE_ROOT HAVE_TAGS_AND_DEMOSAIC
 set -u
@@ -51,7 +52,31 @@ for fw in 20000 2000; do
 	"$KOGEI" process "$S" --spectra "$T/chart.csv" -o "$T/O$fw" >"$T/out" 2>"$T/err" ||
 		{ echo "FAIL: process ($fw)"; cat "$T/err"; fail=1; }
 done
+# a second capture of the chart (other noise) to verify with; and a refused name
+S=$T/S20000
+sim_acquire "$S" chart "$T/chart.tif" 10000 '&seed=5' --layout colorchecker24-frame 2>/dev/null ||
+	fail=1
+"$KOGEI" process "$S" --spectra "$T/chart.csv" --chart chart-0001 --verify chart-0002 \
+	-o "$T/OV" >"$T/out" 2>"$T/err" || { echo "FAIL: process --verify"; cat "$T/err"; fail=1; }
+"$KOGEI" process "$S" --spectra "$T/chart.csv" --chart chart-0001 --verify nosuch \
+	-o "$T/OX" >"$T/out" 2>"$T/err"
+[ $? = 1 ] && grep -q -- "--verify nosuch" "$T/err" && [ ! -e "$T/OX/conformance.json" ] ||
+	{ echo "FAIL: --verify of no capture not refused"; cat "$T/err"; fail=1; }
 [ $fail = 0 ] || exit 1
+"$PY" - "$T/OV" <<'PY' || fail=1
+import json, sys
+c = json.load(open(sys.argv[1] + "/conformance.json"))
+r = {x["id"]: x for x in c["characteristics"]}["colour_accuracy"]
+print("--verify: ΔE00 D50 mean %.3f max %.3f on %d patches (in-sample mean %.3f)"
+      % (r["verify"]["mean"], r["verify"]["max"], r["verify"]["n"], r["in_sample"]["mean"]))
+assert r["graded_on"] == "verify", r
+assert r["verify"]["n"] >= 20 and len(r["used"]) == r["verify"]["n"], r
+assert abs(r["value"] - r["verify"]["mean"]) < 1e-12, r
+p = json.load(open(sys.argv[1] + "/process.json"))["calibration"]["patches"]
+assert any(isinstance(x.get("de00_d50_verify"), float) for x in p), "no de00_d50_verify"
+page = open(sys.argv[1] + "/report.html").read()
+assert "held-out (verification capture)" in page and "not a certification" in page
+PY
 "$PY" - "$T/O20000" "$T/O2000" <<'PY' || fail=1
 import json, math, sys
 ids = ["oecf", "white_balance", "illuminance_non_uniformity", "noise", "colour_accuracy",
