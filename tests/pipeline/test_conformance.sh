@@ -108,6 +108,12 @@ assert len(neut) >= 1, "no neutral patch"
 assert abs(a["oecf"]["value"] - max(abs(x["dL"]) for x in neut)) < 1e-9, a["oecf"]
 assert abs(a["white_balance"]["value"] - max(x["dab"] for x in neut)) < 1e-9
 assert sorted(a["oecf"]["used"]) == sorted(x["id"] for x in neut), a["oecf"]["used"]
+# the sim camera's response is linear and the neutrals flat spectra, which the
+# calibration represents: the tone deviation is near 0 (level A, 4 stars), the white
+# balance error small
+assert a["oecf"]["value"] < 0.5 and a["oecf"]["level"] == "A" and a["oecf"]["stars"] == 4, a["oecf"]
+assert a["white_balance"]["value"] < 2, a["white_balance"]
+assert len(neut) == 6, [x["id"] for x in neut]
 # noise: the standard deviation of shot noise goes as 1/sqrt(full well)
 ratio = b["noise"]["value"] / a["noise"]["value"]
 print("L* noise: %.4f (full well 20000), %.4f (2000), ratio %.2f (sqrt 10 = 3.16)"
