@@ -50,6 +50,8 @@ static const char help_process[] =
 	"  --layout L            chart layout file or bundled name (default: the one the chart\n"
 	"                        capture records, acquire --layout)\n"
 	"  --chart CAPTURE       the capture that shows the chart (default: the latest chart)\n"
+	"  --verify CAPTURE      a second capture of the chart: its patches through the\n"
+	"                        calibration grade the colour accuracy (default: leave-one-out)\n"
 	"  --mesh M.ply          the object's mesh in the chart's frame (metres) for the\n"
 	"                        scenes (default: a plane in the chart's plane)\n"
 	"  --mask MASK.png       grey PNG or TIFF of the objects' size: 0 = background\n"
@@ -128,7 +130,7 @@ int kg_cmd_process(int argc, char **argv)
 		printf("usage: %s\n%s\n", usage_process, help_process);
 		return KG_EXIT_OK;
 	}
-	enum { O_REF = 256, O_SPECTRA, O_MAT, O_ONLY, O_LAYOUT, O_CHART, O_MESH, O_ANGLE,
+	enum { O_REF = 256, O_SPECTRA, O_MAT, O_ONLY, O_LAYOUT, O_CHART, O_VERIFY, O_MESH, O_ANGLE,
 	       O_MINTAGS, O_MAXRES, O_FORCE, O_SAME, O_NORENDER, O_THREADS, O_QUIET, O_MASK, O_CUBE,
 	       O_METHOD, O_ANGLES, O_INTENSITY, O_SKIP };
 	static const struct option longopts[] = {
@@ -138,6 +140,7 @@ int kg_cmd_process(int argc, char **argv)
 		{"only", required_argument, NULL, O_ONLY},
 		{"layout", required_argument, NULL, O_LAYOUT},
 		{"chart", required_argument, NULL, O_CHART},
+		{"verify", required_argument, NULL, O_VERIFY},
 		{"mesh", required_argument, NULL, O_MESH},
 		{"mask", required_argument, NULL, O_MASK},
 		{"cube", required_argument, NULL, O_CUBE},
@@ -174,6 +177,7 @@ int kg_cmd_process(int argc, char **argv)
 		case O_ONLY: only = optarg; break;
 		case O_LAYOUT: o.layout = optarg; break;
 		case O_CHART: o.chart = optarg; break;
+		case O_VERIFY: o.verify = optarg; break;
 		case O_MESH: o.mesh = optarg; break;
 		case O_MASK: o.mask = optarg; break;
 		case O_CUBE:

@@ -60,6 +60,7 @@ typedef struct kg_process_options {
 	int nonly;
 	const char *layout;        /* chart layout path or name; NULL: the chart capture's */
 	const char *chart;         /* chart capture name; NULL: the latest chart capture */
+	const char *verify;        /* a second chart capture graded through the calibration */
 	const char *mesh;          /* PLY for the scenes, or NULL: a plane */
 	const char *mask;          /* object mask image (0 = background), or NULL */
 	const char *outdir;
@@ -149,6 +150,16 @@ int kg_de_summarise(const double *v, int n, kg_de_summary *out, kg_err *err);
 /* 1 when the summary passes, 0 when it fails (also for n == 0). */
 int kg_grade_fadgi4(const kg_de_summary *s);
 int kg_grade_iso19264_a(const kg_de_summary *s);
+
+/* The imaging-quality analysis of the chart capture (OUTDIR/conformance.json's
+ * "characteristics", docs/report.md): seven records (oecf, white_balance,
+ * illuminance_non_uniformity, noise, colour_accuracy, sfr, colour_misregistration)
+ * from process.json's calibration.patches (keys dL, dab, noise_L, de00_d50,
+ * de00_d50_heldout, neutral) and the flat's non-uniformity (a fraction; NaN: none). */
+json_t *kg_conformance(const json_t *patches, double flat_nonuniformity);
+#define KG_CONFORMANCE_CAVEAT                                                           \
+	"An analysis of the chart capture against the criteria of ISO 19264-1 and FADGI "  \
+	"2023, not a certification under either standard."
 
 /* ==== The demo ===================================================================== */
 

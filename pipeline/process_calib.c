@@ -100,9 +100,110 @@ static json_t *spectrum_json(const kg_spectrum *s)
 	return a;
 }
 
+/* The standard deviation of L* (D50) of a patch's estimate from its pixel spread:
+ * each channel's spread through the slope of L* in that channel (central
+ * differences), the channels taken as independent. */
+static json_t *noise_l(const kg_site_map *map, const kg_xyz_weights *w, kg_xyz white,
+                       const kg_chart_sample *s)
+{
+	double var = 0;
+	for (int c = 0; c < 3; c++) {
+		if (!isfinite(s->sd[c]) || !isfinite(s->rgb[c]))
+			return json_null();
+		double h = 1e-4 + 1e-3 * fabs(s->rgb[c]);
+		double lo[3] = {s->rgb[0], s->rgb[1], s->rgb[2]}, hi[3] = {lo[0], lo[1], lo[2]};
+		lo[c] -= h;
+		hi[c] += h;
+		kg_spectrum a, b;
+		kg_site_map_apply(map, lo, &a);
+		kg_site_map_apply(map, hi, &b);
+		double slope = (lab_of(w, white, &b).L - lab_of(w, white, &a).L) / (2 * h);
+		var += slope * slope * s->sd[c] * s->sd[c];
+	}
+	return json_real(sqrt(var));
+}
+
+/* Held-out estimates: for each usable patch, the calibration refitted without it
+ * (leave-one-out) and its RGB through that fit; v[0] NaN where none (flagged, or the
+ * fit without the patch is not possible). A site session (a reference given) refits
+ * M2; a lab session, whose reference comes from this chart (train), refits the
+ * reference too, since M2 on the chart the reference was fitted to is the identity. */
+static int heldout_estimates(proc *p, const kg_chart_result *res, const kg_patchset *ps,
+                             const kg_patchset *train, char **flagged, int nflagged,
+                             kg_spectrum **out)
+{
+	kg_spectrum *h = calloc((size_t)res->npatches, sizeof(*h));
+	const char **ex = calloc((size_t)nflagged + 1, sizeof(*ex));
+	if (!h || !ex) {
+		free(h);
+		free(ex);
+		return kg_fail(p->err, KG_ENOMEM, "out of memory");
+	}
+	for (int i = 0; i < nflagged; i++)
+		ex[i] = flagged[i];
+	for (int i = 0; i < res->npatches; i++) {
+		h[i].v[0] = NAN;
+		const kg_chart_sample *s = &res->patches[i];
+		if (s->flags || p->cam->k <= 4)
+			continue;
+		kg_camera_options copt;
+		kg_camera_options_default(&copt);
+		ex[nflagged] = s->id;
+		copt.exclude = ex;
+		copt.nexclude = nflagged + 1;
+		copt.max_residual = 1e9; /* held out: never refused for its residual */
+		copt.force = 1;
+		kg_camera_calib *cam = NULL;
+		kg_reference *ref = NULL;
+		const kg_site_map *map = NULL;
+		kg_err e;
+		int ok = 1;
+		if (train) {
+			kg_reference_options ropt;
+			kg_reference_options_default(&ropt);
+			ropt.exclude = ex;
+			ropt.nexclude = nflagged + 1;
+			ok = kg_reference_fit(train, ps, &ropt, &ref, &e) == 0;
+		}
+		if (ok && kg_camera_fit(ref ? ref : p->ref, ps, &copt, &cam, &e) == 0 &&
+		    kg_camera_site_map(cam, KG_METHOD_AUTO, &map, &e) == 0)
+			kg_site_map_apply(map, s->rgb, &h[i]);
+		kg_camera_calib_free(&cam);
+		kg_reference_free(&ref);
+	}
+	free(ex);
+	*out = h;
+	return 0;
+}
+
+/* The --verify capture: the chart found and sampled in it as in the chart capture. */
+static int verify_chart(proc *p, const kg_chart_detect_options *dopt, kg_chart_result **out)
+{
+	const proc_capture *c = NULL;
+	for (int i = 0; i < p->ncaps; i++)
+		if (p->caps[i].name && !strcmp(p->caps[i].name, p->o->verify))
+			c = &p->caps[i];
+	if (!c)
+		return kg_fail(p->err, KG_EINVAL, "%s: --verify %s: no capture of that name (expected "
+		               "a second capture of the chart)", p->manifest_path, p->o->verify);
+	if (c == p->chart)
+		return kg_fail(p->err, KG_EINVAL, "--verify %s: is the chart capture the calibration "
+		               "is fitted to (expected another capture of the chart)", p->o->verify);
+	proc_image img = {0};
+	int bin = 1;
+	int ret = proc_chart_image(p, c, CHART_MAX_PIXELS, 1.0f, &img, &bin);
+	if (!ret && (ret = kg_chart_detect(p->layout, img.rgb, dopt, out, p->err)))
+		kg_err_prefix(p->err, "--verify %s: no chart %s: ", c->name, p->layout->name);
+	proc_image_clear(&img);
+	if (!ret)
+		proc_progress(p, "verification: chart found in capture %s", c->name);
+	return ret;
+}
+
 /* The patches of the chart with their flags, and where measured spectra are known,
  * the site estimate against them (ΔE00 under D50 and D65; ΔL*, ΔE(a*b*) under D50). */
 static int patches_json(proc *p, const kg_chart_result *res, const kg_patchset *measured,
+                        const kg_spectrum *heldout, const kg_chart_result *verify,
                         json_t **out)
 {
 	kg_illuminant *d50 = NULL, *d65 = NULL;
@@ -146,6 +247,21 @@ static int patches_json(proc *p, const kg_chart_result *res, const kg_patchset *
 			json_object_set_new(e, "de00_d65", json_real(kg_ciede2000(a65, b65)));
 			json_object_set_new(e, "dL", json_real(b50.L - a50.L));
 			json_object_set_new(e, "dab", json_real(hypot(b50.a - a50.a, b50.b - a50.b)));
+			json_object_set_new(e, "noise_L", noise_l(map, &w50, white50, s));
+			if (heldout && isfinite(heldout[i].v[0])) {
+				kg_lab h50 = lab_of(&w50, white50, &heldout[i]);
+				json_object_set_new(e, "de00_d50_heldout", json_real(kg_ciede2000(a50, h50)));
+			} else {
+				json_object_set_new(e, "de00_d50_heldout", json_null());
+			}
+			const kg_chart_sample *v = verify && i < verify->npatches ? &verify->patches[i]
+			                                                          : NULL;
+			if (v && !v->flags && !strcmp(v->id, s->id)) {
+				kg_spectrum ve;
+				kg_site_map_apply(map, v->rgb, &ve);
+				kg_lab v50 = lab_of(&w50, white50, &ve);
+				json_object_set_new(e, "de00_d50_verify", json_real(kg_ciede2000(a50, v50)));
+			}
 			/* neutral: the measured patch's chroma C*ab under D50 below 4 */
 			json_object_set_new(e, "neutral", json_boolean(chroma < 4.0));
 		} else {
@@ -155,6 +271,8 @@ static int patches_json(proc *p, const kg_chart_result *res, const kg_patchset *
 			json_object_set_new(e, "de00_d65", json_null());
 			json_object_set_new(e, "dL", json_null());
 			json_object_set_new(e, "dab", json_null());
+			json_object_set_new(e, "noise_L", json_null());
+			json_object_set_new(e, "de00_d50_heldout", json_null());
 			json_object_set_new(e, "neutral", json_false());
 		}
 		json_array_append_new(list, e);
@@ -398,7 +516,22 @@ int proc_calibrate(proc *p)
 		goto done;
 
 	json_t *patches = NULL;
-	if ((ret = patches_json(p, res, measured, &patches)))
+	kg_spectrum *heldout = NULL;
+	if (measured && (ret = heldout_estimates(p, res, ps, o->reference ? NULL : train, flagged,
+	                                              nflagged, &heldout)))
+		goto done;
+	kg_chart_result *vres = NULL;
+	if (o->verify && !measured)
+		proc_warn(p, NULL, "--verify %s: no measured chart spectra, nothing to verify against",
+		          o->verify);
+	if (measured && o->verify && (ret = verify_chart(p, &dopt, &vres))) {
+		free(heldout);
+		goto done;
+	}
+	ret = patches_json(p, res, measured, heldout, vres, &patches);
+	kg_chart_result_free(&vres);
+	free(heldout);
+	if (ret)
 		goto done;
 	json_t *tags = json_array();
 	for (int i = 0; i < res->ntags; i++)
@@ -441,6 +574,21 @@ int proc_calibrate(proc *p)
 	json_object_set_new(p->calibration, "light_field", light_field_json(&res->light));
 	json_object_set_new(p->calibration, "flat_illuminance_nonuniformity",
 	                    flat_nonuniformity(p, img.flat));
+	{ /* the imaging-quality analysis, also OUTDIR/conformance.json */
+		const json_t *nu = json_object_get(p->calibration, "flat_illuminance_nonuniformity");
+		json_t *conf = kg_conformance(patches, json_is_number(nu) ? json_number_value(nu)
+		                                                           : NAN);
+		char *conf_out = kg_path_join(p->stage, "conformance.json");
+		json_t *doc = json_pack("{s:s, s:O}", "caveat", KG_CONFORMANCE_CAVEAT,
+		                        "characteristics", conf);
+		ret = conf_out && doc ? kg_json_write(doc, conf_out, err)
+		                      : kg_fail(err, KG_ENOMEM, "out of memory");
+		json_decref(doc);
+		free(conf_out);
+		json_object_set_new(p->calibration, "conformance", conf);
+		if (ret)
+			goto done;
+	}
 	json_object_set_new(p->calibration, "detect_seconds", json_real(res->total_seconds));
 	if (!o->reference)
 		json_object_set_new(p->calibration, "reference_file", json_string("reference.json"));

@@ -26,6 +26,10 @@ typedef struct report {
 	/* Colour accuracy of the chart, from the per-patch values. */
 	kg_de_summary d50, d65;
 	int graded;   /* d50 holds at least one value */
+	kg_de_summary held;  /* held-out ΔE00 D50 (leave-one-out); n 0: none */
+	const kg_de_summary *g; /* what the verdicts grade: held when it has values */
+	const char *basis;      /* "held-out" or "in-sample" */
+	const char *held_how;   /* "leave-one-out" or "verification capture" */
 	int accepted, forced;
 	long warnings;
 } report;
@@ -401,6 +405,27 @@ static int summarise(report *r)
 		else
 			r->graded = 1;
 	}
+	r->g = &r->d50;
+	r->basis = "in-sample";
+	/* held out: a verification capture's patches (--verify), else leave-one-out */
+	const char *key = "de00_d50_heldout";
+	for (int i = 0; i < n && !r->ret; i++)
+		if (has(r, "calibration.patches[%d].de00_d50_verify", i))
+			key = "de00_d50_verify";
+	for (int i = 0; i < n && !r->ret; i++)
+		d50[i] = has(r, "calibration.patches[%d].%s", i, key)
+		             ? opt_num(r, "calibration.patches[%d].%s", i, key)
+		             : NAN;
+	int nheld = 0;
+	for (int i = 0; i < n; i++)
+		nheld += isfinite(d50[i]);
+	if (!r->ret && nheld) {
+		if (kg_de_summarise(d50, n, &r->held, &e))
+			failed(r, KG_EINVAL, "%s: calibration.patches: %s", r->file, e.msg);
+		r->g = &r->held;
+		r->basis = strcmp(key, "de00_d50_verify") ? "held-out" : "held-out, verification capture";
+		r->held_how = strcmp(key, "de00_d50_verify") ? "leave-one-out" : "verification capture";
+	}
 	free(d50);
 	free(d65);
 
@@ -470,19 +495,19 @@ static void section_summary(report *r)
 	html(r, ")</li>\n");
 	if (r->graded) {
 		html(r, "<li>FADGI 4-star colour accuracy: ");
-		put_verdict(r, kg_grade_fadgi4(&r->d50), "pass", "fail");
-		html(r, " (mean &Delta;E<sub>00</sub> %.2f, 90th percentile %.2f, under D50)</li>\n",
-		     r->d50.mean, r->d50.p90);
+		put_verdict(r, kg_grade_fadgi4(r->g), "pass", "fail");
+		html(r, " (%s: mean &Delta;E<sub>00</sub> %.2f, 90th percentile %.2f, under D50)"
+		        "</li>\n", r->basis, r->g->mean, r->g->p90);
 		html(r, "<li>ISO 19264-1 level A colour accuracy: ");
-		put_verdict(r, kg_grade_iso19264_a(&r->d50), "pass", "fail");
-		html(r, " (mean &Delta;E<sub>00</sub> %.2f, maximum %.2f, under D50)</li>\n",
-		     r->d50.mean, r->d50.max);
+		put_verdict(r, kg_grade_iso19264_a(r->g), "pass", "fail");
+		html(r, " (%s: mean &Delta;E<sub>00</sub> %.2f, maximum %.2f, under D50)</li>\n",
+		     r->basis, r->g->mean, r->g->max);
 	} else {
 		html(r, "<li>FADGI 4-star and ISO 19264-1 level A: <span class=\"fail\">not "
 		        "graded</span>: no patch has both a measured and an estimated spectrum"
 		        "</li>\n");
 	}
-	html(r, "</ul>\n");
+	html(r, "</ul>\n<p class=\"caveat\">" KG_CONFORMANCE_CAVEAT "</p>\n");
 	section_end(r);
 }
 
@@ -629,6 +654,36 @@ static void grade_row(report *r, const char *standard, const char *criterion,
 	html(r, "</td></tr>\n");
 }
 
+/* The imaging-quality analysis (calibration.conformance, written by runs since it
+ * was added; older records lack it). */
+static void conformance_table(report *r)
+{
+	int n;
+	if (!has(r, "calibration.conformance"))
+		return;
+	arr(r, &n, "calibration.conformance");
+	html(r, "<h3>Imaging-quality analysis (ISO 19264-1, FADGI 2023)</h3>\n<table "
+	        "id=\"conformance\"><thead><tr><th>characteristic</th><th>value</th><th>unit</th>"
+	        "<th>ISO 19264-1 level</th><th>FADGI stars</th><th>note</th></tr></thead>"
+	        "<tbody>\n");
+	for (int i = 0; i < n; i++) {
+		html(r, "<tr><td>");
+		text(r, str(r, "calibration.conformance[%d].id", i));
+		html(r, "</td><td>");
+		put_num(r, opt_num(r, "calibration.conformance[%d].value", i), 2);
+		html(r, "</td><td>");
+		text(r, str(r, "calibration.conformance[%d].unit", i));
+		html(r, "</td><td>");
+		const char *lv = opt_str(r, "calibration.conformance[%d].level", i);
+		int measured = flag(r, "calibration.conformance[%d].measured", i);
+		text(r, lv ? lv : measured ? "none or no limit" : "not measured");
+		html(r, "</td><td>%d</td><td>", (int)num(r, "calibration.conformance[%d].stars", i));
+		text(r, str(r, "calibration.conformance[%d].note", i));
+		html(r, "</td></tr>\n");
+	}
+	html(r, "</tbody></table>\n");
+}
+
 static void section_color_accuracy(report *r)
 {
 	section_begin(r, "color-accuracy", "Colour accuracy");
@@ -683,23 +738,41 @@ static void section_color_accuracy(report *r)
 
 	html(r, "<h3>Grades</h3>\n");
 	if (r->graded) {
-		html(r, "<p>Graded on &Delta;E<sub>00</sub> under D50 over the %d patches with a "
-		        "value.</p>\n<table><thead><tr><th>standard</th><th>criterion</th>"
+		html(r, "<table id=\"heldout\" class=\"num\"><thead><tr><th>&Delta;E<sub>00</sub> "
+		        "D50</th><th>in-sample</th><th>held-out (%s)</th></tr></thead>"
+		        "<tbody>\n", r->held_how ? r->held_how : "leave-one-out");
+		const char *agg[] = {"mean", "90th percentile", "maximum"};
+		double in[] = {r->d50.mean, r->d50.p90, r->d50.max};
+		double out[] = {r->held.mean, r->held.p90, r->held.max};
+		for (int k = 0; k < 3; k++) {
+			html(r, "<tr><th scope=\"row\">%s</th><td>", agg[k]);
+			put_num(r, in[k], 2);
+			html(r, "</td><td>");
+			put_num(r, r->held.n ? out[k] : NAN, 2);
+			html(r, "</td></tr>\n");
+		}
+		html(r, "</tbody></table>\n<p>In-sample: the patches the calibration was fitted "
+		        "to. Held-out: each patch through the calibration refitted without it, or "
+		        "a second capture of the chart (--verify) through the calibration. Graded on the %s figures, "
+		        "&Delta;E<sub>00</sub> under D50 over the %d patches with a value.</p>\n"
+		        "<table><thead><tr><th>standard</th><th>criterion</th>"
 		        "<th>requirement</th><th>value</th><th>verdict</th></tr></thead><tbody>\n",
-		     r->d50.n);
-		grade_row(r, "FADGI 4-star", "mean &Delta;E<sub>00</sub>", "&lt; 2", r->d50.mean,
-		          r->d50.mean < KG_FADGI4_MEAN_BELOW);
+		     r->basis, r->g->n);
+		grade_row(r, "FADGI 4-star", "mean &Delta;E<sub>00</sub>", "&lt; 2", r->g->mean,
+		          r->g->mean < KG_FADGI4_MEAN_BELOW);
 		grade_row(r, "FADGI 4-star", "90th percentile &Delta;E<sub>00</sub>", "&lt; 4",
-		          r->d50.p90, r->d50.p90 < KG_FADGI4_P90_BELOW);
+		          r->g->p90, r->g->p90 < KG_FADGI4_P90_BELOW);
 		grade_row(r, "ISO 19264-1 level A", "mean &Delta;E<sub>00</sub>", "&le; 4",
-		          r->d50.mean, r->d50.mean <= KG_ISO19264_A_MEAN_AT_MOST);
+		          r->g->mean, r->g->mean <= KG_ISO19264_A_MEAN_AT_MOST);
 		grade_row(r, "ISO 19264-1 level A", "maximum &Delta;E<sub>00</sub>", "&le; 10",
-		          r->d50.max, r->d50.max <= KG_ISO19264_A_MAX_AT_MOST);
-		html(r, "</tbody></table>\n<ul class=\"verdicts\"><li>FADGI 4-star: ");
-		put_verdict(r, kg_grade_fadgi4(&r->d50), "pass", "fail");
-		html(r, "</li><li>ISO 19264-1 level A: ");
-		put_verdict(r, kg_grade_iso19264_a(&r->d50), "pass", "fail");
-		html(r, "</li></ul>\n");
+		          r->g->max, r->g->max <= KG_ISO19264_A_MAX_AT_MOST);
+		html(r, "</tbody></table>\n<ul class=\"verdicts\"><li>FADGI 4-star (%s): ",
+		     r->basis);
+		put_verdict(r, kg_grade_fadgi4(r->g), "pass", "fail");
+		html(r, "</li><li>ISO 19264-1 level A (%s): ", r->basis);
+		put_verdict(r, kg_grade_iso19264_a(r->g), "pass", "fail");
+		html(r, "</li></ul>\n<p class=\"caveat\">" KG_CONFORMANCE_CAVEAT "</p>\n");
+		conformance_table(r);
 	} else {
 		html(r, "<p class=\"missing\">Not graded: no patch has a colour difference (the "
 		        "chart's measured spectra or the estimates are missing).</p>\n");

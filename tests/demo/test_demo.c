@@ -70,6 +70,7 @@ static const char *const files[] = {
 	"site-session/session.json", "site-session/captures/site-chart/rgb.tif",
 	"site-session/captures/object/rgb.tif",
 	"lab/reference.json", "lab/camera.json", "lab/chart_overlay.png", "lab/process.json",
+	"lab/conformance.json", "site/conformance.json",
 	"site/camera.json", "site/chart_overlay.png", "site/process.json", "site/report.html",
 	"object.tif", "object_truth.hdr", "object_truth.img", "object_truth_labels.hdr",
 	"object_truth_labels.img", "object_truth_angle.hdr", "object_truth_angle.img",

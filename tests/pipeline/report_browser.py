@@ -144,6 +144,10 @@ def main():
         td => ({text: td.textContent, clipped: td.scrollWidth > td.clientWidth + 1,
                 font: parseFloat(getComputedStyle(td).fontSize),
                 shown: td.getBoundingClientRect().width > 0})),
+      caveats: Array.from(document.querySelectorAll('p.caveat')).map(
+        p => ({text: p.textContent, shown: p.getBoundingClientRect().height > 0})),
+      heldout: Array.from(document.querySelectorAll('#heldout tbody tr')).map(
+        tr => Array.from(tr.querySelectorAll('td')).map(td => td.textContent.trim())),
       width: document.documentElement.scrollWidth,
       height: document.documentElement.scrollHeight})"""
     result = cdp.call("Runtime.evaluate", {"expression": probe, "returnByValue": True},
@@ -179,6 +183,27 @@ def main():
                         fail("class %r of %s is not named in full in a legend" %
                              (c["name"], o.get("capture")))
 
+    # Beside the verdicts: the caveat, shown; when the record holds held-out colour
+    # differences, the in-sample and held-out aggregates side by side, both numbers.
+    if not any("not a certification" in c["text"] and c["shown"] for c in page["caveats"]):
+        fail("no visible caveat 'not a certification' beside the verdicts")
+    if os.path.exists(pj):
+        with open(pj) as f:
+            held = any(isinstance(x.get("de00_d50_heldout"), (int, float))
+                       for x in json.load(f).get("calibration", {}).get("patches", []))
+        if held:
+            rows = page["heldout"]
+            if len(rows) != 3:
+                fail("held-out table: %d rows, expected mean, 90th percentile, maximum"
+                     % len(rows))
+            for r in rows:
+                try:
+                    a, b = float(r[0]), float(r[1])
+                except (ValueError, IndexError):
+                    fail("held-out table row %r: expected two numbers" % (r,))
+                    continue
+                if b < a:
+                    fail("held-out table row %r: held-out below in-sample" % (r,))
     width, height = 1280, page["height"]
     if max_height > 0:
         height = min(height, max_height)

@@ -97,6 +97,9 @@ static json_t *fixture_patches(void)
 		                    fixture_spectrum(level * 1.02, neutral ? 0.01 : 0.28, 424 + 12 * i));
 		json_object_set_new(p, "de00_d50", has_spectra ? json_real(0.5 + 0.1 * i) : json_null());
 		json_object_set_new(p, "de00_d65", has_spectra ? json_real(0.55 + 0.1 * i) : json_null());
+		/* held out (leave-one-out): worse than in-sample, as refits without a patch are */
+		json_object_set_new(p, "de00_d50_heldout",
+		                    has_spectra ? json_real(0.6 + 0.11 * i) : json_null());
 		json_object_set_new(p, "dL", has_spectra ? json_real(neutral ? -0.31 - 0.1 * (i - 18)
 		                                                           : 0.2) : json_null());
 		json_object_set_new(p, "dab", has_spectra ? json_real(neutral ? 0.41 + 0.1 * (i - 18)

@@ -1,5 +1,8 @@
 /* The colour accuracy aggregates and grades of the report (kg_pipeline.h) on small
  * hand-checked vectors, boundaries included. */
+#include <math.h>
+#include <string.h>
+
 #include "kg_pipeline.h"
 #include "kg_test.h"
 
@@ -110,10 +113,72 @@ static void test_iso(void)
 	CHECK(!kg_grade_iso19264_a(&empty), "no values passed ISO");
 }
 
+static const json_t *record_of(const json_t *list, const char *id)
+{
+	size_t i;
+	const json_t *r;
+	json_array_foreach(list, i, r)
+		if (!strcmp(json_string_value(json_object_get(r, "id")), id))
+			return r;
+	return NULL;
+}
+
+/* kg_conformance: ISO levels inclusive, FADGI stars strict, on the limits; what has
+ * no neutral patch or no flat is not measured and not passed. */
+static void test_conformance(void)
+{
+	json_t *patches = json_pack(
+		"[{s:s, s:b, s:f, s:f, s:f, s:f, s:f}, {s:s, s:b, s:f, s:f, s:f, s:f, s:f}]",
+		"id", "D01", "neutral", 1, "dL", -2.0, "dab", 4.0, "noise_L", 1.0, "de00_d50", 1.0,
+		"de00_d50_heldout", 2.0,
+		"id", "A01", "neutral", 0, "dL", 9.0, "dab", 9.0, "noise_L", 9.0, "de00_d50", 3.0,
+		"de00_d50_heldout", 10.0);
+	json_t *c = kg_conformance(patches, 0.03);
+	CHECK(json_array_size(c) == 7, "%zu records", json_array_size(c));
+	const json_t *r = record_of(c, "oecf");
+	CHECK(r && json_real_value(json_object_get(r, "value")) == 2.0, "oecf: |dL| of the neutral");
+	CHECK(r && !strcmp(json_string_value(json_object_get(r, "level")), "A") &&
+	      json_integer_value(json_object_get(r, "stars")) == 3, "oecf 2.0: A (<= 2), 3 stars (< 3)");
+	r = record_of(c, "white_balance");
+	CHECK(r && !strcmp(json_string_value(json_object_get(r, "level")), "B") &&
+	      json_integer_value(json_object_get(r, "stars")) == 2, "white balance 4.0: B, 2 stars");
+	r = record_of(c, "noise");
+	CHECK(r && !strcmp(json_string_value(json_object_get(r, "level")), "A") &&
+	      json_integer_value(json_object_get(r, "stars")) == 3, "noise 1.0: A, 3 stars");
+	r = record_of(c, "illuminance_non_uniformity");
+	CHECK(r && json_is_null(json_object_get(r, "level")) &&
+	      json_integer_value(json_object_get(r, "stars")) == 2, "3 %%: no ISO level, 2 stars");
+	r = record_of(c, "colour_accuracy"); /* held out: mean 6, max 10, p90 10 */
+	CHECK(r && !strcmp(json_string_value(json_object_get(r, "graded_on")), "held-out") &&
+	      json_real_value(json_object_get(r, "value")) == 6.0, "colour graded held-out");
+	CHECK(r && json_is_null(json_object_get(r, "level")) &&
+	      json_integer_value(json_object_get(r, "stars")) == 1,
+	      "colour: mean 6 above ISO C's 5 (no level); mean 6 < 6.5 and p90 10 not below "
+	      "2 stars' 10: 1 star, got %d", (int)json_integer_value(json_object_get(r, "stars")));
+	r = record_of(c, "sfr");
+	CHECK(r && json_is_false(json_object_get(r, "measured")) &&
+	      json_is_null(json_object_get(r, "value")), "sfr not measured");
+	json_decref(c);
+	json_decref(patches);
+	patches = json_pack("[{s:s, s:b, s:n, s:n, s:n, s:n, s:n}]", "id", "A01", "neutral", 0,
+	                    "dL", "dab", "noise_L", "de00_d50", "de00_d50_heldout");
+	c = kg_conformance(patches, NAN);
+	for (size_t i = 0; i < 7; i++) {
+		r = json_array_get(c, i);
+		CHECK(json_is_false(json_object_get(r, "measured")) &&
+		      json_is_null(json_object_get(r, "level")) &&
+		      json_integer_value(json_object_get(r, "stars")) == 0, "%s passed unmeasured",
+		      json_string_value(json_object_get(r, "id")));
+	}
+	json_decref(c);
+	json_decref(patches);
+}
+
 int main(void)
 {
 	test_aggregates();
 	test_fadgi();
 	test_iso();
+	test_conformance();
 	return kg_test_done("report-grade");
 }

@@ -123,6 +123,15 @@ static void check_content(const char *page)
 	CHECK(contains(page, "maximum</th><td>2.70</td><td>2.75</td>"), "maximum row");
 	CHECK(contains(page, "FADGI 4-star colour accuracy: <span class=\"pass\">pass</span>"),
 	      "FADGI verdict");
+	/* Held out (0.60 + 0.11 i): mean 1.81, rank 21 -> 2.80, max 3.02, beside the
+	 * in-sample figures; the verdicts grade them and say so, with the caveat. */
+	CHECK(contains(page, "<th scope=\"row\">mean</th><td>1.60</td><td>1.81</td>") &&
+	      contains(page, "<th scope=\"row\">90th percentile</th><td>2.50</td><td>2.80</td>") &&
+	      contains(page, "<th scope=\"row\">maximum</th><td>2.70</td><td>3.02</td>"),
+	      "in-sample and held-out side by side");
+	CHECK(contains(page, "(held-out: mean &Delta;E<sub>00</sub> 1.81, 90th percentile 2.80"),
+	      "verdict on held-out figures");
+	CHECK(contains(page, "not a certification"), "caveat");
 	CHECK(contains(page, "ISO 19264-1 level A colour accuracy: <span class=\"pass\">pass"),
 	      "ISO verdict");
 	CHECK(contains(page, "Calibration: <span class=\"pass\">accepted</span>"),

@@ -1,0 +1,142 @@
+#!/bin/sh
+# conformance.json and the held-out colour accuracy: a chart session recorded with the
+# sim devices (dark, flat, a colorchecker24-frame chart of known spectra) processed twice, once with the
+# site camera's full well at 20000 electrons and once at 2000 (ten times the shot
+# noise variance): the seven records with their fields; the L* noise of the neutral
+# patches scales with the simulated noise (ratio of standard deviations near
+# sqrt(10)); the OECF and white balance records are the worst |ΔL*| and ΔE(a*b*) of the
+# neutral patches; the held-out (leave-one-out) colour accuracy is no better than the
+# in-sample one and the verdicts grade it; --verify CAPTURE grades a second capture of
+# the chart instead, and a name that is no capture is refused; sfr and misregistration are not measured.
+# A chart with neutral patches is needed for the tone, white balance and noise records.
+# usage: test_conformance.sh KOGEI SOURCE_ROOT HAVE_TAGS_AND_DEMOSAIC
+set -u
+KOGEI=$1
+FIX=$2/fixtures
+[ "${3:-1}" = 1 ] || { echo "SKIP: built without libapriltag or OpenCV (chart tags, demosaicing)"; exit 77; }
+PY=/usr/bin/python3; [ -x "$PY" ] || PY=python3
+. "$(dirname "$0")/sim_session.sh"
+T=$(mktemp -d)
+trap 'rm -rf "$T"' EXIT
+fail=0
+# The 24 patches of colorchecker24-frame with smooth reflectances: 18 colours (bumps
+# and steps over 400-700 nm) and 6 flat neutrals, the chart's bottom row.
+"$PY" - "$T/chart.csv" <<'PY' || exit 1
+import math, sys
+nm = list(range(380, 731, 10))
+rows = []
+ids = ["%s%02d" % (r, c) for r in "ABCD" for c in range(1, 7)]
+for k, pid in enumerate(ids):
+    if pid[0] == "D":
+        v = [0.9, 0.59, 0.36, 0.19, 0.09, 0.035][int(pid[1:]) - 1]
+        r = [v] * len(nm)
+    else:
+        c = 410 + 16 * k
+        r = [0.05 + 0.6 * math.exp(-((x - c) / (40 + 3 * k)) ** 2)
+             + (0.25 / (1 + math.exp(-(x - 560 - k) / 15)) if k % 3 == 0 else 0) for x in nm]
+    rows.append(pid + "," + pid + "," + ",".join("%.4f" % x for x in r))
+open(sys.argv[1], "w").write("patch,name," + ",".join(map(str, nm)) + "\n" + "\n".join(rows) + "\n")
+PY
+"$KOGEI" sim chart --layout colorchecker24-frame --spectra "$T/chart.csv" \
+	--camera "$FIX/demo/site_camera.csv" --illuminant D50 --tilt 10 --rotate 3 --seed 2 \
+	--width 800 --height 600 --fov 40 --fill 0.85 --paper 0.85 --ink 0.03 \
+	--background 0.2 --white-level 0.9 --noise none --depth float -o "$T/chart.tif" \
+	>/dev/null || { echo "FAIL: simulated chart"; exit 1; }
+for fw in 20000 2000; do
+	SIM_CAMERA="format=bayer_rggb12&fullwell=$fw&read=5&serial=site-1"
+	S=$T/S$fw
+	sim_acquire "$S" dark "$T/chart.tif" 10000 '&light=0' 2>/dev/null || fail=1
+	sim_acquire "$S" flat "$T/chart.tif" 10000 '&uniform=0.6' 2>/dev/null || fail=1
+	sim_acquire "$S" chart "$T/chart.tif" 10000 '' --layout colorchecker24-frame 2>/dev/null ||
+		fail=1
+	"$KOGEI" process "$S" --spectra "$T/chart.csv" -o "$T/O$fw" >"$T/out" 2>"$T/err" ||
+		{ echo "FAIL: process ($fw)"; cat "$T/err"; fail=1; }
+done
+# a second capture of the chart (other noise) to verify with; and a refused name
+S=$T/S20000
+sim_acquire "$S" chart "$T/chart.tif" 10000 '&seed=5' --layout colorchecker24-frame 2>/dev/null ||
+	fail=1
+"$KOGEI" process "$S" --spectra "$T/chart.csv" --chart chart-0001 --verify chart-0002 \
+	-o "$T/OV" >"$T/out" 2>"$T/err" || { echo "FAIL: process --verify"; cat "$T/err"; fail=1; }
+"$KOGEI" process "$S" --spectra "$T/chart.csv" --chart chart-0001 --verify nosuch \
+	-o "$T/OX" >"$T/out" 2>"$T/err"
+[ $? = 1 ] && grep -q -- "--verify nosuch" "$T/err" && [ ! -e "$T/OX/conformance.json" ] ||
+	{ echo "FAIL: --verify of no capture not refused"; cat "$T/err"; fail=1; }
+[ $fail = 0 ] || exit 1
+"$PY" - "$T/OV" <<'PY' || fail=1
+import json, sys
+c = json.load(open(sys.argv[1] + "/conformance.json"))
+r = {x["id"]: x for x in c["characteristics"]}["colour_accuracy"]
+print("--verify: ΔE00 D50 mean %.3f max %.3f on %d patches (in-sample mean %.3f)"
+      % (r["verify"]["mean"], r["verify"]["max"], r["verify"]["n"], r["in_sample"]["mean"]))
+assert r["graded_on"] == "verify", r
+assert r["verify"]["n"] >= 20 and len(r["used"]) == r["verify"]["n"], r
+assert abs(r["value"] - r["verify"]["mean"]) < 1e-12, r
+p = json.load(open(sys.argv[1] + "/process.json"))["calibration"]["patches"]
+assert any(isinstance(x.get("de00_d50_verify"), float) for x in p), "no de00_d50_verify"
+page = open(sys.argv[1] + "/report.html").read()
+assert "held-out (verification capture)" in page and "not a certification" in page
+PY
+"$PY" - "$T/O20000" "$T/O2000" <<'PY' || fail=1
+import json, math, sys
+ids = ["oecf", "white_balance", "illuminance_non_uniformity", "noise", "colour_accuracy",
+       "sfr", "colour_misregistration"]
+fields = ["id", "value", "unit", "aim", "tolerance", "level", "stars", "used", "measured",
+          "note"]
+def load(o):
+    c = json.load(open(o + "/conformance.json"))
+    assert "not a certification" in c["caveat"], c["caveat"]
+    recs = {r["id"]: r for r in c["characteristics"]}
+    assert sorted(recs) == sorted(ids), sorted(recs)
+    for r in recs.values():
+        for f in fields:
+            assert f in r, (r["id"], f)
+        assert r["level"] in (None, "A", "B", "C"), r
+        assert r["stars"] in (0, 1, 2, 3, 4), r
+    p = json.load(open(o + "/process.json"))["calibration"]
+    return recs, p
+a, pa = load(sys.argv[1])
+b, pb = load(sys.argv[2])
+for rid in ("sfr", "colour_misregistration"):
+    assert not a[rid]["measured"] and a[rid]["value"] is None, a[rid]
+    assert a[rid]["note"].startswith("not measured"), a[rid]
+for rid in ("oecf", "white_balance", "noise", "colour_accuracy", "illuminance_non_uniformity"):
+    assert a[rid]["measured"] and isinstance(a[rid]["value"], float), a[rid]
+# oecf and white balance: the worst over the neutral patches of process.json
+neut = [x for x in pa["patches"] if x["neutral"] and x["dL"] is not None]
+assert len(neut) >= 1, "no neutral patch"
+assert abs(a["oecf"]["value"] - max(abs(x["dL"]) for x in neut)) < 1e-9, a["oecf"]
+assert abs(a["white_balance"]["value"] - max(x["dab"] for x in neut)) < 1e-9
+assert sorted(a["oecf"]["used"]) == sorted(x["id"] for x in neut), a["oecf"]["used"]
+# the sim camera's response is linear and the neutrals flat spectra, which the
+# calibration represents: the tone deviation is near 0 (level A, 4 stars), the white
+# balance error small
+assert a["oecf"]["value"] < 0.5 and a["oecf"]["level"] == "A" and a["oecf"]["stars"] == 4, a["oecf"]
+assert a["white_balance"]["value"] < 2, a["white_balance"]
+assert len(neut) == 6, [x["id"] for x in neut]
+# noise: the standard deviation of shot noise goes as 1/sqrt(full well)
+ratio = b["noise"]["value"] / a["noise"]["value"]
+print("L* noise: %.4f (full well 20000), %.4f (2000), ratio %.2f (sqrt 10 = 3.16)"
+      % (a["noise"]["value"], b["noise"]["value"], ratio))
+assert 2.0 < ratio < 4.5, ratio
+# held-out against in-sample
+c = a["colour_accuracy"]
+print("ΔE00 D50 in-sample mean %.3f p90 %.3f max %.3f; held-out mean %.3f p90 %.3f max %.3f"
+      % (c["in_sample"]["mean"], c["in_sample"]["p90"], c["in_sample"]["max"],
+         c["held_out"]["mean"], c["held_out"]["p90"], c["held_out"]["max"]))
+assert c["graded_on"] == "held-out", c
+assert c["held_out"]["mean"] >= c["in_sample"]["mean"], c
+assert c["held_out"]["max"] >= c["in_sample"]["max"] - 1e-9, c
+assert abs(c["value"] - c["held_out"]["mean"]) < 1e-12, c
+assert c["cielab"]["illuminant"] == "CIE D50", c
+print("oecf %.3f (%s, %d stars), white balance %.3f, non-uniformity %.3f %%"
+      % (a["oecf"]["value"], a["oecf"]["level"], a["oecf"]["stars"],
+         a["white_balance"]["value"], a["illuminance_non_uniformity"]["value"]))
+PY
+# the report: both figures, the verdicts on the held-out ones, the caveat
+R=$T/O20000/report.html
+for pat in 'id="heldout"' 'held-out (leave-one-out)' 'FADGI 4-star (held-out)' \
+	'not a certification' 'id="conformance"' 'colour_misregistration'; do
+	grep -q -- "$pat" "$R" || { echo "FAIL: report lacks $pat"; fail=1; }
+done
+exit $fail
