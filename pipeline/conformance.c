@@ -217,11 +217,11 @@ json_t *kg_conformance(const json_t *patches, double flat_nonuniformity)
 		             "no neutral patch with a pixel spread: not measured"));
 	json_array_append_new(list, colour_record(patches));
 	json_array_append_new(list, record("sfr", "cycles/pixel", NAN, NAN, NULL, NULL, 0, NULL, 0,
-	                                   "not measured: the slanted-edge analysis is not part "
-	                                   "of this build"));
+	                                   "not measured: the chart capture's edges were not "
+	                                   "analysed"));
 	json_array_append_new(list, record("colour_misregistration", "pixels", NAN, NAN, NULL, NULL,
-	                                   0, NULL, 0, "not measured: the edge analysis is not "
-	                                   "part of this build"));
+	                                   0, NULL, 0, "not measured: the chart capture's "
+	                                   "edges were not analysed"));
 	return list;
 }
 
