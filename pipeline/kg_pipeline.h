@@ -157,6 +157,12 @@ int kg_grade_iso19264_a(const kg_de_summary *s);
  * from process.json's calibration.patches (keys dL, dab, noise_L, de00_d50,
  * de00_d50_heldout, neutral) and the flat's non-uniformity (a fraction; NaN: none). */
 json_t *kg_conformance(const json_t *patches, double flat_nonuniformity);
+/* Fill the sfr and colour_misregistration records of list (from kg_conformance) by the
+ * slanted-edge method on the sides of the detected tags of l in r, in img (the chart
+ * capture as detected, binned bin x bin); "not measured" with the reason when no side
+ * suits. */
+void kg_conformance_edges(json_t *list, const kg_chart_layout *l, const kg_chart_result *r,
+                          const kg_image *img, int bin);
 #define KG_CONFORMANCE_CAVEAT                                                           \
 	"An analysis of the chart capture against the criteria of ISO 19264-1 and FADGI "  \
 	"2023, not a certification under either standard."

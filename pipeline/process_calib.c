@@ -578,6 +578,8 @@ int proc_calibrate(proc *p)
 		const json_t *nu = json_object_get(p->calibration, "flat_illuminance_nonuniformity");
 		json_t *conf = kg_conformance(patches, json_is_number(nu) ? json_number_value(nu)
 		                                                           : NAN);
+		if (conf)
+			kg_conformance_edges(conf, p->layout, res, img.rgb, bin);
 		char *conf_out = kg_path_join(p->stage, "conformance.json");
 		json_t *doc = json_pack("{s:s, s:O}", "caveat", KG_CONFORMANCE_CAVEAT,
 		                        "characteristics", conf);

@@ -7,7 +7,10 @@
 # sqrt(10)); the OECF and white balance records are the worst |ΔL*| and ΔE(a*b*) of the
 # neutral patches; the held-out (leave-one-out) colour accuracy is no better than the
 # in-sample one and the verdicts grade it; --verify CAPTURE grades a second capture of
-# the chart instead, and a name that is no capture is refused; sfr and misregistration are not measured.
+# the chart instead, and a name that is no capture is refused; the sfr and colour
+# misregistration records are measured on the slanted tag sides (chart rotated 3°) with
+# MTF50 in a plausible range and the edges listed in used, and are "not measured" with
+# the reason for the same chart square to the sensor (no tilt, no rotation).
 # A chart with neutral patches is needed for the tone, white balance and noise records.
 # usage: test_conformance.sh KOGEI SOURCE_ROOT HAVE_TAGS_AND_DEMOSAIC
 set -u
@@ -42,6 +45,19 @@ PY
 	--width 800 --height 600 --fov 40 --fill 0.85 --paper 0.85 --ink 0.03 \
 	--background 0.2 --white-level 0.9 --noise none --depth float -o "$T/chart.tif" \
 	>/dev/null || { echo "FAIL: simulated chart"; exit 1; }
+"$KOGEI" sim chart --layout colorchecker24-frame --spectra "$T/chart.csv" \
+	--camera "$FIX/demo/site_camera.csv" --illuminant D50 --tilt 0 --rotate 0 --seed 2 \
+	--width 800 --height 600 --fov 40 --fill 0.85 --paper 0.85 --ink 0.03 \
+	--background 0.2 --white-level 0.9 --noise none --depth float -o "$T/square.tif" \
+	>/dev/null || { echo "FAIL: simulated square chart"; exit 1; }
+SIM_CAMERA="format=bayer_rggb12&fullwell=20000&read=5&serial=site-1"
+S=$T/SQ
+sim_acquire "$S" dark "$T/square.tif" 10000 '&light=0' 2>/dev/null || fail=1
+sim_acquire "$S" flat "$T/square.tif" 10000 '&uniform=0.6' 2>/dev/null || fail=1
+sim_acquire "$S" chart "$T/square.tif" 10000 '' --layout colorchecker24-frame 2>/dev/null ||
+	fail=1
+"$KOGEI" process "$S" --spectra "$T/chart.csv" -o "$T/OSQ" >"$T/out" 2>"$T/err" ||
+	{ echo "FAIL: process (square chart)"; cat "$T/err"; fail=1; }
 for fw in 20000 2000; do
 	SIM_CAMERA="format=bayer_rggb12&fullwell=$fw&read=5&serial=site-1"
 	S=$T/S$fw
@@ -97,9 +113,22 @@ def load(o):
     return recs, p
 a, pa = load(sys.argv[1])
 b, pb = load(sys.argv[2])
-for rid in ("sfr", "colour_misregistration"):
-    assert not a[rid]["measured"] and a[rid]["value"] is None, a[rid]
-    assert a[rid]["note"].startswith("not measured"), a[rid]
+# sfr and misregistration: measured on the tag sides of the rotated chart, not graded
+# (no limits sourced)
+s, m = a["sfr"], a["colour_misregistration"]
+assert s["measured"] and isinstance(s["value"], float), s
+assert len(s["used"]) >= 2, s["used"]
+assert sorted(s["used"]) == sorted(e["edge"] for e in s["edges"] if "mtf50" in e), s
+assert all(u.startswith("tag") for u in s["used"]), s["used"]
+assert 0.05 < s["mtf50"] < 0.5, s["mtf50"]
+assert s["mtf50"] < s["mtf10"] <= 1.0, s
+assert 0 < s["efficiency"] <= 1 and abs(s["value"] - 100 * s["efficiency"]) < 1e-9, s
+assert s["level"] is None and s["stars"] == 0 and "not sourced" in s["note"], s
+assert m["measured"] and 0 <= m["value"] < 1.0 and m["used"] == s["used"], m
+assert m["level"] is None and m["stars"] == 0, m
+print("sfr: %d edges, median MTF50 %.4f, MTF10 %.4f cy/px, efficiency %.1f %%; "
+      "misregistration %.3f px" % (len(s["used"]), s["mtf50"], s["mtf10"], s["value"],
+                                   m["value"]))
 for rid in ("oecf", "white_balance", "noise", "colour_accuracy", "illuminance_non_uniformity"):
     assert a[rid]["measured"] and isinstance(a[rid]["value"], float), a[rid]
 # oecf and white balance: the worst over the neutral patches of process.json
@@ -132,6 +161,16 @@ assert c["cielab"]["illuminant"] == "CIE D50", c
 print("oecf %.3f (%s, %d stars), white balance %.3f, non-uniformity %.3f %%"
       % (a["oecf"]["value"], a["oecf"]["level"], a["oecf"]["stars"],
          a["white_balance"]["value"], a["illuminance_non_uniformity"]["value"]))
+PY
+"$PY" - "$T/OSQ" <<'PY' || fail=1
+import json, sys
+c = json.load(open(sys.argv[1] + "/conformance.json"))
+recs = {x["id"]: x for x in c["characteristics"]}
+for rid in ("sfr", "colour_misregistration"):
+    r = recs[rid]
+    assert not r["measured"] and r["value"] is None and r["used"] == [], r
+    assert r["note"].startswith("not measured") and "square to the sensor" in r["note"], r
+print("square chart: sfr %s" % recs["sfr"]["note"])
 PY
 # the report: both figures, the verdicts on the held-out ones, the caveat
 R=$T/O20000/report.html
