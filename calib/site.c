@@ -137,6 +137,7 @@ static int match_patches(const kg_reference *ref, const kg_patchset *site,
 		if (!is_excluded(opt, site->ids[i]) && alias[i] < 0)
 			unknown[nunknown++] = i;
 	if (nunknown) {
+		free(alias);
 		char a[400] = "", b[300] = "";
 		calib_list_ids(a, sizeof(a), site->ids, unknown, nunknown, 12);
 		calib_list_ids(b, sizeof(b), ref->field_ids, NULL, ref->k, 12);
