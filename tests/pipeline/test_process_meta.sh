@@ -131,5 +131,18 @@ check(sec.find("accession") < sec.find("title") < sec.find("operator") < sec.fin
       "known keys first, in order")
 sys.exit(0 if ok else 1)
 PYEOF
+# A stored record that is not one (edited by hand): the manifest is refused, naming it.
+cp -r S S2 && rm -f S2/.lock
+"$PY" - S2/session.json <<'PYEOF'
+import json, sys
+m = json.load(open(sys.argv[1]))
+m["captures"][3]["meta"]["title"] = "a\tb"
+json.dump(m, open(sys.argv[1], "w"))
+PYEOF
+"$KOGEI" process S2 --spectra chart.cgats -o out2 --cube none >out.log 2>err.log
+rc=$?
+[ $rc = 1 ] && grep -qF "S2/session.json: captures[3].meta.title: expected no control" err.log &&
+	[ ! -e out2/process.json ] ||
+	{ echo "FAIL: a control character in a stored record: exit $rc"; cat err.log; fail=1; }
 [ $fail = 0 ] && echo "PASS: process-meta"
 exit $fail
