@@ -88,8 +88,14 @@ int kg_meta_set(json_t *obj, const char *what, const char *key, const char *valu
 
 int kg_meta_parse_arg(json_t *obj, const char *opt, const char *arg, kg_err *err)
 {
+	if (!arg)
+		arg = "";
+	if (!opt)
+		opt = "--meta";
 	char what[160];
-	snprintf(what, sizeof(what), "%s '%.100s%s'", opt, arg, strlen(arg) > 100 ? "..." : "");
+	size_t alen = strnlen(arg, 101);
+	snprintf(what, sizeof(what), "%s '%.*s%s'", opt, (int)(alen > 100 ? 100 : alen), arg,
+	         alen > 100 ? "..." : "");
 	const char *eq = strchr(arg, '=');
 	if (!eq)
 		return kg_fail(err, KG_EINVAL, "%s: expected KEY=VALUE (e.g. accession=1987.12.3)",
