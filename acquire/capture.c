@@ -855,6 +855,8 @@ static json_t *capture_json(cap_ctx *c, const char *started, const char *ended,
 		if (strcmp(c->layout_rel, o->chart_layout)) /* copied: where from */
 			json_object_set_new(cap, "chart_layout_source", json_string(o->chart_layout));
 	}
+	if (cap && json_object_size(o->meta))
+		json_object_set_new(cap, "meta", json_deep_copy(o->meta));
 	if (cap && json_array_size(c->sources))
 		json_object_set_new(cap, "sources",
 		                    json_pack("{s:O, s:s}", "files", c->sources, "decoding",

@@ -214,6 +214,8 @@ typedef struct kg_capture_options {
 	const char *measure_name; /* described in the manifest ("chart cie-tcs-frame") */
 	const char *chart_layout; /* the chart's layout (path or name), recorded in the
 	                           * manifest as "chart_layout"; NULL: none */
+	const json_t *meta;      /* the object record (kg_meta_*), stored as the capture's
+	                          * "meta"; NULL or empty: none */
 	double gain;             /* NAN keeps the camera's gain */
 	kg_frame_format format;  /* pixfmt/bits/cfa/width/height/offset requests (0 keeps) */
 	const char *dark;        /* NULL: the latest matching dark of the session (if any);

@@ -302,6 +302,11 @@ static int check_capture(check_ctx *c, size_t i)
 	}
 	if ((ret = check_correction(c, i, "dark")) || (ret = check_correction(c, i, "flat")))
 		return ret;
+	json_t *meta = json_array_get(json_object_get(c->root, "captures"), i);
+	meta = json_object_get(meta, "meta");
+	snprintf(k, sizeof(k), "captures[%zu].meta", i);
+	if (meta && (ret = kg_meta_validate(c->file, k, meta, c->err)))
+		return ret;
 	snprintf(k, sizeof(k), "captures[%zu].chart_layout", i);
 	return check_layout(c, k, prefix);
 }

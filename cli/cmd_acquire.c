@@ -43,6 +43,10 @@ static const char usage_acquire[] =
 	"  --force-nonlinear    accept YUYV or MJPEG (display-encoded, MJPEG lossy: not\n"
 	"                       for measurements; averaged as decoded R'G'B')\n"
 	"  --no-record          do not store the raw frames (no replay possible)\n"
+	"  --meta KEY=VALUE     object record, repeatable: accession, title, operator,\n"
+	"                       lighting, notes or a free key of [A-Za-z0-9_.-]{1,64};\n"
+	"                       the value UTF-8, at most 4096 bytes, no control characters;\n"
+	"                       stored as the capture's \"meta\" in SESSION/session.json\n"
 	"  Exit 0 ok, 1 bad input, 2 bad usage, 3 the camera failed (timeouts, dropped or\n"
 	"  incomplete frames: the counts are printed and nothing is added to the session).";
 
@@ -152,6 +156,8 @@ static void print_summary(const kg_capture_result *r, const kg_capture_options *
 	       ncaptures);
 }
 
+static void decref_p(json_t **p) { json_decref(*p); }
+
 int kg_cmd_acquire(int argc, char **argv)
 {
 	if (kg_cli_wants_help(argc, argv)) {
@@ -163,7 +169,7 @@ int kg_cmd_acquire(int argc, char **argv)
 	const char *uri = NULL, *out = NULL, *kind = NULL, *layout = NULL;
 	int have_target = 0, have_frames = 0;
 	enum { O_NAME = 256, O_FRAMES, O_EXPOSURE, O_TARGET, O_LAYOUT, O_GAIN, O_FORMAT, O_ROI,
-	       O_DARK, O_FLAT, O_TIMEOUT, O_MAX_DROPPED, O_FORCE, O_NO_RECORD, O_KIND };
+	       O_DARK, O_FLAT, O_TIMEOUT, O_MAX_DROPPED, O_FORCE, O_NO_RECORD, O_KIND, O_META };
 	static const struct option opts[] = {
 		{"camera", required_argument, NULL, 'c'},
 		{"out", required_argument, NULL, 'o'},
@@ -182,6 +188,7 @@ int kg_cmd_acquire(int argc, char **argv)
 		{"max-dropped", required_argument, NULL, O_MAX_DROPPED},
 		{"force-nonlinear", no_argument, NULL, O_FORCE},
 		{"no-record", no_argument, NULL, O_NO_RECORD},
+		{"meta", required_argument, NULL, O_META},
 		{NULL, 0, NULL, 0},
 	};
 	optind = 1;
@@ -189,6 +196,8 @@ int kg_cmd_acquire(int argc, char **argv)
 	int opt, r = 0;
 	long n = 0; /* parse_long sets it on success only; GCC cannot see errors are nonzero */
 	kg_err err = {{0}};
+	json_t *meta __attribute__((cleanup(decref_p))) = json_object();
+	o.meta = meta;
 	while (!r && (opt = getopt_long(argc, argv, ":c:o:", opts, NULL)) != -1) {
 		switch (opt) {
 		case 'c': uri = optarg; break;
@@ -228,6 +237,10 @@ int kg_cmd_acquire(int argc, char **argv)
 			break;
 		case O_FORCE: o.force_nonlinear = 1; break;
 		case O_NO_RECORD: o.record = 0; break;
+		case O_META:
+			if (kg_meta_parse_arg(meta, "--meta", optarg, &err))
+				r = kg_cli_usage_error(usage_acquire, "%s", err.msg);
+			break;
 		case ':':
 			r = kg_cli_usage_error(usage_acquire, "option %s needs a value", argv[optind - 1]);
 			break;

@@ -73,6 +73,12 @@ static const char help_process[] =
 	"  --assume-same-exposure  an exposure time or gain not recorded for an object or\n"
 	"                        the chart is taken as equal (else refused); what is\n"
 	"                        recorded still scales the values, with a warning\n"
+	"  --meta KEY=VALUE      object record for the run, repeatable (accession, title,\n"
+	"                        operator, lighting, notes or a free key of\n"
+	"                        [A-Za-z0-9_.-]{1,64}; UTF-8 value up to 4096 bytes, no\n"
+	"                        control characters): process.json \"meta\" is the\n"
+	"                        captures' records with these over them; shown at the top\n"
+	"                        of report.html\n"
 	"  --skip NAME[,NAME]    leave these captures out, as if not in the session (a\n"
 	"                        foreign or failed capture; listed in process.json)\n"
 	"  --no-render           write scene.json but do not render it\n"
@@ -124,6 +130,8 @@ static void print_warnings(const char *outdir)
 	free(path);
 }
 
+static void decref_p(json_t **p) { json_decref(*p); }
+
 int kg_cmd_process(int argc, char **argv)
 {
 	if (kg_cli_wants_help(argc, argv)) {
@@ -132,7 +140,7 @@ int kg_cmd_process(int argc, char **argv)
 	}
 	enum { O_REF = 256, O_SPECTRA, O_MAT, O_ONLY, O_LAYOUT, O_CHART, O_VERIFY, O_MESH, O_ANGLE,
 	       O_MINTAGS, O_MAXRES, O_FORCE, O_SAME, O_NORENDER, O_THREADS, O_QUIET, O_MASK, O_CUBE,
-	       O_METHOD, O_ANGLES, O_INTENSITY, O_SKIP };
+	       O_METHOD, O_ANGLES, O_INTENSITY, O_SKIP, O_META };
 	static const struct option longopts[] = {
 		{"reference", required_argument, NULL, O_REF},
 		{"spectra", required_argument, NULL, O_SPECTRA},
@@ -156,12 +164,15 @@ int kg_cmd_process(int argc, char **argv)
 		{"threads", required_argument, NULL, O_THREADS},
 		{"quiet", no_argument, NULL, O_QUIET},
 		{"skip", required_argument, NULL, O_SKIP},
+		{"meta", required_argument, NULL, O_META},
 		{"output", required_argument, NULL, 'o'},
 		{NULL, 0, NULL, 0},
 	};
 	kg_process_options o;
 	kg_process_options_default(&o);
 	o.progress = stderr;
+	json_t *meta __attribute__((cleanup(decref_p))) = json_object();
+	o.meta = meta;
 	char *only = NULL, *skip = NULL;
 	const char **names = NULL, **skips = NULL;
 	int quiet = 0, ch;
@@ -241,6 +252,12 @@ int kg_cmd_process(int argc, char **argv)
 			o.threads = (int)v;
 			break;
 		case O_QUIET: quiet = 1; break;
+		case O_META: {
+			kg_err me = {{0}};
+			if (kg_meta_parse_arg(meta, "--meta", optarg, &me))
+				return kg_cli_usage_error(usage_process, "%s", me.msg);
+			break;
+		}
 		case O_SKIP:
 			if (!*optarg || strspn(optarg, ",") == strlen(optarg))
 				return kg_cli_usage_error(usage_process, "--skip %s: expected capture "

@@ -209,6 +209,17 @@ $('start').addEventListener('click', async () => {
   if ($('auto').checked) body.auto_exposure = true;
   if ($('cname').value) body.name = $('cname').value;
   if ($('cflat').value) body.flat = $('cflat').value;
+  // the object record: the known keys, then KEY=VALUE lines (the server checks them)
+  const meta = {};
+  for (const k of ['accession', 'title', 'operator', 'lighting', 'notes'])
+    if ($('m-' + k).value) meta[k] = $('m-' + k).value;
+  for (const line of $('m-more').value.split('\n')) {
+    if (!line.trim()) continue;
+    const eq = line.indexOf('=');
+    if (eq < 0) { setStatus('Other keys: "' + line + '": expected KEY=VALUE', true); return; }
+    meta[line.slice(0, eq).trim()] = line.slice(eq + 1);
+  }
+  if (Object.keys(meta).length) body.meta = meta;
   try { showState(await api('/api/capture', body)); } catch (e) { setStatus(e.message, true); }
 });
 

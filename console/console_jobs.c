@@ -211,6 +211,7 @@ static void *capture_main(void *arg)
 	o.target = jdbl(req, "target", o.target);
 	o.dark = jstr(req, "dark");
 	o.flat = jstr(req, "flat");
+	o.meta = json_object_get(req, "meta"); /* checked by console_job_capture */
 	o.progress = capture_progress;
 	o.progress_user = c;
 	o.note = capture_note;
@@ -353,6 +354,32 @@ int console_job_capture(console *c, const json_t *req, char *why, size_t n)
 		         "captures it is for");
 		return 400;
 	}
+	const json_t *meta = json_object_get(req, "meta");
+	if (meta && !json_is_object(meta)) {
+		snprintf(why, n, "capture: 'meta': expected an object of KEY: \"value\" strings");
+		return 400;
+	}
+	json_t *checked = json_object();
+	const char *mk;
+	const json_t *mv;
+	int bad = !checked;
+	json_object_foreach((json_t *)meta, mk, mv)
+	{
+		char what[128];
+		snprintf(what, sizeof(what), "capture: 'meta.%.64s'", mk);
+		if (bad || !json_is_string(mv)) {
+			snprintf(why, n, "%s: expected a string", what);
+			bad = 1;
+		} else if (kg_meta_set(checked, what, mk, json_string_value(mv), &err)) {
+			snprintf(why, n, "%s", err.msg);
+			bad = 1;
+		}
+		if (bad)
+			break;
+	}
+	json_decref(checked);
+	if (bad)
+		return 400;
 	char title[128];
 	snprintf(title, sizeof(title), "%s capture of %d frames", k, (int)frames);
 	return job_start(c, "capture", title, capture_main, req, why, n);

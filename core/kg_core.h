@@ -18,5 +18,6 @@
 #include "plot.h"
 #include "rng.h"
 #include "saturation.h"
+#include "meta.h"
 
 #endif

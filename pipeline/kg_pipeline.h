@@ -83,6 +83,8 @@ typedef struct kg_process_options {
 	int threads;               /* 0: all */
 	FILE *progress;            /* progress lines, or NULL */
 	const char *command;       /* how it was invoked, for process.json (may be NULL) */
+	const json_t *meta;        /* --meta object record (kg_meta_*), merged over the
+	                            * captures' into process.json "meta"; NULL: none */
 	int accept_rerecorded;     /* an OUTDIR holding the results of an earlier recording
 	                            * of a session at the same path counts as this
 	                            * session's (the demo records its sessions anew) */

@@ -65,9 +65,39 @@ int proc_input(proc *p, const char *role, const char *path, const char *expected
 	if (expected && strcmp(expected, hex))
 		return kg_fail(p->err, KG_EIO, "%s: sha256 %s, but %s records %s: the file changed "
 		               "after it was recorded", path, hex, p->manifest_path, expected);
-	json_array_append_new(p->inputs, json_pack("{s:s, s:s, s:s}", "role", role, "path", path,
-	                                           "sha256", hex));
+	char *abs = realpath(path, NULL); /* provenance: where it is, not where we ran */
+	json_t *in = json_pack("{s:s, s:s, s:s}", "role", role, "path", abs ? abs : path,
+	                       "sha256", hex);
+	if (in && abs && strcmp(abs, path))
+		json_object_set_new(in, "given", json_string(path));
+	free(abs);
+	json_array_append_new(p->inputs, in);
 	return 0;
+}
+
+/* Object records (docs/process.md): each object gets its capture's "meta"; the run's is
+ * the captures' records merged in manifest order, the command's --meta over them. */
+static json_t *meta_records(const proc *p, json_t *objects)
+{
+	json_t *all = json_object(), *obj;
+	for (int i = 0; i < p->ncaps; i++) {
+		json_t *m = json_object_get(p->caps[i].j, "meta");
+		if (json_is_object(m))
+			json_object_update(all, m);
+	}
+	if (p->o->meta)
+		json_object_update(all, (json_t *)p->o->meta);
+	size_t k;
+	json_array_foreach(objects, k, obj)
+	{
+		const char *name = json_string_value(json_object_get(obj, "capture"));
+		json_t *m = NULL;
+		for (int i = 0; name && i < p->ncaps && !m; i++)
+			if (!strcmp(p->caps[i].name, name))
+				m = json_object_get(p->caps[i].j, "meta");
+		json_object_set_new(obj, "meta", json_is_object(m) ? json_deep_copy(m) : json_object());
+	}
+	return all;
 }
 
 /* ---- the session's manifest --------------------------------------------------- */
@@ -537,6 +567,8 @@ int kg_process_run(const kg_process_options *o, kg_process_summary *summary, kg_
 			json_object_set_new(root, "command", json_string(o->command));
 		if (!ret)
 			json_object_set(root, "skipped_captures", p.skipped);
+		if (!ret)
+			json_object_set_new(root, "meta", meta_records(&p, objects));
 	}
 	if (!ret)
 		ret = proc_outdir_commit(&p, root);

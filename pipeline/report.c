@@ -1309,6 +1309,28 @@ static const char style[] =
 	"section,article.object{break-before:page}section#summary{break-before:auto}"
 	"figure,table,tr{break-inside:avoid}.pass,.fail{border:1px solid #000}}";
 
+/* The object record (process.json "meta"), at the top: known keys first. */
+static void section_record(report *r)
+{
+	const json_t *meta = json_object_get(r->root, "meta");
+	if (!meta || r->ret)
+		return;
+	if (kg_meta_validate(r->file, "meta", meta, r->err)) {
+		r->ret = KG_EINVAL;
+		return;
+	}
+	if (!json_object_size(meta))
+		return;
+	section_begin(r, "record", "Object record");
+	html(r, "<table class=\"record\">\n");
+	const char *keys[KG_META_MAX_KEYS];
+	int n = kg_meta_ordered_keys(meta, keys, KG_META_MAX_KEYS);
+	for (int i = 0; i < n; i++)
+		row(r, keys[i], json_string_value(json_object_get(meta, keys[i])));
+	html(r, "</table>\n");
+	section_end(r);
+}
+
 static void write_page(report *r)
 {
 	html(r, "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n"
@@ -1325,6 +1347,7 @@ static void write_page(report *r)
 	        "Calibration</a><a href=\"#color-accuracy\">Colour accuracy</a>"
 	        "<a href=\"#objects\">Objects</a><a href=\"#provenance\">Provenance</a>"
 	        "<a href=\"#warnings\">Warnings</a></nav>\n</header>\n");
+	section_record(r);
 	section_summary(r);
 	section_calibration(r);
 	section_color_accuracy(r);

@@ -150,7 +150,12 @@ def view_and_ranges(c):
                        ({"kind": "dark", "frames": 2.5}, "frames"),
                        ({"kind": "dark", "frames": 10001}, "frames"),
                        ({"kind": "dark", "camera": -2}, "camera"),
-                       ({"kind": "dark", "auto_exposure": "yes"}, "auto_exposure")):
+                       ({"kind": "dark", "auto_exposure": "yes"}, "auto_exposure"),
+                       ({"kind": "dark", "meta": "title=x"}, "meta"),
+                       ({"kind": "dark", "meta": {"title": 3}}, "meta.title"),
+                       ({"kind": "dark", "meta": {"bad key": "x"}}, "meta.bad key"),
+                       ({"kind": "dark", "meta": {"notes": "a\nb"}}, "meta.notes"),
+                       ({"kind": "dark", "meta": {"notes": "x" * 4097}}, "meta.notes")):
         st, j = c.json("POST", "/api/capture", body)
         check(st == 400 and "'%s'" % word in j.get("error", ""),
               "capture %s: expected 400 naming '%s', got %d %s" % (body, word, st, j))
@@ -169,8 +174,9 @@ def view_and_ranges(c):
 
 
 def dark_capture(c, work):
+    record = {"accession": "1987.12.3", "title": "<i>lid</i> & \u6f06", "rig.id": "A"}
     st, j = c.json("POST", "/api/capture", {"kind": "dark", "frames": 3, "exposure_us": 4000,
-                                            "name": "dark-api"})
+                                            "name": "dark-api", "meta": record})
     check(st == 200, "dark capture started (%d %s)" % (st, j))
     s = c.wait_job()
     if not check(s is not None, "the dark capture ended within 60 s"):
@@ -185,6 +191,8 @@ def dark_capture(c, work):
         man = json.load(f)
     names = [(x["name"], x["kind"]) for x in man["captures"]]
     check(("dark-api", "dark") in names, "session.json lists the dark: %s" % names)
+    metas = [x.get("meta") for x in man["captures"] if x["name"] == "dark-api"]
+    check(metas == [record], "the capture request's meta in session.json: %s" % metas)
     st, body = c.request("GET", "/session/session.json")
     check(st == 200 and b"dark-api" in body, "the session's manifest is served (%d)" % st)
     st, j = c.json("GET", "/api/session")

@@ -1,0 +1,162 @@
+/* Object records (meta.h). */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "meta.h"
+
+const char *const kg_meta_known_keys[] = {"accession", "title", "operator", "lighting",
+                                          "notes", NULL};
+
+int kg_meta_key_ok(const char *key)
+{
+	size_t n = key ? strlen(key) : 0;
+	if (n < 1 || n > KG_META_KEY_MAX)
+		return 0;
+	for (size_t i = 0; i < n; i++) {
+		char c = key[i];
+		if (!((c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') ||
+		      c == '_' || c == '.' || c == '-'))
+			return 0;
+	}
+	return 1;
+}
+
+const char *kg_meta_value_problem(const char *value)
+{
+	if (!value)
+		return "expected a value";
+	const unsigned char *s = (const unsigned char *)value;
+	size_t n = strlen(value);
+	if (n > KG_META_VALUE_MAX)
+		return "expected at most 4096 bytes of UTF-8";
+	for (size_t i = 0; i < n;) {
+		unsigned c = s[i], cp, len;
+		if (c < 0x80) {
+			cp = c;
+			len = 1;
+		} else if ((c & 0xE0) == 0xC0) {
+			cp = c & 0x1F;
+			len = 2;
+		} else if ((c & 0xF0) == 0xE0) {
+			cp = c & 0x0F;
+			len = 3;
+		} else if ((c & 0xF8) == 0xF0) {
+			cp = c & 0x07;
+			len = 4;
+		} else {
+			return "expected UTF-8 text (an invalid byte)";
+		}
+		if (i + len > n)
+			return "expected UTF-8 text (a truncated character)";
+		for (unsigned k = 1; k < len; k++) {
+			if ((s[i + k] & 0xC0) != 0x80)
+				return "expected UTF-8 text (an invalid continuation byte)";
+			cp = cp << 6 | (s[i + k] & 0x3F);
+		}
+		static const unsigned minimum[5] = {0, 0, 0x80, 0x800, 0x10000};
+		if (cp < minimum[len] || cp > 0x10FFFF || (cp >= 0xD800 && cp <= 0xDFFF))
+			return "expected UTF-8 text (an overlong form or a code point out of range)";
+		if (cp < 0x20 || (cp >= 0x7F && cp <= 0x9F))
+			return "expected no control characters (tabs, line breaks and the like)";
+		i += len;
+	}
+	return NULL;
+}
+
+int kg_meta_set(json_t *obj, const char *what, const char *key, const char *value,
+                kg_err *err)
+{
+	if (!kg_meta_key_ok(key))
+		return kg_fail(err, KG_EINVAL,
+		               "%s: key: expected 1 to %d of A-Z a-z 0-9 '_' '.' '-' (known keys: "
+		               "accession, title, operator, lighting, notes)",
+		               what, KG_META_KEY_MAX);
+	const char *why = kg_meta_value_problem(value);
+	if (why)
+		return kg_fail(err, KG_EINVAL, "%s: value: %s", what, why);
+	if (json_object_get(obj, key))
+		return kg_fail(err, KG_EINVAL, "%s: key '%s' given twice: expected each key once",
+		               what, key);
+	if (json_object_size(obj) >= KG_META_MAX_KEYS)
+		return kg_fail(err, KG_EINVAL, "%s: expected at most %d keys", what,
+		               KG_META_MAX_KEYS);
+	if (json_object_set_new(obj, key, json_string(value)))
+		return kg_fail(err, KG_ENOMEM, "%s: out of memory", what);
+	return 0;
+}
+
+int kg_meta_parse_arg(json_t *obj, const char *opt, const char *arg, kg_err *err)
+{
+	if (!arg)
+		arg = "";
+	if (!opt)
+		opt = "--meta";
+	char what[160];
+	size_t alen = strnlen(arg, 101);
+	snprintf(what, sizeof(what), "%s '%.*s%s'", opt, (int)(alen > 100 ? 100 : alen), arg,
+	         alen > 100 ? "..." : "");
+	const char *eq = strchr(arg, '=');
+	if (!eq)
+		return kg_fail(err, KG_EINVAL, "%s: expected KEY=VALUE (e.g. accession=1987.12.3)",
+		               what);
+	size_t kn = (size_t)(eq - arg);
+	char key[KG_META_KEY_MAX + 2];
+	if (kn > KG_META_KEY_MAX)
+		kn = KG_META_KEY_MAX + 1; /* too long: refused by kg_meta_key_ok */
+	memcpy(key, arg, kn);
+	key[kn] = 0;
+	return kg_meta_set(obj, what, key, eq + 1, err);
+}
+
+int kg_meta_validate(const char *file, const char *key, const json_t *meta, kg_err *err)
+{
+	if (!json_is_object(meta))
+		return kg_fail(err, KG_EINVAL, "%s: %s: expected an object of KEY: \"value\" strings",
+		               file, key);
+	if (json_object_size(meta) > KG_META_MAX_KEYS)
+		return kg_fail(err, KG_EINVAL, "%s: %s: expected at most %d keys", file, key,
+		               KG_META_MAX_KEYS);
+	const char *k;
+	const json_t *v;
+	json_object_foreach((json_t *)meta, k, v)
+	{
+		if (!kg_meta_key_ok(k))
+			return kg_fail(err, KG_EINVAL,
+			               "%s: %s: key '%.80s': expected 1 to %d of A-Z a-z 0-9 '_' '.' '-'",
+			               file, key, k, KG_META_KEY_MAX);
+		const char *why = json_is_string(v) ? kg_meta_value_problem(json_string_value(v))
+		                                    : "expected a string";
+		if (why)
+			return kg_fail(err, KG_EINVAL, "%s: %s.%s: %s", file, key, k, why);
+	}
+	return 0;
+}
+
+static int cmp_str(const void *a, const void *b)
+{
+	return strcmp(*(const char *const *)a, *(const char *const *)b);
+}
+
+int kg_meta_ordered_keys(const json_t *meta, const char **keys, int max)
+{
+	int n = 0;
+	for (int i = 0; kg_meta_known_keys[i] && n < max; i++) {
+		json_t *v = json_object_get(meta, kg_meta_known_keys[i]);
+		if (json_is_string(v))
+			keys[n++] = kg_meta_known_keys[i];
+	}
+	int first = n;
+	const char *k;
+	const json_t *v;
+	json_object_foreach((json_t *)meta, k, v)
+	{
+		int known = 0;
+		for (int i = 0; kg_meta_known_keys[i]; i++)
+			known |= !strcmp(k, kg_meta_known_keys[i]);
+		if (!known && json_is_string(v) && n < max)
+			keys[n++] = k;
+	}
+	qsort(keys + first, (size_t)(n - first), sizeof(*keys), cmp_str);
+	return n;
+}
