@@ -287,7 +287,96 @@ int kg_master_write(const char *cube, const kg_illuminant *ill, kg_icc_space spa
 	return ret;
 }
 
+int kg_icc_camera_profile(const double (*rgb)[3], const double (*xyz)[3], int n,
+                          const char *description, double m[9], unsigned char **buf,
+                          size_t *len, kg_err *err)
+{
+	*buf = NULL;
+	*len = 0;
+	if (n < 3)
+		return kg_fail(err, KG_EINVAL, "camera profile: %d patches, expected at least 3", n);
+	/* normal equations: (R^T R) M^T = R^T X */
+	double A[9] = {0}, Bm[9] = {0};
+	for (int i = 0; i < n; i++)
+		for (int r = 0; r < 3; r++)
+			for (int c = 0; c < 3; c++) {
+				A[3 * r + c] += rgb[i][r] * rgb[i][c];
+				Bm[3 * r + c] += rgb[i][r] * xyz[i][c];
+			}
+	double det = A[0] * (A[4] * A[8] - A[5] * A[7]) - A[1] * (A[3] * A[8] - A[5] * A[6]) +
+	             A[2] * (A[3] * A[7] - A[4] * A[6]);
+	if (!(fabs(det) > 1e-14))
+		return kg_fail(err, KG_EINVAL, "camera profile: the patches' camera values are "
+		               "collinear: expected three independent colours");
+	double inv[9] = {
+		(A[4] * A[8] - A[5] * A[7]) / det, (A[2] * A[7] - A[1] * A[8]) / det,
+		(A[1] * A[5] - A[2] * A[4]) / det, (A[5] * A[6] - A[3] * A[8]) / det,
+		(A[0] * A[8] - A[2] * A[6]) / det, (A[2] * A[3] - A[0] * A[5]) / det,
+		(A[3] * A[7] - A[4] * A[6]) / det, (A[1] * A[6] - A[0] * A[7]) / det,
+		(A[0] * A[4] - A[1] * A[3]) / det,
+	};
+	double M[9]; /* xyz = M rgb: M[3 * out + in] = (inv Bm)[3 * in + out] */
+	for (int in = 0; in < 3; in++)
+		for (int out = 0; out < 3; out++) {
+			double v = 0;
+			for (int k = 0; k < 3; k++)
+				v += inv[3 * in + k] * Bm[3 * k + out];
+			M[3 * out + in] = v;
+		}
+	if (m)
+		memcpy(m, M, sizeof(M));
+	cmsHPROFILE h = cmsCreateProfilePlaceholder(NULL);
+	cmsToneCurve *lin = cmsBuildGamma(NULL, 1.0);
+	int ok = h && lin;
+	if (ok) {
+		cmsSetProfileVersion(h, 4.3);
+		cmsSetDeviceClass(h, cmsSigInputClass);
+		cmsSetColorSpace(h, cmsSigRgbData);
+		cmsSetPCS(h, cmsSigXYZData);
+		cmsSetHeaderRenderingIntent(h, INTENT_RELATIVE_COLORIMETRIC);
+		cmsCIEXYZ col[3];
+		for (int c = 0; c < 3; c++)
+			col[c] = (cmsCIEXYZ){M[c], M[3 + c], M[6 + c]};
+		cmsMLU *desc = cmsMLUalloc(NULL, 1), *cprt = cmsMLUalloc(NULL, 1);
+		ok = desc && cprt && cmsMLUsetASCII(desc, "en", "US", description) &&
+		     cmsMLUsetASCII(cprt, "en", "US", "No copyright, use freely") &&
+		     cmsWriteTag(h, cmsSigProfileDescriptionTag, desc) &&
+		     cmsWriteTag(h, cmsSigCopyrightTag, cprt) &&
+		     cmsWriteTag(h, cmsSigMediaWhitePointTag, cmsD50_XYZ()) &&
+		     cmsWriteTag(h, cmsSigRedColorantTag, &col[0]) &&
+		     cmsWriteTag(h, cmsSigGreenColorantTag, &col[1]) &&
+		     cmsWriteTag(h, cmsSigBlueColorantTag, &col[2]) &&
+		     cmsWriteTag(h, cmsSigRedTRCTag, lin) && cmsLinkTag(h, cmsSigGreenTRCTag, cmsSigRedTRCTag) &&
+		     cmsLinkTag(h, cmsSigBlueTRCTag, cmsSigRedTRCTag);
+		cmsMLUfree(desc);
+		cmsMLUfree(cprt);
+	}
+	cmsUInt32Number sz = 0;
+	ok = ok && cmsMD5computeID(h) && cmsSaveProfileToMem(h, NULL, &sz) && sz > 0 &&
+	     (*buf = malloc(sz)) && cmsSaveProfileToMem(h, *buf, &sz);
+	if (lin)
+		cmsFreeToneCurve(lin);
+	if (h)
+		cmsCloseProfile(h);
+	if (!ok) {
+		free(*buf);
+		*buf = NULL;
+		return kg_fail(err, KG_EIO, "LittleCMS: cannot build the camera profile");
+	}
+	*len = sz;
+	return 0;
+}
+
 #else
+
+int kg_icc_camera_profile(const double (*rgb)[3], const double (*xyz)[3], int n,
+                          const char *description, double m[9], unsigned char **buf,
+                          size_t *len, kg_err *err)
+{
+	*buf = NULL;
+	*len = 0;
+	return kg_fail(err, KG_ENOTSUP, "camera profile: kogei was built without LittleCMS");
+}
 
 int kg_icc_available(void)
 {

@@ -45,4 +45,13 @@ int kg_icc_profile_bytes(kg_icc_space s, unsigned char **buf, size_t *len, kg_er
 int kg_master_write(const char *cube, const kg_illuminant *ill, kg_icc_space space,
                     const char *path, long *clipped, kg_err *err);
 
+/* A camera input profile (ICC v4, class input, matrix/shaper with linear curves) from
+ * n >= 3 chart patches: rgb their camera values (linear, 0..1) and xyz their XYZ
+ * under D50 (Y = 1 for the perfect diffuser). The matrix is the least-squares fit
+ * xyz = M rgb; M (row-major 3 x 3) is returned in m when not NULL. *buf: the profile
+ * (caller frees). */
+int kg_icc_camera_profile(const double (*rgb)[3], const double (*xyz)[3], int n,
+                          const char *description, double m[9], unsigned char **buf,
+                          size_t *len, kg_err *err);
+
 #endif

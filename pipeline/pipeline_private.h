@@ -150,6 +150,10 @@ int proc_cube_format(const proc *p, kg_est_format *format);
 int proc_master_check(proc *p);
 int proc_master(proc *p, const proc_capture *c, const char *dir, const char *cube,
                 json_t *object);
+/* OUTDIR/camera.icc (ICC input profile, matrix/shaper fitted to the chart's camera
+ * values and measured spectra under D50) and camera.ti3 (ArgyllCMS colprof input),
+ * recorded as calibration.camera_icc (null with a warning when not made). */
+int proc_camera_icc(proc *p, const kg_patchset *measured);
 /* Every object capture (process_object.c); objects is the process.json list. */
 int proc_objects(proc *p, json_t *objects, kg_process_summary *sum);
 

@@ -7,13 +7,21 @@
 #    the profile's fixed-point matrix: measured about 0.005), for each space, and under
 #    --master-illuminant D65 against the cube under D65 adapted to D50;
 #  - ImageMagick's identify shows the embedded profile (skipped when absent);
+#  - OUTDIR/camera.icc opens with LittleCMS as an RGB input profile and maps the
+#    chart's camera values (camera.ti3) to the reference within what the matrix fit
+#    recorded in process.json (0.01) and within mean 3, max 6 dE00 (measured 1.94 and
+#    4.43 on the 9 CIE-TCS patches: a 3x3 matrix from a camera that is not colorimetric,
+#    lit by A, to D50); colprof (ArgyllCMS) builds a profile from camera.ti3 (skipped
+#    when absent);
 #  - --master-space none writes none (master null); an unknown space or illuminant
 #    refuses the run naming the option, and writes nothing.
 # usage: test_process_master.sh KOGEI SOURCE_ROOT HAVE_TAGS_AND_DEMOSAIC HAVE_LCMS ICC_DECODE
+#        ICC_CAMERA_CHECK
 set -u
 KOGEI=$1
 FIX=$2/fixtures
 DECODE=$5
+CAMCHECK=$6
 [ "${3:-1}" = 1 ] || { echo "SKIP: built without libapriltag or OpenCV (chart tags, demosaicing)"; exit 77; }
 [ "$4" = 1 ] || { echo "SKIP: built without LittleCMS (-Dlcms): no master"; exit 77; }
 [ -r /usr/share/colord/ref/CIE-TCS.sp ] || { echo "SKIP: colord-data missing"; exit 77; }
@@ -78,6 +86,26 @@ fi
 if command -v tificc >/dev/null 2>&1; then
 	tificc -t1 "$A/obj/master.tif" "$T/lab.tif" >"$T/tificc" 2>&1 ||
 		{ echo "FAIL: tificc cannot transform master.tif"; cat "$T/tificc"; fail=1; }
+fi
+# the camera input profile
+r=$("$CAMCHECK" "$A/camera.icc" "$A/camera.ti3") || { echo "FAIL: camera.icc: $r"; fail=1; }
+echo "camera.icc: $r"
+"$PY" - "$A/process.json" "$r" <<'PY' || fail=1
+import json, sys
+c = json.load(open(sys.argv[1]))["calibration"]["camera_icc"]
+f = sys.argv[2].split()
+n, mean, mx = int(f[1]), float(f[3]), float(f[5])
+assert c["path"] == "camera.icc" and c["ti3"] == "camera.ti3", c
+assert n == c["patches"] and n >= 9, (n, c)
+assert abs(mean - c["fit_de00_mean"]) < 0.01 and abs(mx - c["fit_de00_max"]) < 0.01, (f, c)
+assert mean < 3 and mx < 6, ("camera.icc against the reference", mean, mx)
+PY
+if command -v colprof >/dev/null 2>&1; then
+	cp "$A/camera.ti3" "$T/argyll.ti3"
+	(cd "$T" && timeout 60 colprof -v -am -O argyll.icc argyll) >"$T/colprof" 2>&1 && [ -s "$T/argyll.icc" ] ||
+		{ echo "FAIL: colprof cannot build a profile from camera.ti3"; tail -5 "$T/colprof"; fail=1; }
+else
+	echo "colprof (ArgyllCMS) not installed: that check skipped"
 fi
 for sp in adobe-rgb prophoto; do
 	expect_exit 0 "$KOGEI" process "$S" --spectra "$T/chart.cgats" -o "$T/$sp" --no-render \
