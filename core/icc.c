@@ -129,6 +129,22 @@ int kg_icc_profile_bytes(kg_icc_space s, unsigned char **buf, size_t *len, kg_er
 	return 0;
 }
 
+/* IEEE binary16 bits to a float (kogei's f16 cubes: "kogei sample format = ieee-half",
+ * stored as data type 12, which kg_envi_read gives as the integer 0..65535). */
+static float half_to_float(float stored)
+{
+	unsigned h = (unsigned)stored;
+	unsigned sign = h >> 15, ex = (h >> 10) & 31, man = h & 1023;
+	float v;
+	if (ex == 0)
+		v = ldexpf((float)man, -24);
+	else if (ex == 31)
+		v = man ? NAN : INFINITY;
+	else
+		v = ldexpf((float)(man | 1024), (int)ex - 25);
+	return sign ? -v : v;
+}
+
 int kg_master_write(const char *cube, const kg_illuminant *ill, kg_icc_space space,
                     const char *path, long *clipped, kg_err *err)
 {
@@ -138,7 +154,7 @@ int kg_master_write(const char *cube, const kg_illuminant *ill, kg_icc_space spa
 	unsigned char *icc = NULL;
 	size_t icc_len = 0;
 	float *band = NULL;
-	double *xyzrow = NULL;
+	double *xyzrow = NULL, *out = NULL;
 	uint16_t *row = NULL;
 	TIFF *tif = NULL;
 	kg_outfile o;
@@ -148,6 +164,8 @@ int kg_master_write(const char *cube, const kg_illuminant *ill, kg_icc_space spa
 	if (ret)
 		return ret;
 	const kg_envi_meta *m = &e->meta;
+	const char *fmt = kg_envi_get(e, "kogei sample format");
+	int half = fmt && !strcmp(fmt, "ieee-half") && m->data_type == KG_ENVI_U16;
 	if (m->bands != KG_NBANDS || !m->wavelength)
 		ret = kg_fail(err, KG_EINVAL, "%s: %d bands: expected the %d-band grid (400-700 nm "
 		              "at 5 nm) with its wavelengths", cube, m->bands, KG_NBANDS);
@@ -174,7 +192,8 @@ int kg_master_write(const char *cube, const kg_illuminant *ill, kg_icc_space spa
 		band = malloc(sizeof(float) * (size_t)W * rows * KG_NBANDS);
 		xyzrow = malloc(sizeof(double) * 3 * (size_t)W);
 		row = malloc(sizeof(uint16_t) * 3 * (size_t)W);
-		if (!band || !xyzrow || !row)
+		out = malloc(sizeof(double) * 3 * (size_t)W);
+		if (!band || !xyzrow || !row || !out)
 			ret = kg_fail(err, KG_ENOMEM, "out of memory");
 	}
 	if (!ret && !(ret = kg_outfile_open(&o, path, 0, err))) {
@@ -211,6 +230,8 @@ int kg_master_write(const char *cube, const kg_illuminant *ill, kg_icc_space spa
 	for (int y0 = 0; !ret && y0 < H; y0 += rows) {
 		int h = H - y0 < rows ? H - y0 : rows;
 		ret = kg_envi_read(e, 0, y0, W, h, KG_LAYOUT_BIP, band, err);
+		for (size_t i = 0; half && !ret && i < (size_t)W * h * KG_NBANDS; i++)
+			band[i] = half_to_float(band[i]);
 		for (int yr = 0; !ret && yr < h; yr++) {
 			for (int x = 0; x < W; x++) {
 				const float *s = band + ((size_t)yr * W + x) * KG_NBANDS;
@@ -234,11 +255,6 @@ int kg_master_write(const char *cube, const kg_illuminant *ill, kg_icc_space spa
 				xyzrow[3 * x + 1] = c.Y / 100.0;
 				xyzrow[3 * x + 2] = c.Z / 100.0;
 			}
-			double *out = malloc(sizeof(double) * 3 * (size_t)W);
-			if (!out) {
-				ret = kg_fail(err, KG_ENOMEM, "out of memory");
-				break;
-			}
 			cmsDoTransform(t, xyzrow, out, (cmsUInt32Number)W);
 			for (int x = 0; x < W; x++) {
 				int cl = 0;
@@ -255,7 +271,6 @@ int kg_master_write(const char *cube, const kg_illuminant *ill, kg_icc_space spa
 				}
 				nclip += cl;
 			}
-			free(out);
 			if (TIFFWriteScanline(tif, row, (uint32_t)(y0 + yr), 0) != 1)
 				ret = kg_fail(err, KG_EIO, "%s: cannot write TIFF", path);
 		}
@@ -280,6 +295,7 @@ int kg_master_write(const char *cube, const kg_illuminant *ill, kg_icc_space spa
 	free(icc);
 	free(band);
 	free(xyzrow);
+	free(out);
 	free(row);
 	kg_envi_close(&e);
 	if (clipped)

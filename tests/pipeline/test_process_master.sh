@@ -6,6 +6,7 @@
 #    object's cube rendered under D50: CIEDE2000 max under 0.05 (16-bit quantisation and
 #    the profile's fixed-point matrix: measured about 0.005), for each space, and under
 #    --master-illuminant D65 against the cube under D65 adapted to D50;
+#    and from an f16 cube;
 #  - ImageMagick's identify shows the embedded profile (skipped when absent);
 #  - OUTDIR/camera.icc opens with LittleCMS as an RGB input profile and maps the
 #    chart's camera values (camera.ti3) to the reference within what the matrix fit
@@ -112,6 +113,10 @@ for sp in adobe-rgb prophoto; do
 		--master-space "$sp"
 	[ -s "$T/$sp/obj/master.tif" ] && check_decode "$T/$sp/obj/master.tif" "$T/$sp/obj/cube.hdr" D50 "$sp"
 done
+# an f16 cube (IEEE half in the ENVI file) renders the same master
+expect_exit 0 "$KOGEI" process "$S" --spectra "$T/chart.cgats" -o "$T/f16" --no-render --cube f16
+[ -s "$T/f16/obj/master.tif" ] && check_decode "$T/f16/obj/master.tif" "$T/f16/obj/cube.hdr" D50 "ecirgb-v2 f16" ||
+	{ echo "FAIL: no master from an f16 cube"; fail=1; }
 expect_exit 0 "$KOGEI" process "$S" --spectra "$T/chart.cgats" -o "$T/d65" --no-render \
 	--master-illuminant D65
 [ -s "$T/d65/obj/master.tif" ] && check_decode "$T/d65/obj/master.tif" "$T/d65/obj/cube.hdr" D65 "ecirgb-v2 D65"

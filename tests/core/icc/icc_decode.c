@@ -8,6 +8,7 @@
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "colorimetry.h"
 #include "envi.h"
@@ -16,6 +17,15 @@
 #if HAVE_LCMS
 #include <lcms2.h>
 #include <tiffio.h>
+
+/* an f16 cube ("kogei sample format = ieee-half", data type 12): the bits to a float */
+static float from_half(float stored)
+{
+	unsigned h = (unsigned)stored, ex = (h >> 10) & 31, man = h & 1023;
+	float v = ex == 0 ? ldexpf((float)man, -24)
+	          : ex == 31 ? (man ? NAN : INFINITY) : ldexpf((float)(man | 1024), (int)ex - 25);
+	return h >> 15 ? -v : v;
+}
 
 static int cmp(const void *a, const void *b)
 {
@@ -56,6 +66,8 @@ int main(int argc, char **argv)
 		fprintf(stderr, "%s: LittleCMS cannot use the embedded profile\n", argv[1]);
 		return 1;
 	}
+	const char *fmt = kg_envi_get(e, "kogei sample format");
+	int half = fmt && !strcmp(fmt, "ieee-half");
 	kg_xyz white = kg_illuminant_white(ill), d50 = {96.42, 100, 82.49};
 	uint16_t *px = malloc(sizeof(uint16_t) * 3 * w);
 	cmsCIELab *got = malloc(sizeof(cmsCIELab) * w);
@@ -74,7 +86,8 @@ int main(int argc, char **argv)
 			kg_spectrum r;
 			int finite = 1, cl = 0;
 			for (int b = 0; b < KG_NBANDS; b++)
-				finite &= isfinite(r.v[b] = s[(size_t)i * KG_NBANDS + b]);
+				finite &= isfinite(r.v[b] = half ? from_half(s[(size_t)i * KG_NBANDS + b])
+				                                 : s[(size_t)i * KG_NBANDS + b]);
 			for (int c = 0; c < 3; c++)
 				cl |= px[3 * i + c] == 0 || px[3 * i + c] == 65535;
 			clipped += cl;
