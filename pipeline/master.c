@@ -29,9 +29,14 @@ int proc_master_check(proc *p)
 		return ret;
 	}
 	kg_illuminant *ill = NULL;
+	kg_err scratch;
+	int named = kg_illuminant_by_name(ill_arg(p), &ill, &scratch) == 0;
+	kg_illuminant_free(&ill);
 	ret = kg_illuminant_lookup(ill_arg(p), &ill, p->err);
 	if (ret)
 		kg_err_prefix(p->err, "--master-illuminant: ");
+	else if (!named) /* a spectrum file: an input, with its sha256 */
+		ret = proc_input(p, "master_illuminant", ill_arg(p), NULL);
 	kg_illuminant_free(&ill);
 	return ret;
 }

@@ -121,6 +121,13 @@ expect_exit 0 "$KOGEI" process "$S" --spectra "$T/chart.cgats" -o "$T/d65" --no-
 	--master-illuminant D65
 [ -s "$T/d65/obj/master.tif" ] && check_decode "$T/d65/obj/master.tif" "$T/d65/obj/cube.hdr" D65 "ecirgb-v2 D65"
 grep -q '"illuminant": "D65"' "$T/d65/process.json" || { echo "FAIL: D65 not recorded"; fail=1; }
+# an illuminant from a spectrum file: used, and recorded as an input with its sha256
+printf 'CGATS.17\nNUMBER_OF_FIELDS 3\nBEGIN_DATA_FORMAT\nSAMPLE_ID SPEC_400 SPEC_700\nEND_DATA_FORMAT\nNUMBER_OF_SETS 1\nBEGIN_DATA\n1 50 100\nEND_DATA\n' >"$T/ill.sp"
+expect_exit 0 "$KOGEI" process "$S" --spectra "$T/chart.cgats" -o "$T/ill" --no-render \
+	--master-illuminant "$T/ill.sp"
+[ -s "$T/ill/obj/master.tif" ] && check_decode "$T/ill/obj/master.tif" "$T/ill/obj/cube.hdr" "$T/ill.sp" "ecirgb-v2 ill.sp" ||
+	{ echo "FAIL: no master under a spectrum file"; fail=1; }
+grep -q '"master_illuminant"' "$T/ill/process.json" || { echo "FAIL: the illuminant file is not an input"; fail=1; }
 # none: not written
 expect_exit 0 "$KOGEI" process "$S" --spectra "$T/chart.cgats" -o "$T/none" --no-render \
 	--master-space none
