@@ -58,6 +58,9 @@ int main(int argc, char **argv)
 		n++;
 	}
 	fclose(f);
+	cmsDeleteTransform(x);
+	cmsCloseProfile(prof);
+	cmsCloseProfile(lab);
 	printf("patches %d mean %.4f max %.4f\n", n, n ? sum / n : NAN, mx);
 	return n >= 3 ? 0 : 1;
 }

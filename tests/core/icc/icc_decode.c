@@ -105,6 +105,16 @@ int main(int argc, char **argv)
 	printf("pixels %zu clipped %ld mean %.5f p90 %.5f max %.5f\n", nde, clipped,
 	       nde ? sum / nde : NAN, nde ? de[(size_t)(0.9 * (nde - 1))] : NAN,
 	       nde ? de[nde - 1] : NAN);
+	cmsDeleteTransform(x);
+	cmsCloseProfile(prof);
+	cmsCloseProfile(lab);
+	TIFFClose(t);
+	kg_envi_close(&e);
+	kg_illuminant_free(&ill);
+	free(px);
+	free(got);
+	free(s);
+	free(de);
 	return nde ? 0 : 1;
 }
 #else
