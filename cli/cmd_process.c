@@ -19,6 +19,8 @@ static const char usage_process[] =
 	"              [--max-residual R] [--force] [--assume-same-exposure] [--no-render]\n"
 	"              [--skip NAME[,NAME...]]\n"
 	"              [--cube f32|f16|weights|none]\n"
+	"              [--master-space ecirgb-v2|adobe-rgb|prophoto|none]\n"
+	"              [--master-illuminant NAME|FILE]\n"
 	"              [--threads N] [--quiet]";
 
 static const char help_process[] =
@@ -85,6 +87,11 @@ static const char help_process[] =
 	"  --cube FORMAT         each object's cube.hdr: f32 (default), f16 (half the size),\n"
 	"                        weights (the K PCA weights with their basis: s = mean + B w,\n"
 	"                        1/20 of f32) or none (labels only)\n"
+	"  --master-space SPACE  each object's master.tif, 16-bit RGB with its ICC profile:\n"
+	"                        ecirgb-v2 (default), adobe-rgb, prophoto, or none (not\n"
+	"                        written); needs LittleCMS and an f32 or f16 cube\n"
+	"  --master-illuminant I the master's illuminant: D50 (default), D65, A, D<nn>,\n"
+	"                        <T>K or a CGATS spectrum file\n"
 	"  --threads N           worker threads (default: all)\n"
 	"  --quiet               no progress on standard error\n"
 	"\n"
@@ -140,7 +147,7 @@ int kg_cmd_process(int argc, char **argv)
 	}
 	enum { O_REF = 256, O_SPECTRA, O_MAT, O_ONLY, O_LAYOUT, O_CHART, O_VERIFY, O_MESH, O_ANGLE,
 	       O_MINTAGS, O_MAXRES, O_FORCE, O_SAME, O_NORENDER, O_THREADS, O_QUIET, O_MASK, O_CUBE,
-	       O_METHOD, O_ANGLES, O_INTENSITY, O_SKIP, O_META };
+	       O_METHOD, O_ANGLES, O_INTENSITY, O_SKIP, O_META, O_MSPACE, O_MILL };
 	static const struct option longopts[] = {
 		{"reference", required_argument, NULL, O_REF},
 		{"spectra", required_argument, NULL, O_SPECTRA},
@@ -152,6 +159,8 @@ int kg_cmd_process(int argc, char **argv)
 		{"mesh", required_argument, NULL, O_MESH},
 		{"mask", required_argument, NULL, O_MASK},
 		{"cube", required_argument, NULL, O_CUBE},
+		{"master-space", required_argument, NULL, O_MSPACE},
+		{"master-illuminant", required_argument, NULL, O_MILL},
 		{"angle", required_argument, NULL, O_ANGLE},
 		{"method", required_argument, NULL, O_METHOD},
 		{"angles", required_argument, NULL, O_ANGLES},
@@ -198,6 +207,14 @@ int kg_cmd_process(int argc, char **argv)
 				                          "--cube %s: expected f32, f16, weights or none", optarg);
 			o.cube = optarg;
 			break;
+		case O_MSPACE:
+			if (strcmp(optarg, "ecirgb-v2") && strcmp(optarg, "adobe-rgb") &&
+			    strcmp(optarg, "prophoto") && strcmp(optarg, "none"))
+				return kg_cli_usage_error(usage_process, "--master-space %s: expected ecirgb-v2, "
+				                          "adobe-rgb, prophoto or none", optarg);
+			o.master_space = optarg;
+			break;
+		case O_MILL: o.master_illuminant = optarg; break;
 		case O_METHOD:
 			if (strcmp(optarg, "camera") && strcmp(optarg, "eq11"))
 				return kg_cli_usage_error(usage_process, "--method %s: expected camera or eq11",

@@ -80,6 +80,9 @@ typedef struct kg_process_options {
 	int render;                /* render each scene.json to render.png (when Embree) */
 	const char *cube;          /* per object cube: "f32" (the default), "f16", "weights"
 	                            * (the K PCA weights and their basis) or "none" */
+	const char *master_space;  /* each object's master.tif: "ecirgb-v2" (NULL: the
+	                            * default), "adobe-rgb", "prophoto" or "none" */
+	const char *master_illuminant; /* its illuminant, NAME|FILE (NULL: D50) */
 	int threads;               /* 0: all */
 	FILE *progress;            /* progress lines, or NULL */
 	const char *command;       /* how it was invoked, for process.json (may be NULL) */

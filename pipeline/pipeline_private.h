@@ -143,6 +143,17 @@ int proc_objects_precheck(proc *p);
 /* The cube of each object (--cube): its name, and its format (0 when none). */
 const char *proc_cube_name(const proc *p);
 int proc_cube_format(const proc *p, kg_est_format *format);
+/* The master (master.c): --master-space and --master-illuminant checked before
+ * anything is written; then per object OUTDIR/<object>/master.tif rendered from its
+ * cube in dir, recorded in object ("master": path, space, illuminant; null with a
+ * warning when it cannot be made). */
+int proc_master_check(proc *p);
+int proc_master(proc *p, const proc_capture *c, const char *dir, const char *cube,
+                json_t *object);
+/* OUTDIR/camera.icc (ICC input profile, matrix/shaper fitted to the chart's camera
+ * values and measured spectra under D50) and camera.ti3 (ArgyllCMS colprof input),
+ * recorded as calibration.camera_icc (null with a warning when not made). */
+int proc_camera_icc(proc *p, const kg_patchset *measured);
 /* Every object capture (process_object.c); objects is the process.json list. */
 int proc_objects(proc *p, json_t *objects, kg_process_summary *sum);
 

@@ -563,6 +563,8 @@ int proc_calibrate(proc *p)
 		ret = kg_fail(err, KG_ENOMEM, "out of memory");
 		goto done;
 	}
+	if ((ret = proc_camera_icc(p, measured)))
+		goto done;
 	json_t *making = proc_capture_making(p->chart);
 	json_object_update(p->calibration, making);
 	json_decref(making);

@@ -172,6 +172,10 @@ static json_t *object_key(proc *p, const proc_capture *c)
 	                 "session", json_string_value(json_object_get(p->manifest, "created"))
 	                                ? json_string_value(json_object_get(p->manifest, "created"))
 	                                : "");
+	if (key) /* the master's space and illuminant (master.c) */
+		json_object_set_new(json_object_get(key, "parameters"), "master",
+		                    json_pack("[ss]", p->o->master_space ? p->o->master_space : "ecirgb-v2",
+		                              p->o->master_illuminant ? p->o->master_illuminant : "D50"));
 	/* captures left out change the darks and flats at hand */
 	if (key && p->o->nskip > 0) {
 		json_t *skip = json_array();
@@ -1008,6 +1012,8 @@ static int process_into(proc *p, const proc_capture *c, const char *dir, double 
 	if (!ret && proc_cube_format(p, &format))
 		ret = estimate_pass(p, c, src, &info, &opt, format, cube, object);
 	if (!ret)
+		ret = proc_master(p, c, dir, proc_cube_format(p, &format) ? cube : NULL, object);
+	if (!ret)
 		ret = classify_pass(p, c, src, scale, &info, &opt, set, labels, photo, object);
 	/* unknown, background, unclassified and unseen pixels are no library material:
 	 * the render shows them as a neutral grey diffuser */
@@ -1122,6 +1128,8 @@ int proc_objects_precheck(proc *p)
 	int ret = load_materials(p);
 	if (!ret)
 		ret = check_mask(p);
+	if (!ret)
+		ret = proc_master_check(p);
 	if (ret)
 		return ret;
 	json_t *scratch = json_array();

@@ -44,7 +44,8 @@
 
 /* The files of OUTDIR itself, in the order a commit puts them in place. */
 static const char *const top_files[] = {"camera.json", "reference.json", "chart_overlay.png",
-                                        "conformance.json", "process.json", "report.html"};
+                                        "conformance.json", "camera.icc", "camera.ti3",
+                                        "process.json", "report.html"};
 enum { NTOP = sizeof(top_files) / sizeof(top_files[0]) };
 
 static int is_top_file(const char *name)

@@ -14,6 +14,7 @@ libaravis-dev aravis-tools aravis-tools-cli libcamera-dev
 libembree-dev assimp-testmodels iproute2 util-linux
 chromium python3-websocket
 libraw-dev libgphoto2-dev libmicrohttpd-dev
+liblcms2-dev liblcms2-utils imagemagick
 "
 
 missing=""

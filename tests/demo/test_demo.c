@@ -489,6 +489,24 @@ int main(int argc, char **argv)
 		kg_image_free(&img);
 		free(p);
 	}
+#if HAVE_LCMS
+	/* the colour-managed outputs: the object's master (16-bit RGB, eciRGB v2 embedded;
+	 * its colours are tested in process-master) and the camera's input profile */
+	static const char *const icc_files[] = {"site/object/master.tif", "site/camera.icc",
+	                                        "site/camera.ti3"};
+	for (size_t i = 0; i < sizeof(icc_files) / sizeof(icc_files[0]); i++) {
+		char *p = in_dir(dir, icc_files[i]);
+		CHECK(kg_test_file_exists(p), "%s was not written", p);
+		free(p);
+	}
+	{
+		char *p = in_dir(dir, "site/object/master.tif");
+		kg_image *img = NULL;
+		CHECK(kg_image_read(p, &img, &err) == 0 && img->channels == 3, "%s: %s", p, err.msg);
+		kg_image_free(&img);
+		free(p);
+	}
+#endif
 #if HAVE_EMBREE
 	/* Step 6: the Fig. 13 contact sheet and one render per material; step 7: the
 	 * object rendered from its truth and re-rendered from the estimated labels. */
@@ -552,7 +570,7 @@ int main(int argc, char **argv)
 	/* Nothing half-written: no temporary files left beside the outputs. */
 	char cmd[256];
 	snprintf(cmd, sizeof(cmd),
-	         "find %s -type f | grep -v -E '\\.(cgats|json|jsonl|tif|hdr|img|png|md|csv|raw|html)$|-session/\\.lock$'",
+	         "find %s -type f | grep -v -E '\\.(cgats|json|jsonl|tif|hdr|img|png|md|csv|raw|html|icc|ti3)$|-session/\\.lock$'",
 	         dir);
 	CHECK(system(cmd) != 0, "unexpected files in %s (listed above)", dir);
 	if (!kg_test_failures) {

@@ -1,0 +1,57 @@
+/* Colour-managed outputs (LittleCMS): the RGB working spaces of an archival master
+ * and the 16-bit TIFF master itself, rendered from a reflectance cube.
+ *
+ * The spaces, as their specifications define them:
+ *   eciRGB v2    D50 white, the CIE L* tone curve, primaries (0.67, 0.33),
+ *                (0.21, 0.71), (0.14, 0.08) (ECI, eciRGB v2, 2007; ISO 22028-4:2012);
+ *   Adobe RGB    D65 white, gamma 563/256, primaries (0.64, 0.33), (0.21, 0.71),
+ *                (0.15, 0.06) (Adobe RGB (1998) Color Image Encoding, 2005);
+ *   ProPhoto RGB D50 white, gamma 1.8, primaries (0.7347, 0.2653), (0.1596, 0.8404),
+ *                (0.0366, 0.0001) (ROMM RGB, ISO 22028-2:2013). */
+#ifndef KG_ICC_H
+#define KG_ICC_H
+
+#include <stddef.h>
+
+#include "colorimetry.h"
+#include "error.h"
+
+typedef enum kg_icc_space {
+	KG_ICC_NONE = 0,
+	KG_ICC_ECIRGB_V2,
+	KG_ICC_ADOBE_RGB,
+	KG_ICC_PROPHOTO,
+} kg_icc_space;
+
+/* 1 when kogei was built with LittleCMS (the master and camera.icc need it). */
+int kg_icc_available(void);
+/* "ecirgb-v2", "adobe-rgb", "prophoto", "none" (case-insensitive) -> *out; else
+ * KG_EINVAL naming the value and what was expected. */
+int kg_icc_space_parse(const char *name, kg_icc_space *out, kg_err *err);
+/* The canonical name (as parsed) and the profile's description. */
+const char *kg_icc_space_name(kg_icc_space s);
+const char *kg_icc_space_description(kg_icc_space s);
+
+/* The ICC profile (v4 matrix/shaper) of a space, serialised: *buf (caller frees). */
+int kg_icc_profile_bytes(kg_icc_space s, unsigned char **buf, size_t *len, kg_err *err);
+
+/* OUTDIR/<object>/master.tif: the reflectance cube `cube` (an ENVI cube on the 61-band
+ * grid, 400-700 nm at 5 nm) rendered to XYZ under `ill` (CIE 1931 2 degree), adapted
+ * to D50 with Bradford when ill's white is not D50 (the ICC connection space) and
+ * converted, relative colorimetric, into `space`: 16-bit RGB, the profile embedded
+ * (TIFFTAG_ICCPROFILE). Non-finite estimates are written as black; colours outside
+ * the space are clipped. Written to a temporary file and renamed. *clipped (may be
+ * NULL) counts the pixels with a channel clipped. */
+int kg_master_write(const char *cube, const kg_illuminant *ill, kg_icc_space space,
+                    const char *path, long *clipped, kg_err *err);
+
+/* A camera input profile (ICC v4, class input, matrix/shaper with linear curves) from
+ * n >= 3 chart patches: rgb their camera values (linear, 0..1) and xyz their XYZ
+ * under D50 (Y = 1 for the perfect diffuser). The matrix is the least-squares fit
+ * xyz = M rgb; M (row-major 3 x 3) is returned in m when not NULL. *buf: the profile
+ * (caller frees). */
+int kg_icc_camera_profile(const double (*rgb)[3], const double (*xyz)[3], int n,
+                          const char *description, double m[9], unsigned char **buf,
+                          size_t *len, kg_err *err);
+
+#endif

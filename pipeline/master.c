@@ -1,0 +1,241 @@
+/* kogei process, the master: each object's reflectance cube rendered under D50 (or
+ * --master-illuminant) into --master-space as OUTDIR/<object>/master.tif, a 16-bit
+ * RGB TIFF with the space's ICC profile embedded (core/icc.c, LittleCMS). */
+#include <errno.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "icc.h"
+#include "kg_config.h"
+#include "pipeline_private.h"
+
+static const char *space_arg(const proc *p)
+{
+	return p->o->master_space ? p->o->master_space : "ecirgb-v2";
+}
+
+static const char *ill_arg(const proc *p)
+{
+	return p->o->master_illuminant ? p->o->master_illuminant : "D50";
+}
+
+int proc_master_check(proc *p)
+{
+	kg_icc_space s;
+	int ret = kg_icc_space_parse(space_arg(p), &s, p->err);
+	if (ret) {
+		kg_err_prefix(p->err, "--master-space: ");
+		return ret;
+	}
+	kg_illuminant *ill = NULL;
+	kg_err scratch;
+	int named = kg_illuminant_by_name(ill_arg(p), &ill, &scratch) == 0;
+	kg_illuminant_free(&ill);
+	ret = kg_illuminant_lookup(ill_arg(p), &ill, p->err);
+	if (ret)
+		kg_err_prefix(p->err, "--master-illuminant: ");
+	else if (!named) /* a spectrum file: an input, with its sha256 */
+		ret = proc_input(p, "master_illuminant", ill_arg(p), NULL);
+	kg_illuminant_free(&ill);
+	return ret;
+}
+
+int proc_master(proc *p, const proc_capture *c, const char *dir, const char *cube,
+                json_t *object)
+{
+	kg_icc_space s;
+	json_t *warnings = json_object_get(object, "warnings");
+	json_object_set_new(object, "master", json_null());
+	if (kg_icc_space_parse(space_arg(p), &s, p->err))
+		return KG_EINVAL; /* checked before: not reached */
+	if (s == KG_ICC_NONE)
+		return 0;
+	if (!kg_icc_available()) {
+		proc_warn(p, warnings, "%s: no master.tif: kogei was built without LittleCMS "
+		          "(-Dlcms)", c->name);
+		return 0;
+	}
+	if (!cube || !strcmp(proc_cube_name(p), "weights")) {
+		proc_warn(p, warnings, "%s: no master.tif: it is rendered from the reflectance cube, "
+		          "and --cube %s writes none", c->name, proc_cube_name(p));
+		return 0;
+	}
+	kg_illuminant *ill = NULL;
+	int ret = kg_illuminant_lookup(ill_arg(p), &ill, p->err);
+	char *path = ret ? NULL : kg_path_join(dir, "master.tif");
+	if (!ret && !path)
+		ret = kg_fail(p->err, KG_ENOMEM, "out of memory");
+	long clipped = 0;
+	if (!ret) {
+		proc_progress(p, "%s: master.tif (%s, %s)", c->name, kg_icc_space_description(s),
+		              ill->name);
+		ret = kg_master_write(cube, ill, s, path, &clipped, p->err);
+	}
+	if (!ret) {
+		char rel[300];
+		snprintf(rel, sizeof(rel), "%s/master.tif", c->name);
+		json_object_set_new(object, "master",
+		                    json_pack("{s:s, s:s, s:s, s:s, s:s, s:I}", "path", rel, "space",
+		                              kg_icc_space_name(s), "profile",
+		                              kg_icc_space_description(s), "illuminant", ill_arg(p),
+		                              "intent", "relative colorimetric", "clipped_pixels",
+		                              (json_int_t)clipped));
+		if (clipped > 0)
+			proc_warn(p, warnings, "%s: master.tif: %ld pixels outside %s, clipped",
+			          c->name, clipped, kg_icc_space_description(s));
+	}
+	kg_illuminant_free(&ill);
+	free(path);
+	return ret;
+}
+
+/* ---- OUTDIR/camera.icc and camera.ti3 -------------------------------------------- */
+
+static int write_bytes(const char *path, const unsigned char *buf, size_t len, kg_err *err)
+{
+	kg_outfile o;
+	int ret = kg_outfile_open(&o, path, 0, err);
+	if (ret)
+		return ret;
+	if (fwrite(buf, 1, len, o.fp) != len) {
+		kg_outfile_abort(&o);
+		return kg_fail_write(err, errno, path, "cannot write");
+	}
+	return kg_outfile_commit(&o, err);
+}
+
+/* ArgyllCMS's colprof input: CGATS CTI3 (COLOR_REP XYZ_RGB as its scanin writes for
+ * an input device), device RGB and XYZ both 0..100. */
+static int write_ti3(const char *path, char **ids, const double (*rgb)[3],
+                     const double (*xyz)[3], int n, double scale, kg_err *err)
+{
+	kg_outfile o;
+	int ret = kg_outfile_open(&o, path, 0, err);
+	if (ret)
+		return ret;
+	FILE *f = o.fp;
+	fprintf(f, "CTI3\n\nDESCRIPTOR \"Argyll Calibration Target chart information 3\"\n"
+	        "ORIGINATOR \"kogei " KG_VERSION "\"\n"
+	        "KEYWORD \"DEVICE_CLASS\"\nDEVICE_CLASS \"INPUT\"\n"
+	        "KEYWORD \"COLOR_REP\"\nCOLOR_REP \"XYZ_RGB\"\n"
+	        "KEYWORD \"KOGEI_RGB_SCALE\"\nKOGEI_RGB_SCALE \"%.9g\"\n"
+	        "KEYWORD \"KOGEI_ILLUMINANT\"\nKOGEI_ILLUMINANT \"D50\"\n\n"
+	        "NUMBER_OF_FIELDS 7\nBEGIN_DATA_FORMAT\n"
+	        "SAMPLE_ID RGB_R RGB_G RGB_B XYZ_X XYZ_Y XYZ_Z\nEND_DATA_FORMAT\n\n"
+	        "NUMBER_OF_SETS %d\nBEGIN_DATA\n", scale, n);
+	for (int i = 0; i < n; i++) {
+		fputc('"', f);
+		for (const char *c = ids[i]; *c; c++)
+			fputc(*c == '"' || *c == ' ' ? '_' : *c, f);
+		fprintf(f, "\" %.6f %.6f %.6f %.6f %.6f %.6f\n", 100 * rgb[i][0], 100 * rgb[i][1],
+		        100 * rgb[i][2], 100 * xyz[i][0], 100 * xyz[i][1], 100 * xyz[i][2]);
+	}
+	fprintf(f, "END_DATA\n");
+	if (ferror(f)) {
+		kg_outfile_abort(&o);
+		return kg_fail_write(err, errno, path, "cannot write");
+	}
+	return kg_outfile_commit(&o, err);
+}
+
+int proc_camera_icc(proc *p, const kg_patchset *measured)
+{
+	json_t *cal = p->calibration;
+	json_object_set_new(cal, "camera_icc", json_null());
+	if (!kg_icc_available()) {
+		proc_warn(p, NULL, "no camera.icc: kogei was built without LittleCMS (-Dlcms)");
+		return 0;
+	}
+	if (!measured || !measured->spectra) {
+		proc_warn(p, NULL, "no camera.icc: it needs the chart's measured spectra (--spectra)");
+		return 0;
+	}
+	const kg_camera_calib *cam = p->cam;
+	int n = 0, ret = 0;
+	double (*rgb)[3] = calloc((size_t)cam->k + 1, sizeof(*rgb));
+	double (*xyz)[3] = calloc((size_t)cam->k + 1, sizeof(*xyz));
+	char **ids = calloc((size_t)cam->k + 1, sizeof(char *));
+	kg_illuminant *d50 = NULL;
+	unsigned char *icc = NULL;
+	size_t len = 0;
+	char *icc_path = kg_path_join(p->stage, "camera.icc");
+	char *ti3_path = kg_path_join(p->stage, "camera.ti3");
+	if (!rgb || !xyz || !ids || !icc_path || !ti3_path)
+		ret = kg_fail(p->err, KG_ENOMEM, "out of memory");
+	if (!ret)
+		ret = kg_illuminant_by_name("D50", &d50, p->err);
+	kg_xyz white = {0, 0, 0}, icc_d50 = {96.42, 100, 82.49};
+	if (!ret)
+		white = kg_illuminant_white(d50);
+	double scale = 0;
+	for (int i = 0; !ret && i < cam->k; i++) {
+		int j = 0;
+		while (j < measured->n && strcmp(measured->ids[j], cam->ids[i]))
+			j++;
+		if (j == measured->n)
+			continue;
+		kg_xyz c = kg_bradford_adapt(kg_reflectance_to_xyz(&measured->spectra[j], d50), white,
+		                             icc_d50);
+		ids[n] = cam->ids[i];
+		for (int ch = 0; ch < 3; ch++) {
+			rgb[n][ch] = cam->rho_r[i][ch];
+			if (rgb[n][ch] > scale)
+				scale = rgb[n][ch];
+		}
+		xyz[n][0] = c.X / 100;
+		xyz[n][1] = c.Y / 100;
+		xyz[n][2] = c.Z / 100;
+		n++;
+	}
+	if (!ret && (n < 3 || !(scale > 0))) {
+		proc_warn(p, NULL, "no camera.icc: %d of the chart's patches have measured spectra "
+		          "and camera values, expected at least 3", n);
+		goto done;
+	}
+	for (int i = 0; i < n; i++)
+		for (int ch = 0; ch < 3; ch++)
+			rgb[i][ch] /= scale;
+	double M[9];
+	char desc[320];
+	snprintf(desc, sizeof(desc), "kogei camera %s %s (linear RGB / %.6g)",
+	         cam->identity.model[0] ? cam->identity.model : "camera", cam->identity.serial, scale);
+	if (!ret)
+		ret = kg_icc_camera_profile((const double (*)[3])rgb, (const double (*)[3])xyz, n, desc,
+		                            M, &icc, &len, p->err);
+	if (!ret)
+		ret = write_bytes(icc_path, icc, len, p->err);
+	if (!ret)
+		ret = write_ti3(ti3_path, ids, (const double (*)[3])rgb, (const double (*)[3])xyz, n,
+		                scale, p->err);
+	if (!ret) {
+		/* the fit, in sample: CIEDE2000 of M rgb against the reference, D50 */
+		double sum = 0, mx = 0;
+		for (int i = 0; i < n; i++) {
+			kg_xyz f = {0, 0, 0}, r = {100 * xyz[i][0], 100 * xyz[i][1], 100 * xyz[i][2]};
+			f.X = 100 * (M[0] * rgb[i][0] + M[1] * rgb[i][1] + M[2] * rgb[i][2]);
+			f.Y = 100 * (M[3] * rgb[i][0] + M[4] * rgb[i][1] + M[5] * rgb[i][2]);
+			f.Z = 100 * (M[6] * rgb[i][0] + M[7] * rgb[i][1] + M[8] * rgb[i][2]);
+			double de = kg_ciede2000(kg_xyz_to_lab(f, icc_d50), kg_xyz_to_lab(r, icc_d50));
+			sum += de;
+			mx = de > mx ? de : mx;
+		}
+		json_object_set_new(cal, "camera_icc",
+		                    json_pack("{s:s, s:s, s:i, s:f, s:[fffffffff], s:f, s:f}", "path",
+		                              "camera.icc", "ti3", "camera.ti3", "patches", n,
+		                              "rgb_scale", scale, "matrix", M[0], M[1], M[2], M[3], M[4],
+		                              M[5], M[6], M[7], M[8], "fit_de00_mean", sum / n,
+		                              "fit_de00_max", mx));
+		proc_progress(p, "camera input profile: %s/camera.icc (%d patches, in-sample dE00 "
+		              "mean %.2f, max %.2f)", p->o->outdir, n, sum / n, mx);
+	}
+done:
+	kg_illuminant_free(&d50);
+	free(rgb);
+	free(xyz);
+	free(ids);
+	free(icc);
+	free(icc_path);
+	free(ti3_path);
+	return ret;
+}

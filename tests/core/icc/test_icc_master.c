@@ -1,0 +1,175 @@
+/* The master (core/icc.c): a reflectance cube of known spectra rendered into each
+ * working space, then decoded through the profile embedded in master.tif by
+ * LittleCMS's own transforms and compared with the spectra's CIELAB under D50 (the
+ * truth, from core/colorimetry.c): CIEDE2000 within 0.05 (16-bit quantisation and
+ * the profile's s15Fixed16 matrix give about 0.001; a wrong primary, white or tone
+ * curve gives whole units). Also: the TRC of each space checked on a neutral of
+ * known Y against its specification's formula, NaN written as black, the ICC tag
+ * present. Skips (77) without LittleCMS. */
+#include <math.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "colorimetry.h"
+#include "envi.h"
+#include "icc.h"
+#include "kg_test.h"
+
+#if HAVE_LCMS
+#include <lcms2.h>
+#include <tiffio.h>
+
+#define W 8
+#define H 3
+
+/* pixel i: a smooth spectrum, moderately saturated (inside every space's gamut) */
+static double refl(int i, int b)
+{
+	double wl = 400 + 5 * b;
+	if (i == 0)
+		return 0.9;  /* near white */
+	if (i == 1)
+		return 0.18; /* mid grey */
+	if (i == 2)
+		return NAN;  /* no estimate */
+	double c = 420 + 37.0 * (i - 3), s = 40 + 3 * i;
+	double g = exp(-0.5 * (wl - c) * (wl - c) / (s * s));
+	return 0.1 + 0.3 * g + 0.001 * (i % 5) * (wl - 400) / 3;
+}
+
+static double trc_encode(kg_icc_space s, double Y)
+{
+	switch (s) {
+	case KG_ICC_ECIRGB_V2: /* L* / 100 */
+		return Y > 216.0 / 24389.0 ? 1.16 * cbrt(Y) - 0.16 : Y * 24389.0 / 2700.0;
+	case KG_ICC_ADOBE_RGB:
+		return pow(Y, 256.0 / 563.0);
+	default:
+		return pow(Y, 1 / 1.8);
+	}
+}
+
+int main(int argc, char **argv)
+{
+	const char *dir = argc > 1 ? argv[1] : ".";
+	char cube[512], tif[512];
+	snprintf(cube, sizeof(cube), "%s/icc_master_cube.hdr", dir);
+	kg_err err = {0};
+	float *data = malloc(sizeof(float) * W * H * KG_NBANDS);
+	double wl[KG_NBANDS];
+	for (int b = 0; b < KG_NBANDS; b++)
+		wl[b] = 400 + 5 * b;
+	for (int i = 0; i < W * H; i++)
+		for (int b = 0; b < KG_NBANDS; b++)
+			data[(size_t)i * KG_NBANDS + b] = (float)refl(i, b);
+	kg_envi_meta m = {.samples = W, .lines = H, .bands = KG_NBANDS, .data_type = KG_ENVI_F32,
+	                  .interleave = KG_ENVI_BIP, .wavelength = wl};
+	CHECK(kg_envi_write(cube, &m, KG_LAYOUT_BIP, data, &err) == 0, "%s", err.msg);
+	kg_illuminant *d50 = NULL;
+	CHECK(kg_illuminant_by_name("D50", &d50, &err) == 0, "%s", err.msg);
+	kg_xyz white = kg_illuminant_white(d50);
+	cmsHPROFILE lab = cmsCreateLab4Profile(NULL);
+	const kg_icc_space spaces[] = {KG_ICC_ECIRGB_V2, KG_ICC_ADOBE_RGB, KG_ICC_PROPHOTO};
+	double worst = 0;
+	for (size_t si = 0; si < 3; si++) {
+		kg_icc_space s = spaces[si];
+		snprintf(tif, sizeof(tif), "%s/icc_master_%s.tif", dir, kg_icc_space_name(s));
+		long clipped = -1;
+		CHECK(kg_master_write(cube, d50, s, tif, &clipped, &err) == 0, "%s", err.msg);
+		CHECK(clipped == 0, "%s: %ld pixels clipped", tif, clipped);
+		TIFF *t = TIFFOpen(tif, "r");
+		CHECK(t != NULL, "%s: cannot open", tif);
+		if (!t)
+			continue;
+		uint32_t w = 0, h = 0, icc_len = 0;
+		uint16_t bps = 0, spp = 0;
+		void *icc = NULL;
+		TIFFGetField(t, TIFFTAG_IMAGEWIDTH, &w);
+		TIFFGetField(t, TIFFTAG_IMAGELENGTH, &h);
+		TIFFGetField(t, TIFFTAG_BITSPERSAMPLE, &bps);
+		TIFFGetField(t, TIFFTAG_SAMPLESPERPIXEL, &spp);
+		int has_icc = TIFFGetField(t, TIFFTAG_ICCPROFILE, &icc_len, &icc);
+		CHECK(w == W && h == H && bps == 16 && spp == 3, "%s: %ux%u, %u bits, %u samples", tif,
+		      w, h, bps, spp);
+		CHECK(has_icc && icc_len > 128, "%s: no ICC profile", tif);
+		cmsHPROFILE prof = has_icc ? cmsOpenProfileFromMem(icc, icc_len) : NULL;
+		CHECK(prof != NULL, "%s: LittleCMS cannot open the embedded profile", tif);
+		char desc[128] = "";
+		if (prof)
+			cmsGetProfileInfoASCII(prof, cmsInfoDescription, "en", "US", desc, sizeof(desc));
+		CHECK(strstr(desc, s == KG_ICC_ECIRGB_V2 ? "eciRGB v2" : s == KG_ICC_ADOBE_RGB
+		                                                      ? "Adobe RGB" : "ProPhoto"),
+		      "%s: description '%s'", tif, desc);
+		cmsHTRANSFORM x = prof ? cmsCreateTransform(prof, TYPE_RGB_16, lab, TYPE_Lab_DBL,
+		                                            INTENT_RELATIVE_COLORIMETRIC, 0)
+		                       : NULL;
+		CHECK(x != NULL || !prof, "%s: no transform", tif);
+		uint16_t px[W * 3];
+		double worst_s = 0;
+		for (uint32_t y = 0; x && y < h && y < H; y++) {
+			CHECK(TIFFReadScanline(t, px, y, 0) == 1, "%s: row %u", tif, y);
+			cmsCIELab got[W];
+			cmsDoTransform(x, px, got, W);
+			for (int xx = 0; xx < W; xx++) {
+				int i = (int)y * W + xx;
+				if (i == 2) {
+					CHECK(px[3 * xx] == 0 && px[3 * xx + 1] == 0 && px[3 * xx + 2] == 0,
+					      "%s: NaN pixel not black", tif);
+					continue;
+				}
+				kg_spectrum r;
+				for (int b = 0; b < KG_NBANDS; b++)
+					r.v[b] = refl(i, b);
+				kg_lab truth = kg_xyz_to_lab(kg_reflectance_to_xyz(&r, d50), white);
+				kg_lab dec = {got[xx].L, got[xx].a, got[xx].b};
+				double de = kg_ciede2000(truth, dec);
+				if (de > worst_s)
+					worst_s = de;
+				CHECK(de < 0.05, "%s: pixel %d: truth L %.3f a %.3f b %.3f, decoded L %.3f "
+				      "a %.3f b %.3f: dE00 %.4f", tif, i, truth.L, truth.a, truth.b, dec.L,
+				      dec.a, dec.b, de);
+				if (i == 1) /* neutral, Y = 0.18: every channel the space's TRC of it */
+					for (int ch = 0; ch < 3; ch++)
+						CHECK_NEAR(px[3 * xx + ch] / 65535.0, trc_encode(s, 0.18), 2e-4,
+						           "mid-grey code value");
+			}
+		}
+		printf("%s: worst dE00 %.5f\n", kg_icc_space_name(s), worst_s);
+		if (worst_s > worst)
+			worst = worst_s;
+		if (x)
+			cmsDeleteTransform(x);
+		if (prof)
+			cmsCloseProfile(prof);
+		TIFFClose(t);
+	}
+	printf("worst dE00 over the spaces: %.5f\n", worst);
+	/* a cube off the grid is refused, naming the file, and nothing is written */
+	snprintf(tif, sizeof(tif), "%s/icc_master_bad.tif", dir);
+	remove(tif);
+	wl[3] = 416;
+	snprintf(cube, sizeof(cube), "%s/icc_master_cube_off.hdr", dir);
+	CHECK(kg_envi_write(cube, &m, KG_LAYOUT_BIP, data, &err) == 0, "%s", err.msg);
+	CHECK(kg_master_write(cube, d50, KG_ICC_ECIRGB_V2, tif, NULL, &err) == KG_EINVAL,
+	      "off-grid cube accepted");
+	CHECK(strstr(err.msg, "icc_master_cube") && strstr(err.msg, "expected"), "message: %s",
+	      err.msg);
+	struct stat st;
+	CHECK(stat(tif, &st) != 0, "%s written after a refusal", tif);
+	kg_icc_space sp;
+	CHECK(kg_icc_space_parse("srgb", &sp, &err) == KG_EINVAL && strstr(err.msg, "ecirgb-v2"),
+	      "unknown space: %s", err.msg);
+	cmsCloseProfile(lab);
+	kg_illuminant_free(&d50);
+	free(data);
+	return kg_test_done("icc_master");
+}
+#else
+int main(void)
+{
+	printf("built without LittleCMS (-Dlcms): skipped\n");
+	return 77;
+}
+#endif
