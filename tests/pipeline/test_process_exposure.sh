@@ -70,7 +70,9 @@ out = open(sys.argv[2]).read()
 assert not [x for x in w if "no matching dark" in x or "applied by kogei process" in x], w
 # object-half reaches about 43 % of full scale, object-full about 85 %
 assert [x for x in o["object-half"]["warnings"] if "under-exposed by more than 50 %" in x], w
-assert not [x for x in w if "object-full" in x and ("under-exposed" in x or "clipped" in x)], w
+# (the master's gamut clipping, "master.tif: N pixels outside", is another matter)
+assert not [x for x in w if "object-full" in x and "master.tif" not in x and
+            ("under-exposed" in x or "clipped" in x)], w
 assert 0.3 < o["object-half"]["level"] < 0.5 < o["object-full"]["level"] < 0.95, \
     (o["object-half"]["level"], o["object-full"]["level"])
 assert "capture object-half: under-exposed by more than 50 %" in out, out
