@@ -52,19 +52,16 @@ static int colour_class(const kg_image *img, size_t i)
 	                       p % (size_t)img->width, p / (size_t)img->width);
 }
 
-int kg_correct_flat(kg_image *mean, kg_image *variance, const kg_image *flat, long *invalid,
-                    kg_err *err)
+/* Per colour class of the flat: the cut below which a sample is invalid, and the sum
+ * and count of the valid samples (the means over positive samples, then again over
+ * the valid ones). */
+static void flat_valid_means(const kg_image *flat, size_t n, double cut[4], double sum[4],
+                             long count[4])
 {
-	kg_check_arg(mean && flat, err);
-	int ret = same_size(mean, flat, "the flat", err);
-	if (!ret && variance)
-		ret = same_size(mean, variance, "the variance", err);
-	if (ret)
-		return ret;
-	size_t n = (size_t)mean->width * (size_t)mean->height * (size_t)mean->channels;
-	double sum[4] = {0}, cut[4];
-	long count[4] = {0};
-	/* The colour means over positive samples, then again over the valid ones. */
+	for (int c = 0; c < 4; c++) {
+		sum[c] = 0;
+		count[c] = 0;
+	}
 	for (size_t i = 0; i < n; i++) {
 		float v = flat->data[i];
 		if (isfinite(v) && v > 0) {
@@ -86,6 +83,21 @@ int kg_correct_flat(kg_image *mean, kg_image *variance, const kg_image *flat, lo
 			count[c]++;
 		}
 	}
+}
+
+int kg_correct_flat(kg_image *mean, kg_image *variance, const kg_image *flat, long *invalid,
+                    kg_err *err)
+{
+	kg_check_arg(mean && flat, err);
+	int ret = same_size(mean, flat, "the flat", err);
+	if (!ret && variance)
+		ret = same_size(mean, variance, "the variance", err);
+	if (ret)
+		return ret;
+	size_t n = (size_t)mean->width * (size_t)mean->height * (size_t)mean->channels;
+	double sum[4], cut[4];
+	long count[4];
+	flat_valid_means(flat, n, cut, sum, count);
 	long bad = 0;
 	for (size_t i = 0; i < n; i++) {
 		float v = flat->data[i];
@@ -112,29 +124,9 @@ int kg_flat_nonuniformity(const kg_image *flat, double *out, kg_err *err)
 	kg_check_arg(flat && flat->data && out, err);
 	*out = NAN;
 	size_t n = (size_t)flat->width * (size_t)flat->height * (size_t)flat->channels;
-	double sum[4] = {0}, cut[4];
-	long count[4] = {0};
-	for (size_t i = 0; i < n; i++) {
-		float v = flat->data[i];
-		if (isfinite(v) && v > 0) {
-			int c = colour_class(flat, i);
-			sum[c] += v;
-			count[c]++;
-		}
-	}
-	for (int c = 0; c < 4; c++) {
-		cut[c] = count[c] ? KG_FLAT_VALID_FRACTION * sum[c] / (double)count[c] : INFINITY;
-		sum[c] = 0;
-		count[c] = 0;
-	}
-	for (size_t i = 0; i < n; i++) {
-		float v = flat->data[i];
-		int c = colour_class(flat, i);
-		if (isfinite(v) && v > cut[c]) {
-			sum[c] += v;
-			count[c]++;
-		}
-	}
+	double sum[4], cut[4];
+	long count[4];
+	flat_valid_means(flat, n, cut, sum, count);
 	enum { B = KG_FLAT_BLOCKS };
 	double bsum[B][B] = {{0}};
 	long bcount[B][B] = {{0}};
