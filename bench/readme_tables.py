@@ -1,12 +1,12 @@
 #!/usr/bin/env python3
-"""The README's estimation table ("Speed against error"), rebuilt from a run's
-docs/bench/bench.md (kogei bench's report), so that after bench/run_all.sh the table
-is the run's numbers and nothing else.
+"""The estimation table of docs/bench.md ("Speed against error"), rebuilt from a
+run's docs/bench/bench.md (kogei bench's report), so that after bench/run_all.sh the
+table is the run's numbers and nothing else.
 
-  bench/readme_tables.py [--bench docs/bench/bench.md] [--readme README.md] [--check]
+  bench/readme_tables.py [--bench docs/bench/bench.md] [--doc docs/bench.md] [--check]
 
-Without --check the README's table is replaced in place (through a temporary file and
-a rename); with --check nothing is written and the exit status is 1 when the README's
+Without --check the page's table is replaced in place (through a temporary file and
+a rename); with --check nothing is written and the exit status is 1 when the page's
 table differs from what the report gives (the differing rows are printed). The
 prose around the table quotes numbers by hand and must be read again after a run."""
 import argparse
@@ -95,7 +95,7 @@ def build(report):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--bench", default="docs/bench/bench.md")
-    ap.add_argument("--readme", default="README.md")
+    ap.add_argument("--doc", "--readme", dest="readme", default="docs/bench.md")
     ap.add_argument("--check", action="store_true")
     a = ap.parse_args()
     with open(a.bench, encoding="utf-8") as f:
@@ -115,7 +115,7 @@ def main():
         if len(old) != len(table):
             diff.append((f"{len(old)} lines", f"{len(table)} lines"))
         for o, n in diff:
-            print(f"README:  {o}\nreport:  {n}")
+            print(f"page:    {o}\nreport:  {n}")
         return 1 if diff else 0
     readme[at:end] = table
     d = os.path.dirname(os.path.abspath(a.readme))

@@ -1,6 +1,6 @@
 #!/bin/sh
-# Every benchmark of the README, one after the other in one run, into docs/bench/
-# (or OUTDIR), so that the README's tables come from the same machine on the same day.
+# Every benchmark of docs/bench.md, one after the other in one run, into docs/bench/
+# (or OUTDIR), so that its tables come from the same machine on the same day.
 # A program, never a test: it asserts nothing about speed.
 #
 #   bench/run_all.sh [BUILD_DIR [OUTDIR]]

@@ -1,0 +1,68 @@
+#!/bin/sh
+# The README as a newcomer meets it: at most 250 lines, every relative link in it and
+# in docs/ points at a file of the tree, and its first session runs as written, from
+# a folder outside the checkout, with `kogei` on the PATH, into the folder it names.
+# Usage: test_readme.sh KOGEI SRC
+set -eu
+KOGEI=$(realpath "$1")
+SRC=$2
+T=$(mktemp -d)
+trap 'rm -rf "$T"' EXIT
+fail() { echo "FAIL: $*"; exit 1; }
+
+n=$(wc -l < "$SRC/README.md")
+[ "$n" -le 250 ] || fail "README.md has $n lines (at most 250)"
+echo "README.md: $n lines"
+
+python3 - "$SRC" <<'PY' || exit 1
+import os, re, sys
+src = sys.argv[1]
+pages = [os.path.join(src, "README.md")]
+pages += [os.path.join(src, "docs", f) for f in sorted(os.listdir(os.path.join(src, "docs")))
+          if f.endswith(".md")]
+bad = 0
+for page in pages:
+    text = open(page, encoding="utf-8").read()
+    # links and images outside code spans and fences
+    text = re.sub(r"```.*?```", "", text, flags=re.S)
+    for m in re.finditer(r"!?\[[^\]]*\]\(([^)\s]+)\)", text):
+        target = m.group(1).strip("`<>")
+        if re.match(r"[a-z]+:", target) or target.startswith("#"):
+            continue
+        path = os.path.normpath(os.path.join(os.path.dirname(page), target.split("#")[0]))
+        if not os.path.exists(path):
+            print(f"FAIL: {os.path.relpath(page, src)}: link to {target}: no such file")
+            bad += 1
+        elif not path.startswith(os.path.realpath(src) + os.sep) and not path.startswith(src + os.sep):
+            print(f"FAIL: {os.path.relpath(page, src)}: link to {target} leaves the repository")
+            bad += 1
+print(f"links: {len(pages)} pages checked, {bad} broken")
+sys.exit(1 if bad else 0)
+PY
+
+# the first session: the shell block after "## A first session", run as it stands but
+# for the checkout's path (~/kogei) and the folder it makes (~/first-session)
+awk '/^## A first session/{s=1} s&&/^```sh/{b=1;next} b&&/^```/{exit} b{print}' \
+	"$SRC/README.md" > "$T/session.sh"
+grep -q "kogei process" "$T/session.sh" || fail "README: no shell block with kogei process under '## A first session'"
+grep -q '~/kogei/' "$T/session.sh" || fail "README's session no longer names the checkout as ~/kogei"
+sed -i "s#~/kogei/#$SRC/#g; s#~/first-session#$T/first-session#g" "$T/session.sh"
+mkdir "$T/elsewhere"
+cd "$T/elsewhere"
+PATH="$(dirname "$KOGEI"):$PATH" sh -eu "$T/session.sh" > "$T/log" 2>&1 ||
+	{ tail -20 "$T/log"; fail "the README's first session failed"; }
+R="$T/first-session/results"
+for f in report.html process.json conformance.json camera.json camera.icc camera.ti3 \
+	object-0001/cube.hdr object-0001/labels.hdr object-0001/master.tif; do
+	[ -s "$R/$f" ] || fail "the README's session did not write results/$f"
+done
+[ -z "$(ls -A "$T/elsewhere")" ] || fail "the session wrote into the folder it ran from: $(ls -A "$T/elsewhere")"
+python3 - "$R/process.json" <<'PY' || exit 1
+import json, sys
+p = json.load(open(sys.argv[1]))
+text = json.dumps(p)
+for v in ("2026.1.1", "Alloy coupons", "tungsten, 45 degrees"):
+    if v not in text:
+        sys.exit(f"FAIL: process.json lacks the record {v!r} the README's session gives")
+PY
+echo "the README's first session: ok ($(grep -c '' "$T/session.sh") lines)"
