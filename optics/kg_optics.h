@@ -89,7 +89,7 @@ int kg_nk_model(const char *model, const char *element, kg_nk *out, kg_err *err)
  * unless flags holds KG_RESAMPLE_EXTRAPOLATE. n must be >= 0 and k >= 0.
  *
  * CSV: header `wavelength_nm,n,k` (further columns ignored), one row per wavelength
- * in nm, as in ../shared/reference/nk. Blank lines and lines starting with '#' are
+ * in nm, as tables exported from refractiveindex.info are. Blank lines and lines starting with '#' are
  * skipped.
  *
  * refractiveindex.info YAML, the subset its database uses for measured data: a
