@@ -113,8 +113,7 @@ def load(o):
     return recs, p
 a, pa = load(sys.argv[1])
 b, pb = load(sys.argv[2])
-# sfr and misregistration: measured on the tag sides of the rotated chart, not graded
-# (no limits sourced)
+# sfr and misregistration: measured on the tag sides of the rotated chart
 s, m = a["sfr"], a["colour_misregistration"]
 assert s["measured"] and isinstance(s["value"], float), s
 assert len(s["used"]) >= 2, s["used"]
@@ -123,12 +122,23 @@ assert all(u.startswith("tag") for u in s["used"]), s["used"]
 assert 0.05 < s["mtf50"] < 0.5, s["mtf50"]
 assert s["mtf50"] < s["mtf10"] <= 1.0, s
 assert 0 < s["efficiency"] <= 1 and abs(s["value"] - 100 * s["efficiency"]) < 1e-9, s
-assert s["level"] is None and s["stars"] == 0 and "not sourced" in s["note"], s
+# graded on the published limits: sampling efficiency ISO >= 85/80/70 %, FADGI
+# > 90/80/70/60 %; misregistration FADGI (2010) < 0.33/0.5/0.8 px, no ISO limit
+def iso_hi(v, lim):
+    return next((lv for lv, x in zip("ABC", lim) if v >= x), None)
+def fadgi(v, lim, hi):
+    return next((4 - k for k, x in enumerate(lim) if (v > x if hi else v < x)), 0)
+assert s["level"] == iso_hi(s["value"], (85, 80, 70)), s
+assert s["stars"] == fadgi(s["value"], (90, 80, 70, 60), True), s
+assert s["tolerance"]["higher_is_better"] and s["tolerance"]["iso19264_1"]["A"] == 85, s
+assert "ISO 19264-1" in s["tolerance"]["source"]["iso19264_1"], s["tolerance"]
 assert m["measured"] and 0 <= m["value"] < 1.0 and m["used"] == s["used"], m
-assert m["level"] is None and m["stars"] == 0, m
-print("sfr: %d edges, median MTF50 %.4f, MTF10 %.4f cy/px, efficiency %.1f %%; "
-      "misregistration %.3f px" % (len(s["used"]), s["mtf50"], s["mtf10"], s["value"],
-                                   m["value"]))
+assert m["level"] is None and "no published limit found" in m["note"], m
+assert m["stars"] == fadgi(m["value"], (0.33, 0.5, 0.8, float("inf")), False), m
+print("sfr: %d edges, median MTF50 %.4f, MTF10 %.4f cy/px, efficiency %.1f %% (%s, %d "
+      "stars); misregistration %.3f px (%d stars)"
+      % (len(s["used"]), s["mtf50"], s["mtf10"], s["value"], s["level"], s["stars"],
+         m["value"], m["stars"]))
 for rid in ("oecf", "white_balance", "noise", "colour_accuracy", "illuminance_non_uniformity"):
     assert a[rid]["measured"] and isinstance(a[rid]["value"], float), a[rid]
 # oecf and white balance: the worst over the neutral patches of process.json
