@@ -259,22 +259,46 @@ static json_t *colour_record(const json_t *patches)
 	return r;
 }
 
+/* 1 when a neutral patch has a value of the verification capture (key_verify). */
+static int has_verify(const json_t *patches)
+{
+	size_t i;
+	const json_t *e;
+	json_array_foreach(patches, i, e)
+		if (json_is_true(json_object_get(e, "neutral")) &&
+		    json_is_number(json_object_get(e, "dL_verify")))
+			return 1;
+	return 0;
+}
+
 json_t *kg_conformance(const json_t *patches, double flat_nonuniformity)
 {
 	json_t *list = json_array();
 	json_t *u1 = json_array(), *u2 = json_array(), *u3 = json_array();
-	double dl = neutral_max(patches, "dL", u1);
-	double dab = neutral_max(patches, "dab", u2);
-	double noise = neutral_max(patches, "noise_L", u3);
-	json_array_append_new(
-		list, graded("oecf", "ΔL*", &oecf_lim, dl, u1,
-		             "largest |ΔL*| of the estimate against the measured L* (D50) over the "
-		             "neutral patches",
-		             "no neutral patch with a measured spectrum: not measured"));
-	json_array_append_new(
-		list, graded("white_balance", "ΔE(a*b*)", &wb_lim, dab, u2,
-		             "largest ΔE(a*b*) over the neutral patches (D50)",
-		             "no neutral patch with a measured spectrum: not measured"));
+	/* tone, white balance and noise on the verification capture when there is one:
+	 * the calibration was fitted to the chart capture's response and absorbs much of
+	 * its tone error */
+	int ver = has_verify(patches);
+	double dl = neutral_max(patches, ver ? "dL_verify" : "dL", u1);
+	double dab = neutral_max(patches, ver ? "dab_verify" : "dab", u2);
+	double noise = neutral_max(patches, ver ? "noise_L_verify" : "noise_L", u3);
+	json_t *r0 = graded("oecf", "ΔL*", &oecf_lim, dl, u1,
+	                    ver ? "largest |ΔL*| of the estimate against the measured L* (D50) "
+	                          "over the neutral patches of the verification capture "
+	                          "(--verify)"
+	                        : "largest |ΔL*| of the estimate against the measured L* (D50) "
+	                          "over the neutral patches of the chart capture",
+	                    "no neutral patch with a measured spectrum: not measured");
+	json_object_set_new(r0, "graded_on", json_string(ver ? "verify" : "chart capture"));
+	json_array_append_new(list, r0);
+	json_t *r1 = graded("white_balance", "ΔE(a*b*)", &wb_lim, dab, u2,
+	                    ver ? "largest ΔE(a*b*) over the neutral patches (D50) of the "
+	                          "verification capture (--verify)"
+	                        : "largest ΔE(a*b*) over the neutral patches (D50) of the chart "
+	                          "capture",
+	                    "no neutral patch with a measured spectrum: not measured");
+	json_object_set_new(r1, "graded_on", json_string(ver ? "verify" : "chart capture"));
+	json_array_append_new(list, r1);
 	double nu = 100 * flat_nonuniformity;
 	json_t *r = graded("illuminance_non_uniformity", "%", &nu_lim, nu, NULL,
 	                   "from the flat: largest deviation of an 8 x 8 block mean from the mean "
@@ -284,11 +308,12 @@ json_t *kg_conformance(const json_t *patches, double flat_nonuniformity)
 	if (isfinite(nu))
 		json_array_append_new(json_object_get(r, "used"), json_string("flat"));
 	json_array_append_new(list, r);
-	json_array_append_new(
-		list, graded("noise", "L*", &noise_lim, noise, u3,
-		             "largest standard deviation of L* over the neutral patches, from the "
-		             "patches' pixel spread through the calibration (D50)",
-		             "no neutral patch with a pixel spread: not measured"));
+	json_t *r3 = graded("noise", "L*", &noise_lim, noise, u3,
+	                    "largest standard deviation of L* over the neutral patches, from the "
+	                    "patches' pixel spread through the calibration (D50)",
+	                    "no neutral patch with a pixel spread: not measured");
+	json_object_set_new(r3, "graded_on", json_string(ver ? "verify" : "chart capture"));
+	json_array_append_new(list, r3);
 	json_array_append_new(list, colour_record(patches));
 	json_array_append_new(list, record("sfr", "cycles/pixel", NAN, NAN, NULL, NULL, 0, NULL, 0,
 	                                   "not measured: the chart capture's edges were not "
