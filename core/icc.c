@@ -146,7 +146,7 @@ static float half_to_float(float stored)
 }
 
 int kg_master_write(const char *cube, const kg_illuminant *ill, kg_icc_space space,
-                    const char *path, long *clipped, kg_err *err)
+                    const char *path, const unsigned char *lit, long *clipped, kg_err *err)
 {
 	kg_envi *e = NULL;
 	cmsHPROFILE xyz = NULL, rgb = NULL;
@@ -269,7 +269,9 @@ int kg_master_write(const char *cube, const kg_illuminant *ill, kg_icc_space spa
 					}
 					row[3 * x + ch] = (uint16_t)lround(v * 65535.0);
 				}
-				nclip += cl;
+				size_t i = (size_t)(y0 + yr) * (size_t)W + (size_t)x;
+				if (cl && (!lit || (lit[i / 8] >> (i % 8) & 1)))
+					nclip++;
 			}
 			if (TIFFWriteScanline(tif, row, (uint32_t)(y0 + yr), 0) != 1)
 				ret = kg_fail(err, KG_EIO, "%s: cannot write TIFF", path);
@@ -408,7 +410,7 @@ int kg_icc_profile_bytes(kg_icc_space s, unsigned char **buf, size_t *len, kg_er
 }
 
 int kg_master_write(const char *cube, const kg_illuminant *ill, kg_icc_space space,
-                    const char *path, long *clipped, kg_err *err)
+                    const char *path, const unsigned char *lit, long *clipped, kg_err *err)
 {
 	if (clipped)
 		*clipped = 0;

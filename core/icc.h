@@ -41,9 +41,10 @@ int kg_icc_profile_bytes(kg_icc_space s, unsigned char **buf, size_t *len, kg_er
  * converted, relative colorimetric, into `space`: 16-bit RGB, the profile embedded
  * (TIFFTAG_ICCPROFILE). Non-finite estimates are written as black; colours outside
  * the space are clipped. Written to a temporary file and renamed. *clipped (may be
- * NULL) counts the pixels with a channel clipped. */
+ * NULL) counts the pixels with a channel clipped among those set in lit (a bitmap,
+ * pixel i = y * width + x at bit i % 8 of byte i / 8; NULL: every pixel counts). */
 int kg_master_write(const char *cube, const kg_illuminant *ill, kg_icc_space space,
-                    const char *path, long *clipped, kg_err *err);
+                    const char *path, const unsigned char *lit, long *clipped, kg_err *err);
 
 /* A camera input profile (ICC v4, class input, matrix/shaper with linear curves) from
  * n >= 3 chart patches: rgb their camera values (linear, 0..1) and xyz their XYZ

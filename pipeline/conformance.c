@@ -9,29 +9,71 @@
 #include "kg_pipeline.h"
 #include "sfr.h"
 
-/* One characteristic's limits: ISO 19264-1 levels A, B, C (inclusive, <=) and FADGI
- * 2023 stars 4, 3, 2, 1 (strict, <); NaN where no value was found. */
+/* One characteristic's limits: ISO 19264-1 levels A, B, C (inclusive: <=, or >= when
+ * higher is better) and FADGI stars 4, 3, 2, 1 (strict: <, or >); NaN where no
+ * published value was found (that side is not graded), INFINITY (or -INFINITY when
+ * higher is better) where the lowest star has no limit. iso_src and fadgi_src cite the
+ * document and table each limit comes from; they are written beside the tolerances.
+ *
+ * The values were checked against a published side-by-side table of ISO 19264-1:2021
+ * levels A-C and FADGI 2023 (Bound General Collections) stars 4-1 (skandalski.pl,
+ * "Tabela porownawcza FADGI/ISO/Metamorfoze"), rows "Tone response dL* (OECF)",
+ * "White balance dE(a*b*)", "Color accuracy mean / max / 90th percentile", "Noise
+ * upper limit (RMS)", "Sampling efficiency MTF10". Illuminance non-uniformity and
+ * colour channel misregistration are in the tables of FADGI's August 2010 Technical
+ * Guidelines ("Lightness non-uniformity", "Color channel misregistration", option A:
+ * any single feature); their 2023 values and ISO 19264-1's were not found, so ISO
+ * grades neither. */
 typedef struct limits {
 	double iso[3];
 	double fadgi[4];
+	int higher; /* higher values are better (sampling efficiency) */
+	const char *iso_src, *fadgi_src;
 } limits;
 
-static const limits oecf_lim = {{2, 3, 4}, {1.5, 3, 4.5, 6}};
-static const limits wb_lim = {{3, 4, 5}, {2, 4, 6, 8}};
-static const limits noise_lim = {{1.6, 2, 2.2}, {1, 2, 3, 4}};
-/* FADGI's percentages as published in its 2010 guidelines; ISO 19264-1's not found. */
-static const limits nu_lim = {{NAN, NAN, NAN}, {1, 3, 5, INFINITY}};
+#define NOT_FOUND "not graded: no published limit found"
+#define ISO_TABLE "ISO 19264-1:2021, limits of levels A, B, C: "
+#define FADGI_TABLE "FADGI Technical Guidelines 2023, Bound General Collections, stars 4-1: "
+#define FADGI_2010 "FADGI Technical Guidelines, August 2010 (2023 value not found), stars 4-1: "
+
+static const limits oecf_lim = {{2, 3, 4}, {1.5, 3, 4.5, 6}, 0,
+                                ISO_TABLE "tone response, |dL*| <= 2, 3, 4",
+                                FADGI_TABLE "tone response (OECF), |dL*| < 1.5, 3, 4.5, 6"};
+static const limits wb_lim = {{3, 4, 5}, {2, 4, 6, 8}, 0,
+                              ISO_TABLE "white balance, dE(a*b*) <= 3, 4, 5",
+                              FADGI_TABLE "white balance error, dE(a*b*) < 2, 4, 6, 8"};
+static const limits noise_lim = {{1.6, 2, 2.2}, {1, 2, 3, 4}, 0,
+                                 ISO_TABLE "noise upper limit (RMS L*) <= 1.6, 2, 2.2",
+                                 FADGI_TABLE "noise (RMS L*) < 1, 2, 3, 4"};
+static const limits nu_lim = {{NAN, NAN, NAN}, {1, 3, 5, INFINITY}, 0, NOT_FOUND,
+                              FADGI_2010 "lightness non-uniformity < 1, 3, 5 %, 1 star "
+                                         "above 5 %"};
 /* colour accuracy: mean (ISO, FADGI), maximum (ISO), 90th percentile (FADGI) */
-static const limits de_mean_lim = {{4, 5, 5}, {2, 3.5, 5, 6.5}};
-static const limits de_max_lim = {{10, 15, 15}, {NAN, NAN, NAN, NAN}};
-static const limits de_p90_lim = {{NAN, NAN, NAN}, {4, 7, 10, 13}};
+static const limits de_mean_lim = {{4, 5, 5}, {2, 3.5, 5, 6.5}, 0,
+                                   ISO_TABLE "colour accuracy, mean dE <= 4, 5, 5",
+                                   FADGI_TABLE "colour accuracy, mean dE2000 < 2, 3.5, 5, 6.5"};
+static const limits de_max_lim = {{10, 15, 15}, {NAN, NAN, NAN, NAN}, 0,
+                                  ISO_TABLE "colour accuracy, maximum dE <= 10, 15, 15",
+                                  "FADGI 2023 grades the 90th percentile, not the maximum"};
+static const limits de_p90_lim = {{NAN, NAN, NAN}, {4, 7, 10, 13}, 0,
+                                  "ISO 19264-1 grades the maximum, not the 90th percentile",
+                                  FADGI_TABLE "colour accuracy, 90th percentile dE2000 < 4, "
+                                              "7, 10, 13"};
+/* sampling efficiency (MTF10 frequency / Nyquist, %) */
+static const limits sfr_lim = {{85, 80, 70}, {90, 80, 70, 60}, 1,
+                               ISO_TABLE "sampling efficiency (MTF10) >= 85, 80, 70 %",
+                               FADGI_TABLE "sampling efficiency (MTF10) > 90, 80, 70, 60 %"};
+static const limits misreg_lim = {{NAN, NAN, NAN}, {0.33, 0.5, 0.8, INFINITY}, 0, NOT_FOUND,
+                                  FADGI_2010 "colour channel misregistration, any single "
+                                             "feature, < 0.33, 0.50, 0.80 pixel, 1 star "
+                                             "above 0.80"};
 
 static int iso_level(const limits *l, double v) /* 0 A, 1 B, 2 C, 3 none, -1 unknown */
 {
 	if (isnan(l->iso[0]))
 		return -1;
 	for (int k = 0; k < 3; k++)
-		if (v <= l->iso[k])
+		if (l->higher ? v >= l->iso[k] : v <= l->iso[k])
 			return k;
 	return 3;
 }
@@ -41,9 +83,39 @@ static int fadgi_stars(const limits *l, double v) /* 4..1, 0 none, -1 unknown */
 	if (isnan(l->fadgi[0]))
 		return -1;
 	for (int k = 0; k < 4; k++)
-		if (v < l->fadgi[k])
+		if (l->higher ? v > l->fadgi[k] : v < l->fadgi[k])
 			return 4 - k;
 	return 0;
+}
+
+static const limits *limits_of(const char *id)
+{
+	static const struct {
+		const char *id;
+		const limits *l;
+	} t[] = {{"oecf", &oecf_lim},
+	         {"white_balance", &wb_lim},
+	         {"illuminance_non_uniformity", &nu_lim},
+	         {"noise", &noise_lim},
+	         {"sfr", &sfr_lim},
+	         {"colour_misregistration", &misreg_lim}};
+	for (size_t i = 0; id && i < sizeof(t) / sizeof(t[0]); i++)
+		if (!strcmp(t[i].id, id))
+			return t[i].l;
+	return NULL;
+}
+
+int kg_conformance_grade(const char *id, double v, int *stars)
+{
+	const limits *l = limits_of(id);
+	if (!l || !isfinite(v)) {
+		if (stars)
+			*stars = -1;
+		return -1;
+	}
+	if (stars)
+		*stars = fadgi_stars(l, v);
+	return iso_level(l, v);
 }
 
 static json_t *tolerance_json(const limits *l)
@@ -56,7 +128,9 @@ static json_t *tolerance_json(const limits *l)
 	for (int k = 0; k < 4; k++)
 		json_object_set_new(fadgi, st[k], isfinite(l->fadgi[k]) ? json_real(l->fadgi[k])
 		                                                      : json_null());
-	return json_pack("{s:o, s:o}", "iso19264_1", iso, "fadgi_2023", fadgi);
+	return json_pack("{s:o, s:o, s:b, s:{s:s, s:s}}", "iso19264_1", iso, "fadgi_2023", fadgi,
+	                 "higher_is_better", l->higher,
+	                 "source", "iso19264_1", l->iso_src, "fadgi_2023", l->fadgi_src);
 }
 
 static json_t *level_json(int k)
@@ -185,36 +259,61 @@ static json_t *colour_record(const json_t *patches)
 	return r;
 }
 
+/* 1 when a neutral patch has a value of the verification capture (key_verify). */
+static int has_verify(const json_t *patches)
+{
+	size_t i;
+	const json_t *e;
+	json_array_foreach(patches, i, e)
+		if (json_is_true(json_object_get(e, "neutral")) &&
+		    json_is_number(json_object_get(e, "dL_verify")))
+			return 1;
+	return 0;
+}
+
 json_t *kg_conformance(const json_t *patches, double flat_nonuniformity)
 {
 	json_t *list = json_array();
 	json_t *u1 = json_array(), *u2 = json_array(), *u3 = json_array();
-	double dl = neutral_max(patches, "dL", u1);
-	double dab = neutral_max(patches, "dab", u2);
-	double noise = neutral_max(patches, "noise_L", u3);
-	json_array_append_new(
-		list, graded("oecf", "ΔL*", &oecf_lim, dl, u1,
-		             "largest |ΔL*| of the estimate against the measured L* (D50) over the "
-		             "neutral patches",
-		             "no neutral patch with a measured spectrum: not measured"));
-	json_array_append_new(
-		list, graded("white_balance", "ΔE(a*b*)", &wb_lim, dab, u2,
-		             "largest ΔE(a*b*) over the neutral patches (D50)",
-		             "no neutral patch with a measured spectrum: not measured"));
+	/* tone, white balance and noise on the verification capture when there is one:
+	 * the calibration was fitted to the chart capture's response and absorbs much of
+	 * its tone error */
+	int ver = has_verify(patches);
+	double dl = neutral_max(patches, ver ? "dL_verify" : "dL", u1);
+	double dab = neutral_max(patches, ver ? "dab_verify" : "dab", u2);
+	double noise = neutral_max(patches, ver ? "noise_L_verify" : "noise_L", u3);
+	json_t *r0 = graded("oecf", "ΔL*", &oecf_lim, dl, u1,
+	                    ver ? "largest |ΔL*| of the estimate against the measured L* (D50) "
+	                          "over the neutral patches of the verification capture "
+	                          "(--verify)"
+	                        : "largest |ΔL*| of the estimate against the measured L* (D50) "
+	                          "over the neutral patches of the chart capture",
+	                    "no neutral patch with a measured spectrum: not measured");
+	json_object_set_new(r0, "graded_on", json_string(ver ? "verify" : "chart capture"));
+	json_array_append_new(list, r0);
+	json_t *r1 = graded("white_balance", "ΔE(a*b*)", &wb_lim, dab, u2,
+	                    ver ? "largest ΔE(a*b*) over the neutral patches (D50) of the "
+	                          "verification capture (--verify)"
+	                        : "largest ΔE(a*b*) over the neutral patches (D50) of the chart "
+	                          "capture",
+	                    "no neutral patch with a measured spectrum: not measured");
+	json_object_set_new(r1, "graded_on", json_string(ver ? "verify" : "chart capture"));
+	json_array_append_new(list, r1);
 	double nu = 100 * flat_nonuniformity;
 	json_t *r = graded("illuminance_non_uniformity", "%", &nu_lim, nu, NULL,
 	                   "from the flat: largest deviation of an 8 x 8 block mean from the mean "
-	                   "of the blocks; ISO 19264-1 limits not found, no level given; FADGI "
-	                   "tolerances of its 2010 guidelines (the 2023 values not found)",
+	                   "of the blocks; ISO 19264-1: " NOT_FOUND " (no level); FADGI stars on "
+	                   "the tolerances of its 2010 guidelines (the 2023 values not found)",
 	                   "no flat with a recorded non-uniformity: not measured");
 	if (isfinite(nu))
 		json_array_append_new(json_object_get(r, "used"), json_string("flat"));
 	json_array_append_new(list, r);
-	json_array_append_new(
-		list, graded("noise", "L*", &noise_lim, noise, u3,
-		             "largest standard deviation of L* over the neutral patches, from the "
-		             "patches' pixel spread through the calibration (D50)",
-		             "no neutral patch with a pixel spread: not measured"));
+	json_t *r3 = graded("noise", "L*", &noise_lim, noise, u3,
+	                    "largest standard deviation of L* over the neutral patches, from the "
+	                    "patches' pixel spread through the calibration (D50)",
+	                    "no neutral patch with a pixel spread: not measured");
+	json_object_set_new(r3, "graded_on", json_string(ver ? "verify" : "chart capture"));
+	json_array_append_new(list, r3);
 	json_array_append_new(list, colour_record(patches));
 	json_array_append_new(list, record("sfr", "cycles/pixel", NAN, NAN, NULL, NULL, 0, NULL, 0,
 	                                   "not measured: the chart capture's edges were not "
@@ -315,10 +414,13 @@ void kg_conformance_edges(json_t *list, const kg_chart_layout *l, const kg_chart
 		json_decref(used);
 	} else {
 		double e = 100 * median(eff, k), f50 = median(m50, k), f10 = median(m10, k);
-		sfr = record("sfr", "%", e, 100, NULL, NULL, 0, json_copy(used), 1,
+		int st = 0, lv = kg_conformance_grade("sfr", e, &st);
+		sfr = record("sfr", "%", e, 100, tolerance_json(&sfr_lim), level_json(lv), st,
+		             json_copy(used), 1,
 		             "slanted-edge SFR (ISO 12233) on the chart's tag sides; value is the "
-		             "median sampling efficiency (MTF10 / Nyquist, capped at 100 %); "
-		             "ISO 19264-1 and FADGI limits not sourced: recorded, not graded");
+		             "median sampling efficiency (MTF10 / Nyquist, capped at 100 %), graded "
+		             "on ISO 19264-1's and FADGI 2023's sampling-efficiency limits; MTF50 "
+		             "and MTF10 recorded beside it");
 		json_object_set_new(sfr, "mtf50", json_real(f50));
 		json_object_set_new(sfr, "mtf10", json_real(f10));
 		json_object_set_new(sfr, "efficiency", json_real(e / 100));
@@ -331,10 +433,13 @@ void kg_conformance_edges(json_t *list, const kg_chart_layout *l, const kg_chart
 			             "not measured: the chart capture has one channel");
 			json_decref(used);
 		} else {
-			mis = record("colour_misregistration", "pixels", misreg, 0, NULL, NULL, 0, used,
-			             1, "largest difference between the R, G and B edge positions over "
-			                "the tag sides measured; ISO 19264-1 and FADGI limits not "
-			                "sourced: recorded, not graded");
+			int mst = 0, mlv = kg_conformance_grade("colour_misregistration", misreg, &mst);
+			mis = record("colour_misregistration", "pixels", misreg, 0,
+			             tolerance_json(&misreg_lim), level_json(mlv), mst, used, 1,
+			             "largest difference between the R, G and B edge positions over "
+			             "the tag sides measured; FADGI stars on the tolerances of its 2010 "
+			             "guidelines (the 2023 values not found); ISO 19264-1: " NOT_FOUND
+			             " (no level)");
 			json_object_set_new(mis, "binned", json_integer(bin));
 		}
 	}

@@ -261,6 +261,32 @@ static int shot_from_process(demo_ctx *d, const char *process_json, demo_chart_s
 	return ret;
 }
 
+/* The object record the demo passes (--meta), an example: every value is made up. */
+static json_t *demo_meta(const char *session, kg_err *err)
+{
+	static const char *const kv[][2] = {
+		{"accession", "DEMO-0001"},
+		{"title", "Tsuba (sword guard) of shibuichi, gold, copper and urushi (simulated)"},
+		{"operator", "kogei demo"},
+		{"lighting", NULL},
+		{"notes", "An example record: the object, its capture and these values are "
+		          "made up by kogei demo."},
+	};
+	char lighting[160];
+	int lab = !strcmp(session, "lab-session");
+	snprintf(lighting, sizeof(lighting), "simulated CIE illuminant %s (the %s session)",
+	         lab ? DEMO_REFERENCE_ILLUMINANT : DEMO_SITE_ILLUMINANT, lab ? "lab" : "site");
+	json_t *m = json_object();
+	for (size_t i = 0; m && i < sizeof(kv) / sizeof(kv[0]); i++)
+		if (kg_meta_set(m, "demo record", kv[i][0], kv[i][1] ? kv[i][1] : lighting, err)) {
+			json_decref(m);
+			return NULL;
+		}
+	if (!m)
+		kg_fail(err, KG_ENOMEM, "out of memory");
+	return m;
+}
+
 /* The same job as `kogei process` on one of the replayed sessions. */
 static int demo_process(demo_ctx *d, const char *session, const char *reference,
                         const char *out)
@@ -282,9 +308,14 @@ static int demo_process(demo_ctx *d, const char *session, const char *reference,
 	po.progress = stdout;
 	po.command = "kogei demo";
 	po.accept_rerecorded = 1; /* the sessions are recorded anew at every run */
+	json_t *meta = ret ? NULL : demo_meta(session, &d->err);
+	if (!ret && !meta)
+		ret = KG_EINVAL; /* the message is in d->err */
+	po.meta = meta;
 	kg_process_summary sum;
 	if (!ret)
 		ret = kg_process_run(&po, &sum, &d->err);
+	json_decref(meta);
 	if (!ret)
 		printf("  %s -> %s/: %d object(s), M2 residual %.2f %%, %d warning(s), %.1f s\n",
 		       session, out, sum.objects, 100 * sum.residual, sum.warnings, sum.seconds);

@@ -168,6 +168,13 @@ json_t *kg_conformance(const json_t *patches, double flat_nonuniformity);
  * suits. */
 void kg_conformance_edges(json_t *list, const kg_chart_layout *l, const kg_chart_result *r,
                           const kg_image *img, int bin);
+/* The grade of value v of characteristic id (oecf, white_balance,
+ * illuminance_non_uniformity, noise, sfr: sampling efficiency in %,
+ * colour_misregistration: pixels) on the published limits (pipeline/conformance.c
+ * cites them): the ISO 19264-1 level (0 A, 1 B, 2 C, 3 none reached) and, in *stars,
+ * the FADGI stars (4..1, 0 none); -1 where no published limit was found, id is unknown
+ * or v is not finite. */
+int kg_conformance_grade(const char *id, double v, int *stars);
 #define KG_CONFORMANCE_CAVEAT                                                           \
 	"An analysis of the chart capture against the criteria of ISO 19264-1 and FADGI "  \
 	"2023, not a certification under either standard."

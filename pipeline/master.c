@@ -42,7 +42,7 @@ int proc_master_check(proc *p)
 }
 
 int proc_master(proc *p, const proc_capture *c, const char *dir, const char *cube,
-                json_t *object)
+                const unsigned char *lit, json_t *object)
 {
 	kg_icc_space s;
 	json_t *warnings = json_object_get(object, "warnings");
@@ -70,20 +70,21 @@ int proc_master(proc *p, const proc_capture *c, const char *dir, const char *cub
 	if (!ret) {
 		proc_progress(p, "%s: master.tif (%s, %s)", c->name, kg_icc_space_description(s),
 		              ill->name);
-		ret = kg_master_write(cube, ill, s, path, &clipped, p->err);
+		ret = kg_master_write(cube, ill, s, path, lit, &clipped, p->err);
 	}
 	if (!ret) {
 		char rel[300];
 		snprintf(rel, sizeof(rel), "%s/master.tif", c->name);
 		json_object_set_new(object, "master",
-		                    json_pack("{s:s, s:s, s:s, s:s, s:s, s:I}", "path", rel, "space",
-		                              kg_icc_space_name(s), "profile",
+		                    json_pack("{s:s, s:s, s:s, s:s, s:s, s:I, s:s}", "path", rel,
+		                              "space", kg_icc_space_name(s), "profile",
 		                              kg_icc_space_description(s), "illuminant", ill_arg(p),
 		                              "intent", "relative colorimetric", "clipped_pixels",
-		                              (json_int_t)clipped));
+		                              (json_int_t)clipped, "clipped_counted",
+		                              lit ? "lit pixels" : "all pixels"));
 		if (clipped > 0)
-			proc_warn(p, warnings, "%s: master.tif: %ld pixels outside %s, clipped",
-			          c->name, clipped, kg_icc_space_description(s));
+			proc_warn(p, warnings, "%s: master.tif: %ld %spixels outside %s, clipped",
+			          c->name, clipped, lit ? "lit " : "", kg_icc_space_description(s));
 	}
 	kg_illuminant_free(&ill);
 	free(path);

@@ -146,10 +146,12 @@ int proc_cube_format(const proc *p, kg_est_format *format);
 /* The master (master.c): --master-space and --master-illuminant checked before
  * anything is written; then per object OUTDIR/<object>/master.tif rendered from its
  * cube in dir, recorded in object ("master": path, space, illuminant; null with a
- * warning when it cannot be made). */
+ * warning when it cannot be made). Its gamut clipping is counted over the lit pixels
+ * (process_object.c's notion, the same as the clamp warning's), lit a bitmap of them
+ * (NULL: no lit count was made, every pixel counts). */
 int proc_master_check(proc *p);
 int proc_master(proc *p, const proc_capture *c, const char *dir, const char *cube,
-                json_t *object);
+                const unsigned char *lit, json_t *object);
 /* OUTDIR/camera.icc (ICC input profile, matrix/shaper fitted to the chart's camera
  * values and measured spectra under D50) and camera.ti3 (ArgyllCMS colprof input),
  * recorded as calibration.camera_icc (null with a warning when not made). */

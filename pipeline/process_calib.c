@@ -261,6 +261,12 @@ static int patches_json(proc *p, const kg_chart_result *res, const kg_patchset *
 				kg_site_map_apply(map, v->rgb, &ve);
 				kg_lab v50 = lab_of(&w50, white50, &ve);
 				json_object_set_new(e, "de00_d50_verify", json_real(kg_ciede2000(a50, v50)));
+				/* the verification capture's tone, white balance and noise: its
+				 * response is not the one the calibration was fitted to */
+				json_object_set_new(e, "dL_verify", json_real(v50.L - a50.L));
+				json_object_set_new(e, "dab_verify",
+				                    json_real(hypot(v50.a - a50.a, v50.b - a50.b)));
+				json_object_set_new(e, "noise_L_verify", noise_l(map, &w50, white50, v));
 			}
 			/* neutral: the measured patch's chroma C*ab under D50 below 4 */
 			json_object_set_new(e, "neutral", json_boolean(chroma < 4.0));

@@ -529,6 +529,7 @@ typedef struct lit_count {
 	uint8_t *row[3]; /* LIT_* of rows y mod 3 */
 	double floor2, rel2;
 	uint64_t lit, clamped;
+	unsigned char *bits; /* the lit pixels, bit y * width + x (the master's gamut count) */
 } lit_count;
 
 static int lit_grow(float **buf, size_t *cap, size_t n, kg_err *err)
@@ -558,8 +559,10 @@ static void lit_decide(lit_count *l, int y)
 				if (x + dx >= 0 && x + dx < W && !(r[j][x + dx] & LIT_ABOVE))
 					lit = 0;
 		if (lit) {
+			size_t i = (size_t)y * (size_t)W + (size_t)x;
 			l->lit++;
 			l->clamped += (r[1][x] & LIT_CLAMPED) != 0;
+			l->bits[i / 8] |= (unsigned char)(1u << (i % 8));
 		}
 	}
 }
@@ -617,6 +620,8 @@ static int lit_open(proc *p, proc_source *src, const proc_image_info *info, lit_
 	for (int j = 0; j < 3; j++)
 		if (!(l->row[j] = malloc((size_t)info->width)))
 			return kg_fail(p->err, KG_ENOMEM, "out of memory");
+	if (!(l->bits = calloc(((size_t)info->width * (size_t)info->height + 7) / 8, 1)))
+		return kg_fail(p->err, KG_ENOMEM, "out of memory");
 	int ret = 0;
 	if (info->has_variance && !(ret = proc_pass_open(src, 1, &l->var_pass, &l->var)))
 		l->has_var = 1;
@@ -634,6 +639,7 @@ static void lit_free(lit_count *l)
 	kg_image_rows_free(&l->mask_rows);
 	free(l->vbuf);
 	free(l->mbuf);
+	free(l->bits);
 	for (int j = 0; j < 3; j++)
 		free(l->row[j]);
 }
@@ -723,10 +729,12 @@ static void corrections_warnings(proc *p, const proc_capture *c, const proc_imag
 		          c->name, info->flat, info->flat);
 }
 
-/* Estimate the capture into the cube (--cube f32, f16 or weights). */
+/* Estimate the capture into the cube (--cube f32, f16 or weights); *lit_bits: the lit
+ * pixels' bitmap (caller frees) for the master. */
 static int estimate_pass(proc *p, const proc_capture *c, proc_source *src,
                          const proc_image_info *info, const kg_apply_options *opt,
-                         kg_est_format format, const char *cube, json_t *object)
+                         kg_est_format format, const char *cube, unsigned char **lit_bits,
+                         json_t *object)
 {
 	kg_err *err = p->err;
 	kg_est_kernel *kern = NULL;
@@ -754,8 +762,11 @@ static int estimate_pass(proc *p, const proc_capture *c, proc_source *src,
 		              proc_cube_name(p));
 		ret = kg_estimate_rows(kern, &rows, format, &o, cube, &stats, err);
 	}
-	if (!ret)
+	if (!ret) {
 		stats_json(p, c, &stats, &lit, "cube written", object);
+		*lit_bits = lit.bits;
+		lit.bits = NULL;
+	}
 	lit_free(&lit);
 	proc_pass_free(&pass);
 	kg_est_kernel_free(&kern);
@@ -1009,10 +1020,13 @@ static int process_into(proc *p, const proc_capture *c, const char *dir, double 
 	snprintf(desc, sizeof(desc), "kogei process: reflectance of capture %s", c->name);
 	opt.description = desc;
 	kg_est_format format;
+	unsigned char *lit_bits = NULL;
 	if (!ret && proc_cube_format(p, &format))
-		ret = estimate_pass(p, c, src, &info, &opt, format, cube, object);
+		ret = estimate_pass(p, c, src, &info, &opt, format, cube, &lit_bits, object);
 	if (!ret)
-		ret = proc_master(p, c, dir, proc_cube_format(p, &format) ? cube : NULL, object);
+		ret = proc_master(p, c, dir, proc_cube_format(p, &format) ? cube : NULL, lit_bits,
+		                  object);
+	free(lit_bits);
 	if (!ret)
 		ret = classify_pass(p, c, src, scale, &info, &opt, set, labels, photo, object);
 	/* unknown, background, unclassified and unseen pixels are no library material:

@@ -5,6 +5,7 @@
  * missing or mistyped required key; the page is written to a temporary file that is
  * renamed into place only when no key was missing, so a bad record leaves no report
  * rather than a misleading one. */
+#include <ctype.h>
 #include <math.h>
 #include <stdarg.h>
 #include <stdlib.h>
@@ -300,8 +301,62 @@ static void put_image_file(report *r, const char *rel, const char *alt, const ch
 	free(data);
 }
 
-/* The files of an object capture the page does not show (cube, label map, scene):
- * named, and said to be missing when they are. */
+/* A link to a file of OUTDIR (path relative to it, percent-encoded), said to be missing
+ * or refused (outside OUTDIR) when it is. */
+static void put_link(report *r, const char *rel)
+{
+	if (!kg_relpath_is_safe(rel, REPORT_REL_MAX)) {
+		html(r, "<code>");
+		text(r, rel);
+		html(r, "</code> <span class=\"fail\">not inside the output folder: not read</span>");
+		return;
+	}
+	html(r, "<a href=\"");
+	for (const unsigned char *c = (const unsigned char *)rel; *c; c++)
+		if (isalnum(*c) || strchr("-._~/", *c))
+			html(r, "%c", *c);
+		else
+			html(r, "%%%02X", *c);
+	html(r, "\"><code>");
+	text(r, rel);
+	html(r, "</code></a>");
+	struct stat st;
+	if (kg_stat_below(file_base(r, rel), rel, &st, NULL) != 0)
+		html(r, " <span class=\"fail\">missing</span>");
+}
+
+/* The object's master (objects[i].master): a link, its colour space and illuminant. */
+static void put_master(report *r, int i)
+{
+	char key[64];
+	snprintf(key, sizeof(key), "objects[%d].master", i);
+	const json_t *m = kg_json_find(r->root, key);
+	if (!m) /* written before masters existed */
+		return;
+	const char *rel = json_is_object(m) ? opt_str(r, "objects[%d].master.path", i) : NULL;
+	if (!rel) {
+		html(r, ", no master (see the warnings)");
+		return;
+	}
+	html(r, ", master ");
+	put_link(r, rel);
+	html(r, " (16-bit RGB in ");
+	text(r, str(r, "objects[%d].master.profile", i));
+	html(r, ", its ICC profile embedded; rendered under ");
+	text(r, str(r, "objects[%d].master.illuminant", i));
+	html(r, ", ");
+	text(r, str(r, "objects[%d].master.intent", i));
+	double clipped = opt_num(r, "objects[%d].master.clipped_pixels", i);
+	if (isfinite(clipped) && clipped > 0) {
+		const char *counted = opt_str(r, "objects[%d].master.clipped_counted", i);
+		textf(r, "; %.0f %s outside the space, clipped", clipped,
+		      counted && !strcmp(counted, "lit pixels") ? "lit pixels" : "pixels");
+	}
+	html(r, ")");
+}
+
+/* The files of an object capture the page does not show (cube, label map, scene, the
+ * master): named, and said to be missing when they are. */
 static void put_file_list(report *r, int i)
 {
 	static const struct {
@@ -327,6 +382,7 @@ static void put_file_list(report *r, int i)
 		     : kg_stat_below(file_base(r, rel), rel, &st, NULL) == 0
 		             ? "" : " <span class=\"fail\">missing</span>");
 	}
+	put_master(r, i);
 	html(r, ".</p>\n");
 }
 
@@ -528,6 +584,28 @@ static void section_calibration(report *r)
 	json_t *patches = arr(r, &npatches, "calibration.patches");
 	html(r, "<table class=\"kv\">\n");
 	row(r, "Calibration file", str(r, "calibration.file"));
+	const json_t *cicc = kg_json_find(r->root, "calibration.camera_icc");
+	if (cicc) {
+		html(r, "<tr><th scope=\"row\">Camera input profile</th><td>");
+		const char *icc = json_is_object(cicc) ? opt_str(r, "calibration.camera_icc.path")
+		                                       : NULL;
+		if (!icc) {
+			html(r, "<span class=\"none\">none (no LittleCMS, or no measured chart "
+			        "spectra)</span>");
+		} else {
+			put_link(r, icc);
+			html(r, " (ICC v4 input profile, matrix/shaper, camera RGB to the D50 "
+			        "profile connection space; ");
+			textf(r, "fitted on %.0f patches, ΔE00 mean %.2f, max %.2f",
+			      num(r, "calibration.camera_icc.patches"),
+			      num(r, "calibration.camera_icc.fit_de00_mean"),
+			      num(r, "calibration.camera_icc.fit_de00_max"));
+			html(r, "); ");
+			put_link(r, str(r, "calibration.camera_icc.ti3"));
+			html(r, " (ArgyllCMS colprof input, CGATS XYZ_RGB)");
+		}
+		html(r, "</td></tr>\n");
+	}
 	row(r, "Chart capture", str(r, "calibration.chart_capture"));
 	row(r, "Chart layout", str(r, "calibration.layout"));
 	row(r, "Detector", str(r, "calibration.detector"));

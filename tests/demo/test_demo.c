@@ -448,6 +448,81 @@ static void check_summary(const char *dir, const kg_material_library *lib)
 	free(path);
 }
 
+#if HAVE_LCMS
+static char *slurp(const char *path)
+{
+	FILE *f = fopen(path, "rb");
+	char *buf = NULL;
+	long n = -1;
+	if (f && fseek(f, 0, SEEK_END) == 0 && (n = ftell(f)) >= 0 && fseek(f, 0, SEEK_SET) == 0 &&
+	    (buf = malloc((size_t)n + 1)) && fread(buf, 1, (size_t)n, f) == (size_t)n)
+		buf[n] = 0;
+	else {
+		free(buf);
+		buf = NULL;
+	}
+	if (f)
+		fclose(f);
+	return buf;
+}
+
+/* The site run's object record, its seven conformance records (colour accuracy graded
+ * held-out; what the CIE-TCS chart cannot give, having no neutral patch and the demo
+ * no flat, not measured and not passed) and the report showing them. */
+static void check_records(const char *dir)
+{
+	static const char *const ids[] = {"oecf", "white_balance", "illuminance_non_uniformity",
+	                                  "noise", "colour_accuracy", "sfr",
+	                                  "colour_misregistration"};
+	kg_err err = {{0}};
+	json_t *pj = NULL, *cj = NULL;
+	char *p = in_dir(dir, "site/process.json"), *c = in_dir(dir, "site/conformance.json");
+	char *r = in_dir(dir, "site/report.html");
+	CHECK(kg_json_load(p, &pj, &err) == 0, "%s", err.msg);
+	CHECK(kg_json_load(c, &cj, &err) == 0, "%s", err.msg);
+	const json_t *meta = pj ? json_object_get(pj, "meta") : NULL;
+	for (int i = 0; kg_meta_known_keys[i]; i++)
+		CHECK(json_is_string(json_object_get(meta, kg_meta_known_keys[i])),
+		      "%s: meta.%s missing", p, kg_meta_known_keys[i]);
+	const json_t *list = cj ? json_object_get(cj, "characteristics") : NULL;
+	CHECK(json_array_size(list) == 7, "%s: %zu characteristics", c, json_array_size(list));
+	for (size_t i = 0; i < 7 && i < json_array_size(list); i++) {
+		const json_t *rec = json_array_get(list, i);
+		const char *id = json_string_value(json_object_get(rec, "id"));
+		const char *want = ids[i];
+		CHECK(id && !strcmp(id, want), "%s: record %zu is %s, expected %s", c, i,
+		      id ? id : "(none)", want);
+		if (!json_is_true(json_object_get(rec, "measured")))
+			CHECK(json_is_null(json_object_get(rec, "level")) &&
+			          json_integer_value(json_object_get(rec, "stars")) == 0 &&
+			          strstr(json_string_value(json_object_get(rec, "note")), "not measured"),
+			      "%s: %s not measured but graded or not said", c, want);
+		if (!strcmp(want, "colour_accuracy"))
+			CHECK(json_is_true(json_object_get(rec, "measured")) &&
+			          !strcmp(json_string_value(json_object_get(rec, "graded_on")),
+			                  "held-out") &&
+			          json_is_object(json_object_get(rec, "held_out")),
+			      "%s: colour accuracy not graded held-out", c);
+	}
+	const char *cav = cj ? json_string_value(json_object_get(cj, "caveat")) : NULL;
+	CHECK(cav && strstr(cav, "not a certification"), "%s: no caveat", c);
+	char *page = slurp(r);
+	CHECK(page, "%s: cannot read", r);
+	static const char *const shown[] = {"<section id=\"record\">", "DEMO-0001",
+	                                    "id=\"heldout\"", "not a certification",
+	                                    "href=\"object/master.tif\"", "href=\"camera.icc\"",
+	                                    "id=\"conformance\""};
+	for (size_t i = 0; page && i < sizeof(shown) / sizeof(shown[0]); i++)
+		CHECK(strstr(page, shown[i]), "%s does not show %s", r, shown[i]);
+	free(page);
+	json_decref(pj);
+	json_decref(cj);
+	free(p);
+	free(c);
+	free(r);
+}
+#endif
+
 int main(int argc, char **argv)
 {
 #if !HAVE_APRILTAG
@@ -504,8 +579,18 @@ int main(int argc, char **argv)
 		kg_image *img = NULL;
 		CHECK(kg_image_read(p, &img, &err) == 0 && img->channels == 3, "%s: %s", p, err.msg);
 		kg_image_free(&img);
+		/* its embedded profile, as ImageMagick reads it */
+		if (system("command -v identify >/dev/null 2>&1") == 0) {
+			char cmd[512];
+			snprintf(cmd, sizeof(cmd), "identify -verbose '%s' 2>&1 | grep -q 'eciRGB v2'",
+			         p);
+			CHECK(system(cmd) == 0, "identify -verbose %s: no eciRGB v2 profile", p);
+		} else {
+			printf("identify (ImageMagick) not installed: the profile check skipped\n");
+		}
 		free(p);
 	}
+	check_records(dir);
 #endif
 #if HAVE_EMBREE
 	/* Step 6: the Fig. 13 contact sheet and one render per material; step 7: the

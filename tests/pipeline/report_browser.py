@@ -6,6 +6,7 @@ usage: report_browser.py DevToolsActivePort REPORT.html SHOT.png MAX_HEIGHT
 """
 import base64
 import json
+import urllib.parse
 import os
 import struct
 import sys
@@ -148,6 +149,8 @@ def main():
         p => ({text: p.textContent, shown: p.getBoundingClientRect().height > 0})),
       heldout: Array.from(document.querySelectorAll('#heldout tbody tr')).map(
         tr => Array.from(tr.querySelectorAll('td')).map(td => td.textContent.trim())),
+      links: Array.from(document.querySelectorAll('a[href]')).map(a => ({
+        href: a.href, text: a.textContent, ctx: a.parentElement.textContent})),
       width: document.documentElement.scrollWidth,
       height: document.documentElement.scrollHeight})"""
     result = cdp.call("Runtime.evaluate", {"expression": probe, "returnByValue": True},
@@ -204,6 +207,32 @@ def main():
                     continue
                 if b < a:
                     fail("held-out table row %r: held-out below in-sample" % (r,))
+    # The colour-managed files: each object's master.tif and the session's camera.icc
+    # and camera.ti3 are links that resolve to the files beside the report, the
+    # master's colour space named beside its link.
+    outdir = os.path.dirname(os.path.abspath(report))
+    def link_to(rel):
+        url = "file://" + urllib.parse.quote(os.path.join(outdir, rel))
+        found = [l for l in page["links"] if l["href"] == url]
+        if not found:
+            fail("no link to %s (%s) in the page" % (rel, url))
+        elif not os.path.exists(urllib.parse.unquote(found[0]["href"][len("file://"):])):
+            fail("link %s: no such file" % found[0]["href"])
+        return found[0] if found else None
+    if os.path.exists(pj):
+        with open(pj) as f:
+            pjson = json.load(f)
+        for o in pjson.get("objects", []):
+            m = o.get("master")
+            if m:
+                l = link_to(m["path"])
+                if l and m["profile"] not in l["ctx"]:
+                    fail("master %s: its colour space %r not named beside the link"
+                         % (m["path"], m["profile"]))
+        ci = pjson.get("calibration", {}).get("camera_icc")
+        if ci:
+            link_to(ci["path"])
+            link_to(ci["ti3"])
     width, height = 1280, page["height"]
     if max_height > 0:
         height = min(height, max_height)

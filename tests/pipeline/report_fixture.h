@@ -140,6 +140,15 @@ static json_t *fixture_object(const char *capture, int skipped, int rendered)
 	                      photo, "labels", labels, "labels_png", labels_png,
 	                      "confidence_png", conf, "cube", cube, "scene", scene);
 	json_object_set_new(o, "render", rendered ? json_string(render) : json_null());
+	/* the first object has its master (Adobe RGB, under D65), the second none */
+	char master[64];
+	snprintf(master, sizeof(master), "%s/master.tif", capture);
+	json_object_set_new(o, "master", skipped ? json_null()
+	                    : json_pack("{s:s, s:s, s:s, s:s, s:s, s:i, s:s}", "path", master,
+	                                "space", "adobe-rgb", "profile",
+	                                "Adobe RGB (1998) compatible", "illuminant", "D65",
+	                                "intent", "relative colorimetric", "clipped_pixels", 7,
+	                                "clipped_counted", "lit pixels"));
 	json_object_set_new(o, "pixels", json_integer(3072));
 	json_object_set_new(o, "unknown_fraction", json_real(0.02));
 	json_object_set_new(o, "background_fraction", json_real(0.6));
@@ -164,12 +173,14 @@ static int fixture_write(const char *outdir)
 		          fixture_png(dir, "labels.png", 64, 48, 1) ||
 		          fixture_png(dir, "confidence.png", 64, 48, 2) ||
 		          (i == 1 && fixture_png(dir, "render.png", 64, 48, 0)) ||
-		          fixture_touch(dir, "cube.hdr") || fixture_touch(dir, "labels.hdr");
+		          fixture_touch(dir, "cube.hdr") || fixture_touch(dir, "labels.hdr") ||
+		          (i == 0 && fixture_touch(dir, "master.tif"));
 		free(dir);
 		if (ret)
 			return -1;
 	}
-	if (fixture_png(outdir, "chart_overlay.png", 120, 80, 3))
+	if (fixture_png(outdir, "chart_overlay.png", 120, 80, 3) ||
+	    fixture_touch(outdir, "camera.icc") || fixture_touch(outdir, "camera.ti3"))
 		return -1;
 
 	json_t *calib = json_pack(
@@ -183,6 +194,10 @@ static int fixture_write(const char *outdir)
 		"residual_relative", 0.012);
 	json_object_set_new(calib, "patches", fixture_patches());
 	json_object_set_new(calib, "spectra_source", json_string("chart.cgats"));
+	json_object_set_new(calib, "camera_icc",
+	                    json_pack("{s:s, s:s, s:i, s:f, s:f, s:f}", "path", "camera.icc", "ti3",
+	                              "camera.ti3", "patches", 18, "rgb_scale", 0.65,
+	                              "fit_de00_mean", 1.93, "fit_de00_max", 4.41));
 
 	json_t *root = json_pack(
 		"{s:s, s:s, s:{s:s, s:s}, s:{s:s, s:s}}", "format", "kogei-process/1", "created",

@@ -11,8 +11,16 @@
 # misregistration records are measured on the slanted tag sides (chart rotated 3°) with
 # MTF50 in a plausible range and the edges listed in used, and are "not measured" with
 # the reason for the same chart square to the sensor (no tilt, no rotation).
+# A known tone response: the chart rendered again with each neutral of reflectance r
+# written as r^0.9 (tone_image, relative to the white from the sim's truth) and given
+# as --verify: the oecf record is graded on it and its per-patch ΔL* matches
+# L*(r^0.9) - L*(r) within 0.2, the white balance stays near 0.
+# Known added noise: the chart with Gaussian noise of 1 % and 2 % of the white in each
+# channel (tone_image), captured by a sim RGB sensor without noise of its own (rgb16,
+# full well 1e9, read 0) as chart and --verify capture: each neutral's pixel spread
+# relative to its mean is 0.01 / r within 12 %, and its L* noise doubles (2.0 +- 0.15).
 # A chart with neutral patches is needed for the tone, white balance and noise records.
-# usage: test_conformance.sh KOGEI SOURCE_ROOT HAVE_TAGS_AND_DEMOSAIC
+# usage: test_conformance.sh KOGEI SOURCE_ROOT HAVE_TAGS_AND_DEMOSAIC TONE_IMAGE
 set -u
 KOGEI=$1
 FIX=$2/fixtures
@@ -44,7 +52,20 @@ PY
 	--camera "$FIX/demo/site_camera.csv" --illuminant D50 --tilt 10 --rotate 3 --seed 2 \
 	--width 800 --height 600 --fov 40 --fill 0.85 --paper 0.85 --ink 0.03 \
 	--background 0.2 --white-level 0.9 --noise none --depth float -o "$T/chart.tif" \
-	>/dev/null || { echo "FAIL: simulated chart"; exit 1; }
+	--truth "$T/truth.cgats" >/dev/null || { echo "FAIL: simulated chart"; exit 1; }
+# the white: the D01 neutral (reflectance 0.9) without vignetting, divided by 0.9
+W=$("$PY" - "$T/truth.cgats" <<'PY'
+import sys
+lines = open(sys.argv[1]).read().split("\n")
+fmt = lines[lines.index("BEGIN_DATA_FORMAT") + 1].split()
+for l in lines[lines.index("BEGIN_DATA") + 1:lines.index("END_DATA")]:
+    f = dict(zip(fmt, l.split()))
+    if f["SAMPLE_ID"] == "D01":
+        print(" ".join("%.6g" % (float(f["FLAT_" + c]) / 0.9) for c in "RGB"))
+PY
+)
+# shellcheck disable=SC2086
+"$4" "$T/chart.tif" "$T/tone.tif" 0.9 $W || { echo "FAIL: tone_image ($W)"; exit 1; }
 "$KOGEI" sim chart --layout colorchecker24-frame --spectra "$T/chart.csv" \
 	--camera "$FIX/demo/site_camera.csv" --illuminant D50 --tilt 0 --rotate 0 --seed 2 \
 	--width 800 --height 600 --fov 40 --fill 0.85 --paper 0.85 --ink 0.03 \
@@ -74,6 +95,20 @@ sim_acquire "$S" chart "$T/chart.tif" 10000 '&seed=5' --layout colorchecker24-fr
 	fail=1
 "$KOGEI" process "$S" --spectra "$T/chart.csv" --chart chart-0001 --verify chart-0002 \
 	-o "$T/OV" >"$T/out" 2>"$T/err" || { echo "FAIL: process --verify"; cat "$T/err"; fail=1; }
+sim_acquire "$S" chart "$T/tone.tif" 10000 '&seed=7' --layout colorchecker24-frame 2>/dev/null ||
+	fail=1
+"$KOGEI" process "$S" --spectra "$T/chart.csv" --chart chart-0001 --verify chart-0003 \
+	-o "$T/OT" >"$T/out" 2>"$T/err" || { echo "FAIL: process --verify (tone)"; cat "$T/err"; fail=1; }
+"$4" "$T/chart.tif" "$T/noise1.tif" 1 $W 0.01 11 && "$4" "$T/chart.tif" "$T/noise2.tif" 1 $W 0.02 12 ||
+	{ echo "FAIL: tone_image (noise)"; exit 1; }
+SIM_CAMERA="format=rgb16&fullwell=1e9&read=0&serial=site-2"
+SN=$T/SN
+sim_acquire "$SN" dark "$T/noise1.tif" 10000 '&light=0' 2>/dev/null || fail=1
+sim_acquire "$SN" flat "$T/noise1.tif" 10000 '&uniform=0.6' 2>/dev/null || fail=1
+sim_acquire "$SN" chart "$T/noise1.tif" 10000 '' --layout colorchecker24-frame 2>/dev/null || fail=1
+sim_acquire "$SN" chart "$T/noise2.tif" 10000 '' --layout colorchecker24-frame 2>/dev/null || fail=1
+"$KOGEI" process "$SN" --spectra "$T/chart.csv" --chart chart-0001 --verify chart-0002 \
+	-o "$T/ON" >"$T/out" 2>"$T/err" || { echo "FAIL: process (known noise)"; cat "$T/err"; fail=1; }
 "$KOGEI" process "$S" --spectra "$T/chart.csv" --chart chart-0001 --verify nosuch \
 	-o "$T/OX" >"$T/out" 2>"$T/err"
 [ $? = 1 ] && grep -q -- "--verify nosuch" "$T/err" && [ ! -e "$T/OX/conformance.json" ] ||
@@ -92,6 +127,50 @@ p = json.load(open(sys.argv[1] + "/process.json"))["calibration"]["patches"]
 assert any(isinstance(x.get("de00_d50_verify"), float) for x in p), "no de00_d50_verify"
 page = open(sys.argv[1] + "/report.html").read()
 assert "held-out (verification capture)" in page and "not a certification" in page
+PY
+"$PY" - "$T/OT" <<'PY' || fail=1
+import json, sys
+def lstar(y):
+    return 116 * y ** (1 / 3) - 16 if y > (6 / 29) ** 3 else 903.3 * y
+c = json.load(open(sys.argv[1] + "/conformance.json"))
+recs = {x["id"]: x for x in c["characteristics"]}
+p = json.load(open(sys.argv[1] + "/process.json"))["calibration"]["patches"]
+neut = [x for x in p if x["neutral"] and isinstance(x.get("dL_verify"), float)]
+assert len(neut) == 6, [x["id"] for x in neut]
+worst = 0
+for x in neut:
+    r = sum(x["measured"]) / len(x["measured"])      # flat: Y / Yn = r
+    want = lstar(r ** 0.9) - lstar(r)
+    print("tone %s: r %.3f, ΔL* %.3f (known %.3f)" % (x["id"], r, x["dL_verify"], want))
+    assert abs(x["dL_verify"] - want) < 0.2, (x["id"], x["dL_verify"], want)
+    worst = max(worst, abs(want))
+o = recs["oecf"]
+assert o["graded_on"] == "verify" and sorted(o["used"]) == sorted(x["id"] for x in neut), o
+assert abs(o["value"] - worst) < 0.2, (o["value"], worst)
+assert recs["white_balance"]["graded_on"] == "verify" and recs["white_balance"]["value"] < 1.5, \
+    recs["white_balance"]
+print("tone r^0.9: oecf %.3f (known %.3f; %s, %d stars), white balance %.3f"
+      % (o["value"], worst, o["level"], o["stars"], recs["white_balance"]["value"]))
+PY
+"$PY" - "$T/ON" <<'PY' || fail=1
+import json, sys
+c = json.load(open(sys.argv[1] + "/conformance.json"))
+n = {x["id"]: x for x in c["characteristics"]}["noise"]
+p = json.load(open(sys.argv[1] + "/process.json"))["calibration"]["patches"]
+neut = [x for x in p if x["neutral"] and isinstance(x.get("noise_L_verify"), float)]
+assert len(neut) == 6, [x["id"] for x in neut]
+for x in neut:
+    r = sum(x["measured"]) / len(x["measured"])
+    rel = [x["sd"][k] / x["rgb"][k] for k in range(3)]
+    ratio = x["noise_L_verify"] / x["noise_L"]
+    print("noise %s: r %.3f, spread/mean %s (known %.4f), L* noise %.3f -> %.3f (x%.3f)"
+          % (x["id"], r, " ".join("%.4f" % v for v in rel), 0.01 / r, x["noise_L"],
+             x["noise_L_verify"], ratio))
+    for v in rel:
+        assert abs(v / (0.01 / r) - 1) < 0.12, (x["id"], rel, 0.01 / r)
+    assert abs(ratio - 2.0) < 0.15, (x["id"], ratio)
+assert n["graded_on"] == "verify", n
+assert abs(n["value"] - max(x["noise_L_verify"] for x in neut)) < 1e-9, n
 PY
 "$PY" - "$T/O20000" "$T/O2000" <<'PY' || fail=1
 import json, math, sys
@@ -113,8 +192,7 @@ def load(o):
     return recs, p
 a, pa = load(sys.argv[1])
 b, pb = load(sys.argv[2])
-# sfr and misregistration: measured on the tag sides of the rotated chart, not graded
-# (no limits sourced)
+# sfr and misregistration: measured on the tag sides of the rotated chart
 s, m = a["sfr"], a["colour_misregistration"]
 assert s["measured"] and isinstance(s["value"], float), s
 assert len(s["used"]) >= 2, s["used"]
@@ -123,12 +201,23 @@ assert all(u.startswith("tag") for u in s["used"]), s["used"]
 assert 0.05 < s["mtf50"] < 0.5, s["mtf50"]
 assert s["mtf50"] < s["mtf10"] <= 1.0, s
 assert 0 < s["efficiency"] <= 1 and abs(s["value"] - 100 * s["efficiency"]) < 1e-9, s
-assert s["level"] is None and s["stars"] == 0 and "not sourced" in s["note"], s
+# graded on the published limits: sampling efficiency ISO >= 85/80/70 %, FADGI
+# > 90/80/70/60 %; misregistration FADGI (2010) < 0.33/0.5/0.8 px, no ISO limit
+def iso_hi(v, lim):
+    return next((lv for lv, x in zip("ABC", lim) if v >= x), None)
+def fadgi(v, lim, hi):
+    return next((4 - k for k, x in enumerate(lim) if (v > x if hi else v < x)), 0)
+assert s["level"] == iso_hi(s["value"], (85, 80, 70)), s
+assert s["stars"] == fadgi(s["value"], (90, 80, 70, 60), True), s
+assert s["tolerance"]["higher_is_better"] and s["tolerance"]["iso19264_1"]["A"] == 85, s
+assert "ISO 19264-1" in s["tolerance"]["source"]["iso19264_1"], s["tolerance"]
 assert m["measured"] and 0 <= m["value"] < 1.0 and m["used"] == s["used"], m
-assert m["level"] is None and m["stars"] == 0, m
-print("sfr: %d edges, median MTF50 %.4f, MTF10 %.4f cy/px, efficiency %.1f %%; "
-      "misregistration %.3f px" % (len(s["used"]), s["mtf50"], s["mtf10"], s["value"],
-                                   m["value"]))
+assert m["level"] is None and "no published limit found" in m["note"], m
+assert m["stars"] == fadgi(m["value"], (0.33, 0.5, 0.8, float("inf")), False), m
+print("sfr: %d edges, median MTF50 %.4f, MTF10 %.4f cy/px, efficiency %.1f %% (%s, %d "
+      "stars); misregistration %.3f px (%d stars)"
+      % (len(s["used"]), s["mtf50"], s["mtf10"], s["value"], s["level"], s["stars"],
+         m["value"], m["stars"]))
 for rid in ("oecf", "white_balance", "noise", "colour_accuracy", "illuminance_non_uniformity"):
     assert a[rid]["measured"] and isinstance(a[rid]["value"], float), a[rid]
 # oecf and white balance: the worst over the neutral patches of process.json

@@ -66,6 +66,17 @@ m = o["master"]
 assert m["path"] == "obj/master.tif", m
 assert m["space"] == "ecirgb-v2" and m["illuminant"] == "D50", m
 assert "eciRGB v2" in m["profile"], m
+# the gamut clipping is counted over the lit pixels only (the unlit ground of the
+# object image is not), as the clamp warning's
+e = o["estimate"]
+print("master: %d lit pixels of %d clipped to the gamut; %d lit of %d estimated"
+      % (m["clipped_pixels"], e["lit"], e["lit"], e["pixels"]))
+assert m["clipped_counted"] == "lit pixels", m
+assert 0 < e["lit"] < e["pixels"], e
+assert m["clipped_pixels"] <= e["lit"], (m, e)
+w = [x for x in o["warnings"] if "master.tif" in x]
+assert bool(w) == (m["clipped_pixels"] > 0), w
+assert all("lit pixels outside" in x for x in w), w
 PY
 # decoded through its own profile: within 0.05 of the cube under D50
 check_decode() { # master cube illuminant label

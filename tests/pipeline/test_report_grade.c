@@ -123,6 +123,43 @@ static const json_t *record_of(const json_t *list, const char *id)
 	return NULL;
 }
 
+/* kg_conformance_grade: sampling efficiency graded higher-is-better (ISO >= 85/80/70 %
+ * inclusive, FADGI > 90/80/70/60 % strict); misregistration on FADGI's pixels (strict)
+ * with no ISO level; an unknown id or a NaN is ungraded. */
+static void test_grade_edges(void)
+{
+	int st = 9, lv = kg_conformance_grade("sfr", 85.0, &st);
+	CHECK(lv == 0 && st == 3, "efficiency 85 %%: A (>= 85), 3 stars (> 80, not > 90); "
+	      "got %d, %d", lv, st);
+	lv = kg_conformance_grade("sfr", 80.0, &st);
+	CHECK(lv == 1 && st == 2, "efficiency 80 %%: B (>= 80), 2 stars (not > 80); got %d, %d",
+	      lv, st);
+	lv = kg_conformance_grade("sfr", 90.0, &st);
+	CHECK(lv == 0 && st == 3, "efficiency 90 %%: A, 3 stars (not > 90); got %d, %d", lv, st);
+	lv = kg_conformance_grade("sfr", 90.5, &st);
+	CHECK(lv == 0 && st == 4, "efficiency 90.5 %%: A, 4 stars; got %d, %d", lv, st);
+	lv = kg_conformance_grade("sfr", 79.9, &st);
+	CHECK(lv == 2 && st == 2, "efficiency 79.9 %%: C (>= 70), 2 stars (> 70); got %d, %d",
+	      lv, st);
+	lv = kg_conformance_grade("sfr", 55.0, &st);
+	CHECK(lv == 3 && st == 0, "efficiency 55 %%: no level, no star; got %d, %d", lv, st);
+	lv = kg_conformance_grade("colour_misregistration", 0.2, &st);
+	CHECK(lv == -1 && st == 4, "misregistration 0.2 px: no ISO limit, 4 stars; got %d, %d",
+	      lv, st);
+	lv = kg_conformance_grade("colour_misregistration", 0.33, &st);
+	CHECK(st == 3, "misregistration 0.33 px: 3 stars (not < 0.33); got %d", st);
+	lv = kg_conformance_grade("colour_misregistration", 5.0, &st);
+	CHECK(st == 1, "misregistration 5 px: 1 star (no limit below 2 stars); got %d", st);
+	lv = kg_conformance_grade("noise", 1.6, &st);
+	CHECK(lv == 0 && st == 3, "noise 1.6: A (<= 1.6), 3 stars (< 2); got %d, %d", lv, st);
+	lv = kg_conformance_grade("noise", 2.0, &st);
+	CHECK(lv == 1 && st == 2, "noise 2.0: B (<= 2), 2 stars (not < 2); got %d, %d", lv, st);
+	lv = kg_conformance_grade("sharpness", 1.0, &st);
+	CHECK(lv == -1 && st == -1, "unknown id graded: %d, %d", lv, st);
+	lv = kg_conformance_grade("sfr", NAN, &st);
+	CHECK(lv == -1 && st == -1, "NaN graded: %d, %d", lv, st);
+}
+
 /* kg_conformance: ISO levels inclusive, FADGI stars strict, on the limits; what has
  * no neutral patch or no flat is not measured and not passed. */
 static void test_conformance(void)
@@ -158,6 +195,20 @@ static void test_conformance(void)
 	r = record_of(c, "sfr");
 	CHECK(r && json_is_false(json_object_get(r, "measured")) &&
 	      json_is_null(json_object_get(r, "value")), "sfr not measured");
+	/* every record carries its limits' sources; a side without a published limit
+	 * says so */
+	for (size_t i = 0; i < 5; i++) {
+		const json_t *tol = json_object_get(json_array_get(c, i), "tolerance");
+		if (i == 4) /* colour accuracy: per statistic */
+			tol = json_object_get(tol, "mean");
+		const json_t *src = json_object_get(tol, "source");
+		CHECK(json_is_string(json_object_get(src, "iso19264_1")) &&
+		      json_is_string(json_object_get(src, "fadgi_2023")), "record %zu: no source", i);
+	}
+	r = record_of(c, "illuminance_non_uniformity");
+	CHECK(r && strstr(json_string_value(json_object_get(json_object_get(json_object_get(
+	                  r, "tolerance"), "source"), "iso19264_1")), "no published limit found"),
+	      "illuminance non-uniformity: ISO side not said to be unsourced");
 	json_decref(c);
 	json_decref(patches);
 	patches = json_pack("[{s:s, s:b, s:n, s:n, s:n, s:n, s:n}]", "id", "A01", "neutral", 0,
@@ -180,5 +231,6 @@ int main(void)
 	test_fadgi();
 	test_iso();
 	test_conformance();
+	test_grade_edges();
 	return kg_test_done("report-grade");
 }

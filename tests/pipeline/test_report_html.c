@@ -94,8 +94,24 @@ static void check_self_contained(const char *page)
 	/* The overlay, 2 x (photo, labels, confidence), one render, the chart's figure and
 	 * the two objects' material figures, less the deleted confidence map. */
 	CHECK(images == 1 + 6 + 1 + 1 + 2 - 1, "%d images inlined", images);
-	for (const char *p = page; (p = strstr(p, "href=\"")); p += 6)
-		CHECK(p[6] == '#', "href that leaves the page: %.60s", p);
+	/* links: within the page, or to a file of OUTDIR beside it (master.tif, camera.icc:
+	 * relative, no scheme, no "..", nothing loaded with the page) */
+	int files = 0;
+	for (const char *p = page; (p = strstr(p, "href=\"")); p += 6) {
+		const char *q = p + 6, *end = strchr(q, '"');
+		if (*q == '#')
+			continue;
+		files++;
+		int n = end ? (int)(end - q) : 0;
+		char rel[256];
+		snprintf(rel, sizeof(rel), "%.*s", n, q);
+		CHECK(end && !strchr(rel, ':') && rel[0] != '/' && !strstr(rel, "..") &&
+		      strspn(rel, "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789"
+		                  "-._~/%") == strlen(rel),
+		      "href that leaves the output folder: %.60s", p);
+	}
+	/* the first object's master, the session's camera.icc and camera.ti3 */
+	CHECK(files == 3, "%d links to files, expected 3", files);
 }
 
 static void check_content(const char *page)
@@ -107,6 +123,18 @@ static void check_content(const char *page)
 		snprintf(want, sizeof(want), "<section id=\"%s\">\n<h2>", sections[i]);
 		CHECK(contains(page, want), "no section %s", sections[i]);
 	}
+	/* the colour-managed files: the master with its space, illuminant and lit clipping,
+	 * none for the second object; the camera profile with its fit */
+	CHECK(contains(page, "master <a href=\"object-0001/master.tif\"><code>object-0001/"
+	                     "master.tif</code></a> (16-bit RGB in Adobe RGB (1998) compatible, "
+	                     "its ICC profile embedded; rendered under D65, relative "
+	                     "colorimetric; 7 lit pixels outside the space, clipped)"),
+	      "object-0001's master not listed with its space");
+	CHECK(contains(page, ", no master (see the warnings)."), "object-0002: no master not said");
+	CHECK(contains(page, "<a href=\"camera.icc\"><code>camera.icc</code></a> (ICC v4 input "
+	                     "profile") && contains(page, "fitted on 18 patches, ΔE00 mean 1.93, "
+	                                                   "max 4.41") &&
+	      contains(page, "<a href=\"camera.ti3\">"), "camera.icc and camera.ti3 not listed");
 	/* Every patch with a value, in the table; the last patch has none. */
 	for (int i = 0; i < FIXTURE_PATCHES - 1; i++) {
 		char d50[32], d65[32];

@@ -77,7 +77,7 @@ int main(int argc, char **argv)
 		kg_icc_space s = spaces[si];
 		snprintf(tif, sizeof(tif), "%s/icc_master_%s.tif", dir, kg_icc_space_name(s));
 		long clipped = -1;
-		CHECK(kg_master_write(cube, d50, s, tif, &clipped, &err) == 0, "%s", err.msg);
+		CHECK(kg_master_write(cube, d50, s, tif, NULL, &clipped, &err) == 0, "%s", err.msg);
 		CHECK(clipped == 0, "%s: %ld pixels clipped", tif, clipped);
 		TIFF *t = TIFFOpen(tif, "r");
 		CHECK(t != NULL, "%s: cannot open", tif);
@@ -152,7 +152,7 @@ int main(int argc, char **argv)
 	wl[3] = 416;
 	snprintf(cube, sizeof(cube), "%s/icc_master_cube_off.hdr", dir);
 	CHECK(kg_envi_write(cube, &m, KG_LAYOUT_BIP, data, &err) == 0, "%s", err.msg);
-	CHECK(kg_master_write(cube, d50, KG_ICC_ECIRGB_V2, tif, NULL, &err) == KG_EINVAL,
+	CHECK(kg_master_write(cube, d50, KG_ICC_ECIRGB_V2, tif, NULL, NULL, &err) == KG_EINVAL,
 	      "off-grid cube accepted");
 	CHECK(strstr(err.msg, "icc_master_cube") && strstr(err.msg, "expected"), "message: %s",
 	      err.msg);
