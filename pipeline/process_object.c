@@ -315,7 +315,9 @@ static void render_progress(void *user, int done, int total)
 		fprintf(fp, "kogei process: rendering: %d of %d tiles\n", done, total);
 }
 
-static int render_scene(proc *p, const char *scene_path, const char *png)
+/* The scene for Mitsuba 3 (object_mitsuba.xml and its meshes) and, when png is not
+ * NULL, its render. */
+static int render_scene(proc *p, const char *scene_path, const char *mitsuba, const char *png)
 {
 	kg_scene *s = NULL;
 	kg_image *xyz = NULL;
@@ -323,8 +325,10 @@ static int render_scene(proc *p, const char *scene_path, const char *png)
 	                        .progress_user = p->o->progress};
 	int ret = kg_scene_load(scene_path, &s, p->err);
 	if (!ret)
+		ret = kg_scene_write_mitsuba(s, mitsuba, p->o->threads, p->err);
+	if (!ret && png)
 		ret = kg_render(s, &ro, &xyz, NULL, p->err);
-	if (!ret)
+	if (!ret && png)
 		ret = kg_render_write_png(xyz, kg_scene_white(s), png, p->err);
 	kg_image_free(&xyz);
 	kg_scene_free(&s);
@@ -979,8 +983,10 @@ static int process_into(proc *p, const proc_capture *c, const char *dir, double 
 	char *conf = kg_path_join(dir, "labels_confidence.hdr");
 	char *confpng = kg_path_join(dir, "confidence.png");
 	char *scene = kg_path_join(dir, "scene.json"), *render = kg_path_join(dir, "render.png");
+	char *mitsuba = kg_path_join(dir, "object_mitsuba.xml");
 	json_t *class_map = json_object();
-	int ret = cube && labels && ljson && photo && conf && confpng && scene && render && class_map
+	int ret = cube && labels && ljson && photo && conf && confpng && scene && render && class_map &&
+	          mitsuba
 	              ? 0 : kg_fail(err, KG_ENOMEM, "out of memory");
 	if (!ret)
 		ret = proc_source_open(p, c, scale, 0, &src, &info);
@@ -1033,9 +1039,11 @@ static int process_into(proc *p, const proc_capture *c, const char *dir, double 
 	if (!ret)
 		ret = proc_scene_write(p, scene, "labels.hdr", info.width, info.height, class_map,
 		                       fallback, object);
-	if (!ret && p->o->render && kg_render_available()) {
-		proc_progress(p, "%s: rendering scene.json", c->name);
-		ret = render_scene(p, scene, render);
+	/* the label map is projected onto the mesh with Embree, for both */
+	if (!ret && kg_render_available()) {
+		proc_progress(p, "%s: %s", c->name, p->o->render ? "object_mitsuba.xml, rendering "
+		              "scene.json" : "object_mitsuba.xml");
+		ret = render_scene(p, scene, mitsuba, p->o->render ? render : NULL);
 		if (ret)
 			kg_err_prefix(err, "%s: rendering %s: ", c->name, scene);
 	}
@@ -1053,6 +1061,7 @@ static int process_into(proc *p, const proc_capture *c, const char *dir, double 
 	free(confpng);
 	free(scene);
 	free(render);
+	free(mitsuba);
 	return ret;
 }
 
@@ -1071,6 +1080,8 @@ static void set_paths(json_t *object, const char *name, int rendered, int cube)
 	}
 	snprintf(rel, sizeof(rel), "%s/render.png", name);
 	json_object_set_new(object, "render", rendered ? json_string(rel) : json_null());
+	snprintf(rel, sizeof(rel), "%s/object_mitsuba.xml", name);
+	json_object_set_new(object, "mitsuba", kg_render_available() ? json_string(rel) : json_null());
 	if (!cube)
 		json_object_set_new(object, "cube", json_null());
 }

@@ -141,4 +141,11 @@ struct kg_scene {
 int rd_scene_material_index(kg_scene *s, const char *name, const char *field,
                             kg_err *err);
 
+/* The material of each triangle (an index into s->mat), the label map projected as
+ * the renderer projects it (this needs Embree: without it a label-map scene fails with
+ * KG_ENOTSUP). *out: ntris entries, newly allocated (NULL for an empty mesh). */
+int rd_scene_triangle_materials(const kg_scene *s, int threads, uint16_t **out, kg_err *err);
+/* The same without a label map (render.c's and render_none.c's common part). */
+int rd_scene_triangle_materials_plain(const kg_scene *s, uint16_t **out, kg_err *err);
+
 #endif

@@ -1003,3 +1003,20 @@ void kg_scene_light_spectrum(const kg_scene *s, kg_spectrum *out)
 	for (int i = 0; i < KG_NBANDS; i++)
 		out->v[i] = s->light_spd[i];
 }
+
+int rd_scene_triangle_materials_plain(const kg_scene *s, uint16_t **out, kg_err *err)
+{
+	size_t n = s->mesh->ntris;
+	*out = NULL;
+	if (s->assign == RD_ASSIGN_LABEL_MAP)
+		return kg_fail(err, KG_EINVAL, "%s: a label map needs projecting", s->path);
+	if (!n)
+		return 0;
+	if (!(*out = malloc(sizeof(uint16_t) * n)))
+		return kg_fail(err, KG_ENOMEM, "out of memory");
+	if (s->tri_mat)
+		memcpy(*out, s->tri_mat, sizeof(uint16_t) * n);
+	else
+		memset(*out, 0, sizeof(uint16_t) * n);
+	return 0;
+}
