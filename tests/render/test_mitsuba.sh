@@ -111,7 +111,7 @@ echo "label map: $a triangles over $(ls "$T/lm" | wc -l) PLYs; face ids: $b"
 "$KOGEI" render --scene "$demo" --mitsuba "$T/nowhere/x.xml" >"$T/out" 2>&1 &&
 	{ echo "FAIL: --mitsuba into a missing folder succeeded"; fail=1; }
 grep -q "nowhere" "$T/out" || { echo "FAIL: the message does not name the folder"; cat "$T/out"; fail=1; }
-printf '{"format": "kogei-scene/1", "mesh": {"generator": "plane"}, "materials": {"material": "unobtainium"}, "light": {"direction": [0, 0, 1]}, "camera": {"position": [0, -1, 2], "look_at": [0, 0, 0], "fov_deg": 40, "width": 8, "height": 8}}\n' >"$T/bad.json"
+printf '{"format": "kogei-scene/1", "mesh": {"generator": "plane"}, "materials": {"material": "unobtainium"}, "light": {"illuminant": "D65", "direction": [0, 0, 1]}, "camera": {"position": [0, -1, 2], "look_at": [0, 0, 0], "fov_deg": 40, "width": 8, "height": 8}}\n' >"$T/bad.json"
 "$KOGEI" render --scene "$T/bad.json" --mitsuba "$T/bad.xml" >"$T/out" 2>&1
 rc=$?
 [ "$rc" = 1 ] || { echo "FAIL: a bad scene exited $rc (expected 1)"; cat "$T/out"; fail=1; }
