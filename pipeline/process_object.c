@@ -12,6 +12,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "kg_gltf.h"
 #include "kg_render.h"
 #include "pipeline_private.h"
 
@@ -315,23 +316,15 @@ static void render_progress(void *user, int done, int total)
 		fprintf(fp, "kogei process: rendering: %d of %d tiles\n", done, total);
 }
 
-/* The scene for Mitsuba 3 (object_mitsuba.xml and its meshes) and, when png is not
- * NULL, its render. */
-static int render_scene(proc *p, const char *scene_path, const char *mitsuba, const char *png)
+static int render_scene(proc *p, const kg_scene *s, const char *png)
 {
-	kg_scene *s = NULL;
 	kg_image *xyz = NULL;
 	kg_render_options ro = {.threads = p->o->threads, .progress = render_progress,
 	                        .progress_user = p->o->progress};
-	int ret = kg_scene_load(scene_path, &s, p->err);
+	int ret = kg_render(s, &ro, &xyz, NULL, p->err);
 	if (!ret)
-		ret = kg_scene_write_mitsuba(s, mitsuba, p->o->threads, p->err);
-	if (!ret && png)
-		ret = kg_render(s, &ro, &xyz, NULL, p->err);
-	if (!ret && png)
 		ret = kg_render_write_png(xyz, kg_scene_white(s), png, p->err);
 	kg_image_free(&xyz);
-	kg_scene_free(&s);
 	return ret;
 }
 
@@ -983,10 +976,11 @@ static int process_into(proc *p, const proc_capture *c, const char *dir, double 
 	char *conf = kg_path_join(dir, "labels_confidence.hdr");
 	char *confpng = kg_path_join(dir, "confidence.png");
 	char *scene = kg_path_join(dir, "scene.json"), *render = kg_path_join(dir, "render.png");
+	char *glb = kg_path_join(dir, "object.glb");
 	char *mitsuba = kg_path_join(dir, "object_mitsuba.xml");
 	json_t *class_map = json_object();
-	int ret = cube && labels && ljson && photo && conf && confpng && scene && render && class_map &&
-	          mitsuba
+	int ret = cube && labels && ljson && photo && conf && confpng && scene && render && glb &&
+	                  mitsuba && class_map
 	              ? 0 : kg_fail(err, KG_ENOMEM, "out of memory");
 	if (!ret)
 		ret = proc_source_open(p, c, scale, 0, &src, &info);
@@ -1039,14 +1033,30 @@ static int process_into(proc *p, const proc_capture *c, const char *dir, double 
 	if (!ret)
 		ret = proc_scene_write(p, scene, "labels.hdr", info.width, info.height, class_map,
 		                       fallback, object);
-	/* the label map is projected onto the mesh with Embree, for both */
+	/* the scene as binary glTF 2.0 (render/kg_gltf.h), the photograph beside it */
+	kg_scene *ks = NULL;
+	if (!ret && (ret = kg_scene_load(scene, &ks, err)))
+		kg_err_prefix(err, "%s: reading %s: ", c->name, scene);
+	if (!ret) {
+		kg_gltf_options go = {.photo_png = photo, .source = c->name};
+		proc_progress(p, "%s: writing object.glb", c->name);
+		if ((ret = kg_gltf_write(ks, &go, glb, err)))
+			kg_err_prefix(err, "%s: writing %s: ", c->name, glb);
+	}
+	/* the scene for Mitsuba 3 (render/kg_render.h): the label map is projected onto the
+	 * mesh with Embree, as the renderer does it */
 	if (!ret && kg_render_available()) {
-		proc_progress(p, "%s: %s", c->name, p->o->render ? "object_mitsuba.xml, rendering "
-		              "scene.json" : "object_mitsuba.xml");
-		ret = render_scene(p, scene, mitsuba, p->o->render ? render : NULL);
+		proc_progress(p, "%s: writing object_mitsuba.xml", c->name);
+		if ((ret = kg_scene_write_mitsuba(ks, mitsuba, p->o->threads, err)))
+			kg_err_prefix(err, "%s: writing %s: ", c->name, mitsuba);
+	}
+	if (!ret && p->o->render && kg_render_available()) {
+		proc_progress(p, "%s: rendering scene.json", c->name);
+		ret = render_scene(p, ks, render);
 		if (ret)
 			kg_err_prefix(err, "%s: rendering %s: ", c->name, scene);
 	}
+	kg_scene_free(&ks);
 	if (ret)
 		kg_err_prefix(err, "capture %s: ", c->name);
 	proc_source_free(&src);
@@ -1061,6 +1071,7 @@ static int process_into(proc *p, const proc_capture *c, const char *dir, double 
 	free(confpng);
 	free(scene);
 	free(render);
+	free(glb);
 	free(mitsuba);
 	return ret;
 }
@@ -1071,6 +1082,7 @@ static void set_paths(json_t *object, const char *name, int rendered, int cube)
 		{"photo", "photo.png"},         {"cube", "cube.hdr"},
 		{"labels", "labels.hdr"},       {"labels_png", "labels.png"},
 		{"confidence_png", "confidence.png"}, {"scene", "scene.json"},
+		{"gltf", "object.glb"},
 	};
 	char rel[256];
 	json_object_set_new(object, "dir", json_string(name));

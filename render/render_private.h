@@ -89,6 +89,7 @@ typedef struct rd_label_map {
 	uint8_t *labels;  /* width x height, 0 = unclassified */
 	int nclasses;
 	int *class_mat;   /* nclasses entries: material index, -1 = use the fallback */
+	char **class_names; /* nclasses entries, as in the map's header */
 	rd_view view;     /* the pose it was seen from (width, height = the map's) */
 	int fallback;     /* material index for unlabelled or unseen triangles */
 } rd_label_map;

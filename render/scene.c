@@ -368,7 +368,11 @@ static int load_label_map(kg_scene *s, const json_t *root, kg_err *err)
 		data = malloc(sizeof(float) * (size_t)m->samples * (size_t)band);
 		lm->labels = malloc(npix);
 		lm->class_mat = malloc(sizeof(int) * (size_t)m->classes);
-		if (!data || !lm->labels || !lm->class_mat)
+		lm->class_names = calloc((size_t)m->classes, sizeof(char *));
+		for (int c = 0; lm->class_names && c < m->classes; c++)
+			if (!(lm->class_names[c] = strdup(m->class_names[c])))
+				ret = kg_fail(err, KG_ENOMEM, "out of memory");
+		if (!data || !lm->labels || !lm->class_mat || !lm->class_names)
 			ret = kg_fail(err, KG_ENOMEM, "out of memory");
 	}
 	for (int y0 = 0; !ret && y0 < m->lines; y0 += band) {
@@ -971,6 +975,9 @@ void kg_scene_free(kg_scene **sp)
 	free(s->label.path);
 	free(s->label.labels);
 	free(s->label.class_mat);
+	for (int c = 0; s->label.class_names && c < s->label.nclasses; c++)
+		free(s->label.class_names[c]);
+	free(s->label.class_names);
 	free(s->env_coef);
 	free(s);
 	*sp = NULL;
