@@ -16,6 +16,7 @@ chromium python3-websocket
 libraw-dev libgphoto2-dev libmicrohttpd-dev
 liblcms2-dev liblcms2-utils imagemagick
 nodejs npm
+blender
 "
 
 missing=""

@@ -65,6 +65,12 @@ def main():
     width = opt["width"] or cam_j["width"]
     height = opt["height"] or cam_j["height"]
 
+    # Debian 12's Blender 3.4.1 glTF importer uses numpy.bool, an alias NumPy 1.24 (the
+    # numpy it runs with) removed: restore the alias, which is the builtin bool
+    import numpy
+    if "bool" not in numpy.__dict__:
+        numpy.bool = bool
+
     # an empty scene, then the object
     bpy.ops.object.select_all(action="SELECT")
     bpy.ops.object.delete()
