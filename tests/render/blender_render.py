@@ -3,7 +3,7 @@ the camera of the kogei scene it came from.
 
 usage: blender -b --factory-startup --python blender_render.py -- \
            --glb OBJECT.glb --scene SCENE.json --raw OUT.f32 [--png OUT.png]
-           [--samples N] [--seed N] [--threads N] [--width W --height H]
+           [--samples N] [--seed N] [--threads N] [--width W --height H] [--opaque 1]
 
 The scene (kogei-scene/1) gives the camera (position, look_at, up, vertical fov_deg,
 width, height), the directional light (direction towards the light, intensity) and a
@@ -22,7 +22,9 @@ The glb's own camera and lights are removed. The scene must be in kogei's frame
 
 --raw: the render in linear scene-referred Rec. 709 RGB and alpha, float32, rows from
 the top, after a one-line ASCII header "KOGEI-BLENDER-RAW 1 <width> <height> 4\n".
---png: the same through the Standard view transform (sRGB, no film look), 8 bit.
+--png: the same through the Standard view transform (sRGB, no film look), 8 bit; the
+background is black (transparent film) unless --opaque 1 shows the sky there (the alpha
+of --raw is then 1 everywhere).
 """
 import json
 import math
@@ -35,15 +37,17 @@ from mathutils import Matrix, Vector
 
 def parse(argv):
     argv = argv[argv.index("--") + 1:] if "--" in argv else []
-    opt = {"samples": 16, "seed": 1, "threads": 2, "png": None, "width": 0, "height": 0}
+    opt = {"samples": 16, "seed": 1, "threads": 2, "png": None, "width": 0, "height": 0,
+           "opaque": 0}
     i = 0
     while i < len(argv):
         key = argv[i].lstrip("-")
         if key not in ("glb", "scene", "raw", "png", "samples", "seed", "threads", "width",
-                       "height") or i + 1 >= len(argv):
+                       "height", "opaque") or i + 1 >= len(argv):
             raise SystemExit("blender_render.py: bad argument %r" % argv[i])
         val = argv[i + 1]
-        opt[key] = int(val) if key in ("samples", "seed", "threads", "width", "height") else val
+        opt[key] = int(val) if key in ("samples", "seed", "threads", "width", "height",
+                                             "opaque") else val
         i += 2
     for k in ("glb", "scene", "raw"):
         if k not in opt:
@@ -154,7 +158,7 @@ def main():
     sc.render.resolution_y = height
     sc.render.resolution_percentage = 100
     sc.render.pixel_aspect_x = sc.render.pixel_aspect_y = 1.0
-    sc.render.film_transparent = True
+    sc.render.film_transparent = not opt["opaque"]
     sc.view_settings.view_transform = "Standard"
     sc.view_settings.look = "None"
     sc.view_settings.exposure = 0.0
@@ -181,7 +185,6 @@ def main():
         sc.render.image_settings.file_format = "PNG"
         sc.render.image_settings.color_depth = "8"
         sc.render.image_settings.color_mode = "RGB"
-        sc.render.film_transparent = False
         # the rendered result, saved through the view transform (no second render)
         bpy.data.images["Render Result"].save_render(opt["png"])
     print("blender_render.py: %d x %d, %d samples, seed %d -> %s" % (w, h, opt["samples"],
