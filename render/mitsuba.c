@@ -297,6 +297,16 @@ static const char *base_name(const char *p)
 
 int kg_scene_write_mitsuba(const kg_scene *s, const char *xml_path, int threads, kg_err *err)
 {
+	/* the XML's folder must exist: only the meshes' folder is made */
+	const char *slash = strrchr(xml_path, '/');
+	if (slash && slash != xml_path) {
+		char parent[4096];
+		struct stat st;
+		snprintf(parent, sizeof(parent), "%.*s", (int)(slash - xml_path), xml_path);
+		if (stat(parent, &st) != 0 || !S_ISDIR(st.st_mode))
+			return kg_fail(err, KG_ENOENT, "%s: the folder %s does not exist", xml_path,
+			               parent);
+	}
 	uint16_t *tri_mat = NULL;
 	int ret = rd_scene_triangle_materials(s, threads, &tri_mat, err);
 	if (ret)

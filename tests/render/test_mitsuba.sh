@@ -107,6 +107,15 @@ a=$(faces "$T/lm"); b=$(faces "$T/ids")
 echo "label map: $a triangles over $(ls "$T/lm" | wc -l) PLYs; face ids: $b"
 [ "$a" = "$b" ] && [ "$a" -gt 1000 ] || { echo "FAIL: the label map's PLYs hold $a triangles, the mesh $b"; fail=1; }
 
+# kogei export -o X.xml writes the same files as kogei render --mitsuba.
+mkdir "$T/exp"
+run "kogei export -o .xml" "$KOGEI" export --scene "$demo" -o "$T/exp/demo.xml"
+cmp -s "$T/demo.xml" "$T/exp/demo.xml" && cmp -s "$T/demo/gold.ply" "$T/exp/demo/gold.ply" ||
+	{ echo "FAIL: kogei export -o demo.xml differs from kogei render --mitsuba"; fail=1; }
+"$KOGEI" export --scene "$demo" -o "$T/nowhere/x.xml" >"$T/out" 2>&1 &&
+	{ echo "FAIL: export into a missing folder succeeded"; fail=1; }
+[ -e "$T/nowhere" ] && { echo "FAIL: export made the missing folder"; fail=1; }
+
 # 4. Refusals leave nothing: a missing folder, a bad scene, options that do not apply.
 "$KOGEI" render --scene "$demo" --mitsuba "$T/nowhere/x.xml" >"$T/out" 2>&1 &&
 	{ echo "FAIL: --mitsuba into a missing folder succeeded"; fail=1; }
