@@ -379,7 +379,7 @@ int kg_scene_write_mitsuba(const kg_scene *s, const char *xml_path, int threads,
 		indent(fp, 2);
 		fputs("<string name=\"fov_axis\" value=\"y\"/>\n", fp);
 		indent(fp, 2);
-		fprintf(fp, "<float name=\"fov\" value=\"%.6g\"/>\n", v->fov_deg);
+		fprintf(fp, "<float name=\"fov\" value=\"%.9g\"/>\n", v->fov_deg);
 		indent(fp, 2);
 		fprintf(fp, "<float name=\"near_clip\" value=\"%.6g\"/>\n", fmin(0.01, 0.01 * dist));
 		indent(fp, 2);

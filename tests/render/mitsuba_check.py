@@ -282,7 +282,7 @@ def main(argv):
             need(all(abs(x - y) < 1e-6 for x, y in zip(v, cam[key])),
                  "sensor %s %s != the scene's camera %s %s" % (a, v, key, cam[key]))
         fov = float(sensor.find("float[@name='fov']").get("value"))
-        need(abs(fov - cam["fov_deg"]) < 1e-6 and
+        need(abs(fov - cam["fov_deg"]) < 1e-6 * max(1.0, abs(fov)) and
              sensor.find("string[@name='fov_axis']").get("value") == "y",
              "sensor fov %g (axis y) != the scene's vertical %g" % (fov, cam["fov_deg"]))
         film = sensor.find("film")
