@@ -69,6 +69,7 @@ int kg_cmd_measure(int argc, char **argv);
 int kg_cmd_devices(int argc, char **argv);
 int kg_cmd_acquire(int argc, char **argv);
 int kg_cmd_render(int argc, char **argv);
+int kg_cmd_export(int argc, char **argv);
 int kg_cmd_process(int argc, char **argv);
 int kg_cmd_report(int argc, char **argv);
 

@@ -17,6 +17,7 @@ static const char usage_render[] =
 	"             [--width N] [--height N] [--material NAME] [--preview] [--quiet]\n"
 	"             [--camera CSS.csv [--white-level W] [--noise FULLWELL:READ:BITS]]\n"
 	"             [--truth-labels LABELS.hdr] [--truth-angle ANGLE.hdr]\n"
+	"kogei render --scene SCENE.json --mitsuba SCENE.xml [--material NAME]\n"
 	"  Render a scene (docs/render.md, \"format\": \"kogei-scene/1\") spectrally with\n"
 	"  Embree: an 8-bit sRGB PNG (white-balanced to the scene's light) and, with\n"
 	"  --linear, a 32-bit float TIFF of CIE 1931 XYZ (Y = 1 for a white diffuser lit by\n"
@@ -38,7 +39,12 @@ static const char usage_render[] =
 	"  library's materials in its order; a pixel takes its samples' majority).\n"
 	"  --truth-angle: an ENVI float32 band of the incidence angle there (degrees\n"
 	"  between surface normal and view direction, mean over the pixel's samples of\n"
-	"  its class; NaN on background).";
+	"  its class; NaN on background).\n"
+	"  --mitsuba SCENE.xml: write the scene for Mitsuba 3 (a spectral variant) instead\n"
+	"  of rendering: spectral conductors from the library's n, k, alloys as blends of\n"
+	"  their metals, dielectrics as rough plastic, one binary PLY per material in the\n"
+	"  folder SCENE/ beside it, the scene's camera, lights and sampling (docs/render.md;\n"
+	"  untested by a Mitsuba render).";
 
 typedef struct progress_state {
 	int last;
@@ -104,7 +110,7 @@ int kg_cmd_render(int argc, char **argv)
 {
 	const char *scene_path = NULL, *out = NULL, *linear = NULL, *material = NULL;
 	const char *camera = NULL, *noise_text = NULL, *white_text = NULL;
-	const char *truth_labels = NULL, *truth_angle = NULL;
+	const char *truth_labels = NULL, *truth_angle = NULL, *mitsuba = NULL;
 	double white_level = 0.9;
 	kg_render_options opt = {0};
 	int quiet = 0;
@@ -128,6 +134,7 @@ int kg_cmd_render(int argc, char **argv)
 		{"truth-labels", required_argument, NULL, 'T'},
 		{"truth-angle", required_argument, NULL, 'A'},
 		{"quiet", no_argument, NULL, 'q'},
+		{"mitsuba", required_argument, NULL, 'M'},
 		{"help", no_argument, NULL, 'h'},
 		{0, 0, 0, 0},
 	};
@@ -150,6 +157,7 @@ int kg_cmd_render(int argc, char **argv)
 		case 'A': truth_angle = optarg; break;
 		case 'p': opt.mode = KG_RENDER_PREVIEW; break;
 		case 'q': quiet = 1; break;
+		case 'M': mitsuba = optarg; break;
 		case 'n':
 			if (!(bad = parse_count(optarg, "--spp", 1, 1000000, &v)))
 				opt.spp = (int)v;
@@ -196,6 +204,26 @@ int kg_cmd_render(int argc, char **argv)
 		return kg_cli_usage_error(usage_render, "unexpected argument '%s'", argv[optind]);
 	if (!scene_path)
 		return kg_cli_usage_error(usage_render, "--scene is required");
+	if (mitsuba) {
+		if (out || linear || camera || truth_labels || truth_angle || opt.mode || opt.spp ||
+		    opt.wavelengths || opt.bounces || opt.seed_set || opt.width || opt.height)
+			return kg_cli_usage_error(usage_render, "--mitsuba writes the scene as it is "
+			                          "(its camera and sampling; --material and --threads "
+			                          "apply): no other option goes with it");
+		kg_err err = {{0}};
+		kg_scene *scene = NULL;
+		int ret = check_output_dir(mitsuba, &err);
+		if (!ret)
+			ret = kg_scene_load(scene_path, &scene, &err);
+		if (!ret && material)
+			ret = kg_scene_set_material(scene, material, &err);
+		if (!ret)
+			ret = kg_scene_write_mitsuba(scene, mitsuba, opt.threads, &err);
+		if (!ret && !quiet)
+			printf("kogei render: wrote %s (Mitsuba 3)\n", mitsuba);
+		kg_scene_free(&scene);
+		return ret ? kg_cli_error(&err, ret) : KG_EXIT_OK;
+	}
 	if (!out)
 		return kg_cli_usage_error(usage_render, "-o IMAGE.png is required");
 	if (noise_text && !camera)

@@ -22,6 +22,7 @@ static const kg_command commands[] = {
 	{"estimate", kg_cmd_estimate, "per-pixel 61-band reflectance cube of an image"},
 	{"classify", kg_cmd_classify, "per-pixel material labels among the declared materials"},
 	{"render", kg_cmd_render, "render a scene's mesh and materials under any light (Embree)"},
+	{"export", kg_cmd_export, "a scene as binary glTF 2.0 for Blender and web viewers"},
 	{"process", kg_cmd_process, "a recorded session to calibration, material maps, scenes and report"},
 	{"report", kg_cmd_report, "write a processed session's report.html again from its process.json"},
 	{"bench", kg_cmd_bench, "speed against error of every estimation method"},

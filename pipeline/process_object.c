@@ -12,6 +12,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "kg_gltf.h"
 #include "kg_render.h"
 #include "pipeline_private.h"
 
@@ -315,19 +316,15 @@ static void render_progress(void *user, int done, int total)
 		fprintf(fp, "kogei process: rendering: %d of %d tiles\n", done, total);
 }
 
-static int render_scene(proc *p, const char *scene_path, const char *png)
+static int render_scene(proc *p, const kg_scene *s, const char *png)
 {
-	kg_scene *s = NULL;
 	kg_image *xyz = NULL;
 	kg_render_options ro = {.threads = p->o->threads, .progress = render_progress,
 	                        .progress_user = p->o->progress};
-	int ret = kg_scene_load(scene_path, &s, p->err);
-	if (!ret)
-		ret = kg_render(s, &ro, &xyz, NULL, p->err);
+	int ret = kg_render(s, &ro, &xyz, NULL, p->err);
 	if (!ret)
 		ret = kg_render_write_png(xyz, kg_scene_white(s), png, p->err);
 	kg_image_free(&xyz);
-	kg_scene_free(&s);
 	return ret;
 }
 
@@ -990,8 +987,11 @@ static int process_into(proc *p, const proc_capture *c, const char *dir, double 
 	char *conf = kg_path_join(dir, "labels_confidence.hdr");
 	char *confpng = kg_path_join(dir, "confidence.png");
 	char *scene = kg_path_join(dir, "scene.json"), *render = kg_path_join(dir, "render.png");
+	char *glb = kg_path_join(dir, "object.glb");
+	char *mitsuba = kg_path_join(dir, "object_mitsuba.xml");
 	json_t *class_map = json_object();
-	int ret = cube && labels && ljson && photo && conf && confpng && scene && render && class_map
+	int ret = cube && labels && ljson && photo && conf && confpng && scene && render && glb &&
+	                  mitsuba && class_map
 	              ? 0 : kg_fail(err, KG_ENOMEM, "out of memory");
 	if (!ret)
 		ret = proc_source_open(p, c, scale, 0, &src, &info);
@@ -1047,12 +1047,30 @@ static int process_into(proc *p, const proc_capture *c, const char *dir, double 
 	if (!ret)
 		ret = proc_scene_write(p, scene, "labels.hdr", info.width, info.height, class_map,
 		                       fallback, object);
+	/* the scene as binary glTF 2.0 (render/kg_gltf.h), the photograph beside it */
+	kg_scene *ks = NULL;
+	if (!ret && (ret = kg_scene_load(scene, &ks, err)))
+		kg_err_prefix(err, "%s: reading %s: ", c->name, scene);
+	if (!ret) {
+		kg_gltf_options go = {.photo_png = photo, .source = c->name};
+		proc_progress(p, "%s: writing object.glb", c->name);
+		if ((ret = kg_gltf_write(ks, &go, glb, err)))
+			kg_err_prefix(err, "%s: writing %s: ", c->name, glb);
+	}
+	/* the scene for Mitsuba 3 (render/kg_render.h): the label map is projected onto the
+	 * mesh with Embree, as the renderer does it */
+	if (!ret && kg_render_available()) {
+		proc_progress(p, "%s: writing object_mitsuba.xml", c->name);
+		if ((ret = kg_scene_write_mitsuba(ks, mitsuba, p->o->threads, err)))
+			kg_err_prefix(err, "%s: writing %s: ", c->name, mitsuba);
+	}
 	if (!ret && p->o->render && kg_render_available()) {
 		proc_progress(p, "%s: rendering scene.json", c->name);
-		ret = render_scene(p, scene, render);
+		ret = render_scene(p, ks, render);
 		if (ret)
 			kg_err_prefix(err, "%s: rendering %s: ", c->name, scene);
 	}
+	kg_scene_free(&ks);
 	if (ret)
 		kg_err_prefix(err, "capture %s: ", c->name);
 	proc_source_free(&src);
@@ -1067,6 +1085,8 @@ static int process_into(proc *p, const proc_capture *c, const char *dir, double 
 	free(confpng);
 	free(scene);
 	free(render);
+	free(glb);
+	free(mitsuba);
 	return ret;
 }
 
@@ -1076,6 +1096,7 @@ static void set_paths(json_t *object, const char *name, int rendered, int cube)
 		{"photo", "photo.png"},         {"cube", "cube.hdr"},
 		{"labels", "labels.hdr"},       {"labels_png", "labels.png"},
 		{"confidence_png", "confidence.png"}, {"scene", "scene.json"},
+		{"gltf", "object.glb"},
 	};
 	char rel[256];
 	json_object_set_new(object, "dir", json_string(name));
@@ -1085,6 +1106,8 @@ static void set_paths(json_t *object, const char *name, int rendered, int cube)
 	}
 	snprintf(rel, sizeof(rel), "%s/render.png", name);
 	json_object_set_new(object, "render", rendered ? json_string(rel) : json_null());
+	snprintf(rel, sizeof(rel), "%s/object_mitsuba.xml", name);
+	json_object_set_new(object, "mitsuba", kg_render_available() ? json_string(rel) : json_null());
 	if (!cube)
 		json_object_set_new(object, "cube", json_null());
 }

@@ -193,4 +193,14 @@ int kg_render_truth_write_labels(const kg_render_truth *t, const char *hdr_path,
 int kg_render_truth_write_angle(const kg_render_truth *t, const char *hdr_path,
                                 kg_err *err);
 
+/* The scene as a Mitsuba 3 scene (docs/render.md): xml_path (written atomically, last)
+ * and, in the folder of the same name without ".xml", one binary PLY per material
+ * (<material>.ply, the triangles that material covers; a label map projected as
+ * kg_render projects it, which needs Embree: KG_ENOTSUP without it). Spectral
+ * conductors with the library's n, k, alloys as blends of their metals, dielectrics
+ * as rough plastic with their index, the scene's camera, light and sampling. threads
+ * as kg_render_options.threads. */
+int kg_scene_write_mitsuba(const kg_scene *s, const char *xml_path, int threads,
+                           kg_err *err);
+
 #endif

@@ -188,6 +188,8 @@ static int unoccluded(rd_ctx *c, const double org[3], const double dir[3], float
 	return r.tfar >= 0.0f;
 }
 
+static void ctx_free(rd_ctx *c);
+
 /* ---- label map ------------------------------------------------------------------- */
 
 /* Each triangle takes the label under its centroid as seen from the label camera when
@@ -233,6 +235,29 @@ static int project_labels(rd_ctx *c, uint64_t *rays, kg_err *err)
 	}
 	c->tri_mat = c->label_tri_mat;
 	return 0;
+}
+
+int rd_scene_triangle_materials(const kg_scene *s, int threads, uint16_t **out, kg_err *err)
+{
+	if (s->assign != RD_ASSIGN_LABEL_MAP)
+		return rd_scene_triangle_materials_plain(s, out, err);
+	*out = NULL;
+	rd_ctx c;
+	memset(&c, 0, sizeof(c));
+	c.s = s;
+	if (threads <= 0)
+		threads = kg_cpu_count(MAX_THREADS);
+	threads = threads < 1 ? 1 : threads > MAX_THREADS ? MAX_THREADS : threads;
+	uint64_t rays = 0;
+	int ret = build_scene(&c, threads, err);
+	if (!ret)
+		ret = project_labels(&c, &rays, err);
+	if (!ret) {
+		*out = c.label_tri_mat;
+		c.label_tri_mat = NULL;
+	}
+	ctx_free(&c);
+	return ret;
 }
 
 /* ---- shading --------------------------------------------------------------------- */

@@ -89,6 +89,7 @@ typedef struct rd_label_map {
 	uint8_t *labels;  /* width x height, 0 = unclassified */
 	int nclasses;
 	int *class_mat;   /* nclasses entries: material index, -1 = use the fallback */
+	char **class_names; /* nclasses entries, as in the map's header */
 	rd_view view;     /* the pose it was seen from (width, height = the map's) */
 	int fallback;     /* material index for unlabelled or unseen triangles */
 } rd_label_map;
@@ -140,5 +141,12 @@ struct kg_scene {
 /* Index of a library material in s->mat, adding it when new. */
 int rd_scene_material_index(kg_scene *s, const char *name, const char *field,
                             kg_err *err);
+
+/* The material of each triangle (an index into s->mat), the label map projected as
+ * the renderer projects it (this needs Embree: without it a label-map scene fails with
+ * KG_ENOTSUP). *out: ntris entries, newly allocated (NULL for an empty mesh). */
+int rd_scene_triangle_materials(const kg_scene *s, int threads, uint16_t **out, kg_err *err);
+/* The same without a label map (render.c's and render_none.c's common part). */
+int rd_scene_triangle_materials_plain(const kg_scene *s, uint16_t **out, kg_err *err);
 
 #endif

@@ -368,7 +368,11 @@ static int load_label_map(kg_scene *s, const json_t *root, kg_err *err)
 		data = malloc(sizeof(float) * (size_t)m->samples * (size_t)band);
 		lm->labels = malloc(npix);
 		lm->class_mat = malloc(sizeof(int) * (size_t)m->classes);
-		if (!data || !lm->labels || !lm->class_mat)
+		lm->class_names = calloc((size_t)m->classes, sizeof(char *));
+		for (int c = 0; lm->class_names && c < m->classes; c++)
+			if (!(lm->class_names[c] = strdup(m->class_names[c])))
+				ret = kg_fail(err, KG_ENOMEM, "out of memory");
+		if (!data || !lm->labels || !lm->class_mat || !lm->class_names)
 			ret = kg_fail(err, KG_ENOMEM, "out of memory");
 	}
 	for (int y0 = 0; !ret && y0 < m->lines; y0 += band) {
@@ -971,6 +975,9 @@ void kg_scene_free(kg_scene **sp)
 	free(s->label.path);
 	free(s->label.labels);
 	free(s->label.class_mat);
+	for (int c = 0; s->label.class_names && c < s->label.nclasses; c++)
+		free(s->label.class_names[c]);
+	free(s->label.class_names);
 	free(s->env_coef);
 	free(s);
 	*sp = NULL;
@@ -1002,4 +1009,21 @@ void kg_scene_light_spectrum(const kg_scene *s, kg_spectrum *out)
 {
 	for (int i = 0; i < KG_NBANDS; i++)
 		out->v[i] = s->light_spd[i];
+}
+
+int rd_scene_triangle_materials_plain(const kg_scene *s, uint16_t **out, kg_err *err)
+{
+	size_t n = s->mesh->ntris;
+	*out = NULL;
+	if (s->assign == RD_ASSIGN_LABEL_MAP)
+		return kg_fail(err, KG_EINVAL, "%s: a label map needs projecting", s->path);
+	if (!n)
+		return 0;
+	if (!(*out = malloc(sizeof(uint16_t) * n)))
+		return kg_fail(err, KG_ENOMEM, "out of memory");
+	if (s->tri_mat)
+		memcpy(*out, s->tri_mat, sizeof(uint16_t) * n);
+	else
+		memset(*out, 0, sizeof(uint16_t) * n);
+	return 0;
 }

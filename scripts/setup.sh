@@ -15,6 +15,8 @@ libembree-dev assimp-testmodels iproute2 util-linux
 chromium python3-websocket
 libraw-dev libgphoto2-dev libmicrohttpd-dev
 liblcms2-dev liblcms2-utils imagemagick
+nodejs npm
+blender
 "
 
 missing=""
@@ -36,4 +38,18 @@ if [ -n "$missing" ]; then
 	apt-get install -y -qq --no-install-recommends $missing
 else
 	echo "setup: all packages present"
+fi
+
+# The Khronos glTF-Validator (npm package gltf-validator), for the gltf-validator test:
+# into the project's own .tools folder, only when it is not there yet.
+ROOT=$(cd "$(dirname "$0")/.." && pwd)
+VALIDATOR="$ROOT/.tools/gltf-validator"
+if [ -f "$VALIDATOR/node_modules/gltf-validator/package.json" ]; then
+	echo "setup: gltf-validator present"
+elif command -v npm >/dev/null 2>&1; then
+	echo "setup: installing gltf-validator into $VALIDATOR"
+	mkdir -p "$VALIDATOR"
+	npm install --silent --no-audit --no-fund --prefix "$VALIDATOR" gltf-validator@2.0.0-dev.3.10
+else
+	echo "setup: npm not found: gltf-validator not installed (the gltf-validator test skips)" >&2
 fi

@@ -110,6 +110,9 @@ if [ "$HAVE_EMBREE" = 1 ]; then
 	check "process rendered object-full" test -s "$O/object-full/render.png"
 	expect_exit 0 "$KOGEI" render --scene "$O/object-full/scene.json" -o "$T/r.png" --spp 2
 	check "kogei render --scene renders process's scene" test -s "$T/r.png"
+	# the Mitsuba 3 scene beside it: the chart's pose, the label map's regions as PLYs
+	check "process wrote object_mitsuba.xml" "$PY" "$2/tests/render/mitsuba_check.py" \
+		"$O/object-full/object_mitsuba.xml" --scene "$O/object-full/scene.json"
 fi
 
 # Re-runs skip what did not change; a later object is the only one processed.
