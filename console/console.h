@@ -111,6 +111,8 @@ typedef struct console {
 	int answer;
 	/* captures requested by the page */
 	pthread_t live_thread;
+	pthread_t encode_thread;     /* the live view's second stage (console_live.c) */
+	struct live_job *live_job;   /* a binned frame waiting for it (lock) */
 } console;
 
 double console_now(void);

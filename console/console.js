@@ -146,7 +146,6 @@ function showLive(j) {
 // animation frame; a preview arriving before that frame replaces the one waiting.
 // stats: previews drawn, their rate over 5 s and their latency (the frame's arrival
 // from the camera driver, X-Kogei-Captured-Ms, to the frame it is drawn in).
-const lat = [];
 let shown = null, lastInfo = 0;
 function fetchPreview(after) {
   const opts = { headers: {} };
@@ -166,10 +165,9 @@ function present(bmp, meta) {
     const now = performance.timeOrigin + performance.now();
     stats.seq = Math.max(stats.seq, s.meta.n);
     stats.frames++;
-    lat.push(now - s.meta.captured);
-    if (lat.length > 100) lat.shift();
     stats.latencyMs = now - s.meta.captured;
-    stats.latencies = lat.slice();
+    stats.latencies.push(stats.latencyMs); // every preview's, the last 20000
+    if (stats.latencies.length > 20000) stats.latencies.splice(0, 10000);
     stats.sequences.push(s.meta.sequence);
     if (stats.sequences.length > 50) stats.sequences.shift();
     const t = performance.now();

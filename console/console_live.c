@@ -245,17 +245,29 @@ static int preview_bayer_full(const sampler *s, int W, int H, const char *cfa, p
 		}
 		float *o = p->rgb + (size_t)y * (size_t)W * 3;
 		unsigned char *oc = p->clip + (size_t)y * (size_t)W;
-		for (int x = 0; x < W - 1; x++) {
+		const float *re = rp[0], *ro = rp[1], *be = bp[0], *bo = bp[1];
+		const float *ge1 = g1[0], *ge2 = g2[0], *go1 = g1[1], *go2 = g2[1];
+		int x = 0;
+		for (; x + 1 < W - 1; x += 2) {
+			o[3 * x] = re[x];
+			o[3 * x + 1] = 0.5f * (ge1[x] + ge2[x]);
+			o[3 * x + 2] = be[x];
+			o[3 * x + 3] = ro[x + 1];
+			o[3 * x + 4] = 0.5f * (go1[x + 1] + go2[x + 1]);
+			o[3 * x + 5] = bo[x + 1];
+		}
+		for (; x < W - 1; x++) {
 			int px = x & 1;
 			o[3 * x] = rp[px][x];
 			o[3 * x + 1] = 0.5f * (g1[px][x] + g2[px][x]);
 			o[3 * x + 2] = bp[px][x];
-			oc[x] = (unsigned char)(c0[x] | c0[x + 1] | c1[x] | c1[x + 1]);
 		}
+		for (x = 0; x < W - 1; x++)
+			oc[x] = (unsigned char)(c0[x] | c0[x + 1] | c1[x] | c1[x + 1]);
 		/* the last column repeats the window of the one before */
 		memcpy(o + 3 * (size_t)(W - 1), o + 3 * (size_t)(W - 2), 3 * sizeof(float));
 		oc[W - 1] = oc[W - 2];
-		for (int x = 0; x < W; x++)
+		for (x = 0; x < W; x++)
 			preview_hist(p, o + 3 * x);
 	}
 	for (int x = 0; x < W; x++) /* the last row, never in r0 */
@@ -603,6 +615,13 @@ static void live_set_error(console *c, const char *msg)
 	pthread_mutex_unlock(&c->lock);
 }
 
+static double cpu_ms(void)
+{
+	struct timespec ts;
+	clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+	return 1e3 * (double)ts.tv_sec + 1e-6 * (double)ts.tv_nsec;
+}
+
 static double wall_ms(void)
 {
 	struct timespec ts;
@@ -610,9 +629,23 @@ static double wall_ms(void)
 	return 1e3 * (double)ts.tv_sec + 1e-6 * (double)ts.tv_nsec;
 }
 
-/* One preview from one frame (camera held): the camera's own preview where its driver
- * has one (kg_camera_preview), else a frame of the stream. */
-static int live_frame(console *c, double ev, const double roi[4], int peaking)
+/* A frame binned, waiting for the second stage (display and encoding). */
+struct live_job {
+	preview p;
+	double ev, roi[4];
+	int peaking, own, fw, fh;
+	uint64_t seq;
+	double ts, fexp, fgain, captured;
+	double t_camera, t_bin, t_focus; /* ms */
+	double cpu_camera, cpu_capture;  /* ms of this thread's CPU time */
+	json_t *settings;
+};
+typedef struct live_job live_job;
+
+/* The first stage (camera held): one frame, the camera's own preview where its driver
+ * has one (kg_camera_preview), else a frame of the stream; binned, with its focus
+ * measure, into *out. */
+static int live_capture(console *c, double ev, const double roi[4], int peaking, live_job **out)
 {
 	kg_err err = {{0}};
 	int ret, own = 0;
@@ -621,15 +654,23 @@ static int live_frame(console *c, double ev, const double roi[4], int peaking)
 	kg_frame f;
 	if (!kg_camera_has_preview(c->cam))
 		c->streaming = 1; /* kg_camera_preview starts the stream */
-	double tc = console_now();
+	double tc = console_now(), cpu0 = cpu_ms();
 	if ((ret = kg_camera_preview(c->cam, 1000 + (int)(2 * exp_us / 1000), &f, &own, &err))) {
 		live_set_error(c, err.msg);
 		kg_camera_stop(c->cam, NULL);
 		c->streaming = 0;
 		return ret;
 	}
-	double captured = wall_ms();
-	double t0 = console_now(), t_bin = t0, t_focus = t0, t_disp;
+	live_job *j = calloc(1, sizeof(*j));
+	if (!j) {
+		if (!own)
+			kg_camera_push(c->cam, &f, NULL);
+		live_set_error(c, "live view: out of memory");
+		return KG_ENOMEM;
+	}
+	j->captured = wall_ms();
+	j->cpu_camera = cpu_ms() - cpu0;
+	double t0 = console_now();
 	sampler s = {.f = &f};
 	kg_image *img = NULL;
 	const char *cfa = NULL;
@@ -649,53 +690,74 @@ static int live_frame(console *c, double ev, const double roi[4], int peaking)
 		s.channels = img ? img->channels : 1;
 		break;
 	}
-	preview p = {0};
-	if (!ret && preview_bin(&s, f.fmt.width, f.fmt.height, cfa, &p))
+	if (!ret && preview_bin(&s, f.fmt.width, f.fmt.height, cfa, &j->p))
 		ret = kg_fail(&err, KG_ENOMEM, "live view: out of memory");
-	t_bin = console_now();
+	double t_bin = console_now();
 	if (!ret)
-		preview_focus(&s, f.fmt.width, f.fmt.height, cfa, roi, &p);
-	t_focus = console_now();
-	uint64_t seq = f.sequence;
-	double ts = f.timestamp, fexp = f.exposure_us, fgain = f.gain;
-	int fw = f.fmt.width, fh = f.fmt.height;
+		preview_focus(&s, f.fmt.width, f.fmt.height, cfa, roi, &j->p);
+	j->t_camera = 1000 * (t0 - tc);
+	j->t_bin = 1000 * (t_bin - t0);
+	j->t_focus = 1000 * (console_now() - t_bin);
+	j->cpu_capture = cpu_ms() - cpu0;
+	j->seq = f.sequence;
+	j->ts = f.timestamp;
+	j->fexp = f.exposure_us;
+	j->fgain = f.gain;
+	j->fw = f.fmt.width;
+	j->fh = f.fmt.height;
+	j->own = own;
+	j->ev = ev;
+	memcpy(j->roi, roi, sizeof(j->roi));
+	j->peaking = peaking;
 	kg_image_free(&img);
 	if (!own)
 		kg_camera_push(c->cam, &f, NULL);
 	if (ret) {
 		live_set_error(c, err.msg);
-		preview_free(&p);
+		preview_free(&j->p);
+		free(j);
 		return ret;
 	}
-	unsigned char *rgb = display(&p, ev, roi, peaking);
-	t_disp = console_now();
+	j->settings = console_settings_json(c);
+	*out = j;
+	return 0;
+}
+
+/* The second stage: the display image, encoded, published with its numbers. */
+static void live_publish(console *c, live_job *j)
+{
+	double t0 = console_now(), cpu0 = cpu_ms();
+	preview *p = &j->p;
+	unsigned char *rgb = display(p, j->ev, j->roi, j->peaking);
+	double t_disp = console_now();
 	membuf m = {0};
 	const char *type = "image/png";
 #if HAVE_JPEG
 	type = "image/jpeg";
-	if (!rgb || encode_jpeg(rgb, p.w, p.h, &m)) {
+	if (!rgb || encode_jpeg(rgb, p->w, p->h, &m)) {
 #else
-	if (!rgb || encode_png(rgb, p.w, p.h, &m)) {
+	if (!rgb || encode_png(rgb, p->w, p->h, &m)) {
 #endif
 		free(rgb);
 		free(m.data);
-		preview_free(&p);
+		json_decref(j->settings);
 		live_set_error(c, "live view: the preview could not be encoded");
-		return KG_ENOMEM;
+		return;
 	}
-	double t_end = console_now(), ms = 1000 * (t_end - t0);
-	json_t *parts = json_pack("{s:f, s:f, s:f, s:f, s:f}", "camera", 1000 * (t0 - tc), "bin",
-	                          1000 * (t_bin - t0), "focus", 1000 * (t_focus - t_bin),
-	                          "display", 1000 * (t_disp - t_focus), "encode",
-	                          1000 * (t_end - t_disp));
+	double t_end = console_now();
+	double ms = j->t_bin + j->t_focus + 1000 * (t_end - t0);
+	json_t *parts = json_pack("{s:f, s:f, s:f, s:f, s:f, s:f, s:f, s:f}", "camera", j->t_camera,
+	                          "bin", j->t_bin, "focus", j->t_focus, "display",
+	                          1000 * (t_disp - t0), "encode", 1000 * (t_end - t_disp),
+	                          "cpu_camera", j->cpu_camera, "cpu_capture", j->cpu_capture,
+	                          "cpu_publish", cpu_ms() - cpu0);
 	json_t *hist = json_array();
-	for (int q = 0; q < (p.mono ? 1 : 3); q++) {
+	for (int q = 0; q < (p->mono ? 1 : 3); q++) {
 		json_t *h = json_array();
 		for (int b = 0; b < CONSOLE_HIST_BINS; b++)
-			json_array_append_new(h, json_integer(p.hist[q][b]));
+			json_array_append_new(h, json_integer(p->hist[q][b]));
 		json_array_append_new(hist, h);
 	}
-	json_t *settings = console_settings_json(c);
 	pthread_mutex_lock(&c->lock);
 	c->live_seq++;
 	free(c->img);
@@ -704,9 +766,9 @@ static int live_frame(console *c, double ev, const double roi[4], int peaking)
 	c->img_type = type;
 	free(c->disp);
 	c->disp = rgb;
-	c->disp_w = p.w;
-	c->disp_h = p.h;
-	c->captured_ms = captured;
+	c->disp_w = p->w;
+	c->disp_h = p->h;
+	c->captured_ms = j->captured;
 	c->preview_ms = ms;
 	c->preview_ms_mean = (c->preview_ms_mean * (double)c->previews + ms) / (double)(c->previews + 1);
 	c->previews++;
@@ -714,24 +776,33 @@ static int live_frame(console *c, double ev, const double roi[4], int peaking)
 	json_decref(c->live);
 	c->live = json_pack("{s:I, s:I, s:f, s:o, s:o, s:i, s:i, s:i, s:i, s:i, s:o, s:f, s:o, s:o, "
 	                    "s:[f,f,f,f], s:f, s:b, s:o, s:f, s:f, s:f, s:s, s:b, s:o}",
-	                    "preview", (json_int_t)c->live_seq, "sequence", (json_int_t)seq,
-	                    "timestamp", ts, "exposure_us", jnum(fexp), "gain", jnum(fgain),
-	                    "width", fw, "height", fh, "preview_width", p.w, "preview_height", p.h,
-	                    "binning", p.k * p.cell, "histograms", hist, "clipped_fraction",
-	                    p.clipped_fraction, "focus", jnum(p.focus), "focus_mean",
-	                    jnum(p.focus_mean), "roi", roi[0], roi[1], roi[2], roi[3], "ev", ev,
-	                    "peaking", peaking, "settings",
-	                    settings, "server_ms", ms, "server_ms_mean", c->preview_ms_mean,
-	                    "captured_ms", captured, "image_type", type, "camera_preview", own,
-	                    "server_parts_ms", parts);
+	                    "preview", (json_int_t)c->live_seq, "sequence", (json_int_t)j->seq,
+	                    "timestamp", j->ts, "exposure_us", jnum(j->fexp), "gain", jnum(j->fgain),
+	                    "width", j->fw, "height", j->fh, "preview_width", p->w,
+	                    "preview_height", p->h, "binning", p->k * p->cell, "histograms", hist,
+	                    "clipped_fraction", p->clipped_fraction, "focus", jnum(p->focus),
+	                    "focus_mean", jnum(p->focus_mean), "roi", j->roi[0], j->roi[1],
+	                    j->roi[2], j->roi[3], "ev", j->ev, "peaking", j->peaking, "settings",
+	                    j->settings, "server_ms", ms, "server_ms_mean", c->preview_ms_mean,
+	                    "captured_ms", j->captured, "image_type", type, "camera_preview",
+	                    j->own, "server_parts_ms", parts);
 	free(c->live_text);
 	c->live_text = json_dumps(c->live, JSON_COMPACT | JSON_ENSURE_ASCII);
 	pthread_cond_broadcast(&c->cond);
 	pthread_mutex_unlock(&c->lock);
-	preview_free(&p);
-	return 0;
 }
 
+static void live_job_free(live_job *j)
+{
+	if (j) {
+		preview_free(&j->p);
+		free(j);
+	}
+}
+
+/* The live view runs in two threads so that one frame is binned while the one before
+ * is encoded: live_main (the camera, binning, focus) hands each frame to encode_main
+ * (display, JPEG, publishing) through c->live_job, waiting while it is taken. */
 static void *live_main(void *arg)
 {
 	console *c = arg;
@@ -754,15 +825,63 @@ static void *live_main(void *arg)
 		pthread_mutex_unlock(&c->lock);
 		if (stop)
 			break;
+		live_job *j = NULL;
 		pthread_mutex_lock(&c->cam_lock);
-		int ret = c->cam ? live_frame(c, ev, roi, peaking) : -1;
+		int ret = c->cam ? live_capture(c, ev, roi, peaking, &j) : -1;
 		if (!c->cam)
 			live_set_error(c, "no camera (start the console with --camera URI)");
 		pthread_mutex_unlock(&c->cam_lock);
-		if (ret) /* wait before trying again */
+		if (ret) { /* wait before trying again */
 			nanosleep(&(struct timespec){0, 500000000L}, NULL);
+			continue;
+		}
+		pthread_mutex_lock(&c->lock);
+		while (c->live_job && !c->stop)
+			pthread_cond_wait(&c->cond, &c->lock);
+		if (c->stop) {
+			pthread_mutex_unlock(&c->lock);
+			json_decref(j->settings);
+			live_job_free(j);
+			break;
+		}
+		c->live_job = j;
+		pthread_cond_broadcast(&c->cond);
+		pthread_mutex_unlock(&c->lock);
 	}
 	return NULL;
+}
+
+static void *encode_main(void *arg)
+{
+	console *c = arg;
+	for (;;) {
+		pthread_mutex_lock(&c->lock);
+		while (!c->live_job && !c->stop)
+			pthread_cond_wait(&c->cond, &c->lock);
+		live_job *j = c->live_job;
+		c->live_job = NULL;
+		pthread_cond_broadcast(&c->cond);
+		pthread_mutex_unlock(&c->lock);
+		if (!j)
+			break; /* stopping */
+		live_publish(c, j);
+		live_job_free(j);
+	}
+	return NULL;
+}
+
+static void console_live_stop_encoder(console *c)
+{
+	pthread_mutex_lock(&c->lock);
+	c->stop = 1;
+	pthread_cond_broadcast(&c->cond);
+	pthread_mutex_unlock(&c->lock);
+	pthread_join(c->encode_thread, NULL);
+	live_job *j = c->live_job; /* taken by nobody once both threads stopped */
+	c->live_job = NULL;
+	if (j)
+		json_decref(j->settings);
+	live_job_free(j);
 }
 
 int console_live_start(console *c, kg_err *err)
@@ -770,8 +889,12 @@ int console_live_start(console *c, kg_err *err)
 	srgb_lut_init();
 	c->roi[0] = c->roi[1] = 0.4;
 	c->roi[2] = c->roi[3] = 0.6;
-	if (pthread_create(&c->live_thread, NULL, live_main, c))
+	if (pthread_create(&c->encode_thread, NULL, encode_main, c))
+		return kg_fail(err, KG_EIO, "console: cannot start the live view's encoding thread");
+	if (pthread_create(&c->live_thread, NULL, live_main, c)) {
+		console_live_stop_encoder(c);
 		return kg_fail(err, KG_EIO, "console: cannot start the live view thread");
+	}
 	return 0;
 }
 
@@ -782,6 +905,7 @@ void console_live_stop(console *c)
 	pthread_cond_broadcast(&c->cond);
 	pthread_mutex_unlock(&c->lock);
 	pthread_join(c->live_thread, NULL);
+	console_live_stop_encoder(c);
 	pthread_mutex_lock(&c->cam_lock);
 	if (c->cam && c->streaming)
 		kg_camera_stop(c->cam, NULL);
