@@ -7,7 +7,8 @@ frame's delivery by the camera driver, the X-Kogei-Captured-Ms header, to the
 animation frame that drew it; the page and the console share the machine's clock).
 The server's CPU time per preview comes from GET /api/live's server_parts_ms.
 
-  console_live.py --kogei KOGEI --devtools FILE --work DIR [--seconds S] -o OUT.md"""
+  console_live.py --kogei KOGEI --devtools FILE --work DIR [--seconds S] [--shot PNG]
+                  -o OUT.md"""
 import argparse
 import os
 import sys
@@ -34,7 +35,7 @@ def pct(v, q):
     return v[min(len(v) - 1, int(q * len(v)))] if v else float("nan")
 
 
-def measure(cdp, kogei, work, label, uri, seconds):
+def measure(cdp, kogei, work, label, uri, seconds, shot=None):
     c = Console(kogei, os.path.join(work, "S%d" % int(time.time() * 1000)), [uri])
     p = Page(cdp)
     try:
@@ -53,6 +54,8 @@ def measure(cdp, kogei, work, label, uri, seconds):
             samples += 1
         f1, t1 = p.js("kogeiStats.frames"), time.time()
         lat = p.js("kogeiStats.latencies.slice(%d)" % n0) if f1 > f0 else []
+        if shot:  # the page as it runs, its own rate and latency in the status line
+            p.shot(shot)
         load1 = os.getloadavg()[0]
         mean = {k: v / max(samples, 1) for k, v in parts.items()}
         return {
@@ -78,11 +81,14 @@ def main():
     ap.add_argument("--work", required=True)
     ap.add_argument("--seconds", type=float, default=20)
     ap.add_argument("-o", "--out", required=True)
+    ap.add_argument("--shot", help="a screenshot of the page of the first camera, at the "
+                    "end of its measurement")
     a = ap.parse_args()
     with open(a.devtools) as f:
         port, path = f.read().split()[:2]
     cdp = Cdp("ws://127.0.0.1:%s%s" % (port, path))
-    rows = [measure(cdp, a.kogei, a.work, label, uri, a.seconds) for label, uri in CAMERAS]
+    rows = [measure(cdp, a.kogei, a.work, label, uri, a.seconds, a.shot if i == 0 else None)
+            for i, (label, uri) in enumerate(CAMERAS)]
     lines = [
         "# The console's live view in headless Chromium",
         "",
