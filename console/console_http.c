@@ -320,7 +320,9 @@ static enum MHD_Result handle_get(console *c, struct MHD_Connection *conn, const
 	}
 	if (!strcmp(url, "/api/preview")) {
 		/* the page's live view: the next preview itself, its numbers in headers */
-		double after = qnum(conn, "after", 0);
+		double after = qnum(conn, "after", -1);
+		if (!MHD_lookup_connection_value(conn, MHD_GET_ARGUMENT_KIND, "after"))
+			after = 0;
 		if (!(after >= 0 && after <= 9e15 && after == floor(after)))
 			return send_error(conn, 400, "/api/preview: 'after': expected a preview count, "
 			                  "a whole number >= 0");
