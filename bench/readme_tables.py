@@ -1,9 +1,12 @@
 #!/usr/bin/env python3
-"""The estimation table of docs/bench.md ("Speed against error"), rebuilt from a
-run's docs/bench/bench.md (kogei bench's report), so that after bench/run_all.sh the
-table is the run's numbers and nothing else.
+"""docs/bench.md's estimation table ("Speed against error"), rebuilt from a run's
+docs/bench/bench.md (kogei bench's report), and docs/bench.md's live-view table from
+docs/bench/console-live.md (bench/console_live.sh), so that after bench/run_all.sh the
+tables are the run's numbers and nothing else.
 
-  bench/readme_tables.py [--bench docs/bench/bench.md] [--doc docs/bench.md] [--check]
+  bench/readme_tables.py [--bench docs/bench/bench.md] [--doc docs/bench.md]
+                         [--live docs/bench/console-live.md] [--docs docs/bench.md]
+                         [--check]
 
 Without --check the page's table is replaced in place (through a temporary file and
 a rename); with --check nothing is written and the exit status is 1 when the page's
@@ -92,12 +95,64 @@ def build(report):
     return rows
 
 
+LIVE_HEADER = ("| camera | preview | page previews/s | latency median / p95 ms | console CPU ms "
+               "per preview: camera, bin + focus, display + encode | load average |")
+
+
+def replace_table(path, header, table, check):
+    """Replace the table under header in path by table (header included); with check,
+    print the differences and return 1 when there are some. 0 when path has no such
+    table (nothing to do)."""
+    with open(path, encoding="utf-8") as f:
+        text = f.read().split("\n")
+    if header not in text:
+        return 0
+    at = text.index(header)
+    end = at
+    while end < len(text) and text[end].startswith("|"):
+        end += 1
+    old = text[at:end]
+    if check:
+        diff = [(o, n) for o, n in zip(old, table) if o != n]
+        if len(old) != len(table):
+            diff.append((f"{len(old)} lines", f"{len(table)} lines"))
+        for o, n in diff:
+            print(f"{path}:  {o}\nreport:  {n}")
+        return 1 if diff else 0
+    text[at:end] = table
+    fd, tmp = tempfile.mkstemp(dir=os.path.dirname(os.path.abspath(path)), prefix=".tables.")
+    with os.fdopen(fd, "w", encoding="utf-8") as f:
+        f.write("\n".join(text))
+    os.replace(tmp, path)
+    return 0
+
+
+def live_table(report):
+    """The live-view table of bench/console_live.sh's report, as it is."""
+    lines = [l.rstrip("\n") for l in report]
+    if LIVE_HEADER not in lines:
+        sys.exit("readme_tables: the live-view report has no table (its header changed?)")
+    at = lines.index(LIVE_HEADER)
+    end = at
+    while end < len(lines) and lines[end].startswith("|"):
+        end += 1
+    return lines[at:end]
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--bench", default="docs/bench/bench.md")
     ap.add_argument("--doc", "--readme", dest="readme", default="docs/bench.md")
+    ap.add_argument("--live", default="docs/bench/console-live.md",
+                    help="bench/console_live.sh's report (skipped when absent)")
+    ap.add_argument("--docs", default="docs/bench.md",
+                    help="where the live-view table goes (under its header)")
     ap.add_argument("--check", action="store_true")
     a = ap.parse_args()
+    live_rc = 0
+    if os.path.exists(a.live):
+        with open(a.live, encoding="utf-8") as f:
+            live_rc = replace_table(a.docs, LIVE_HEADER, live_table(f), a.check)
     with open(a.bench, encoding="utf-8") as f:
         table = build(f)
     with open(a.readme, encoding="utf-8") as f:
@@ -116,7 +171,7 @@ def main():
             diff.append((f"{len(old)} lines", f"{len(table)} lines"))
         for o, n in diff:
             print(f"page:    {o}\nreport:  {n}")
-        return 1 if diff else 0
+        return 1 if diff or live_rc else 0
     readme[at:end] = table
     d = os.path.dirname(os.path.abspath(a.readme))
     fd, tmp = tempfile.mkstemp(dir=d, prefix=".readme.")

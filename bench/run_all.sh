@@ -50,6 +50,9 @@ if [ -x "$BUILD/bench/camera/kogei-bench-camera" ]; then
 	"$BUILD/bench/camera/kogei-bench-camera" -o "$OUT/camera.md" >/dev/null ||
 		echo "run_all: camera benchmark failed (see above)" >&2
 fi
+step "console live view (headless Chromium, private network namespace)"
+unshare -rn sh -c 'ip link set lo up; sh bench/console_live.sh "$0" "$1" 20' "$KOGEI" \
+	"$OUT/console-live.md" || echo "run_all: console live view benchmark failed" >&2
 step "whole commands"
 python3 bench/whole_commands.py --kogei "$KOGEI" -o "$OUT/whole.md" >/dev/null
 step "done: $OUT"

@@ -74,9 +74,15 @@ typedef struct console {
 	double last_request;         /* monotonic time the page last asked for a preview */
 	/* live view */
 	uint64_t live_seq;
-	unsigned char *png;
-	size_t png_size;
+	unsigned char *img;          /* the preview as sent: JPEG (PNG without libjpeg) */
+	size_t img_size;
+	const char *img_type;        /* its Content-Type */
+	unsigned char *disp;         /* the preview's 8-bit sRGB pixels (for PNG) */
+	int disp_w, disp_h;
+	double captured_ms;          /* wall clock (ms since 1970) the frame came from the
+	                              * camera driver */
 	json_t *live;                /* the preview's numbers */
+	char *live_text;             /* the same as compact ASCII JSON (a response header) */
 	char live_error[1100];
 	double ev;                   /* display exposure scale, stops */
 	double roi[4];               /* focus region x0 y0 x1 y1, 0..1 of the frame */
@@ -105,6 +111,8 @@ typedef struct console {
 	int answer;
 	/* captures requested by the page */
 	pthread_t live_thread;
+	pthread_t encode_thread;     /* the live view's second stage (console_live.c) */
+	struct live_job *live_job;   /* a binned frame waiting for it (lock) */
 } console;
 
 double console_now(void);
@@ -119,8 +127,20 @@ json_t *console_live_json(console *c, uint64_t after);
  * applied; 0, or 400 with *why naming the field. */
 int console_view_set(console *c, const json_t *req, char *why, size_t n);
 json_t *console_view_json(console *c);
-/* The latest preview PNG (a copy, malloc'd), or NULL. */
+/* The latest preview as a PNG (made on demand, malloc'd), or NULL. */
 unsigned char *console_live_png(console *c, size_t *size);
+/* A preview newer than `after`, waiting up to 2 s: the image (a copy, malloc'd), its
+ * type, number, capture time (ms since 1970) and numbers (compact JSON, malloc'd);
+ * NULL when none came. */
+typedef struct console_preview {
+	unsigned char *data;
+	size_t size;
+	const char *type;
+	uint64_t seq;
+	double captured_ms;
+	char *live;
+} console_preview;
+int console_live_preview(console *c, uint64_t after, console_preview *out);
 /* Find the chart on a fresh decimated frame: JSON with the overlay and go/no-go. */
 json_t *console_chart_check(console *c);
 /* Take the camera from the live view (blocks until it is free), give it back. */

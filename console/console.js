@@ -3,7 +3,7 @@
 'use strict';
 const token = new URLSearchParams(location.search).get('token');
 const $ = (id) => document.getElementById(id);
-const stats = { frames: 0, fps: 0, latencyMs: 0, seq: 0, sequences: [], times: [] };
+const stats = { frames: 0, fps: 0, latencyMs: 0, latencies: [], seq: 0, sequences: [], times: [] };
 window.kogeiStats = stats;
 let roi = [0.4, 0.4, 0.6, 0.6];
 let chart = null;
@@ -45,8 +45,8 @@ const canvas = $('live');
 const ctx = canvas.getContext('2d');
 function draw() {
   if (!img) return;
-  if (canvas.width !== img.naturalWidth || canvas.height !== img.naturalHeight) {
-    canvas.width = img.naturalWidth; canvas.height = img.naturalHeight;
+  if (canvas.width !== img.width || canvas.height !== img.height) {
+    canvas.width = img.width; canvas.height = img.height;
   }
   ctx.drawImage(img, 0, 0);
   const W = canvas.width, H = canvas.height;
@@ -140,37 +140,71 @@ function showLive(j) {
     '), server ' + fmt(j.server_ms, 1) + ' ms, page ' + fmt(stats.fps, 1) + ' fps, latency ' + fmt(stats.latencyMs, 0) + ' ms';
 }
 
+// The live view: GET /api/preview?after=N answers with the first preview newer than N
+// (a long poll), its numbers in headers. The next request leaves as soon as an answer
+// arrives, while the image is decoded (createImageBitmap) and drawn at the next
+// animation frame; a preview arriving before that frame replaces the one waiting.
+// stats: previews drawn, their rate over 5 s and their latency (the frame's arrival
+// from the camera driver, X-Kogei-Captured-Ms, to the frame it is drawn in).
+let shown = null, lastInfo = 0;
+function fetchPreview(after) {
+  const opts = { headers: {} };
+  if (token) opts.headers['X-Kogei-Token'] = token;
+  return fetch('/api/preview?after=' + after, opts);
+}
+function present(bmp, meta) {
+  const first = !shown;
+  if (shown) shown.bmp.close();
+  shown = { bmp: bmp, meta: meta };
+  if (!first) return;
+  requestAnimationFrame(() => {
+    const s = shown; shown = null;
+    if (img) img.close();
+    img = s.bmp;
+    draw();
+    const now = performance.timeOrigin + performance.now();
+    stats.seq = Math.max(stats.seq, s.meta.n);
+    stats.frames++;
+    stats.latencyMs = now - s.meta.captured;
+    stats.latencies.push(stats.latencyMs); // every preview's, the last 20000
+    if (stats.latencies.length > 20000) stats.latencies.splice(0, 10000);
+    stats.sequences.push(s.meta.sequence);
+    if (stats.sequences.length > 50) stats.sequences.shift();
+    const t = performance.now();
+    stats.times.push(t);
+    while (stats.times.length && t - stats.times[0] > 5000) stats.times.shift();
+    if (stats.times.length > 1) stats.fps = (stats.times.length - 1) * 1000 / (t - stats.times[0]);
+    if (s.meta.live && t - lastInfo > 100) { lastInfo = t; showLive(s.meta.live); }
+  });
+}
 async function liveLoop() {
+  let after = 0, pending = fetchPreview(0);
   for (;;) {
     try {
-      const t0 = performance.now();
-      const j = await api('/api/live?after=' + stats.seq);
-      showLive(j);
-      if (j.preview && j.preview !== stats.seq) {
-        const r = await fetch(withToken('/api/live.png?n=' + j.preview));
-        if (r.ok) {
-          const url = URL.createObjectURL(await r.blob());
-          const next = new Image();
-          await new Promise((ok, bad) => { next.onload = ok; next.onerror = bad; next.src = url; });
-          if (img) URL.revokeObjectURL(img.src);
-          img = next;
-          draw();
-          stats.seq = j.preview;
-          stats.frames++;
-          stats.latencyMs = performance.now() - t0;
-          stats.sequences.push(j.sequence);
-          if (stats.sequences.length > 50) stats.sequences.shift();
-          const now = performance.now();
-          stats.times.push(now);
-          while (stats.times.length && now - stats.times[0] > 5000) stats.times.shift();
-          if (stats.times.length > 1) stats.fps = (stats.times.length - 1) * 1000 / (now - stats.times[0]);
+      const r = await pending;
+      if (!r.ok) {
+        const j = await r.json().catch(() => ({}));
+        $('liveinfo').textContent = 'live view: ' + (j.error || r.statusText);
+        if (r.status === 503) {
+          // no preview: the camera's state (paused by a capture, an error) says why
+          try { showLive(await api('/api/live')); } catch (e) { /* shown above */ }
+        } else {
+          await new Promise((ok) => setTimeout(ok, 1000));
         }
-      } else {
-        await new Promise((ok) => setTimeout(ok, 200));
+        pending = fetchPreview(after);
+        continue;
       }
+      const n = Number(r.headers.get('X-Kogei-Preview'));
+      const meta = { n: n, captured: Number(r.headers.get('X-Kogei-Captured-Ms')) };
+      const text = r.headers.get('X-Kogei-Live');
+      if (text) { meta.live = JSON.parse(text); meta.sequence = meta.live.sequence; }
+      after = Math.max(after, n);
+      pending = fetchPreview(after);
+      present(await createImageBitmap(await r.blob()), meta);
     } catch (e) {
       $('liveinfo').textContent = 'live view: ' + e.message;
       await new Promise((ok) => setTimeout(ok, 1000));
+      pending = fetchPreview(after);
     }
   }
 }

@@ -318,6 +318,42 @@ static enum MHD_Result handle_get(console *c, struct MHD_Connection *conn, const
 			                  "whole number >= 0");
 		return send_json(conn, 200, console_live_json(c, after > 0 ? (uint64_t)after : 0));
 	}
+	if (!strcmp(url, "/api/preview")) {
+		/* the page's live view: the next preview itself, its numbers in headers */
+		double after = qnum(conn, "after", -1);
+		if (!MHD_lookup_connection_value(conn, MHD_GET_ARGUMENT_KIND, "after"))
+			after = 0;
+		if (!(after >= 0 && after <= 9e15 && after == floor(after)))
+			return send_error(conn, 400, "/api/preview: 'after': expected a preview count, "
+			                  "a whole number >= 0");
+		console_preview pv;
+		if (console_live_preview(c, (uint64_t)after, &pv))
+			return send_error(conn, 503, "no new preview within 2 s (is the camera "
+			                  "delivering?)");
+		struct MHD_Response *r = MHD_create_response_from_buffer(pv.size, pv.data,
+		                                                         MHD_RESPMEM_MUST_FREE);
+		if (!r) {
+			free(pv.data);
+			free(pv.live);
+			return MHD_NO;
+		}
+		char num[64];
+		MHD_add_response_header(r, "Content-Type", pv.type);
+		MHD_add_response_header(r, "Cache-Control", "no-store");
+		MHD_add_response_header(r, "X-Content-Type-Options", "nosniff");
+		MHD_add_response_header(r, "Referrer-Policy", "no-referrer");
+		MHD_add_response_header(r, "Content-Security-Policy", CSP);
+		snprintf(num, sizeof(num), "%llu", (unsigned long long)pv.seq);
+		MHD_add_response_header(r, "X-Kogei-Preview", num);
+		snprintf(num, sizeof(num), "%.3f", pv.captured_ms);
+		MHD_add_response_header(r, "X-Kogei-Captured-Ms", num);
+		if (pv.live)
+			MHD_add_response_header(r, "X-Kogei-Live", pv.live);
+		free(pv.live);
+		enum MHD_Result ret = MHD_queue_response(conn, 200, r);
+		MHD_destroy_response(r);
+		return ret;
+	}
 	if (!strcmp(url, "/api/live.png")) {
 		size_t n = 0;
 		unsigned char *png = console_live_png(c, &n);
@@ -666,6 +702,8 @@ done:
 	json_decref(c->job_result);
 	json_decref(c->manifest);
 	json_decref(c->live);
-	free(c->png);
+	free(c->img);
+	free(c->disp);
+	free(c->live_text);
 	return rc;
 }

@@ -9,12 +9,18 @@
  * resolution, over the squared mean) and, when asked, edges painted green. */
 #include <math.h>
 #include <png.h>
+#include <setjmp.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
 
 #include "console.h"
+#include "kg_config.h"
+
+#if HAVE_JPEG
+#include <jpeglib.h>
+#endif
 
 /* ---- the camera ------------------------------------------------------------------ */
 
@@ -152,10 +158,144 @@ static void preview_free(preview *p)
 	memset(p, 0, sizeof(*p));
 }
 
-/* Bin the frame into p (rgb, clip, histograms, clipped fraction). */
+/* Row y of the frame as samples 0..1 (W x channels) and their full-scale flags. */
+static void frame_row(const sampler *s, int W, int y, float *out, unsigned char *cl)
+{
+	size_t n = (size_t)W * (size_t)s->channels;
+	if (s->img) {
+		const float *r = s->img->data + (size_t)y * n;
+		for (size_t i = 0; i < n; i++) {
+			out[i] = r[i];
+			cl[i] = r[i] >= 1.0f;
+		}
+		return;
+	}
+	const unsigned char *row = (const unsigned char *)s->f->data + (size_t)y * s->f->fmt.stride;
+	float scale = (float)s->scale;
+	if (s->wide) {
+		for (size_t i = 0; i < n; i++) {
+			unsigned v = (unsigned)(row[2 * i] | row[2 * i + 1] << 8);
+			out[i] = (float)v * scale;
+			cl[i] = v >= s->full;
+		}
+	} else {
+		for (size_t i = 0; i < n; i++) {
+			out[i] = (float)row[i] * scale;
+			cl[i] = row[i] >= s->full;
+		}
+	}
+}
+
+static void preview_hist(preview *p, const float *o)
+{
+	for (int q = 0; q < (p->mono ? 1 : 3); q++) {
+		int b = (int)(o[q] * CONSOLE_HIST_BINS);
+		b = b < 0 ? 0 : b >= CONSOLE_HIST_BINS ? CONSOLE_HIST_BINS - 1 : b;
+		p->hist[q][b]++;
+	}
+}
+
+/* A Bayer mosaic that fits the preview at full size: every pixel from the 2 x 2 window
+ * at it (clamped inside the frame), which holds one R, two G and one B. */
+static int preview_bayer_full(const sampler *s, int W, int H, const char *cfa, preview *p)
+{
+	float *r0 = malloc(sizeof(float) * 2 * (size_t)W);
+	unsigned char *c0 = malloc(2 * (size_t)W);
+	if (!r0 || !c0) {
+		free(r0);
+		free(c0);
+		return -1;
+	}
+	float *r1 = r0 + W;
+	unsigned char *c1 = c0 + W;
+	long nclip = 0;
+	int have = -1; /* the frame row in r0 (r1 holds the next) */
+	for (int y = 0; y < H; y++) {
+		int y0 = y < H - 1 ? y : H - 2;
+		if (have != y0) {
+			if (have >= 0 && have == y0 - 1) {
+				memcpy(r0, r1, sizeof(float) * (size_t)W);
+				memcpy(c0, c1, (size_t)W);
+			} else {
+				frame_row(s, W, y0, r0, c0);
+			}
+			frame_row(s, W, y0 + 1, r1, c1);
+			have = y0;
+			for (int x = 0; x < W; x++)
+				nclip += c0[x];
+		}
+		/* Where R, B and the two G of the window are, for an even and an odd window
+		 * column: rows r0/r1 and a column offset of 0 or 1. */
+		const float *rp[2], *bp[2], *g1[2], *g2[2];
+		for (int px = 0; px < 2; px++) {
+			int ng = 0;
+			for (int q = 0; q < 4; q++) {
+				int dx = q & 1, dy = q >> 1;
+				const float *src = (dy ? r1 : r0) + dx;
+				int col = cfa_colour(cfa, px + dx, y0 + dy);
+				if (col == 0)
+					rp[px] = src;
+				else if (col == 2)
+					bp[px] = src;
+				else if (ng++)
+					g2[px] = src;
+				else
+					g1[px] = src;
+			}
+		}
+		float *o = p->rgb + (size_t)y * (size_t)W * 3;
+		unsigned char *oc = p->clip + (size_t)y * (size_t)W;
+		const float *re = rp[0], *ro = rp[1], *be = bp[0], *bo = bp[1];
+		const float *ge1 = g1[0], *ge2 = g2[0], *go1 = g1[1], *go2 = g2[1];
+		int x = 0;
+		for (; x + 1 < W - 1; x += 2) {
+			o[3 * x] = re[x];
+			o[3 * x + 1] = 0.5f * (ge1[x] + ge2[x]);
+			o[3 * x + 2] = be[x];
+			o[3 * x + 3] = ro[x + 1];
+			o[3 * x + 4] = 0.5f * (go1[x + 1] + go2[x + 1]);
+			o[3 * x + 5] = bo[x + 1];
+		}
+		for (; x < W - 1; x++) {
+			int px = x & 1;
+			o[3 * x] = rp[px][x];
+			o[3 * x + 1] = 0.5f * (g1[px][x] + g2[px][x]);
+			o[3 * x + 2] = bp[px][x];
+		}
+		for (x = 0; x < W - 1; x++)
+			oc[x] = (unsigned char)(c0[x] | c0[x + 1] | c1[x] | c1[x + 1]);
+		/* the last column repeats the window of the one before */
+		memcpy(o + 3 * (size_t)(W - 1), o + 3 * (size_t)(W - 2), 3 * sizeof(float));
+		oc[W - 1] = oc[W - 2];
+		for (x = 0; x < W; x++)
+			preview_hist(p, o + 3 * x);
+	}
+	for (int x = 0; x < W; x++) /* the last row, never in r0 */
+		nclip += c1[x];
+	p->clipped_fraction = (double)nclip / ((double)W * (double)H);
+	free(r0);
+	free(c0);
+	return 0;
+}
+
+/* Bin the frame into p (rgb, clip, histograms, clipped fraction): a Bayer mosaic that
+ * fits at full size is interpolated (preview_bayer_full); otherwise blocks of k x k
+ * pixels, or of k x k 2 x 2 cells of a mosaic, are averaged. */
 static int preview_bin(const sampler *s, int W, int H, const char *cfa, preview *p)
 {
 	int bayer = cfa && cfa[0];
+	p->mono = !bayer && s->channels == 1;
+	if (bayer && W >= 2 && H >= 2 && W <= CONSOLE_PREVIEW_SIDE && H <= CONSOLE_PREVIEW_SIDE) {
+		p->cell = 1;
+		p->k = 1;
+		p->w = W;
+		p->h = H;
+		p->rgb = malloc(sizeof(float) * 3 * (size_t)W * (size_t)H);
+		p->clip = malloc((size_t)W * (size_t)H);
+		if (!p->rgb || !p->clip)
+			return -1;
+		return preview_bayer_full(s, W, H, cfa, p);
+	}
 	p->cell = bayer ? 2 : 1;
 	int cw = W / p->cell, ch = H / p->cell;
 	int lng = cw > ch ? cw : ch;
@@ -166,55 +306,66 @@ static int preview_bin(const sampler *s, int W, int H, const char *cfa, preview 
 	p->h = ch / p->k;
 	if (p->w < 1 || p->h < 1)
 		return -1;
-	p->rgb = malloc(sizeof(float) * 3 * (size_t)p->w * (size_t)p->h);
+	int bs = p->k * p->cell; /* block side in frame pixels */
+	int nch = s->channels;
+	p->rgb = calloc(3 * (size_t)p->w * (size_t)p->h, sizeof(float));
 	p->clip = calloc((size_t)p->w * (size_t)p->h, 1);
-	if (!p->rgb || !p->clip)
+	float *row = malloc(sizeof(float) * (size_t)W * (size_t)nch);
+	unsigned char *cl = malloc((size_t)W * (size_t)nch);
+	if (!p->rgb || !p->clip || !row || !cl) {
+		free(row);
+		free(cl);
 		return -1;
-	p->mono = !bayer && s->channels == 1;
-	long nclip = 0, nsamples = 0;
-	for (int oy = 0; oy < p->h; oy++)
-		for (int ox = 0; ox < p->w; ox++) {
-			double sum[3] = {0, 0, 0}, cnt[3] = {0, 0, 0};
-			int clip = 0;
-			for (int yy = 0; yy < p->k * p->cell; yy++) {
-				int y = oy * p->k * p->cell + yy;
-				for (int xx = 0; xx < p->k * p->cell; xx++) {
-					int x = ox * p->k * p->cell + xx;
-					int cl = 0;
-					if (bayer) {
-						int col = cfa_colour(cfa, x, y);
-						sum[col] += sample_at(s, x, y, 0, &cl);
-						cnt[col]++;
-						nsamples++;
-					} else {
-						for (int q = 0; q < s->channels; q++) {
-							int c1 = 0;
-							sum[q] += sample_at(s, x, y, q, &c1);
-							cnt[q]++;
-							nsamples++;
-							nclip += c1;
-							cl |= c1;
-						}
-						clip |= cl;
-						continue;
+	}
+	/* samples per colour in a block: a mosaic's cells hold 1 R, 2 G, 1 B */
+	float inv[3];
+	for (int q = 0; q < 3; q++)
+		inv[q] = 1.0f / (float)(bayer ? (q == 1 ? 2 : 1) * p->k * p->k : p->k * p->k);
+	long nclip = 0;
+	for (int oy = 0; oy < p->h; oy++) {
+		float *o = p->rgb + (size_t)oy * (size_t)p->w * 3;
+		unsigned char *oc = p->clip + (size_t)oy * (size_t)p->w;
+		for (int yy = 0; yy < bs; yy++) {
+			int y = oy * bs + yy;
+			frame_row(s, W, y, row, cl);
+			int c0 = bayer ? cfa_colour(cfa, 0, y) : 0, c1 = bayer ? cfa_colour(cfa, 1, y) : 0;
+			for (int ox = 0; ox < p->w; ox++) {
+				float *op = o + 3 * (size_t)ox;
+				int x = ox * bs, any = 0;
+				if (bayer) {
+					for (int xx = 0; xx < bs; xx += 2) {
+						op[c0] += row[x + xx];
+						op[c1] += row[x + xx + 1];
+						any |= cl[x + xx] | cl[x + xx + 1];
+						nclip += cl[x + xx] + cl[x + xx + 1];
 					}
-					nclip += cl;
-					clip |= cl;
+				} else {
+					const float *r = row + (size_t)x * (size_t)nch;
+					const unsigned char *c = cl + (size_t)x * (size_t)nch;
+					for (int xx = 0; xx < bs; xx++)
+						for (int q = 0; q < nch; q++) {
+							op[q] += r[xx * nch + q];
+							any |= c[xx * nch + q];
+							nclip += c[xx * nch + q];
+						}
 				}
-			}
-			float *o = p->rgb + 3 * ((size_t)oy * (size_t)p->w + (size_t)ox);
-			for (int q = 0; q < 3; q++) {
-				int src = s->channels == 1 && !bayer ? 0 : q;
-				o[q] = cnt[src] > 0 ? (float)(sum[src] / cnt[src]) : 0;
-			}
-			p->clip[(size_t)oy * (size_t)p->w + (size_t)ox] = (unsigned char)clip;
-			for (int q = 0; q < (p->mono ? 1 : 3); q++) {
-				int b = (int)(o[q] * CONSOLE_HIST_BINS);
-				b = b < 0 ? 0 : b >= CONSOLE_HIST_BINS ? CONSOLE_HIST_BINS - 1 : b;
-				p->hist[q][b]++;
+				oc[ox] |= (unsigned char)any;
 			}
 		}
+		for (int ox = 0; ox < p->w; ox++) {
+			float *op = o + 3 * (size_t)ox;
+			if (nch == 1 && !bayer)
+				op[0] *= inv[0], op[1] = op[2] = op[0];
+			else
+				for (int q = 0; q < 3; q++)
+					op[q] *= inv[q];
+			preview_hist(p, op);
+		}
+	}
+	long nsamples = (long)p->w * p->h * bs * bs * (bayer ? 1 : nch);
 	p->clipped_fraction = nsamples ? (double)nclip / (double)nsamples : 0;
+	free(row);
+	free(cl);
 	return 0;
 }
 
@@ -343,6 +494,55 @@ static int encode_png(const unsigned char *rgb, int w, int h, membuf *m)
 	return m->failed ? -1 : 0;
 }
 
+#if HAVE_JPEG
+typedef struct jpeg_fail {
+	struct jpeg_error_mgr mgr;
+	jmp_buf jb;
+	unsigned char *buf; /* the output, grown by libjpeg (in memory across longjmp) */
+	unsigned long size;
+} jpeg_fail;
+
+static void jpeg_fail_exit(j_common_ptr j) { longjmp(((jpeg_fail *)j->err)->jb, 1); }
+static void jpeg_quiet(j_common_ptr j, int level) { (void)j; (void)level; }
+
+/* 8-bit RGB rows into a JPEG in memory: quality 90, no chroma subsampling (the red
+ * clipping and green peaking marks stay one pixel wide), the fast DCT. */
+static int encode_jpeg(const unsigned char *rgb, int w, int h, membuf *m)
+{
+	struct jpeg_compress_struct j;
+	jpeg_fail jf = {.buf = NULL, .size = 0};
+	j.err = jpeg_std_error(&jf.mgr);
+	jf.mgr.error_exit = jpeg_fail_exit;
+	jf.mgr.emit_message = jpeg_quiet;
+	if (setjmp(jf.jb)) {
+		jpeg_destroy_compress(&j);
+		free(jf.buf);
+		return -1;
+	}
+	jpeg_create_compress(&j);
+	jpeg_mem_dest(&j, &jf.buf, &jf.size);
+	j.image_width = (JDIMENSION)w;
+	j.image_height = (JDIMENSION)h;
+	j.input_components = 3;
+	j.in_color_space = JCS_RGB;
+	jpeg_set_defaults(&j);
+	jpeg_set_quality(&j, 90, TRUE);
+	j.dct_method = JDCT_IFAST;
+	for (int c = 0; c < 3; c++)
+		j.comp_info[c].h_samp_factor = j.comp_info[c].v_samp_factor = 1;
+	jpeg_start_compress(&j, TRUE);
+	while (j.next_scanline < j.image_height) {
+		JSAMPROW row = (JSAMPROW)(rgb + (size_t)j.next_scanline * (size_t)w * 3);
+		jpeg_write_scanlines(&j, &row, 1);
+	}
+	jpeg_finish_compress(&j);
+	jpeg_destroy_compress(&j);
+	m->data = jf.buf;
+	m->size = jf.size;
+	return jf.buf ? 0 : -1;
+}
+#endif
+
 static unsigned char srgb_lut[4097];
 
 static void srgb_lut_init(void)
@@ -368,17 +568,17 @@ static unsigned char *display(const preview *p, double ev, const double roi[4], 
 	unsigned char *out = malloc(3 * n);
 	if (!out)
 		return NULL;
-	double gain = pow(2, ev);
-	for (size_t i = 0; i < n; i++) {
+	float g = (float)(4096 * pow(2, ev));
+	for (size_t i = 0; i < 3 * n; i++) {
+		float v = p->rgb[i] * g + 0.5f;
+		out[i] = srgb_lut[!(v > 0) ? 0 : v >= 4096 ? 4096 : (int)v];
+	}
+	for (size_t i = 0; i < n; i++)
 		if (p->clip[i]) {
 			out[3 * i] = 255;
 			out[3 * i + 1] = 0;
 			out[3 * i + 2] = 0;
-			continue;
 		}
-		for (int q = 0; q < 3; q++)
-			out[3 * i + q] = encode(p->rgb[3 * i + q] * gain);
-	}
 	if (peaking) {
 		int x0 = (int)(roi[0] * p->w), x1 = (int)(roi[2] * p->w);
 		int y0 = (int)(roi[1] * p->h), y1 = (int)(roi[3] * p->h);
@@ -415,27 +615,61 @@ static void live_set_error(console *c, const char *msg)
 	pthread_mutex_unlock(&c->lock);
 }
 
-/* One preview from one frame (camera held). */
-static int live_frame(console *c, double ev, const double roi[4], int peaking)
+static double cpu_ms(void)
+{
+	struct timespec ts;
+	clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+	return 1e3 * (double)ts.tv_sec + 1e-6 * (double)ts.tv_nsec;
+}
+
+static double wall_ms(void)
+{
+	struct timespec ts;
+	clock_gettime(CLOCK_REALTIME, &ts);
+	return 1e3 * (double)ts.tv_sec + 1e-6 * (double)ts.tv_nsec;
+}
+
+/* A frame binned, waiting for the second stage (display and encoding). */
+struct live_job {
+	preview p;
+	double ev, roi[4];
+	int peaking, own, fw, fh;
+	uint64_t seq;
+	double ts, fexp, fgain, captured;
+	double t_camera, t_bin, t_focus; /* ms */
+	double cpu_camera, cpu_capture;  /* ms of this thread's CPU time */
+	json_t *settings;
+};
+typedef struct live_job live_job;
+
+/* The first stage (camera held): one frame, the camera's own preview where its driver
+ * has one (kg_camera_preview), else a frame of the stream; binned, with its focus
+ * measure, into *out. */
+static int live_capture(console *c, double ev, const double roi[4], int peaking, live_job **out)
 {
 	kg_err err = {{0}};
-	int ret;
-	if (!c->streaming) {
-		if ((ret = kg_camera_start(c->cam, 0, &err))) {
-			live_set_error(c, err.msg);
-			return ret;
-		}
-		c->streaming = 1;
-	}
+	int ret, own = 0;
 	double exp_us = 0;
 	kg_camera_get(c->cam, KG_FEAT_EXPOSURE_US, &exp_us, NULL);
 	kg_frame f;
-	if ((ret = kg_camera_pop(c->cam, 1000 + (int)(2 * exp_us / 1000), &f, &err))) {
+	if (!kg_camera_has_preview(c->cam))
+		c->streaming = 1; /* kg_camera_preview starts the stream */
+	double tc = console_now(), cpu0 = cpu_ms();
+	if ((ret = kg_camera_preview(c->cam, 1000 + (int)(2 * exp_us / 1000), &f, &own, &err))) {
 		live_set_error(c, err.msg);
 		kg_camera_stop(c->cam, NULL);
 		c->streaming = 0;
 		return ret;
 	}
+	live_job *j = calloc(1, sizeof(*j));
+	if (!j) {
+		if (!own)
+			kg_camera_push(c->cam, &f, NULL);
+		live_set_error(c, "live view: out of memory");
+		return KG_ENOMEM;
+	}
+	j->captured = wall_ms();
+	j->cpu_camera = cpu_ms() - cpu0;
 	double t0 = console_now();
 	sampler s = {.f = &f};
 	kg_image *img = NULL;
@@ -443,7 +677,6 @@ static int live_frame(console *c, double ev, const double roi[4], int peaking)
 	switch (f.fmt.pixfmt) {
 	case KG_PIX_MONO8: case KG_PIX_BAYER8: case KG_PIX_RGB8:
 	case KG_PIX_MONO16: case KG_PIX_BAYER16: case KG_PIX_RGB16:
-		s.wide = kg_pixfmt_bytes_per_pixel(f.fmt.pixfmt) > 1 + 2 * (f.fmt.pixfmt == KG_PIX_RGB8);
 		s.wide = f.fmt.pixfmt == KG_PIX_MONO16 || f.fmt.pixfmt == KG_PIX_BAYER16 ||
 		         f.fmt.pixfmt == KG_PIX_RGB16;
 		s.channels = f.fmt.pixfmt == KG_PIX_RGB8 || f.fmt.pixfmt == KG_PIX_RGB16 ? 3 : 1;
@@ -451,72 +684,125 @@ static int live_frame(console *c, double ev, const double roi[4], int peaking)
 		s.scale = 1.0 / s.full;
 		cfa = f.fmt.pixfmt == KG_PIX_BAYER8 || f.fmt.pixfmt == KG_PIX_BAYER16 ? f.fmt.cfa : NULL;
 		break;
-	default:
+	default: /* MJPEG (a camera's viewfinder), YUYV: display-encoded, shown as they are */
 		ret = kg_frame_to_image(&f, 1, &img, &err);
 		s.img = img;
 		s.channels = img ? img->channels : 1;
 		break;
 	}
-	preview p = {0};
-	if (!ret && preview_bin(&s, f.fmt.width, f.fmt.height, cfa, &p))
+	if (!ret && preview_bin(&s, f.fmt.width, f.fmt.height, cfa, &j->p))
 		ret = kg_fail(&err, KG_ENOMEM, "live view: out of memory");
+	double t_bin = console_now();
 	if (!ret)
-		preview_focus(&s, f.fmt.width, f.fmt.height, cfa, roi, &p);
-	uint64_t seq = f.sequence;
-	double ts = f.timestamp, fexp = f.exposure_us, fgain = f.gain;
-	int fw = f.fmt.width, fh = f.fmt.height;
+		preview_focus(&s, f.fmt.width, f.fmt.height, cfa, roi, &j->p);
+	j->t_camera = 1000 * (t0 - tc);
+	j->t_bin = 1000 * (t_bin - t0);
+	j->t_focus = 1000 * (console_now() - t_bin);
+	j->cpu_capture = cpu_ms() - cpu0;
+	j->seq = f.sequence;
+	j->ts = f.timestamp;
+	j->fexp = f.exposure_us;
+	j->fgain = f.gain;
+	j->fw = f.fmt.width;
+	j->fh = f.fmt.height;
+	j->own = own;
+	j->ev = ev;
+	memcpy(j->roi, roi, sizeof(j->roi));
+	j->peaking = peaking;
 	kg_image_free(&img);
-	kg_camera_push(c->cam, &f, NULL);
+	if (!own)
+		kg_camera_push(c->cam, &f, NULL);
 	if (ret) {
 		live_set_error(c, err.msg);
-		preview_free(&p);
+		preview_free(&j->p);
+		free(j);
 		return ret;
 	}
-	unsigned char *rgb = display(&p, ev, roi, peaking);
+	j->settings = console_settings_json(c);
+	*out = j;
+	return 0;
+}
+
+/* The second stage: the display image, encoded, published with its numbers. */
+static void live_publish(console *c, live_job *j)
+{
+	double t0 = console_now(), cpu0 = cpu_ms();
+	preview *p = &j->p;
+	unsigned char *rgb = display(p, j->ev, j->roi, j->peaking);
+	double t_disp = console_now();
 	membuf m = {0};
-	if (!rgb || encode_png(rgb, p.w, p.h, &m)) {
+	const char *type = "image/png";
+#if HAVE_JPEG
+	type = "image/jpeg";
+	if (!rgb || encode_jpeg(rgb, p->w, p->h, &m)) {
+#else
+	if (!rgb || encode_png(rgb, p->w, p->h, &m)) {
+#endif
 		free(rgb);
 		free(m.data);
-		preview_free(&p);
+		json_decref(j->settings);
 		live_set_error(c, "live view: the preview could not be encoded");
-		return KG_ENOMEM;
+		return;
 	}
-	free(rgb);
-	double ms = 1000 * (console_now() - t0);
+	double t_end = console_now();
+	double ms = j->t_bin + j->t_focus + 1000 * (t_end - t0);
+	json_t *parts = json_pack("{s:f, s:f, s:f, s:f, s:f, s:f, s:f, s:f}", "camera", j->t_camera,
+	                          "bin", j->t_bin, "focus", j->t_focus, "display",
+	                          1000 * (t_disp - t0), "encode", 1000 * (t_end - t_disp),
+	                          "cpu_camera", j->cpu_camera, "cpu_capture", j->cpu_capture,
+	                          "cpu_publish", cpu_ms() - cpu0);
 	json_t *hist = json_array();
-	for (int q = 0; q < (p.mono ? 1 : 3); q++) {
+	for (int q = 0; q < (p->mono ? 1 : 3); q++) {
 		json_t *h = json_array();
 		for (int b = 0; b < CONSOLE_HIST_BINS; b++)
-			json_array_append_new(h, json_integer(p.hist[q][b]));
+			json_array_append_new(h, json_integer(p->hist[q][b]));
 		json_array_append_new(hist, h);
 	}
-	json_t *settings = console_settings_json(c);
 	pthread_mutex_lock(&c->lock);
 	c->live_seq++;
-	free(c->png);
-	c->png = m.data;
-	c->png_size = m.size;
+	free(c->img);
+	c->img = m.data;
+	c->img_size = m.size;
+	c->img_type = type;
+	free(c->disp);
+	c->disp = rgb;
+	c->disp_w = p->w;
+	c->disp_h = p->h;
+	c->captured_ms = j->captured;
 	c->preview_ms = ms;
 	c->preview_ms_mean = (c->preview_ms_mean * (double)c->previews + ms) / (double)(c->previews + 1);
 	c->previews++;
 	c->live_error[0] = 0;
 	json_decref(c->live);
 	c->live = json_pack("{s:I, s:I, s:f, s:o, s:o, s:i, s:i, s:i, s:i, s:i, s:o, s:f, s:o, s:o, "
-	                    "s:[f,f,f,f], s:f, s:b, s:o, s:f, s:f}",
-	                    "preview", (json_int_t)c->live_seq, "sequence", (json_int_t)seq,
-	                    "timestamp", ts, "exposure_us", jnum(fexp), "gain", jnum(fgain),
-	                    "width", fw, "height", fh, "preview_width", p.w, "preview_height", p.h,
-	                    "binning", p.k * p.cell, "histograms", hist, "clipped_fraction",
-	                    p.clipped_fraction, "focus", jnum(p.focus), "focus_mean",
-	                    jnum(p.focus_mean), "roi", roi[0], roi[1], roi[2], roi[3], "ev", ev,
-	                    "peaking", peaking, "settings",
-	                    settings, "server_ms", ms, "server_ms_mean", c->preview_ms_mean);
+	                    "s:[f,f,f,f], s:f, s:b, s:o, s:f, s:f, s:f, s:s, s:b, s:o}",
+	                    "preview", (json_int_t)c->live_seq, "sequence", (json_int_t)j->seq,
+	                    "timestamp", j->ts, "exposure_us", jnum(j->fexp), "gain", jnum(j->fgain),
+	                    "width", j->fw, "height", j->fh, "preview_width", p->w,
+	                    "preview_height", p->h, "binning", p->k * p->cell, "histograms", hist,
+	                    "clipped_fraction", p->clipped_fraction, "focus", jnum(p->focus),
+	                    "focus_mean", jnum(p->focus_mean), "roi", j->roi[0], j->roi[1],
+	                    j->roi[2], j->roi[3], "ev", j->ev, "peaking", j->peaking, "settings",
+	                    j->settings, "server_ms", ms, "server_ms_mean", c->preview_ms_mean,
+	                    "captured_ms", j->captured, "image_type", type, "camera_preview",
+	                    j->own, "server_parts_ms", parts);
+	free(c->live_text);
+	c->live_text = json_dumps(c->live, JSON_COMPACT | JSON_ENSURE_ASCII);
 	pthread_cond_broadcast(&c->cond);
 	pthread_mutex_unlock(&c->lock);
-	preview_free(&p);
-	return 0;
 }
 
+static void live_job_free(live_job *j)
+{
+	if (j) {
+		preview_free(&j->p);
+		free(j);
+	}
+}
+
+/* The live view runs in two threads so that one frame is binned while the one before
+ * is encoded: live_main (the camera, binning, focus) hands each frame to encode_main
+ * (display, JPEG, publishing) through c->live_job, waiting while it is taken. */
 static void *live_main(void *arg)
 {
 	console *c = arg;
@@ -539,15 +825,63 @@ static void *live_main(void *arg)
 		pthread_mutex_unlock(&c->lock);
 		if (stop)
 			break;
+		live_job *j = NULL;
 		pthread_mutex_lock(&c->cam_lock);
-		int ret = c->cam ? live_frame(c, ev, roi, peaking) : -1;
+		int ret = c->cam ? live_capture(c, ev, roi, peaking, &j) : -1;
 		if (!c->cam)
 			live_set_error(c, "no camera (start the console with --camera URI)");
 		pthread_mutex_unlock(&c->cam_lock);
-		if (ret) /* wait before trying again */
+		if (ret) { /* wait before trying again */
 			nanosleep(&(struct timespec){0, 500000000L}, NULL);
+			continue;
+		}
+		pthread_mutex_lock(&c->lock);
+		while (c->live_job && !c->stop)
+			pthread_cond_wait(&c->cond, &c->lock);
+		if (c->stop) {
+			pthread_mutex_unlock(&c->lock);
+			json_decref(j->settings);
+			live_job_free(j);
+			break;
+		}
+		c->live_job = j;
+		pthread_cond_broadcast(&c->cond);
+		pthread_mutex_unlock(&c->lock);
 	}
 	return NULL;
+}
+
+static void *encode_main(void *arg)
+{
+	console *c = arg;
+	for (;;) {
+		pthread_mutex_lock(&c->lock);
+		while (!c->live_job && !c->stop)
+			pthread_cond_wait(&c->cond, &c->lock);
+		live_job *j = c->live_job;
+		c->live_job = NULL;
+		pthread_cond_broadcast(&c->cond);
+		pthread_mutex_unlock(&c->lock);
+		if (!j)
+			break; /* stopping */
+		live_publish(c, j);
+		live_job_free(j);
+	}
+	return NULL;
+}
+
+static void console_live_stop_encoder(console *c)
+{
+	pthread_mutex_lock(&c->lock);
+	c->stop = 1;
+	pthread_cond_broadcast(&c->cond);
+	pthread_mutex_unlock(&c->lock);
+	pthread_join(c->encode_thread, NULL);
+	live_job *j = c->live_job; /* taken by nobody once both threads stopped */
+	c->live_job = NULL;
+	if (j)
+		json_decref(j->settings);
+	live_job_free(j);
 }
 
 int console_live_start(console *c, kg_err *err)
@@ -555,8 +889,12 @@ int console_live_start(console *c, kg_err *err)
 	srgb_lut_init();
 	c->roi[0] = c->roi[1] = 0.4;
 	c->roi[2] = c->roi[3] = 0.6;
-	if (pthread_create(&c->live_thread, NULL, live_main, c))
+	if (pthread_create(&c->encode_thread, NULL, encode_main, c))
+		return kg_fail(err, KG_EIO, "console: cannot start the live view's encoding thread");
+	if (pthread_create(&c->live_thread, NULL, live_main, c)) {
+		console_live_stop_encoder(c);
 		return kg_fail(err, KG_EIO, "console: cannot start the live view thread");
+	}
 	return 0;
 }
 
@@ -567,6 +905,7 @@ void console_live_stop(console *c)
 	pthread_cond_broadcast(&c->cond);
 	pthread_mutex_unlock(&c->lock);
 	pthread_join(c->live_thread, NULL);
+	console_live_stop_encoder(c);
 	pthread_mutex_lock(&c->cam_lock);
 	if (c->cam && c->streaming)
 		kg_camera_stop(c->cam, NULL);
@@ -677,13 +1016,45 @@ json_t *console_live_json(console *c, uint64_t after)
 unsigned char *console_live_png(console *c, size_t *size)
 {
 	pthread_mutex_lock(&c->lock);
-	unsigned char *copy = c->png ? malloc(c->png_size) : NULL;
-	if (copy) {
-		memcpy(copy, c->png, c->png_size);
-		*size = c->png_size;
+	int w = c->disp_w, h = c->disp_h;
+	unsigned char *copy = c->disp ? malloc(3 * (size_t)w * (size_t)h) : NULL;
+	if (copy)
+		memcpy(copy, c->disp, 3 * (size_t)w * (size_t)h);
+	pthread_mutex_unlock(&c->lock);
+	membuf m = {0};
+	if (copy && encode_png(copy, w, h, &m)) {
+		free(m.data);
+		m.data = NULL;
+	}
+	free(copy);
+	*size = m.size;
+	return m.data;
+}
+
+int console_live_preview(console *c, uint64_t after, console_preview *out)
+{
+	memset(out, 0, sizeof(*out));
+	struct timespec dl;
+	clock_gettime(CLOCK_REALTIME, &dl);
+	dl.tv_sec += 2;
+	pthread_mutex_lock(&c->lock);
+	c->last_request = console_now();
+	pthread_cond_broadcast(&c->cond);
+	int timed_out = 0;
+	while (!c->stop && (c->live_seq <= after || !c->img) && !timed_out)
+		timed_out = pthread_cond_timedwait(&c->cond, &c->lock, &dl) != 0;
+	int ret = -1;
+	if (c->img && c->live_seq > after && (out->data = malloc(c->img_size))) {
+		memcpy(out->data, c->img, c->img_size);
+		out->size = c->img_size;
+		out->type = c->img_type;
+		out->seq = c->live_seq;
+		out->captured_ms = c->captured_ms;
+		out->live = c->live_text ? strdup(c->live_text) : NULL;
+		ret = 0;
 	}
 	pthread_mutex_unlock(&c->lock);
-	return copy;
+	return ret;
 }
 
 /* ---- the chart check ---------------------------------------------------------------- */

@@ -482,6 +482,30 @@ int kg_camera_pop(kg_camera *c, int timeout_ms, kg_frame *frame, kg_err *err)
 	return 0;
 }
 
+int kg_camera_has_preview(const kg_camera *c) { return c && c->drv->preview != NULL; }
+
+int kg_camera_preview(kg_camera *c, int timeout_ms, kg_frame *frame, int *own, kg_err *err)
+{
+	kg_check_arg(c && frame && own, err);
+	*own = 0;
+	if (!c->drv->preview) {
+		int ret = kg_camera_start(c, 0, err);
+		return ret ? ret : kg_camera_pop(c, timeout_ms, frame, err);
+	}
+	memset(frame, 0, sizeof(*frame));
+	frame->exposure_us = NAN;
+	frame->gain = NAN;
+	int ret = c->drv->preview(c->state, timeout_ms, frame, err);
+	if (ret)
+		return prefixed(c, err, ret);
+	if (isnan(frame->exposure_us))
+		frame->exposure_us = c->exposure_us;
+	if (isnan(frame->gain))
+		frame->gain = c->gain;
+	*own = 1;
+	return 0;
+}
+
 int kg_camera_push(kg_camera *c, kg_frame *frame, kg_err *err)
 {
 	kg_check_arg(c && frame, err);

@@ -37,6 +37,11 @@ typedef struct kg_camera_driver {
 	void (*stats)(void *state, kg_stream_stats *out);
 	/* Optional: frames left to deliver (a finite source such as files:), else -1. */
 	long (*frames_available)(void *state);
+	/* Optional: the camera's own live-view image for a focus aid (gphoto2: the
+	 * viewfinder, never a full exposure; sim: a quick synthesis), with or without the
+	 * stream started. The data stays the driver's until its next preview or close (no
+	 * push). Without it kg_camera_preview starts the stream and pops a frame. */
+	int (*preview)(void *state, int timeout_ms, kg_frame *frame, kg_err *err);
 } kg_camera_driver;
 
 /* One line of a recording's index (camera_recording.c reads them; replay serves them). */

@@ -55,6 +55,15 @@ typedef struct sim_cam {
 	int streaming, nbuf;
 	uint8_t *buf[SIM_MAX_BUFFERS];
 	int held[SIM_MAX_BUFFERS];
+	/* preview: the expected DN and its noise's standard deviation per sample, for the
+	 * settings in pv_key (recomputed when they change), a table of normal deviates,
+	 * the frame buffer, its count and the time the next preview is due */
+	float *pv_mean, *pv_sigma, *pv_noise;
+	double pv_key[6];
+	kg_frame_format pv_fmt;
+	uint8_t *pv_buf;
+	uint64_t pv_seq;
+	double pv_next;
 } sim_cam;
 
 /* ---- scene ---------------------------------------------------------------------- */
@@ -291,6 +300,10 @@ static void sim_close(void *state)
 		return;
 	for (int i = 0; i < SIM_MAX_BUFFERS; i++)
 		free(s->buf[i]);
+	free(s->pv_mean);
+	free(s->pv_sigma);
+	free(s->pv_noise);
+	free(s->pv_buf);
 	kg_image_free(&s->scene);
 	free(s);
 }
@@ -620,6 +633,134 @@ static int sim_pop(void *state, int timeout_ms, kg_frame *frame, kg_err *err)
 	return 0;
 }
 
+/* ---- preview --------------------------------------------------------------------- */
+
+#define SIM_NOISE_N 65536 /* normal deviates in the preview's table (a power of 2) */
+
+/* The preview's expected DN and noise per sample for the settings in force (the model
+ * of render with the Poisson count replaced by a normal of the same variance). */
+static int preview_model(sim_cam *s, double exposure, kg_err *err)
+{
+	const kg_frame_format *f = &s->fmt;
+	double key[6] = {exposure, s->gain_db, wb_in_force(s, 0), wb_in_force(s, 1),
+	                 (double)f->pixfmt, (double)f->bits};
+	if (s->pv_mean && !memcmp(key, s->pv_key, sizeof(key)) &&
+	    !memcmp(&s->pv_fmt, f, sizeof(*f)))
+		return 0;
+	int ch = kg_pixfmt_channels(f->pixfmt);
+	size_t n = (size_t)f->width * (size_t)f->height * (size_t)ch;
+	free(s->pv_mean);
+	free(s->pv_sigma);
+	free(s->pv_buf);
+	s->pv_mean = malloc(n * sizeof(float));
+	s->pv_sigma = malloc(n * sizeof(float));
+	s->pv_buf = malloc(f->size);
+	if (!s->pv_noise && (s->pv_noise = malloc(SIM_NOISE_N * sizeof(float)))) {
+		kg_rng rng;
+		kg_rng_seed(&rng, s->seed * 0x9e3779b97f4a7c15ULL + 0x5eedULL);
+		for (int i = 0; i < SIM_NOISE_N; i++)
+			s->pv_noise[i] = (float)kg_rng_normal(&rng);
+	}
+	if (!s->pv_mean || !s->pv_sigma || !s->pv_buf || !s->pv_noise) {
+		free(s->pv_mean);
+		s->pv_mean = NULL;
+		return kg_fail(err, KG_ENOMEM, "out of memory for the %dx%d preview", f->width,
+		               f->height);
+	}
+	const kg_image *sc = s->scene;
+	double maxdn = (double)((1u << f->bits) - 1u);
+	double k = maxdn / s->fullwell * gain_linear(s);
+	double wb[3] = {key[2], 1, key[3]};
+	double scale = s->fullwell * exposure / s->ref_exposure_us;
+	int bayer = f->pixfmt == KG_PIX_BAYER8 || f->pixfmt == KG_PIX_BAYER16;
+	size_t i = 0;
+	for (int y = 0; y < f->height; y++) {
+		int sy = f->offset_y + y;
+		for (int x = 0; x < f->width; x++) {
+			int sx = f->offset_x + x;
+			const float *p =
+				sc->data + ((size_t)sy * (size_t)sc->width + (size_t)sx) * (size_t)sc->channels;
+			for (int c = 0; c < ch; c++, i++) {
+				int colour = c;
+				if (bayer) {
+					char l = f->cfa[(sy & 1) * 2 + (sx & 1)];
+					colour = l == 'R' ? 0 : l == 'G' ? 1 : 2;
+				} else if (ch == 1) {
+					colour = -1;
+				}
+				double v = sc->channels == 1 ? p[0]
+				           : colour >= 0     ? p[colour]
+				                             : 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
+				double e = isfinite(v) && v > 0 ? scale * v : 0;
+				double kc = k * (colour >= 0 ? wb[colour] : 1);
+				s->pv_mean[i] = (float)(e * kc);
+				s->pv_sigma[i] = (float)(kc * sqrt(e + s->read_e * s->read_e));
+			}
+		}
+	}
+	memcpy(s->pv_key, key, sizeof(key));
+	s->pv_fmt = *f;
+	return 0;
+}
+
+/* A live-view frame: the expected DN plus normal noise from a table (each row starts
+ * at a random place in it), paced at max(1/fps, exposure) in real time whatever
+ * realtime= says (a live view is), numbered on its own (the stream's sequence and
+ * clock are untouched). */
+static int sim_preview(void *state, int timeout_ms, kg_frame *frame, kg_err *err)
+{
+	sim_cam *s = state;
+	double exposure = exposure_in_force(s);
+	int ret = preview_model(s, exposure, err);
+	if (ret)
+		return ret;
+	double period = fmax(1.0 / s->fps, exposure * 1e-6);
+	double now = since_open(s), due = fmax(s->pv_next, now);
+	if ((due - now) * 1000.0 > timeout_ms) {
+		if (timeout_ms > 0)
+			sleep_until(&s->t0, now + timeout_ms / 1000.0);
+		return kg_fail(err, KG_ETIMEDOUT, "no preview within %d ms (frame period %.3f s)",
+		               timeout_ms, period);
+	}
+	if (due > now)
+		sleep_until(&s->t0, due);
+	s->pv_next = due + period;
+	s->pv_seq++;
+	const kg_frame_format *f = &s->fmt;
+	int ch = kg_pixfmt_channels(f->pixfmt);
+	int wide = kg_pixfmt_bytes_per_pixel(f->pixfmt) / ch == 2;
+	float maxdn = (float)((1u << f->bits) - 1u);
+	size_t rowlen = (size_t)f->width * (size_t)ch;
+	kg_rng rng;
+	kg_rng_seed(&rng, s->seed * 0x9e3779b97f4a7c15ULL + 0xbeefULL + s->pv_seq);
+	for (int y = 0; y < f->height; y++) {
+		const float *m = s->pv_mean + (size_t)y * rowlen, *sd = s->pv_sigma + (size_t)y * rowlen;
+		uint8_t *row = s->pv_buf + f->stride * (size_t)y;
+		unsigned o = (unsigned)kg_rng_next(&rng);
+		for (size_t i = 0; i < rowlen; i++) {
+			float dn = m[i] + sd[i] * s->pv_noise[(o + i) & (SIM_NOISE_N - 1)] + 0.5f;
+			dn = dn < 0 ? 0 : dn > maxdn ? maxdn : dn;
+			unsigned u = (unsigned)dn;
+			if (wide) {
+				row[2 * i] = (uint8_t)(u & 0xff);
+				row[2 * i + 1] = (uint8_t)(u >> 8);
+			} else {
+				row[i] = (uint8_t)u;
+			}
+		}
+	}
+	frame->fmt = *f;
+	frame->data = s->pv_buf;
+	frame->size = f->size;
+	frame->sequence = s->pv_seq;
+	frame->timestamp = due;
+	frame->status = KG_FRAME_OK;
+	frame->exposure_us = exposure;
+	frame->gain = s->gain_db;
+	frame->slot = -1;
+	return 0;
+}
+
 static int sim_push(void *state, kg_frame *frame, kg_err *err)
 {
 	sim_cam *s = state;
@@ -645,4 +786,5 @@ const kg_camera_driver kg_camera_sim_driver = {
 	.stop = sim_stop,
 	.pop = sim_pop,
 	.push = sim_push,
+	.preview = sim_preview,
 };

@@ -173,6 +173,16 @@ int kg_camera_stop(kg_camera *c, kg_err *err);
  * can reuse its buffer. */
 int kg_camera_pop(kg_camera *c, int timeout_ms, kg_frame *frame, kg_err *err);
 int kg_camera_push(kg_camera *c, kg_frame *frame, kg_err *err);
+/* A live-view frame (the console's live view, a focus aid): the camera's own preview
+ * where its driver has one (gphoto2: libgphoto2's capture preview, the viewfinder
+ * image, never a full exposure; sim: the scene with Gaussian noise, paced at the frame
+ * rate), else the next frame of the stream, started if it was not (give it back with
+ * kg_camera_push as usual). *own is set to 1 for a driver's preview: its data stays
+ * the camera's until the next kg_camera_preview, kg_camera_stop or kg_camera_free and
+ * is not pushed back. A preview is never recorded and not counted in the stats. */
+int kg_camera_preview(kg_camera *c, int timeout_ms, kg_frame *frame, int *own, kg_err *err);
+/* 1 when the camera's driver has its own preview (kg_camera_preview does not stream). */
+int kg_camera_has_preview(const kg_camera *c);
 /* How many frames the camera can still deliver: the files left (files:), or -1 for a
  * camera that delivers as long as it streams. */
 long kg_camera_frames_available(kg_camera *c);

@@ -13,6 +13,10 @@
  *                       frames then name it as their source (the manifest of
  *                       `kogei acquire` lists the originals with their sha256)
  *
+ * The live view (kg_camera_preview, the console's) is the camera's own: libgphoto2's
+ * capture preview, a JPEG from the viewfinder, never an exposure; a camera without one
+ * says so.
+ *
  * Each pop is one exposure: capture (gp_camera_capture), the raw file downloaded to
  * memory, decoded linearly by core/raw.c (LibRaw) and delivered as BAYER16 (the
  * decoded (raw-black)/(white-black) on 0..1 times 65535). The file's own metadata
@@ -88,6 +92,10 @@ typedef struct gp_state {
 	               sizeof(((CameraFilePath *)0)->name)];
 	kg_raw_meta meta;
 	int have_file;
+
+	CameraFile *preview;   /* the last live-view image (its data is the frame's) */
+	uint64_t previews;     /* gp_camera_capture_preview calls that gave an image */
+	uint64_t captures;     /* gp_camera_capture calls (full exposures) */
 } gp_state;
 
 /* ---- errors ------------------------------------------------------------------- */
@@ -652,6 +660,8 @@ static void gp2_close(void *state)
 		gp_camera_exit(s->cam, s->ctx);
 		gp_camera_free(s->cam);
 	}
+	if (s->preview)
+		gp_file_unref(s->preview);
 	if (s->ctx)
 		gp_context_unref(s->ctx);
 	free(s->frame);
@@ -775,6 +785,7 @@ static int capture_one(gp_state *s, int timeout_ms, kg_image **img, kg_err *err)
 	CameraFilePath path;
 	memset(&path, 0, sizeof(path));
 	int gpret = gp_camera_capture(s->cam, GP_CAPTURE_IMAGE, &path, s->ctx);
+	s->captures++;
 	if (gpret < GP_OK)
 		return gpfail(s, err, gpret == GP_ERROR_TIMEOUT ? KG_ETIMEDOUT : KG_EIO, gpret,
 		              "camera %s: the capture failed (autofocus that cannot lock, a full "
@@ -976,6 +987,87 @@ static void gp2_stats(void *state, kg_stream_stats *out)
 	out->failed = s->failed;
 }
 
+/* ---- live view ---------------------------------------------------------------- */
+
+/* The width and height in the first SOF marker of a JPEG; -1 when there is none. */
+static int jpeg_size(const unsigned char *d, size_t n, int *w, int *h)
+{
+	size_t i = 2;
+	if (n < 4 || d[0] != 0xFF || d[1] != 0xD8)
+		return -1;
+	while (i + 9 < n) {
+		if (d[i] != 0xFF) {
+			i++;
+			continue;
+		}
+		unsigned m = d[i + 1];
+		if (m == 0xFF || m == 0x01 || (m >= 0xD0 && m <= 0xD7)) {
+			i += m == 0xFF ? 1 : 2;
+			continue;
+		}
+		size_t len = (size_t)(d[i + 2] << 8 | d[i + 3]);
+		if (m >= 0xC0 && m <= 0xCF && m != 0xC4 && m != 0xC8 && m != 0xCC) {
+			*h = d[i + 5] << 8 | d[i + 6];
+			*w = d[i + 7] << 8 | d[i + 8];
+			return *w > 0 && *h > 0 ? 0 : -1;
+		}
+		i += 2 + len;
+	}
+	return -1;
+}
+
+/* The camera's live view (libgphoto2's capture preview: the viewfinder image the
+ * camera streams, never an exposure to the card), delivered as an MJPEG frame. */
+static int gp2_preview(void *state, int timeout_ms, kg_frame *frame, kg_err *err)
+{
+	gp_state *s = state;
+	(void)timeout_ms; /* libgphoto2's own timeouts apply */
+	if (s->preview) {
+		gp_file_unref(s->preview);
+		s->preview = NULL;
+	}
+	int gpret = gp_file_new(&s->preview);
+	if (gpret < GP_OK)
+		return gpfail(s, err, KG_ENOMEM, gpret, "camera %s: live view", s->model);
+	gpret = gp_camera_capture_preview(s->cam, s->preview, s->ctx);
+	if (gpret < GP_OK)
+		return gpfail(s, err, gpret == GP_ERROR_NOT_SUPPORTED ? KG_ENOTSUP : KG_EIO, gpret,
+		              "camera %s: no live view image (libgphoto2's capture preview; the "
+		              "live view never falls back to full exposures)",
+		              s->model);
+	const char *data = NULL;
+	unsigned long size = 0;
+	int w = 0, h = 0;
+	gp_file_get_data_and_size(s->preview, &data, &size);
+	if (!data || jpeg_size((const unsigned char *)data, size, &w, &h))
+		return kg_fail(err, KG_EIO, "camera %s: the live view image (%lu bytes) is not a "
+		               "JPEG", s->model, size);
+	s->previews++;
+	memset(&frame->fmt, 0, sizeof(frame->fmt));
+	frame->fmt.pixfmt = KG_PIX_MJPEG;
+	frame->fmt.width = w;
+	frame->fmt.height = h;
+	frame->fmt.bits = 8;
+	frame->fmt.size = size;
+	frame->data = data;
+	frame->size = size;
+	frame->sequence = s->previews;
+	frame->timestamp = now_s();
+	frame->status = KG_FRAME_OK;
+	frame->slot = -1;
+	return 0;
+}
+
+int kg_gphoto2_counts(kg_camera *c, uint64_t *captures, uint64_t *previews)
+{
+	gp_state *s = kg_camera_driver_state(c, &kg_camera_gphoto2_driver);
+	if (!s)
+		return KG_EINVAL;
+	*captures = s->captures;
+	*previews = s->previews;
+	return 0;
+}
+
 int kg_gphoto2_last_file(kg_camera *c, const void **data, size_t *size, const char **name,
                          kg_raw_meta *meta, kg_err *err)
 {
@@ -1101,4 +1193,5 @@ const kg_camera_driver kg_camera_gphoto2_driver = {
 	.pop = gp2_pop,
 	.push = gp2_push,
 	.stats = gp2_stats,
+	.preview = gp2_preview,
 };

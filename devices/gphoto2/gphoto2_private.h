@@ -4,6 +4,7 @@
 #define KG_GPHOTO2_PRIVATE_H
 
 #include <stddef.h>
+#include <stdint.h>
 
 #include "kg_camera.h"
 #include "raw.h"
@@ -15,5 +16,10 @@
  * gphoto2 camera, KG_ENOENT before its first capture. */
 int kg_gphoto2_last_file(kg_camera *c, const void **data, size_t *size, const char **name,
                          kg_raw_meta *meta, kg_err *err);
+
+/* How many full exposures (gp_camera_capture) and live-view images
+ * (gp_camera_capture_preview) the gphoto2: camera c has taken since it was opened;
+ * KG_EINVAL when c is not one. */
+int kg_gphoto2_counts(kg_camera *c, uint64_t *captures, uint64_t *previews);
 
 #endif

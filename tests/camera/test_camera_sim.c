@@ -3,7 +3,8 @@
  * (scaled by the conversion gain, plus 1/12 DN^2 of rounding), full scale clips,
  * the Bayer mosaic samples the colour its CFA names, auto white balance and auto
  * exposure act until kg_camera_manual turns them off, and a frame depends only on
- * (seed, sequence, settings). Tolerances are 5 standard errors of the statistic. */
+ * (seed, sequence, settings); the live view (kg_camera_preview) has the frames' mean
+ * and variance. Tolerances are 5 standard errors of the statistic. */
 #include <math.h>
 #include <string.h>
 
@@ -85,6 +86,79 @@ static void strip_stats(kg_camera *c, int nframes, double mean[NSTRIP], double v
 		mean[i] = s[i] / (double)n[i];
 		var[i] = (s2[i] - s[i] * mean[i]) / (double)(n[i] - 1);
 	}
+}
+
+/* The live view (kg_camera_preview): the same mean and variance as the frames (shot
+ * and read noise, here Gaussian from a table), the settings in force (exposure
+ * doubled: twice the mean), counted on its own: the stream is not started, and its
+ * first frame afterwards is still number 1. */
+static void test_preview(void)
+{
+	const double read_e = 8;
+	const char *scene = cam_path("strips.tif");
+	kg_inputs_reset();
+	write_strips(scene);
+	char uri[4600];
+	snprintf(uri, sizeof(uri), "sim:%s?format=mono12&fullwell=%g&read=%g&seed=7&"
+	         "ref_exposure_us=%g&fps=200", scene, FULLWELL, read_e, REF_US);
+	kg_camera *c = cam_open(uri);
+	kg_err e = {{0}};
+	cam_must(kg_camera_manual(c, &e), &e, "kg_camera_manual");
+	CHECK(kg_camera_has_preview(c), "the sim camera has its own preview");
+	const int nframes = 4;
+	for (int k = 0; k < 2; k++) {
+		double f = k ? 0.5 : 0.25;
+		set(c, KG_FEAT_EXPOSURE_US, f * REF_US);
+		double mean[NSTRIP], var[NSTRIP];
+		/* the preview count goes on across settings: number from it */
+		kg_frame fr;
+		int own = 0;
+		cam_must(kg_camera_preview(c, 1000, &fr, &own, &e), &e, "preview");
+		CHECK(fr.fmt.pixfmt == KG_PIX_MONO16 && fr.fmt.width == 96 && fr.fmt.height == 64 &&
+		          fr.exposure_us == f * REF_US,
+		      "preview format %s %dx%d, exposure %g", kg_pixfmt_name(fr.fmt.pixfmt),
+		      fr.fmt.width, fr.fmt.height, fr.exposure_us);
+		uint64_t base = fr.sequence;
+		double s[NSTRIP] = {0}, s2[NSTRIP] = {0};
+		long n = 0;
+		for (int j = 0; j < nframes; j++) {
+			cam_must(kg_camera_preview(c, 1000, &fr, &own, &e), &e, "preview");
+			CHECK(own == 1 && fr.sequence == base + (uint64_t)j + 1, "preview sequence %llu",
+			      (unsigned long long)fr.sequence);
+			for (int y = 0; y < 64; y++)
+				for (int x = 0; x < 96; x++) {
+					unsigned v = cam_sample(&fr, x, y, 0);
+					s[x / 32] += v;
+					s2[x / 32] += (double)v * v;
+				}
+			n += 32 * 64;
+		}
+		double g = 4095 / FULLWELL;
+		for (int i = 0; i < NSTRIP; i++) {
+			mean[i] = s[i] / (double)n;
+			var[i] = (s2[i] - s[i] * mean[i]) / (double)(n - 1);
+			double mu_e = FULLWELL * strip_level[i] * f;
+			double want_mean = mu_e * g, want_var = (mu_e + read_e * read_e) * g * g + 1.0 / 12.0;
+			char what[96];
+			snprintf(what, sizeof(what), "preview mean, level %.1f, exposure x%.2f",
+			         strip_level[i], f);
+			CHECK_NEAR(mean[i], want_mean, 5 * sqrt(want_var / n), what);
+			snprintf(what, sizeof(what), "preview variance, level %.1f, exposure x%.2f",
+			         strip_level[i], f);
+			CHECK_NEAR(var[i], want_var, 5 * want_var * sqrt(2.0 / (n - 1)), what);
+		}
+	}
+	kg_stream_stats st;
+	kg_camera_stats(c, &st);
+	CHECK(st.completed == 0, "previews are no stream frames (%llu completed)",
+	      (unsigned long long)st.completed);
+	cam_must(kg_camera_start(c, 0, &e), &e, "start");
+	kg_frame fr;
+	cam_must(kg_camera_pop(c, 1000, &fr, &e), &e, "pop");
+	CHECK(fr.sequence == 1, "the stream's first frame after previews: sequence %llu",
+	      (unsigned long long)fr.sequence);
+	cam_must(kg_camera_push(c, &fr, &e), &e, "push");
+	kg_camera_free(&c);
 }
 
 /* read_e: read noise in electrons; ncfg: how many of the settings below to take. */
@@ -314,6 +388,7 @@ int main(void)
 	test_physics(60, 3); /* read noise dominates */
 	test_bayer();
 	test_reproducible();
+	test_preview();
 	test_uri_errors();
 	cam_scratch_remove();
 	return kg_test_done("test_camera_sim");

@@ -6,6 +6,7 @@ of every numeric field (400 naming it, nothing changed), the session lock, and t
 chart (answers, redo, stop and resume).
 
 usage: console_api.py KOGEI PARENT_DIR [TCS.sp] (works in a new directory below it)"""
+import http.client
 import json
 import os
 import shutil
@@ -205,6 +206,29 @@ def dark_capture(c, work):
     check(j.get("preview", 0) > seq1, "the live view runs after a capture (%s)" % j.get("error"))
     st, png = c.request("GET", "/api/live.png")
     check(st == 200 and png[:8] == b"\x89PNG\r\n\x1a\n", "live.png is a PNG (%d)" % st)
+    # the page's live view: the next preview itself, its numbers in headers
+    st, j = c.json("GET", "/api/live")
+    seq = j.get("preview", 0)
+    conn = http.client.HTTPConnection(c.host, c.port, timeout=30)
+    conn.request("GET", "/api/preview?after=%d" % seq, headers={"Host": c.hostport})
+    r = conn.getresponse()
+    img = r.read()
+    n = int(r.getheader("X-Kogei-Preview") or 0)
+    live = json.loads(r.getheader("X-Kogei-Live") or "{}")
+    check(r.status == 200 and n > seq and live.get("preview") == n,
+          "GET /api/preview?after=%d: %d, preview %d, its numbers %s" % (seq, r.status, n,
+                                                                         live.get("preview")))
+    jpeg = r.getheader("Content-Type") == "image/jpeg"
+    check(img[:2] == b"\xff\xd8" if jpeg else img[:8] == b"\x89PNG\r\n\x1a\n",
+          "the preview is the image its Content-Type says (%s)" % r.getheader("Content-Type"))
+    cap = float(r.getheader("X-Kogei-Captured-Ms") or 0)
+    check(abs(cap - time.time() * 1000) < 60000, "X-Kogei-Captured-Ms is the wall clock: %s" % cap)
+    conn.close()
+    for q in ("-1", "1.5", "x"):
+        st, _ = c.request("GET", "/api/preview?after=" + q)
+        check(st == 400, "GET /api/preview?after=%s: expected 400, got %d" % (q, st))
+    st, _ = c.request("GET", "/api/preview?after=0", headers={"Host": "evil.example:80"})
+    check(st == 403, "GET /api/preview with another Host: expected 403, got %d" % st)
 
 
 def second_console(kogei, work):
@@ -219,7 +243,8 @@ def token(kogei, work):
     c = Console(kogei, work + "/T", [SIM], listen="127.0.0.2:0")
     try:
         check(c.token is not None and len(c.token) == 32, "a token is printed for 127.0.0.2")
-        for path in ("/", "/api/state", "/api/live.png", "/session/session.json"):
+        for path in ("/", "/api/state", "/api/live.png", "/api/preview?after=0",
+                     "/session/session.json"):
             st, body = c.request("GET", path, token=False)
             check(st == 403 and b"token" in body, "GET %s without the token: %d" % (path, st))
         st, _ = c.request("GET", "/api/state", token=False,

@@ -76,9 +76,10 @@ class Page:
         self.cdp.call("Target.closeTarget", {"targetId": self.target})
 
 
+# clipping red as drawn from the JPEG preview (within its compression error)
 RED = """(() => { const c = document.getElementById('live');
   const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data; let n = 0;
-  for (let i = 0; i < d.length; i += 4) if (d[i] === 255 && d[i+1] === 0 && d[i+2] === 0) n++;
+  for (let i = 0; i < d.length; i += 4) if (d[i] > 235 && d[i+1] < 20 && d[i+2] < 20) n++;
   return n / (d.length / 4); })()"""
 HASH = """(() => { const c = document.getElementById('live');
   const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data; let h = 0;

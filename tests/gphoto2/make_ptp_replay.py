@@ -2,7 +2,10 @@
 """Synthesise a umockdev replay of a generic PTP camera (ISO 15740 over USB, Still
 Image class 6/1/1) taking one picture, for libgphoto2's ptp2 driver (see README.md).
 
-usage: make_ptp_replay.py DNG OUT_DIR
+usage: make_ptp_replay.py DNG OUT_DIR [JPEG]
+
+With JPEG, also the preview scenario: a camera with Nikon's live view serving JPEG
+(behind a header) as its live-view images.
 
 Writes OUT_DIR/ptpcam.umockdev (the device) and OUT_DIR/ptpcam.ioctl (the usbfs URBs
 libgphoto2 submits and the camera's answers), serving DNG (a file the test wrote) as
@@ -30,6 +33,11 @@ OC_GetStorageIDs, OC_GetStorageInfo = 0x1004, 0x1005
 OC_GetObjectHandles, OC_GetObjectInfo, OC_GetObject = 0x1007, 0x1008, 0x1009
 OC_DeleteObject, OC_InitiateCapture = 0x100B, 0x100E
 OC_GetDevicePropDesc, OC_GetDevicePropValue, OC_SetDevicePropValue = 0x1014, 0x1015, 0x1016
+# Nikon's live view (libgphoto2's capture preview for Nikon cameras)
+OC_NIKON_DeviceReady, OC_NIKON_StartLiveView, OC_NIKON_GetLiveViewImg = 0x90C8, 0x9201, 0x9203
+DPC_NIKON_LiveViewStatus = 0xD1A2  # UINT8
+LIVEVIEW_HEADER = 384  # bytes before the JPEG in a live-view image (skipped by ptp2)
+PREVIEWS = 3
 RC_OK = 0x2001
 EC_ObjectAdded, EC_CaptureComplete = 0x4002, 0x400D
 DPC_ExposureTime = 0x500D  # UINT32, 0.1 ms
@@ -211,12 +219,12 @@ OPS = [OC_GetDeviceInfo, OC_OpenSession, OC_CloseSession, OC_GetStorageIDs,
        OC_SetDevicePropValue]
 
 
-def open_and_describe(s, vendor, events):
+def open_and_describe(s, vendor, events, ops=OPS):
     """What libgphoto2 does on opening any camera: session, device info, storages, the
     objects on the card, the two property descriptions."""
     s.transaction("OpenSession", OC_OpenSession, [1])
     s.transaction("GetDeviceInfo", OC_GetDeviceInfo,
-                  data_in=device_info(vendor, OPS, events,
+                  data_in=device_info(vendor, ops, events,
                                       [DPC_ExposureTime, DPC_ExposureIndex],
                                       [OFC_TIFF], [OFC_TIFF]))
     s.transaction("GetStorageIDs", OC_GetStorageIDs, data_in=u32_array([STORAGE]))
@@ -266,13 +274,40 @@ def capture_scenario(s, dng):
     s.transaction("CloseSession", OC_CloseSession)
 
 
+def preview_scenario(s, jpeg):
+    """Open a camera with Nikon's live view, take PREVIEWS live-view images, close:
+    no InitiateCapture anywhere (the replay answers nothing else)."""
+    open_and_describe(s, VENDOR_NIKON, [EC_ObjectAdded],
+                      OPS + [OC_NIKON_DeviceReady, OC_NIKON_StartLiveView,
+                             OC_NIKON_GetLiveViewImg])
+    s.transaction("GetDevicePropValue LiveViewStatus (off)", OC_GetDevicePropValue,
+                  [DPC_NIKON_LiveViewStatus], data_in=bytes([0]))
+    s.transaction("NIKON StartLiveView", OC_NIKON_StartLiveView)
+    s.transaction("NIKON DeviceReady", OC_NIKON_DeviceReady)
+    image = bytes(LIVEVIEW_HEADER) + jpeg
+    s.transaction("NIKON GetLiveViewImg (the first image, skipped by ptp2)",
+                  OC_NIKON_GetLiveViewImg, data_in=image)
+    for k in range(1, PREVIEWS + 1):
+        if k > 1:  # ptp2 reads the status on every preview; live view is on now
+            s.transaction("preview %d: GetDevicePropValue LiveViewStatus (on)" % k,
+                          OC_GetDevicePropValue, [DPC_NIKON_LiveViewStatus], data_in=bytes([1]))
+        s.transaction("preview %d: NIKON GetLiveViewImg (%d-byte header, %d-byte JPEG)"
+                      % (k, LIVEVIEW_HEADER, len(jpeg)), OC_NIKON_GetLiveViewImg,
+                      data_in=image)
+    s.transaction("CloseSession", OC_CloseSession)
+
+
 def main():
-    if len(sys.argv) != 3:
+    if len(sys.argv) not in (3, 4):
         sys.exit(__doc__)
     dng = open(sys.argv[1], "rb").read()
     out = sys.argv[2]
-    for name, ids, fill in (("config", GENERIC_ID, config_scenario),
-                            ("capture", COOLPIX_ID, lambda s: capture_scenario(s, dng))):
+    jpeg = open(sys.argv[3], "rb").read() if len(sys.argv) == 4 else None
+    scenarios = [("config", GENERIC_ID, config_scenario),
+                 ("capture", COOLPIX_ID, lambda s: capture_scenario(s, dng))]
+    if jpeg:
+        scenarios.append(("preview", COOLPIX_ID, lambda s: preview_scenario(s, jpeg)))
+    for name, ids, fill in scenarios:
         s = Script()
         fill(s)
         base = "%s/ptp-%s" % (out, name)
@@ -290,6 +325,7 @@ def main():
         f.write("exposure_now_us=%d\nexposure_min_us=%d\nexposure_max_us=%d\n"
                 % (EXPTIME_NOW * 100, min(EXPTIME_CHOICES) * 100, max(EXPTIME_CHOICES) * 100))
         f.write("captures=%d\nfile1=KG00001.DNG\nfile2=KG00002.DNG\n" % CAPTURES)
+        f.write("previews=%d\n" % PREVIEWS)
 
 
 if __name__ == "__main__":

@@ -12,6 +12,15 @@
  *                                        DNG's raw values, the bytes downloaded and saved
  *                                        against the DNG
  *
+ *   test_gphoto2_ptp preview DIR JPEG    replay DIR/ptp-preview.*: the live view (what the
+ *                                        console calls): kg_camera_preview three times,
+ *                                        each libgphoto2's capture preview (Nikon's
+ *                                        StartLiveView, GetLiveViewImg), the JPEG
+ *                                        delivered byte for byte as an MJPEG frame and
+ *                                        decoded; the driver counts 3 previews and no
+ *                                        capture (and the replay holds no
+ *                                        InitiateCapture to answer one)
+ *
  * What the camera says is read from DIR/ptp.expect (written by the generator); the
  * DNG's values from dng_fixture.h. */
 #include <math.h>
@@ -285,19 +294,97 @@ static void capture(const char *dir, const char *dng_path)
 	free(dng);
 }
 
+/* ---- live view ----------------------------------------------------------------- */
+
+static void preview(const char *jpeg_path)
+{
+	size_t jpeg_size = 0;
+	void *jpeg = read_all(jpeg_path, &jpeg_size);
+	CHECK(jpeg != NULL, "cannot read %s", jpeg_path);
+	if (!jpeg)
+		return;
+	kg_camera *c = NULL;
+	kg_err err = {{0}};
+	int ret = kg_camera_open("gphoto2:usb:001,002", &c, &err);
+	CHECK(ret == 0, "open: %d %s", ret, err.msg);
+	if (ret) {
+		free(jpeg);
+		return;
+	}
+	CHECK(kg_camera_has_preview(c), "the gphoto2 driver has its own preview");
+	int n = (int)expect_num("previews");
+	for (int k = 1; k <= n; k++) {
+		kg_frame f;
+		int own = 0;
+		printf("preview %d: gp_camera_capture_preview%s\n", k,
+		       k == 1 ? " (GetDevicePropValue LiveViewStatus, StartLiveView, DeviceReady, "
+		                "GetLiveViewImg twice: ptp2 skips the first image)"
+		              : " (GetDevicePropValue LiveViewStatus, GetLiveViewImg)");
+		ret = kg_camera_preview(c, 5000, &f, &own, &err);
+		CHECK(ret == 0, "preview %d: %d %s", k, ret, err.msg);
+		if (ret)
+			break;
+		CHECK(own == 1, "preview %d: the driver's own preview", k);
+		CHECK(f.fmt.pixfmt == KG_PIX_MJPEG && f.fmt.width == 64 && f.fmt.height == 48,
+		      "preview %d: %s %dx%d, expected mjpeg 64x48", k, kg_pixfmt_name(f.fmt.pixfmt),
+		      f.fmt.width, f.fmt.height);
+		CHECK(f.size == jpeg_size && !memcmp(f.data, jpeg, jpeg_size),
+		      "preview %d: %zu bytes, the camera's JPEG (after its header) has %zu", k,
+		      f.size, jpeg_size);
+		CHECK(f.sequence == (uint64_t)k, "preview %d: sequence %llu", k,
+		      (unsigned long long)f.sequence);
+		kg_image *img = NULL;
+		ret = kg_frame_to_image(&f, 1, &img, &err);
+		CHECK(ret == 0 && img->width == 64 && img->height == 48 && img->channels == 3,
+		      "preview %d decoded: %d %s", k, ret, err.msg);
+		if (!ret) {
+			/* write_jpeg's pattern: red x*4, green y*5, blue 40 | 200 (quality 95; the
+			 * blue step's ringing left out) */
+			double worst = 0;
+			for (int y = 0; y < 48; y++)
+				for (int x = 0; x < 64; x++) {
+					const float *p = img->data + 3 * ((size_t)y * 64 + (size_t)x);
+					double want[3] = {x * 4 / 255.0, y * 5 / 255.0, (x < 32 ? 40 : 200) / 255.0};
+					for (int q = 0; q < 3; q++)
+						if (fabs(p[q] - want[q]) > worst && (x < 29 || x > 34))
+							worst = fabs(p[q] - want[q]);
+				}
+			CHECK(worst < 8 / 255.0, "preview %d: decoded pixels off the pattern by %.1f/255",
+			      k, worst * 255);
+		}
+		kg_image_free(&img);
+	}
+	uint64_t captures = 99, previews = 0;
+	ret = kg_gphoto2_counts(c, &captures, &previews);
+	CHECK(ret == 0 && previews == (uint64_t)n && captures == 0,
+	      "the driver counts %llu previews and %llu full captures, expected %d and 0",
+	      (unsigned long long)previews, (unsigned long long)captures, n);
+	kg_stream_stats st;
+	kg_camera_stats(c, &st);
+	CHECK(st.completed == 0, "no stream frame (%llu completed)",
+	      (unsigned long long)st.completed);
+	printf("close: CloseSession\n");
+	kg_camera_free(&c);
+	free(jpeg);
+}
+
 int main(int argc, char **argv)
 {
-	if (argc < 3 || (strcmp(argv[1], "config") && strcmp(argv[1], "capture")) ||
-	    (!strcmp(argv[1], "capture") && argc != 4)) {
-		fprintf(stderr, "usage: test_gphoto2_ptp config DIR | capture DIR DNG\n");
+	if (argc < 3 ||
+	    (strcmp(argv[1], "config") && strcmp(argv[1], "capture") && strcmp(argv[1], "preview")) ||
+	    (strcmp(argv[1], "config") && argc != 4)) {
+		fprintf(stderr, "usage: test_gphoto2_ptp config DIR | capture DIR DNG | preview DIR "
+		        "JPEG\n");
 		return 2;
 	}
 	if (load_expect(argv[2]))
 		return 1;
 	if (!strcmp(argv[1], "config"))
 		config();
-	else
+	else if (!strcmp(argv[1], "capture"))
 		capture(argv[2], argv[3]);
+	else
+		preview(argv[3]);
 	if (kg_test_failures)
 		printf("%d check(s) failed\n", kg_test_failures);
 	else
