@@ -202,6 +202,21 @@ static int make_view(const kg_chart_layout *l, layout_view *v, layout_arrays *a,
 	return 0;
 }
 
+/* Saturation found below full scale (chart_image_levels) as the result's first
+ * warning: the scan runs beside the detectors, but its note leads. */
+static int saturation_warning(kg_chart_result *r, const work_image *wi, kg_err *err)
+{
+	if (!wi->sat_note[0])
+		return 0;
+	if (chart_add_warning(r, "saturation found from the data below full scale: %s; samples "
+	                         "there count as clipped", wi->sat_note))
+		return kg_fail(err, KG_ENOMEM, "out of memory");
+	char *w = r->warnings[r->nwarnings - 1];
+	memmove(r->warnings + 1, r->warnings, (size_t)(r->nwarnings - 1) * sizeof(*r->warnings));
+	r->warnings[0] = w;
+	return 0;
+}
+
 /* A refusal: each tag seen becomes a candidate with why it did not place the chart
  * (added after the tagless detector's, if any). Out of memory: left as it is. */
 static void refused_tags(const layout_view *L, const kg_chart_detect_options *opt,
@@ -284,13 +299,13 @@ int kg_chart_detect(const kg_chart_layout *l, const kg_image *img,
 	double tp = chart_now_seconds();
 	ret = chart_prepare_image(img, &opt, &wi, err);
 	r->prepare_seconds = chart_now_seconds() - tp;
-	if (!ret && wi.sat_note[0] &&
-	    chart_add_warning(r, "saturation found from the data below full scale: %s; samples there "
-	                   "count as clipped", wi.sat_note))
-		ret = kg_fail(err, KG_ENOMEM, "out of memory");
 	if (ret)
 		goto fail;
 	int tagless = opt.tagless || l->ntags == 0;
+	/* OpenCV's colour tables, which mcc builds on its first call in a process, built on
+	 * another thread while the image is prepared and the tags looked for */
+	if (tagless || (fallback && chart_tagless_fallback(l, r, KG_ENOENT)))
+		chart_tagless_warm_up();
 	if (!tagless) {
 		kg_err tag_err = {{0}};
 		ret = chart_detect_with_tags(&L, &wi, &opt, r, &tag_err);
@@ -305,7 +320,9 @@ int kg_chart_detect(const kg_chart_layout *l, const kg_image *img,
 			kg_fail(err, ret, "%s", tag_err.msg);
 		} else {
 			double ts = chart_now_seconds();
-			ret = chart_sample_all(&L, &wi, &opt, r, err);
+			ret = chart_image_levels(&wi, err);
+			if (!ret)
+				ret = chart_sample_all(&L, &wi, &opt, r, err);
 			r->sample_seconds = chart_now_seconds() - ts;
 		}
 		if (ret)
@@ -313,6 +330,8 @@ int kg_chart_detect(const kg_chart_layout *l, const kg_image *img,
 	} else if ((ret = chart_detect_tagless(l, &L, &wi, &opt, r, err))) {
 		goto fail;
 	}
+	if ((ret = chart_image_levels(&wi, err)) || (ret = saturation_warning(r, &wi, err)))
+		goto fail;
 	if (opt.light_field && (ret = calib_light_field_apply(r, &opt, err)))
 		goto fail;
 	if ((ret = patch_summary_warnings(r))) {
@@ -320,12 +339,17 @@ int kg_chart_detect(const kg_chart_layout *l, const kg_image *img,
 		goto fail;
 	}
 	r->total_seconds = chart_now_seconds() - t0;
-	free(wi.owned);
+	chart_image_free(&wi);
 	layout_arrays_free(&arrays);
 	*out = r;
 	return 0;
 fail:
-	free(wi.owned);
+	if (ret == KG_ENOENT && opt.keep_refused) {
+		kg_err sat_err = {{0}};
+		if (!chart_image_levels(&wi, &sat_err))
+			saturation_warning(r, &wi, &sat_err);
+	}
+	chart_image_free(&wi);
 	if (ret == KG_ENOENT && opt.keep_refused)
 		refused_tags(&L, &opt, r);
 	layout_arrays_free(&arrays);
@@ -371,8 +395,10 @@ int calib_chart_sample(const kg_chart_layout *l, const kg_image *img, const doub
 	if (!ret) {
 		snprintf(r->layout, sizeof(r->layout), "%s", l->name);
 		memcpy(r->H, H, sizeof(r->H));
-		ret = chart_sample_all_with(&L, &wi, &opt, !reference, 1, r, err);
-		free(wi.owned);
+		ret = chart_image_levels(&wi, err);
+		if (!ret)
+			ret = chart_sample_all_with(&L, &wi, &opt, !reference, 1, r, err);
+		chart_image_free(&wi);
 	}
 	layout_arrays_free(&arrays);
 	if (ret)

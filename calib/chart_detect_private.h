@@ -4,12 +4,14 @@
 #ifndef KG_CHART_DETECT_PRIVATE_H
 #define KG_CHART_DETECT_PRIVATE_H
 
+#include <pthread.h>
 #include <stddef.h>
 #include <stdint.h>
 
 #include "calib_private.h"
 #include "kg_calib.h"
 #include "kg_config.h"
+#include "saturation.h"
 
 #if KG_HAVE_MCC
 #include "chart_mcc.h"
@@ -71,7 +73,14 @@ typedef struct work_image {
 	double clip_level;
 	double clip_ch[3];   /* per colour: the clip level, or the saturation found from the
 	                      * data below it (core/saturation.h) */
-	char sat_note[200];  /* where saturation was found below full scale, else "" */
+	char sat_note[200];  /* where saturation was found below full scale, else ""
+	                      * (after chart_image_levels) */
+	/* the saturation scan of sat_src (NULL: none), on its own thread when sat_running */
+	const kg_image *sat_src;
+	pthread_t sat_tid;
+	int sat_running, sat_done, sat_applied, sat_ret;
+	kg_saturation sat;
+	kg_err sat_err;
 	double quantum; /* step between the source's integer codes (0: float or demosaiced) */
 	/* Values times count_scale land near integers, distinct values on distinct ones
 	 * (integer codes, and the halves and quarters of raw codes that demosaicing
@@ -86,8 +95,15 @@ const float *chart_image_span(const work_image *wi, int y, int x0, int n, int st
                               float *scratch);
 /* The whole frame demosaiced, for the stages that need every pixel. */
 int chart_demosaic_all(work_image *wi, kg_err *err);
+/* wi for img: its clip level, its CFA's demosaicing; the saturation scan started (on
+ * a thread of its own when opt->threads > 1). */
 int chart_prepare_image(const kg_image *img, const kg_chart_detect_options *opt,
                         work_image *wi, kg_err *err);
+/* The saturation scan finished (waited for) and its clip levels (clip_ch, sat_note)
+ * applied: before anything is sampled. */
+int chart_image_levels(work_image *wi, kg_err *err);
+/* The scan waited for, the demosaiced copy freed. */
+void chart_image_free(work_image *wi);
 
 /* ---- chart_grey.c -------------------------------------------------------------- */
 
@@ -157,6 +173,9 @@ int chart_sample_all(const layout_view *L, const work_image *wi,
 int chart_detect_tagless(const kg_chart_layout *l, const layout_view *L, work_image *wi,
                          const kg_chart_detect_options *opt, kg_chart_result *r, kg_err *err);
 int chart_tagless_fallback(const kg_chart_layout *l, const kg_chart_result *r, int ret);
+/* What OpenCV builds on mcc's first call in a process, built on a thread of its own
+ * (kg_mcc_warm_up; nothing without mcc). */
+void chart_tagless_warm_up(void);
 #if KG_HAVE_MCC
 int chart_colorchecker24_patches(const kg_chart_layout *l, int idx[24]);
 void chart_mcc24_box_mm(const layout_view *L, const int idx[24], double box[4][2]);

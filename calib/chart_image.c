@@ -189,6 +189,16 @@ int chart_demosaic_all(work_image *wi, kg_err *err)
 	return 0;
 }
 
+/* The saturation scan of the whole image (core/saturation.h): where each colour
+ * clips, found from the data when below full scale. */
+static void *saturation_main(void *arg)
+{
+	work_image *wi = arg;
+	wi->sat_ret = kg_saturation_of_image(wi->sat_src, wi->clip_level, &wi->sat, &wi->sat_err);
+	wi->sat_done = 1;
+	return NULL;
+}
+
 int chart_prepare_image(const kg_image *img, const kg_chart_detect_options *opt,
                          work_image *wi, kg_err *err)
 {
@@ -206,24 +216,10 @@ int chart_prepare_image(const kg_image *img, const kg_chart_detect_options *opt,
 		wi->clip_level = 1.0 - 0.5 / (double)((1L << img->bits) - 1);
 	for (int c = 0; c < 3; c++)
 		wi->clip_ch[c] = wi->clip_level;
-	kg_saturation sat;
-	int ret0;
-	if (!(opt->clip_level > 0) && (img->channels == 3 || img->channels == 1) &&
-	    (ret0 = kg_saturation_of_image(img, wi->clip_level, &sat, err)))
-		return ret0;
-	if (!(opt->clip_level > 0) && kg_saturation_below(&sat, wi->clip_level)) {
-		/* each colour clips where its samples pile up (a mosaic's sites by colour) */
-		int mosaic = sat.channels == 4 && img->cfa && strlen(img->cfa) >= 4;
-		for (int k = 0; k < sat.channels; k++) {
-			int c = !mosaic ? (img->channels == 1 ? -1 : k)
-			        : img->cfa[k] == 'R' ? 0 : img->cfa[k] == 'G' ? 1 : img->cfa[k] == 'B' ? 2 : -1;
-			for (int cc = 0; cc < 3; cc++)
-				if ((c < 0 || cc == c) && sat.clip[k] < wi->clip_ch[cc])
-					wi->clip_ch[cc] = sat.clip[k];
-		}
-		kg_saturation_format(&sat, mosaic ? img->cfa : img->channels == 1 ? "Y" : "RGB",
-		                     wi->sat_note, sizeof(wi->sat_note));
-	}
+	/* the saturation scan (chart_image_levels) reads the whole image: on a thread of
+	 * its own while the detectors run, done before anything is sampled */
+	wi->sat_src = !(opt->clip_level > 0) && (img->channels == 3 || img->channels == 1) ? img
+	                                                                                  : NULL;
 	if (!img->is_float && img->bits > 0 && img->bits <= 16) {
 		wi->quantum = 1.0 / (double)((1L << img->bits) - 1);
 		wi->count_scale = (float)((1L << img->bits) - 1);
@@ -261,5 +257,50 @@ int chart_prepare_image(const kg_image *img, const kg_chart_detect_options *opt,
 		return kg_fail(err, KG_EINVAL, "image has %d channels: expected 1 or 3",
 		               img->channels);
 	}
+	if (wi->sat_src && wi->threads > 1)
+		wi->sat_running = pthread_create(&wi->sat_tid, NULL, saturation_main, wi) == 0;
 	return 0;
+}
+
+int chart_image_levels(work_image *wi, kg_err *err)
+{
+	if (wi->sat_running) {
+		pthread_join(wi->sat_tid, NULL);
+		wi->sat_running = 0;
+	} else if (wi->sat_src && !wi->sat_done) {
+		saturation_main(wi);
+	}
+	if (!wi->sat_src)
+		return 0;
+	if (wi->sat_ret)
+		return kg_fail(err, wi->sat_ret, "%s", wi->sat_err.msg);
+	if (wi->sat_applied)
+		return 0;
+	wi->sat_applied = 1;
+	const kg_image *img = wi->sat_src;
+	const kg_saturation *sat = &wi->sat;
+	if (kg_saturation_below(sat, wi->clip_level)) {
+		/* each colour clips where its samples pile up (a mosaic's sites by colour) */
+		int mosaic = sat->channels == 4 && img->cfa && strlen(img->cfa) >= 4;
+		for (int k = 0; k < sat->channels; k++) {
+			int c = !mosaic ? (img->channels == 1 ? -1 : k)
+			        : img->cfa[k] == 'R' ? 0 : img->cfa[k] == 'G' ? 1 : img->cfa[k] == 'B' ? 2 : -1;
+			for (int cc = 0; cc < 3; cc++)
+				if ((c < 0 || cc == c) && sat->clip[k] < wi->clip_ch[cc])
+					wi->clip_ch[cc] = sat->clip[k];
+		}
+		kg_saturation_format(sat, mosaic ? img->cfa : img->channels == 1 ? "Y" : "RGB",
+		                     wi->sat_note, sizeof(wi->sat_note));
+	}
+	return 0;
+}
+
+void chart_image_free(work_image *wi)
+{
+	if (wi->sat_running) {
+		pthread_join(wi->sat_tid, NULL);
+		wi->sat_running = 0;
+	}
+	free(wi->owned);
+	wi->owned = NULL;
 }

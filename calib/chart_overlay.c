@@ -21,21 +21,30 @@ static void path_quad(cairo_t *cr, const double q[4][2], double s)
 	cairo_close_path(cr);
 }
 
+/* One line of text from (x, y) (its baseline) at the current font size, outlined in
+ * black so it reads on any background. */
+static void outlined_line(cairo_t *cr, double x, double y, double size, const char *text,
+                          double r, double g, double b)
+{
+	cairo_move_to(cr, x, y);
+	cairo_text_path(cr, text);
+	cairo_set_source_rgb(cr, 0, 0, 0);
+	cairo_set_line_width(cr, fmax(1.5, size / 6));
+	cairo_stroke(cr);
+	cairo_move_to(cr, x, y);
+	cairo_set_source_rgb(cr, r, g, b);
+	cairo_show_text(cr, text);
+}
+
+/* text centred on (x, y), outlined */
 static void label(cairo_t *cr, double x, double y, double size, const char *text,
                   double r, double g, double b)
 {
 	cairo_text_extents_t ext;
 	cairo_set_font_size(cr, size);
 	cairo_text_extents(cr, text, &ext);
-	double tx = x - ext.width / 2 - ext.x_bearing, ty = y - ext.height / 2 - ext.y_bearing;
-	cairo_move_to(cr, tx, ty);
-	cairo_text_path(cr, text);
-	cairo_set_source_rgb(cr, 0, 0, 0);
-	cairo_set_line_width(cr, fmax(1.5, size / 6));
-	cairo_stroke(cr);
-	cairo_move_to(cr, tx, ty);
-	cairo_set_source_rgb(cr, r, g, b);
-	cairo_show_text(cr, text);
+	outlined_line(cr, x - ext.width / 2 - ext.x_bearing, y - ext.height / 2 - ext.y_bearing,
+	              size, text, r, g, b);
 }
 
 /* text from (x, y) (the first line's baseline) in lines no wider than maxw, broken
@@ -62,14 +71,7 @@ static double wrapped_text(cairo_t *cr, double x, double y, double maxw, double 
 		cairo_text_extents(cr, trial, &ext);
 		if (n && (ext.x_advance > maxw || len >= (int)sizeof(line) - 1)) {
 			line[n] = '\0';
-			cairo_move_to(cr, x, y);
-			cairo_text_path(cr, line);
-			cairo_set_source_rgb(cr, 0, 0, 0);
-			cairo_set_line_width(cr, fmax(1.5, size / 6));
-			cairo_stroke(cr);
-			cairo_move_to(cr, x, y);
-			cairo_set_source_rgb(cr, r, g, b);
-			cairo_show_text(cr, line);
+			outlined_line(cr, x, y, size, line, r, g, b);
 			y += size * 1.2;
 			n = (size_t)snprintf(line, sizeof(line), "%.*s", (int)(end - w), w);
 		} else {
@@ -78,14 +80,7 @@ static double wrapped_text(cairo_t *cr, double x, double y, double maxw, double 
 		p = end;
 	}
 	if (n) {
-		cairo_move_to(cr, x, y);
-		cairo_text_path(cr, line);
-		cairo_set_source_rgb(cr, 0, 0, 0);
-		cairo_set_line_width(cr, fmax(1.5, size / 6));
-		cairo_stroke(cr);
-		cairo_move_to(cr, x, y);
-		cairo_set_source_rgb(cr, r, g, b);
-		cairo_show_text(cr, line);
+		outlined_line(cr, x, y, size, line, r, g, b);
 		y += size * 1.2;
 	}
 	return y;
@@ -99,12 +94,13 @@ int kg_chart_overlay_write(const kg_chart_result *r, const kg_image *img, const 
 		max_side = 1600;
 	kg_chart_detect_options opt;
 	kg_chart_detect_options_default(&opt);
+	opt.clip_level = 1; /* nothing is sampled: no saturation scan */
 	work_image wi;
 	int ret = chart_prepare_image(img, &opt, &wi, err);
 	if (!ret)
 		ret = chart_demosaic_all(&wi, err);
 	if (ret) {
-		free(wi.owned);
+		chart_image_free(&wi);
 		return ret;
 	}
 	double scale_px;
@@ -293,6 +289,6 @@ done:
 	free(rgb);
 	cairo_destroy(cr);
 	cairo_surface_destroy(surf);
-	free(wi.owned);
+	chart_image_free(&wi);
 	return ret;
 }

@@ -93,6 +93,9 @@ int chart_detect_tagless(const kg_chart_layout *l, const layout_view *L, work_im
 		if (ret)
 			return ret;
 	}
+	/* the boxes are sampled: the saturation scan's clip levels are needed now */
+	if ((ret = chart_image_levels(wi, err)))
+		return ret;
 	r->tagless = 1;
 	r->tagless_decimate = f > 1 ? f : 1;
 	r->decimate = 0;
@@ -342,6 +345,13 @@ int chart_detect_tagless(const kg_chart_layout *l, const layout_view *L, work_im
 	               "this build");
 }
 #endif
+
+void chart_tagless_warm_up(void)
+{
+#if KG_HAVE_MCC
+	kg_mcc_warm_up();
+#endif
+}
 
 /* No tags seen at all: a ColorChecker may still be in view without its frame. */
 int chart_tagless_fallback(const kg_chart_layout *l, const kg_chart_result *r, int ret)
