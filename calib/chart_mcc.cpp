@@ -1,13 +1,17 @@
 /* OpenCV's mcc ColorChecker detector behind chart_mcc.h. Only the chart's box is
  * taken from mcc: chart_detect.c places and samples the patches itself. */
 #include <math.h>
+#include <pthread.h>
 #include <string.h>
+
+#include <atomic>
 
 #include <exception>
 #include <new>
 #include <vector>
 
 #include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
 #include <opencv2/mcc.hpp>
 
 #include "chart_mcc.h"
@@ -39,6 +43,44 @@ static void encode_bgr8(const float *data, int width, int height, int channels, 
 	}
 }
 
+/* One conversion to Lab of each depth mcc converts: OpenCV builds its tables then
+ * (not safely from two threads at once: pthread_once). */
+static pthread_once_t lab_once = PTHREAD_ONCE_INIT;
+
+static void lab_tables(void)
+{
+	try {
+		cv::Mat b8(2, 2, CV_8UC3, cv::Scalar(10, 120, 240)), f32(2, 2, CV_32FC3,
+		                                                        cv::Scalar(0.1, 0.5, 0.9)), lab;
+		cv::cvtColor(b8, lab, cv::COLOR_BGR2Lab);
+		cv::cvtColor(f32, lab, cv::COLOR_BGR2Lab);
+		cv::cvtColor(b8, lab, cv::COLOR_RGB2Lab);
+	} catch (...) {
+		/* the detector's own call will say what failed */
+	}
+}
+
+static void *warm_main(void *)
+{
+	pthread_once(&lab_once, lab_tables);
+	return NULL;
+}
+
+extern "C" void kg_mcc_warm_up(void)
+{
+	static std::atomic<int> started(0);
+	if (started.exchange(1))
+		return;
+	pthread_attr_t attr;
+	pthread_t tid;
+	if (pthread_attr_init(&attr))
+		return;
+	pthread_attr_setdetachstate(&attr, PTHREAD_CREATE_DETACHED);
+	if (pthread_create(&tid, &attr, warm_main, NULL))
+		started = 0;
+	pthread_attr_destroy(&attr);
+}
+
 extern "C" int kg_mcc_find_colorcheckers(const float *data, int width, int height,
                                          int channels, double white, int threads, int max,
                                          double (*boxes)[4][2], double *costs, int *found,
@@ -50,6 +92,7 @@ extern "C" int kg_mcc_find_colorcheckers(const float *data, int width, int heigh
 		               channels);
 	int previous_threads = cv::getNumThreads();
 	int ret = 0;
+	pthread_once(&lab_once, lab_tables);
 	try {
 		cv::Mat bgr;
 		encode_bgr8(data, width, height, channels, white, bgr);

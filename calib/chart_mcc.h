@@ -35,6 +35,13 @@ int kg_mcc_find_colorcheckers(const float *data, int width, int height, int chan
                               double white, int threads, int max, double (*boxes)[4][2],
                               double *costs, int *found, kg_err *err);
 
+/* OpenCV's colour conversion tables (mcc converts to Lab; OpenCV builds its tables in
+ * software floating point on the first conversion of a process, about a third of the
+ * instructions of a whole `kogei chart detect` of 12 Mpix) built on a detached thread
+ * of their own, once a process; kg_mcc_find_colorcheckers waits for them if they are
+ * still being built. */
+void kg_mcc_warm_up(void);
+
 #ifdef __cplusplus
 }
 #endif

@@ -85,6 +85,27 @@ int calib_rgb_conditioning(const double (*rgb)[3], int n, double *cond,
 	return ret;
 }
 
+/* Append the first 8 of the patches which[0..n) to msg: "A01 (0.123 0.456 0.789), ..."
+ * with digits decimals, or "A01 (fraction 0.5)" from fraction when given; " and N
+ * more" after 8. */
+static void list_patches(char *msg, size_t len, const int *which, int n, char *const *ids,
+                         const double (*rgb)[3], const double *fraction, int digits)
+{
+	for (int j = 0; j < n && j < 8; j++) {
+		int i = which[j];
+		size_t u = strlen(msg);
+		if (fraction)
+			snprintf(msg + u, len - u, "%s%s (fraction %.3g)", j ? ", " : "", ids[i],
+			         fraction[i]);
+		else
+			snprintf(msg + u, len - u, "%s%s (%.*f %.*f %.*f)", j ? ", " : "", ids[i], digits,
+			         rgb[i][0], digits, rgb[i][1], digits, rgb[i][2]);
+	}
+	size_t u = strlen(msg);
+	if (n > 8)
+		snprintf(msg + u, len - u, " and %d more", n - 8);
+}
+
 int calib_check_patch_values(const char *what, char *const *ids, const double (*rgb)[3],
                              const double *clipped_fraction, int n, double clip_level,
                              double black_level, kg_err *err)
@@ -124,19 +145,7 @@ int calib_check_patch_values(const char *what, char *const *ids, const double (*
 				snprintf(msg + u, sizeof(msg) - u,
 				         "%d clipped patch%s (a channel at or above %.2f of full scale): ",
 				         nclip, nclip == 1 ? "" : "es", clip_level);
-			for (int j = 0; j < nclip && j < 8; j++) {
-				int i = clipped[j];
-				u = strlen(msg);
-				if (clipped_fraction)
-					snprintf(msg + u, sizeof(msg) - u, "%s%s (fraction %.3g)", j ? ", " : "",
-					         ids[i], clipped_fraction[i]);
-				else
-					snprintf(msg + u, sizeof(msg) - u, "%s%s (%.3f %.3f %.3f)", j ? ", " : "",
-					         ids[i], rgb[i][0], rgb[i][1], rgb[i][2]);
-			}
-			u = strlen(msg);
-			if (nclip > 8)
-				snprintf(msg + u, sizeof(msg) - u, " and %d more", nclip - 8);
+			list_patches(msg, sizeof(msg), clipped, nclip, ids, rgb, clipped_fraction, 3);
 			u = strlen(msg);
 			snprintf(msg + u, sizeof(msg) - u,
 			         "; photograph with less exposure or leave them out (--exclude)");
@@ -146,15 +155,7 @@ int calib_check_patch_values(const char *what, char *const *ids, const double (*
 			snprintf(msg + u, sizeof(msg) - u,
 			         "%s%d near-black patch%s (brightest channel below %.2f of full scale): ",
 			         nclip ? "; and " : "", nblack, nblack == 1 ? "" : "es", black_level);
-			for (int j = 0; j < nblack && j < 8; j++) {
-				int i = black[j];
-				u = strlen(msg);
-				snprintf(msg + u, sizeof(msg) - u, "%s%s (%.4f %.4f %.4f)", j ? ", " : "",
-				         ids[i], rgb[i][0], rgb[i][1], rgb[i][2]);
-			}
-			u = strlen(msg);
-			if (nblack > 8)
-				snprintf(msg + u, sizeof(msg) - u, " and %d more", nblack - 8);
+			list_patches(msg, sizeof(msg), black, nblack, ids, rgb, NULL, 4);
 			u = strlen(msg);
 			snprintf(msg + u, sizeof(msg) - u,
 			         "; photograph with more light or exposure or leave them out (--exclude)");
