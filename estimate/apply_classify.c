@@ -35,23 +35,11 @@ static int cls_sink_fn(void *user, const kg_est_block *b, kg_err *err)
 		s->count[lab[i]]++;
 		if (lab[i] == KG_EST_LABEL_NONE || lab[i] > s->nmaterials)
 			continue;
-		class_stats *c = &s->cs[lab[i] - 1];
-		if (!c->hi && !(c->hi = calloc(HIST_BINS, sizeof(uint32_t))))
-			return kg_fail(err, KG_ENOMEM, "classify: out of memory for the margins");
-		c->hi[ap_order_key(conf[i]) >> 16]++;
-		c->count++;
-		c->margin_sum += conf[i];
-		for (int ch = 0; ch < 3; ch++)
-			c->rgb_sum[ch] += pl.kin[3 * i + ch];
+		int bad = ap_class_stats_add(&s->cs[lab[i] - 1], conf[i], pl.kin + 3 * i, err);
+		if (bad)
+			return bad;
 	}
-	for (; s->next_py < s->ph; s->next_py++) {
-		int sy = (int)((long)s->next_py * s->height / s->ph);
-		if (sy >= b->y0 + b->rows)
-			break;
-		const uint8_t *row = lab + (size_t)(sy - b->y0) * b->width;
-		for (int x = 0; x < s->pw; x++)
-			s->preview[(size_t)s->next_py * s->pw + x] = row[(long)x * b->width / s->pw];
-	}
+	ap_preview_rows(s->preview, s->pw, s->ph, &s->next_py, s->height, b, lab);
 	int rc = ap_put_bytes(s->labels, &s->stage, b, lab, err);
 	if (!rc)
 		rc = kg_envi_writer_put(s->conf, b->y0, b->y0 + b->rows, KG_LAYOUT_BIP, conf, err);

@@ -14,6 +14,35 @@ json_t *ap_json_num(double v)
 	return isfinite(v) ? json_real(v) : json_null();
 }
 
+/* LABELS.json's format and inputs (method: the method's name, or NULL). */
+void ap_labels_json_inputs(json_t *root, const kg_classify_info *info, const char *method)
+{
+	json_object_set_new(root, "format", json_string("kogei-labels/1"));
+	const char *keys[4] = {"image", "calib", "materials", "method"};
+	const char *vals[4] = {info ? info->image : NULL, info ? info->calib : NULL,
+	                       info ? info->materials : NULL, method};
+	for (int i = 0; i < 4; i++)
+		json_object_set_new(root, keys[i], vals[i] ? json_string(vals[i]) : json_null());
+}
+
+/* LABELS.json's clip levels and the image's size and pixel count. */
+void ap_labels_json_image(json_t *root, const kg_apply_options *opt, const kg_row_source *img,
+                          const kg_classify_result *res)
+{
+	json_object_set_new(root, "clip_level", ap_json_num(opt->clip_level));
+	{ /* per channel: the clip level, or the saturation found from the data below it */
+		json_t *cl = json_array();
+		for (int c = 0; c < 3; c++)
+			json_array_append_new(cl, ap_json_num(opt->clip_rgb[c] > 0 &&
+			                                      opt->clip_rgb[c] < opt->clip_level
+			                                          ? opt->clip_rgb[c] : opt->clip_level));
+		json_object_set_new(root, "clip_levels", cl);
+	}
+	json_object_set_new(root, "width", json_integer(img->width));
+	json_object_set_new(root, "height", json_integer(img->height));
+	json_object_set_new(root, "pixels", json_integer((json_int_t)res->stats.pixels));
+}
+
 const char *ap_distance_name(kg_est_distance d)
 {
 	return d == KG_EST_DIST_SCALE_FREE ? "scale-free" : "plain";
@@ -95,26 +124,10 @@ int ap_write_labels_json(const char *path, const kg_est_material_set *set,
 		json_decref(wl);
 		return kg_fail(err, KG_ENOMEM, "out of memory");
 	}
-	json_object_set_new(root, "format", json_string("kogei-labels/1"));
-	const char *keys[4] = {"image", "calib", "materials", "method"};
-	const char *vals[4] = {info ? info->image : NULL, info ? info->calib : NULL,
-	                       info ? info->materials : NULL, info ? info->method : NULL};
-	for (int i = 0; i < 4; i++)
-		json_object_set_new(root, keys[i], vals[i] ? json_string(vals[i]) : json_null());
+	ap_labels_json_inputs(root, info, info ? info->method : NULL);
 	json_object_set_new(root, "distance", json_string(ap_distance_name(copt->distance)));
 	json_object_set_new(root, "angle_deg", json_real(set->angle_deg));
-	json_object_set_new(root, "clip_level", ap_json_num(opt->clip_level));
-	{ /* per channel: the clip level, or the saturation found from the data below it */
-		json_t *cl = json_array();
-		for (int c = 0; c < 3; c++)
-			json_array_append_new(cl, ap_json_num(opt->clip_rgb[c] > 0 &&
-			                                      opt->clip_rgb[c] < opt->clip_level
-			                                          ? opt->clip_rgb[c] : opt->clip_level));
-		json_object_set_new(root, "clip_levels", cl);
-	}
-	json_object_set_new(root, "width", json_integer(img->width));
-	json_object_set_new(root, "height", json_integer(img->height));
-	json_object_set_new(root, "pixels", json_integer((json_int_t)res->stats.pixels));
+	ap_labels_json_image(root, opt, img, res);
 	json_t *fl = json_object();
 	json_object_set_new(fl, "unclassified", json_integer((json_int_t)res->unclassified));
 	json_object_set_new(fl, "nonfinite", json_integer((json_int_t)res->stats.nonfinite));
@@ -188,6 +201,21 @@ void ap_preview_size(int width, int height, int *pw, int *ph)
 	*ph = (int)lround(height * scale);
 	*pw = *pw < 1 ? 1 : *pw;
 	*ph = *ph < 1 ? 1 : *ph;
+}
+
+/* The preview's rows (pw x ph labels, nearest sample) that block b of labels lab
+ * reaches, from *next_py on; height: the image's. */
+void ap_preview_rows(uint8_t *preview, int pw, int ph, int *next_py, int height,
+                     const kg_est_block *b, const uint8_t *lab)
+{
+	for (; *next_py < ph; (*next_py)++) {
+		int sy = (int)((long)*next_py * height / ph);
+		if (sy >= b->y0 + b->rows)
+			break;
+		const uint8_t *row = lab + (size_t)(sy - b->y0) * b->width;
+		for (int x = 0; x < pw; x++)
+			preview[(size_t)*next_py * pw + x] = row[(long)x * b->width / pw];
+	}
 }
 
 /* labels: the pw x ph nearest samples the sink kept (ap_preview_size). */

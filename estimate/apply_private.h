@@ -100,6 +100,12 @@ int ap_summarise(const kg_est_kernel *k, const kg_est_material_set *set, const u
 int ap_check_options(const kg_classify_options *o, const kg_row_source *img, const kg_classify_info *info, const char *what, kg_err *err);
 json_t *ap_json_num(double v);
 json_t *ap_refusal_class(const kg_est_material_set *set, int label, uint64_t pixels, uint64_t total);
+/* Pass 1: one pixel of a class, its margin and the RGB the kernel saw. */
+int ap_class_stats_add(class_stats *c, float margin, const float *rgb, kg_err *err);
+/* The preview's rows (pw x ph labels, nearest sample) that block b of labels lab
+ * reaches, from *next_py on; height: the image's. */
+void ap_preview_rows(uint8_t *preview, int pw, int ph, int *next_py, int height,
+                     const kg_est_block *b, const uint8_t *lab);
 void ap_preview_size(int width, int height, int *pw, int *ph);
 int ap_write_preview(const char *path, const kg_est_material_set *set, const uint8_t *labels,
                      int pw, int ph, const kg_classify_result *res, int legend, kg_err *err);
@@ -124,6 +130,11 @@ int ap_refusal_init(refusal *r, const kg_est_kernel *k, const kg_est_classifier 
 void ap_refuse_pixel(const refusal *r, const planes *pl, size_t i, uint8_t *label, float *conf);
 /* An image in memory: its CFA, if any, makes the message about channels clearer. */
 int ap_check_image(const kg_image *img, const char *what, kg_err *err);
+/* LABELS.json's format and inputs (method: the method's name, or NULL). */
+void ap_labels_json_inputs(json_t *root, const kg_classify_info *info, const char *method);
+/* LABELS.json's clip levels and the image's size and pixel count. */
+void ap_labels_json_image(json_t *root, const kg_apply_options *opt, const kg_row_source *img,
+                          const kg_classify_result *res);
 const char *ap_distance_name(kg_est_distance d);
 /* LABELS.json of an image's classification (files: labels, confidence, mask, preview). */
 int ap_write_labels_json(const char *path, const kg_est_material_set *set,

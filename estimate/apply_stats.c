@@ -157,3 +157,16 @@ int ap_summarise(const kg_est_kernel *k, const kg_est_material_set *set, const u
 	}
 	return 0;
 }
+
+/* Pass 1: one pixel of a class, its margin and the RGB the kernel saw. */
+int ap_class_stats_add(class_stats *c, float margin, const float *rgb, kg_err *err)
+{
+	if (!c->hi && !(c->hi = calloc(HIST_BINS, sizeof(uint32_t))))
+		return kg_fail(err, KG_ENOMEM, "classify: out of memory for the margins");
+	c->hi[ap_order_key(margin) >> 16]++;
+	c->count++;
+	c->margin_sum += margin;
+	for (int ch = 0; ch < 3; ch++)
+		c->rgb_sum[ch] += rgb[ch];
+	return 0;
+}

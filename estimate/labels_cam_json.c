@@ -27,24 +27,8 @@ int lc_write_json(const char *path, const kg_est_material_set *set,
 {
 	const int nm = set->n, nc = classes->n;
 	json_t *root = json_object();
-	json_object_set_new(root, "format", json_string("kogei-labels/1"));
-	const char *keys[4] = {"image", "calib", "materials", "method"};
-	const char *vals[4] = {info ? info->image : NULL, info ? info->calib : NULL,
-	                       info ? info->materials : NULL, "camera"};
-	for (int i = 0; i < 4; i++)
-		json_object_set_new(root, keys[i], vals[i] ? json_string(vals[i]) : json_null());
-	json_object_set_new(root, "clip_level", ap_json_num(opt->clip_level));
-	{ /* per channel: the clip level, or the saturation found from the data below it */
-		json_t *cl = json_array();
-		for (int c = 0; c < 3; c++)
-			json_array_append_new(cl, ap_json_num(opt->clip_rgb[c] > 0 &&
-			                                      opt->clip_rgb[c] < opt->clip_level
-			                                          ? opt->clip_rgb[c] : opt->clip_level));
-		json_object_set_new(root, "clip_levels", cl);
-	}
-	json_object_set_new(root, "width", json_integer(img->width));
-	json_object_set_new(root, "height", json_integer(img->height));
-	json_object_set_new(root, "pixels", json_integer((json_int_t)res->stats.pixels));
+	ap_labels_json_inputs(root, info, "camera");
+	ap_labels_json_image(root, opt, img, res);
 	json_t *cs = json_object();
 	json_object_set_new(cs, "description",
 	                    json_string("each pixel's reading mapped through M2 into the "

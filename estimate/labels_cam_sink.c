@@ -34,14 +34,9 @@ int lc_cam_sink_fn(void *user, const kg_est_block *b, kg_err *err)
 		c4[3] = cp.scale[i];
 		if (lab[i] == KG_EST_LABEL_NONE || lab[i] > s->nclasses)
 			continue;
-		class_stats *c = &s->cs[lab[i] - 1];
-		if (!c->hi && !(c->hi = calloc(HIST_BINS, sizeof(uint32_t))))
-			return kg_fail(err, KG_ENOMEM, "classify: out of memory for the margins");
-		c->hi[ap_order_key(margin[i]) >> 16]++;
-		c->count++;
-		c->margin_sum += margin[i];
-		for (int ch = 0; ch < 3; ch++)
-			c->rgb_sum[ch] += pl.raw[3 * i + ch];
+		int bad = ap_class_stats_add(&s->cs[lab[i] - 1], margin[i], pl.raw + 3 * i, err);
+		if (bad)
+			return bad;
 	}
 	int rc = 0;
 	if (s->reg.on)
@@ -61,14 +56,7 @@ int lc_cam_sink_fn(void *user, const kg_est_block *b, kg_err *err)
 		}
 	if (rc)
 		return rc;
-	for (; s->next_py < s->ph; s->next_py++) {
-		int sy = (int)((long)s->next_py * s->height / s->ph);
-		if (sy >= b->y0 + b->rows)
-			break;
-		const uint8_t *row = lab + (size_t)(sy - b->y0) * b->width;
-		for (int x = 0; x < s->pw; x++)
-			s->preview[(size_t)s->next_py * s->pw + x] = row[(long)x * b->width / s->pw];
-	}
+	ap_preview_rows(s->preview, s->pw, s->ph, &s->next_py, s->height, b, lab);
 	if (s->comp) {
 		/* gold only where its sd is below the declared range */
 		for (size_t i = 0; i < n; i++)
