@@ -215,7 +215,7 @@ void kg_atomicfile_sweep(const char *dir)
 	closedir(d);
 }
 
-static char *dir_of(const char *path)
+char *kg_path_dir(const char *path)
 {
 	const char *slash = strrchr(path, '/');
 	if (!slash)
@@ -275,7 +275,7 @@ int kg_atomicfile_open_flags(kg_atomicfile *t, const char *path, unsigned flags,
 	int ret = kg_inputs_check_output(path, err);
 	if (ret)
 		return ret;
-	char *dir = dir_of(path);
+	char *dir = kg_path_dir(path);
 	t->path = strdup(path);
 	if (!dir || !t->path) {
 		free(dir);

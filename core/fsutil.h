@@ -137,6 +137,10 @@ int kg_mkdir_below(const char *root, const char *rel, kg_err *err);
 /* kg_read_file of root/rel, opened as kg_open_below does (noted as an input). */
 int kg_read_below(const char *root, const char *rel, char **buf, size_t *len, kg_err *err);
 
+/* The directory part of a path, newly allocated: "." when there is none, "/" for a
+ * path directly below the root. */
+char *kg_path_dir(const char *path);
+
 /* Join dir and name into a newly allocated path. */
 char *kg_path_join(const char *dir, const char *name);
 

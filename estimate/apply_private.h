@@ -1,6 +1,7 @@
-/* Inside estimate/: what apply.c (images to files) shares with labels_cam.c (camera-space
- * label maps): the input feed, progress, the files of a call, the margin statistics and
- * the label map's colours and preview. Not included from outside estimate/. */
+/* Inside estimate/: what the apply_*.c files (images to files) share among themselves
+ * and with labels_cam*.c (camera-space label maps): the input feed, progress, the files
+ * of a call, the refusal stage, the margin statistics, LABELS.json and the label map's
+ * colours and preview. Not included from outside estimate/. */
 #ifndef KG_APPLY_PRIVATE_H
 #define KG_APPLY_PRIVATE_H
 
@@ -99,8 +100,46 @@ int ap_summarise(const kg_est_kernel *k, const kg_est_material_set *set, const u
 int ap_check_options(const kg_classify_options *o, const kg_row_source *img, const kg_classify_info *info, const char *what, kg_err *err);
 json_t *ap_json_num(double v);
 json_t *ap_refusal_class(const kg_est_material_set *set, int label, uint64_t pixels, uint64_t total);
+/* Pass 1: one pixel of a class, its margin and the RGB the kernel saw. */
+int ap_class_stats_add(class_stats *c, float margin, const float *rgb, kg_err *err);
+/* The preview's rows (pw x ph labels, nearest sample) that block b of labels lab
+ * reaches, from *next_py on; height: the image's. */
+void ap_preview_rows(uint8_t *preview, int pw, int ph, int *next_py, int height,
+                     const kg_est_block *b, const uint8_t *lab);
 void ap_preview_size(int width, int height, int *pw, int *ph);
 int ap_write_preview(const char *path, const kg_est_material_set *set, const uint8_t *labels,
                      int pw, int ph, const kg_classify_result *res, int legend, kg_err *err);
+
+/* The refusal stage (kg_classify_options), applied to every block after the label
+ * kernel, whichever implementation produced it: per pixel, in double. */
+typedef struct refusal {
+	const kg_est_kernel *k;
+	const kg_est_classifier *cls;
+	double inv_frames, noise_rel2, noise_floor2, resid2;
+	double g[KG_EST_MAX_K * 3]; /* A_w P: K x 3 */
+	double threshold;           /* +Inf: no unknown test */
+	float background_level;     /* 0: no low-signal test */
+	uint8_t unknown, background;
+} refusal;
+
+/* The refusal stage's constants; dof and threshold also go to the result. */
+int ap_refusal_init(refusal *r, const kg_est_kernel *k, const kg_est_classifier *cls,
+                    const kg_est_material_set *set, const kg_apply_options *opt,
+                    const kg_classify_options *o, kg_classify_result *res, kg_err *err);
+/* Pixel i of a block whose input planes are pl: label and conf refused in place. */
+void ap_refuse_pixel(const refusal *r, const planes *pl, size_t i, uint8_t *label, float *conf);
+/* An image in memory: its CFA, if any, makes the message about channels clearer. */
+int ap_check_image(const kg_image *img, const char *what, kg_err *err);
+/* LABELS.json's format and inputs (method: the method's name, or NULL). */
+void ap_labels_json_inputs(json_t *root, const kg_classify_info *info, const char *method);
+/* LABELS.json's clip levels and the image's size and pixel count. */
+void ap_labels_json_image(json_t *root, const kg_apply_options *opt, const kg_row_source *img,
+                          const kg_classify_result *res);
+const char *ap_distance_name(kg_est_distance d);
+/* LABELS.json of an image's classification (files: labels, confidence, mask, preview). */
+int ap_write_labels_json(const char *path, const kg_est_material_set *set,
+                         const kg_classify_options *copt, const kg_row_source *img,
+                         const kg_apply_options *opt, const kg_classify_info *info,
+                         const char *const files[4], const kg_classify_result *res, kg_err *err);
 
 #endif

@@ -265,17 +265,6 @@ static int opt_number(const char *label, const json_t *entry, const char *key, d
 	return kg_json_get_number(label, entry, key, out, err);
 }
 
-/* The directory part of a path ("." when there is none). */
-static char *dir_of(const char *path)
-{
-	const char *slash = strrchr(path, '/');
-	if (!slash)
-		return strdup(".");
-	if (slash == path)
-		return strdup("/");
-	return strndup(path, (size_t)(slash - path));
-}
-
 static int parse_metal(const char *label, const char *dir, const json_t *entry,
                        kg_material *m, kg_err *err)
 {
@@ -571,7 +560,7 @@ static int load_library(const char *path, kg_material_library **out, kg_err *err
 		goto done;
 	}
 	lib = calloc(1, sizeof(*lib));
-	dir = dir_of(path);
+	dir = kg_path_dir(path);
 	if (!lib || !dir || !(lib->m = calloc(json_array_size(list), sizeof(*lib->m)))) {
 		r = kg_fail(err, KG_ENOMEM, "%s: out of memory", path);
 		goto done;

@@ -17,22 +17,12 @@
 
 /* ---- small helpers ------------------------------------------------------------ */
 
-static char *dir_of(const char *path)
-{
-	const char *slash = strrchr(path, '/');
-	if (!slash)
-		return strdup(".");
-	if (slash == path)
-		return strdup("/");
-	return strndup(path, (size_t)(slash - path));
-}
-
 /* A path from the scene file: absolute as given, relative to the scene's folder. */
 static char *scene_relative(const kg_scene *s, const char *name)
 {
 	if (name[0] == '/')
 		return strdup(name);
-	char *dir = dir_of(s->path);
+	char *dir = kg_path_dir(s->path);
 	char *p = dir ? kg_path_join(dir, name) : NULL;
 	free(dir);
 	return p;
