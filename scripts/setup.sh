@@ -15,9 +15,14 @@ libembree-dev assimp-testmodels iproute2 util-linux
 chromium python3-websocket
 libraw-dev libgphoto2-dev libmicrohttpd-dev
 liblcms2-dev liblcms2-utils imagemagick
-nodejs npm
 blender
 "
+# Node.js and npm (for the glTF validator below) from Debian unless a node and npm are
+# already on the machine (a nodejs package that brings its own npm conflicts with
+# Debian's npm package).
+if ! command -v node >/dev/null 2>&1 || ! command -v npm >/dev/null 2>&1; then
+	PACKAGES="$PACKAGES nodejs npm"
+fi
 
 missing=""
 for p in $PACKAGES; do
