@@ -655,7 +655,7 @@ int main(int argc, char **argv)
 	/* Nothing half-written: no temporary files left beside the outputs. */
 	char cmd[256];
 	snprintf(cmd, sizeof(cmd),
-	         "find %s -type f | grep -v -E '\\.(cgats|json|jsonl|tif|hdr|img|png|md|csv|raw|html|icc|ti3)$|-session/\\.lock$'",
+	         "find %s -type f | grep -v -E '\\.(cgats|json|jsonl|tif|hdr|img|png|md|csv|raw|html|icc|ti3|glb|xml|ply)$|-session/\\.lock$'",
 	         dir);
 	CHECK(system(cmd) != 0, "unexpected files in %s (listed above)", dir);
 	if (!kg_test_failures) {
