@@ -50,7 +50,11 @@ sed -i "s#~/kogei/#$SRC/#g; s#~/first-session#$T/first-session#g" "$T/session.sh
 mkdir "$T/elsewhere"
 cd "$T/elsewhere"
 PATH="$(dirname "$KOGEI"):$PATH" sh -eu "$T/session.sh" > "$T/log" 2>&1 ||
-	{ tail -20 "$T/log"; fail "the README's first session failed"; }
+	{ if grep -q "which this kogei was built without" "$T/log"; then
+		echo "SKIP: the README's first session needs a feature this build lacks: $(grep -m1 'built without' "$T/log")"
+		exit 77
+	fi
+	tail -20 "$T/log"; fail "the README's first session failed"; }
 R="$T/first-session/results"
 for f in report.html process.json conformance.json camera.json camera.icc camera.ti3 \
 	object-0001/cube.hdr object-0001/labels.hdr object-0001/master.tif; do
