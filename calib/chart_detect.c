@@ -338,12 +338,14 @@ int kg_chart_detect(const kg_chart_layout *l, const kg_image *img,
 		ret = kg_fail(err, ret, "out of memory");
 		goto fail;
 	}
+	chart_tagless_warm_wait();
 	r->total_seconds = chart_now_seconds() - t0;
 	chart_image_free(&wi);
 	layout_arrays_free(&arrays);
 	*out = r;
 	return 0;
 fail:
+	chart_tagless_warm_wait();
 	if (ret == KG_ENOENT && opt.keep_refused) {
 		kg_err sat_err = {{0}};
 		if (!chart_image_levels(&wi, &sat_err))

@@ -4,8 +4,6 @@
 #include <pthread.h>
 #include <string.h>
 
-#include <atomic>
-
 #include <exception>
 #include <new>
 #include <vector>
@@ -66,19 +64,29 @@ static void *warm_main(void *)
 	return NULL;
 }
 
+/* The warm-up thread is joined, never detached: a thread still inside OpenCV when the
+ * process exits meets OpenCV's thread-local storage already destroyed ("pure virtual
+ * method called", tlsSlotsSize > slotIdx). 0 not started, 1 running, 2 joined. */
+static pthread_mutex_t warm_lock = PTHREAD_MUTEX_INITIALIZER;
+static int warm_state;
+static pthread_t warm_tid;
+
 extern "C" void kg_mcc_warm_up(void)
 {
-	static std::atomic<int> started(0);
-	if (started.exchange(1))
-		return;
-	pthread_attr_t attr;
-	pthread_t tid;
-	if (pthread_attr_init(&attr))
-		return;
-	pthread_attr_setdetachstate(&attr, PTHREAD_CREATE_DETACHED);
-	if (pthread_create(&tid, &attr, warm_main, NULL))
-		started = 0;
-	pthread_attr_destroy(&attr);
+	pthread_mutex_lock(&warm_lock);
+	if (warm_state == 0 && pthread_create(&warm_tid, NULL, warm_main, NULL) == 0)
+		warm_state = 1;
+	pthread_mutex_unlock(&warm_lock);
+}
+
+extern "C" void kg_mcc_warm_wait(void)
+{
+	pthread_mutex_lock(&warm_lock);
+	if (warm_state == 1) {
+		pthread_join(warm_tid, NULL);
+		warm_state = 2;
+	}
+	pthread_mutex_unlock(&warm_lock);
 }
 
 extern "C" int kg_mcc_find_colorcheckers(const float *data, int width, int height,

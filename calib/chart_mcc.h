@@ -41,6 +41,8 @@ int kg_mcc_find_colorcheckers(const float *data, int width, int height, int chan
  * of their own, once a process; kg_mcc_find_colorcheckers waits for them if they are
  * still being built. */
 void kg_mcc_warm_up(void);
+/* Joins the warm-up thread, if one runs: before the caller may exit. */
+void kg_mcc_warm_wait(void);
 
 #ifdef __cplusplus
 }

@@ -353,6 +353,13 @@ void chart_tagless_warm_up(void)
 #endif
 }
 
+void chart_tagless_warm_wait(void)
+{
+#if KG_HAVE_MCC
+	kg_mcc_warm_wait();
+#endif
+}
+
 /* No tags seen at all: a ColorChecker may still be in view without its frame. */
 int chart_tagless_fallback(const kg_chart_layout *l, const kg_chart_result *r, int ret)
 {
