@@ -26,6 +26,7 @@ static const char image_usage[] =
 
 static const char common_help[] =
     "  --camera CSS.csv      camera sensitivities, CSV wavelength_nm,r,g,b\n"
+    "                        (or demo-site, demo-reference: the demo's cameras)\n"
     "  --illuminant SPEC     D65, D50, A, E, Dnn, <T>K, or a CGATS spectrum, or a CSV\n"
     "                        wavelength_nm,<relative power>\n"
     "  --noise SPEC          'none' (default: exact values) or FULLWELL:READ:BITS:\n"

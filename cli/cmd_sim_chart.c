@@ -35,6 +35,7 @@ static void help(void)
 	       "                        matched by SAMPLE_ID to the layout's patch ids (or\n"
 	       "                        aliases); without it, built-in test colours\n"
 	       "  --camera CSS.csv      camera sensitivities, CSV wavelength_nm,r,g,b\n"
+	       "                        (or demo-site, demo-reference: the demo's cameras)\n"
 	       "  --illuminant SPEC     D65, D50, A, E, Dnn, <T>K, or a CGATS or CSV spectrum\n"
 	       "  --tilt DEG            angle between the card's normal and the optical axis,\n"
 	       "                        0-75 (default 0)\n"
