@@ -63,10 +63,14 @@ static const char usage_camera[] =
 	"  M2, A = B M M2, every method's map) and prints the condition number and\n"
 	"  residuals.";
 
-/* Split "a,b,c" into a NULL-terminated list (one allocation for the pointers, one
- * for the text). */
-static int split_ids(const char *text, char ***out, int *n)
+/* Split "a,b,c" (--exclude; NULL for none) into a NULL-terminated list (one allocation
+ * for the pointers, one for the text). */
+static int split_ids(const char *text, char ***out, int *n, kg_err *err)
 {
+	*out = NULL;
+	*n = 0;
+	if (!text)
+		return 0;
 	char *copy = strdup(text);
 	int count = 1;
 	for (const char *p = text; *p; p++)
@@ -75,7 +79,7 @@ static int split_ids(const char *text, char ***out, int *n)
 	if (!copy || !v) {
 		free(copy);
 		free(v);
-		return KG_ENOMEM;
+		return kg_fail(err, KG_ENOMEM, "out of memory");
 	}
 	int k = 0;
 	for (char *save = NULL, *tok = strtok_r(copy, ",", &save); tok;
@@ -94,16 +98,6 @@ static void free_ids(char ***v)
 		free((*v)[0]);
 	free(*v);
 	*v = NULL;
-}
-
-static int parse_double(const char *text, double *out)
-{
-	char *end = NULL;
-	double v = strtod(text, &end);
-	if (!end || end == text || *end || !isfinite(v))
-		return -1;
-	*out = v;
-	return 0;
 }
 
 /* The report goes to standard output, or to standard error when the calibration
@@ -156,6 +150,7 @@ static void print_reference(FILE *fp, const kg_reference *ref, const char *out)
 
 int kg_cmd_calib_reference(int argc, char **argv)
 {
+	const char *u = usage_reference;
 	const char *spectra = NULL, *rgb = NULL, *field = NULL, *out = NULL, *exclude = NULL;
 	kg_reference_options opt;
 	kg_reference_options_default(&opt);
@@ -182,6 +177,7 @@ int kg_cmd_calib_reference(int argc, char **argv)
 	optind = 1;
 	while ((c = getopt_long(argc, argv, "o:h", opts, NULL)) != -1) {
 		double v;
+		int bad = 0;
 		switch (c) {
 		case 'S': camera = optarg; break;
 		case 'I': illuminant = optarg; break;
@@ -194,43 +190,38 @@ int kg_cmd_calib_reference(int argc, char **argv)
 		case 'K':
 			if (strcmp(optarg, "auto") == 0)
 				opt.basis = 0;
-			else if (parse_double(optarg, &v) || v != floor(v) || v < 1 ||
+			else if (kg_cli_number(optarg, &v) || v != floor(v) || v < 1 ||
 			         v > KG_CALIB_MAX_BASIS)
-				return kg_cli_usage_error(usage_reference,
-				                          "--basis %s: expected an integer 1-%d or auto", optarg,
-				                          KG_CALIB_MAX_BASIS);
+				return kg_cli_usage_error(u, "--basis %s: expected an integer 1-%d or auto",
+				                          optarg, KG_CALIB_MAX_BASIS);
 			else
 				opt.basis = (int)v;
 			break;
-		case 'l':
-			if (parse_double(optarg, &opt.ridge) || opt.ridge < 0)
-				return kg_cli_usage_error(usage_reference,
-				                          "--ridge %s: expected a number >= 0", optarg);
-			break;
+		case 'l': bad = kg_cli_min_option(u, "--ridge", optarg, 0, 0, &opt.ridge); break;
 		case 'C':
-			if (parse_double(optarg, &opt.max_cond) || opt.max_cond < 1)
-				return kg_cli_usage_error(usage_reference,
-				                          "--max-cond %s: expected a number >= 1", optarg);
+			bad = kg_cli_min_option(u, "--max-cond", optarg, 1, 0,
+			                        &opt.max_cond);
 			break;
 		case 'n':
-			if (parse_double(optarg, &opt.noise_sigma) || opt.noise_sigma <= 0)
-				return kg_cli_usage_error(usage_reference,
-				                          "--noise %s: expected a number > 0", optarg);
+			bad = kg_cli_min_option(u, "--noise", optarg, 0, 1,
+			                        &opt.noise_sigma);
 			break;
 		case 'm':
 			if (kg_method_parse(optarg, &opt.method, &err))
-				return kg_cli_usage_error(usage_reference, "--%s", err.msg);
+				bad = kg_cli_usage_error(u, "--%s", err.msg);
 			break;
-		case 'h': puts(usage_reference); return KG_EXIT_OK;
-		default: return kg_cli_usage_error(usage_reference, "bad option");
+		case 'h': puts(u); return KG_EXIT_OK;
+		default: return kg_cli_usage_error(u, "bad option");
 		}
+		if (bad)
+			return bad;
 	}
 	if (optind != argc)
-		return kg_cli_usage_error(usage_reference, "unexpected argument '%s'", argv[optind]);
+		return kg_cli_usage_error(u, "unexpected argument '%s'", argv[optind]);
 	if (!spectra || !rgb || !out)
-		return kg_cli_usage_error(usage_reference, "--spectra, --rgb and -o are required");
+		return kg_cli_usage_error(u, "--spectra, --rgb and -o are required");
 	if (!camera != !illuminant)
-		return kg_cli_usage_error(usage_reference, "--camera and --illuminant go together "
+		return kg_cli_usage_error(u, "--camera and --illuminant go together "
 		                          "(the sensitivities and the chart's light)");
 	kg_spectrum weights[3];
 	if (camera) {
@@ -247,12 +238,10 @@ int kg_cmd_calib_reference(int argc, char **argv)
 		opt.camera_weights = weights;
 	}
 
-	char **ids = NULL;
-	int nids = 0;
-	if (exclude && split_ids(exclude, &ids, &nids))
-		return kg_cli_error(&err, kg_fail(&err, KG_ENOMEM, "out of memory"));
+	char **ids;
+	if (split_ids(exclude, &ids, &opt.nexclude, &err))
+		return kg_cli_error(&err, KG_ENOMEM);
 	opt.exclude = (const char *const *)ids;
-	opt.nexclude = nids;
 	kg_reference *ref = NULL;
 	int ret = kg_reference_fit_files(spectra, rgb, field, &opt, &ref, &err);
 	if (!ret)
@@ -309,6 +298,7 @@ static void note_flagged(const kg_camera_calib *cam, const char *rgb)
 
 int kg_cmd_calib_camera(int argc, char **argv)
 {
+	const char *u = usage_camera;
 	const char *refpath = NULL, *rgb = NULL, *out = NULL, *exclude = NULL;
 	kg_method method = KG_METHOD_AUTO;
 	kg_camera_options opt;
@@ -331,6 +321,7 @@ int kg_cmd_calib_camera(int argc, char **argv)
 	int c;
 	optind = 1;
 	while ((c = getopt_long(argc, argv, "o:h", opts, NULL)) != -1) {
+		int bad = 0;
 		switch (c) {
 		case 'R': refpath = optarg; break;
 		case 'r': rgb = optarg; break;
@@ -338,44 +329,40 @@ int kg_cmd_calib_camera(int argc, char **argv)
 		case 'o': out = optarg; break;
 		case 'm':
 			if (kg_method_parse(optarg, &method, &err))
-				return kg_cli_usage_error(usage_camera, "--%s", err.msg);
+				bad = kg_cli_usage_error(u, "--%s", err.msg);
 			break;
 		case 'C':
-			if (parse_double(optarg, &opt.max_cond) || opt.max_cond < 1)
-				return kg_cli_usage_error(usage_camera, "--max-cond %s: expected a number >= 1",
-				                          optarg);
+			bad = kg_cli_min_option(u, "--max-cond", optarg, 1, 0,
+			                        &opt.max_cond);
 			break;
 		case 'L':
-			if (parse_double(optarg, &opt.clip_level) || opt.clip_level <= 0)
-				return kg_cli_usage_error(usage_camera, "--clip-level %s: expected a number > 0",
-				                          optarg);
+			bad = kg_cli_min_option(u, "--clip-level", optarg, 0, 1,
+			                        &opt.clip_level);
 			break;
 		case 'B':
-			if (parse_double(optarg, &opt.black_level) || opt.black_level < 0)
-				return kg_cli_usage_error(usage_camera,
-				                          "--black-level %s: expected a number >= 0", optarg);
+			bad = kg_cli_min_option(u, "--black-level", optarg, 0, 0,
+			                        &opt.black_level);
 			break;
 		case 'X':
-			if (parse_double(optarg, &opt.max_residual) || !(opt.max_residual > 0))
-				return kg_cli_usage_error(usage_camera,
-				                          "--max-residual %s: expected a number > 0", optarg);
+			bad = kg_cli_min_option(u, "--max-residual", optarg, 0, 1,
+			                        &opt.max_residual);
 			break;
 		case 'f': opt.force = 1; break;
-		case 'h': puts(usage_camera); return KG_EXIT_OK;
-		default: return kg_cli_usage_error(usage_camera, "bad option");
+		case 'h': puts(u); return KG_EXIT_OK;
+		default: return kg_cli_usage_error(u, "bad option");
 		}
+		if (bad)
+			return bad;
 	}
 	if (optind != argc)
-		return kg_cli_usage_error(usage_camera, "unexpected argument '%s'", argv[optind]);
+		return kg_cli_usage_error(u, "unexpected argument '%s'", argv[optind]);
 	if (!refpath || !rgb || !out)
-		return kg_cli_usage_error(usage_camera, "--reference, --rgb and -o are required");
+		return kg_cli_usage_error(u, "--reference, --rgb and -o are required");
 
-	char **ids = NULL;
-	int nids = 0;
-	if (exclude && split_ids(exclude, &ids, &nids))
-		return kg_cli_error(&err, kg_fail(&err, KG_ENOMEM, "out of memory"));
+	char **ids;
+	if (split_ids(exclude, &ids, &opt.nexclude, &err))
+		return kg_cli_error(&err, KG_ENOMEM);
 	opt.exclude = (const char *const *)ids;
-	opt.nexclude = nids;
 	kg_camera_calib *cam = NULL;
 	int ret = kg_camera_fit_files(refpath, rgb, &opt, &cam, &err);
 	if (!ret && method != KG_METHOD_AUTO)
