@@ -148,12 +148,37 @@ static void print_reference(FILE *fp, const kg_reference *ref, const char *out)
 		fprintf(fp, "wrote %s\n", out);
 }
 
+/* What both commands take: --method, --max-cond, --exclude and -o. */
+typedef struct shared_args {
+	const char *out, *exclude;
+	kg_method *method;
+	double *max_cond;
+} shared_args;
+
+/* 1 when option c is one of the shared ones (*bad: 0, or the usage error's exit code),
+ * 0 when not. */
+static int shared_option(int c, const char *usage, shared_args *a, int *bad)
+{
+	kg_err err = {{0}};
+	switch (c) {
+	case 'o': a->out = optarg; return 1;
+	case 'x': a->exclude = optarg; return 1;
+	case 'C': *bad = kg_cli_min_option(usage, "--max-cond", optarg, 1, 0, a->max_cond); return 1;
+	case 'm':
+		if (kg_method_parse(optarg, a->method, &err))
+			*bad = kg_cli_usage_error(usage, "--%s", err.msg);
+		return 1;
+	default: return 0;
+	}
+}
+
 int kg_cmd_calib_reference(int argc, char **argv)
 {
 	const char *u = usage_reference;
-	const char *spectra = NULL, *rgb = NULL, *field = NULL, *out = NULL, *exclude = NULL;
+	const char *spectra = NULL, *rgb = NULL, *field = NULL;
 	kg_reference_options opt;
 	kg_reference_options_default(&opt);
+	shared_args a = {NULL, NULL, &opt.method, &opt.max_cond};
 	static const struct option opts[] = {
 		{"spectra", required_argument, NULL, 's'},
 		{"rgb", required_argument, NULL, 'r'},
@@ -178,6 +203,11 @@ int kg_cmd_calib_reference(int argc, char **argv)
 	while ((c = getopt_long(argc, argv, "o:h", opts, NULL)) != -1) {
 		double v;
 		int bad = 0;
+		if (shared_option(c, u, &a, &bad)) {
+			if (bad)
+				return bad;
+			continue;
+		}
 		switch (c) {
 		case 'S': camera = optarg; break;
 		case 'I': illuminant = optarg; break;
@@ -185,8 +215,6 @@ int kg_cmd_calib_reference(int argc, char **argv)
 		case 'r': rgb = optarg; break;
 		case 'f': field = optarg; break;
 		case 'c': opt.centred = 1; break;
-		case 'x': exclude = optarg; break;
-		case 'o': out = optarg; break;
 		case 'K':
 			if (strcmp(optarg, "auto") == 0)
 				opt.basis = 0;
@@ -198,18 +226,7 @@ int kg_cmd_calib_reference(int argc, char **argv)
 				opt.basis = (int)v;
 			break;
 		case 'l': bad = kg_cli_min_option(u, "--ridge", optarg, 0, 0, &opt.ridge); break;
-		case 'C':
-			bad = kg_cli_min_option(u, "--max-cond", optarg, 1, 0,
-			                        &opt.max_cond);
-			break;
-		case 'n':
-			bad = kg_cli_min_option(u, "--noise", optarg, 0, 1,
-			                        &opt.noise_sigma);
-			break;
-		case 'm':
-			if (kg_method_parse(optarg, &opt.method, &err))
-				bad = kg_cli_usage_error(u, "--%s", err.msg);
-			break;
+		case 'n': bad = kg_cli_min_option(u, "--noise", optarg, 0, 1, &opt.noise_sigma); break;
 		case 'h': puts(u); return KG_EXIT_OK;
 		default: return kg_cli_usage_error(u, "bad option");
 		}
@@ -218,7 +235,7 @@ int kg_cmd_calib_reference(int argc, char **argv)
 	}
 	if (optind != argc)
 		return kg_cli_usage_error(u, "unexpected argument '%s'", argv[optind]);
-	if (!spectra || !rgb || !out)
+	if (!spectra || !rgb || !a.out)
 		return kg_cli_usage_error(u, "--spectra, --rgb and -o are required");
 	if (!camera != !illuminant)
 		return kg_cli_usage_error(u, "--camera and --illuminant go together "
@@ -239,18 +256,18 @@ int kg_cmd_calib_reference(int argc, char **argv)
 	}
 
 	char **ids;
-	if (split_ids(exclude, &ids, &opt.nexclude, &err))
+	if (split_ids(a.exclude, &ids, &opt.nexclude, &err))
 		return kg_cli_error(&err, KG_ENOMEM);
 	opt.exclude = (const char *const *)ids;
 	kg_reference *ref = NULL;
 	int ret = kg_reference_fit_files(spectra, rgb, field, &opt, &ref, &err);
 	if (!ret)
-		ret = kg_reference_save(ref, out, &err);
+		ret = kg_reference_save(ref, a.out, &err);
 	if (!ret && ref->id_rule[0])
 		fprintf(stderr, "kogei: note: %s and %s: patch ids paired as %s\n", spectra, rgb,
 		        ref->id_rule);
 	if (!ret)
-		print_reference(report_stream(out), ref, out);
+		print_reference(report_stream(a.out), ref, a.out);
 	kg_reference_free(&ref);
 	free_ids(&ids);
 	return ret ? kg_cli_error(&err, ret) : KG_EXIT_OK;
@@ -299,10 +316,11 @@ static void note_flagged(const kg_camera_calib *cam, const char *rgb)
 int kg_cmd_calib_camera(int argc, char **argv)
 {
 	const char *u = usage_camera;
-	const char *refpath = NULL, *rgb = NULL, *out = NULL, *exclude = NULL;
+	const char *refpath = NULL, *rgb = NULL;
 	kg_method method = KG_METHOD_AUTO;
 	kg_camera_options opt;
 	kg_camera_options_default(&opt);
+	shared_args a = {NULL, NULL, &method, &opt.max_cond};
 	static const struct option opts[] = {
 		{"reference", required_argument, NULL, 'R'},
 		{"rgb", required_argument, NULL, 'r'},
@@ -322,19 +340,14 @@ int kg_cmd_calib_camera(int argc, char **argv)
 	optind = 1;
 	while ((c = getopt_long(argc, argv, "o:h", opts, NULL)) != -1) {
 		int bad = 0;
+		if (shared_option(c, u, &a, &bad)) {
+			if (bad)
+				return bad;
+			continue;
+		}
 		switch (c) {
 		case 'R': refpath = optarg; break;
 		case 'r': rgb = optarg; break;
-		case 'x': exclude = optarg; break;
-		case 'o': out = optarg; break;
-		case 'm':
-			if (kg_method_parse(optarg, &method, &err))
-				bad = kg_cli_usage_error(u, "--%s", err.msg);
-			break;
-		case 'C':
-			bad = kg_cli_min_option(u, "--max-cond", optarg, 1, 0,
-			                        &opt.max_cond);
-			break;
 		case 'L':
 			bad = kg_cli_min_option(u, "--clip-level", optarg, 0, 1,
 			                        &opt.clip_level);
@@ -356,11 +369,11 @@ int kg_cmd_calib_camera(int argc, char **argv)
 	}
 	if (optind != argc)
 		return kg_cli_usage_error(u, "unexpected argument '%s'", argv[optind]);
-	if (!refpath || !rgb || !out)
+	if (!refpath || !rgb || !a.out)
 		return kg_cli_usage_error(u, "--reference, --rgb and -o are required");
 
 	char **ids;
-	if (split_ids(exclude, &ids, &opt.nexclude, &err))
+	if (split_ids(a.exclude, &ids, &opt.nexclude, &err))
 		return kg_cli_error(&err, KG_ENOMEM);
 	opt.exclude = (const char *const *)ids;
 	kg_camera_calib *cam = NULL;
@@ -376,9 +389,9 @@ int kg_cmd_calib_camera(int argc, char **argv)
 		fprintf(stderr, "kogei: warning: --force: M2 from exactly 3 patches; its residual is "
 		                "0 by construction, so the fit was not checked\n");
 	if (!ret)
-		ret = kg_camera_save(cam, out, &err);
+		ret = kg_camera_save(cam, a.out, &err);
 	if (!ret)
-		print_camera(report_stream(out), cam, out);
+		print_camera(report_stream(a.out), cam, a.out);
 	kg_camera_calib_free(&cam);
 	free_ids(&ids);
 	return ret ? kg_cli_error(&err, ret) : KG_EXIT_OK;
