@@ -12,7 +12,7 @@
 static const char usage_process[] =
 	"kogei process SESSION (--reference REF.json | --spectra CHART.cgats) -o OUTDIR\n"
 	"              [--spectra CHART.cgats] [--materials LIB] [--only a,b,c] [--layout L]\n"
-	"              [--chart CAPTURE] [--mesh M.ply] [--mask MASK.png]\n"
+	"              [--chart CAPTURE] [--verify CAPTURE] [--mesh M.ply] [--mask MASK.png]\n"
 	"              [--method camera|eq11] [--angles A:B[:STEP]] [--intensity LO:HI]\n"
 	"              [--angle DEG]\n"
 	"              [--min-tags N]\n"
@@ -21,7 +21,7 @@ static const char usage_process[] =
 	"              [--cube f32|f16|weights|none]\n"
 	"              [--master-space ecirgb-v2|adobe-rgb|prophoto|none]\n"
 	"              [--master-illuminant NAME|FILE]\n"
-	"              [--threads N] [--quiet]";
+	"              [--meta KEY=VALUE]... [--threads N] [--quiet]";
 
 static const char help_process[] =
 	"\n"
@@ -31,9 +31,11 @@ static const char help_process[] =
 	"object capture from the same camera, normalised by exposure time x gain to the\n"
 	"chart capture's, estimated into a 61-band cube, classified among the declared\n"
 	"materials, and given a render scene. Writes into OUTDIR:\n"
-	"  camera.json, chart_overlay.png, process.json, report.html, and per object\n"
-	"  capture <capture>/cube.hdr, labels.hdr (+ .json, .png, _confidence), photo.png,\n"
-	"  confidence.png, scene.json (renders with `kogei render --scene`), render.png.\n"
+	"  camera.json, reference.json (lab session), chart_overlay.png, process.json,\n"
+	"  conformance.json, camera.icc + camera.ti3, report.html, and per object capture\n"
+	"  <capture>/cube.hdr, labels.hdr (+ .json, .png, _confidence), master.tif,\n"
+	"  photo.png, confidence.png, scene.json (renders with `kogei render --scene`),\n"
+	"  render.png, object.glb and object_mitsuba.xml (+ PLYs).\n"
 	"Running it again keeps the objects whose inputs and parameters are unchanged.\n"
 	"OUTDIR must be new, empty or this session's earlier output (its process.json), and\n"
 	"not inside the session; nothing there that kogei process did not write is replaced,\n"
