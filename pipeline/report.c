@@ -80,77 +80,78 @@ static int has(report *r, const char *fmt, ...)
 	return kg_json_find(r->root, path) != NULL;
 }
 
-#define GETTER_PROLOGUE                                                                \
-	char path[256];                                                                    \
-	va_list ap;                                                                        \
-	va_start(ap, fmt);                                                                 \
-	json_t *v = vget(r, fmt, ap, path, sizeof(path));                                  \
-	va_end(ap)
+/* What a getter accepts (typed): one kind, and null too with JK_NULLABLE. */
+enum { JK_STRING, JK_NUMBER, JK_BOOL, JK_ARRAY, JK_NULLABLE = 0x10 };
 
-static const char *str(report *r, const char *fmt, ...) KG_PRINTF(2, 3);
-static const char *str(report *r, const char *fmt, ...)
+/* The value at a key path (printf-style), required to exist and to be of kind; NULL
+ * when it is missing or of another kind (r->ret set) or an allowed null. */
+static json_t *typed(report *r, int kind, const char *fmt, ...) KG_PRINTF(3, 4);
+static json_t *typed(report *r, int kind, const char *fmt, ...)
 {
-	GETTER_PROLOGUE;
-	if (v && !json_is_string(v))
-		failed(r, KG_EINVAL, "%s: key '%s': expected a string", r->file, path);
-	return json_is_string(v) ? json_string_value(v) : "";
+	static const char *const expected[] = {"a string", "a number", "true or false",
+	                                       "an array"};
+	char path[256];
+	va_list ap;
+	va_start(ap, fmt);
+	json_t *v = vget(r, fmt, ap, path, sizeof(path));
+	va_end(ap);
+	int nullable = (kind & JK_NULLABLE) != 0;
+	kind &= ~JK_NULLABLE;
+	if (!v || (nullable && json_is_null(v)))
+		return NULL;
+	int ok = kind == JK_STRING   ? json_is_string(v)
+	         : kind == JK_NUMBER ? json_is_number(v)
+	         : kind == JK_BOOL   ? json_is_boolean(v)
+	                             : json_is_array(v);
+	if (!ok) {
+		failed(r, KG_EINVAL, "%s: key '%s': expected %s%s", r->file, path, expected[kind],
+		       nullable ? " or null" : "");
+		return NULL;
+	}
+	return v;
 }
 
-/* A string or null (NULL). */
-static const char *opt_str(report *r, const char *fmt, ...) KG_PRINTF(2, 3);
-static const char *opt_str(report *r, const char *fmt, ...)
+static const char *string_or_empty(const json_t *v)
 {
-	GETTER_PROLOGUE;
-	if (v && !json_is_string(v) && !json_is_null(v))
-		failed(r, KG_EINVAL, "%s: key '%s': expected a string or null", r->file, path);
-	return json_is_string(v) ? json_string_value(v) : NULL;
+	return v ? json_string_value(v) : "";
 }
 
-static double num(report *r, const char *fmt, ...) KG_PRINTF(2, 3);
-static double num(report *r, const char *fmt, ...)
+static double number_or_nan(const json_t *v)
 {
-	GETTER_PROLOGUE;
-	if (v && !json_is_number(v))
-		failed(r, KG_EINVAL, "%s: key '%s': expected a number", r->file, path);
-	return json_is_number(v) ? json_number_value(v) : NAN;
+	return v ? json_number_value(v) : NAN;
 }
 
-/* A number or null (NaN). */
-static double opt_num(report *r, const char *fmt, ...) KG_PRINTF(2, 3);
-static double opt_num(report *r, const char *fmt, ...)
+static int is_true(const json_t *v)
 {
-	GETTER_PROLOGUE;
-	if (v && !json_is_number(v) && !json_is_null(v))
-		failed(r, KG_EINVAL, "%s: key '%s': expected a number or null", r->file, path);
-	return json_is_number(v) ? json_number_value(v) : NAN;
-}
-
-static int flag(report *r, const char *fmt, ...) KG_PRINTF(2, 3);
-static int flag(report *r, const char *fmt, ...)
-{
-	GETTER_PROLOGUE;
-	if (v && !json_is_boolean(v))
-		failed(r, KG_EINVAL, "%s: key '%s': expected true or false", r->file, path);
 	return json_is_true(v);
 }
 
-/* An array (its size in *n; 0 when missing). */
-static json_t *arr(report *r, int *n, const char *fmt, ...) KG_PRINTF(3, 4);
-static json_t *arr(report *r, int *n, const char *fmt, ...)
+static json_t *array_size(json_t *v, int *n)
 {
-	GETTER_PROLOGUE;
-	if (v && !json_is_array(v))
-		failed(r, KG_EINVAL, "%s: key '%s': expected an array", r->file, path);
-	*n = json_is_array(v) ? (int)json_array_size(v) : 0;
-	return json_is_array(v) ? v : NULL;
+	*n = v ? (int)json_array_size(v) : 0;
+	return v;
 }
+
+/* The getters, each (r, fmt, ...): a string ("" when missing), a string or null
+ * (NULL), a number (NaN when missing), a number or null (NaN), a boolean, and an
+ * array (NULL when missing; its size in *n, 0 when missing). */
+#define str(r, ...) string_or_empty(typed((r), JK_STRING, __VA_ARGS__))
+#define opt_str(r, ...) json_string_value(typed((r), JK_STRING | JK_NULLABLE, __VA_ARGS__))
+#define num(r, ...) number_or_nan(typed((r), JK_NUMBER, __VA_ARGS__))
+#define opt_num(r, ...) number_or_nan(typed((r), JK_NUMBER | JK_NULLABLE, __VA_ARGS__))
+#define flag(r, ...) is_true(typed((r), JK_BOOL, __VA_ARGS__))
+#define arr(r, n, ...) array_size(typed((r), JK_ARRAY, __VA_ARGS__), (n))
 
 /* A spectrum on the 61-band grid into out, or null (returns NULL). */
 static const double *spectrum(report *r, double out[KG_NBANDS], const char *fmt, ...)
 	KG_PRINTF(3, 4);
 static const double *spectrum(report *r, double out[KG_NBANDS], const char *fmt, ...)
 {
-	GETTER_PROLOGUE;
+	char path[256];
+	va_list ap;
+	va_start(ap, fmt);
+	json_t *v = vget(r, fmt, ap, path, sizeof(path));
+	va_end(ap);
 	if (!v || json_is_null(v))
 		return NULL;
 	if (!json_is_array(v) || json_array_size(v) != KG_NBANDS) {
