@@ -173,19 +173,6 @@ static json_t *object_key(proc *p, const proc_capture *c)
 	return key;
 }
 
-static const json_t *previous_object(const proc *p, const char *name)
-{
-	const json_t *e;
-	size_t i;
-	json_array_foreach(json_object_get(p->previous, "objects"), i, e)
-	{
-		const char *n = json_string_value(json_object_get(e, "capture"));
-		if (n && !strcmp(n, name))
-			return e;
-	}
-	return NULL;
-}
-
 /* Bands of rows of a cube (every band, BIP: buf holds band rows of them) to a
  * function. */
 static int envi_bands(const kg_envi *e, float *buf, int band,
@@ -1191,7 +1178,7 @@ int proc_objects(proc *p, json_t *objects, kg_process_summary *sum)
 		json_t *key = object_key(p, c);
 		char *final = kg_path_join(p->o->outdir, c->name);
 		char *labels = final ? kg_path_join(final, "labels.hdr") : NULL;
-		const json_t *prev = previous_object(p, c->name);
+		const json_t *prev = proc_previous_object(p, c->name);
 		if (prev && json_equal(json_object_get(prev, "key"), key) && labels &&
 		    access(labels, R_OK) == 0) {
 			json_t *copy = json_deep_copy(prev);

@@ -480,7 +480,7 @@ static int make_outdir(proc *p)
 	return ret;
 }
 
-static const json_t *previous_entry(const proc *p, const char *name)
+const json_t *proc_previous_object(const proc *p, const char *name)
 {
 	const json_t *e;
 	size_t i;
@@ -608,7 +608,7 @@ static int check_contents(proc *p)
 		snprintf(path, sizeof(path), "%s/%s", out, c->name);
 		if (lstat(path, &st) != 0)
 			continue;
-		if (!previous_entry(p, c->name))
+		if (!proc_previous_object(p, c->name))
 			ret = kg_fail(p->err, KG_EINVAL, "%s: exists, and %s/process.json does not list "
 			              "it as written by kogei process: capture %s's results would "
 			              "replace it; move it or choose another -o", path, out, c->name);

@@ -248,6 +248,16 @@ static void row(report *r, const char *key, const char *value)
 	html(r, "</td></tr>\n");
 }
 
+/* A number with `digits` decimals (an em dash when missing) and its unit (may be ""). */
+static void num_row(report *r, const char *key, double v, int digits, const char *unit)
+{
+	html(r, "<tr><th scope=\"row\">");
+	text(r, key);
+	html(r, "</th><td>");
+	put_num(r, v, digits);
+	html(r, "%s</td></tr>\n", unit);
+}
+
 static void rowf(report *r, const char *key, const char *fmt, ...) KG_PRINTF(3, 4);
 static void rowf(report *r, const char *key, const char *fmt, ...)
 {
@@ -618,9 +628,7 @@ static void section_calibration(report *r)
 		html(r, "none");
 	}
 	html(r, "</td></tr>\n");
-	html(r, "<tr><th scope=\"row\">Homography RMS</th><td>");
-	put_num(r, num(r, "calibration.homography_rms_px"), 2);
-	html(r, " px</td></tr>\n");
+	num_row(r, "Homography RMS", num(r, "calibration.homography_rms_px"), 2, " px");
 	row(r, "Chart spectra", opt_str(r, "calibration.spectra_source"));
 	/* the light over the chart: removed from the patch values, and the flat's */
 	html(r, "<tr><th scope=\"row\">Light over the chart</th><td>");
@@ -650,11 +658,9 @@ static void section_calibration(report *r)
 		html(r, "no flat measured");
 	}
 	html(r, "</td></tr>\n");
-	html(r, "<tr><th scope=\"row\">Condition number of M</th><td>");
-	put_num(r, num(r, "calibration.cond_M"), 2);
-	html(r, "</td></tr>\n<tr><th scope=\"row\">Condition number of M2</th><td>");
-	put_num(r, num(r, "calibration.cond_M2"), 2);
-	html(r, "</td></tr>\n<tr><th scope=\"row\">Relative residual</th><td>");
+	num_row(r, "Condition number of M", num(r, "calibration.cond_M"), 2, "");
+	num_row(r, "Condition number of M2", num(r, "calibration.cond_M2"), 2, "");
+	html(r, "<tr><th scope=\"row\">Relative residual</th><td>");
 	put_num(r, num(r, "calibration.residual_relative"), 4);
 	html(r, " (limit ");
 	put_num(r, num(r, "parameters.max_residual"), 4);
@@ -1235,6 +1241,22 @@ static void acquisition_row(report *r, const char *who, const char *prefix, doub
 	html(r, "</td></tr>\n");
 }
 
+/* A JSON object as a table of its keys and values. */
+static void put_kv_table(report *r, json_t *obj)
+{
+	html(r, "<table class=\"kv\">\n");
+	const char *k;
+	json_t *v;
+	json_object_foreach(obj, k, v) {
+		html(r, "<tr><th scope=\"row\">");
+		text(r, k);
+		html(r, "</th><td>");
+		put_json(r, v);
+		html(r, "</td></tr>\n");
+	}
+	html(r, "</table>\n");
+}
+
 static void put_devices(report *r, const char *kind, const char *title)
 {
 	int n;
@@ -1249,17 +1271,7 @@ static void put_devices(report *r, const char *kind, const char *title)
 			       kind, i);
 			return;
 		}
-		html(r, "<table class=\"kv\">\n");
-		const char *k;
-		json_t *v;
-		json_object_foreach(d, k, v) {
-			html(r, "<tr><th scope=\"row\">");
-			text(r, k);
-			html(r, "</th><td>");
-			put_json(r, v);
-			html(r, "</td></tr>\n");
-		}
-		html(r, "</table>\n");
+		put_kv_table(r, d);
 	}
 }
 
@@ -1311,22 +1323,12 @@ static void section_provenance(report *r)
 	}
 	html(r, "</tbody></table>\n");
 
-	html(r, "<h3>Parameters</h3>\n<table class=\"kv\">\n");
+	html(r, "<h3>Parameters</h3>\n");
 	json_t *params = kg_json_find(r->root, "parameters");
-	if (!json_is_object(params)) {
+	if (!json_is_object(params))
 		failed(r, KG_EINVAL, "%s: key 'parameters': expected an object", r->file);
-	} else {
-		const char *k;
-		json_t *v;
-		json_object_foreach(params, k, v) {
-			html(r, "<tr><th scope=\"row\">");
-			text(r, k);
-			html(r, "</th><td>");
-			put_json(r, v);
-			html(r, "</td></tr>\n");
-		}
-	}
-	html(r, "</table>\n");
+	else
+		put_kv_table(r, params);
 	section_end(r);
 }
 
