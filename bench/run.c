@@ -121,7 +121,7 @@ static int reference_present(const char *dir, char *note, size_t len)
 	for (size_t i = 0; i < sizeof(files) / sizeof(files[0]); i++)
 		if (!file_exists(dir, files[i])) {
 			snprintf(note, len,
-			         "%s/%s not found: the error part needs ../shared/reference "
+			         "%s/%s not found: the error part needs the reference data set "
 			         "(set KOGEI_REFERENCE or --reference DIR)",
 			         dir, files[i]);
 			return 0;

@@ -4,6 +4,8 @@
 #ifndef KG_CLI_H
 #define KG_CLI_H
 
+#include <stdint.h>
+
 #include "kg_calib.h"
 #include "kg_core.h"
 
@@ -19,8 +21,30 @@ typedef struct kg_command {
 int kg_cli_error(const kg_err *err, int code);
 /* Print a usage error and return KG_EXIT_USAGE. */
 int kg_cli_usage_error(const char *usage, const char *fmt, ...) KG_PRINTF(2, 3);
+/* Pairs of an option's name and its value, ending with NULL: the usage error
+ * "NAME is required" for the first value that is NULL, else 0. */
+int kg_cli_required(const char *usage, ...);
 /* 1 if argv holds -h or --help. */
 int kg_cli_wants_help(int argc, char **argv);
+
+/* All of TEXT as a finite number: 0, or -1 (empty, trailing text, not a number, out of
+ * double's range). */
+int kg_cli_number(const char *text, double *out);
+/* All of TEXT as a whole number from lo to hi: 0, or -1. *out is set on success only. */
+int kg_cli_int(const char *text, int lo, int hi, int *out);
+/* An option's value as a number from lo to hi; otherwise the usage error
+ * "OPT 'TEXT': expected a number from LO to HI" and KG_EXIT_USAGE. */
+int kg_cli_number_option(const char *usage, const char *opt, const char *text, double lo,
+                         double hi, double *out);
+/* An option's value as a number >= lo (> lo when strict); otherwise the usage error
+ * "OPT TEXT: expected a number >= LO" (or "> LO") and KG_EXIT_USAGE. */
+int kg_cli_min_option(const char *usage, const char *opt, const char *text, double lo,
+                      int strict, double *out);
+/* The same for a whole number: "OPT 'TEXT': expected a whole number from LO to HI". */
+int kg_cli_int_option(const char *usage, const char *opt, const char *text, int lo, int hi,
+                      int *out);
+/* --seed: a whole number >= 0 (no sign), else the usage error and KG_EXIT_USAGE. */
+int kg_cli_seed_option(const char *usage, const char *text, uint64_t *out);
 
 /* "a:b[:c]" (numbers separated by colons) into up to max finite values; how many, or
  * -1 for anything else (an empty part, trailing text, too many). */

@@ -73,29 +73,6 @@ static void note(void *user, const char *message)
 
 /* ---- options ---------------------------------------------------------------------- */
 
-static int parse_long(const char *opt, const char *text, long min, long max, long *out)
-{
-	char *end;
-	long v = strtol(text, &end, 10);
-	if (end == text || *end || v < min || v > max)
-		return kg_cli_usage_error(usage_acquire, "%s '%s': expected a whole number %ld..%ld",
-		                          opt, text, min, max);
-	*out = v;
-	return 0;
-}
-
-static int parse_double(const char *opt, const char *text, double min, double max,
-                        double *out)
-{
-	char *end;
-	double v = strtod(text, &end);
-	if (end == text || *end || !isfinite(v) || v < min || v > max)
-		return kg_cli_usage_error(usage_acquire, "%s '%s': expected a number %g..%g", opt,
-		                          text, min, max);
-	*out = v;
-	return 0;
-}
-
 static int parse_roi(const char *text, kg_frame_format *f)
 {
 	int w, h, x, y, n = 0;
@@ -194,7 +171,7 @@ int kg_cmd_acquire(int argc, char **argv)
 	optind = 1;
 	opterr = 0;
 	int opt, r = 0;
-	long n = 0; /* parse_long sets it on success only; GCC cannot see errors are nonzero */
+	int n = 0; /* set on success only; GCC cannot see errors are nonzero */
 	kg_err err = {{0}};
 	json_t *meta __attribute__((cleanup(decref_p))) = json_object();
 	o.meta = meta;
@@ -205,22 +182,24 @@ int kg_cmd_acquire(int argc, char **argv)
 		case O_KIND: kind = optarg; break;
 		case O_NAME: o.name = optarg; break;
 		case O_FRAMES:
-			if (!(r = parse_long("--frames", optarg, 1, 1000000, &n)))
-				o.frames = (int)n;
+			r = kg_cli_int_option(usage_acquire, "--frames", optarg, 1, 1000000, &o.frames);
 			have_frames = 1;
 			break;
 		case O_EXPOSURE:
 			if (!strcmp(optarg, "auto"))
 				o.auto_exposure = 1;
 			else
-				r = parse_double("--exposure", optarg, 1e-3, 1e9, &o.exposure_us);
+				r = kg_cli_number_option(usage_acquire, "--exposure", optarg, 1e-3, 1e9,
+				                         &o.exposure_us);
 			break;
 		case O_TARGET:
-			r = parse_double("--target", optarg, 0.01, 0.99, &o.target);
+			r = kg_cli_number_option(usage_acquire, "--target", optarg, 0.01, 0.99, &o.target);
 			have_target = 1;
 			break;
 		case O_LAYOUT: layout = optarg; break;
-		case O_GAIN: r = parse_double("--gain", optarg, -1e6, 1e6, &o.gain); break;
+		case O_GAIN:
+			r = kg_cli_number_option(usage_acquire, "--gain", optarg, -1e6, 1e6, &o.gain);
+			break;
 		case O_FORMAT:
 			if (kg_pixfmt_parse(optarg, &o.format.pixfmt, &o.format.bits, o.format.cfa, &err))
 				r = kg_cli_usage_error(usage_acquire, "--format: %s", err.msg);
@@ -229,11 +208,13 @@ int kg_cmd_acquire(int argc, char **argv)
 		case O_DARK: o.dark = optarg; break;
 		case O_FLAT: o.flat = optarg; break;
 		case O_TIMEOUT:
-			if (!(r = parse_long("--timeout-ms", optarg, 1, 3600000, &n)))
-				o.timeout_ms = (int)n;
+			r = kg_cli_int_option(usage_acquire, "--timeout-ms", optarg, 1, 3600000,
+			                      &o.timeout_ms);
 			break;
 		case O_MAX_DROPPED:
-			r = parse_long("--max-dropped", optarg, 0, 1000000000, &o.max_dropped);
+			if (!(r = kg_cli_int_option(usage_acquire, "--max-dropped", optarg, 0, 1000000000,
+			                            &n)))
+				o.max_dropped = n;
 			break;
 		case O_FORCE: o.force_nonlinear = 1; break;
 		case O_NO_RECORD: o.record = 0; break;

@@ -63,10 +63,14 @@ static const char usage_camera[] =
 	"  M2, A = B M M2, every method's map) and prints the condition number and\n"
 	"  residuals.";
 
-/* Split "a,b,c" into a NULL-terminated list (one allocation for the pointers, one
- * for the text). */
-static int split_ids(const char *text, char ***out, int *n)
+/* Split "a,b,c" (--exclude; NULL for none) into a NULL-terminated list (one allocation
+ * for the pointers, one for the text). */
+static int split_ids(const char *text, char ***out, int *n, kg_err *err)
 {
+	*out = NULL;
+	*n = 0;
+	if (!text)
+		return 0;
 	char *copy = strdup(text);
 	int count = 1;
 	for (const char *p = text; *p; p++)
@@ -75,7 +79,7 @@ static int split_ids(const char *text, char ***out, int *n)
 	if (!copy || !v) {
 		free(copy);
 		free(v);
-		return KG_ENOMEM;
+		return kg_fail(err, KG_ENOMEM, "out of memory");
 	}
 	int k = 0;
 	for (char *save = NULL, *tok = strtok_r(copy, ",", &save); tok;
@@ -94,16 +98,6 @@ static void free_ids(char ***v)
 		free((*v)[0]);
 	free(*v);
 	*v = NULL;
-}
-
-static int parse_double(const char *text, double *out)
-{
-	char *end = NULL;
-	double v = strtod(text, &end);
-	if (!end || end == text || *end || !isfinite(v))
-		return -1;
-	*out = v;
-	return 0;
 }
 
 /* The report goes to standard output, or to standard error when the calibration
@@ -154,11 +148,37 @@ static void print_reference(FILE *fp, const kg_reference *ref, const char *out)
 		fprintf(fp, "wrote %s\n", out);
 }
 
+/* What both commands take: --method, --max-cond, --exclude and -o. */
+typedef struct shared_args {
+	const char *out, *exclude;
+	kg_method *method;
+	double *max_cond;
+} shared_args;
+
+/* 1 when option c is one of the shared ones (*bad: 0, or the usage error's exit code),
+ * 0 when not. */
+static int shared_option(int c, const char *usage, shared_args *a, int *bad)
+{
+	kg_err err = {{0}};
+	switch (c) {
+	case 'o': a->out = optarg; return 1;
+	case 'x': a->exclude = optarg; return 1;
+	case 'C': *bad = kg_cli_min_option(usage, "--max-cond", optarg, 1, 0, a->max_cond); return 1;
+	case 'm':
+		if (kg_method_parse(optarg, a->method, &err))
+			*bad = kg_cli_usage_error(usage, "--%s", err.msg);
+		return 1;
+	default: return 0;
+	}
+}
+
 int kg_cmd_calib_reference(int argc, char **argv)
 {
-	const char *spectra = NULL, *rgb = NULL, *field = NULL, *out = NULL, *exclude = NULL;
+	const char *u = usage_reference;
+	const char *spectra = NULL, *rgb = NULL, *field = NULL;
 	kg_reference_options opt;
 	kg_reference_options_default(&opt);
+	shared_args a = {NULL, NULL, &opt.method, &opt.max_cond};
 	static const struct option opts[] = {
 		{"spectra", required_argument, NULL, 's'},
 		{"rgb", required_argument, NULL, 'r'},
@@ -182,6 +202,12 @@ int kg_cmd_calib_reference(int argc, char **argv)
 	optind = 1;
 	while ((c = getopt_long(argc, argv, "o:h", opts, NULL)) != -1) {
 		double v;
+		int bad = 0;
+		if (shared_option(c, u, &a, &bad)) {
+			if (bad)
+				return bad;
+			continue;
+		}
 		switch (c) {
 		case 'S': camera = optarg; break;
 		case 'I': illuminant = optarg; break;
@@ -189,48 +215,30 @@ int kg_cmd_calib_reference(int argc, char **argv)
 		case 'r': rgb = optarg; break;
 		case 'f': field = optarg; break;
 		case 'c': opt.centred = 1; break;
-		case 'x': exclude = optarg; break;
-		case 'o': out = optarg; break;
 		case 'K':
 			if (strcmp(optarg, "auto") == 0)
 				opt.basis = 0;
-			else if (parse_double(optarg, &v) || v != floor(v) || v < 1 ||
+			else if (kg_cli_number(optarg, &v) || v != floor(v) || v < 1 ||
 			         v > KG_CALIB_MAX_BASIS)
-				return kg_cli_usage_error(usage_reference,
-				                          "--basis %s: expected an integer 1-%d or auto", optarg,
-				                          KG_CALIB_MAX_BASIS);
+				return kg_cli_usage_error(u, "--basis %s: expected an integer 1-%d or auto",
+				                          optarg, KG_CALIB_MAX_BASIS);
 			else
 				opt.basis = (int)v;
 			break;
-		case 'l':
-			if (parse_double(optarg, &opt.ridge) || opt.ridge < 0)
-				return kg_cli_usage_error(usage_reference,
-				                          "--ridge %s: expected a number >= 0", optarg);
-			break;
-		case 'C':
-			if (parse_double(optarg, &opt.max_cond) || opt.max_cond < 1)
-				return kg_cli_usage_error(usage_reference,
-				                          "--max-cond %s: expected a number >= 1", optarg);
-			break;
-		case 'n':
-			if (parse_double(optarg, &opt.noise_sigma) || opt.noise_sigma <= 0)
-				return kg_cli_usage_error(usage_reference,
-				                          "--noise %s: expected a number > 0", optarg);
-			break;
-		case 'm':
-			if (kg_method_parse(optarg, &opt.method, &err))
-				return kg_cli_usage_error(usage_reference, "--%s", err.msg);
-			break;
-		case 'h': puts(usage_reference); return KG_EXIT_OK;
-		default: return kg_cli_usage_error(usage_reference, "bad option");
+		case 'l': bad = kg_cli_min_option(u, "--ridge", optarg, 0, 0, &opt.ridge); break;
+		case 'n': bad = kg_cli_min_option(u, "--noise", optarg, 0, 1, &opt.noise_sigma); break;
+		case 'h': puts(u); return KG_EXIT_OK;
+		default: return kg_cli_usage_error(u, "bad option");
 		}
+		if (bad)
+			return bad;
 	}
 	if (optind != argc)
-		return kg_cli_usage_error(usage_reference, "unexpected argument '%s'", argv[optind]);
-	if (!spectra || !rgb || !out)
-		return kg_cli_usage_error(usage_reference, "--spectra, --rgb and -o are required");
+		return kg_cli_usage_error(u, "unexpected argument '%s'", argv[optind]);
+	if (!spectra || !rgb || !a.out)
+		return kg_cli_usage_error(u, "--spectra, --rgb and -o are required");
 	if (!camera != !illuminant)
-		return kg_cli_usage_error(usage_reference, "--camera and --illuminant go together "
+		return kg_cli_usage_error(u, "--camera and --illuminant go together "
 		                          "(the sensitivities and the chart's light)");
 	kg_spectrum weights[3];
 	if (camera) {
@@ -247,21 +255,19 @@ int kg_cmd_calib_reference(int argc, char **argv)
 		opt.camera_weights = weights;
 	}
 
-	char **ids = NULL;
-	int nids = 0;
-	if (exclude && split_ids(exclude, &ids, &nids))
-		return kg_cli_error(&err, kg_fail(&err, KG_ENOMEM, "out of memory"));
+	char **ids;
+	if (split_ids(a.exclude, &ids, &opt.nexclude, &err))
+		return kg_cli_error(&err, KG_ENOMEM);
 	opt.exclude = (const char *const *)ids;
-	opt.nexclude = nids;
 	kg_reference *ref = NULL;
 	int ret = kg_reference_fit_files(spectra, rgb, field, &opt, &ref, &err);
 	if (!ret)
-		ret = kg_reference_save(ref, out, &err);
+		ret = kg_reference_save(ref, a.out, &err);
 	if (!ret && ref->id_rule[0])
 		fprintf(stderr, "kogei: note: %s and %s: patch ids paired as %s\n", spectra, rgb,
 		        ref->id_rule);
 	if (!ret)
-		print_reference(report_stream(out), ref, out);
+		print_reference(report_stream(a.out), ref, a.out);
 	kg_reference_free(&ref);
 	free_ids(&ids);
 	return ret ? kg_cli_error(&err, ret) : KG_EXIT_OK;
@@ -309,10 +315,12 @@ static void note_flagged(const kg_camera_calib *cam, const char *rgb)
 
 int kg_cmd_calib_camera(int argc, char **argv)
 {
-	const char *refpath = NULL, *rgb = NULL, *out = NULL, *exclude = NULL;
+	const char *u = usage_camera;
+	const char *refpath = NULL, *rgb = NULL;
 	kg_method method = KG_METHOD_AUTO;
 	kg_camera_options opt;
 	kg_camera_options_default(&opt);
+	shared_args a = {NULL, NULL, &method, &opt.max_cond};
 	static const struct option opts[] = {
 		{"reference", required_argument, NULL, 'R'},
 		{"rgb", required_argument, NULL, 'r'},
@@ -331,51 +339,43 @@ int kg_cmd_calib_camera(int argc, char **argv)
 	int c;
 	optind = 1;
 	while ((c = getopt_long(argc, argv, "o:h", opts, NULL)) != -1) {
+		int bad = 0;
+		if (shared_option(c, u, &a, &bad)) {
+			if (bad)
+				return bad;
+			continue;
+		}
 		switch (c) {
 		case 'R': refpath = optarg; break;
 		case 'r': rgb = optarg; break;
-		case 'x': exclude = optarg; break;
-		case 'o': out = optarg; break;
-		case 'm':
-			if (kg_method_parse(optarg, &method, &err))
-				return kg_cli_usage_error(usage_camera, "--%s", err.msg);
-			break;
-		case 'C':
-			if (parse_double(optarg, &opt.max_cond) || opt.max_cond < 1)
-				return kg_cli_usage_error(usage_camera, "--max-cond %s: expected a number >= 1",
-				                          optarg);
-			break;
 		case 'L':
-			if (parse_double(optarg, &opt.clip_level) || opt.clip_level <= 0)
-				return kg_cli_usage_error(usage_camera, "--clip-level %s: expected a number > 0",
-				                          optarg);
+			bad = kg_cli_min_option(u, "--clip-level", optarg, 0, 1,
+			                        &opt.clip_level);
 			break;
 		case 'B':
-			if (parse_double(optarg, &opt.black_level) || opt.black_level < 0)
-				return kg_cli_usage_error(usage_camera,
-				                          "--black-level %s: expected a number >= 0", optarg);
+			bad = kg_cli_min_option(u, "--black-level", optarg, 0, 0,
+			                        &opt.black_level);
 			break;
 		case 'X':
-			if (parse_double(optarg, &opt.max_residual) || !(opt.max_residual > 0))
-				return kg_cli_usage_error(usage_camera,
-				                          "--max-residual %s: expected a number > 0", optarg);
+			bad = kg_cli_min_option(u, "--max-residual", optarg, 0, 1,
+			                        &opt.max_residual);
 			break;
 		case 'f': opt.force = 1; break;
-		case 'h': puts(usage_camera); return KG_EXIT_OK;
-		default: return kg_cli_usage_error(usage_camera, "bad option");
+		case 'h': puts(u); return KG_EXIT_OK;
+		default: return kg_cli_usage_error(u, "bad option");
 		}
+		if (bad)
+			return bad;
 	}
 	if (optind != argc)
-		return kg_cli_usage_error(usage_camera, "unexpected argument '%s'", argv[optind]);
-	if (!refpath || !rgb || !out)
-		return kg_cli_usage_error(usage_camera, "--reference, --rgb and -o are required");
+		return kg_cli_usage_error(u, "unexpected argument '%s'", argv[optind]);
+	if (!refpath || !rgb || !a.out)
+		return kg_cli_usage_error(u, "--reference, --rgb and -o are required");
 
-	char **ids = NULL;
-	int nids = 0;
-	if (exclude && split_ids(exclude, &ids, &nids))
-		return kg_cli_error(&err, kg_fail(&err, KG_ENOMEM, "out of memory"));
+	char **ids;
+	if (split_ids(a.exclude, &ids, &opt.nexclude, &err))
+		return kg_cli_error(&err, KG_ENOMEM);
 	opt.exclude = (const char *const *)ids;
-	opt.nexclude = nids;
 	kg_camera_calib *cam = NULL;
 	int ret = kg_camera_fit_files(refpath, rgb, &opt, &cam, &err);
 	if (!ret && method != KG_METHOD_AUTO)
@@ -389,9 +389,9 @@ int kg_cmd_calib_camera(int argc, char **argv)
 		fprintf(stderr, "kogei: warning: --force: M2 from exactly 3 patches; its residual is "
 		                "0 by construction, so the fit was not checked\n");
 	if (!ret)
-		ret = kg_camera_save(cam, out, &err);
+		ret = kg_camera_save(cam, a.out, &err);
 	if (!ret)
-		print_camera(report_stream(out), cam, out);
+		print_camera(report_stream(a.out), cam, a.out);
 	kg_camera_calib_free(&cam);
 	free_ids(&ids);
 	return ret ? kg_cli_error(&err, ret) : KG_EXIT_OK;

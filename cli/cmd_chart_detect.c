@@ -87,16 +87,6 @@ static const char help_detect[] =
 	"Warnings go to standard error. Exit status 1 when the chart is not found (the\n"
 	"message says what was seen), 2 on bad usage.";
 
-static int parse_int(const char *text, int lo, int hi, int *out)
-{
-	char *end;
-	long v = strtol(text, &end, 10);
-	if (*text == '\0' || *end || v < lo || v > hi)
-		return -1;
-	*out = (int)v;
-	return 0;
-}
-
 int kg_cmd_chart_detect(int argc, char **argv)
 {
 	if (kg_cli_wants_help(argc, argv)) {
@@ -142,15 +132,15 @@ int kg_cmd_chart_detect(int argc, char **argv)
 			overlay = optarg;
 			break;
 		case 'd':
-			if (parse_int(optarg, 1, 64, &opt.decimate))
+			if (kg_cli_int(optarg, 1, 64, &opt.decimate))
 				return kg_cli_usage_error(usage_detect, "--decimate %s: expected 1..64", optarg);
 			break;
 		case 't':
-			if (parse_int(optarg, 1, 256, &opt.threads))
+			if (kg_cli_int(optarg, 1, 256, &opt.threads))
 				return kg_cli_usage_error(usage_detect, "--threads %s: expected 1..256", optarg);
 			break;
 		case 'm':
-			if (parse_int(optarg, 1, 1000, &opt.min_tags))
+			if (kg_cli_int(optarg, 1, 1000, &opt.min_tags))
 				return kg_cli_usage_error(usage_detect, "--min-tags %s: expected 1..1000",
 				                          optarg);
 			break;

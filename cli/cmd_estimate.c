@@ -172,16 +172,6 @@ static const char help_classify[] =
 	"Prints the classes with their pixel counts and median margins. Exit status 1 on\n"
 	"bad input (nothing is written), 2 on bad usage.";
 
-static int parse_int(const char *text, int lo, int hi, int *out)
-{
-	char *end = NULL;
-	long v = strtol(text, &end, 10);
-	if (!end || end == text || *end || v < lo || v > hi)
-		return -1;
-	*out = (int)v;
-	return 0;
-}
-
 /* 1 once --clip-level was given: the user's level is kept as it is. */
 static int clip_given;
 
@@ -191,9 +181,8 @@ static int parse_clip(const char *text, float *out)
 		*out = INFINITY;
 		return 0;
 	}
-	char *end = NULL;
-	double v = strtod(text, &end);
-	if (!end || end == text || *end || !(v > 0) || !isfinite(v))
+	double v;
+	if (kg_cli_number(text, &v) || !(v > 0))
 		return -1;
 	*out = (float)v;
 	return 0;
@@ -210,11 +199,11 @@ static int common_option(int c, const char *usage, kg_apply_options *opt, int *q
 	kg_err local = {{0}};
 	switch (c) {
 	case 't':
-		if (parse_int(optarg, 1, 256, &opt->threads))
+		if (kg_cli_int(optarg, 1, 256, &opt->threads))
 			return -kg_cli_usage_error(usage, "--threads %s: expected 1 to 256", optarg);
 		return 1;
 	case 'b':
-		if (parse_int(optarg, 1, 1 << 20, &opt->block_rows))
+		if (kg_cli_int(optarg, 1, 1 << 20, &opt->block_rows))
 			return -kg_cli_usage_error(usage, "--block-rows %s: expected a positive integer",
 			                           optarg);
 		return 1;
@@ -385,7 +374,7 @@ int kg_cmd_estimate(int argc, char **argv)
 		case 'i': interleave = optarg; break;
 		case 'm': method = optarg; break;
 		case 'L':
-			if (parse_int(optarg, 2, KG_EST_LUT_MAX_N, &lut_size))
+			if (kg_cli_int(optarg, 2, KG_EST_LUT_MAX_N, &lut_size))
 				return kg_cli_usage_error(usage_estimate, "--lut-size %s: expected 2 to %d",
 				                          optarg, KG_EST_LUT_MAX_N);
 			break;
@@ -524,7 +513,6 @@ int kg_cmd_classify(int argc, char **argv)
 			return -r;
 		if (r)
 			continue;
-		char *end = NULL;
 		switch (c) {
 		case 'C': calib = optarg; break;
 		case 'o': out = optarg; break;
@@ -561,15 +549,13 @@ int kg_cmd_classify(int argc, char **argv)
 				ccam.merge_distance = -1;
 				break;
 			}
-			ccam.merge_distance = strtod(optarg, &end);
-			if (!end || end == optarg || *end || !(ccam.merge_distance > 0) ||
-			    !isfinite(ccam.merge_distance))
+			if (kg_cli_number(optarg, &ccam.merge_distance) || !(ccam.merge_distance > 0))
 				return kg_cli_usage_error(usage_classify, "--merge-distance %s: expected a "
 				                          "number > 0 or none", optarg);
 			break;
 		case 'K': mask = optarg; break;
 		case 'N':
-			if (parse_int(optarg, 1, 1 << 20, &copt.frames))
+			if (kg_cli_int(optarg, 1, 1 << 20, &copt.frames))
 				return kg_cli_usage_error(usage_classify, "--frames %s: expected 1 or more",
 				                          optarg);
 			break;
@@ -578,8 +564,7 @@ int kg_cmd_classify(int argc, char **argv)
 				copt.background_level = 0;
 				break;
 			}
-			copt.background_level = strtod(optarg, &end);
-			if (!end || end == optarg || *end ||
+			if (kg_cli_number(optarg, &copt.background_level) ||
 			    !(copt.background_level >= 0 && copt.background_level <= 1))
 				return kg_cli_usage_error(usage_classify,
 				                          "--background-level %s: expected 0 to 1 (of full "
@@ -591,9 +576,7 @@ int kg_cmd_classify(int argc, char **argv)
 				copt.unknown_threshold = INFINITY;
 				break;
 			}
-			copt.unknown_threshold = strtod(optarg, &end);
-			if (!end || end == optarg || *end || !(copt.unknown_threshold > 0) ||
-			    !isfinite(copt.unknown_threshold))
+			if (kg_cli_number(optarg, &copt.unknown_threshold) || !(copt.unknown_threshold > 0))
 				return kg_cli_usage_error(usage_classify,
 				                          "--unknown-threshold %s: expected a number > 0 or "
 				                          "none",
@@ -601,8 +584,7 @@ int kg_cmd_classify(int argc, char **argv)
 			break;
 		case 'a':
 			angle_given = 1;
-			angle = strtod(optarg, &end);
-			if (!end || end == optarg || *end || !(angle >= 0 && angle <= 90))
+			if (kg_cli_number(optarg, &angle) || !(angle >= 0 && angle <= 90))
 				return kg_cli_usage_error(usage_classify, "--angle %s: expected 0 to 90 degrees",
 				                          optarg);
 			break;

@@ -145,7 +145,6 @@ int kg_cmd_measure(int argc, char **argv)
 		{0, 0, 0, 0},
 	};
 	int c;
-	char *end;
 	optind = 1;
 	while ((c = getopt_long(argc, argv, "s:o:h", opts, NULL)) != -1) {
 		switch (c) {
@@ -158,27 +157,24 @@ int kg_cmd_measure(int argc, char **argv)
 		case O_INFO: info_only = 1; break;
 		case O_ID: id = optarg; break;
 		case O_INTEGRATION:
-			integration_ms = strtod(optarg, &end);
-			if (*end || !(integration_ms > 0) || integration_ms > 4e6)
+			if (kg_cli_number(optarg, &integration_ms) || !(integration_ms > 0) ||
+			    integration_ms > 4e6)
 				return kg_cli_usage_error(usage_measure, "--integration %s: expected "
 				                          "milliseconds > 0", optarg);
 			break;
 		case O_AVERAGE:
-			m.s.acq.scans = (int)strtol(optarg, &end, 10);
-			if (*end || m.s.acq.scans < 1 || m.s.acq.scans > 10000)
+			if (kg_cli_int(optarg, 1, 10000, &m.s.acq.scans))
 				return kg_cli_usage_error(usage_measure, "--average %s: expected 1-10000",
 				                          optarg);
 			break;
 		case O_BOXCAR:
-			m.s.acq.boxcar = (int)strtol(optarg, &end, 10);
-			if (*end || m.s.acq.boxcar < 0 || m.s.acq.boxcar > 100)
+			if (kg_cli_int(optarg, 0, 100, &m.s.acq.boxcar))
 				return kg_cli_usage_error(usage_measure, "--boxcar %s: expected 0-100",
 				                          optarg);
 			break;
 		case O_WHITE_REF: white_ref = optarg; break;
 		case O_MAX_AGE:
-			max_age = strtod(optarg, &end);
-			if (*end || !(max_age > 0))
+			if (kg_cli_number(optarg, &max_age) || !(max_age > 0))
 				return kg_cli_usage_error(usage_measure, "--white-max-age %s: expected "
 				                          "seconds > 0", optarg);
 			break;

@@ -187,8 +187,6 @@ int kg_cmd_process(int argc, char **argv)
 	int quiet = 0, ch;
 	optind = 1;
 	while ((ch = getopt_long(argc, argv, "o:", longopts, NULL)) != -1) {
-		char *end;
-		long v;
 		switch (ch) {
 		case 'o': o.outdir = optarg; break;
 		case O_REF: o.reference = optarg; break;
@@ -240,21 +238,18 @@ int kg_cmd_process(int argc, char **argv)
 			break;
 		}
 		case O_ANGLE:
-			o.angle_deg = strtod(optarg, &end);
-			if (*end || !(o.angle_deg >= 0 && o.angle_deg < 90))
+			if (kg_cli_number(optarg, &o.angle_deg) || !(o.angle_deg >= 0 && o.angle_deg < 90))
 				return kg_cli_usage_error(usage_process, "--angle %s: expected degrees in "
 				                          "0..90", optarg);
 			break;
 		case O_MINTAGS:
-			v = strtol(optarg, &end, 10);
-			if (*end || *optarg == '\0' || v < 1 || v > 1000)
+			if (kg_cli_int(optarg, 1, 1000, &o.min_tags))
 				return kg_cli_usage_error(usage_process, "--min-tags %s: expected 1..1000",
 				                          optarg);
-			o.min_tags = (int)v;
 			break;
 		case O_MAXRES:
-			o.max_residual = strtod(optarg, &end);
-			if (*end || !(o.max_residual > 0 && o.max_residual < 1))
+			if (kg_cli_number(optarg, &o.max_residual) ||
+			    !(o.max_residual > 0 && o.max_residual < 1))
 				return kg_cli_usage_error(usage_process, "--max-residual %s: expected a "
 				                          "fraction in (0, 1)", optarg);
 			break;
@@ -262,11 +257,9 @@ int kg_cmd_process(int argc, char **argv)
 		case O_SAME: o.assume_same_exposure = 1; break;
 		case O_NORENDER: o.render = 0; break;
 		case O_THREADS:
-			v = strtol(optarg, &end, 10);
-			if (*end || *optarg == '\0' || v < 1 || v > 256)
+			if (kg_cli_int(optarg, 1, 256, &o.threads))
 				return kg_cli_usage_error(usage_process, "--threads %s: expected 1..256",
 				                          optarg);
-			o.threads = (int)v;
 			break;
 		case O_QUIET: quiet = 1; break;
 		case O_META: {

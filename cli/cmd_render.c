@@ -65,29 +65,6 @@ static void progress(void *user, int done, int total)
 	p->last = pct;
 }
 
-static int parse_count(const char *text, const char *what, long min, long max, long *out)
-{
-	char *end;
-	long v = strtol(text, &end, 10);
-	if (!*text || *end || v < min || v > max)
-		return kg_cli_usage_error(usage_render, "%s %s: expected an integer from %ld to %ld",
-		                          what, text, min, max);
-	*out = v;
-	return 0;
-}
-
-static int parse_white_level(const char *text, double *out)
-{
-	char *end;
-	errno = 0;
-	double v = strtod(text, &end);
-	if (end == text || *end || errno || !(v >= 1e-6 && v <= 1e6))
-		return kg_cli_usage_error(usage_render, "--white-level '%s': expected a number "
-		                          "from 1e-06 to 1e+06", text);
-	*out = v;
-	return 0;
-}
-
 /* The folder of an output file must exist before hours of rendering. */
 static int check_output_dir(const char *path, kg_err *err)
 {
@@ -114,7 +91,6 @@ int kg_cmd_render(int argc, char **argv)
 	double white_level = 0.9;
 	kg_render_options opt = {0};
 	int quiet = 0;
-	long v = 0; /* parse_count sets it on success only; GCC cannot see errors are nonzero */
 	static const struct option opts[] = {
 		{"scene", required_argument, NULL, 's'},
 		{"output", required_argument, NULL, 'o'},
@@ -150,7 +126,8 @@ int kg_cmd_render(int argc, char **argv)
 		case 'c': camera = optarg; break;
 		case 'L':
 			white_text = optarg;
-			bad = parse_white_level(optarg, &white_level);
+			bad = kg_cli_number_option(usage_render, "--white-level", optarg, 1e-6, 1e6,
+			                           &white_level);
 			break;
 		case 'N': noise_text = optarg; break;
 		case 'T': truth_labels = optarg; break;
@@ -159,40 +136,35 @@ int kg_cmd_render(int argc, char **argv)
 		case 'q': quiet = 1; break;
 		case 'M': mitsuba = optarg; break;
 		case 'n':
-			if (!(bad = parse_count(optarg, "--spp", 1, 1000000, &v)))
-				opt.spp = (int)v;
+			bad = kg_cli_int_option(usage_render, "--spp", optarg, 1, 1000000,
+			                        &opt.spp);
 			break;
 		case 'w':
 			if (strcmp(optarg, "all") == 0)
 				opt.wavelengths = KG_RENDER_ALL_BANDS;
-			else if (!(bad = parse_count(optarg, "--wavelengths", 1, KG_RENDER_ALL_BANDS, &v)))
-				opt.wavelengths = (int)v;
+			else
+				bad = kg_cli_int_option(usage_render, "--wavelengths", optarg, 1,
+				                        KG_RENDER_ALL_BANDS, &opt.wavelengths);
 			break;
 		case 'b':
-			if (!(bad = parse_count(optarg, "--bounces", 1, 64, &v)))
-				opt.bounces = (int)v;
+			bad = kg_cli_int_option(usage_render, "--bounces", optarg, 1, 64,
+			                        &opt.bounces);
 			break;
 		case 't':
-			if (!(bad = parse_count(optarg, "--threads", 1, 256, &v)))
-				opt.threads = (int)v;
+			bad = kg_cli_int_option(usage_render, "--threads", optarg, 1, 256,
+			                        &opt.threads);
 			break;
-		case 'S': {
-			char *end;
-			unsigned long long seed = strtoull(optarg, &end, 10);
-			if (!*optarg || *end || optarg[0] == '-')
-				return kg_cli_usage_error(usage_render, "--seed %s: expected a whole number "
-				                          ">= 0", optarg);
-			opt.seed = seed;
-			opt.seed_set = 1;
+		case 'S':
+			bad = kg_cli_seed_option(usage_render, optarg, &opt.seed);
+			opt.seed_set = !bad;
 			break;
-		}
 		case 'W':
-			if (!(bad = parse_count(optarg, "--width", 1, 16384, &v)))
-				opt.width = (int)v;
+			bad = kg_cli_int_option(usage_render, "--width", optarg, 1, 16384,
+			                        &opt.width);
 			break;
 		case 'H':
-			if (!(bad = parse_count(optarg, "--height", 1, 16384, &v)))
-				opt.height = (int)v;
+			bad = kg_cli_int_option(usage_render, "--height", optarg, 1, 16384,
+			                        &opt.height);
 			break;
 		case 'h': puts(usage_render); return KG_EXIT_OK;
 		default: return kg_cli_usage_error(usage_render, "bad option");

@@ -1,5 +1,4 @@
 /* kogei sim patches / kogei sim image: argument parsing for the simulator (sim/). */
-#include <errno.h>
 #include <inttypes.h>
 #include <math.h>
 #include <stdio.h>
@@ -26,6 +25,7 @@ static const char image_usage[] =
 
 static const char common_help[] =
     "  --camera CSS.csv      camera sensitivities, CSV wavelength_nm,r,g,b\n"
+    "                        (or demo-site, demo-reference: the demo's cameras)\n"
     "  --illuminant SPEC     D65, D50, A, E, Dnn, <T>K, or a CGATS spectrum, or a CSV\n"
     "                        wavelength_nm,<relative power>\n"
     "  --noise SPEC          'none' (default: exact values) or FULLWELL:READ:BITS:\n"
@@ -91,45 +91,6 @@ typedef struct sim_args {
 	unsigned flags;
 } sim_args;
 
-static int parse_double(const char *usage, const char *opt, const char *text, double lo,
-                        double hi, double *out)
-{
-	char *end;
-	errno = 0;
-	double v = strtod(text, &end);
-	if (end == text || *end || errno || !(v >= lo && v <= hi))
-		return kg_cli_usage_error(usage, "%s '%s': expected a number from %g to %g", opt,
-		                          text, lo, hi);
-	*out = v;
-	return 0;
-}
-
-static int parse_int(const char *usage, const char *opt, const char *text, int lo, int hi,
-                     int *out)
-{
-	char *end;
-	errno = 0;
-	long v = strtol(text, &end, 10);
-	if (end == text || *end || errno || v < lo || v > hi)
-		return kg_cli_usage_error(usage, "%s '%s': expected a whole number from %d to %d",
-		                          opt, text, lo, hi);
-	*out = (int)v;
-	return 0;
-}
-
-static int parse_seed(const char *usage, const char *text, uint64_t *out)
-{
-	char *end;
-	errno = 0;
-	if (!*text || *text == '-' || *text == '+')
-		return kg_cli_usage_error(usage, "--seed '%s': expected a whole number >= 0", text);
-	unsigned long long v = strtoull(text, &end, 10);
-	if (*end || errno)
-		return kg_cli_usage_error(usage, "--seed '%s': expected a whole number >= 0", text);
-	*out = (uint64_t)v;
-	return 0;
-}
-
 /* The value of an option, from "--opt VALUE" or "--opt=VALUE"; NULL if argv[*i] is
  * not that option. Sets *missing when the value is absent. */
 static const char *option_value(int argc, char **argv, int *i, const char *name,
@@ -177,7 +138,7 @@ static int shared_option(int argc, char **argv, int *i, const char *usage, sim_a
 	else if ((v = option_value(argc, argv, i, "--white-level", &missing)))
 		a->white_text = v;
 	else if ((v = option_value(argc, argv, i, "--seed", &missing)))
-		*status = parse_seed(usage, v, &a->seed);
+		*status = kg_cli_seed_option(usage, v, &a->seed);
 	if (missing) {
 		*status = kg_cli_usage_error(usage, "%s: expected a value", argv[*i]);
 		return 1;
@@ -188,19 +149,14 @@ static int shared_option(int argc, char **argv, int *i, const char *usage, sim_a
 /* Check what is required and convert what needs converting. */
 static int finish_args(const char *usage, sim_args *a, int need_spectra)
 {
-	int status = parse_double(usage, "--white-level", a->white_text, 1e-6, 1e6,
-	                          &a->white_level);
+	int status = kg_cli_number_option(usage, "--white-level", a->white_text, 1e-6, 1e6,
+	                                  &a->white_level);
 	if (status)
 		return status;
 	if (need_spectra && !a->spectra)
 		return kg_cli_usage_error(usage, "--spectra is required");
-	if (!a->camera)
-		return kg_cli_usage_error(usage, "--camera is required");
-	if (!a->illuminant)
-		return kg_cli_usage_error(usage, "--illuminant is required");
-	if (!a->out)
-		return kg_cli_usage_error(usage, "-o is required");
-	return 0;
+	return kg_cli_required(usage, "--camera", a->camera, "--illuminant", a->illuminant, "-o",
+	                       a->out, NULL);
 }
 
 static void sim_args_init(sim_args *a)
@@ -299,15 +255,16 @@ int kg_cmd_sim_image(int argc, char **argv)
 		else if ((v = option_value(argc, argv, &i, "--depth", &missing)))
 			depth_text = v;
 		else if ((v = option_value(argc, argv, &i, "--angle", &missing)))
-			status = parse_double(image_usage, "--angle", v, 0.0, 89.0, &angle);
+			status = kg_cli_number_option(image_usage, "--angle", v, 0.0, 89.0, &angle);
 		else if ((v = option_value(argc, argv, &i, "--background", &missing)))
-			status = parse_double(image_usage, "--background", v, 0.0, 1.0, &background);
+			status = kg_cli_number_option(image_usage, "--background", v, 0.0, 1.0,
+			                              &background);
 		else if ((v = option_value(argc, argv, &i, "--patch-size", &missing)))
-			status = parse_int(image_usage, "--patch-size", v, 1, 4096, &tile);
+			status = kg_cli_int_option(image_usage, "--patch-size", v, 1, 4096, &tile);
 		else if ((v = option_value(argc, argv, &i, "--gap", &missing)))
-			status = parse_int(image_usage, "--gap", v, 0, 4096, &gap);
+			status = kg_cli_int_option(image_usage, "--gap", v, 0, 4096, &gap);
 		else if ((v = option_value(argc, argv, &i, "--columns", &missing)))
-			status = parse_int(image_usage, "--columns", v, 1, 1024, &columns);
+			status = kg_cli_int_option(image_usage, "--columns", v, 1, 1024, &columns);
 		else if ((v = option_value(argc, argv, &i, "--size", &missing))) {
 			char tail;
 			if (sscanf(v, "%dx%d%c", &width, &height, &tail) != 2 || width < 1 ||

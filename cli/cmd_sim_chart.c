@@ -2,7 +2,6 @@
  * scene renderer. The layout becomes the plain geometry sim/ draws in
  * chart_scene_glue.c (shared with `kogei demo`); this file poses the card, renders
  * and writes the image and the truth. */
-#include <errno.h>
 #include <inttypes.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -35,6 +34,7 @@ static void help(void)
 	       "                        matched by SAMPLE_ID to the layout's patch ids (or\n"
 	       "                        aliases); without it, built-in test colours\n"
 	       "  --camera CSS.csv      camera sensitivities, CSV wavelength_nm,r,g,b\n"
+	       "                        (or demo-site, demo-reference: the demo's cameras)\n"
 	       "  --illuminant SPEC     D65, D50, A, E, Dnn, <T>K, or a CGATS or CSV spectrum\n"
 	       "  --tilt DEG            angle between the card's normal and the optical axis,\n"
 	       "                        0-75 (default 0)\n"
@@ -74,30 +74,6 @@ typedef struct args {
 	uint64_t seed;
 	unsigned flags;
 } args;
-
-static int parse_double(const char *opt, const char *text, double lo, double hi, double *out)
-{
-	char *end;
-	errno = 0;
-	double v = strtod(text, &end);
-	if (end == text || *end || errno || !(v >= lo && v <= hi))
-		return kg_cli_usage_error(usage, "%s '%s': expected a number from %g to %g", opt, text,
-		                          lo, hi);
-	*out = v;
-	return 0;
-}
-
-static int parse_int(const char *opt, const char *text, int lo, int hi, int *out)
-{
-	char *end;
-	errno = 0;
-	long v = strtol(text, &end, 10);
-	if (end == text || *end || errno || v < lo || v > hi)
-		return kg_cli_usage_error(usage, "%s '%s': expected a whole number from %d to %d", opt,
-		                          text, lo, hi);
-	*out = (int)v;
-	return 0;
-}
 
 static int parse_args(int argc, char **argv, args *a)
 {
@@ -154,63 +130,51 @@ static int parse_args(int argc, char **argv, args *a)
 		else if (!strcmp(o, "--cfa"))
 			a->cfa = v;
 		else if (!strcmp(o, "--white-level"))
-			st = parse_double(o, a->white_text = v, 1e-6, 1e6, &a->white_level);
+			st = kg_cli_number_option(usage, o, a->white_text = v, 1e-6, 1e6,
+			                          &a->white_level);
 		else if (!strcmp(o, "--occlude")) {
 			a->occlude = v;
 			if (strcmp(v, "tags") && strcmp(v, "patches"))
 				return kg_cli_usage_error(usage, "--occlude '%s': expected tags or patches", v);
 		} else if (!strcmp(o, "--tilt"))
-			st = parse_double(o, v, 0, 75, &a->tilt);
+			st = kg_cli_number_option(usage, o, v, 0, 75, &a->tilt);
 		else if (!strcmp(o, "--tilt-axis"))
-			st = parse_double(o, v, -360, 360, &a->tilt_axis);
+			st = kg_cli_number_option(usage, o, v, -360, 360, &a->tilt_axis);
 		else if (!strcmp(o, "--rotate"))
-			st = parse_double(o, v, -360, 360, &a->rotate);
+			st = kg_cli_number_option(usage, o, v, -360, 360, &a->rotate);
 		else if (!strcmp(o, "--fov"))
-			st = parse_double(o, v, 1, 150, &a->fov);
+			st = kg_cli_number_option(usage, o, v, 1, 150, &a->fov);
 		else if (!strcmp(o, "--fill"))
-			st = parse_double(o, v, 0.05, 1, &a->fill);
+			st = kg_cli_number_option(usage, o, v, 0.05, 1, &a->fill);
 		else if (!strcmp(o, "--blur"))
-			st = parse_double(o, v, 0, 50, &a->blur);
+			st = kg_cli_number_option(usage, o, v, 0, 50, &a->blur);
 		else if (!strcmp(o, "--vignetting"))
-			st = parse_double(o, v, 0, 0.95, &a->vignetting);
+			st = kg_cli_number_option(usage, o, v, 0, 0.95, &a->vignetting);
 		else if (!strcmp(o, "--paper"))
-			st = parse_double(o, v, 0, 1, &a->paper);
+			st = kg_cli_number_option(usage, o, v, 0, 1, &a->paper);
 		else if (!strcmp(o, "--ink"))
-			st = parse_double(o, v, 0, 1, &a->ink);
+			st = kg_cli_number_option(usage, o, v, 0, 1, &a->ink);
 		else if (!strcmp(o, "--background"))
-			st = parse_double(o, v, 0, 1, &a->background);
+			st = kg_cli_number_option(usage, o, v, 0, 1, &a->background);
 		else if (!strcmp(o, "--width"))
-			st = parse_int(o, v, 16, 32768, &a->width);
+			st = kg_cli_int_option(usage, o, v, 16, 32768, &a->width);
 		else if (!strcmp(o, "--height"))
-			st = parse_int(o, v, 16, 32768, &a->height);
+			st = kg_cli_int_option(usage, o, v, 16, 32768, &a->height);
 		else if (!strcmp(o, "--supersample"))
-			st = parse_int(o, v, 1, 16, &a->supersample);
+			st = kg_cli_int_option(usage, o, v, 1, 16, &a->supersample);
 		else if (!strcmp(o, "--threads"))
-			st = parse_int(o, v, 0, 64, &a->threads);
-		else if (!strcmp(o, "--seed")) {
-			char *end;
-			errno = 0;
-			unsigned long long s = strtoull(v, &end, 10);
-			if (!*v || *v == '-' || *end || errno)
-				return kg_cli_usage_error(usage, "--seed '%s': expected a whole number >= 0",
-				                          v);
-			a->seed = (uint64_t)s;
-		} else
+			st = kg_cli_int_option(usage, o, v, 0, 64, &a->threads);
+		else if (!strcmp(o, "--seed"))
+			st = kg_cli_seed_option(usage, v, &a->seed);
+		else
 			return kg_cli_usage_error(usage, "unexpected argument '%s'", o);
 		if (st)
 			return st;
 	}
 	if (!a->white_level)
 		a->white_level = 0.9;
-	if (!a->layout)
-		return kg_cli_usage_error(usage, "--layout is required");
-	if (!a->camera)
-		return kg_cli_usage_error(usage, "--camera is required");
-	if (!a->illuminant)
-		return kg_cli_usage_error(usage, "--illuminant is required");
-	if (!a->out)
-		return kg_cli_usage_error(usage, "-o is required");
-	return 0;
+	return kg_cli_required(usage, "--layout", a->layout, "--camera", a->camera, "--illuminant",
+	                       a->illuminant, "-o", a->out, NULL);
 }
 
 int kg_cmd_sim_chart(int argc, char **argv)

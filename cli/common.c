@@ -1,4 +1,6 @@
+#include <errno.h>
 #include <math.h>
+#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -28,6 +30,84 @@ int kg_cli_parse_range(const char *text, double **values, int *n, kg_err *err)
 		v[i] = a + i * s;
 	*values = v;
 	*n = count;
+	return 0;
+}
+
+int kg_cli_required(const char *usage, ...)
+{
+	va_list ap;
+	va_start(ap, usage);
+	const char *name;
+	int ret = 0;
+	while (!ret && (name = va_arg(ap, const char *))) {
+		const char *value = va_arg(ap, const char *);
+		if (!value)
+			ret = kg_cli_usage_error(usage, "%s is required", name);
+	}
+	va_end(ap);
+	return ret;
+}
+
+int kg_cli_number(const char *text, double *out)
+{
+	char *end = NULL;
+	double v = strtod(text, &end);
+	if (!end || end == text || *end || !isfinite(v))
+		return -1;
+	*out = v;
+	return 0;
+}
+
+int kg_cli_int(const char *text, int lo, int hi, int *out)
+{
+	char *end = NULL;
+	errno = 0;
+	long v = strtol(text, &end, 10);
+	if (!end || end == text || *end || errno || v < lo || v > hi)
+		return -1;
+	*out = (int)v;
+	return 0;
+}
+
+int kg_cli_number_option(const char *usage, const char *opt, const char *text, double lo,
+                         double hi, double *out)
+{
+	double v;
+	if (kg_cli_number(text, &v) || !(v >= lo && v <= hi))
+		return kg_cli_usage_error(usage, "%s '%s': expected a number from %g to %g", opt,
+		                          text, lo, hi);
+	*out = v;
+	return 0;
+}
+
+int kg_cli_min_option(const char *usage, const char *opt, const char *text, double lo,
+                      int strict, double *out)
+{
+	double v;
+	if (kg_cli_number(text, &v) || (strict ? !(v > lo) : !(v >= lo)))
+		return kg_cli_usage_error(usage, "%s %s: expected a number %s %g", opt, text,
+		                          strict ? ">" : ">=", lo);
+	*out = v;
+	return 0;
+}
+
+int kg_cli_int_option(const char *usage, const char *opt, const char *text, int lo, int hi,
+                      int *out)
+{
+	if (kg_cli_int(text, lo, hi, out))
+		return kg_cli_usage_error(usage, "%s '%s': expected a whole number from %d to %d",
+		                          opt, text, lo, hi);
+	return 0;
+}
+
+int kg_cli_seed_option(const char *usage, const char *text, uint64_t *out)
+{
+	char *end = NULL;
+	errno = 0;
+	unsigned long long v = strtoull(text, &end, 10);
+	if (!*text || *text == '-' || *text == '+' || *end || errno)
+		return kg_cli_usage_error(usage, "--seed '%s': expected a whole number >= 0", text);
+	*out = (uint64_t)v;
 	return 0;
 }
 

@@ -275,6 +275,21 @@ static int num_field(const json_t *req, const char *what, const char *key, doubl
 	return 1;
 }
 
+/* The request's "camera" (an index into the --camera list) into *cam when given:
+ * 0, or -1 with *why. */
+static int camera_field(console *c, const json_t *req, const char *what, double *cam,
+                        char *why, size_t n)
+{
+	if (num_field(req, what, "camera", 0, c->ncameras - 1, "an index into the --camera list",
+	              cam, why, n) < 0 ||
+	    *cam != floor(*cam)) {
+		snprintf(why, n, "%s: 'camera': expected 0..%d (the --camera list)", what,
+		         c->ncameras - 1);
+		return -1;
+	}
+	return 0;
+}
+
 /* Feature k of console_feats at value v against the range of camera cam of the list,
  * when it has been opened (the others are checked by the camera when the job sets
  * them): 0, or 400 with *why. */
@@ -321,13 +336,8 @@ int console_job_capture(console *c, const json_t *req, char *why, size_t n)
 		snprintf(why, n, "capture: 'frames': expected a whole number 1..10000");
 		return 400;
 	}
-	if (num_field(req, "capture", "camera", 0, c->ncameras - 1,
-	              "an index into the --camera list", &cam, why, n) < 0 ||
-	    cam != floor(cam)) {
-		snprintf(why, n, "capture: 'camera': expected 0..%d (the --camera list)",
-		         c->ncameras - 1);
+	if (camera_field(c, req, "capture", &cam, why, n))
 		return 400;
-	}
 	if (num_field(req, "capture", "exposure_us", 0, 1e9,
 	              "microseconds > 0 (or 0: keep the camera's)", &exp, why, n) < 0 ||
 	    num_field(req, "capture", "gain", -1e9, 1e9, "a number (the camera's unit)", &gain, why,
@@ -390,13 +400,8 @@ int console_job_capture(console *c, const json_t *req, char *why, size_t n)
 int console_settings_set(console *c, const json_t *req, char *why, size_t n)
 {
 	double cam = -1;
-	if (num_field(req, "settings", "camera", 0, c->ncameras - 1,
-	              "an index into the --camera list", &cam, why, n) < 0 ||
-	    cam != floor(cam)) {
-		snprintf(why, n, "settings: 'camera': expected 0..%d (the --camera list)",
-		         c->ncameras - 1);
+	if (camera_field(c, req, "settings", &cam, why, n))
 		return 400;
-	}
 	/* Every field is checked before any is applied: a bad one changes nothing. */
 	double val[3];
 	int has[3];

@@ -800,6 +800,19 @@ static void live_job_free(live_job *j)
 	}
 }
 
+/* Wait on c->cond (c->lock held) for at most ns nanoseconds (< 1 s). */
+static void wait_ns(console *c, long ns)
+{
+	struct timespec ts;
+	clock_gettime(CLOCK_REALTIME, &ts);
+	ts.tv_nsec += ns;
+	if (ts.tv_nsec >= 1000000000L) {
+		ts.tv_sec++;
+		ts.tv_nsec -= 1000000000L;
+	}
+	pthread_cond_timedwait(&c->cond, &c->lock, &ts);
+}
+
 /* The live view runs in two threads so that one frame is binned while the one before
  * is encoded: live_main (the camera, binning, focus) hands each frame to encode_main
  * (display, JPEG, publishing) through c->live_job, waiting while it is taken. */
@@ -809,14 +822,7 @@ static void *live_main(void *arg)
 	for (;;) {
 		pthread_mutex_lock(&c->lock);
 		while (!c->stop && (c->camera_owned || console_now() - c->last_request > 3)) {
-			struct timespec ts;
-			clock_gettime(CLOCK_REALTIME, &ts);
-			ts.tv_nsec += 200000000L;
-			if (ts.tv_nsec >= 1000000000L) {
-				ts.tv_sec++;
-				ts.tv_nsec -= 1000000000L;
-			}
-			pthread_cond_timedwait(&c->cond, &c->lock, &ts);
+			wait_ns(c, 200000000L);
 		}
 		int stop = c->stop;
 		double ev = c->ev, roi[4];
@@ -997,14 +1003,7 @@ json_t *console_live_json(console *c, uint64_t after)
 	pthread_cond_broadcast(&c->cond);
 	double deadline = console_now() + 2;
 	while (!c->stop && c->live_seq <= after && console_now() < deadline) {
-		struct timespec ts;
-		clock_gettime(CLOCK_REALTIME, &ts);
-		ts.tv_nsec += 50000000L;
-		if (ts.tv_nsec >= 1000000000L) {
-			ts.tv_sec++;
-			ts.tv_nsec -= 1000000000L;
-		}
-		pthread_cond_timedwait(&c->cond, &c->lock, &ts);
+		wait_ns(c, 50000000L);
 	}
 	json_t *j = c->live ? json_deep_copy(c->live) : json_object();
 	json_object_set_new(j, "paused", json_boolean(c->camera_owned));

@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "camera_driver.h"
+#include "device_uri.h"
 #include "mjpeg.h"
 
 static const kg_camera_driver *const drivers[] = {
@@ -201,20 +202,12 @@ int kg_camera_open(const char *uri, kg_camera **out, kg_err *err)
 	size_t n = (size_t)(colon - uri);
 	const kg_camera_driver *drv = NULL;
 	for (int i = 0; i < NDRIVERS; i++)
-		if (strlen(drivers[i]->scheme) == n && !strncmp(drivers[i]->scheme, uri, n))
+		if (kg_uri_scheme_is(uri, n, drivers[i]->scheme))
 			drv = drivers[i];
 	if (!drv) {
-		static const char *const known[] = {"v4l2", "aravis", "libcamera", "gphoto2"};
-		for (size_t i = 0; i < sizeof(known) / sizeof(known[0]); i++)
-			if (strlen(known[i]) == n && !strncmp(known[i], uri, n))
-				return kg_fail(err, KG_ENOTSUP,
-				               "camera '%s': the %s backend is not built into this "
-				               "kogei (see `kogei devices`)",
-				               uri, known[i]);
-		return kg_fail(err, KG_EINVAL,
-		               "camera '%s': unknown scheme '%.*s' (see `kogei devices` for the "
-		               "backends built in)",
-		               uri, (int)n, uri);
+		static const char *const known[] = {"v4l2", "aravis", "libcamera", "gphoto2", NULL};
+		return kg_uri_scheme_unknown("camera", uri, n, known,
+		                             "see `kogei devices` for the backends built in", err);
 	}
 	kg_camera *c = calloc(1, sizeof(*c));
 	if (!c)
@@ -279,6 +272,35 @@ int kg_camera_target_split(const char *target, char *name, size_t n, const char 
 			return ret;
 		p = amp ? amp + 1 : NULL;
 	}
+	return 0;
+}
+
+int kg_buffers_count(int nbuffers, int def, int max, int *n, kg_err *err)
+{
+	*n = nbuffers ? nbuffers : def;
+	if (*n > max)
+		return kg_fail(err, KG_EINVAL, "%d buffers: expected at most %d", *n, max);
+	return 0;
+}
+
+int kg_buffers_free_slot(const int *held, int n, kg_err *err)
+{
+	for (int i = 0; i < n; i++)
+		if (!held[i])
+			return i;
+	kg_fail(err, KG_EINVAL,
+	        "all %d buffers are held by the caller; give frames back with kg_camera_push", n);
+	return -1;
+}
+
+int kg_buffers_release(int *held, void *const *data, int n, const kg_frame *frame,
+                       kg_err *err)
+{
+	if (frame->slot < 0 || frame->slot >= n || !held[frame->slot] ||
+	    (data && data[frame->slot] != frame->data))
+		return kg_fail(err, KG_EINVAL, "frame %llu: buffer %d was not handed out",
+		               (unsigned long long)frame->sequence, frame->slot);
+	held[frame->slot] = 0;
 	return 0;
 }
 
@@ -438,15 +460,30 @@ int kg_camera_stop(kg_camera *c, kg_err *err)
 	return prefixed(c, err, c->drv->stop(c->state, err));
 }
 
+/* Before the driver fills a frame: nothing, and exposure and gain not known. */
+static void frame_reset(kg_frame *frame)
+{
+	memset(frame, 0, sizeof(*frame));
+	frame->exposure_us = NAN;
+	frame->gain = NAN;
+}
+
+/* A frame without its own exposure and gain has the last values read back. */
+static void settings_of(const kg_camera *c, kg_frame *frame)
+{
+	if (isnan(frame->exposure_us))
+		frame->exposure_us = c->exposure_us;
+	if (isnan(frame->gain))
+		frame->gain = c->gain;
+}
+
 int kg_camera_pop(kg_camera *c, int timeout_ms, kg_frame *frame, kg_err *err)
 {
 	kg_check_arg(c && frame, err);
 	if (!c->streaming)
 		return kg_fail(err, KG_EINVAL, "camera '%s': not streaming (kg_camera_start first)",
 		               c->info.uri);
-	memset(frame, 0, sizeof(*frame));
-	frame->exposure_us = NAN;
-	frame->gain = NAN;
+	frame_reset(frame);
 	int ret = c->drv->pop(c->state, timeout_ms, frame, err);
 	if (ret == KG_ETIMEDOUT) {
 		c->counts.timeouts++;
@@ -464,10 +501,7 @@ int kg_camera_pop(kg_camera *c, int timeout_ms, kg_frame *frame, kg_err *err)
 	}
 	if (ret)
 		return prefixed(c, err, ret);
-	if (isnan(frame->exposure_us))
-		frame->exposure_us = c->exposure_us;
-	if (isnan(frame->gain))
-		frame->gain = c->gain;
+	settings_of(c, frame);
 	if (c->have_seq && frame->sequence > c->last_seq + 1)
 		c->counts.dropped += frame->sequence - c->last_seq - 1;
 	c->have_seq = 1;
@@ -492,16 +526,11 @@ int kg_camera_preview(kg_camera *c, int timeout_ms, kg_frame *frame, int *own, k
 		int ret = kg_camera_start(c, 0, err);
 		return ret ? ret : kg_camera_pop(c, timeout_ms, frame, err);
 	}
-	memset(frame, 0, sizeof(*frame));
-	frame->exposure_us = NAN;
-	frame->gain = NAN;
+	frame_reset(frame);
 	int ret = c->drv->preview(c->state, timeout_ms, frame, err);
 	if (ret)
 		return prefixed(c, err, ret);
-	if (isnan(frame->exposure_us))
-		frame->exposure_us = c->exposure_us;
-	if (isnan(frame->gain))
-		frame->gain = c->gain;
+	settings_of(c, frame);
 	*own = 1;
 	return 0;
 }

@@ -61,6 +61,11 @@ typedef struct kg_rec_frame {
 int kg_rec_parse_line(const char *index_path, const char *text, int lineno, kg_rec_frame *fr,
                       kg_err *err);
 void kg_rec_frame_clear(kg_rec_frame *fr);
+/* The next line of an index read into buf (len bytes), from *pos on, that is complete
+ * and not blank: NUL-terminated in place, its number in *lineno (start both at 0);
+ * NULL at the end. A last line without its newline is a write that was cut off: not
+ * part of the recording. */
+char *kg_rec_next_line(char *buf, size_t len, size_t *pos, int *lineno);
 /* frames_dir/camera.json: the identity (into info, may be NULL) and the format at start. */
 int kg_rec_read_camera(const char *frames_dir, kg_camera_info *info, kg_frame_format *fmt0,
                        kg_err *err);
@@ -73,6 +78,20 @@ typedef int (*kg_camera_option_fn)(void *user, const char *key, const char *valu
                                    kg_err *err);
 int kg_camera_target_split(const char *target, char *name, size_t n, const char *usage,
                            kg_camera_option_fn option, void *user, kg_err *err);
+
+/* Buffers a driver keeps in memory and hands out (sim, replay): held[i] while the
+ * caller has buffer i.
+ * kg_buffers_count: how many buffers start asks for (nbuffers, or def for 0), refused
+ * (KG_EINVAL) above max.
+ * kg_buffers_free_slot: the first of the n buffers not held; -1 with err set when the
+ * caller holds them all.
+ * kg_buffers_release: 0 and held[slot] cleared when the frame's slot is one of the n
+ * handed out (and, with data, the frame's data is data[slot]), else KG_EINVAL ("buffer
+ * ... was not handed out"). */
+int kg_buffers_count(int nbuffers, int def, int max, int *n, kg_err *err);
+int kg_buffers_free_slot(const int *held, int n, kg_err *err);
+int kg_buffers_release(int *held, void *const *data, int n, const kg_frame *frame,
+                       kg_err *err);
 
 extern const kg_camera_driver kg_camera_sim_driver;
 extern const kg_camera_driver kg_camera_replay_driver;

@@ -34,6 +34,20 @@ static int number_or_null(const char *where, const json_t *o, const char *key, d
 	return 0;
 }
 
+char *kg_rec_next_line(char *buf, size_t len, size_t *pos, int *lineno)
+{
+	char *nl;
+	while (*pos < len && (nl = memchr(buf + *pos, '\n', len - *pos))) {
+		char *line = buf + *pos;
+		*nl = 0;
+		*pos = (size_t)(nl - buf) + 1;
+		++*lineno;
+		if (line[strspn(line, " \t\r")])
+			return line;
+	}
+	return NULL;
+}
+
 int kg_rec_parse_line(const char *index_path, const char *text, int lineno, kg_rec_frame *fr,
                       kg_err *err)
 {
@@ -178,13 +192,8 @@ int kg_camera_recording_validate(const char *session_dir, kg_err *err)
 	if (ret)
 		goto done;
 	int lineno = 0;
-	/* A last line without its newline is a cut-off write: not part of the recording. */
-	for (char *line = buf, *nl; !ret && (nl = memchr(line, '\n', len - (size_t)(line - buf)));
-	     line = nl + 1) {
-		*nl = 0;
-		lineno++;
-		if (!line[strspn(line, " \t\r")])
-			continue;
+	size_t pos = 0;
+	for (char *line; !ret && (line = kg_rec_next_line(buf, len, &pos, &lineno));) {
 		kg_rec_frame fr;
 		if ((ret = kg_rec_parse_line(index, line, lineno, &fr, err)))
 			break;

@@ -72,13 +72,8 @@ static int read_index(replay_cam *s, const char *capture, kg_err *err)
 		return ret;
 	int cap = 0, lineno = 0;
 	char *seen = NULL; /* capture names for the message when `capture` has no frames */
-	size_t seen_len = 0;
-	for (char *line = buf, *nl; !ret && (nl = memchr(line, '\n', len - (size_t)(line - buf)));
-	     line = nl + 1) {
-		*nl = 0;
-		lineno++;
-		if (!line[strspn(line, " \t\r")])
-			continue;
+	size_t seen_len = 0, pos = 0;
+	for (char *line; !ret && (line = kg_rec_next_line(buf, len, &pos, &lineno));) {
 		if (s->nframes == cap) {
 			int nc = cap ? 2 * cap : 64;
 			kg_rec_frame *f = realloc(s->frames, sizeof(*f) * (size_t)nc);
@@ -288,10 +283,10 @@ static int replay_set_format(void *state, const kg_frame_format *want, kg_frame_
 static int replay_start(void *state, int nbuffers, kg_err *err)
 {
 	replay_cam *s = state;
-	int n = nbuffers ? nbuffers : REPLAY_DEFAULT_BUFFERS;
-	if (n > REPLAY_MAX_BUFFERS)
-		return kg_fail(err, KG_EINVAL, "%d buffers: expected at most %d", n,
-		               REPLAY_MAX_BUFFERS);
+	int n;
+	int ret = kg_buffers_count(nbuffers, REPLAY_DEFAULT_BUFFERS, REPLAY_MAX_BUFFERS, &n, err);
+	if (ret)
+		return ret;
 	if (n < s->nbuf)
 		for (int i = n; i < s->nbuf; i++)
 			if (s->held[i])
@@ -332,15 +327,9 @@ static int replay_pop(void *state, int timeout_ms, kg_frame *frame, kg_err *err)
 		ret = check_setting(fr, "gain", s->want_gain, fr->gain, err);
 	if (ret)
 		return ret;
-	int slot = -1;
-	for (int i = 0; i < s->nbuf && slot < 0; i++)
-		if (!s->held[i])
-			slot = i;
+	int slot = kg_buffers_free_slot(s->held, s->nbuf, err);
 	if (slot < 0)
-		return kg_fail(err, KG_EINVAL,
-		               "all %d buffers are held by the caller; give frames back with "
-		               "kg_camera_push",
-		               s->nbuf);
+		return KG_EINVAL;
 	char *path = kg_path_join(s->base, fr->file);
 	if (!path)
 		return kg_fail(err, KG_ENOMEM, "out of memory");
@@ -384,11 +373,9 @@ static int replay_pop(void *state, int timeout_ms, kg_frame *frame, kg_err *err)
 static int replay_push(void *state, kg_frame *frame, kg_err *err)
 {
 	replay_cam *s = state;
-	if (frame->slot < 0 || frame->slot >= s->nbuf || !s->held[frame->slot] ||
-	    s->buf[frame->slot] != frame->data)
-		return kg_fail(err, KG_EINVAL, "frame %llu: buffer %d was not handed out",
-		               (unsigned long long)frame->sequence, frame->slot);
-	s->held[frame->slot] = 0;
+	int ret = kg_buffers_release(s->held, s->buf, s->nbuf, frame, err);
+	if (ret)
+		return ret;
 	free(s->buf[frame->slot]);
 	s->buf[frame->slot] = NULL;
 	return 0;

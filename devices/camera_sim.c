@@ -480,10 +480,10 @@ static int sim_open(const char *target, void **state, kg_camera_info *info, kg_e
 static int sim_start(void *state, int nbuffers, kg_err *err)
 {
 	sim_cam *s = state;
-	int n = nbuffers ? nbuffers : SIM_DEFAULT_BUFFERS;
-	if (n > SIM_MAX_BUFFERS)
-		return kg_fail(err, KG_EINVAL, "%d buffers: expected at most %d", n,
-		               SIM_MAX_BUFFERS);
+	int n;
+	int ret = kg_buffers_count(nbuffers, SIM_DEFAULT_BUFFERS, SIM_MAX_BUFFERS, &n, err);
+	if (ret)
+		return ret;
 	for (int i = 0; i < n; i++) {
 		uint8_t *b = realloc(s->buf[i], s->fmt.size);
 		if (!b)
@@ -589,15 +589,9 @@ static int sim_pop(void *state, int timeout_ms, kg_frame *frame, kg_err *err)
 		               "no frame within %d ms (the sensor stalls after %ld frames: stall=%ld)",
 		               timeout_ms, s->stall, s->stall);
 	}
-	int slot = -1;
-	for (int i = 0; i < s->nbuf && slot < 0; i++)
-		if (!s->held[i])
-			slot = i;
+	int slot = kg_buffers_free_slot(s->held, s->nbuf, err);
 	if (slot < 0)
-		return kg_fail(err, KG_EINVAL,
-		               "all %d buffers are held by the caller; give frames back with "
-		               "kg_camera_push",
-		               s->nbuf);
+		return KG_EINVAL;
 	double exposure = exposure_in_force(s);
 	double period = fmax(1.0 / s->fps, exposure * 1e-6);
 	/* Frames the sensor loses (drop=N) still take their time. */
@@ -764,11 +758,7 @@ static int sim_preview(void *state, int timeout_ms, kg_frame *frame, kg_err *err
 static int sim_push(void *state, kg_frame *frame, kg_err *err)
 {
 	sim_cam *s = state;
-	if (frame->slot < 0 || frame->slot >= s->nbuf || !s->held[frame->slot])
-		return kg_fail(err, KG_EINVAL, "frame %llu: buffer %d was not handed out",
-		               (unsigned long long)frame->sequence, frame->slot);
-	s->held[frame->slot] = 0;
-	return 0;
+	return kg_buffers_release(s->held, NULL, s->nbuf, frame, err);
 }
 
 const kg_camera_driver kg_camera_sim_driver = {

@@ -3,6 +3,7 @@
 #include <string.h>
 
 #include "kg_config.h"
+#include "device_uri.h"
 #include "spectro_driver.h"
 
 /* Drivers built into this binary, by URI scheme. */
@@ -16,7 +17,7 @@ static const kg_spectro_driver *const drivers[] = {
 #define NDRIVERS ((int)(sizeof(drivers) / sizeof(drivers[0])))
 
 /* Schemes the design names whose backend may be missing from this build. */
-static const char *const known_schemes[] = {"usbspec", "sim", "replay"};
+static const char *const known_schemes[] = {"usbspec", "sim", "replay", NULL};
 
 struct kg_spectro {
 	const kg_spectro_driver *drv;
@@ -47,19 +48,11 @@ int kg_spectro_open(const char *uri, kg_spectro **out, kg_err *err)
 	size_t slen = (size_t)(colon - uri);
 	const kg_spectro_driver *drv = NULL;
 	for (int i = 0; i < NDRIVERS; i++)
-		if (strlen(drivers[i]->scheme) == slen && !strncmp(drivers[i]->scheme, uri, slen))
+		if (kg_uri_scheme_is(uri, slen, drivers[i]->scheme))
 			drv = drivers[i];
-	if (!drv) {
-		for (size_t i = 0; i < sizeof(known_schemes) / sizeof(known_schemes[0]); i++)
-			if (strlen(known_schemes[i]) == slen && !strncmp(known_schemes[i], uri, slen))
-				return kg_fail(err, KG_ENOTSUP,
-				               "spectrometer '%s': the %s backend is not built into this "
-				               "kogei (see 'kogei devices')", uri, known_schemes[i]);
-		return kg_fail(err, KG_EINVAL,
-		               "spectrometer '%s': unknown scheme '%.*s' (expected usbspec, sim or "
-		               "replay)",
-		               uri, (int)slen, uri);
-	}
+	if (!drv)
+		return kg_uri_scheme_unknown("spectrometer", uri, slen, known_schemes,
+		                             "expected usbspec, sim or replay", err);
 	kg_spectro *s = calloc(1, sizeof(*s));
 	if (!s)
 		return KG_ENOMEM;

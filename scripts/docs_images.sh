@@ -19,7 +19,7 @@ export KOGEI_SOURCE_ROOT="$SRC" KOGEI_BUILD_ROOT="$(realpath "$BUILD")"
 echo "docs_images: kogei demo (a few minutes)"
 "$KOGEI" demo -o "$T/demo" > "$T/demo.log" 2>&1 || { tail -20 "$T/demo.log"; exit 1; }
 echo "docs_images: docs/report.png"
-sh tests/pipeline/report_browser.sh "$T/demo/report.html" "$T/report.png" 1400
+sh tests/pipeline/report_browser.sh "$T/demo/site/report.html" "$T/report.png" 1400
 mv "$T/report.png" docs/report.png
 
 echo "docs_images: docs/console-*.png"

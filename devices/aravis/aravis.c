@@ -273,14 +273,21 @@ static int arv_feature_info(void *state, kg_feature kf, kg_feature_info *out, kg
 	return e ? gfail(err, KG_EIO, &e, "%s: cannot read its bounds", f->name) : 0;
 }
 
+/* Before reading or setting feature kf: refused when the camera has no control for it;
+ * its selector entry chosen when it has one. */
+static int control_of(arv_state *s, kg_feature kf, kg_err *err)
+{
+	if (s->feats[kf].kind == K_NONE)
+		return kg_fail(err, KG_ENOTSUP, "the camera has no control for %s",
+		               kg_feature_name(kf));
+	return select_entry(s, &s->feats[kf], err);
+}
+
 static int arv_get(void *state, kg_feature kf, double *value, kg_err *err)
 {
 	arv_state *s = state;
 	const feat *f = &s->feats[kf];
-	if (f->kind == K_NONE)
-		return kg_fail(err, KG_ENOTSUP, "the camera has no control for %s",
-		               kg_feature_name(kf));
-	int ret = select_entry(s, f, err);
+	int ret = control_of(s, kf, err);
 	if (ret)
 		return ret;
 	GError *e = NULL;
@@ -310,10 +317,7 @@ static int arv_set(void *state, kg_feature kf, double value, kg_err *err)
 {
 	arv_state *s = state;
 	const feat *f = &s->feats[kf];
-	if (f->kind == K_NONE)
-		return kg_fail(err, KG_ENOTSUP, "the camera has no control for %s",
-		               kg_feature_name(kf));
-	int ret = select_entry(s, f, err);
+	int ret = control_of(s, kf, err);
 	if (ret)
 		return ret;
 	GError *e = NULL;

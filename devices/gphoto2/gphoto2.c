@@ -276,6 +276,16 @@ static int gp2_feature_info(void *state, kg_feature kf, kg_feature_info *out, kg
 	return ret;
 }
 
+/* The widget of feature f, which the camera has: 0, or KG_EIO when it cannot be read. */
+static int feature_widget(gp_state *s, const feat *f, CameraWidget **w, kg_err *err)
+{
+	*w = NULL;
+	int gpret = gp_camera_get_single_config(s->cam, f->name, w, s->ctx);
+	if (gpret < GP_OK)
+		return gpfail(s, err, KG_EIO, gpret, "camera %s: cannot read %s", s->model, f->name);
+	return 0;
+}
+
 static int gp2_get(void *state, kg_feature kf, double *value, kg_err *err)
 {
 	gp_state *s = state;
@@ -283,11 +293,10 @@ static int gp2_get(void *state, kg_feature kf, double *value, kg_err *err)
 	if (f->kind == K_NONE)
 		return kg_fail(err, KG_ENOTSUP, "camera %s has no control for %s", s->model,
 		               kg_feature_name(kf));
-	CameraWidget *w = NULL;
-	int gpret = gp_camera_get_single_config(s->cam, f->name, &w, s->ctx);
-	if (gpret < GP_OK)
-		return gpfail(s, err, KG_EIO, gpret, "camera %s: cannot read %s", s->model, f->name);
-	int ret = 0;
+	CameraWidget *w;
+	int ret = feature_widget(s, f, &w, err);
+	if (ret)
+		return ret;
 	if (f->kind == K_RANGE) {
 		float v = 0;
 		if (gp_widget_get_value(w, &v) < GP_OK)
@@ -331,12 +340,12 @@ static int gp2_set(void *state, kg_feature kf, double value, kg_err *err)
 	if (f->kind != K_CHOICE && f->kind != K_PROGRAM)
 		return kg_fail(err, KG_ENOTSUP, "camera %s: %s cannot be set", s->model,
 		               kg_feature_name(kf));
-	CameraWidget *w = NULL;
-	int gpret = gp_camera_get_single_config(s->cam, f->name, &w, s->ctx);
-	if (gpret < GP_OK)
-		return gpfail(s, err, KG_EIO, gpret, "camera %s: cannot read %s", s->model, f->name);
+	CameraWidget *w;
+	int ret = feature_widget(s, f, &w, err);
+	if (ret)
+		return ret;
 	const char **c = NULL;
-	int n = widget_choices(w, &c), ret = 0, idx = -1;
+	int n = widget_choices(w, &c), idx = -1;
 	if (n < 0)
 		ret = kg_fail(err, KG_ENOMEM, "out of memory");
 	else if (f->kind == K_PROGRAM) {

@@ -260,14 +260,21 @@ static int crop_get(v4l2_cam *c, int target, struct v4l2_rect *r)
 	return ret;
 }
 
+/* The capture format the device has now (VIDIOC_G_FMT). */
+static int get_fmt(v4l2_cam *c, struct v4l2_format *vf, kg_err *err)
+{
+	memset(vf, 0, sizeof(*vf));
+	vf->type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
+	int ret = xioctl(c, VIDIOC_G_FMT, vf);
+	return ret ? ioctl_fail(err, ret, "VIDIOC_G_FMT") : 0;
+}
+
 static int refresh_format(v4l2_cam *c, kg_err *err)
 {
 	struct v4l2_format vf;
-	memset(&vf, 0, sizeof(vf));
-	vf.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
-	int ret = xioctl(c, VIDIOC_G_FMT, &vf);
+	int ret = get_fmt(c, &vf, err);
 	if (ret)
-		return ioctl_fail(err, ret, "VIDIOC_G_FMT");
+		return ret;
 	if ((ret = fmt_from_pix(c, &vf.fmt.pix, err)))
 		return ret;
 	struct v4l2_rect r;
@@ -888,11 +895,9 @@ static int v4_set_format(void *state, const kg_frame_format *want, kg_frame_form
 	v4l2_cam *c = state;
 	char t[5], t2[5], list[1024];
 	struct v4l2_format vf;
-	memset(&vf, 0, sizeof(vf));
-	vf.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
-	int ret = xioctl(c, VIDIOC_G_FMT, &vf);
+	int ret = get_fmt(c, &vf, err);
 	if (ret)
-		return ioctl_fail(err, ret, "VIDIOC_G_FMT");
+		return ret;
 	const struct fmt_map *cur = fmt_by_fourcc(vf.fmt.pix.pixelformat);
 
 	/* The fourcc: the first offered entry of fmt_map matching the request. */
