@@ -1,10 +1,10 @@
 /* kogei demo: the bundled session replayed, then the same job as kogei process
- * (pipeline/ does the work; this file parses the command line). */
+ * (demo/ does the work over pipeline/; this file parses the command line). */
 #include <getopt.h>
 #include <stdio.h>
 
 #include "cli.h"
-#include "kg_pipeline.h"
+#include "kg_demo.h"
 
 static const char usage_demo[] =
 	"kogei demo [-o DIR]\n"

@@ -111,16 +111,17 @@ static float *side_band(pass *ps, size_t n, kg_err *err)
 	return ps->side;
 }
 
-/* Rows of the flat, its dark subtracted, into f (n samples). */
-static int flat_rows(pass *ps, int rows, float *f, kg_err *err)
+/* The next rows of file into x (n samples), the same rows of dark (when not NULL)
+ * subtracted; dark's band is read into the side buffer's first n samples. */
+static int rows_minus_dark(pass *ps, kg_image_rows *file, kg_image_rows *dark, int rows,
+                           size_t n, float *x, kg_err *err)
 {
-	size_t n = (size_t)rows * ps->pl->width * ps->pl->channels;
-	int ret = kg_image_rows_read(ps->flat, rows, f, err);
-	if (!ret && ps->flat_dark) {
+	int ret = kg_image_rows_read(file, rows, x, err);
+	if (!ret && dark) {
 		float *d = side_band(ps, n, err);
-		ret = d ? kg_image_rows_read(ps->flat_dark, rows, d, err) : KG_ENOMEM;
+		ret = d ? kg_image_rows_read(dark, rows, d, err) : KG_ENOMEM;
 		for (size_t i = 0; !ret && i < n; i++)
-			f[i] -= d[i];
+			x[i] -= d[i];
 	}
 	return ret;
 }
@@ -131,21 +132,15 @@ static int corrected_rows(pass *ps, int rows, float *out, kg_err *err)
 	const plane *pl = ps->pl;
 	size_t n = (size_t)rows * pl->width * pl->channels;
 	int y0 = ps->next;
-	int ret = kg_image_rows_read(ps->main, rows, out, err);
-	if (!ret && ps->dark) {
-		float *d = side_band(ps, n, err);
-		ret = d ? kg_image_rows_read(ps->dark, rows, d, err) : KG_ENOMEM;
-		for (size_t i = 0; !ret && i < n; i++)
-			out[i] -= d[i];
-	}
+	int ret = rows_minus_dark(ps, ps->main, ps->dark, rows, n, out, err);
 	if (!ret && ps->flat) {
 		/* the flat's band goes after the dark's in the side buffer */
 		float *f = side_band(ps, 2 * n, err);
 		if (!f)
 			return KG_ENOMEM;
 		f += n;
-		if (!(ret = flat_rows(ps, rows, f, err))) {
-			/* flat_rows may have moved the side buffer */
+		if (!(ret = rows_minus_dark(ps, ps->flat, ps->flat_dark, rows, n, f, err))) {
+			/* the flat's dark went into the side buffer's first n samples */
 			f = ps->side + n;
 			for (size_t i = 0; i < n; i++) {
 				int c = colour_class(pl, y0, i);
@@ -211,7 +206,8 @@ static int plan_flat(plane *pl, kg_err *err)
 			break;
 		for (int y = 0; y < pl->height && !ret; y += band) {
 			int rows = pl->height - y < band ? pl->height - y : band;
-			if ((ret = flat_rows(&ps, rows, f, err)))
+			if ((ret = rows_minus_dark(&ps, ps.flat, ps.flat_dark, rows, (size_t)rows * row, f,
+			                           err)))
 				break;
 			for (size_t i = 0; i < (size_t)rows * row; i++) {
 				float v = f[i];

@@ -179,14 +179,6 @@ int kg_conformance_grade(const char *id, double v, int *stars);
 	"An analysis of the chart capture against the criteria of ISO 19264-1 and FADGI "  \
 	"2023, not a certification under either standard."
 
-/* ==== The demo ===================================================================== */
-
-/* `kogei demo`: the bundled session (fixtures/demo/session) replayed into a lab and a
- * site session under dir, the chart measured with the simulated spectrophotometer,
- * then kg_process_run on both, and the demo's comparisons with the simulation's truth
- * (summary.md, figures, renders of Fig. 13). Progress on standard output. */
-int kg_demo_run(const char *dir, kg_err *err);
-
 /* ==== The guided spectrometer measurement (measure_flow.c) =========================
  * `kogei measure` (dark, white, the patches of a chart in order with redo, white again
  * and resume from OUT.partial), shared by the terminal (cli/cmd_measure.c) and the

@@ -133,6 +133,12 @@ int proc_outdir_commit(proc *p, json_t *root);
 /* The end of the run: the staging folder removed, and on failure the folders made for
  * OUTDIR; the lock released. */
 void proc_outdir_close(proc *p, int failed);
+/* path and everything below it removed (links themselves, not what they point to);
+ * what cannot be removed is left. */
+void proc_remove_tree(const char *path);
+/* The previous run's process.json entry of the object whose folder is name (its "dir",
+ * or in records without one its "capture"); NULL when there is none. */
+const json_t *proc_previous_object(const proc *p, const char *name);
 
 /* Chart capture -> chart found, calibrations fitted and written (process_calib.c). */
 int proc_calibrate(proc *p);

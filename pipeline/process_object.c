@@ -3,7 +3,6 @@
  * into a temporary folder renamed into place when complete; skipped when its inputs
  * and parameters have not changed since the last run (kg_pipeline.h); the run puts
  * the folders in place when every one is complete (process_outdir.c). */
-#include <ftw.h>
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -15,19 +14,6 @@
 #include "kg_gltf.h"
 #include "kg_render.h"
 #include "pipeline_private.h"
-
-static int remove_entry(const char *path, const struct stat *st, int flag, struct FTW *ftw)
-{
-	(void)st;
-	(void)flag;
-	(void)ftw;
-	return remove(path);
-}
-
-static void remove_tree(const char *dir)
-{
-	nftw(dir, remove_entry, 16, FTW_DEPTH | FTW_PHYS);
-}
 
 /* Warned above these (fractions of the object's pixels, of full scale). */
 #define PROC_MAX_CLIPPED 0.01
@@ -185,19 +171,6 @@ static json_t *object_key(proc *p, const proc_capture *c)
 		json_object_set_new(json_object_get(key, "parameters"), "skip", skip);
 	}
 	return key;
-}
-
-static const json_t *previous_object(const proc *p, const char *name)
-{
-	const json_t *e;
-	size_t i;
-	json_array_foreach(json_object_get(p->previous, "objects"), i, e)
-	{
-		const char *n = json_string_value(json_object_get(e, "capture"));
-		if (n && !strcmp(n, name))
-			return e;
-	}
-	return NULL;
 }
 
 /* Bands of rows of a cube (every band, BIP: buf holds band rows of them) to a
@@ -1205,7 +1178,7 @@ int proc_objects(proc *p, json_t *objects, kg_process_summary *sum)
 		json_t *key = object_key(p, c);
 		char *final = kg_path_join(p->o->outdir, c->name);
 		char *labels = final ? kg_path_join(final, "labels.hdr") : NULL;
-		const json_t *prev = previous_object(p, c->name);
+		const json_t *prev = proc_previous_object(p, c->name);
 		if (prev && json_equal(json_object_get(prev, "key"), key) && labels &&
 		    access(labels, R_OK) == 0) {
 			json_t *copy = json_deep_copy(prev);
@@ -1239,7 +1212,7 @@ int proc_objects(proc *p, json_t *objects, kg_process_summary *sum)
 			              scale);
 		char tmp[4200];
 		snprintf(tmp, sizeof(tmp), "%s/%s", p->stage, c->name); /* put in place at the end */
-		remove_tree(tmp);
+		proc_remove_tree(tmp);
 		if (!final || !labels)
 			ret = kg_fail(p->err, KG_ENOMEM, "out of memory");
 		else if (mkdir(tmp, 0777) != 0)
@@ -1247,7 +1220,7 @@ int proc_objects(proc *p, json_t *objects, kg_process_summary *sum)
 		if (!ret)
 			ret = process_into(p, c, tmp, scale, set, object);
 		if (ret)
-			remove_tree(tmp);
+			proc_remove_tree(tmp);
 		else {
 			kg_est_format format;
 			set_paths(object, c->name, p->o->render && kg_render_available(),

@@ -78,7 +78,7 @@ static int remove_entry(const char *path, const struct stat *st, int flag, struc
 	return remove(path);
 }
 
-static void remove_tree(const char *path)
+void proc_remove_tree(const char *path)
 {
 	nftw(path, remove_entry, 16, FTW_DEPTH | FTW_PHYS);
 }
@@ -89,11 +89,11 @@ static void discard_stage(const char *outdir, const char *stage)
 {
 	char trash[4200];
 	snprintf(trash, sizeof(trash), "%s/" TRASH_TAG "%ld", outdir, (long)getpid());
-	remove_tree(trash);
+	proc_remove_tree(trash);
 	if (rename(stage, trash) == 0)
-		remove_tree(trash);
+		proc_remove_tree(trash);
 	else
-		remove_tree(stage);
+		proc_remove_tree(stage);
 }
 
 static void remove_created(char **created, int n)
@@ -294,7 +294,7 @@ static int apply_commit(const char *outdir, const char *journal, const char *old
 			snprintf(aside, sizeof(aside), "%s/%s", old, e->d_name);
 			if (mkdir(old, 0777) != 0 && errno != EEXIST)
 				ret = kg_fail(err, KG_EIO, "%s: cannot create: %s", old, strerror(errno));
-			remove_tree(aside);
+			proc_remove_tree(aside);
 			if (!ret && rename(to, aside) != 0)
 				ret = kg_fail(err, KG_EIO, "%s: cannot move the earlier results aside: %s",
 				              to, strerror(errno));
@@ -318,8 +318,8 @@ static int apply_commit(const char *outdir, const char *journal, const char *old
 		fsync(fd);
 		close(fd);
 	}
-	remove_tree(journal);
-	remove_tree(old);
+	proc_remove_tree(journal);
+	proc_remove_tree(old);
 	return 0;
 }
 
@@ -370,7 +370,7 @@ static int recover(proc *p)
 		int kind = old_style(names[i], obj, sizeof(obj));
 		if (tag_pid(names[i], STAGE_TAG) || tag_pid(names[i], TRASH_TAG) ||
 		    tag_pid(names[i], OLD_TAG) || kind == 1) {
-			remove_tree(path);
+			proc_remove_tree(path);
 			proc_progress(p, "removed %s, left by an interrupted run", path);
 		} else if (kind == 2) {
 			/* an old kogei moved the earlier folder aside and stopped before its new
@@ -381,7 +381,7 @@ static int recover(proc *p)
 				proc_progress(p, "restored %s from %s, left by an interrupted run", final,
 				              path);
 			} else {
-				remove_tree(path);
+				proc_remove_tree(path);
 				proc_progress(p, "removed %s, left by an interrupted run", path);
 			}
 		}
@@ -480,7 +480,7 @@ static int make_outdir(proc *p)
 	return ret;
 }
 
-static const json_t *previous_entry(const proc *p, const char *name)
+const json_t *proc_previous_object(const proc *p, const char *name)
 {
 	const json_t *e;
 	size_t i;
@@ -608,7 +608,7 @@ static int check_contents(proc *p)
 		snprintf(path, sizeof(path), "%s/%s", out, c->name);
 		if (lstat(path, &st) != 0)
 			continue;
-		if (!previous_entry(p, c->name))
+		if (!proc_previous_object(p, c->name))
 			ret = kg_fail(p->err, KG_EINVAL, "%s: exists, and %s/process.json does not list "
 			              "it as written by kogei process: capture %s's results would "
 			              "replace it; move it or choose another -o", path, out, c->name);

@@ -80,77 +80,78 @@ static int has(report *r, const char *fmt, ...)
 	return kg_json_find(r->root, path) != NULL;
 }
 
-#define GETTER_PROLOGUE                                                                \
-	char path[256];                                                                    \
-	va_list ap;                                                                        \
-	va_start(ap, fmt);                                                                 \
-	json_t *v = vget(r, fmt, ap, path, sizeof(path));                                  \
-	va_end(ap)
+/* What a getter accepts (typed): one kind, and null too with JK_NULLABLE. */
+enum { JK_STRING, JK_NUMBER, JK_BOOL, JK_ARRAY, JK_NULLABLE = 0x10 };
 
-static const char *str(report *r, const char *fmt, ...) KG_PRINTF(2, 3);
-static const char *str(report *r, const char *fmt, ...)
+/* The value at a key path (printf-style), required to exist and to be of kind; NULL
+ * when it is missing or of another kind (r->ret set) or an allowed null. */
+static json_t *typed(report *r, int kind, const char *fmt, ...) KG_PRINTF(3, 4);
+static json_t *typed(report *r, int kind, const char *fmt, ...)
 {
-	GETTER_PROLOGUE;
-	if (v && !json_is_string(v))
-		failed(r, KG_EINVAL, "%s: key '%s': expected a string", r->file, path);
-	return json_is_string(v) ? json_string_value(v) : "";
+	static const char *const expected[] = {"a string", "a number", "true or false",
+	                                       "an array"};
+	char path[256];
+	va_list ap;
+	va_start(ap, fmt);
+	json_t *v = vget(r, fmt, ap, path, sizeof(path));
+	va_end(ap);
+	int nullable = (kind & JK_NULLABLE) != 0;
+	kind &= ~JK_NULLABLE;
+	if (!v || (nullable && json_is_null(v)))
+		return NULL;
+	int ok = kind == JK_STRING   ? json_is_string(v)
+	         : kind == JK_NUMBER ? json_is_number(v)
+	         : kind == JK_BOOL   ? json_is_boolean(v)
+	                             : json_is_array(v);
+	if (!ok) {
+		failed(r, KG_EINVAL, "%s: key '%s': expected %s%s", r->file, path, expected[kind],
+		       nullable ? " or null" : "");
+		return NULL;
+	}
+	return v;
 }
 
-/* A string or null (NULL). */
-static const char *opt_str(report *r, const char *fmt, ...) KG_PRINTF(2, 3);
-static const char *opt_str(report *r, const char *fmt, ...)
+static const char *string_or_empty(const json_t *v)
 {
-	GETTER_PROLOGUE;
-	if (v && !json_is_string(v) && !json_is_null(v))
-		failed(r, KG_EINVAL, "%s: key '%s': expected a string or null", r->file, path);
-	return json_is_string(v) ? json_string_value(v) : NULL;
+	return v ? json_string_value(v) : "";
 }
 
-static double num(report *r, const char *fmt, ...) KG_PRINTF(2, 3);
-static double num(report *r, const char *fmt, ...)
+static double number_or_nan(const json_t *v)
 {
-	GETTER_PROLOGUE;
-	if (v && !json_is_number(v))
-		failed(r, KG_EINVAL, "%s: key '%s': expected a number", r->file, path);
-	return json_is_number(v) ? json_number_value(v) : NAN;
+	return v ? json_number_value(v) : NAN;
 }
 
-/* A number or null (NaN). */
-static double opt_num(report *r, const char *fmt, ...) KG_PRINTF(2, 3);
-static double opt_num(report *r, const char *fmt, ...)
+static int is_true(const json_t *v)
 {
-	GETTER_PROLOGUE;
-	if (v && !json_is_number(v) && !json_is_null(v))
-		failed(r, KG_EINVAL, "%s: key '%s': expected a number or null", r->file, path);
-	return json_is_number(v) ? json_number_value(v) : NAN;
-}
-
-static int flag(report *r, const char *fmt, ...) KG_PRINTF(2, 3);
-static int flag(report *r, const char *fmt, ...)
-{
-	GETTER_PROLOGUE;
-	if (v && !json_is_boolean(v))
-		failed(r, KG_EINVAL, "%s: key '%s': expected true or false", r->file, path);
 	return json_is_true(v);
 }
 
-/* An array (its size in *n; 0 when missing). */
-static json_t *arr(report *r, int *n, const char *fmt, ...) KG_PRINTF(3, 4);
-static json_t *arr(report *r, int *n, const char *fmt, ...)
+static json_t *array_size(json_t *v, int *n)
 {
-	GETTER_PROLOGUE;
-	if (v && !json_is_array(v))
-		failed(r, KG_EINVAL, "%s: key '%s': expected an array", r->file, path);
-	*n = json_is_array(v) ? (int)json_array_size(v) : 0;
-	return json_is_array(v) ? v : NULL;
+	*n = v ? (int)json_array_size(v) : 0;
+	return v;
 }
+
+/* The getters, each (r, fmt, ...): a string ("" when missing), a string or null
+ * (NULL), a number (NaN when missing), a number or null (NaN), a boolean, and an
+ * array (NULL when missing; its size in *n, 0 when missing). */
+#define str(r, ...) string_or_empty(typed((r), JK_STRING, __VA_ARGS__))
+#define opt_str(r, ...) json_string_value(typed((r), JK_STRING | JK_NULLABLE, __VA_ARGS__))
+#define num(r, ...) number_or_nan(typed((r), JK_NUMBER, __VA_ARGS__))
+#define opt_num(r, ...) number_or_nan(typed((r), JK_NUMBER | JK_NULLABLE, __VA_ARGS__))
+#define flag(r, ...) is_true(typed((r), JK_BOOL, __VA_ARGS__))
+#define arr(r, n, ...) array_size(typed((r), JK_ARRAY, __VA_ARGS__), (n))
 
 /* A spectrum on the 61-band grid into out, or null (returns NULL). */
 static const double *spectrum(report *r, double out[KG_NBANDS], const char *fmt, ...)
 	KG_PRINTF(3, 4);
 static const double *spectrum(report *r, double out[KG_NBANDS], const char *fmt, ...)
 {
-	GETTER_PROLOGUE;
+	char path[256];
+	va_list ap;
+	va_start(ap, fmt);
+	json_t *v = vget(r, fmt, ap, path, sizeof(path));
+	va_end(ap);
 	if (!v || json_is_null(v))
 		return NULL;
 	if (!json_is_array(v) || json_array_size(v) != KG_NBANDS) {
@@ -245,6 +246,16 @@ static void row(report *r, const char *key, const char *value)
 	else
 		html(r, "<span class=\"none\">none</span>");
 	html(r, "</td></tr>\n");
+}
+
+/* A number with `digits` decimals (an em dash when missing) and its unit (may be ""). */
+static void num_row(report *r, const char *key, double v, int digits, const char *unit)
+{
+	html(r, "<tr><th scope=\"row\">");
+	text(r, key);
+	html(r, "</th><td>");
+	put_num(r, v, digits);
+	html(r, "%s</td></tr>\n", unit);
 }
 
 static void rowf(report *r, const char *key, const char *fmt, ...) KG_PRINTF(3, 4);
@@ -617,9 +628,7 @@ static void section_calibration(report *r)
 		html(r, "none");
 	}
 	html(r, "</td></tr>\n");
-	html(r, "<tr><th scope=\"row\">Homography RMS</th><td>");
-	put_num(r, num(r, "calibration.homography_rms_px"), 2);
-	html(r, " px</td></tr>\n");
+	num_row(r, "Homography RMS", num(r, "calibration.homography_rms_px"), 2, " px");
 	row(r, "Chart spectra", opt_str(r, "calibration.spectra_source"));
 	/* the light over the chart: removed from the patch values, and the flat's */
 	html(r, "<tr><th scope=\"row\">Light over the chart</th><td>");
@@ -649,11 +658,9 @@ static void section_calibration(report *r)
 		html(r, "no flat measured");
 	}
 	html(r, "</td></tr>\n");
-	html(r, "<tr><th scope=\"row\">Condition number of M</th><td>");
-	put_num(r, num(r, "calibration.cond_M"), 2);
-	html(r, "</td></tr>\n<tr><th scope=\"row\">Condition number of M2</th><td>");
-	put_num(r, num(r, "calibration.cond_M2"), 2);
-	html(r, "</td></tr>\n<tr><th scope=\"row\">Relative residual</th><td>");
+	num_row(r, "Condition number of M", num(r, "calibration.cond_M"), 2, "");
+	num_row(r, "Condition number of M2", num(r, "calibration.cond_M2"), 2, "");
+	html(r, "<tr><th scope=\"row\">Relative residual</th><td>");
 	put_num(r, num(r, "calibration.residual_relative"), 4);
 	html(r, " (limit ");
 	put_num(r, num(r, "parameters.max_residual"), 4);
@@ -1234,6 +1241,22 @@ static void acquisition_row(report *r, const char *who, const char *prefix, doub
 	html(r, "</td></tr>\n");
 }
 
+/* A JSON object as a table of its keys and values. */
+static void put_kv_table(report *r, json_t *obj)
+{
+	html(r, "<table class=\"kv\">\n");
+	const char *k;
+	json_t *v;
+	json_object_foreach(obj, k, v) {
+		html(r, "<tr><th scope=\"row\">");
+		text(r, k);
+		html(r, "</th><td>");
+		put_json(r, v);
+		html(r, "</td></tr>\n");
+	}
+	html(r, "</table>\n");
+}
+
 static void put_devices(report *r, const char *kind, const char *title)
 {
 	int n;
@@ -1248,17 +1271,7 @@ static void put_devices(report *r, const char *kind, const char *title)
 			       kind, i);
 			return;
 		}
-		html(r, "<table class=\"kv\">\n");
-		const char *k;
-		json_t *v;
-		json_object_foreach(d, k, v) {
-			html(r, "<tr><th scope=\"row\">");
-			text(r, k);
-			html(r, "</th><td>");
-			put_json(r, v);
-			html(r, "</td></tr>\n");
-		}
-		html(r, "</table>\n");
+		put_kv_table(r, d);
 	}
 }
 
@@ -1310,22 +1323,12 @@ static void section_provenance(report *r)
 	}
 	html(r, "</tbody></table>\n");
 
-	html(r, "<h3>Parameters</h3>\n<table class=\"kv\">\n");
+	html(r, "<h3>Parameters</h3>\n");
 	json_t *params = kg_json_find(r->root, "parameters");
-	if (!json_is_object(params)) {
+	if (!json_is_object(params))
 		failed(r, KG_EINVAL, "%s: key 'parameters': expected an object", r->file);
-	} else {
-		const char *k;
-		json_t *v;
-		json_object_foreach(params, k, v) {
-			html(r, "<tr><th scope=\"row\">");
-			text(r, k);
-			html(r, "</th><td>");
-			put_json(r, v);
-			html(r, "</td></tr>\n");
-		}
-	}
-	html(r, "</table>\n");
+	else
+		put_kv_table(r, params);
 	section_end(r);
 }
 

@@ -1,5 +1,5 @@
 /* `kogei demo`: the bundled session replayed, then the same job as `kogei process`,
- * and the demo's comparisons with the simulation's truth (kg_pipeline.h).
+ * and the demo's comparisons with the simulation's truth (kg_demo.h).
  *
  * The session (fixtures/demo/session, recorded from the sim camera by
  * fixtures/demo/make_session.sh) is replayed through the replay: camera into a lab
@@ -18,6 +18,7 @@
 #include <unistd.h>
 
 #include "demo_private.h"
+#include "kg_demo.h"
 #include "kg_devices.h"
 #include "kg_pipeline.h"
 

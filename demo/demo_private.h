@@ -1,7 +1,7 @@
-/* Private to `kogei demo` (pipeline/demo.c runs the sessions, demo_report.c judges
+/* Private to `kogei demo` (demo/demo.c runs the sessions, demo_report.c judges
  * it): what the session produced and what the report needs to describe it. */
-#ifndef KG_PIPELINE_DEMO_PRIVATE_H
-#define KG_PIPELINE_DEMO_PRIVATE_H
+#ifndef KG_DEMO_PRIVATE_H
+#define KG_DEMO_PRIVATE_H
 
 #include "kg_pipeline.h"
 #include "kg_calib.h"
