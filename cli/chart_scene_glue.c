@@ -1,6 +1,5 @@
 /* Chart layouts as chart scenes: the glue between calib/'s kg_chart_layout and
- * sim/'s kg_sim_chart_card (see chart_scene_glue.h). Used by `kogei sim chart` and
- * `kogei demo`. */
+ * sim/'s kg_sim_chart_card (see chart_scene_glue.h), for `kogei sim chart`. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>

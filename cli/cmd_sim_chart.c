@@ -1,6 +1,6 @@
 /* kogei sim chart: a photograph of a chart layout (calib/) rendered by sim/'s chart
  * scene renderer. The layout becomes the plain geometry sim/ draws in
- * chart_scene_glue.c (shared with `kogei demo`); this file poses the card, renders
+ * chart_scene_glue.c; this file poses the card, renders
  * and writes the image and the truth. */
 #include <inttypes.h>
 #include <stdio.h>
