@@ -6,27 +6,13 @@
 # with a note that nothing was checked.
 # usage: test_camera_identity.sh KOGEI SOURCE_ROOT HAVE_APRILTAG
 set -u
+. "$(dirname "$0")/../lib.sh"
 KOGEI=$1
 SRC=$2
 HAVE_APRILTAG=${3:-1}
-TCS=/usr/share/colord/ref/CIE-TCS.sp
-[ -r "$TCS" ] || { echo "skipped: $TCS missing (package colord-data)"; exit 77; }
-[ "$HAVE_APRILTAG" = 1 ] || { echo "skipped: built without libapriltag"; exit 77; }
-T=$(mktemp -d)
-trap 'rm -rf "$T"' EXIT
-fail=0
-check() { # description, command...
-	desc=$1; shift
-	if "$@"; then :; else echo "FAIL: $desc"; fail=1; fi
-}
-expect_exit() { # code, command...
-	want=$1; shift
-	"$@" >"$T/out" 2>"$T/err"
-	got=$?
-	if [ "$got" != "$want" ]; then
-		echo "FAIL: '$*' exited $got, expected $want"; cat "$T/err"; fail=1
-	fi
-}
+kg_need_tcs
+kg_need "$HAVE_APRILTAG" "built without libapriltag"
+kg_temp
 D=$SRC/fixtures/demo
 LAYOUT=$D/cie-tcs-frame.json
 LIB=$SRC/fixtures/materials/default.json
