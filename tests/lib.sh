@@ -1,6 +1,7 @@
 # The set-up the shell tests share; a test sources it first:
 #   . "$(dirname "$0")/../lib.sh"
-# It sets fail=0 (a test ends with `exit $fail`) and gives:
+# It sets fail=0 (a test ends with `exit $fail`) and KG_ROOT (the source tree: meson's
+# KOGEI_SOURCE_ROOT, or the folder above the test's own tests/ folder), and gives:
 #   kg_skip WHY                  print "SKIP: WHY", exit 77 (meson: skipped)
 #   kg_need FLAG WHY             skip unless FLAG is 1 (a meson option found)
 #   kg_need_file FILE WHAT       skip unless FILE is readable ("FILE missing (WHAT)")
@@ -17,6 +18,7 @@
 #   run_or_exit COMMAND...       the same, but a failure ends the test (set-up steps)
 
 fail=0
+KG_ROOT=${KOGEI_SOURCE_ROOT:-$(cd "$(dirname "$0")/../.." && pwd)}
 
 kg_skip() {
 	echo "SKIP: $*"
