@@ -7,19 +7,12 @@
 # usage: test_calib_refusals.sh KOGEI SOURCE_ROOT HAVE_APRILTAG
 set -u
 . "$(dirname "$0")/../lib.sh"
+. "$(dirname "$0")/demo_reference.sh"
 KOGEI=$1
 SRC=$2
-HAVE_APRILTAG=${3:-1}
-kg_need_tcs
-kg_need "$HAVE_APRILTAG" "built without libapriltag"
 kg_temp
-D=$SRC/fixtures/demo
-LAYOUT=$D/cie-tcs-frame.json
-
 # The reference: the demo's reference camera under D65 on the same 15 colours.
-expect_exit 0 "$KOGEI" sim patches --spectra "$TCS" --camera "$D/reference_camera.csv" \
-	--illuminant D65 --noise 50000:3:16 -o "$T/ref_rgb.cgats"
-expect_exit 0 "$KOGEI" calib reference --spectra "$TCS" --rgb "$T/ref_rgb.cgats" -o "$T/ref.json"
+demo_reference "${3:-1}"
 
 # A good site chart: another camera under A, tilted.
 expect_exit 0 "$KOGEI" sim chart --layout "$LAYOUT" --spectra "$TCS" --camera "$D/site_camera.csv" \

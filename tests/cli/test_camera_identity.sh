@@ -7,21 +7,15 @@
 # usage: test_camera_identity.sh KOGEI SOURCE_ROOT HAVE_APRILTAG
 set -u
 . "$(dirname "$0")/../lib.sh"
+. "$(dirname "$0")/demo_reference.sh"
 KOGEI=$1
 SRC=$2
-HAVE_APRILTAG=${3:-1}
-kg_need_tcs
-kg_need "$HAVE_APRILTAG" "built without libapriltag"
 kg_temp
-D=$SRC/fixtures/demo
-LAYOUT=$D/cie-tcs-frame.json
+demo_reference "${3:-1}"
 LIB=$SRC/fixtures/materials/default.json
 SENSOR='format=bayer_rggb12&fullwell=20000&read=5'
 OBJSENSOR='format=rgb16&bits=12&fullwell=20000&read=5'
 
-expect_exit 0 "$KOGEI" sim patches --spectra "$TCS" --camera "$D/reference_camera.csv" \
-	--illuminant D65 --noise 50000:3:16 -o "$T/ref_rgb.cgats"
-expect_exit 0 "$KOGEI" calib reference --spectra "$TCS" --rgb "$T/ref_rgb.cgats" -o "$T/ref.json"
 # The scenes: the chart and an object (the materials' tiles), linear float.
 expect_exit 0 "$KOGEI" sim chart --layout "$LAYOUT" --spectra "$TCS" --camera "$D/site_camera.csv" \
 	--illuminant A --tilt 20 --rotate 5 --width 800 --height 600 --white-level 0.8 \

@@ -7,6 +7,7 @@
 # usage: test_jpeg.sh KOGEI SOURCE_ROOT HAVE_APRILTAG MAKE_JPEG|none
 set -u
 . "$(dirname "$0")/../lib.sh"
+. "$(dirname "$0")/demo_reference.sh"
 KOGEI=$1
 SRC=$2
 HAVE_APRILTAG=${3:-1}
@@ -25,14 +26,7 @@ if [ "$MAKE_JPEG" = none ]; then
 	echo "built without libjpeg: JPEG refused with the reason (the rest needs libjpeg)"
 	exit $fail
 fi
-kg_need_tcs
-kg_need "$HAVE_APRILTAG" "built without libapriltag"
-D=$SRC/fixtures/demo
-LAYOUT=$D/cie-tcs-frame.json
-
-expect_exit 0 "$KOGEI" sim patches --spectra "$TCS" --camera "$D/reference_camera.csv" \
-	--illuminant D65 --noise 50000:3:16 -o "$T/ref_rgb.cgats"
-expect_exit 0 "$KOGEI" calib reference --spectra "$TCS" --rgb "$T/ref_rgb.cgats" -o "$T/ref.json"
+demo_reference "$HAVE_APRILTAG"
 expect_exit 0 "$KOGEI" sim chart --layout "$LAYOUT" --spectra "$TCS" --camera "$D/site_camera.csv" \
 	--illuminant A --tilt 15 --rotate 5 --width 800 --height 600 --noise 20000:5:12 \
 	--depth 16 -o "$T/chart.tif"

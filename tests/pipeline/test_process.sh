@@ -10,10 +10,8 @@ set -u
 KOGEI=$1
 FIX=$2/fixtures
 HAVE_EMBREE=${3:-0}
-kg_need "${4:-1}" "built without libapriltag or OpenCV (chart tags, demosaicing)"
-kg_need_tcs
-kg_python numpy
 . "$(dirname "$0")/sim_session.sh"
+sim_session_needs "${4:-1}" numpy
 kg_temp
 # A refusal: exit 1, the message names $2, and OUTDIR holds nothing.
 expect_refusal() { # outdir pattern command...

@@ -18,10 +18,8 @@ set -u
 KOGEI=$1
 FIX=$2/fixtures
 HAVE_EMBREE=${3:-0}
-kg_need "${4:-1}" "built without libapriltag or OpenCV (chart tags, demosaicing)"
-kg_need_tcs
-kg_python numpy
 . "$(dirname "$0")/sim_session.sh"
+sim_session_needs "${4:-1}" numpy
 kg_temp
 
 # The chart as the sim session has it (the site camera under CIE A); the materials on a

@@ -18,10 +18,8 @@ set -u
 . "$(dirname "$0")/../lib.sh"
 KOGEI=$1
 FIX=$2/fixtures
-kg_need "${3:-1}" "built without libapriltag or OpenCV (chart tags, demosaicing)"
-kg_need_tcs
-kg_python numpy
 . "$(dirname "$0")/sim_session.sh"
+sim_session_needs "${3:-1}" numpy
 kg_temp
 
 "$KOGEI" sim chart --layout cie-tcs-frame --spectra "$TCS" \

@@ -13,9 +13,8 @@ set -u
 KOGEI=$1
 ROOT=$2
 FIX=$ROOT/fixtures
-kg_need "${3:-1}" "built without libapriltag or OpenCV (chart tags, demosaicing)"
-kg_need_tcs
-kg_python json
+. "$(dirname "$0")/sim_session.sh"
+sim_session_needs "${3:-1}" json
 kg_temp
 CAM='format=bayer_rggb12&fullwell=20000&read=5&serial=site-1'
 

@@ -24,11 +24,9 @@ KOGEI=$1
 FIX=$2/fixtures
 DECODE=$5
 CAMCHECK=$6
-kg_need "${3:-1}" "built without libapriltag or OpenCV (chart tags, demosaicing)"
-[ "$4" = 1 ] || { echo "SKIP: built without LittleCMS (-Dlcms): no master"; exit 77; }
-kg_need_tcs
-kg_python
 . "$(dirname "$0")/sim_session.sh"
+sim_session_needs "${3:-1}"
+kg_need "$4" "built without LittleCMS (-Dlcms): no master"
 kg_temp
 
 "$KOGEI" sim chart --layout cie-tcs-frame --spectra "$TCS" \

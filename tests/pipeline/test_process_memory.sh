@@ -15,14 +15,12 @@ set -u
 KOGEI=$1
 FIX=$2/fixtures
 UPSCALE=$3
-kg_need "${4:-1}" "built without libapriltag or OpenCV (chart tags, demosaicing)"
-[ "${5:-0}" = 1 ] && { echo "SKIP: built with AddressSanitizer, whose own memory would be measured"; exit 77; }
-kg_need_tcs
-kg_python numpy
+. "$(dirname "$0")/sim_session.sh"
+sim_session_needs "${4:-1}" numpy
+[ "${5:-0}" != 1 ] || kg_skip "built with AddressSanitizer, whose own memory would be measured"
 kg_temp
 free_kb=$(df -Pk "$T" | awk 'NR == 2 { print $4 }')
-[ "$free_kb" -gt 8000000 ] || { echo "SKIP: less than 8 GB free in $T"; exit 77; }
-. "$(dirname "$0")/sim_session.sh"
+[ "$free_kb" -gt 8000000 ] || kg_skip "less than 8 GB free in $T"
 W=15000 H=10000
 
 sim_scenes "$T" || { echo "FAIL: simulated scenes"; exit 1; }

@@ -10,9 +10,8 @@ set -u
 . "$(dirname "$0")/../lib.sh"
 KOGEI=$1
 ROOT=$2
-kg_need "${3:-1}" "built without libapriltag or OpenCV (chart tags, demosaicing)"
-kg_need_tcs
-kg_python json
+. "$(dirname "$0")/sim_session.sh"
+sim_session_needs "${3:-1}" json
 case $KOGEI in /*) ;; *) KOGEI=$(pwd)/$KOGEI ;; esac
 case $ROOT in /*) ;; *) ROOT=$(pwd)/$ROOT ;; esac
 FIX=$ROOT/fixtures

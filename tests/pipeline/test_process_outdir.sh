@@ -15,12 +15,9 @@ set -u
 . "$(dirname "$0")/../lib.sh"
 KOGEI=$1
 FIX=$2/fixtures
-kg_need "${3:-1}" "built without libapriltag or OpenCV (chart tags, demosaicing)"
-kg_need_tcs
-kg_python json
-env --default-signal=INT true 2>/dev/null ||
-	{ echo "SKIP: env --default-signal (coreutils 8.31) missing"; exit 77; }
 . "$(dirname "$0")/sim_session.sh"
+sim_session_needs "${3:-1}" json
+env --default-signal=INT true 2>/dev/null || kg_skip "env --default-signal (coreutils 8.31) missing"
 kg_temp
 # Every entry under a folder (but its own dot entries) with its inode, size and
 # modification time: a file rewritten, replaced or removed changes the listing.

@@ -18,11 +18,9 @@ set -u
 KOGEI=$1
 FIX=$2/fixtures
 MAKE_DNG=$3
-kg_need "${4:-1}" "built without libapriltag or OpenCV (chart tags, demosaicing)"
-kg_need "${5:-1}" "built without LibRaw"
-kg_need_tcs
-kg_python numpy
 . "$2/tests/pipeline/sim_session.sh"
+sim_session_needs "${4:-1}" numpy
+kg_need "${5:-1}" "built without LibRaw"
 kg_temp
 KG_CHECK_OK=1
 
