@@ -78,17 +78,6 @@ static inline int fx_count_files(void)
 	return n;
 }
 
-static inline void fx_slurp(const char *file, char *buf, size_t len)
-{
-	buf[0] = '\0';
-	FILE *fp = fopen(file, "r");
-	if (!fp)
-		return;
-	size_t n = fread(buf, 1, len - 1, fp);
-	buf[n] = '\0';
-	fclose(fp);
-}
-
 /* Run kogei with args (n of them); stdout and stderr land in fx_out and fx_errs (and
  * stderr is echoed to the test log). Returns the exit status. */
 static inline int fx_runv(const char *const *args, int nargs)
@@ -113,8 +102,8 @@ static inline int fx_runv(const char *const *args, int nargs)
 	waitpid(pid, &status, 0);
 	close(fo);
 	close(fe);
-	fx_slurp(out_path, fx_out, sizeof(fx_out));
-	fx_slurp(err_path, fx_errs, sizeof(fx_errs));
+	kg_test_slurp(out_path, fx_out, sizeof(fx_out));
+	kg_test_slurp(err_path, fx_errs, sizeof(fx_errs));
 	unlink(out_path);
 	unlink(err_path);
 	fprintf(stderr, "$ kogei");
@@ -321,25 +310,6 @@ static inline int fx_class_names(const kg_envi *e, char names[][KG_EST_CLASS_NAM
 	for (; e && e->meta.class_names && n < e->meta.classes && n < max; n++)
 		snprintf(names[n], KG_EST_CLASS_NAME_MAX, "%s", e->meta.class_names[n]);
 	return n;
-}
-
-/* Compare two files byte for byte. */
-static inline int fx_same_file(const char *a, const char *b)
-{
-	FILE *fa = fopen(a, "rb"), *fb = fopen(b, "rb");
-	int same = fa && fb;
-	while (same) {
-		int ca = fgetc(fa), cb = fgetc(fb);
-		if (ca != cb)
-			same = 0;
-		if (ca == EOF || cb == EOF)
-			break;
-	}
-	if (fa)
-		fclose(fa);
-	if (fb)
-		fclose(fb);
-	return same;
 }
 
 /* Read a whole ENVI file as floats (BIP layout); caller frees. */

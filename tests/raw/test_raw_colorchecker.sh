@@ -37,22 +37,8 @@ run_or_exit "$KOGEI" chart detect --layout colorchecker24-frame "$T/cc.tif" -o "
 check "chart detect names the DNG's camera" \
 	sh -c "grep -q 'CAMERA_MODEL \"EOS 5D Mark IV\"' '$T/dng.cgats' && grep -q 'CAMERA_SERIAL \"031021000123\"' '$T/dng.cgats'"
 # The reference charts number the patches 1..24 (the layout's aliases).
-"$PY" - "$SRC/fixtures/charts/colorchecker24-frame.json" "$T" <<'PY' || fail=1
-import json, sys
-alias = {p["id"]: p["alias"] for p in json.load(open(sys.argv[1]))["patches"]}
-for f in ("tif", "dng"):
-    out, data = [], False
-    for line in open(f"{sys.argv[2]}/{f}.cgats").read().split("\n"):
-        if line == "END_DATA":
-            data = False
-        if data and line:
-            k, rest = line.split("\t", 1)
-            line = alias[k] + "\t" + rest
-        if line == "BEGIN_DATA":
-            data = True
-        out.append(line)
-    open(f"{sys.argv[2]}/{f}_n.cgats", "w").write("\n".join(out))
-PY
+"$PY" "$(dirname "$0")/alias_ids.py" "$SRC/fixtures/charts/colorchecker24-frame.json" "$T" \
+	tif dng || fail=1
 check "DNG patches = the linear image's within one raw step" "$PY" - "$T" <<'PY'
 import sys
 def read(p):

@@ -86,22 +86,8 @@ check "chart detect below saturation: white patch not clipped ($cf)" \
 run_or_exit "$KOGEI" chart detect --layout colorchecker24-frame "$T/cc.tif" -o "$T/tif.cgats"
 # the reference spectra number the patches 1..24: the layout's aliases
 kg_python
-"$PY" - "$SRC/fixtures/charts/colorchecker24-frame.json" "$T" <<'PYEOF' || exit 1
-import json, sys
-alias = {p["id"]: p["alias"] for p in json.load(open(sys.argv[1]))["patches"]}
-for f in ("tif", "fine"):
-    out, data = [], False
-    for line in open(f"{sys.argv[2]}/{f}.cgats").read().split("\n"):
-        if line == "END_DATA":
-            data = False
-        if data and line:
-            k, rest = line.split("\t", 1)
-            line = alias[k] + "\t" + rest
-        if line == "BEGIN_DATA":
-            data = True
-        out.append(line)
-    open(f"{sys.argv[2]}/{f}_n.cgats", "w").write("\n".join(out))
-PYEOF
+"$PY" "$(dirname "$0")/alias_ids.py" "$SRC/fixtures/charts/colorchecker24-frame.json" "$T" \
+	tif fine || exit 1
 run_or_exit "$KOGEI" calib reference --spectra "$CHART" --rgb "$T/tif_n.cgats" --camera "$CSS" \
 	--illuminant D65 -o "$T/ref.json"
 run_or_exit "$KOGEI" calib camera --reference "$T/ref.json" --rgb "$T/fine_n.cgats" -o "$T/cam.json"
