@@ -19,6 +19,7 @@
 #include <unistd.h>
 
 #include "kg_calib.h"
+#include "kg_test_camera.h"
 #include "kg_test.h"
 
 static const char *fx_kogei;
@@ -149,16 +150,7 @@ static inline void fx_sensitivities(kg_spectrum sens[3], const double mix[9])
 		for (int l = 0; l < KG_NBANDS; l++)
 			sens[r].v[l] = mix[3 * r] * base[0].v[l] + mix[3 * r + 1] * base[1].v[l] +
 			               mix[3 * r + 2] * base[2].v[l];
-	double top = 0;
-	for (int c = 0; c < 3; c++) {
-		double s = 0;
-		for (int l = 0; l < KG_NBANDS; l++)
-			s += sens[c].v[l];
-		top = fmax(top, s);
-	}
-	for (int c = 0; c < 3; c++)
-		for (int l = 0; l < KG_NBANDS; l++)
-			sens[c].v[l] *= 0.9 / top;
+	kg_test_expose(sens);
 }
 
 static const double fx_identity[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
