@@ -14,16 +14,8 @@
 # usage: test_raw_saturation.sh KOGEI SOURCE_ROOT MAKE_DNG HAVE_TAGS_AND_DEMOSAIC HAVE_LIBRAW
 set -u
 . "$(dirname "$0")/../lib.sh"
-KOGEI=$1
-SRC=$2
-MAKE_DNG=$3
-kg_need "${4:-1}" "built without libapriltag or OpenCV"
-kg_need "${5:-1}" "built without LibRaw"
-kg_need_reference "$SRC" charts/colorchecker24_ohta1997.csv cameras/Canon_EOS_5D_Mark_IV.csv
-CHART=$REF/charts/colorchecker24_ohta1997.csv
-CSS=$REF/cameras/Canon_EOS_5D_Mark_IV.csv
-kg_temp
-KG_CHECK_OK=1
+. "$(dirname "$0")/raw_chart.sh"
+raw_chart_setup "$@"
 # the value of FIELD for SAMPLE_ID ID in a CGATS file
 field() {
 	awk -v id="$2" -v f="$3" '
