@@ -7,6 +7,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include "kg_config.h"
 
@@ -70,6 +71,78 @@ static inline int kg_test_file_exists(const char *path)
 {
 	struct stat st;
 	return stat(path, &st) == 0;
+}
+
+/* The test's scratch folder: kg_test_scratch_dir makes a fresh one under $TMPDIR (or
+ * /tmp) named kogei-TAG-XXXXXX, kg_test_scratch_remove deletes it (a no-op before it
+ * is made), kg_test_scratch is its name ("" before). */
+static inline char *kg_test_scratch(void)
+{
+	static char dir[4096];
+	return dir;
+}
+
+static inline const char *kg_test_scratch_dir(const char *tag)
+{
+	char *dir = kg_test_scratch();
+	const char *tmp = getenv("TMPDIR");
+	snprintf(dir, 4096, "%s/kogei-%s-XXXXXX", tmp && *tmp ? tmp : "/tmp", tag);
+	if (!mkdtemp(dir)) {
+		perror("mkdtemp");
+		exit(1);
+	}
+	return dir;
+}
+
+static inline void kg_test_scratch_remove(void)
+{
+	const char *dir = kg_test_scratch();
+	char cmd[4200];
+	if (!dir[0])
+		return;
+	snprintf(cmd, sizeof(cmd), "rm -rf '%s'", dir);
+	if (system(cmd) != 0)
+		fprintf(stderr, "could not remove %s\n", dir);
+}
+
+/* "<scratch>/<name>" in a ring of buffers (valid for the next 15 calls). */
+static inline const char *kg_test_path(const char *name)
+{
+	static char ring[16][4352];
+	static int next;
+	char *p = ring[next++ % 16];
+	snprintf(p, sizeof(ring[0]), "%s/%s", kg_test_scratch(), name);
+	return p;
+}
+
+/* A text file's first len - 1 bytes into buf, NUL-terminated ("" when unreadable). */
+static inline void kg_test_slurp(const char *file, char *buf, size_t len)
+{
+	buf[0] = '\0';
+	FILE *fp = fopen(file, "r");
+	if (!fp)
+		return;
+	size_t n = fread(buf, 1, len - 1, fp);
+	buf[n] = '\0';
+	fclose(fp);
+}
+
+/* 1 when both files exist and are equal byte for byte. */
+static inline int kg_test_same_file(const char *a, const char *b)
+{
+	FILE *fa = fopen(a, "rb"), *fb = fopen(b, "rb");
+	int same = fa && fb;
+	while (same) {
+		int ca = fgetc(fa), cb = fgetc(fb);
+		same = ca == cb;
+		if (ca == EOF || cb == EOF)
+			break;
+	}
+	if (fa)
+		fclose(fa);
+	if (fb)
+		fclose(fb);
+	return same;
 }
 
 #endif

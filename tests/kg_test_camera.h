@@ -6,9 +6,23 @@
 #ifndef KG_TEST_CAMERA_H
 #define KG_TEST_CAMERA_H
 
+#include <math.h>
 #include <stdint.h>
+#include <stdio.h>
 
 #include "kg_core.h"
+
+/* The exposure: scales three channel weights so the perfect diffuser (reflectance 1)
+ * gives 0.9 in the brightest channel. */
+static inline void kg_test_expose(kg_spectrum w[3])
+{
+	kg_spectrum one = kg_spectrum_const(1.0);
+	double top = 0;
+	for (int c = 0; c < 3; c++)
+		top = fmax(top, kg_spectrum_dot(&w[c], &one));
+	for (int c = 0; c < 3; c++)
+		w[c] = kg_spectrum_scale(&w[c], 0.9 / top);
+}
 
 static inline int kg_test_camera_weights(const char *reference_dir, const char *camera,
                                          const char *light, kg_spectrum w[3], kg_err *err)
@@ -23,14 +37,9 @@ static inline int kg_test_camera_weights(const char *reference_dir, const char *
 		ret = kg_illuminant_by_name(light, &ill, err);
 	if (ret)
 		return ret;
-	kg_spectrum one = kg_spectrum_const(1.0);
-	double top = 0;
-	for (int c = 0; c < 3; c++) {
-		w[c] = kg_spectrum_mul(&sens[c], &ill->spd);
-		top = fmax(top, kg_spectrum_dot(&w[c], &one));
-	}
 	for (int c = 0; c < 3; c++)
-		w[c] = kg_spectrum_scale(&w[c], 0.9 / top);
+		w[c] = kg_spectrum_mul(&sens[c], &ill->spd);
+	kg_test_expose(w);
 	kg_illuminant_free(&ill);
 	return 0;
 }

@@ -20,7 +20,6 @@
 
 #include "kg_test.h"
 
-static char acq_scratch[4096];
 static const char *acq_kogei;
 
 static inline void acq_init(int argc, char **argv, const char *tag)
@@ -30,35 +29,15 @@ static inline void acq_init(int argc, char **argv, const char *tag)
 		exit(1);
 	}
 	acq_kogei = argv[1];
-	const char *tmp = getenv("TMPDIR");
-	snprintf(acq_scratch, sizeof(acq_scratch), "%s/kogei-%s-XXXXXX",
-	         tmp && *tmp ? tmp : "/tmp", tag);
-	if (!mkdtemp(acq_scratch)) {
-		perror("mkdtemp");
-		exit(1);
-	}
+	kg_test_scratch_dir(tag);
 }
 
 static inline void acq_cleanup(void)
 {
-	char cmd[4200];
-	if (kg_test_failures) {
-		fprintf(stderr, "files kept in %s\n", acq_scratch);
-		return;
-	}
-	snprintf(cmd, sizeof(cmd), "rm -rf '%s'", acq_scratch);
-	if (system(cmd) != 0)
-		fprintf(stderr, "could not remove %s\n", acq_scratch);
-}
-
-/* "<scratch>/<name>" in a ring of 16 buffers (copy what must live longer). */
-static inline const char *acq_path(const char *name)
-{
-	static char ring[16][4352];
-	static int next;
-	char *p = ring[next++ % 16];
-	snprintf(p, sizeof(ring[0]), "%s/%s", acq_scratch, name);
-	return p;
+	if (kg_test_failures)
+		fprintf(stderr, "files kept in %s\n", kg_test_scratch());
+	else
+		kg_test_scratch_remove();
 }
 
 static char acq_out[1 << 16], acq_errtext[1 << 16];
@@ -87,8 +66,8 @@ static inline pid_t acq_spawn(char *const *args)
 	pid_t pid = fork();
 	if (pid == 0) {
 		char po[4200], pe[4200];
-		snprintf(po, sizeof(po), "%s/stdout.txt", acq_scratch);
-		snprintf(pe, sizeof(pe), "%s/stderr.txt", acq_scratch);
+		snprintf(po, sizeof(po), "%s/stdout.txt", kg_test_scratch());
+		snprintf(pe, sizeof(pe), "%s/stderr.txt", kg_test_scratch());
 		int o = open(po, O_WRONLY | O_CREAT | O_TRUNC, 0644);
 		int e = open(pe, O_WRONLY | O_CREAT | O_TRUNC, 0644);
 		dup2(o, 1);
@@ -109,8 +88,8 @@ static inline int acq_wait(pid_t pid, double timeout_s)
 		pid_t r = waitpid(pid, &st, WNOHANG);
 		if (r == pid) {
 			char po[4200], pe[4200];
-			snprintf(po, sizeof(po), "%s/stdout.txt", acq_scratch);
-			snprintf(pe, sizeof(pe), "%s/stderr.txt", acq_scratch);
+			snprintf(po, sizeof(po), "%s/stdout.txt", kg_test_scratch());
+			snprintf(pe, sizeof(pe), "%s/stderr.txt", kg_test_scratch());
 			acq_slurp(po, acq_out, sizeof(acq_out));
 			acq_slurp(pe, acq_errtext, sizeof(acq_errtext));
 			return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
@@ -235,20 +214,7 @@ static inline json_t *acq_manifest(const char *session)
 /* Whole-file comparison; 0 when both exist and are equal. */
 static inline int acq_same_file(const char *a, const char *b)
 {
-	FILE *fa = fopen(a, "rb"), *fb = fopen(b, "rb");
-	int same = fa && fb;
-	while (same) {
-		int x = fgetc(fa), y = fgetc(fb);
-		if (x != y)
-			same = 0;
-		if (x == EOF || y == EOF)
-			break;
-	}
-	if (fa)
-		fclose(fa);
-	if (fb)
-		fclose(fb);
-	return same ? 0 : -1;
+	return kg_test_same_file(a, b) ? 0 : -1;
 }
 
 #endif

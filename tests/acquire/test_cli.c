@@ -20,7 +20,7 @@ static int contains(const char *hay, const char *needle) { return strstr(hay, ne
 static void bad_options(void)
 {
 	char s[4200];
-	snprintf(s, sizeof(s), "%s", acq_path("bad"));
+	snprintf(s, sizeof(s), "%s", kg_test_path("bad"));
 	static const struct {
 		const char *a, *b, *needle;
 	} cases[] = {
@@ -60,7 +60,7 @@ static void bad_options(void)
 static void failing_camera(void)
 {
 	char s[4200];
-	snprintf(s, sizeof(s), "%s", acq_path("fail"));
+	snprintf(s, sizeof(s), "%s", kg_test_path("fail"));
 	int rc = acq_run("acquire", "--camera", "sim:?width=32&height=24", "--out", s, "--kind",
 	                 "object", "--frames", "3", NULL);
 	CHECK(rc == 0, "first capture: exit %d: %s", rc, acq_errtext);
@@ -129,7 +129,7 @@ static void write_scene(const char *name, double offset, double gain_w, int obje
 			double s = object ? 0.2 + 0.6 * ((x / 8 + y / 8) % 4) / 3.0 : gain_w;
 			img->data[y * W + x] = (float)(offset + s * v);
 		}
-	if (kg_image_write_tiff(img, acq_path(name), 32, &err))
+	if (kg_image_write_tiff(img, kg_test_path(name), 32, &err))
 		fprintf(stderr, "%s\n", err.msg);
 	kg_image_free(&img);
 }
@@ -155,12 +155,12 @@ static void dark_and_flat(void)
 	write_scene("object.tif", offset, 0, 1);
 	const char *keys = "?format=mono16&bits=16&fullwell=200000&read=3&seed=9";
 	char dark_uri[4400], flat_uri[4400], obj_uri[4400];
-	snprintf(dark_uri, sizeof(dark_uri), "sim:%s%s", acq_path("dark.tif"), keys);
-	snprintf(flat_uri, sizeof(flat_uri), "sim:%s%s", acq_path("flat.tif"), keys);
-	snprintf(obj_uri, sizeof(obj_uri), "sim:%s%s", acq_path("object.tif"), keys);
+	snprintf(dark_uri, sizeof(dark_uri), "sim:%s%s", kg_test_path("dark.tif"), keys);
+	snprintf(flat_uri, sizeof(flat_uri), "sim:%s%s", kg_test_path("flat.tif"), keys);
+	snprintf(obj_uri, sizeof(obj_uri), "sim:%s%s", kg_test_path("object.tif"), keys);
 	char a[4200], b[4200];
-	snprintf(a, sizeof(a), "%s", acq_path("corrected"));
-	snprintf(b, sizeof(b), "%s", acq_path("plain"));
+	snprintf(a, sizeof(a), "%s", kg_test_path("corrected"));
+	snprintf(b, sizeof(b), "%s", kg_test_path("plain"));
 	int rc = acq_run("acquire", "--camera", dark_uri, "--out", a, "--kind", "dark", "--frames",
 	                 "8", "--exposure", "10000", NULL);
 	CHECK(rc == 0, "dark: exit %d: %s", rc, acq_errtext);
@@ -239,7 +239,7 @@ out:
 static void bayer_capture(void)
 {
 	char s[4200];
-	snprintf(s, sizeof(s), "%s", acq_path("bayer"));
+	snprintf(s, sizeof(s), "%s", kg_test_path("bayer"));
 	int rc = acq_run("acquire", "--camera", "sim:?width=32&height=24&format=bayer_rggb12",
 	                 "--out", s, "--kind", "object", "--frames", "3", "--name", "mosaic", NULL);
 	CHECK(rc == 0, "bayer capture: exit %d: %s", rc, acq_errtext);

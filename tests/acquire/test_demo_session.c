@@ -119,7 +119,7 @@ int main(int argc, char **argv)
 	char bundle[4200], manifest_path[4400], out[4200];
 	snprintf(bundle, sizeof(bundle), "%s/fixtures/demo/session", KG_SOURCE_ROOT);
 	snprintf(manifest_path, sizeof(manifest_path), "%s/session.json", bundle);
-	snprintf(out, sizeof(out), "%s", acq_path("replayed"));
+	snprintf(out, sizeof(out), "%s", kg_test_path("replayed"));
 	json_t *root = json_load_file(manifest_path, 0, NULL);
 	CHECK(root != NULL, "%s does not parse", manifest_path);
 	json_t *cap;

@@ -92,8 +92,8 @@ static void scene_helper(int bayer)
 			p[2] = (float)(in ? 0.3 : v);
 		}
 	char scene[4200], uri[4400], session[4200];
-	snprintf(scene, sizeof(scene), "%s", acq_path(bayer ? "scene-bayer.tif" : "scene.tif"));
-	snprintf(session, sizeof(session), "%s", acq_path(bayer ? "bayer" : "mono"));
+	snprintf(scene, sizeof(scene), "%s", kg_test_path(bayer ? "scene-bayer.tif" : "scene.tif"));
+	snprintf(session, sizeof(session), "%s", kg_test_path(bayer ? "bayer" : "mono"));
 	kg_image_write_tiff(img, scene, 32, &err);
 	snprintf(uri, sizeof(uri), "sim:%s?format=%s&fullwell=100000&read=2", scene,
 	         bayer ? "bayer_rggb12" : "mono16");
@@ -132,9 +132,9 @@ static void chart_helper(void)
 	char layout[4200], css[4200], chart[4200], truth[4200], uri[4400], session[4200];
 	snprintf(layout, sizeof(layout), "%s/fixtures/demo/cie-tcs-frame.json", KG_SOURCE_ROOT);
 	snprintf(css, sizeof(css), "%s/fixtures/demo/reference_camera.csv", KG_SOURCE_ROOT);
-	snprintf(chart, sizeof(chart), "%s", acq_path("chart.tif"));
-	snprintf(truth, sizeof(truth), "%s", acq_path("truth.cgats"));
-	snprintf(session, sizeof(session), "%s", acq_path("chart"));
+	snprintf(chart, sizeof(chart), "%s", kg_test_path("chart.tif"));
+	snprintf(truth, sizeof(truth), "%s", kg_test_path("truth.cgats"));
+	snprintf(session, sizeof(session), "%s", kg_test_path("chart"));
 	int rc = acq_run("sim", "chart", "--layout", layout, "--camera", css, "--illuminant", "D65",
 	                 "--width", "800", "--height", "600", "--depth", "float", "--threads", "1",
 	                 "-o", chart, "--truth", truth, NULL);
@@ -181,8 +181,8 @@ static void out_of_reach(void)
 	kg_err err = {{0}};
 	kg_image_new(40, 30, 1, &img, &err); /* black */
 	char scene[4200], uri[4400], session[4200];
-	snprintf(scene, sizeof(scene), "%s", acq_path("black.tif"));
-	snprintf(session, sizeof(session), "%s", acq_path("black"));
+	snprintf(scene, sizeof(scene), "%s", kg_test_path("black.tif"));
+	snprintf(session, sizeof(session), "%s", kg_test_path("black"));
 	kg_image_write_tiff(img, scene, 32, &err);
 	kg_image_free(&img);
 	snprintf(uri, sizeof(uri), "sim:%s?read=0", scene);

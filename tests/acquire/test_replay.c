@@ -42,8 +42,8 @@ int main(int argc, char **argv)
 {
 	acq_init(argc, argv, "acquire-replay");
 	char a[4200], b[4200];
-	snprintf(a, sizeof(a), "%s", acq_path("recorded"));
-	snprintf(b, sizeof(b), "%s", acq_path("replayed"));
+	snprintf(a, sizeof(a), "%s", kg_test_path("recorded"));
+	snprintf(b, sizeof(b), "%s", kg_test_path("replayed"));
 	const char *sim = "sim:?width=96&height=72&format=bayer_rggb12&seed=3";
 	/* name, kind, exposure, then the same options for record and replay */
 	static const char *const caps[][4] = {

@@ -95,7 +95,7 @@ int main(int argc, char **argv)
 {
 	acq_init(argc, argv, "acquire-sigkill");
 	char s[4200];
-	snprintf(s, sizeof(s), "%s", acq_path("session"));
+	snprintf(s, sizeof(s), "%s", kg_test_path("session"));
 	const char *rt = "sim:?realtime=1&fps=50&width=64&height=48";
 	int rc = acq_run("acquire", "--camera", rt, "--out", s, "--kind", "chart", "--frames", "3",
 	                 NULL);
@@ -178,7 +178,7 @@ int main(int argc, char **argv)
 	/* and its recording still replays: the first capture, bit for bit */
 	char uri[4400], t[4200], pa[4400], pb[4400];
 	snprintf(uri, sizeof(uri), "replay:%s#chart-0001", s);
-	snprintf(t, sizeof(t), "%s", acq_path("replayed"));
+	snprintf(t, sizeof(t), "%s", kg_test_path("replayed"));
 	rc = acq_run("acquire", "--camera", uri, "--out", t, "--kind", "chart", "--frames", "3",
 	             NULL);
 	CHECK(rc == 0, "replay after the kills: exit %d: %s", rc, acq_errtext);

@@ -148,7 +148,7 @@ typedef struct bad_case {
 static void refused(const bad_case *b, int n)
 {
 	char s[4400], manifest[4500], before[1 << 16], after[1 << 16];
-	snprintf(s, sizeof(s), "%s", acq_path("bad"));
+	snprintf(s, sizeof(s), "%s", kg_test_path("bad"));
 	for (int i = 0; i < n; i++) {
 		copy_session(s);
 		if (b[i].file)
@@ -202,7 +202,7 @@ static void refused(const bad_case *b, int n)
 int main(int argc, char **argv)
 {
 	acq_init(argc, argv, "validate");
-	snprintf(base, sizeof(base), "%s", acq_path("base"));
+	snprintf(base, sizeof(base), "%s", kg_test_path("base"));
 	int rc = acq_run("acquire", "--camera", CAM, "--out", base, "--kind", "dark", "--frames",
 	                 "2", "--exposure", "1000", NULL);
 	CHECK(rc == 0, "dark: exit %d: %s", rc, acq_errtext);
@@ -255,7 +255,7 @@ int main(int argc, char **argv)
 	refused(cases, (int)(sizeof(cases) / sizeof(cases[0])));
 
 	/* --name outside the safe set: a usage error, nothing created. */
-	const char *fresh = acq_path("fresh");
+	const char *fresh = kg_test_path("fresh");
 	static const char *const names[] = {"../../etc", ".hidden", "a/b", "sp ace"};
 	for (size_t i = 0; i < sizeof(names) / sizeof(names[0]); i++) {
 		rc = acq_run("acquire", "--camera", CAM, "--out", fresh, "--kind", "object", "--name",

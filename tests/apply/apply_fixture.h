@@ -19,6 +19,7 @@
 #include <unistd.h>
 
 #include "kg_calib.h"
+#include "kg_test_camera.h"
 #include "kg_test.h"
 
 static const char *fx_kogei;
@@ -78,17 +79,6 @@ static inline int fx_count_files(void)
 	return n;
 }
 
-static inline void fx_slurp(const char *file, char *buf, size_t len)
-{
-	buf[0] = '\0';
-	FILE *fp = fopen(file, "r");
-	if (!fp)
-		return;
-	size_t n = fread(buf, 1, len - 1, fp);
-	buf[n] = '\0';
-	fclose(fp);
-}
-
 /* Run kogei with args (n of them); stdout and stderr land in fx_out and fx_errs (and
  * stderr is echoed to the test log). Returns the exit status. */
 static inline int fx_runv(const char *const *args, int nargs)
@@ -113,8 +103,8 @@ static inline int fx_runv(const char *const *args, int nargs)
 	waitpid(pid, &status, 0);
 	close(fo);
 	close(fe);
-	fx_slurp(out_path, fx_out, sizeof(fx_out));
-	fx_slurp(err_path, fx_errs, sizeof(fx_errs));
+	kg_test_slurp(out_path, fx_out, sizeof(fx_out));
+	kg_test_slurp(err_path, fx_errs, sizeof(fx_errs));
 	unlink(out_path);
 	unlink(err_path);
 	fprintf(stderr, "$ kogei");
@@ -160,16 +150,7 @@ static inline void fx_sensitivities(kg_spectrum sens[3], const double mix[9])
 		for (int l = 0; l < KG_NBANDS; l++)
 			sens[r].v[l] = mix[3 * r] * base[0].v[l] + mix[3 * r + 1] * base[1].v[l] +
 			               mix[3 * r + 2] * base[2].v[l];
-	double top = 0;
-	for (int c = 0; c < 3; c++) {
-		double s = 0;
-		for (int l = 0; l < KG_NBANDS; l++)
-			s += sens[c].v[l];
-		top = fmax(top, s);
-	}
-	for (int c = 0; c < 3; c++)
-		for (int l = 0; l < KG_NBANDS; l++)
-			sens[c].v[l] *= 0.9 / top;
+	kg_test_expose(sens);
 }
 
 static const double fx_identity[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
@@ -321,25 +302,6 @@ static inline int fx_class_names(const kg_envi *e, char names[][KG_EST_CLASS_NAM
 	for (; e && e->meta.class_names && n < e->meta.classes && n < max; n++)
 		snprintf(names[n], KG_EST_CLASS_NAME_MAX, "%s", e->meta.class_names[n]);
 	return n;
-}
-
-/* Compare two files byte for byte. */
-static inline int fx_same_file(const char *a, const char *b)
-{
-	FILE *fa = fopen(a, "rb"), *fb = fopen(b, "rb");
-	int same = fa && fb;
-	while (same) {
-		int ca = fgetc(fa), cb = fgetc(fb);
-		if (ca != cb)
-			same = 0;
-		if (ca == EOF || cb == EOF)
-			break;
-	}
-	if (fa)
-		fclose(fa);
-	if (fb)
-		fclose(fb);
-	return same;
 }
 
 /* Read a whole ENVI file as floats (BIP layout); caller frees. */

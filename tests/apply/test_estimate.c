@@ -279,10 +279,10 @@ int main(int argc, char **argv)
 		char a[600], b[600];
 		snprintf(a, sizeof(a), "%s.img", fx_path("a"));
 		snprintf(b, sizeof(b), "%s.img", fx_path(variants[v][0]));
-		CHECK(fx_same_file(a, b), "%s differs from the default run", b);
+		CHECK(kg_test_same_file(a, b), "%s differs from the default run", b);
 		snprintf(a, sizeof(a), "%s_mask.img", fx_path("a"));
 		snprintf(b, sizeof(b), "%s_mask.img", fx_path(variants[v][0]));
-		CHECK(fx_same_file(a, b), "%s differs from the default run", b);
+		CHECK(kg_test_same_file(a, b), "%s differs from the default run", b);
 	}
 
 	/* rootpoly3: M2 applied to the pixels first; and a LUT of pca */

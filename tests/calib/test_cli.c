@@ -26,17 +26,6 @@ static const char *path(const char *name)
 	return p;
 }
 
-static void slurp(const char *file, char *buf, size_t len)
-{
-	buf[0] = '\0';
-	FILE *fp = fopen(file, "r");
-	if (!fp)
-		return;
-	size_t n = fread(buf, 1, len - 1, fp);
-	buf[n] = '\0';
-	fclose(fp);
-}
-
 /* Run kogei with the arguments (NULL-terminated); its stdout and stderr are kept in
  * out and err. Returns the exit status. */
 static int run(char *out, char *err, size_t len, ...)
@@ -64,8 +53,8 @@ static int run(char *out, char *err, size_t len, ...)
 	}
 	int status = 0;
 	waitpid(pid, &status, 0);
-	slurp(out_path, out, len);
-	slurp(err_path, err, len);
+	kg_test_slurp(out_path, out, len);
+	kg_test_slurp(err_path, err, len);
 	unlink(out_path);
 	unlink(err_path);
 	return WIFEXITED(status) ? WEXITSTATUS(status) : -1;

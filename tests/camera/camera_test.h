@@ -11,40 +11,6 @@
 #include "kg_camera.h"
 #include "kg_test.h"
 
-static char cam_scratch[4096];
-
-/* A fresh directory under $TMPDIR (or /tmp); cam_scratch_remove deletes it. */
-static inline const char *cam_scratch_dir(const char *tag)
-{
-	const char *tmp = getenv("TMPDIR");
-	snprintf(cam_scratch, sizeof(cam_scratch), "%s/kogei-%s-XXXXXX",
-	         tmp && *tmp ? tmp : "/tmp", tag);
-	if (!mkdtemp(cam_scratch)) {
-		perror("mkdtemp");
-		exit(1);
-	}
-	return cam_scratch;
-}
-
-static inline void cam_scratch_remove(void)
-{
-	char cmd[4200];
-	if (!cam_scratch[0])
-		return;
-	snprintf(cmd, sizeof(cmd), "rm -rf '%s'", cam_scratch);
-	if (system(cmd) != 0)
-		fprintf(stderr, "could not remove %s\n", cam_scratch);
-}
-
-/* "<scratch>/<name>" in a ring of buffers (valid for the next 15 calls). */
-static inline const char *cam_path(const char *name)
-{
-	static char ring[16][4352];
-	static int next;
-	char *p = ring[next++ % 16];
-	snprintf(p, sizeof(ring[0]), "%s/%s", cam_scratch, name);
-	return p;
-}
 
 /* Exit 1 with the message when a setup step fails (later checks would be noise). */
 static inline void cam_must(int ret, const kg_err *e, const char *what)

@@ -359,11 +359,11 @@ static void test_damage(const char *session)
 
 int main(void)
 {
-	const char *dir = cam_scratch_dir("camreplay");
+	const char *dir = kg_test_scratch_dir("camreplay");
 	(void)dir;
 	char session[4400], again[4400];
-	snprintf(session, sizeof(session), "%s", cam_path("session"));
-	snprintf(again, sizeof(again), "%s", cam_path("again"));
+	snprintf(session, sizeof(session), "%s", kg_test_path("session"));
+	snprintf(again, sizeof(again), "%s", kg_test_path("again"));
 	record("sim:?width=24&height=16&format=bayer_rggb12&seed=3&serial=S3", session, shots);
 	test_recorded_files(session);
 	test_round_trip(session);
@@ -371,6 +371,6 @@ int main(void)
 	test_damage(session);
 	for (int i = 0; i < NA + NB; i++)
 		free(shots[i].data);
-	cam_scratch_remove();
+	kg_test_scratch_remove();
 	return kg_test_done("test_camera_replay");
 }

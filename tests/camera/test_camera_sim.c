@@ -95,7 +95,7 @@ static void strip_stats(kg_camera *c, int nframes, double mean[NSTRIP], double v
 static void test_preview(void)
 {
 	const double read_e = 8;
-	const char *scene = cam_path("strips.tif");
+	const char *scene = kg_test_path("strips.tif");
 	kg_inputs_reset();
 	write_strips(scene);
 	char uri[4600];
@@ -164,7 +164,7 @@ static void test_preview(void)
 /* read_e: read noise in electrons; ncfg: how many of the settings below to take. */
 static void test_physics(double read_e, int ncfg)
 {
-	const char *scene = cam_path("strips.tif");
+	const char *scene = kg_test_path("strips.tif");
 	kg_inputs_reset(); /* the last round's camera read this scene */
 	write_strips(scene);
 	char uri[4600];
@@ -246,7 +246,7 @@ static void test_physics(double read_e, int ncfg)
  * open) scales red and blue to the green mean (grey world) until turned off. */
 static void test_bayer(void)
 {
-	const char *scene = cam_path("rgb.tif");
+	const char *scene = kg_test_path("rgb.tif");
 	write_rgb(scene, 0.8f, 0.4f, 0.1f);
 	char uri[4600];
 	snprintf(uri, sizeof(uri), "sim:%s?format=bayer_grbg12&read=0&fullwell=1e9", scene);
@@ -383,13 +383,13 @@ static void test_uri_errors(void)
 
 int main(void)
 {
-	cam_scratch_dir("camsim");
+	kg_test_scratch_dir("camsim");
 	test_physics(8, 5); /* shot noise dominates */
 	test_physics(60, 3); /* read noise dominates */
 	test_bayer();
 	test_reproducible();
 	test_preview();
 	test_uri_errors();
-	cam_scratch_remove();
+	kg_test_scratch_remove();
 	return kg_test_done("test_camera_sim");
 }

@@ -14,44 +14,19 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
-static char cs_scratch[4096];
+#include "kg_test.h"
 
-static inline const char *cs_scratch_dir(const char *tag)
-{
-	const char *tmp = getenv("TMPDIR");
-	snprintf(cs_scratch, sizeof(cs_scratch), "%s/kogei-%s-XXXXXX", tmp && *tmp ? tmp : "/tmp",
-	         tag);
-	if (!mkdtemp(cs_scratch)) {
-		perror("mkdtemp");
-		exit(1);
-	}
-	return cs_scratch;
-}
-
-static inline void cs_scratch_remove(void)
-{
-	char cmd[4200];
-	snprintf(cmd, sizeof(cmd), "rm -rf '%s'", cs_scratch);
-	if (cs_scratch[0] && system(cmd) != 0)
-		fprintf(stderr, "could not remove %s\n", cs_scratch);
-}
-
-/* "<scratch>/<name>" in a ring of 16 buffers. */
-static inline char *cs_path(const char *name)
-{
-	static char ring[16][4200];
-	static int next;
-	char *p = ring[next++ % 16];
-	snprintf(p, sizeof(ring[0]), "%s/%s", cs_scratch, name);
-	return p;
-}
+/* The scratch folder by the names the chart detector's tests (tests/chart_mcc) use. */
+static inline const char *cs_scratch_dir(const char *tag) { return kg_test_scratch_dir(tag); }
+static inline void cs_scratch_remove(void) { kg_test_scratch_remove(); }
+static inline const char *cs_path(const char *name) { return kg_test_path(name); }
 
 /* Run argv (NULL-terminated) with stdout and stderr into out (NUL-terminated,
  * truncated to len); the exit status, or -1 when it did not exit normally. */
 static inline int cs_run(char *const *argv, char *out, size_t len)
 {
 	char log[4300];
-	snprintf(log, sizeof(log), "%s/run.log", cs_scratch);
+	snprintf(log, sizeof(log), "%s/run.log", kg_test_scratch());
 	pid_t pid = fork();
 	if (pid == 0) {
 		int fd = open(log, O_WRONLY | O_CREAT | O_TRUNC, 0644);

@@ -134,7 +134,7 @@ static double compare(const char *what, const kg_chart_result *r, const char *tr
 static void run_condition(const char *name, const char *const *extra, int use_spectra)
 {
 	char log[8192];
-	const char *img = cs_path("image.tif"), *truth = cs_path("truth.cgats");
+	const char *img = kg_test_path("image.tif"), *truth = kg_test_path("truth.cgats");
 	int rc = render(layout, extra, use_spectra, img, truth, log, sizeof(log));
 	CHECK(rc == 0, "%s: sim chart exit %d: %s", name, rc, log);
 	if (rc)
@@ -173,7 +173,7 @@ static void test_fixture_layouts(void)
 			printf("  %s: not in this checkout\n", names[i]);
 			continue;
 		}
-		const char *img = cs_path("fixture.tif"), *truth = cs_path("fixture.cgats");
+		const char *img = kg_test_path("fixture.tif"), *truth = kg_test_path("fixture.cgats");
 		const char *extra[] = {"--tilt", "30", "--rotate", "15", "--vignetting", "0.2",
 		                       "--width", "3000", "--height", "2000", NULL};
 		int rc = render(lay, extra, 0, img, truth, log, sizeof(log));
@@ -196,7 +196,7 @@ static void test_fixture_layouts(void)
 static void test_occluded_tags(void)
 {
 	char log[8192];
-	const char *img = cs_path("occ.tif"), *truth = cs_path("occ.cgats");
+	const char *img = kg_test_path("occ.tif"), *truth = kg_test_path("occ.cgats");
 	const char *extra[] = {"--occlude", "tags", "--tilt", "25", NULL};
 	int rc = render(layout, extra, 0, img, truth, log, sizeof(log));
 	CHECK(rc == 0, "occlusion: sim chart exit %d: %s", rc, log);
@@ -221,7 +221,7 @@ static void test_occluded_tags(void)
 static void test_glare_and_covered_patches(void)
 {
 	char log[8192];
-	const char *img = cs_path("glare.tif"), *truth = cs_path("glare.cgats");
+	const char *img = kg_test_path("glare.tif"), *truth = kg_test_path("glare.cgats");
 	const char *extra[] = {"--glare", "--occlude", "patches", NULL};
 	int rc = render(layout, extra, 0, img, truth, log, sizeof(log));
 	CHECK(rc == 0, "glare: sim chart exit %d: %s", rc, log);
@@ -246,7 +246,7 @@ static void test_glare_and_covered_patches(void)
 static void test_two_charts(void)
 {
 	char log[8192];
-	const char *img = cs_path("two.tif"), *truth = cs_path("two.cgats");
+	const char *img = kg_test_path("two.tif"), *truth = kg_test_path("two.cgats");
 	const char *extra[] = {"--decoy", "--tilt", "20", NULL};
 	int rc = render(layout, extra, 0, img, truth, log, sizeof(log));
 	CHECK(rc == 0, "two charts: sim chart exit %d: %s", rc, log);
@@ -271,7 +271,7 @@ static void test_no_chart(void)
 	CHECK(kg_image_new(640, 480, 3, &im, &err) == 0, "image: %s", err.msg);
 	for (long i = 0; i < 640L * 480 * 3; i++)
 		im->data[i] = 0.2f + 0.01f * (float)((i * 7919) % 13) / 13.0f;
-	const char *img = cs_path("empty.tif");
+	const char *img = kg_test_path("empty.tif");
 	CHECK(kg_image_write(im, img, 16, &err) == 0, "write: %s", err.msg);
 	kg_image_free(&im);
 	kg_chart_result *r = NULL;
@@ -284,13 +284,13 @@ static void test_no_chart(void)
 
 	/* Only a frame whose tags are not the layout's. */
 	char log[8192];
-	const char *other = cs_path("other.json");
+	const char *other = kg_test_path("other.json");
 	cs_write_layout(other, "other ids", 20);
-	int rc = render(other, NULL, 0, cs_path("foreign.tif"), cs_path("foreign.cgats"), log,
+	int rc = render(other, NULL, 0, kg_test_path("foreign.tif"), kg_test_path("foreign.cgats"), log,
 	                sizeof(log));
 	CHECK(rc == 0, "foreign: sim chart exit %d: %s", rc, log);
 	memset(&err, 0, sizeof(err));
-	ret = detect(layout, cs_path("foreign.tif"), &r, &err);
+	ret = detect(layout, kg_test_path("foreign.tif"), &r, &err);
 	CHECK(ret == KG_ENOENT, "foreign tags: code %d, expected KG_ENOENT (%s)", ret, err.msg);
 	CHECK(err.msg[0] != '\0', "foreign tags: no message");
 	printf("  foreign tags only: %s\n", err.msg);
@@ -309,10 +309,10 @@ int main(int argc, char **argv)
 		return 2;
 	}
 	kogei = argv[1];
-	cs_scratch_dir("chart-accuracy");
-	snprintf(camera, sizeof(camera), "%s", cs_path("camera.csv"));
-	snprintf(layout, sizeof(layout), "%s", cs_path("frame24.json"));
-	snprintf(spectra, sizeof(spectra), "%s", cs_path("spectra.cgats"));
+	kg_test_scratch_dir("chart-accuracy");
+	snprintf(camera, sizeof(camera), "%s", kg_test_path("camera.csv"));
+	snprintf(layout, sizeof(layout), "%s", kg_test_path("frame24.json"));
+	snprintf(spectra, sizeof(spectra), "%s", kg_test_path("spectra.cgats"));
 	cs_write_camera(camera);
 	cs_write_layout(layout, "frame24", 0);
 	cs_write_spectra(spectra);
@@ -327,9 +327,9 @@ int main(int argc, char **argv)
 	test_two_charts();
 	test_no_chart();
 	if (!kg_test_failures)
-		cs_scratch_remove();
+		kg_test_scratch_remove();
 	else
-		fprintf(stderr, "inputs kept in %s\n", cs_scratch);
+		fprintf(stderr, "inputs kept in %s\n", kg_test_scratch());
 	return kg_test_done("chart-accuracy");
 #endif
 }

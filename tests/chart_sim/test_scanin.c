@@ -78,8 +78,8 @@ int main(int argc, char **argv)
 		kg_test_skip("ArgyllCMS scanin is not installed (package argyll)");
 	if (!kg_test_file_exists(CHT))
 		kg_test_skip(CHT " is missing (package argyll-ref)");
-	cs_scratch_dir("chart-scanin");
-	char *camera = strdup(cs_path("camera.csv"));
+	kg_test_scratch_dir("chart-scanin");
+	char *camera = strdup(kg_test_path("camera.csv"));
 	cs_write_camera(camera);
 
 	static const struct {
@@ -94,8 +94,8 @@ int main(int argc, char **argv)
 	       "|-------------------------------|-----------------|----------------|-----------------|\n");
 	for (size_t p = 0; p < sizeof(poses) / sizeof(poses[0]); p++) {
 		char log[8192];
-		char *img = strdup(cs_path("cc.tif")), *truth_path = strdup(cs_path("cc.cgats"));
-		char *val = strdup(cs_path("cc.val"));
+		char *img = strdup(kg_test_path("cc.tif")), *truth_path = strdup(kg_test_path("cc.cgats"));
+		char *val = strdup(kg_test_path("cc.val"));
 		char *sim[] = {(char *)kogei, "sim", "chart", "--layout", CHT, "--camera", camera,
 		               "--illuminant", "D65", "--paper", "0.03", "--background", "0.3",
 		               "--width", "2000", "--height", "1500", "--fill", "0.8",
@@ -137,10 +137,10 @@ int main(int argc, char **argv)
 	}
 	free(camera);
 	if (!found) {
-		cs_scratch_remove();
+		kg_test_scratch_remove();
 		kg_test_skip("scanin found the chart in none of the images");
 	}
 	if (!kg_test_failures)
-		cs_scratch_remove();
+		kg_test_scratch_remove();
 	return kg_test_done("chart-scanin");
 }

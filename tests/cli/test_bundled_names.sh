@@ -5,28 +5,15 @@
 # unknown name fails (exit 1) with the bundled names listed.
 # usage: test_bundled_names.sh KOGEI HAVE_APRILTAG HAVE_RENDER
 set -u
+. "$(dirname "$0")/../lib.sh"
 KOGEI=$1
 case $KOGEI in /*) ;; *) KOGEI=$(pwd)/$KOGEI ;; esac
 HAVE_APRILTAG=${2:-1}
 HAVE_RENDER=${3:-1}
 DEMO=${KOGEI_SOURCE_ROOT:?}/fixtures/demo
 TCS=/usr/share/colord/ref/CIE-TCS.sp
-T=$(mktemp -d)
-trap 'rm -rf "$T"' EXIT
+kg_temp
 cd "$T" || exit 1
-fail=0
-expect_exit() { # code, command...
-	want=$1; shift
-	"$@" >out 2>err
-	got=$?
-	if [ "$got" != "$want" ]; then
-		echo "FAIL: '$*' exited $got, expected $want"; cat err; fail=1
-	fi
-}
-check() { # description, command...
-	desc=$1; shift
-	if "$@"; then :; else echo "FAIL: $desc"; fail=1; fi
-}
 CAM=$DEMO/site_camera.csv
 
 # --materials default

@@ -6,36 +6,16 @@
 # with a note that nothing was checked.
 # usage: test_camera_identity.sh KOGEI SOURCE_ROOT HAVE_APRILTAG
 set -u
+. "$(dirname "$0")/../lib.sh"
+. "$(dirname "$0")/demo_reference.sh"
 KOGEI=$1
 SRC=$2
-HAVE_APRILTAG=${3:-1}
-TCS=/usr/share/colord/ref/CIE-TCS.sp
-[ -r "$TCS" ] || { echo "skipped: $TCS missing (package colord-data)"; exit 77; }
-[ "$HAVE_APRILTAG" = 1 ] || { echo "skipped: built without libapriltag"; exit 77; }
-T=$(mktemp -d)
-trap 'rm -rf "$T"' EXIT
-fail=0
-check() { # description, command...
-	desc=$1; shift
-	if "$@"; then :; else echo "FAIL: $desc"; fail=1; fi
-}
-expect_exit() { # code, command...
-	want=$1; shift
-	"$@" >"$T/out" 2>"$T/err"
-	got=$?
-	if [ "$got" != "$want" ]; then
-		echo "FAIL: '$*' exited $got, expected $want"; cat "$T/err"; fail=1
-	fi
-}
-D=$SRC/fixtures/demo
-LAYOUT=$D/cie-tcs-frame.json
+kg_temp
+demo_reference "${3:-1}"
 LIB=$SRC/fixtures/materials/default.json
 SENSOR='format=bayer_rggb12&fullwell=20000&read=5'
 OBJSENSOR='format=rgb16&bits=12&fullwell=20000&read=5'
 
-expect_exit 0 "$KOGEI" sim patches --spectra "$TCS" --camera "$D/reference_camera.csv" \
-	--illuminant D65 --noise 50000:3:16 -o "$T/ref_rgb.cgats"
-expect_exit 0 "$KOGEI" calib reference --spectra "$TCS" --rgb "$T/ref_rgb.cgats" -o "$T/ref.json"
 # The scenes: the chart and an object (the materials' tiles), linear float.
 expect_exit 0 "$KOGEI" sim chart --layout "$LAYOUT" --spectra "$TCS" --camera "$D/site_camera.csv" \
 	--illuminant A --tilt 20 --rotate 5 --width 800 --height 600 --white-level 0.8 \

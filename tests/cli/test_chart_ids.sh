@@ -7,26 +7,12 @@
 # ColorChecker average in ../shared/reference (skipped without it).
 # usage: test_chart_ids.sh KOGEI SOURCE_ROOT
 set -u
+. "$(dirname "$0")/../lib.sh"
 KOGEI=$1
 SRC=$2
-REFDIR=${KOGEI_REFERENCE:-$SRC/../shared/reference}
-CSV=$REFDIR/charts/colorchecker24_babelcolor_avg.csv
-[ -r "$CSV" ] || { echo "skipped: $CSV missing (../shared/reference)"; exit 77; }
-T=$(mktemp -d)
-trap 'rm -rf "$T"' EXIT
-fail=0
-check() { # description, command...
-	desc=$1; shift
-	if "$@"; then :; else echo "FAIL: $desc"; fail=1; fi
-}
-expect_exit() { # code, command...
-	want=$1; shift
-	"$@" >"$T/out" 2>"$T/err"
-	got=$?
-	if [ "$got" != "$want" ]; then
-		echo "FAIL: '$*' exited $got, expected $want"; cat "$T/err"; fail=1
-	fi
-}
+kg_need_reference "$SRC" charts/colorchecker24_babelcolor_avg.csv
+CSV=$REF/charts/colorchecker24_babelcolor_avg.csv
+kg_temp
 D=$SRC/fixtures/demo
 
 # The spectra as three programs write them (from the CSV: patch,name,380..730).

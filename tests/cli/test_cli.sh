@@ -3,23 +3,10 @@
 # messages that name the file, and no half-written output on failure.
 # usage: test_cli.sh KOGEI HAVE_APRILTAG
 set -u
+. "$(dirname "$0")/../lib.sh"
 KOGEI=$1
 HAVE_APRILTAG=${2:-1}
-T=$(mktemp -d)
-trap 'rm -rf "$T"' EXIT
-fail=0
-check() { # description, command...
-	desc=$1; shift
-	if "$@"; then :; else echo "FAIL: $desc"; fail=1; fi
-}
-expect_exit() { # code, command...
-	want=$1; shift
-	"$@" >"$T/out" 2>"$T/err"
-	got=$?
-	if [ "$got" != "$want" ]; then
-		echo "FAIL: '$*' exited $got, expected $want"; cat "$T/err"; fail=1
-	fi
-}
+kg_temp
 
 expect_exit 0 "$KOGEI" --help
 check "--help lists commands" grep -q "spectra xyz" "$T/out"

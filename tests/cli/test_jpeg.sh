@@ -6,25 +6,13 @@
 # truth is known. Without libjpeg a JPEG is refused with the reason.
 # usage: test_jpeg.sh KOGEI SOURCE_ROOT HAVE_APRILTAG MAKE_JPEG|none
 set -u
+. "$(dirname "$0")/../lib.sh"
+. "$(dirname "$0")/demo_reference.sh"
 KOGEI=$1
 SRC=$2
 HAVE_APRILTAG=${3:-1}
 MAKE_JPEG=${4:-none}
-T=$(mktemp -d)
-trap 'rm -rf "$T"' EXIT
-fail=0
-check() { # description, command...
-	desc=$1; shift
-	if "$@"; then :; else echo "FAIL: $desc"; fail=1; fi
-}
-expect_exit() { # code, command...
-	want=$1; shift
-	"$@" >"$T/out" 2>"$T/err"
-	got=$?
-	if [ "$got" != "$want" ]; then
-		echo "FAIL: '$*' exited $got, expected $want"; cat "$T/err"; fail=1
-	fi
-}
+kg_temp
 
 if [ "$MAKE_JPEG" = none ]; then
 	# A JPEG's first bytes (SOI, APP0 JFIF): recognised, and refused with the reason.
@@ -38,15 +26,7 @@ if [ "$MAKE_JPEG" = none ]; then
 	echo "built without libjpeg: JPEG refused with the reason (the rest needs libjpeg)"
 	exit $fail
 fi
-TCS=/usr/share/colord/ref/CIE-TCS.sp
-[ -r "$TCS" ] || { echo "skipped: $TCS missing (package colord-data)"; exit 77; }
-[ "$HAVE_APRILTAG" = 1 ] || { echo "skipped: built without libapriltag"; exit 77; }
-D=$SRC/fixtures/demo
-LAYOUT=$D/cie-tcs-frame.json
-
-expect_exit 0 "$KOGEI" sim patches --spectra "$TCS" --camera "$D/reference_camera.csv" \
-	--illuminant D65 --noise 50000:3:16 -o "$T/ref_rgb.cgats"
-expect_exit 0 "$KOGEI" calib reference --spectra "$TCS" --rgb "$T/ref_rgb.cgats" -o "$T/ref.json"
+demo_reference "$HAVE_APRILTAG"
 expect_exit 0 "$KOGEI" sim chart --layout "$LAYOUT" --spectra "$TCS" --camera "$D/site_camera.csv" \
 	--illuminant A --tilt 15 --rotate 5 --width 800 --height 600 --noise 20000:5:12 \
 	--depth 16 -o "$T/chart.tif"

@@ -9,32 +9,17 @@
 # with its cause. Reads ../shared/reference (skipped without it).
 # usage: test_light_field.sh KOGEI SOURCE_ROOT HAVE_APRILTAG
 set -u
+. "$(dirname "$0")/../lib.sh"
 KOGEI=$1
 SRC=$2
 HAVE_APRILTAG=${3:-1}
-REF=$SRC/../shared/reference
+kg_need_reference "$SRC" charts/colorchecker24_babelcolor_avg.csv cameras/Nikon_D5100.csv \
+	cameras/Canon_EOS_5D.csv
 SPECTRA=$REF/charts/colorchecker24_babelcolor_avg.csv
 REFCAM=$REF/cameras/Nikon_D5100.csv
 SITECAM=$REF/cameras/Canon_EOS_5D.csv
-for f in "$SPECTRA" "$REFCAM" "$SITECAM"; do
-	[ -r "$f" ] || { echo "skipped: $f missing (../shared/reference)"; exit 77; }
-done
-[ "$HAVE_APRILTAG" = 1 ] || { echo "skipped: built without libapriltag"; exit 77; }
-T=$(mktemp -d)
-trap 'rm -rf "$T"' EXIT
-fail=0
-check() { # description, command...
-	desc=$1; shift
-	if "$@"; then :; else echo "FAIL: $desc"; fail=1; fi
-}
-expect_exit() { # code, command...
-	want=$1; shift
-	"$@" >"$T/out" 2>"$T/err"
-	got=$?
-	if [ "$got" != "$want" ]; then
-		echo "FAIL: '$*' exited $got, expected $want"; cat "$T/err"; fail=1
-	fi
-}
+kg_need "$HAVE_APRILTAG" "built without libapriltag"
+kg_temp
 # awk: is a <= b (numbers)
 le() { awk -v a="$1" -v b="$2" 'BEGIN { exit !(a + 0 <= b + 0) }'; }
 LAYOUT=$SRC/fixtures/charts/colorchecker24-frame.json

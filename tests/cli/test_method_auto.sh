@@ -7,17 +7,11 @@
 # is really tested (the old rule, lowest RMSE, fails there).
 # usage: test_method_auto.sh KOGEI SOURCE_ROOT
 set -u
+. "$(dirname "$0")/../lib.sh"
 KOGEI=$1
 SRC=$2
-TCS=/usr/share/colord/ref/CIE-TCS.sp
-[ -r "$TCS" ] || { echo "skipped: $TCS missing (package colord-data)"; exit 77; }
-T=$(mktemp -d)
-trap 'rm -rf "$T"' EXIT
-fail=0
-check() { # description, command...
-	desc=$1; shift
-	if "$@"; then :; else echo "FAIL: $desc"; fail=1; fi
-}
+kg_need_tcs
+kg_temp
 D=$SRC/fixtures/demo
 differ=0
 # camera illuminant gain-amplitude (a per-patch gain 1 + a sin(2.3 k): uneven light)

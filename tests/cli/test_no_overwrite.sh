@@ -5,19 +5,14 @@
 # writes none of them.
 # usage: test_no_overwrite.sh KOGEI HAVE_APRILTAG
 set -u
+. "$(dirname "$0")/../lib.sh"
 KOGEI=$1
 case $KOGEI in /*) ;; *) KOGEI=$(pwd)/$KOGEI ;; esac
 HAVE_APRILTAG=${2:-1}
 DEMO=${KOGEI_SOURCE_ROOT:?}/fixtures/demo
-TCS=/usr/share/colord/ref/CIE-TCS.sp
-if [ ! -r "$TCS" ]; then
-	echo "SKIP: $TCS (colord-data) is missing"
-	exit 77
-fi
-T=$(mktemp -d)
-trap 'rm -rf "$T"' EXIT
+kg_need_tcs
+kg_temp
 cd "$T" || exit 1
-fail=0
 run() { # command...: must succeed (setting up the inputs)
 	if ! "$@" >out 2>err; then
 		echo "FAIL: setup '$*' exited non-zero"; cat err; exit 1

@@ -127,23 +127,6 @@ static int cmp_float(const void *a, const void *b)
 	return (x > y) - (x < y);
 }
 
-static int same_file(const char *a, const char *b)
-{
-	FILE *fa = fopen(a, "rb"), *fb = fopen(b, "rb");
-	int same = fa && fb;
-	while (same) {
-		int ca = fgetc(fa), cb = fgetc(fb);
-		same = ca == cb;
-		if (ca == EOF || cb == EOF)
-			break;
-	}
-	if (fa)
-		fclose(fa);
-	if (fb)
-		fclose(fb);
-	return same;
-}
-
 static uint8_t *read_bytes(const char *p, size_t n)
 {
 	uint8_t *b = malloc(n);
@@ -278,7 +261,7 @@ static void check_image(const fx_kernels *ks)
 			char a[300], b[300];
 			snprintf(a, sizeof(a), "%s%s", path("c"), sfx[f]);
 			snprintf(b, sizeof(b), "%s%s", path(stems[s]), sfx[f]);
-			CHECK(same_file(a, b), "%s%s differs from the reference's", stems[s], sfx[f]);
+			CHECK(kg_test_same_file(a, b), "%s%s differs from the reference's", stems[s], sfx[f]);
 		}
 	}
 	char p[300];

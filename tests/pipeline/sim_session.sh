@@ -4,10 +4,20 @@
 # the library's materials on a black ground, both 800x600 through the demo's site
 # camera), then kogei acquire of a dark, a flat, the chart and objects, and kogei
 # measure of the chart with the simulated spectrophotometer. Sourced by the tests.
-# Needs KOGEI and FIX (the source tree's fixtures/) set; colord-data.
+# Needs KOGEI and FIX (the source tree's fixtures/) set, colord-data, and tests/lib.sh
+# sourced first.
 
 SIM_CAMERA='format=bayer_rggb12&fullwell=20000&read=5&serial=site-1'
 TCS=/usr/share/colord/ref/CIE-TCS.sp
+
+# Skip the test unless the session can be simulated and processed: FLAG is 1 when
+# kogei is built with libapriltag and OpenCV (chart tags, demosaicing); colord-data;
+# python3 (PY) with MODULE.
+sim_session_needs() { # FLAG [MODULE]
+	kg_need "$1" "built without libapriltag or OpenCV (chart tags, demosaicing)"
+	kg_need_tcs
+	kg_python "${2:-}"
+}
 
 sim_scenes() { # DIR
 	"$KOGEI" sim chart --layout cie-tcs-frame --spectra "$TCS" \

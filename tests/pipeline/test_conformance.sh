@@ -22,14 +22,13 @@
 # A chart with neutral patches is needed for the tone, white balance and noise records.
 # usage: test_conformance.sh KOGEI SOURCE_ROOT HAVE_TAGS_AND_DEMOSAIC TONE_IMAGE
 set -u
+. "$(dirname "$0")/../lib.sh"
 KOGEI=$1
 FIX=$2/fixtures
-[ "${3:-1}" = 1 ] || { echo "SKIP: built without libapriltag or OpenCV (chart tags, demosaicing)"; exit 77; }
-PY=/usr/bin/python3; [ -x "$PY" ] || PY=python3
+kg_need "${3:-1}" "built without libapriltag or OpenCV (chart tags, demosaicing)"
+kg_python
 . "$(dirname "$0")/sim_session.sh"
-T=$(mktemp -d)
-trap 'rm -rf "$T"' EXIT
-fail=0
+kg_temp
 # The 24 patches of colorchecker24-frame with smooth reflectances: 18 colours (bumps
 # and steps over 400-700 nm) and 6 flat neutrals, the chart's bottom row.
 "$PY" - "$T/chart.csv" <<'PY' || exit 1

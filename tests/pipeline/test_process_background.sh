@@ -14,21 +14,13 @@
 #    legend is HTML with every class named in full (headless Chromium, when present).
 # usage: test_process_background.sh KOGEI SOURCE_ROOT HAVE_EMBREE HAVE_TAGS_AND_DEMOSAIC
 set -u
+. "$(dirname "$0")/../lib.sh"
 KOGEI=$1
 FIX=$2/fixtures
 HAVE_EMBREE=${3:-0}
-[ "${4:-1}" = 1 ] || { echo "SKIP: built without libapriltag or OpenCV (chart tags, demosaicing)"; exit 77; }
-[ -r /usr/share/colord/ref/CIE-TCS.sp ] || { echo "SKIP: colord-data missing"; exit 77; }
-PY=/usr/bin/python3; [ -x "$PY" ] || PY=python3
-"$PY" -c 'import numpy' 2>/dev/null || { echo "SKIP: python3-numpy missing"; exit 77; }
 . "$(dirname "$0")/sim_session.sh"
-T=$(mktemp -d)
-trap 'rm -rf "$T"' EXIT
-fail=0
-check() { desc=$1; shift; if "$@"; then :; else echo "FAIL: $desc"; fail=1; fi; }
-run() { # command...: must exit 0
-	"$@" >"$T/out" 2>"$T/err" || { echo "FAIL: '$*' exited $?"; cat "$T/err"; fail=1; }
-}
+sim_session_needs "${4:-1}" numpy
+kg_temp
 
 # The chart as the sim session has it (the site camera under CIE A); the materials on a
 # 20 % grey card (and again through the reference camera under D50); and the card

@@ -15,25 +15,12 @@
 #    ground clamped, its lit pixels not).
 # usage: test_process_exposure.sh KOGEI SOURCE_ROOT HAVE_TAGS_AND_DEMOSAIC
 set -u
+. "$(dirname "$0")/../lib.sh"
 KOGEI=$1
 FIX=$2/fixtures
-[ "${3:-1}" = 1 ] || { echo "SKIP: built without libapriltag or OpenCV (chart tags, demosaicing)"; exit 77; }
-[ -r /usr/share/colord/ref/CIE-TCS.sp ] || { echo "SKIP: colord-data missing"; exit 77; }
-PY=/usr/bin/python3; [ -x "$PY" ] || PY=python3
-"$PY" -c 'import numpy' 2>/dev/null || { echo "SKIP: python3-numpy missing"; exit 77; }
 . "$(dirname "$0")/sim_session.sh"
-T=$(mktemp -d)
-trap 'rm -rf "$T"' EXIT
-fail=0
-check() { desc=$1; shift; if "$@"; then :; else echo "FAIL: $desc"; fail=1; fi; }
-expect_exit() { # code, command...
-	want=$1; shift
-	"$@" >"$T/out" 2>"$T/err"
-	got=$?
-	if [ "$got" != "$want" ]; then
-		echo "FAIL: '$*' exited $got, expected $want"; cat "$T/err"; fail=1
-	fi
-}
+sim_session_needs "${3:-1}" numpy
+kg_temp
 
 "$KOGEI" sim chart --layout cie-tcs-frame --spectra "$TCS" \
 	--camera "$FIX/demo/site_camera.csv" --illuminant A --tilt 25 --tilt-axis 120 \

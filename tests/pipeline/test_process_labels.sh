@@ -9,16 +9,13 @@
 # two of the metals (--only without copper and shakudo).
 # usage: test_process_labels.sh KOGEI SOURCE_ROOT HAVE_TAGS_AND_DEMOSAIC
 set -u
+. "$(dirname "$0")/../lib.sh"
 KOGEI=$1
 ROOT=$2
 FIX=$ROOT/fixtures
-[ "${3:-1}" = 1 ] || { echo "SKIP: built without libapriltag or OpenCV (chart tags, demosaicing)"; exit 77; }
-[ -r /usr/share/colord/ref/CIE-TCS.sp ] || { echo "SKIP: colord-data missing"; exit 77; }
-PY=/usr/bin/python3; [ -x "$PY" ] || PY=python3
-"$PY" -c 'import json' 2>/dev/null || { echo "SKIP: python3 missing"; exit 77; }
-T=$(mktemp -d)
-[ -n "${KEEP:-}" ] || trap 'rm -rf "$T"' EXIT
-fail=0
+. "$(dirname "$0")/sim_session.sh"
+sim_session_needs "${3:-1}" json
+kg_temp
 CAM='format=bayer_rggb12&fullwell=20000&read=5&serial=site-1'
 
 # session DIR CAMERA.csv ILLUMINANT [process options...]: the README's commands

@@ -19,26 +19,15 @@
 # usage: test_process_master.sh KOGEI SOURCE_ROOT HAVE_TAGS_AND_DEMOSAIC HAVE_LCMS ICC_DECODE
 #        ICC_CAMERA_CHECK
 set -u
+. "$(dirname "$0")/../lib.sh"
 KOGEI=$1
 FIX=$2/fixtures
 DECODE=$5
 CAMCHECK=$6
-[ "${3:-1}" = 1 ] || { echo "SKIP: built without libapriltag or OpenCV (chart tags, demosaicing)"; exit 77; }
-[ "$4" = 1 ] || { echo "SKIP: built without LittleCMS (-Dlcms): no master"; exit 77; }
-[ -r /usr/share/colord/ref/CIE-TCS.sp ] || { echo "SKIP: colord-data missing"; exit 77; }
-PY=/usr/bin/python3; [ -x "$PY" ] || PY=python3
 . "$(dirname "$0")/sim_session.sh"
-T=$(mktemp -d)
-trap 'rm -rf "$T"' EXIT
-fail=0
-expect_exit() { # code, command...
-	want=$1; shift
-	"$@" >"$T/out" 2>"$T/err"
-	got=$?
-	if [ "$got" != "$want" ]; then
-		echo "FAIL: '$*' exited $got, expected $want"; cat "$T/err"; fail=1
-	fi
-}
+sim_session_needs "${3:-1}"
+kg_need "$4" "built without LittleCMS (-Dlcms): no master"
+kg_temp
 
 "$KOGEI" sim chart --layout cie-tcs-frame --spectra "$TCS" \
 	--camera "$FIX/demo/site_camera.csv" --illuminant A --tilt 25 --tilt-axis 120 \

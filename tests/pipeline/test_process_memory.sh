@@ -11,19 +11,16 @@
 # whose own memory would be measured.
 # usage: test_process_memory.sh KOGEI SOURCE_ROOT UPSCALE HAVE_TAGS_AND_DEMOSAIC ASAN
 set -u
+. "$(dirname "$0")/../lib.sh"
 KOGEI=$1
 FIX=$2/fixtures
 UPSCALE=$3
-[ "${4:-1}" = 1 ] || { echo "SKIP: built without libapriltag or OpenCV (chart tags, demosaicing)"; exit 77; }
-[ "${5:-0}" = 1 ] && { echo "SKIP: built with AddressSanitizer, whose own memory would be measured"; exit 77; }
-[ -r /usr/share/colord/ref/CIE-TCS.sp ] || { echo "SKIP: colord-data missing"; exit 77; }
-PY=/usr/bin/python3; [ -x "$PY" ] || PY=python3
-"$PY" -c 'import numpy' 2>/dev/null || { echo "SKIP: python3-numpy missing"; exit 77; }
-T=$(mktemp -d)
-trap 'rm -rf "$T"' EXIT
-free_kb=$(df -Pk "$T" | awk 'NR == 2 { print $4 }')
-[ "$free_kb" -gt 8000000 ] || { echo "SKIP: less than 8 GB free in $T"; exit 77; }
 . "$(dirname "$0")/sim_session.sh"
+sim_session_needs "${4:-1}" numpy
+[ "${5:-0}" != 1 ] || kg_skip "built with AddressSanitizer, whose own memory would be measured"
+kg_temp
+free_kb=$(df -Pk "$T" | awk 'NR == 2 { print $4 }')
+[ "$free_kb" -gt 8000000 ] || kg_skip "less than 8 GB free in $T"
 W=15000 H=10000
 
 sim_scenes "$T" || { echo "FAIL: simulated scenes"; exit 1; }

@@ -7,18 +7,15 @@
 # (the command run with relative ones) and their sha256.
 # usage: test_process_meta.sh KOGEI SOURCE_ROOT HAVE_TAGS_AND_DEMOSAIC
 set -u
+. "$(dirname "$0")/../lib.sh"
 KOGEI=$1
 ROOT=$2
-[ "${3:-1}" = 1 ] || { echo "SKIP: built without libapriltag or OpenCV (chart tags, demosaicing)"; exit 77; }
-[ -r /usr/share/colord/ref/CIE-TCS.sp ] || { echo "SKIP: colord-data missing"; exit 77; }
-PY=/usr/bin/python3; [ -x "$PY" ] || PY=python3
-"$PY" -c 'import json' 2>/dev/null || { echo "SKIP: python3 missing"; exit 77; }
+. "$(dirname "$0")/sim_session.sh"
+sim_session_needs "${3:-1}" json
 case $KOGEI in /*) ;; *) KOGEI=$(pwd)/$KOGEI ;; esac
 case $ROOT in /*) ;; *) ROOT=$(pwd)/$ROOT ;; esac
 FIX=$ROOT/fixtures
-T=$(mktemp -d)
-[ -n "${KEEP:-}" ] || trap 'rm -rf "$T"' EXIT
-fail=0
+kg_temp
 CAM='format=bayer_rggb12&fullwell=20000&read=5&serial=site-1'
 cd "$T" || exit 1
 "$KOGEI" sim chart --layout cie-tcs-frame --spectra /usr/share/colord/ref/CIE-TCS.sp \

@@ -12,27 +12,13 @@
 # OUTDIR it created removed).
 # usage: test_process_outdir.sh KOGEI SOURCE_ROOT HAVE_TAGS_AND_DEMOSAIC
 set -u
+. "$(dirname "$0")/../lib.sh"
 KOGEI=$1
 FIX=$2/fixtures
-[ "${3:-1}" = 1 ] || { echo "SKIP: built without libapriltag or OpenCV (chart tags, demosaicing)"; exit 77; }
-[ -r /usr/share/colord/ref/CIE-TCS.sp ] || { echo "SKIP: colord-data missing"; exit 77; }
-PY=/usr/bin/python3; [ -x "$PY" ] || PY=python3
-"$PY" -c 'import json' 2>/dev/null || { echo "SKIP: python3 missing"; exit 77; }
-env --default-signal=INT true 2>/dev/null ||
-	{ echo "SKIP: env --default-signal (coreutils 8.31) missing"; exit 77; }
 . "$(dirname "$0")/sim_session.sh"
-T=$(mktemp -d)
-trap '[ -n "${KEEP:-}" ] || rm -rf "$T"' EXIT
-fail=0
-check() { desc=$1; shift; if "$@"; then :; else echo "FAIL: $desc"; fail=1; fi; }
-expect_exit() { # code, command...
-	want=$1; shift
-	"$@" >"$T/out" 2>"$T/err"
-	got=$?
-	if [ "$got" != "$want" ]; then
-		echo "FAIL: '$*' exited $got, expected $want"; cat "$T/err"; fail=1
-	fi
-}
+sim_session_needs "${3:-1}" json
+env --default-signal=INT true 2>/dev/null || kg_skip "env --default-signal (coreutils 8.31) missing"
+kg_temp
 # Every entry under a folder (but its own dot entries) with its inode, size and
 # modification time: a file rewritten, replaced or removed changes the listing.
 tree_sum() {

@@ -13,51 +13,24 @@
 # itself.
 # usage: test_raw_colorchecker.sh KOGEI SOURCE_ROOT MAKE_DNG HAVE_TAGS_AND_DEMOSAIC HAVE_LIBRAW
 set -u
-KOGEI=$1
-SRC=$2
-MAKE_DNG=$3
-[ "${4:-1}" = 1 ] || { echo "SKIP: built without libapriltag or OpenCV"; exit 77; }
-[ "${5:-1}" = 1 ] || { echo "SKIP: built without LibRaw"; exit 77; }
-REF=${KOGEI_REFERENCE:-$SRC/../shared/reference}
-CHART=$REF/charts/colorchecker24_ohta1997.csv
-CSS=$REF/cameras/Canon_EOS_5D_Mark_IV.csv
-for f in "$CHART" "$CSS"; do
-	[ -r "$f" ] || { echo "SKIP: $f missing (../shared/reference)"; exit 77; }
-done
-PY=/usr/bin/python3; [ -x "$PY" ] || PY=python3
-T=$(mktemp -d)
-trap 'rm -rf "$T"' EXIT
-fail=0
-check() { desc=$1; shift; if "$@"; then echo "ok: $desc"; else echo "FAIL: $desc"; fail=1; fi; }
-run() { "$@" >"$T/out" 2>"$T/err" || { echo "FAIL: $*"; cat "$T/err"; exit 1; }; }
+. "$(dirname "$0")/../lib.sh"
+. "$(dirname "$0")/raw_chart.sh"
+raw_chart_setup "$@"
+kg_python
 
-run "$KOGEI" sim chart --layout colorchecker24-frame --spectra "$CHART" --camera "$CSS" \
+run_or_exit "$KOGEI" sim chart --layout colorchecker24-frame --spectra "$CHART" --camera "$CSS" \
 	--illuminant D65 --tilt 20 --rotate 5 --width 1200 --height 800 --noise none \
 	--depth float --white-level 0.9 -o "$T/cc.tif"
-run "$MAKE_DNG" "$T/cc.tif" "$T/cc.dng" --cfa GRBG --black 2048,2049,2047,2050 \
+run_or_exit "$MAKE_DNG" "$T/cc.tif" "$T/cc.dng" --cfa GRBG --black 2048,2049,2047,2050 \
 	--white 16383 --exposure 0.02 --iso 100 --fnumber 8 --make Canon \
 	--model "Canon EOS 5D Mark IV" --serial 031021000123
-run "$KOGEI" chart detect --layout colorchecker24-frame "$T/cc.dng" -o "$T/dng.cgats"
-run "$KOGEI" chart detect --layout colorchecker24-frame "$T/cc.tif" -o "$T/tif.cgats"
+run_or_exit "$KOGEI" chart detect --layout colorchecker24-frame "$T/cc.dng" -o "$T/dng.cgats"
+run_or_exit "$KOGEI" chart detect --layout colorchecker24-frame "$T/cc.tif" -o "$T/tif.cgats"
 check "chart detect names the DNG's camera" \
 	sh -c "grep -q 'CAMERA_MODEL \"EOS 5D Mark IV\"' '$T/dng.cgats' && grep -q 'CAMERA_SERIAL \"031021000123\"' '$T/dng.cgats'"
 # The reference charts number the patches 1..24 (the layout's aliases).
-"$PY" - "$SRC/fixtures/charts/colorchecker24-frame.json" "$T" <<'PY' || fail=1
-import json, sys
-alias = {p["id"]: p["alias"] for p in json.load(open(sys.argv[1]))["patches"]}
-for f in ("tif", "dng"):
-    out, data = [], False
-    for line in open(f"{sys.argv[2]}/{f}.cgats").read().split("\n"):
-        if line == "END_DATA":
-            data = False
-        if data and line:
-            k, rest = line.split("\t", 1)
-            line = alias[k] + "\t" + rest
-        if line == "BEGIN_DATA":
-            data = True
-        out.append(line)
-    open(f"{sys.argv[2]}/{f}_n.cgats", "w").write("\n".join(out))
-PY
+"$PY" "$(dirname "$0")/alias_ids.py" "$SRC/fixtures/charts/colorchecker24-frame.json" "$T" \
+	tif dng || fail=1
 check "DNG patches = the linear image's within one raw step" "$PY" - "$T" <<'PY'
 import sys
 def read(p):
@@ -78,9 +51,9 @@ worst = max(abs(x - y) / step for k in a for x, y in zip(a[k], b[k]))
 print(f"  worst patch difference DNG vs linear image: {worst:.2f} raw steps")
 assert worst < 1, worst
 PY
-run "$KOGEI" calib reference --spectra "$CHART" --rgb "$T/tif_n.cgats" --camera "$CSS" \
+run_or_exit "$KOGEI" calib reference --spectra "$CHART" --rgb "$T/tif_n.cgats" --camera "$CSS" \
 	--illuminant D65 -o "$T/ref.json"
-run "$KOGEI" calib camera --reference "$T/ref.json" --rgb "$T/dng_n.cgats" -o "$T/cam.json"
+run_or_exit "$KOGEI" calib camera --reference "$T/ref.json" --rgb "$T/dng_n.cgats" -o "$T/cam.json"
 check "calib camera from the DNG: M2 = identity, the DNG's camera recorded" "$PY" - "$T/cam.json" <<'PY'
 import json, sys
 c = json.load(open(sys.argv[1]))

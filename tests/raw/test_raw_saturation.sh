@@ -13,22 +13,9 @@
 #     (no false positive on a natural histogram).
 # usage: test_raw_saturation.sh KOGEI SOURCE_ROOT MAKE_DNG HAVE_TAGS_AND_DEMOSAIC HAVE_LIBRAW
 set -u
-KOGEI=$1
-SRC=$2
-MAKE_DNG=$3
-[ "${4:-1}" = 1 ] || { echo "SKIP: built without libapriltag or OpenCV"; exit 77; }
-[ "${5:-1}" = 1 ] || { echo "SKIP: built without LibRaw"; exit 77; }
-REF=${KOGEI_REFERENCE:-$SRC/../shared/reference}
-CHART=$REF/charts/colorchecker24_ohta1997.csv
-CSS=$REF/cameras/Canon_EOS_5D_Mark_IV.csv
-for f in "$CHART" "$CSS"; do
-	[ -r "$f" ] || { echo "SKIP: $f missing (../shared/reference)"; exit 77; }
-done
-T=$(mktemp -d)
-trap 'rm -rf "$T"' EXIT
-fail=0
-check() { desc=$1; shift; if "$@"; then echo "ok: $desc"; else echo "FAIL: $desc"; fail=1; fi; }
-run() { "$@" >"$T/out" 2>"$T/err" || { echo "FAIL: $*"; cat "$T/err"; exit 1; }; }
+. "$(dirname "$0")/../lib.sh"
+. "$(dirname "$0")/raw_chart.sh"
+raw_chart_setup "$@"
 # the value of FIELD for SAMPLE_ID ID in a CGATS file
 field() {
 	awk -v id="$2" -v f="$3" '
@@ -39,7 +26,7 @@ field() {
 		d && $1 == id {print $col[f]}' "$1"
 }
 
-run "$KOGEI" sim chart --layout colorchecker24-frame --spectra "$CHART" --camera "$CSS" \
+run_or_exit "$KOGEI" sim chart --layout colorchecker24-frame --spectra "$CHART" --camera "$CSS" \
 	--illuminant D65 --tilt 10 --width 900 --height 600 --noise none --depth float \
 	--white-level 0.9 -o "$T/cc.tif"
 mkdir "$T/s4092" "$T/s3900" "$T/fine"
@@ -56,21 +43,21 @@ want=$(awk '{printf "%.4f", 100 * $2 / $4}' "$T/n4092")
 echo "  make_dng: $(cat "$T/n4092") = $want %"
 
 # acquire
-run "$KOGEI" acquire --camera "files:$T/s4092" --out "$T/S" --kind chart --name sat
+run_or_exit "$KOGEI" acquire --camera "files:$T/s4092" --out "$T/S" --kind chart --name sat
 got=$(sed -n 's/^  clipped \([0-9.]*\) %.*/\1/p' "$T/out")
 echo "  acquire: clipped $got %"
 check "acquire: clipped fraction at the sensor's 4092 ($got % = make_dng's $want %)" \
 	sh -c "[ '$got' = '$want' ] && [ '$want' != 0.0000 ]"
 check "acquire: says where saturation was found" \
 	grep -q "saturation found from the data below full scale: [RGB] at 0.99922" "$T/out"
-run "$KOGEI" acquire --camera "files:$T/fine" --out "$T/S" --kind chart --name fine
+run_or_exit "$KOGEI" acquire --camera "files:$T/fine" --out "$T/S" --kind chart --name fine
 check "acquire: nothing clipped below saturation" grep -q "^  clipped 0.0000 %" "$T/out"
 check "acquire: no saturation reported below saturation" \
 	sh -c "! grep -q 'saturation found' '$T/out' '$T/err'"
 
 # chart detect
 for s in s4092 s3900 fine; do
-	run "$KOGEI" chart detect --layout colorchecker24-frame "$T/$s/a.dng" -o "$T/$s.cgats"
+	run_or_exit "$KOGEI" chart detect --layout colorchecker24-frame "$T/$s/a.dng" -o "$T/$s.cgats"
 	cp "$T/err" "$T/$s.err"
 done
 cf=$(field "$T/s4092.cgats" D01 CLIPPED_FRACTION)
@@ -88,37 +75,23 @@ check "chart detect below saturation: white patch not clipped ($cf)" \
 	awk -v v="$cf" 'BEGIN {exit !(v == 0)}'
 
 # estimate and classify with a calibration from the unsaturated DNG
-run "$KOGEI" chart detect --layout colorchecker24-frame "$T/cc.tif" -o "$T/tif.cgats"
+run_or_exit "$KOGEI" chart detect --layout colorchecker24-frame "$T/cc.tif" -o "$T/tif.cgats"
 # the reference spectra number the patches 1..24: the layout's aliases
-PY=/usr/bin/python3; [ -x "$PY" ] || PY=python3
-"$PY" - "$SRC/fixtures/charts/colorchecker24-frame.json" "$T" <<'PYEOF' || exit 1
-import json, sys
-alias = {p["id"]: p["alias"] for p in json.load(open(sys.argv[1]))["patches"]}
-for f in ("tif", "fine"):
-    out, data = [], False
-    for line in open(f"{sys.argv[2]}/{f}.cgats").read().split("\n"):
-        if line == "END_DATA":
-            data = False
-        if data and line:
-            k, rest = line.split("\t", 1)
-            line = alias[k] + "\t" + rest
-        if line == "BEGIN_DATA":
-            data = True
-        out.append(line)
-    open(f"{sys.argv[2]}/{f}_n.cgats", "w").write("\n".join(out))
-PYEOF
-run "$KOGEI" calib reference --spectra "$CHART" --rgb "$T/tif_n.cgats" --camera "$CSS" \
+kg_python
+"$PY" "$(dirname "$0")/alias_ids.py" "$SRC/fixtures/charts/colorchecker24-frame.json" "$T" \
+	tif fine || exit 1
+run_or_exit "$KOGEI" calib reference --spectra "$CHART" --rgb "$T/tif_n.cgats" --camera "$CSS" \
 	--illuminant D65 -o "$T/ref.json"
-run "$KOGEI" calib camera --reference "$T/ref.json" --rgb "$T/fine_n.cgats" -o "$T/cam.json"
-run "$KOGEI" estimate --calib "$T/cam.json" "$T/s3900/a.dng" -o "$T/cube.hdr"
+run_or_exit "$KOGEI" calib camera --reference "$T/ref.json" --rgb "$T/fine_n.cgats" -o "$T/cam.json"
+run_or_exit "$KOGEI" estimate --calib "$T/cam.json" "$T/s3900/a.dng" -o "$T/cube.hdr"
 clipped=$(sed -n 's/.*clipped \([0-9]*\) (.*/\1/p' "$T/err" | head -1)
 echo "  estimate on the 3900 DNG: $(grep 'pixels' "$T/err")"
 check "estimate: pixels at 3900 flagged clipped ($clipped)" sh -c "[ '${clipped:-0}' -gt 1000 ]"
 check "estimate: says where saturation was found" grep -q "saturation found from the data" "$T/err"
-run "$KOGEI" estimate --calib "$T/cam.json" "$T/fine/a.dng" -o "$T/cube2.hdr"
+run_or_exit "$KOGEI" estimate --calib "$T/cam.json" "$T/fine/a.dng" -o "$T/cube2.hdr"
 clipped=$(sed -n 's/.*clipped \([0-9]*\) (.*/\1/p' "$T/err" | head -1)
 check "estimate below saturation: nothing clipped ($clipped)" sh -c "[ '${clipped:-1}' = 0 ]"
-run "$KOGEI" classify --calib "$T/cam.json" --materials "$SRC/fixtures/materials/default.json" \
+run_or_exit "$KOGEI" classify --calib "$T/cam.json" --materials "$SRC/fixtures/materials/default.json" \
 	"$T/s3900/a.dng" -o "$T/labels.hdr"
 check "classify: says where saturation was found" grep -q "saturation found from the data" "$T/err"
 check "classify: pixels at 3900 flagged clipped" \

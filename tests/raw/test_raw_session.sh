@@ -14,19 +14,15 @@
 # object from another camera body are refused.
 # usage: test_raw_session.sh KOGEI SOURCE_ROOT MAKE_DNG HAVE_TAGS_AND_DEMOSAIC HAVE_LIBRAW
 set -u
+. "$(dirname "$0")/../lib.sh"
 KOGEI=$1
 FIX=$2/fixtures
 MAKE_DNG=$3
-[ "${4:-1}" = 1 ] || { echo "SKIP: built without libapriltag or OpenCV (chart tags, demosaicing)"; exit 77; }
-[ "${5:-1}" = 1 ] || { echo "SKIP: built without LibRaw"; exit 77; }
-[ -r /usr/share/colord/ref/CIE-TCS.sp ] || { echo "SKIP: colord-data missing"; exit 77; }
-PY=/usr/bin/python3; [ -x "$PY" ] || PY=python3
-"$PY" -c 'import numpy' 2>/dev/null || { echo "SKIP: python3-numpy missing"; exit 77; }
 . "$2/tests/pipeline/sim_session.sh"
-T=$(mktemp -d)
-trap 'rm -rf "$T"' EXIT
-fail=0
-check() { desc=$1; shift; if "$@"; then echo "ok: $desc"; else echo "FAIL: $desc"; fail=1; fi; }
+sim_session_needs "${4:-1}" numpy
+kg_need "${5:-1}" "built without LibRaw"
+kg_temp
+KG_CHECK_OK=1
 
 sim_scenes "$T" || { echo "FAIL: simulated scenes"; exit 1; }
 sim_measure "$T/chart.cgats" || { echo "FAIL: kogei measure"; exit 1; }

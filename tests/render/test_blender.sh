@@ -8,12 +8,10 @@
 # usage: test_blender.sh KOGEI SOURCE_ROOT HAVE_EMBREE [OUT_DIR]
 # OUT_DIR: keep the renders there (scripts/docs_blender.sh); default a temporary folder.
 set -u
+. "$(dirname "$0")/../lib.sh"
 KOGEI=$1
 SRC=$2
-if [ "${3:-0}" != 1 ]; then
-	echo "SKIP: the renderer was built without Embree 3 (libembree-dev)"
-	exit 77
-fi
+kg_need "${3:-0}" "the renderer was built without Embree 3 (libembree-dev)"
 BLENDER=${BLENDER:-$(command -v blender || true)}
 if [ -z "$BLENDER" ]; then
 	echo "SKIP: blender not found (Debian package blender; scripts/setup.sh installs it)"
@@ -24,8 +22,7 @@ if [ -n "${4:-}" ]; then
 	T=$4
 	mkdir -p "$T"
 else
-	T=$(mktemp -d)
-	trap 'rm -rf "$T"' EXIT
+	kg_temp
 fi
 scene=$SRC/tests/render/blender_scene.json
 SPP=64

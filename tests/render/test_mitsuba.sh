@@ -7,17 +7,13 @@
 # metals' n, k against kogei model, and refusals that leave nothing behind.
 # usage: test_mitsuba.sh KOGEI SOURCE_ROOT HAVE_EMBREE
 set -u
+. "$(dirname "$0")/../lib.sh"
 KOGEI=$1
 SRC=$2
-if [ "${3:-0}" != 1 ]; then
-	echo "SKIP: the renderer was built without Embree 3 (libembree-dev): label maps cannot be projected"
-	exit 77
-fi
+kg_need "${3:-0}" "the renderer was built without Embree 3 (libembree-dev): label maps cannot be projected"
 PY=$(command -v python3) || { echo "SKIP: python3 not found"; exit 77; }
 CHECK=$SRC/tests/render/mitsuba_check.py
-T=$(mktemp -d)
-trap 'rm -rf "$T"' EXIT
-fail=0
+kg_temp
 run() { # what, command...
 	what=$1; shift
 	if "$@" >"$T/out" 2>&1; then

@@ -159,9 +159,9 @@ static void check_scale(const char *camera, int synthetic)
 		 "environment D50"},
 	};
 	for (size_t k = 0; k < sizeof(cases) / sizeof(cases[0]); k++) {
-		const char *scene = sim_path("white_scene.json"), *tif = sim_path("white.tif");
+		const char *scene = kg_test_path("white_scene.json"), *tif = kg_test_path("white.tif");
 		write_white_scene(scene, cases[k].lights, 24);
-		int rc = RUN("render", "--scene", scene, "-o", sim_path("white.png"), "--linear", tif,
+		int rc = RUN("render", "--scene", scene, "-o", kg_test_path("white.png"), "--linear", tif,
 		             "--camera", camera, "--white-level", "0.8", "--quiet");
 		CHECK(rc == 0, "%s: exit %d: %s", cases[k].what, rc, errbuf);
 		kg_image *img = rc == 0 ? read_image(tif) : NULL;
@@ -218,7 +218,7 @@ static void check_metal_ratios(const char *camera)
 	}
 	for (int m = 0; m < 3; m++) {
 		char text[2048];
-		const char *scene = sim_path("plate.json"), *tif = sim_path("plate.tif");
+		const char *scene = kg_test_path("plate.json"), *tif = kg_test_path("plate.tif");
 		double d = 5.0;
 		snprintf(text, sizeof(text),
 		         "{\"format\": \"kogei-scene/1\",\n"
@@ -230,7 +230,7 @@ static void check_metal_ratios(const char *camera)
 		         " \"sampling\": {\"spp\": 2, \"wavelengths\": \"all\", \"bounces\": 1}}\n",
 		         metals[m], sin(theta), cos(theta), -d * sin(theta), d * cos(theta));
 		sim_write_text(scene, text);
-		int rc = RUN("render", "--scene", scene, "-o", sim_path("plate.png"), "--linear", tif,
+		int rc = RUN("render", "--scene", scene, "-o", kg_test_path("plate.png"), "--linear", tif,
 		             "--camera", camera, "--quiet");
 		CHECK(rc == 0, "plate %s: exit %d: %s", metals[m], rc, errbuf);
 		kg_image *img = rc == 0 ? read_image(tif) : NULL;
@@ -279,18 +279,18 @@ static void check_png_unchanged(const char *camera, const char *src)
 {
 	char scene[4200];
 	snprintf(scene, sizeof(scene), "%s/fixtures/scenes/tsuba_inlay.json", src);
-	const char *a = sim_path("xyz.png"), *b = sim_path("cam.png");
+	const char *a = kg_test_path("xyz.png"), *b = kg_test_path("cam.png");
 	int rc = RUN("render", "--scene", scene, "--width", "64", "--height", "48", "--spp", "2",
 	             "--wavelengths", "4", "-o", a, "--quiet");
 	CHECK(rc == 0, "tsuba_inlay without camera: exit %d: %s", rc, errbuf);
 	rc = RUN("render", "--scene", scene, "--width", "64", "--height", "48", "--spp", "2",
 	         "--wavelengths", "4", "-o", b, "--camera", camera, "--noise", "1000:5:8",
-	         "--linear", sim_path("cam.tif"), "--quiet");
+	         "--linear", kg_test_path("cam.tif"), "--quiet");
 	CHECK(rc == 0, "tsuba_inlay with camera: exit %d: %s", rc, errbuf);
 	CHECK(files_equal(a, b), "the PNG changes with --camera");
 	unlink(a);
 	unlink(b);
-	unlink(sim_path("cam.tif"));
+	unlink(kg_test_path("cam.tif"));
 }
 
 /* ---- truth ------------------------------------------------------------------- */
@@ -385,9 +385,9 @@ static void check_truth_inlay(const char *camera, const char *src)
 {
 	char scene[4200];
 	snprintf(scene, sizeof(scene), "%s/fixtures/scenes/tsuba_inlay.json", src);
-	const char *labels = sim_path("labels.hdr"), *angle = sim_path("angle.hdr");
+	const char *labels = kg_test_path("labels.hdr"), *angle = kg_test_path("angle.hdr");
 	int rc = RUN("render", "--scene", scene, "--width", "200", "--height", "150", "--spp",
-	             "4", "-o", sim_path("inlay.png"), "--linear", sim_path("inlay.tif"),
+	             "4", "-o", kg_test_path("inlay.png"), "--linear", kg_test_path("inlay.tif"),
 	             "--camera", camera, "--truth-labels", labels, "--truth-angle", angle,
 	             "--quiet");
 	CHECK(rc == 0, "tsuba_inlay: exit %d: %s", rc, errbuf);
@@ -536,7 +536,7 @@ static void check_truth_inlay(const char *camera, const char *src)
 /* A gold sphere resting on a ground plane marked "background" (its material urushi). */
 static void check_truth_background(void)
 {
-	const char *scene = sim_path("ground.json"), *labels = sim_path("ground.hdr");
+	const char *scene = kg_test_path("ground.json"), *labels = kg_test_path("ground.hdr");
 	const double pos[3] = {0, -5, 2.5}, look[3] = {0, 0, 0.6};
 	char text[2048];
 	snprintf(text, sizeof(text),
@@ -552,7 +552,7 @@ static void check_truth_background(void)
 	         " \"sampling\": {\"spp\": 4, \"bounces\": 1}}\n",
 	         pos[0], pos[1], pos[2], look[0], look[1], look[2]);
 	sim_write_text(scene, text);
-	int rc = RUN("render", "--scene", scene, "-o", sim_path("ground.png"), "--truth-labels",
+	int rc = RUN("render", "--scene", scene, "-o", kg_test_path("ground.png"), "--truth-labels",
 	             labels, "--preview", "--quiet");
 	CHECK(rc == 0, "sphere on ground: exit %d: %s", rc, errbuf);
 	envi_map lm;
@@ -610,7 +610,7 @@ static void check_truth_background(void)
  * pixel takes the other class with probability below 1e-5. */
 static void check_truth_majority(void)
 {
-	const char *scene = sim_path("strips.json"), *labels = sim_path("strips.hdr");
+	const char *scene = kg_test_path("strips.json"), *labels = kg_test_path("strips.hdr");
 	/* 32 rows of 0.1 (half the height 1.6) at distance 10; 8 columns: x -0.4 .. 0.4 */
 	double fov = 2.0 * atan(1.6 / 10.0) * 180.0 / M_PI;
 	char text[2048];
@@ -632,7 +632,7 @@ static void check_truth_majority(void)
 	         " \"sampling\": {\"spp\": 64}}\n",
 	         fov);
 	sim_write_text(scene, text);
-	int rc = RUN("render", "--scene", scene, "-o", sim_path("strips.png"), "--truth-labels",
+	int rc = RUN("render", "--scene", scene, "-o", kg_test_path("strips.png"), "--truth-labels",
 	             labels, "--preview", "--quiet");
 	CHECK(rc == 0, "strips: exit %d: %s", rc, errbuf);
 	envi_map lm;
@@ -660,21 +660,21 @@ static void check_truth_majority(void)
 
 static void check_noise(const char *camera)
 {
-	const char *scene = sim_path("noise.json");
-	const char *clean = sim_path("clean.tif"), *n1 = sim_path("n1.tif");
-	const char *n2 = sim_path("n2.tif"), *n3 = sim_path("n3.tif");
+	const char *scene = kg_test_path("noise.json");
+	const char *clean = kg_test_path("clean.tif"), *n1 = kg_test_path("n1.tif");
+	const char *n2 = kg_test_path("n2.tif"), *n3 = kg_test_path("n3.tif");
 	write_white_scene(scene, "\"light\": {\"illuminant\": \"D65\", \"direction\": [0, 0, 1]}",
 	                  64);
-	int rc = RUN("render", "--scene", scene, "-o", sim_path("n.png"), "--linear", clean,
+	int rc = RUN("render", "--scene", scene, "-o", kg_test_path("n.png"), "--linear", clean,
 	             "--camera", camera, "--quiet");
 	CHECK(rc == 0, "noise-free: exit %d: %s", rc, errbuf);
-	rc = RUN("render", "--scene", scene, "-o", sim_path("n.png"), "--linear", n1, "--camera",
+	rc = RUN("render", "--scene", scene, "-o", kg_test_path("n.png"), "--linear", n1, "--camera",
 	         camera, "--noise", "1000:10:12", "--seed", "7", "--threads", "1", "--quiet");
 	CHECK(rc == 0, "noisy: exit %d: %s", rc, errbuf);
-	rc = RUN("render", "--scene", scene, "-o", sim_path("n.png"), "--linear", n2, "--camera",
+	rc = RUN("render", "--scene", scene, "-o", kg_test_path("n.png"), "--linear", n2, "--camera",
 	         camera, "--noise", "1000:10:12", "--seed", "7", "--threads", "2", "--quiet");
 	CHECK(rc == 0, "noisy, 2 threads: exit %d: %s", rc, errbuf);
-	rc = RUN("render", "--scene", scene, "-o", sim_path("n.png"), "--linear", n3, "--camera",
+	rc = RUN("render", "--scene", scene, "-o", kg_test_path("n.png"), "--linear", n3, "--camera",
 	         camera, "--noise", "1000:10:12", "--seed", "8", "--quiet");
 	CHECK(rc == 0, "noisy, seed 8: exit %d: %s", rc, errbuf);
 	CHECK(files_equal(n1, n2), "the same seed gives other bytes (1 and 2 threads)");
@@ -731,10 +731,10 @@ static void check_errors(const char *camera, const char *src)
 {
 	char scene[4200];
 	snprintf(scene, sizeof(scene), "%s/fixtures/scenes/tsuba_inlay.json", src);
-	write_camera(sim_path("short.csv"), 420, 520, 0);
-	write_camera(sim_path("blind.csv"), 380, 780, 1);
+	write_camera(kg_test_path("short.csv"), 420, 520, 0);
+	write_camera(kg_test_path("blind.csv"), 380, 780, 1);
 	int before = sim_scratch_count();
-	const char *png = sim_path("e.png"), *tif = sim_path("e.tif"), *lab = sim_path("e.hdr");
+	const char *png = kg_test_path("e.png"), *tif = kg_test_path("e.tif"), *lab = kg_test_path("e.hdr");
 	int rc = RUN("render", "--scene", scene, "-o", png, "--linear", tif, "--noise",
 	             "1000:5:12", "--quiet");
 	expect_error(rc, 2, "--noise", before, "--noise without --camera");
@@ -748,18 +748,18 @@ static void check_errors(const char *camera, const char *src)
 	         "--quiet");
 	expect_error(rc, 2, "FULLWELL", before, "a bad --noise");
 	rc = RUN("render", "--scene", scene, "-o", png, "--linear", tif, "--truth-labels", lab,
-	         "--camera", sim_path("short.csv"), "--quiet");
+	         "--camera", kg_test_path("short.csv"), "--quiet");
 	expect_error(rc, 1, "short.csv", before, "a camera not covering 400-700 nm");
 	CHECK(strstr(errbuf, "420") && strstr(errbuf, "400-700"),
 	      "the message gives the range found and the one expected: %s", errbuf);
 	rc = RUN("render", "--scene", scene, "-o", png, "--linear", tif, "--camera",
-	         sim_path("nope.csv"), "--quiet");
+	         kg_test_path("nope.csv"), "--quiet");
 	expect_error(rc, 1, "nope.csv", before, "a missing camera file");
 	rc = RUN("render", "--scene", scene, "-o", png, "--linear", tif, "--camera",
-	         sim_path("blind.csv"), "--quiet");
+	         kg_test_path("blind.csv"), "--quiet");
 	expect_error(rc, 1, "blind.csv", before, "a camera blind to the light");
 	rc = RUN("render", "--scene", scene, "-o", png, "--truth-angle",
-	         sim_path("no/such/dir/a.hdr"), "--quiet");
+	         kg_test_path("no/such/dir/a.hdr"), "--quiet");
 	expect_error(rc, 1, "no/such/dir", before, "a truth map in a missing folder");
 }
 
@@ -780,18 +780,18 @@ int main(int argc, char **argv)
 		snprintf(nikon, sizeof(nikon), "%s/cameras/Nikon_D5100.csv", kg_test_reference_dir());
 		if (!kg_test_file_exists(nikon))
 			kg_test_skip("the Nikon D5100 sensitivities are not in the reference data");
-		sim_scratch_dir("render-camera-ref");
-		sim_write_text(sim_path("white.json"), white_lib);
+		kg_test_scratch_dir("render-camera-ref");
+		sim_write_text(kg_test_path("white.json"), white_lib);
 		check_scale(nikon, 0);
-		sim_scratch_remove();
+		kg_test_scratch_remove();
 		return kg_test_done("render-camera-reference");
 	}
-	sim_scratch_dir("render-camera");
-	const char *camera = sim_path("camera.csv");
+	kg_test_scratch_dir("render-camera");
+	const char *camera = kg_test_path("camera.csv");
 	char cam[4352];
 	snprintf(cam, sizeof(cam), "%s", camera);
 	write_camera(cam, 380, 780, 0);
-	sim_write_text(sim_path("white.json"), white_lib);
+	sim_write_text(kg_test_path("white.json"), white_lib);
 	check_scale(cam, 1);
 	check_metal_ratios(cam);
 	check_png_unchanged(cam, src);
@@ -800,6 +800,6 @@ int main(int argc, char **argv)
 	check_truth_majority();
 	check_noise(cam);
 	check_errors(cam, src);
-	sim_scratch_remove();
+	kg_test_scratch_remove();
 	return kg_test_done("render-camera");
 }

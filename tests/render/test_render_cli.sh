@@ -4,23 +4,11 @@
 # and leave no output, usage errors exit 2.
 # usage: test_render_cli.sh KOGEI SOURCE_ROOT HAVE_EMBREE
 set -u
+. "$(dirname "$0")/../lib.sh"
 KOGEI=$1
 SRC=$2
-if [ "${3:-0}" != 1 ]; then
-	echo "SKIP: the renderer was built without Embree 3 (libembree-dev)"
-	exit 77
-fi
-T=$(mktemp -d)
-trap 'rm -rf "$T"' EXIT
-fail=0
-expect_exit() { # code, command...
-	want=$1; shift
-	"$@" >"$T/out" 2>"$T/err"
-	got=$?
-	if [ "$got" != "$want" ]; then
-		echo "FAIL: '$*' exited $got, expected $want"; cat "$T/err"; fail=1
-	fi
-}
+kg_need "${3:-0}" "the renderer was built without Embree 3 (libembree-dev)"
+kg_temp
 
 expect_exit 0 "$KOGEI" render --help
 grep -q "kogei render --scene" "$T/out" || { echo "FAIL: render --help"; fail=1; }

@@ -12,40 +12,8 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
-static char sim_scratch[4096];
+#include "kg_test.h"
 
-/* A fresh directory under $TMPDIR (or /tmp), removed by sim_scratch_remove. */
-static inline const char *sim_scratch_dir(const char *tag)
-{
-	const char *tmp = getenv("TMPDIR");
-	snprintf(sim_scratch, sizeof(sim_scratch), "%s/kogei-%s-XXXXXX",
-	         tmp && *tmp ? tmp : "/tmp", tag);
-	if (!mkdtemp(sim_scratch)) {
-		perror("mkdtemp");
-		exit(1);
-	}
-	return sim_scratch;
-}
-
-static inline void sim_scratch_remove(void)
-{
-	char cmd[4200];
-	if (!sim_scratch[0])
-		return;
-	snprintf(cmd, sizeof(cmd), "rm -rf '%s'", sim_scratch);
-	if (system(cmd) != 0)
-		fprintf(stderr, "could not remove %s\n", sim_scratch);
-}
-
-/* "<scratch>/<name>" in a static ring of buffers (valid for the next 15 calls). */
-static inline const char *sim_path(const char *name)
-{
-	static char ring[16][4352];
-	static int next;
-	char *p = ring[next++ % 16];
-	snprintf(p, sizeof(ring[0]), "%s/%s", sim_scratch, name);
-	return p;
-}
 
 static inline void sim_write_text(const char *path, const char *text)
 {
@@ -60,7 +28,7 @@ static inline void sim_write_text(const char *path, const char *text)
 static inline int sim_scratch_count(void)
 {
 	char cmd[4200];
-	snprintf(cmd, sizeof(cmd), "ls -A '%s' | wc -l", sim_scratch);
+	snprintf(cmd, sizeof(cmd), "ls -A '%s' | wc -l", kg_test_scratch());
 	FILE *p = popen(cmd, "r");
 	int n = -1;
 	if (p) {
@@ -76,7 +44,7 @@ static inline int sim_scratch_count(void)
 static inline int sim_run(char *const argv[], char *errbuf, size_t errlen)
 {
 	char errpath[4352];
-	snprintf(errpath, sizeof(errpath), "%s/.stderr", sim_scratch);
+	snprintf(errpath, sizeof(errpath), "%s/.stderr", kg_test_scratch());
 	pid_t pid = fork();
 	if (pid < 0) {
 		perror("fork");

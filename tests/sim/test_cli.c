@@ -97,17 +97,17 @@ static void expect_input_error(int rc, const char *errbuf, const char *needle,
 static void test_bad_inputs(void)
 {
 	char errbuf[4096];
-	char *cam = (char *)sim_path("cam.csv"), *chart = (char *)sim_path("chart.csv");
-	char *lib = (char *)sim_path("lib.json"), *out = (char *)sim_path("out.cgats");
-	char *tif = (char *)sim_path("scene.tif");
+	char *cam = (char *)kg_test_path("cam.csv"), *chart = (char *)kg_test_path("chart.csv");
+	char *lib = (char *)kg_test_path("lib.json"), *out = (char *)kg_test_path("out.cgats");
+	char *tif = (char *)kg_test_path("scene.tif");
 	int rc;
 
-	rc = RUN("sim", "patches", "--spectra", chart, "--camera", (char *)sim_path("nope.csv"),
+	rc = RUN("sim", "patches", "--spectra", chart, "--camera", (char *)kg_test_path("nope.csv"),
 	         "--illuminant", "D65", "-o", out);
 	expect_input_error(rc, errbuf, "nope.csv", "missing camera file");
 
 	rc = RUN("sim", "patches", "--spectra", chart, "--camera",
-	         (char *)sim_path("short.csv"), "--illuminant", "D65", "-o", out);
+	         (char *)kg_test_path("short.csv"), "--illuminant", "D65", "-o", out);
 	expect_input_error(rc, errbuf, "short.csv", "camera not covering 400-700 nm");
 	CHECK(strstr(errbuf, "420") != NULL, "message does not give the range found: %s",
 	      errbuf);
@@ -116,7 +116,7 @@ static void test_bad_inputs(void)
 	         "-o", out);
 	expect_input_error(rc, errbuf, "D65x", "unknown illuminant");
 
-	rc = RUN("sim", "patches", "--spectra", (char *)sim_path("none.cgats"), "--camera", cam,
+	rc = RUN("sim", "patches", "--spectra", (char *)kg_test_path("none.cgats"), "--camera", cam,
 	         "--illuminant", "D65", "-o", out);
 	expect_input_error(rc, errbuf, "none.cgats", "missing spectra file");
 
@@ -126,18 +126,18 @@ static void test_bad_inputs(void)
 	CHECK(strstr(errbuf, "shibuichi") != NULL, "message does not list the materials: %s",
 	      errbuf);
 
-	rc = RUN("sim", "image", "--materials", (char *)sim_path("nolib.json"), "--camera", cam,
+	rc = RUN("sim", "image", "--materials", (char *)kg_test_path("nolib.json"), "--camera", cam,
 	         "--illuminant", "D65", "-o", tif);
 	expect_input_error(rc, errbuf, "nolib.json", "missing material library");
 
 	/* A later output that cannot be written takes the earlier ones with it. */
 	rc = RUN("sim", "image", "--materials", lib, "--camera", cam, "--illuminant", "D65",
-	         "-o", tif, "--truth-cube", (char *)sim_path("truth.hdr"), "--truth-labels",
-	         (char *)sim_path("no/such/dir/labels.hdr"));
+	         "-o", tif, "--truth-cube", (char *)kg_test_path("truth.hdr"), "--truth-labels",
+	         (char *)kg_test_path("no/such/dir/labels.hdr"));
 	expect_input_error(rc, errbuf, "labels", "unwritable label map");
 
 	/* --extrapolate accepts the short camera. */
-	rc = RUN("sim", "patches", "--spectra", chart, "--camera", (char *)sim_path("short.csv"),
+	rc = RUN("sim", "patches", "--spectra", chart, "--camera", (char *)kg_test_path("short.csv"),
 	         "--illuminant", "D65", "--extrapolate", "-o", out);
 	CHECK(rc == 0, "--extrapolate: exit %d: %s", rc, errbuf);
 	CHECK(kg_test_file_exists(out), "--extrapolate: no output");
@@ -147,8 +147,8 @@ static void test_bad_inputs(void)
 static void test_usage(void)
 {
 	char errbuf[4096];
-	char *cam = (char *)sim_path("cam.csv"), *chart = (char *)sim_path("chart.csv");
-	char *lib = (char *)sim_path("lib.json"), *out = (char *)sim_path("out.cgats");
+	char *cam = (char *)kg_test_path("cam.csv"), *chart = (char *)kg_test_path("chart.csv");
+	char *lib = (char *)kg_test_path("lib.json"), *out = (char *)kg_test_path("out.cgats");
 	int rc;
 	rc = RUN("sim", "patches", "--spectra", chart, "--camera", cam, "--illuminant", "D65");
 	CHECK(rc == 2 && strstr(errbuf, "-o"), "missing -o: exit %d: %s", rc, errbuf);
@@ -163,10 +163,10 @@ static void test_usage(void)
 	CHECK(rc == 2 && strstr(errbuf, "--frobnicate"), "unknown option: exit %d: %s", rc,
 	      errbuf);
 	rc = RUN("sim", "image", "--materials", lib, "--camera", cam, "--illuminant", "D65",
-	         "--depth", "12", "-o", (char *)sim_path("x.tif"));
+	         "--depth", "12", "-o", (char *)kg_test_path("x.tif"));
 	CHECK(rc == 2 && strstr(errbuf, "depth"), "bad --depth: exit %d: %s", rc, errbuf);
 	rc = RUN("sim", "image", "--camera", cam, "--illuminant", "D65", "-o",
-	         (char *)sim_path("x.tif"));
+	         (char *)kg_test_path("x.tif"));
 	CHECK(rc == 2, "image without materials or spectra: exit %d", rc);
 	rc = RUN("sim", "patches", "--help");
 	CHECK(rc == 0, "--help: exit %d", rc);
@@ -188,10 +188,10 @@ static kg_spectrum fresnel_of(const char *element, double theta)
 static void test_image(void)
 {
 	char errbuf[4096];
-	char *cam = (char *)sim_path("cam.csv"), *chart = (char *)sim_path("chart.csv");
-	char *lib = (char *)sim_path("lib.json");
-	char *tif = (char *)sim_path("scene.tif"), *ftif = (char *)sim_path("scene_f.tif");
-	char *truth = (char *)sim_path("truth.hdr"), *labels = (char *)sim_path("labels.hdr");
+	char *cam = (char *)kg_test_path("cam.csv"), *chart = (char *)kg_test_path("chart.csv");
+	char *lib = (char *)kg_test_path("lib.json");
+	char *tif = (char *)kg_test_path("scene.tif"), *ftif = (char *)kg_test_path("scene_f.tif");
+	char *truth = (char *)kg_test_path("truth.hdr"), *labels = (char *)kg_test_path("labels.hdr");
 	int rc = RUN("sim", "image", "--spectra", chart, "--materials", lib, "--camera", cam,
 	             "--illuminant", "D50", "--angle", "30", "--patch-size", "8", "--gap", "2",
 	             "--columns", "4", "--background", "0.02", "-o", tif, "--truth-cube", truth,
@@ -305,8 +305,8 @@ done:
 static void test_image_seed(void)
 {
 	char errbuf[4096];
-	char *cam = (char *)sim_path("cam.csv"), *lib = (char *)sim_path("lib.json");
-	const char *outs[3] = {sim_path("s1.tif"), sim_path("s2.tif"), sim_path("s3.tif")};
+	char *cam = (char *)kg_test_path("cam.csv"), *lib = (char *)kg_test_path("lib.json");
+	const char *outs[3] = {kg_test_path("s1.tif"), kg_test_path("s2.tif"), kg_test_path("s3.tif")};
 	const char *seeds[3] = {"5", "5", "6"};
 	kg_image *img[3] = {NULL, NULL, NULL};
 	for (int k = 0; k < 3; k++) {
@@ -340,10 +340,10 @@ static void test_default_library(void)
 		printf("no %s: default library not checked\n", lib);
 		return;
 	}
-	char *labels = (char *)sim_path("default_labels.hdr");
-	int rc = RUN("sim", "image", "--materials", lib, "--camera", (char *)sim_path("cam.csv"),
+	char *labels = (char *)kg_test_path("default_labels.hdr");
+	int rc = RUN("sim", "image", "--materials", lib, "--camera", (char *)kg_test_path("cam.csv"),
 	             "--illuminant", "D65", "--angle", "80", "--patch-size", "4", "-o",
-	             (char *)sim_path("default.tif"), "--truth-labels", labels);
+	             (char *)kg_test_path("default.tif"), "--truth-labels", labels);
 	CHECK(rc == 0, "default library: exit %d: %s", rc, errbuf);
 	static const char *const names[] = {
 	    "gold", "silver", "copper", "shakudo", "shibuichi-nami", "shibuichi-shiro",
@@ -377,17 +377,17 @@ int main(int argc, char **argv)
 		return 1;
 	}
 	kogei = argv[1];
-	sim_scratch_dir("simcli");
-	write_camera(sim_path("cam.csv"), 380, 780);
-	write_camera(sim_path("short.csv"), 420, 700);
-	write_chart(sim_path("chart.csv"));
-	sim_write_text(sim_path("lib.json"), library_json);
+	kg_test_scratch_dir("simcli");
+	write_camera(kg_test_path("cam.csv"), 380, 780);
+	write_camera(kg_test_path("short.csv"), 420, 700);
+	write_chart(kg_test_path("chart.csv"));
+	sim_write_text(kg_test_path("lib.json"), library_json);
 	baseline_entries = sim_scratch_count();
 	test_bad_inputs();
 	test_usage();
 	test_image();
 	test_image_seed();
 	test_default_library();
-	sim_scratch_remove();
+	kg_test_scratch_remove();
 	return kg_test_done("sim/cli");
 }

@@ -149,7 +149,7 @@ static void test_api(double rho[NP][3])
 static void test_cli(const char *kogei, double rho[NP][3])
 {
 	char errbuf[4096];
-	const char *out = sim_path("ohta.cgats");
+	const char *out = kg_test_path("ohta.cgats");
 	char *argv[] = {(char *)kogei, "sim", "patches", "--spectra", chart_csv, "--camera",
 	                camera_csv, "--illuminant", d65_csv, "-o", (char *)out, NULL};
 	int rc = sim_run(argv, errbuf, sizeof(errbuf));
@@ -192,7 +192,7 @@ static void test_cli(const char *kogei, double rho[NP][3])
 	kg_cgats_free(&cg);
 
 	/* Noise: same seed, same bytes; another seed, other values. */
-	const char *outs[3] = {sim_path("n1.cgats"), sim_path("n2.cgats"), sim_path("n3.cgats")};
+	const char *outs[3] = {kg_test_path("n1.cgats"), kg_test_path("n2.cgats"), kg_test_path("n3.cgats")};
 	const char *seeds[3] = {"17", "17", "18"};
 	for (int k = 0; k < 3; k++) {
 		char *nargv[] = {(char *)kogei, "sim", "patches", "--spectra", chart_csv,
@@ -230,9 +230,9 @@ int main(int argc, char **argv)
 	direct(0.9, rho);
 	test_api(rho);
 	if (argc > 1) {
-		sim_scratch_dir("simref");
+		kg_test_scratch_dir("simref");
 		test_cli(argv[1], rho);
-		sim_scratch_remove();
+		kg_test_scratch_remove();
 	}
 	return kg_test_done("sim/reference");
 }

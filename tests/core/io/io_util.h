@@ -3,51 +3,24 @@
 #define KG_IO_UTIL_H
 
 #include <dirent.h>
-#include <ftw.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
 
-static char io_dir[4096];
-
-static inline int io_rm(const char *p, const struct stat *st, int flag, struct FTW *f)
-{
-	return remove(p);
-}
-
-static inline void io_cleanup(void)
-{
-	if (io_dir[0])
-		nftw(io_dir, io_rm, 16, FTW_DEPTH | FTW_PHYS);
-}
+#include "kg_test.h"
 
 /* A fresh directory under $TMPDIR (or /tmp), removed at exit. */
 static inline const char *io_tmpdir(const char *name)
 {
-	const char *t = getenv("TMPDIR");
-	snprintf(io_dir, sizeof(io_dir), "%s/kg-%s-XXXXXX", t && *t ? t : "/tmp", name);
-	if (!mkdtemp(io_dir)) {
-		perror("mkdtemp");
-		exit(1);
-	}
-	atexit(io_cleanup);
-	return io_dir;
-}
-
-static inline char *io_path(const char *name)
-{
-	static char buf[8][4200];
-	static int k;
-	char *b = buf[k++ % 8];
-	snprintf(b, sizeof(buf[0]), "%s/%s", io_dir, name);
-	return b;
+	atexit(kg_test_scratch_remove);
+	return kg_test_scratch_dir(name);
 }
 
 /* Number of entries in the scratch directory (to see that nothing was left behind). */
 static inline int io_count_files(void)
 {
-	DIR *d = opendir(io_dir);
+	DIR *d = opendir(kg_test_scratch());
 	int n = 0;
 	struct dirent *e;
 	while (d && (e = readdir(d)))

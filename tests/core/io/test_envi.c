@@ -33,7 +33,7 @@ static void round_trip(enum kg_envi_interleave il, enum kg_envi_type type)
 {
 	char name[64];
 	snprintf(name, sizeof(name), "cube_%d_%d.hdr", (int)il, (int)type);
-	const char *path = io_path(name);
+	const char *path = kg_test_path(name);
 	char basis[] = "{1, 2, 3,\n  4, 5, 6}";
 	kg_envi_pair extra[] = {{"kogei basis", basis}, {"kogei format", "weights/1"}};
 	kg_envi_meta m = {.samples = S, .lines = L, .bands = B, .data_type = type,
@@ -58,7 +58,7 @@ static void round_trip(enum kg_envi_interleave il, enum kg_envi_type type)
 	CHECK(io_count_files() == files_before + 2, "exactly .hdr and .img written");
 	char img[80];
 	snprintf(img, sizeof(img), "cube_%d_%d.img", (int)il, (int)type);
-	CHECK(kg_test_file_exists(io_path(img)), "data file beside header");
+	CHECK(kg_test_file_exists(kg_test_path(img)), "data file beside header");
 
 	kg_envi *e;
 	CHECK(kg_envi_open(path, &e, &err) == 0, "open for reading: %s", err.msg);
@@ -111,7 +111,7 @@ static void round_trip(enum kg_envi_interleave il, enum kg_envi_type type)
 	CHECK(e == NULL, "close nulls");
 
 	/* Opening by the data file name finds the same header. */
-	CHECK(kg_envi_open(io_path(img), &e, &err) == 0 && e->meta.bands == B, "open by data name");
+	CHECK(kg_envi_open(kg_test_path(img), &e, &err) == 0 && e->meta.bands == B, "open by data name");
 	kg_envi_close(&e);
 }
 
@@ -123,33 +123,33 @@ static void test_incomplete_and_abort(void)
 	int before = io_count_files();
 	float blk[S * L * B];
 	fill_block(blk, 0, 2, KG_LAYOUT_BIP);
-	CHECK(kg_envi_writer_open(io_path("partial.hdr"), &m, &w, &err) == 0, "open");
+	CHECK(kg_envi_writer_open(kg_test_path("partial.hdr"), &m, &w, &err) == 0, "open");
 	CHECK(kg_envi_writer_put(w, 0, 2, KG_LAYOUT_BIP, blk, &err) == 0, "put");
 	CHECK(kg_envi_writer_put(w, 4, 6, KG_LAYOUT_BIP, blk, &err) == KG_EINVAL,
 	      "block past the end refused");
 	CHECK(kg_envi_writer_finish(&w, &err) == KG_EINVAL && !w, "finish with missing lines fails");
 	CHECK(strstr(err.msg, "lines 2 to 4 were never written") != NULL, "message: %s", err.msg);
 	CHECK(io_count_files() == before, "nothing left behind after a failed finish");
-	CHECK(kg_envi_writer_open(io_path("aborted.hdr"), &m, &w, &err) == 0, "open");
+	CHECK(kg_envi_writer_open(kg_test_path("aborted.hdr"), &m, &w, &err) == 0, "open");
 	kg_envi_writer_abort(&w);
 	CHECK(!w && io_count_files() == before, "abort leaves nothing");
 	/* Names ENVI cannot hold. */
 	const char *bad_names[B] = {"a,b", "c", "d", "e"};
 	m.band_names = bad_names;
-	CHECK(kg_envi_writer_open(io_path("bad.hdr"), &m, &w, &err) == KG_EINVAL && !w,
+	CHECK(kg_envi_writer_open(kg_test_path("bad.hdr"), &m, &w, &err) == KG_EINVAL && !w,
 	      "comma in band name refused");
 	CHECK(strstr(err.msg, "bad.hdr") && strstr(err.msg, "band name"), "message: %s", err.msg);
 	m.band_names = NULL;
 	kg_envi_pair ex = {"wavelength", "{1}"};
 	m.n_extra = 1;
 	m.extra = &ex;
-	CHECK(kg_envi_writer_open(io_path("bad.hdr"), &m, &w, &err) == KG_EINVAL,
+	CHECK(kg_envi_writer_open(kg_test_path("bad.hdr"), &m, &w, &err) == KG_EINVAL,
 	      "extra key clashing with a standard key refused");
 	/* the reader refuses a key given twice: so does the writer */
 	kg_envi_pair twice[2] = {{"kogei note", "a"}, {"kogei note", "b"}};
 	m.n_extra = 2;
 	m.extra = twice;
-	CHECK(kg_envi_writer_open(io_path("bad.hdr"), &m, &w, &err) == KG_EINVAL && !w &&
+	CHECK(kg_envi_writer_open(kg_test_path("bad.hdr"), &m, &w, &err) == KG_EINVAL && !w &&
 	          strstr(err.msg, "'kogei note' given twice"),
 	      "extra key given twice refused: %s", err.msg);
 	m.n_extra = 0;
@@ -168,10 +168,10 @@ static void test_classification(void)
 	kg_envi_meta m = {.samples = W, .lines = H, .bands = 1, .data_type = KG_ENVI_U8,
 	                  .classes = 3, .class_names = cn, .class_lookup = lut};
 	kg_err err;
-	CHECK(kg_envi_write(io_path("labels.hdr"), &m, KG_LAYOUT_BIP, labels, &err) == 0,
+	CHECK(kg_envi_write(kg_test_path("labels.hdr"), &m, KG_LAYOUT_BIP, labels, &err) == 0,
 	      "classification: %s", err.msg);
 	kg_envi *e;
-	CHECK(kg_envi_open(io_path("labels.hdr"), &e, &err) == 0, "open labels: %s", err.msg);
+	CHECK(kg_envi_open(kg_test_path("labels.hdr"), &e, &err) == 0, "open labels: %s", err.msg);
 	if (!e)
 		return;
 	CHECK(e->meta.classes == 3 && strcmp(e->meta.class_names[2], "shakudo") == 0, "class names");
@@ -182,7 +182,7 @@ static void test_classification(void)
 	kg_envi_close(&e);
 	m.data_type = KG_ENVI_F32;
 	kg_envi_writer *w;
-	CHECK(kg_envi_writer_open(io_path("x.hdr"), &m, &w, &err) == KG_EINVAL,
+	CHECK(kg_envi_writer_open(kg_test_path("x.hdr"), &m, &w, &err) == KG_EINVAL,
 	      "float classification refused");
 }
 
@@ -203,7 +203,7 @@ static void test_foreign_header(void)
 	                  "wavelength units = Micrometers\n"
 	                  "wavelength = {\n 0.5,\n 0.6 }\n"
 	                  "sensor type = Unknown\n";
-	CHECK(io_write_bytes(io_path("foreign.hdr"), hdr, strlen(hdr)) == 0, "write header");
+	CHECK(io_write_bytes(kg_test_path("foreign.hdr"), hdr, strlen(hdr)) == 0, "write header");
 	unsigned char data[16 + 3 * 2 * 2 * 2] = {0};
 	int k = 16;
 	for (int y = 0; y < 2; y++)
@@ -213,10 +213,10 @@ static void test_foreign_header(void)
 				data[k++] = (unsigned char)((uint16_t)v >> 8);
 				data[k++] = (unsigned char)((uint16_t)v & 0xff);
 			}
-	CHECK(io_write_bytes(io_path("foreign.dat"), data, sizeof(data)) == 0, "write data");
+	CHECK(io_write_bytes(kg_test_path("foreign.dat"), data, sizeof(data)) == 0, "write data");
 	kg_envi *e;
 	kg_err err = {{0}};
-	CHECK(kg_envi_open(io_path("foreign.hdr"), &e, &err) == 0, "foreign header: %s", err.msg);
+	CHECK(kg_envi_open(kg_test_path("foreign.hdr"), &e, &err) == 0, "foreign header: %s", err.msg);
 	if (!e)
 		return;
 	CHECK(e->meta.samples == 3 && e->meta.lines == 2 && e->meta.bands == 2, "dims");
@@ -241,7 +241,7 @@ static void test_foreign_header(void)
 
 static void expect_open_error(const char *name, const char *hdr, const char *want)
 {
-	const char *p = io_path(name);
+	const char *p = kg_test_path(name);
 	CHECK(io_write_bytes(p, hdr, strlen(hdr)) == 0, "write");
 	kg_envi *e = NULL;
 	kg_err err = {{0}};
@@ -256,12 +256,12 @@ static void expect_open_error(const char *name, const char *hdr, const char *wan
 
 static void test_errors(void)
 {
-	io_write_bytes(io_path("e1.img"), "12345678", 8);
-	io_write_bytes(io_path("e2.img"), "12345678", 8);
-	io_write_bytes(io_path("e3.img"), "12345678", 8);
-	io_write_bytes(io_path("e4.img"), "12345678", 8);
-	io_write_bytes(io_path("e5.img"), "12345678", 8);
-	io_write_bytes(io_path("e6.img"), "12345678", 8);
+	io_write_bytes(kg_test_path("e1.img"), "12345678", 8);
+	io_write_bytes(kg_test_path("e2.img"), "12345678", 8);
+	io_write_bytes(kg_test_path("e3.img"), "12345678", 8);
+	io_write_bytes(kg_test_path("e4.img"), "12345678", 8);
+	io_write_bytes(kg_test_path("e5.img"), "12345678", 8);
+	io_write_bytes(kg_test_path("e6.img"), "12345678", 8);
 	expect_open_error("e1.hdr", "ENVI\nlines = 2\nbands = 1\ndata type = 4\n", "'samples' is missing");
 	expect_open_error("e2.hdr", "ENVI\nsamples = 2\nlines = 2\nbands = 1\ndata type = 4\n",
 	                  "e2.img: file is 8 bytes (too short): expected 16");
@@ -277,28 +277,28 @@ static void test_errors(void)
 	expect_open_error("e8.hdr", "ENVI\nsamples = 1\nlines = 1\nbands = 1\ndata type = 6\n",
 	                  "not supported");
 	/* a data file larger than the header says, with and without a header offset */
-	io_write_bytes(io_path("e9.img"), "12345678", 8);
+	io_write_bytes(kg_test_path("e9.img"), "12345678", 8);
 	expect_open_error("e9.hdr", "ENVI\nsamples = 1\nlines = 1\nbands = 1\ndata type = 4\n",
 	                  "e9.img: file is 8 bytes (too long): expected 4");
-	io_write_bytes(io_path("e10.img"), "123456789", 9);
+	io_write_bytes(kg_test_path("e10.img"), "123456789", 9);
 	expect_open_error("e10.hdr", "ENVI\nsamples = 1\nlines = 1\nbands = 1\ndata type = 4\n"
 	                  "header offset = 4\n", "e10.img: file is 9 bytes (too long): expected 8");
 	/* the same key twice, also when spelt differently; the key and the header named */
-	io_write_bytes(io_path("e11.img"), "1234", 4);
+	io_write_bytes(kg_test_path("e11.img"), "1234", 4);
 	expect_open_error("e11.hdr", "ENVI\nsamples = 1\nlines = 1\nbands = 1\ndata type = 4\n"
 	                  "lines = 2\n", "e11.hdr: line 6: key 'lines' given twice");
-	io_write_bytes(io_path("e12.img"), "1234", 4);
+	io_write_bytes(kg_test_path("e12.img"), "1234", 4);
 	expect_open_error("e12.hdr", "ENVI\nsamples = 1\nlines = 1\nbands = 1\ndata type = 4\n"
 	                  "wavelength = {500}\nWavelength  = {\n 600}\n",
 	                  "e12.hdr: line 7: key 'wavelength' given twice");
 	/* the same sizes, once each: accepted (the cases above fail for their reason only) */
-	io_write_bytes(io_path("e13.img"), "1234", 4);
+	io_write_bytes(kg_test_path("e13.img"), "1234", 4);
 	const char *e13 = "ENVI\nsamples = 1\nlines = 1\nbands = 1\ndata type = 4\n"
 	                  "wavelength = {500}\n";
-	io_write_bytes(io_path("e13.hdr"), e13, strlen(e13));
+	io_write_bytes(kg_test_path("e13.hdr"), e13, strlen(e13));
 	kg_envi *ok = NULL;
 	kg_err err = {{0}};
-	CHECK(kg_envi_open(io_path("e13.hdr"), &ok, &err) == 0, "e13: %s", err.msg);
+	CHECK(kg_envi_open(kg_test_path("e13.hdr"), &ok, &err) == 0, "e13: %s", err.msg);
 	kg_envi_close(&ok);
 }
 
@@ -337,10 +337,10 @@ static void test_large(void)
 		                  .interleave = ils[i], .scale = 1000};
 		kg_err err;
 		kg_inputs_reset(); /* the cube read in the last round is written again */
-		CHECK(kg_envi_write(io_path("large.hdr"), &m, KG_LAYOUT_BIP, cube, &err) == 0,
+		CHECK(kg_envi_write(kg_test_path("large.hdr"), &m, KG_LAYOUT_BIP, cube, &err) == 0,
 		      "large: %s", err.msg);
 		kg_envi *e;
-		CHECK(kg_envi_open(io_path("large.hdr"), &e, &err) == 0, "large open: %s", err.msg);
+		CHECK(kg_envi_open(kg_test_path("large.hdr"), &e, &err) == 0, "large open: %s", err.msg);
 		if (!e)
 			break;
 		CHECK(kg_envi_read(e, 0, 0, LS, LL, KG_LAYOUT_BIP, back, &err) == 0, "large read");

@@ -26,7 +26,7 @@ static void write_cube(const char *name, enum kg_envi_interleave il, enum kg_env
 	kg_err err;
 	char hdr[64];
 	snprintf(hdr, sizeof(hdr), "%s.hdr", name);
-	CHECK(kg_envi_writer_open(io_path(hdr), &m, &w, &err) == 0, "%s: %s", name, err.msg);
+	CHECK(kg_envi_writer_open(kg_test_path(hdr), &m, &w, &err) == 0, "%s: %s", name, err.msg);
 	/* Two blocks, last first. */
 	CHECK(kg_envi_writer_put(w, 3, 5, KG_LAYOUT_PLANAR, NULL, &err) == KG_EINVAL, "NULL data");
 	float blk[B * 3 * S];
@@ -56,7 +56,7 @@ int main(void)
 	kg_envi_meta m = {.samples = 6, .lines = 3, .bands = 1, .data_type = KG_ENVI_U8,
 	                  .classes = 3, .class_names = cn, .class_lookup = lut};
 	kg_err err;
-	CHECK(kg_envi_write(io_path("labels.hdr"), &m, KG_LAYOUT_BIP, labels, &err) == 0, "labels: %s",
+	CHECK(kg_envi_write(kg_test_path("labels.hdr"), &m, KG_LAYOUT_BIP, labels, &err) == 0, "labels: %s",
 	      err.msg);
 	if (kg_test_failures)
 		return kg_test_done("envi-spectral");
@@ -64,7 +64,7 @@ int main(void)
 	const char *root = getenv("KOGEI_SOURCE_ROOT");
 	char cmd[8192];
 	snprintf(cmd, sizeof(cmd), "/usr/bin/python3 '%s/tests/core/io/envi_spectral.py' '%s'",
-	         root && *root ? root : KG_SOURCE_ROOT, io_dir);
+	         root && *root ? root : KG_SOURCE_ROOT, kg_test_scratch());
 	fflush(stdout);
 	int st = system(cmd);
 	int code = st != -1 && WIFEXITED(st) ? WEXITSTATUS(st) : -1;

@@ -53,7 +53,7 @@ static void round_trip(const char *ext, int channels, int bits)
 {
 	char name[64];
 	snprintf(name, sizeof(name), "rt_%d_%d.%s", channels, bits, ext);
-	const char *p = io_path(name);
+	const char *p = kg_test_path(name);
 	kg_image *img = make_image(channels), *back = NULL;
 	kg_err err = {{0}};
 	CHECK(kg_image_write(img, p, bits, &err) == 0, "%s: write: %s", name, err.msg);
@@ -113,7 +113,7 @@ static void store(const struct tiff_spec *t, unsigned char *dst, size_t i, int x
 
 static int write_tiff(const struct tiff_spec *t, int w, int h)
 {
-	TIFF *tif = TIFFOpen(io_path(t->name), "w");
+	TIFF *tif = TIFFOpen(kg_test_path(t->name), "w");
 	if (!tif)
 		return -1;
 	TIFFSetField(tif, TIFFTAG_IMAGEWIDTH, (uint32_t)w);
@@ -170,7 +170,7 @@ static void check_rows(const char *name, const kg_image *whole)
 {
 	kg_image_rows *r = NULL;
 	kg_err err = {{0}};
-	CHECK(kg_image_rows_open(io_path(name), &r, &err) == 0, "%s: rows: %s", name, err.msg);
+	CHECK(kg_image_rows_open(kg_test_path(name), &r, &err) == 0, "%s: rows: %s", name, err.msg);
 	if (!r)
 		return;
 	const kg_image *h = kg_image_rows_header(r);
@@ -221,7 +221,7 @@ static void test_tiff_layouts(void)
 		CHECK(write_tiff(t, w, h) == 0, "%s: libtiff write", t->name);
 		kg_image *img = NULL;
 		kg_err err = {{0}};
-		CHECK(kg_image_read_tiff(io_path(t->name), &img, &err) == 0, "%s: %s", t->name, err.msg);
+		CHECK(kg_image_read_tiff(kg_test_path(t->name), &img, &err) == 0, "%s: %s", t->name, err.msg);
 		if (!img)
 			continue;
 		int C = t->photo == PHOTOMETRIC_RGB ? 3 : 1;
@@ -243,7 +243,7 @@ static void expect_read_error(const char *name, const char *want1, const char *w
 {
 	kg_image *img = NULL;
 	kg_err err = {{0}};
-	CHECK(kg_image_read(io_path(name), &img, &err) < 0 && !img, "%s: expected an error", name);
+	CHECK(kg_image_read(kg_test_path(name), &img, &err) < 0 && !img, "%s: expected an error", name);
 	CHECK(strstr(err.msg, name) && strstr(err.msg, want1) && (!want2 || strstr(err.msg, want2)),
 	      "%s: message '%s' should name the file and say '%s'", name, err.msg, want1);
 	kg_image_free(&img);
@@ -253,7 +253,7 @@ static void test_tiff_refused(void)
 {
 	const struct tiff_spec t12 = {"twelve.tif", 1, 12, SAMPLEFORMAT_UINT, PHOTOMETRIC_MINISBLACK,
 	                              PLANARCONFIG_CONTIG, 0, 4, COMPRESSION_NONE};
-	TIFF *tif = TIFFOpen(io_path(t12.name), "w");
+	TIFF *tif = TIFFOpen(kg_test_path(t12.name), "w");
 	TIFFSetField(tif, TIFFTAG_IMAGEWIDTH, 4u);
 	TIFFSetField(tif, TIFFTAG_IMAGELENGTH, 2u);
 	TIFFSetField(tif, TIFFTAG_BITSPERSAMPLE, 12);
@@ -265,7 +265,7 @@ static void test_tiff_refused(void)
 	TIFFClose(tif);
 	expect_read_error("twelve.tif", "12-bit", "expected 8, 16 or 32-bit float");
 
-	tif = TIFFOpen(io_path("signed.tif"), "w");
+	tif = TIFFOpen(kg_test_path("signed.tif"), "w");
 	TIFFSetField(tif, TIFFTAG_IMAGEWIDTH, 2u);
 	TIFFSetField(tif, TIFFTAG_IMAGELENGTH, 1u);
 	TIFFSetField(tif, TIFFTAG_BITSPERSAMPLE, 16);
@@ -276,7 +276,7 @@ static void test_tiff_refused(void)
 	TIFFClose(tif);
 	expect_read_error("signed.tif", "signed integer", NULL);
 
-	tif = TIFFOpen(io_path("palette.tif"), "w");
+	tif = TIFFOpen(kg_test_path("palette.tif"), "w");
 	TIFFSetField(tif, TIFFTAG_IMAGEWIDTH, 2u);
 	TIFFSetField(tif, TIFFTAG_IMAGELENGTH, 1u);
 	TIFFSetField(tif, TIFFTAG_BITSPERSAMPLE, 8);
@@ -322,7 +322,7 @@ static int patch_tag(const char *path, uint16_t tag, uint32_t mask)
 static void write_layout(const char *name, uint32_t w, uint32_t h, int grey, uint32_t rps,
                          uint32_t tile, uint16_t compression)
 {
-	TIFF *tif = TIFFOpen(io_path(name), "w");
+	TIFF *tif = TIFFOpen(kg_test_path(name), "w");
 	int C = grey ? 1 : 3, bps = grey ? 1 : 4;
 	TIFFSetField(tif, TIFFTAG_IMAGEWIDTH, w);
 	TIFFSetField(tif, TIFFTAG_IMAGELENGTH, h);
@@ -397,15 +397,15 @@ static void test_tiff_lies(void)
 		             t[i].compression);
 		kg_image *img = NULL;
 		kg_err err = {{0}};
-		CHECK(kg_image_read(io_path(t[i].name), &img, &err) == 0 && img &&
+		CHECK(kg_image_read(kg_test_path(t[i].name), &img, &err) == 0 && img &&
 		          img->height == (int)t[i].h,
 		      "%s: the honest file: %s", t[i].name, err.msg);
 		kg_image_free(&img);
-		CHECK(patch_tag(io_path(t[i].name), TIFFTAG_IMAGELENGTH, t[i].flip) == 0,
+		CHECK(patch_tag(kg_test_path(t[i].name), TIFFTAG_IMAGELENGTH, t[i].flip) == 0,
 		      "%s: ImageLength patched", t[i].name);
 		expect_read_error(t[i].name, t[i].want1, t[i].want2);
 		kg_image_rows *r = NULL;
-		int ret = kg_image_rows_open(io_path(t[i].name), &r, &err);
+		int ret = kg_image_rows_open(kg_test_path(t[i].name), &r, &err);
 		float *rows = NULL;
 		if (ret == 0) { /* the short decode is found when its strip is read */
 			rows = malloc(sizeof(float) * t[i].w * 3 * 12);
@@ -424,8 +424,8 @@ static void test_cfa(void)
 	kg_err err;
 	CHECK(kg_image_set_cfa(img, "RGGX", 2, 2, &err) == KG_EINVAL, "bad CFA letter refused");
 	CHECK(kg_image_set_cfa(img, "GRBG", 2, 2, &err) == 0, "set CFA");
-	CHECK(kg_image_write_tiff(img, io_path("raw.tif"), 16, &err) == 0, "write raw: %s", err.msg);
-	CHECK(kg_image_read(io_path("raw.tif"), &back, &err) == 0, "read raw: %s", err.msg);
+	CHECK(kg_image_write_tiff(img, kg_test_path("raw.tif"), 16, &err) == 0, "write raw: %s", err.msg);
+	CHECK(kg_image_read(kg_test_path("raw.tif"), &back, &err) == 0, "read raw: %s", err.msg);
 	if (back)
 		CHECK(back->cfa && strcmp(back->cfa, "GRBG") == 0 && back->cfa_rows == 2 &&
 		      back->cfa_cols == 2, "CFA pattern read back: %s", back->cfa ? back->cfa : "(none)");
@@ -438,7 +438,7 @@ static void test_cfa(void)
 static int write_png_raw(const char *name, int w, int h, int color_type, int depth,
                          const unsigned char *pixels, size_t rowbytes, int srgb)
 {
-	FILE *f = fopen(io_path(name), "wb");
+	FILE *f = fopen(kg_test_path(name), "wb");
 	png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, NULL, NULL, NULL);
 	png_infop info = png_create_info_struct(png);
 	if (setjmp(png_jmpbuf(png))) {
@@ -463,7 +463,7 @@ static int write_png_raw(const char *name, int w, int h, int color_type, int dep
 /* 16-bit RGB rows (w * 6 bytes each) to a PNG, interlaced (Adam7) or not. */
 static int write_png16(const char *name, int w, int h, unsigned char *px, int interlace)
 {
-	FILE *f = fopen(io_path(name), "wb");
+	FILE *f = fopen(kg_test_path(name), "wb");
 	png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, NULL, NULL, NULL);
 	png_infop info = png_create_info_struct(png);
 	png_bytep *rows = malloc((size_t)h * sizeof(png_bytep));
@@ -493,7 +493,7 @@ static void test_png_kinds(void)
 	CHECK(write_png_raw("rgba.png", 2, 2, PNG_COLOR_TYPE_RGBA, 8, rgba, 8, 0) == 0, "rgba");
 	kg_image *img = NULL;
 	kg_err err;
-	CHECK(kg_image_read(io_path("rgba.png"), &img, &err) == 0, "read rgba: %s", err.msg);
+	CHECK(kg_image_read(kg_test_path("rgba.png"), &img, &err) == 0, "read rgba: %s", err.msg);
 	if (img) {
 		CHECK(img->channels == 3 && strstr(img->note, "alpha"), "alpha dropped: '%s'", img->note);
 		CHECK_NEAR(img->data[3], 40 / 255.0, 1e-7, "second pixel red");
@@ -503,7 +503,7 @@ static void test_png_kinds(void)
 	/* Grey 2-bit: expanded to 8 bits by replication, so 3 reads as 1.0. */
 	unsigned char g2[1] = {0x1B}; /* 0 1 2 3 */
 	CHECK(write_png_raw("grey2.png", 4, 1, PNG_COLOR_TYPE_GRAY, 2, g2, 1, 0) == 0, "grey2");
-	CHECK(kg_image_read(io_path("grey2.png"), &img, &err) == 0, "read grey2: %s", err.msg);
+	CHECK(kg_image_read(kg_test_path("grey2.png"), &img, &err) == 0, "read grey2: %s", err.msg);
 	if (img) {
 		CHECK(img->channels == 1 && img->bits == 2, "2-bit grey");
 		CHECK_NEAR(img->data[1], 85 / 255.0, 1e-7, "code 1 of 3");
@@ -512,7 +512,7 @@ static void test_png_kinds(void)
 	kg_image_free(&img);
 	/* Palette with transparency: expanded to RGB, transparency dropped. */
 	{
-		FILE *pf = fopen(io_path("pal.png"), "wb");
+		FILE *pf = fopen(kg_test_path("pal.png"), "wb");
 		png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, NULL, NULL, NULL);
 		png_infop info = png_create_info_struct(png);
 		if (setjmp(png_jmpbuf(png)) == 0) {
@@ -532,7 +532,7 @@ static void test_png_kinds(void)
 		png_destroy_write_struct(&png, &info);
 		fclose(pf);
 	}
-	CHECK(kg_image_read(io_path("pal.png"), &img, &err) == 0, "read palette: %s", err.msg);
+	CHECK(kg_image_read(kg_test_path("pal.png"), &img, &err) == 0, "read palette: %s", err.msg);
 	if (img) {
 		CHECK(img->channels == 3 && strstr(img->note, "transparency"), "palette: '%s'", img->note);
 		CHECK_NEAR(img->data[0], 1.0, 1e-7, "palette entry 0 red");
@@ -541,8 +541,8 @@ static void test_png_kinds(void)
 	kg_image_free(&img);
 	/* sRGB-tagged: linearised. The preview helper writes sRGB too. */
 	unsigned char rgb[2 * 3] = {0, 128, 255, 10, 200, 30};
-	CHECK(kg_png_write_rgb8(io_path("preview.png"), rgb, 2, 1, &err) == 0, "preview: %s", err.msg);
-	CHECK(kg_image_read(io_path("preview.png"), &img, &err) == 0, "read preview: %s", err.msg);
+	CHECK(kg_png_write_rgb8(kg_test_path("preview.png"), rgb, 2, 1, &err) == 0, "preview: %s", err.msg);
+	CHECK(kg_image_read(kg_test_path("preview.png"), &img, &err) == 0, "read preview: %s", err.msg);
 	if (img) {
 		CHECK(strstr(img->note, "sRGB") != NULL, "note says sRGB: '%s'", img->note);
 		CHECK_NEAR(img->data[1], 0.2158605, 1e-6, "sRGB 128 -> 0.21586 linear");
@@ -559,7 +559,7 @@ static void test_png_kinds(void)
 			px[2 * i + 1] = (unsigned char)(i * 11 + interlace);
 		}
 		CHECK(write_png16(name, w, h, px, interlace) == 0, "%s: libpng write", name);
-		CHECK(kg_image_read(io_path(name), &img, &err) == 0, "read %s: %s", name, err.msg);
+		CHECK(kg_image_read(kg_test_path(name), &img, &err) == 0, "read %s: %s", name, err.msg);
 		if (img) {
 			CHECK(fabs(img->data[5] - ((px[10] << 8) | px[11]) / 65535.0) < 1e-7,
 			      "%s: sample 5", name);
@@ -568,13 +568,13 @@ static void test_png_kinds(void)
 		kg_image_free(&img);
 		free(px);
 	}
-	CHECK(kg_png_write_rgb8(io_path("no.png"), rgb, 0, 1, &err) == KG_EINVAL, "zero width refused");
+	CHECK(kg_png_write_rgb8(kg_test_path("no.png"), rgb, 0, 1, &err) == KG_EINVAL, "zero width refused");
 	kg_image *one = make_image(1);
-	CHECK(kg_image_write_png(one, io_path("f.png"), 32, &err) == KG_EINVAL &&
+	CHECK(kg_image_write_png(one, kg_test_path("f.png"), 32, &err) == KG_EINVAL &&
 	      strstr(err.msg, "expected 8 or 16"), "32-bit PNG refused: %s", err.msg);
-	CHECK(kg_image_write(one, io_path("f.jpg"), 8, &err) == KG_EINVAL &&
+	CHECK(kg_image_write(one, kg_test_path("f.jpg"), 8, &err) == KG_EINVAL &&
 	      strstr(err.msg, "f.jpg"), "unknown extension refused: %s", err.msg);
-	CHECK(kg_image_write(one, io_path("nodir/f.png"), 8, &err) < 0, "missing directory fails");
+	CHECK(kg_image_write(one, kg_test_path("nodir/f.png"), 8, &err) < 0, "missing directory fails");
 	kg_image_free(&one);
 }
 
@@ -592,7 +592,7 @@ static unsigned char *slurp(const char *p, size_t *n)
 static void torture(const char *src_name, const char *ext)
 {
 	size_t n;
-	unsigned char *orig = slurp(io_path(src_name), &n);
+	unsigned char *orig = slurp(kg_test_path(src_name), &n);
 	CHECK(orig != NULL, "read %s", src_name);
 	if (!orig)
 		return;
@@ -600,10 +600,10 @@ static void torture(const char *src_name, const char *ext)
 	snprintf(name, sizeof(name), "bad.%s", ext);
 	int errors = 0, total = 0;
 	for (size_t cut = 0; cut < n; cut += 1 + cut / 16) {
-		io_write_bytes(io_path(name), orig, cut);
+		io_write_bytes(kg_test_path(name), orig, cut);
 		kg_image *img = NULL;
 		kg_err err = {{0}};
-		int ret = kg_image_read(io_path(name), &img, &err);
+		int ret = kg_image_read(kg_test_path(name), &img, &err);
 		CHECK((ret == 0) == (img != NULL), "%s cut at %zu: result and image agree", ext, cut);
 		if (ret) {
 			errors++;
@@ -627,9 +627,9 @@ static void torture(const char *src_name, const char *ext)
 				at = n - (at - 256) - 1;
 			bad[at] = (unsigned char)(r >> 20);
 		}
-		io_write_bytes(io_path(name), bad, n);
+		io_write_bytes(kg_test_path(name), bad, n);
 		kg_image *img = NULL;
-		int ret = kg_image_read(io_path(name), &img, NULL);
+		int ret = kg_image_read(kg_test_path(name), &img, NULL);
 		CHECK((ret == 0) == (img != NULL), "%s corrupted: result and image agree", ext);
 		kg_image_free(&img);
 	}
@@ -667,28 +667,28 @@ static void test_malformed(void)
 	unsigned char tiny[160];
 	size_t n = tiny_tiff(tiny);
 	CHECK(n == 130, "tiny TIFF is %zu bytes", n);
-	io_write_bytes(io_path("tiny.tif"), tiny, n);
+	io_write_bytes(kg_test_path("tiny.tif"), tiny, n);
 	kg_image *t = NULL;
 	kg_err e;
-	CHECK(kg_image_read(io_path("tiny.tif"), &t, &e) == 0, "tiny TIFF: %s", e.msg);
+	CHECK(kg_image_read(kg_test_path("tiny.tif"), &t, &e) == 0, "tiny TIFF: %s", e.msg);
 	if (t)
 		CHECK_NEAR(t->data[7], 210 / 255.0, 1e-7, "tiny TIFF last pixel");
 	kg_image_free(&t);
-	io_write_bytes(io_path("cut.tif"), tiny, n - 3);
+	io_write_bytes(kg_test_path("cut.tif"), tiny, n - 3);
 	expect_read_error("cut.tif", "strip 0 of 1", "lies beyond the end of the 127-byte file");
 
 	torture("rt_3_16.tif", "tif");
 	torture("tile8.tif", "tif");
 	torture("rt_3_16.png", "png");
-	io_write_bytes(io_path("text.tif"), "hello, world\n", 13);
+	io_write_bytes(kg_test_path("text.tif"), "hello, world\n", 13);
 	expect_read_error("text.tif", "expected a TIFF, PNG, JPEG or camera raw file", NULL);
 	kg_image *img = NULL;
 	kg_err err;
-	CHECK(kg_image_read(io_path("missing.png"), &img, &err) == KG_ENOENT && !img, "missing file");
+	CHECK(kg_image_read(kg_test_path("missing.png"), &img, &err) == KG_ENOENT && !img, "missing file");
 	/* A PNG signature with nothing after it, and a TIFF header pointing nowhere. */
-	io_write_bytes(io_path("sig.png"), "\x89PNG\r\n\x1a\n", 8);
+	io_write_bytes(kg_test_path("sig.png"), "\x89PNG\r\n\x1a\n", 8);
 	expect_read_error("sig.png", "PNG", NULL);
-	io_write_bytes(io_path("hdr.tif"), "II*\0\xff\xff\xff\x7f", 8);
+	io_write_bytes(kg_test_path("hdr.tif"), "II*\0\xff\xff\xff\x7f", 8);
 	expect_read_error("hdr.tif", "TIFF", NULL);
 }
 

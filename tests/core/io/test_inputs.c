@@ -42,9 +42,9 @@ static int write_text(const char *path, kg_err *e)
 int main(void)
 {
 	io_tmpdir("inputs");
-	const char *in = io_path("a.cgats");
+	const char *in = kg_test_path("a.cgats");
 	io_write_bytes(in, text, strlen(text));
-	const char *hard = io_path("hard.cgats"), *sym = io_path("sym.cgats");
+	const char *hard = kg_test_path("hard.cgats"), *sym = kg_test_path("sym.cgats");
 	CHECK(link(in, hard) == 0 && symlink("a.cgats", sym) == 0, "cannot make links");
 	kg_err e = {{0}};
 
@@ -70,11 +70,11 @@ int main(void)
 	CHECK(io_count_files() == files, "a refused write left %d file(s) behind",
 	      io_count_files() - files);
 	/* A new name, and standard output, never collide. */
-	CHECK(kg_inputs_check_output(io_path("new.cgats"), &e) == 0, "%s", e.msg);
+	CHECK(kg_inputs_check_output(kg_test_path("new.cgats"), &e) == 0, "%s", e.msg);
 	CHECK(kg_inputs_check_output("-", &e) == 0, "%s", e.msg);
 
 	/* A file that becomes an input while an output is open is refused at commit. */
-	const char *late = io_path("late.txt");
+	const char *late = kg_test_path("late.txt");
 	kg_outfile o;
 	CHECK(kg_outfile_open(&o, late, 0, &e) == 0, "%s", e.msg);
 	fputs("output\n", o.fp);
@@ -94,7 +94,7 @@ int main(void)
 	kg_image *img = NULL;
 	CHECK(kg_image_new(4, 3, 3, &img, &e) == 0, "%s", e.msg);
 	for (int f = 0; f < 2 && img; f++) {
-		const char *p = io_path(f ? "img.png" : "img.tif");
+		const char *p = kg_test_path(f ? "img.png" : "img.tif");
 		CHECK(kg_image_write(img, p, 16, &e) == 0, "%s", e.msg);
 		char *before = NULL;
 		size_t nb = 0;
@@ -116,14 +116,14 @@ int main(void)
 	 * refused before anything is written. */
 	float cube[2 * 2 * 1] = {1, 2, 3, 4};
 	kg_envi_meta m = {.samples = 2, .lines = 2, .bands = 1, .data_type = KG_ENVI_F32};
-	CHECK(kg_envi_write(io_path("c.hdr"), &m, KG_LAYOUT_BIP, cube, &e) == 0, "%s", e.msg);
+	CHECK(kg_envi_write(kg_test_path("c.hdr"), &m, KG_LAYOUT_BIP, cube, &e) == 0, "%s", e.msg);
 	kg_inputs_reset();
 	kg_envi *env = NULL;
-	CHECK(kg_envi_open(io_path("c.hdr"), &env, &e) == 0, "%s", e.msg);
+	CHECK(kg_envi_open(kg_test_path("c.hdr"), &env, &e) == 0, "%s", e.msg);
 	kg_envi_close(&env);
-	CHECK(link(io_path("c.img"), io_path("d.img")) == 0, "cannot link the data file");
+	CHECK(link(kg_test_path("c.img"), kg_test_path("d.img")) == 0, "cannot link the data file");
 	files = io_count_files();
-	const char *cubes[3] = {io_path("c.hdr"), io_path("c.img"), io_path("d.hdr")};
+	const char *cubes[3] = {kg_test_path("c.hdr"), kg_test_path("c.img"), kg_test_path("d.hdr")};
 	const char *hits[3] = {"c.hdr", "c.img", "d.img"};
 	for (int i = 0; i < 3; i++) {
 		memset(&e, 0, sizeof(e));

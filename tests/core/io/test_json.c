@@ -34,7 +34,7 @@ static const char *doc =
 int main(void)
 {
 	io_tmpdir("json");
-	const char *f = io_path("ref.json");
+	const char *f = kg_test_path("ref.json");
 	io_write_bytes(f, doc, strlen(doc));
 	json_t *root = NULL;
 	kg_err err = {{0}};
@@ -92,12 +92,12 @@ int main(void)
 	json_decref(root);
 
 	/* Syntax errors point at line and column; duplicates are refused. */
-	const char *bad = io_path("bad.json");
+	const char *bad = kg_test_path("bad.json");
 	io_write_bytes(bad, "{\n  \"a\": 1,\n  \"b\": [1, 2,]\n}\n", 28);
 	EXPECT_MSG(kg_json_load(bad, &root, ep), "bad.json:3:");
 	io_write_bytes(bad, "{\"a\": 1, \"a\": 2}", 16);
 	EXPECT_MSG(kg_json_load(bad, &root, ep), "bad.json:1:", "duplicate");
-	CHECK(kg_json_load(io_path("none.json"), &root, &err) == KG_ENOENT, "missing file: %s", err.msg);
+	CHECK(kg_json_load(kg_test_path("none.json"), &root, &err) == KG_ENOENT, "missing file: %s", err.msg);
 
 	/* Writing: atomic, indented, doubles exact, insertion order kept. */
 	json_t *out = json_object();
@@ -116,7 +116,7 @@ int main(void)
 	CHECK(kg_json_matrix(I, &mj, &err) == KG_EINVAL && !mj && strstr(err.msg, "(1, 1)"),
 	      "NaN refused: %s", err.msg);
 	kg_mat_free(&I);
-	const char *o = io_path("out.json");
+	const char *o = kg_test_path("out.json");
 	int before = io_count_files();
 	CHECK(kg_json_write(out, o, &err) == 0, "write: %s", err.msg);
 	CHECK(io_count_files() == before + 1, "no temporary left");
@@ -131,7 +131,7 @@ int main(void)
 	      "read back: %s", err.msg);
 	CHECK(v[0] == tricky[0] && v[1] == tricky[1] && v[2] == tricky[2], "doubles exact");
 	json_decref(root);
-	CHECK(kg_json_write(out, io_path("nodir/x.json"), &err) < 0, "unwritable path fails");
+	CHECK(kg_json_write(out, kg_test_path("nodir/x.json"), &err) < 0, "unwritable path fails");
 	json_decref(out);
 	return kg_test_done("json");
 }
