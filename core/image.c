@@ -2,6 +2,7 @@
 #include <fcntl.h>
 #include <math.h>
 #include <png.h>
+#include <pthread.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -1096,6 +1097,62 @@ void kg_image_rows_free(kg_image_rows **pr)
 	*pr = NULL;
 }
 
+/* A whole TIFF image of many bands read by two readers at once, each on its own
+ * handle of the file, bands straight into the image: the conversion and the first
+ * touch of the image's pages (about half the time of the read of a 72 MB 16-bit
+ * TIFF) on two cores. */
+struct band_job {
+	kg_image_rows *r;
+	float *data;
+	uint32_t b0, b1; /* bands [b0, b1) */
+	int ret;
+	kg_err err;
+};
+
+static void *band_job_main(void *arg)
+{
+	struct band_job *j = arg;
+	const kg_image *h = j->r->head;
+	size_t row_floats = (size_t)h->width * (size_t)h->channels;
+	for (uint32_t b = j->b0; b < j->b1 && !j->ret; b++) {
+		uint32_t cy = b * j->r->th;
+		j->ret = tiff_band(j->r, cy, j->data + (size_t)cy * row_floats, &j->err);
+	}
+	return NULL;
+}
+
+static int tiff_read_split(kg_image_rows *r, const char *path, float *data, int *done,
+                           kg_err *err)
+{
+	const kg_image *h = r->head;
+	uint32_t bands = ((uint32_t)h->height + r->th - 1) / r->th;
+	*done = 0;
+	if (bands < 8 || (size_t)h->width * (size_t)h->height < ((size_t)1 << 22))
+		return 0;
+	kg_image_rows *r2 = NULL;
+	kg_err e2 = {{0}};
+	if (rows_open_kind(path, KIND_TIFF, NULL, &r2, &e2))
+		return 0; /* read by one reader, which reports what is wrong */
+	struct band_job jobs[2] = {{r, data, 0, bands / 2, 0, {{0}}},
+	                           {r2, data, bands / 2, bands, 0, {{0}}}};
+	pthread_t tid;
+	int threaded = pthread_create(&tid, NULL, band_job_main, &jobs[1]) == 0;
+	band_job_main(&jobs[0]);
+	if (threaded)
+		pthread_join(tid, NULL);
+	else
+		band_job_main(&jobs[1]);
+	kg_image_rows_free(&r2);
+	*done = 1;
+	r->y = h->height;
+	for (int k = 0; k < 2; k++)
+		if (jobs[k].ret) {
+			*err = jobs[k].err;
+			return jobs[k].ret;
+		}
+	return 0;
+}
+
 /* The whole image through the row reader. */
 static int read_whole(const char *path, int kind, const kg_image_encoding *enc,
                       kg_image **out, kg_err *err)
@@ -1117,7 +1174,11 @@ static int read_whole(const char *path, int kind, const kg_image_encoding *enc,
 		img->jpeg = h->jpeg;
 		img->encoding = h->encoding;
 		memcpy(img->note, h->note, sizeof(img->note));
-		ret = kg_image_rows_read(r, h->height, img->data, err);
+		int done = 0;
+		if (kind == KIND_TIFF)
+			ret = tiff_read_split(r, path, img->data, &done, err);
+		if (!ret && !done)
+			ret = kg_image_rows_read(r, h->height, img->data, err);
 	}
 	kg_image_rows_free(&r);
 	if (ret)
