@@ -264,18 +264,23 @@ static int rows_new(const char *path, kg_image_rows **out, kg_err *err)
 /* n samples of one row of a chunk to floats on the 0..1 scale, four at a time with
  * SSE2 (a division per lane is the same correctly rounded division as the scalar
  * one, so the values are those of the general path). */
+#ifdef __SSE2__
+/* eight 16-bit lanes of v to eight floats divided by full */
+static inline void store8(float *dst, __m128i v, __m128 full)
+{
+	const __m128i zero = _mm_setzero_si128();
+	_mm_storeu_ps(dst, _mm_div_ps(_mm_cvtepi32_ps(_mm_unpacklo_epi16(v, zero)), full));
+	_mm_storeu_ps(dst + 4, _mm_div_ps(_mm_cvtepi32_ps(_mm_unpackhi_epi16(v, zero)), full));
+}
+#endif
+
 static void tiff_row_u16(const unsigned char *src, size_t n, float *dst)
 {
 	size_t i = 0;
 #ifdef __SSE2__
-	const __m128i zero = _mm_setzero_si128();
 	const __m128 full = _mm_set1_ps(65535.0f);
-	for (; i + 8 <= n; i += 8) {
-		__m128i v = _mm_loadu_si128((const __m128i *)(const void *)(src + 2 * i));
-		_mm_storeu_ps(dst + i, _mm_div_ps(_mm_cvtepi32_ps(_mm_unpacklo_epi16(v, zero)), full));
-		_mm_storeu_ps(dst + i + 4,
-		              _mm_div_ps(_mm_cvtepi32_ps(_mm_unpackhi_epi16(v, zero)), full));
-	}
+	for (; i + 8 <= n; i += 8)
+		store8(dst + i, _mm_loadu_si128((const __m128i *)(const void *)(src + 2 * i)), full);
 #endif
 	for (; i < n; i++) {
 		uint16_t u;
@@ -292,14 +297,8 @@ static void tiff_row_u8(const unsigned char *src, size_t n, float *dst)
 	const __m128 full = _mm_set1_ps(255.0f);
 	for (; i + 16 <= n; i += 16) {
 		__m128i v = _mm_loadu_si128((const __m128i *)(const void *)(src + i));
-		__m128i lo = _mm_unpacklo_epi8(v, zero), hi = _mm_unpackhi_epi8(v, zero);
-		_mm_storeu_ps(dst + i, _mm_div_ps(_mm_cvtepi32_ps(_mm_unpacklo_epi16(lo, zero)), full));
-		_mm_storeu_ps(dst + i + 4,
-		              _mm_div_ps(_mm_cvtepi32_ps(_mm_unpackhi_epi16(lo, zero)), full));
-		_mm_storeu_ps(dst + i + 8,
-		              _mm_div_ps(_mm_cvtepi32_ps(_mm_unpacklo_epi16(hi, zero)), full));
-		_mm_storeu_ps(dst + i + 12,
-		              _mm_div_ps(_mm_cvtepi32_ps(_mm_unpackhi_epi16(hi, zero)), full));
+		store8(dst + i, _mm_unpacklo_epi8(v, zero), full);
+		store8(dst + i + 8, _mm_unpackhi_epi8(v, zero), full);
 	}
 #endif
 	for (; i < n; i++)
