@@ -360,6 +360,26 @@ void chart_tagless_warm_wait(void)
 #endif
 }
 
+void kg_chart_warm_up(const kg_chart_layout *l, const kg_chart_detect_options *opt)
+{
+#if KG_HAVE_MCC
+	int idx[24];
+	/* the tagless mode, a layout without tags, or the fallback (min_tags 0) of a
+	 * ColorChecker 24 layout: the cases kg_chart_detect warms up for */
+	if (l && opt && (opt->tagless || l->ntags == 0 || opt->min_tags == 0) &&
+	    chart_colorchecker24_patches(l, idx))
+		kg_mcc_warm_up();
+#else
+	(void)l;
+	(void)opt;
+#endif
+}
+
+void kg_chart_warm_wait(void)
+{
+	chart_tagless_warm_wait();
+}
+
 /* No tags seen at all: a ColorChecker may still be in view without its frame. */
 int chart_tagless_fallback(const kg_chart_layout *l, const kg_chart_result *r, int ret)
 {

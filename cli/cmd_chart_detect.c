@@ -206,6 +206,8 @@ int kg_cmd_chart_detect(int argc, char **argv)
 	if ((code = kg_chart_layout_resolve(layout_path, &layout_file, &err)) ||
 	    (code = kg_chart_layout_load(layout_file, &layout, &err)))
 		goto fail;
+	/* what the tagless detector builds once per process, built while the image is read */
+	kg_chart_warm_up(layout, &opt);
 	if ((code = kg_image_read_as(image_path, &enc, &img, &err)))
 		goto fail;
 	char encoding[32];
@@ -316,6 +318,7 @@ int kg_cmd_chart_detect(int argc, char **argv)
 		        "its mean; degree %d from %d patches): removed from the patch values\n",
 		        100 * lf->variation, lf->min, lf->max, lf->degree, lf->used);
 fail:
+	kg_chart_warm_wait();
 	kg_patchset_free(&ps);
 	kg_chart_result_free(&res);
 	kg_image_free(&img);

@@ -637,6 +637,12 @@ int kg_console_run(const kg_console_options *o, int *device_failure, kg_err *err
 	sigaddset(&sigs, SIGTERM);
 	pthread_sigmask(SIG_BLOCK, &sigs, NULL);
 	signal(SIGPIPE, SIG_IGN);
+	if (c->chart_layout) {
+		/* the chart check's first tagless detection finds OpenCV's tables built */
+		kg_chart_detect_options wopt;
+		kg_chart_detect_options_default(&wopt);
+		kg_chart_warm_up(c->chart_layout, &wopt);
+	}
 
 	struct sockaddr_in sa4 = {0};
 	struct sockaddr_in6 sa6 = {0};
@@ -695,6 +701,7 @@ int kg_console_run(const kg_console_options *o, int *device_failure, kg_err *err
 		fprintf(stderr, "kogei console: %ld connection(s) closed at the request deadline "
 		        "(--header-timeout %g s)\n", c->conns_timed_out, c->header_timeout);
 done:
+	kg_chart_warm_wait();
 	kg_camera_free(&c->cam);
 	kg_chart_layout_free(&c->chart_layout);
 	kg_session_free(&c->session);

@@ -418,6 +418,47 @@ static void test_tiff_lies(void)
 	}
 }
 
+/* A large image of many strips or tiles (4.2 Mpix, partial last band) is read whole
+ * by two readers at once: the same samples as the row reader's, row by row, and,
+ * for the strips, the ramp written. */
+static void test_tiff_two_readers(void)
+{
+	const struct {
+		const char *name;
+		uint32_t rps, tile;
+	} t[] = {{"big_strips.tif", 7, 0}, {"big_tiles.tif", 0, 256}};
+	const uint32_t w = 2048, h = 2050;
+	for (size_t i = 0; i < sizeof(t) / sizeof(t[0]); i++) {
+		write_layout(t[i].name, w, h, 1, t[i].rps, t[i].tile, COMPRESSION_NONE);
+		kg_image *img = NULL;
+		kg_image_rows *r = NULL;
+		kg_err err = {{0}};
+		CHECK(kg_image_read(io_path(t[i].name), &img, &err) == 0 && img &&
+		          img->width == (int)w && img->height == (int)h,
+		      "%s: read whole: %s", t[i].name, err.msg);
+		CHECK(kg_image_rows_open(io_path(t[i].name), &r, &err) == 0, "%s: rows: %s",
+		      t[i].name, err.msg);
+		float *row = malloc(sizeof(float) * w);
+		long differ = 0, ramp = 0;
+		for (uint32_t y = 0; img && r && row && y < h; y++) {
+			if (kg_image_rows_read(r, 1, row, &err) != 0) {
+				differ = -1;
+				break;
+			}
+			differ += memcmp(row, img->data + (size_t)y * w, sizeof(float) * w) != 0;
+			for (uint32_t x = 0; !t[i].tile && x < w; x++)
+				ramp += img->data[(size_t)y * w + x] != (unsigned char)(x + y) / 255.0f;
+		}
+		CHECK(differ == 0, "%s: %ld rows differ from the row reader's (%s)", t[i].name,
+		      differ, err.msg);
+		CHECK(ramp == 0, "%s: %ld samples differ from the ramp written", t[i].name, ramp);
+		free(row);
+		kg_image_rows_free(&r);
+		kg_image_free(&img);
+		remove(io_path(t[i].name));
+	}
+}
+
 static void test_cfa(void)
 {
 	kg_image *img = make_image(1), *back = NULL;
@@ -705,6 +746,7 @@ int main(void)
 	test_tiff_layouts();
 	test_tiff_refused();
 	test_tiff_lies();
+	test_tiff_two_readers();
 	test_cfa();
 	test_png_kinds();
 	test_malformed();
