@@ -72,6 +72,9 @@ void ap_written_clear(written *w, int remove);
 int ap_finish_all(kg_envi_writer **ws, const char *const *paths, int n, written *done, kg_err *err);
 float *ap_staging_get(staging *s, size_t n, kg_err *err);
 int ap_put_bytes(kg_envi_writer *w, staging *s, const kg_est_block *b, const uint8_t *src, kg_err *err);
+/* The size, type, interleave and description of an ENVI file; the rest 0. */
+kg_envi_meta ap_envi_meta(int width, int height, int bands, enum kg_envi_type type,
+                          enum kg_envi_interleave interleave, const char *description);
 /* A float32 BIP cube of `bands` bands (its writer). */
 int ap_open_floats(const char *path, int width, int height, int bands, const char *description, const char *const *band_names, kg_envi_writer **w, kg_err *err);
 /* A uint8 ENVI Classification map of classes (unclassified, the classes, unknown,
