@@ -162,51 +162,15 @@ int kg_flat_nonuniformity(const kg_image *flat, double *out, kg_err *err)
 
 /* ---- order statistics ------------------------------------------------------------ */
 
-/* Rearrange v so v[k] is the k-th smallest, smaller ones before it, larger after
- * (Hoare's selection with a median-of-three pivot). */
-static void select_kth(float *v, size_t n, size_t k)
-{
-	size_t lo = 0, hi = n - 1;
-	while (hi > lo) {
-		size_t mid = lo + (hi - lo) / 2;
-		float a = v[lo], b = v[mid], c = v[hi];
-		float pivot = a < b ? (b < c ? b : a < c ? c : a) : (a < c ? a : b < c ? c : b);
-		size_t i = lo, j = hi;
-		while (i <= j) {
-			while (v[i] < pivot)
-				i++;
-			while (v[j] > pivot)
-				j--;
-			if (i <= j) {
-				float t = v[i];
-				v[i] = v[j];
-				v[j] = t;
-				i++;
-				if (j == 0)
-					break;
-				j--;
-			}
-		}
-		if (k <= j)
-			hi = j;
-		else if (k >= i)
-			lo = i;
-		else
-			return;
-	}
-}
-
 /* Percentile p (0..100) of v[0..n-1] with linear interpolation between order
  * statistics (v is reordered). */
 static double percentile(float *v, size_t n, double p)
 {
 	double pos = p / 100.0 * (double)(n - 1);
 	size_t k = (size_t)floor(pos);
-	if (k >= n - 1) {
-		select_kth(v, n, n - 1);
-		return v[n - 1];
-	}
-	select_kth(v, n, k);
+	if (k >= n - 1)
+		return kg_select_kth(v, n, n - 1);
+	kg_select_kth(v, n, k);
 	float next = v[k + 1];
 	for (size_t i = k + 2; i < n; i++)
 		if (v[i] < next)

@@ -15,36 +15,6 @@ static int cmp_float(const void *a, const void *b)
 	return (x > y) - (x < y);
 }
 
-/* k-th smallest of v[0..n) (reorders v): the reference selection. */
-static float select_kth(float *v, long n, long k)
-{
-	long lo = 0, hi = n - 1;
-	while (lo < hi) {
-		float pivot = v[lo + (hi - lo) / 2];
-		long i = lo, j = hi;
-		while (i <= j) {
-			while (v[i] < pivot)
-				i++;
-			while (v[j] > pivot)
-				j--;
-			if (i <= j) {
-				float t = v[i];
-				v[i] = v[j];
-				v[j] = t;
-				i++;
-				j--;
-			}
-		}
-		if (k <= j)
-			hi = j;
-		else if (k >= i)
-			lo = i;
-		else
-			break;
-	}
-	return v[k];
-}
-
 /* Floats as unsigned keys in the same order (negative ones reversed below the
  * positive ones). */
 static uint32_t float_key(float f)
@@ -69,7 +39,7 @@ enum { RADIX_BITS = 11 };
  * and greatest in 2^11 bins, then only the bin holding rank k again, until a bin is
  * one value (at most 3 rounds for 32 bits). Each round reads its set once or twice
  * where quickselect's partitions read it about 3.4 times with unpredictable branches,
- * and v is left as it is. The values are those select_kth returns. scratch: n keys. */
+ * and v is left as it is. The values are those kg_select_kth returns. scratch: n keys. */
 static void radix_pair(const float *v, long n, long k, uint32_t *scratch, float out[2])
 {
 	const uint32_t *keys = NULL; /* NULL: the keys of v */
@@ -143,7 +113,7 @@ static void radix_pair(const float *v, long n, long k, uint32_t *scratch, float 
 	}
 }
 
-/* Median of v[0..n): by select_kth (reorders v) or, fast, by radix_pair; the same
+/* Median of v[0..n): by kg_select_kth (reorders v) or, fast, by radix_pair; the same
  * value either way. */
 static double median_of(float *v, long n, int fast, uint32_t *scratch)
 {
@@ -153,9 +123,9 @@ static double median_of(float *v, long n, int fast, uint32_t *scratch)
 		return n % 2 ? pair[1] : 0.5 * ((double)pair[1] + pair[0]);
 	}
 	if (n % 2)
-		return select_kth(v, n, n / 2);
-	double a = select_kth(v, n, n / 2);
-	double b = select_kth(v, n / 2, n / 2 - 1);
+		return kg_select_kth(v, (size_t)n, (size_t)(n / 2));
+	double a = kg_select_kth(v, (size_t)n, (size_t)(n / 2));
+	double b = kg_select_kth(v, (size_t)(n / 2), (size_t)(n / 2 - 1));
 	return 0.5 * (a + b);
 }
 

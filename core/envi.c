@@ -13,6 +13,7 @@
 
 #include "envi.h"
 #include "fsutil.h"
+#include "plot.h"
 
 #if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_BIG_ENDIAN__
 #define HOST_BYTE_ORDER 1
@@ -591,6 +592,36 @@ int kg_envi_write(const char *path, const kg_envi_meta *meta, enum kg_envi_layou
 		return ret;
 	}
 	return kg_envi_writer_finish(&w, err);
+}
+
+int kg_envi_write_label_map(const char *path, int width, int height, const float *labels,
+                            int nclasses, const char *const *class_names,
+                            const char *description, kg_err *err)
+{
+	unsigned char *lookup = malloc((size_t)nclasses * 3);
+	if (!lookup)
+		return kg_fail(err, KG_ENOMEM, "%s: out of memory", path);
+	memset(lookup, 0, 3);
+	for (int k = 1; k < nclasses; k++) {
+		double rgb[3];
+		kg_series_colour(k - 1, rgb);
+		for (int c = 0; c < 3; c++)
+			lookup[3 * k + c] = (unsigned char)lrint(fmin(fmax(rgb[c], 0.0), 1.0) * 255.0);
+	}
+	kg_envi_meta meta = {
+	    .samples = width,
+	    .lines = height,
+	    .bands = 1,
+	    .data_type = KG_ENVI_U8,
+	    .interleave = KG_ENVI_BSQ,
+	    .description = description,
+	    .classes = nclasses,
+	    .class_names = class_names,
+	    .class_lookup = lookup,
+	};
+	int ret = kg_envi_write(path, &meta, KG_LAYOUT_BIP, labels, err);
+	free(lookup);
+	return ret;
 }
 
 /* ---- header parsing ----------------------------------------------------------------- */

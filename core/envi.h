@@ -90,6 +90,13 @@ void kg_envi_writer_abort(kg_envi_writer **w);
 int kg_envi_write(const char *path, const kg_envi_meta *meta, enum kg_envi_layout layout,
                   const float *data, kg_err *err);
 
+/* A uint8 ENVI Classification map of width x height labels (0 to nclasses - 1, row by
+ * row) with the classes' names, class 0 black and class k in the plots' series colour
+ * k - 1 (kg_series_colour). */
+int kg_envi_write_label_map(const char *path, int width, int height, const float *labels,
+                            int nclasses, const char *const *class_names,
+                            const char *description, kg_err *err);
+
 /* ---- reading ---------------------------------------------------------------- */
 
 typedef struct kg_envi {

@@ -441,6 +441,16 @@ void kg_outfile_abort(kg_outfile *o)
 	o->path = NULL;
 }
 
+/* b (cap + 1 bytes) at twice the capacity, or NULL (b freed) without memory. */
+static char *grow_buffer(char *b, size_t *cap)
+{
+	*cap *= 2;
+	char *nb = realloc(b, *cap + 1);
+	if (!nb)
+		free(b);
+	return nb;
+}
+
 int kg_read_file(const char *path, char **buf, size_t *len, kg_err *err)
 {
 	FILE *fp = fopen(path, "rb");
@@ -464,13 +474,7 @@ int kg_read_file(const char *path, char **buf, size_t *len, kg_err *err)
 		n += got;
 		if (n < cap)
 			break;
-		cap *= 2;
-		char *nb = realloc(b, cap + 1);
-		if (!nb) {
-			free(b);
-			b = NULL;
-		} else
-			b = nb;
+		b = grow_buffer(b, &cap);
 	}
 	int bad = ferror(fp);
 	fclose(fp);
@@ -792,13 +796,7 @@ int kg_read_below(const char *root, const char *rel, char **buf, size_t *len, kg
 			break;
 		n += (size_t)got;
 		if (n == cap) {
-			cap *= 2;
-			char *nb = realloc(b, cap + 1);
-			if (!nb) {
-				free(b);
-				b = NULL;
-			} else
-				b = nb;
+			b = grow_buffer(b, &cap);
 		}
 	}
 	close(fd);

@@ -95,6 +95,19 @@ json_t *kg_json_find(const json_t *root, const char *path)
 	return walk("", root, path, &v, NULL) == 0 ? v : NULL;
 }
 
+/* The value at path, a number (string 0) or a string (string 1). */
+static int walk_scalar(const char *file, const json_t *root, const char *path, int string,
+                       json_t **v, kg_err *err)
+{
+	int ret = walk(file, root, path, v, err);
+	if (ret)
+		return ret;
+	if (string ? !json_is_string(*v) : !json_is_number(*v))
+		return kg_fail(err, KG_EINVAL, "%s: key '%s': expected %s, got %s", file, path,
+		               string ? "a string" : "a number", kind(*v));
+	return 0;
+}
+
 int kg_json_get(const char *file, const json_t *root, const char *path, json_t **out,
                 kg_err *err)
 {
@@ -108,12 +121,9 @@ int kg_json_get_number(const char *file, const json_t *root, const char *path, d
 	kg_check_arg(out, err);
 	file = file ? file : "(json)";
 	json_t *v;
-	int ret = walk(file, root, path, &v, err);
+	int ret = walk_scalar(file, root, path, 0, &v, err);
 	if (ret)
 		return ret;
-	if (!json_is_number(v))
-		return kg_fail(err, KG_EINVAL, "%s: key '%s': expected a number, got %s", file, path,
-		               kind(v));
 	*out = json_number_value(v);
 	return 0;
 }
@@ -140,12 +150,9 @@ int kg_json_get_string(const char *file, const json_t *root, const char *path,
 	kg_check_arg(out, err);
 	file = file ? file : "(json)";
 	json_t *v;
-	int ret = walk(file, root, path, &v, err);
+	int ret = walk_scalar(file, root, path, 1, &v, err);
 	if (ret)
 		return ret;
-	if (!json_is_string(v))
-		return kg_fail(err, KG_EINVAL, "%s: key '%s': expected a string, got %s", file, path,
-		               kind(v));
 	*out = json_string_value(v);
 	return 0;
 }

@@ -18,6 +18,7 @@
 #include "plot.h"
 #include "rng.h"
 #include "saturation.h"
+#include "select.h"
 #include "meta.h"
 
 #endif

@@ -156,20 +156,9 @@ int kg_classify_rows(const kg_est_kernel *k, const kg_est_material_set *set,
                      const char *out_hdr, kg_classify_result *res, kg_err *err)
 {
 	kg_check_arg(k && set && src && out_hdr, err);
-	kg_apply_options dflt;
-	if (!opt) {
-		kg_apply_options_init(&dflt);
-		opt = &dflt;
-	}
-	kg_classify_options cdflt;
-	if (!copt) {
-		kg_classify_options_init(&cdflt);
-		copt = &cdflt;
-	}
+	classify_call call;
+	ap_call_begin(&call, out_hdr, &opt, &copt, res);
 	const kg_est_distance distance = copt->distance;
-	kg_classify_result local = {0};
-	if (res)
-		memset(res, 0, sizeof(*res));
 	if (kg_est_kernel_k(k) == 0)
 		return kg_fail(err, KG_EINVAL,
 		               "%s: classification works in the K-dimensional subspace of a basis "
@@ -190,22 +179,12 @@ int kg_classify_rows(const kg_est_kernel *k, const kg_est_material_set *set,
 	in.mask = copt->mask;
 	refusal refuse;
 	kg_est_classifier *cls = NULL;
-	kg_envi_writer *ws[3] = {NULL, NULL, NULL};
-	char *conf_path = NULL, *mask_path = NULL, *json_path = NULL, *png_path = NULL;
-	const char *paths[3] = {out_hdr, NULL, NULL};
 	cls_sink sink = {0};
-	written done = {0};
 	const int W = src->width, H = src->height;
-	size_t npix = (size_t)W * (size_t)H;
 
 	if ((rc = kg_est_classifier_new(k, set->materials, set->n, distance, &cls, err)) ||
-	    (rc = ap_refusal_init(&refuse, k, cls, set, opt, copt, &local, err)))
-		goto out;
-	if ((rc = kg_apply_side_path(out_hdr, "_confidence.hdr", &conf_path, err)) ||
-	    (rc = kg_apply_side_path(out_hdr, ".json", &json_path, err)) ||
-	    (rc = kg_apply_side_path(out_hdr, ".png", &png_path, err)) ||
-	    (rc = kg_inputs_check_output(json_path, err)) ||
-	    (rc = kg_inputs_check_output(png_path, err)))
+	    (rc = ap_refusal_init(&refuse, k, cls, set, opt, copt, &call.local, err)) ||
+	    (rc = ap_call_paths(&call, out_hdr, err)))
 		goto out;
 	ap_preview_size(W, H, &sink.pw, &sink.ph);
 	sink.preview = malloc((size_t)sink.pw * sink.ph);
@@ -217,20 +196,14 @@ int kg_classify_rows(const kg_est_kernel *k, const kg_est_material_set *set,
 	char desc[160];
 	snprintf(desc, sizeof(desc), "kogei classify: %d materials, %s distance, %g degrees",
 	         set->n, ap_distance_name(distance), set->angle_deg);
-	if ((rc = ap_open_label_map(out_hdr, W, H, set,
-	                            opt->description ? opt->description : desc, &ws[0], err)))
-		goto out;
 	const char *band[1] = {"margin"};
-	if ((rc = ap_open_floats(conf_path, W, H, 1,
-	                         "kogei classify confidence: distance to the runner-up minus "
-	                         "distance to the chosen material; NaN for flagged, unknown and "
-	                         "background pixels, Inf with one material",
-	                         band, &ws[1], err)))
+	if ((rc = ap_call_open(&call, out_hdr, W, H, set,
+	                       opt->description ? opt->description : desc, 1,
+	                       "kogei classify confidence: distance to the runner-up minus "
+	                       "distance to the chosen material; NaN for flagged, unknown and "
+	                       "background pixels, Inf with one material",
+	                       band, err)))
 		goto out;
-	paths[1] = conf_path;
-	if ((rc = ap_open_mask(out_hdr, W, H, &mask_path, &ws[2], err)))
-		goto out;
-	paths[2] = mask_path;
 
 	kg_est_job job;
 	kg_est_job_init(&job, k, KG_EST_LABELS);
@@ -239,49 +212,28 @@ int kg_classify_rows(const kg_est_kernel *k, const kg_est_material_set *set,
 	job.threads = opt->threads;
 	job.block_rows = opt->block_rows;
 	job.isa = opt->isa;
-	sink.labels = ws[0];
-	sink.conf = ws[1];
-	sink.mask = ws[2];
+	sink.labels = call.ws[0];
+	sink.conf = call.ws[1];
+	sink.mask = call.ws[2];
 	sink.in = &in;
 	sink.refuse = &refuse;
 	sink.nmaterials = set->n;
 	sink.height = H;
 	ap_progress_init(&sink.prog, opt, "classify", W, H);
-	rc = kg_est_run_stream(&job, NULL, W, H, cls_sink_fn, &sink, &local.stats, err);
-	if (rc) {
-		kg_err_prefix(err, "%s: ", out_hdr);
+	if ((rc = ap_call_stream(&call, &job, W, H, cls_sink_fn, &sink, &in, out_hdr, err)) ||
+	    (rc = ap_call_summary(&call, k, set, sink.count, sink.cs, out_hdr, 1, W, H, err)))
 		goto out;
-	}
-	if ((rc = ap_check_estimable(&local.stats, &in, "classify", err)))
+	const char *files[4] = {out_hdr, call.conf_path, call.mask_path, call.png_path};
+	if ((rc = ap_write_labels_json(call.json_path, set, copt, src, opt, info, files,
+	                               &call.local, err)))
 		goto out;
-	if ((rc = ap_finish_all(ws, paths, 3, &done, err)))
-		goto out;
-	if ((rc = ap_margin_pass(sink.cs, sink.nmaterials, out_hdr, conf_path, 1, W, H, err)) ||
-	    (rc = ap_summarise(k, set, sink.count, sink.cs, npix, &local, err)))
-		goto out;
-	const char *files[4] = {out_hdr, conf_path, mask_path, png_path};
-	if ((rc = ap_write_labels_json(json_path, set, copt, src, opt, info, files, &local, err)))
-		goto out;
-	ap_written_add(&done, json_path);
-	if ((rc = ap_write_preview(png_path, set, sink.preview, sink.pw, sink.ph, &local,
-	                           !copt->preview_no_legend, err)))
-		goto out;
-	ap_written_add(&done, png_path);
+	ap_written_add(&call.done, call.json_path);
+	rc = ap_call_preview(&call, set, sink.preview, sink.pw, sink.ph, !copt->preview_no_legend,
+	                     err);
 
 out:
-	for (int i = 0; i < 3; i++)
-		if (ws[i])
-			kg_envi_writer_abort(&ws[i]);
-	ap_written_clear(&done, rc != 0);
-	if (rc == 0 && res)
-		*res = local;
-	else
-		kg_classify_result_free(&local);
+	ap_call_cleanup(&call, rc, res);
 	kg_est_classifier_free(&cls);
 	cls_sink_free(&sink);
-	free(conf_path);
-	free(mask_path);
-	free(json_path);
-	free(png_path);
 	return rc;
 }

@@ -160,15 +160,11 @@ int kg_estimate_rows(const kg_est_kernel *k, const kg_row_source *src, kg_est_fo
 	const char *band_names[KG_EST_MAX_K];
 	char band_text[KG_EST_MAX_K][16];
 	kg_envi_pair extra[4];
-	kg_envi_meta m = {0};
-	m.samples = src->width;
-	m.lines = src->height;
-	m.bands = kg_est_format_bands(k, format);
-	m.interleave = (format == KG_EST_F32_BSQ || format == KG_EST_F16_BSQ) ? KG_ENVI_BSQ
-	                                                                      : KG_ENVI_BIP;
-	m.data_type = (format == KG_EST_F16_BSQ || format == KG_EST_F16_BIP) ? KG_ENVI_U16
-	                                                                     : KG_ENVI_F32;
-	m.description = opt->description;
+	kg_envi_meta m = ap_envi_meta(
+		src->width, src->height, kg_est_format_bands(k, format),
+		(format == KG_EST_F16_BSQ || format == KG_EST_F16_BIP) ? KG_ENVI_U16 : KG_ENVI_F32,
+		(format == KG_EST_F32_BSQ || format == KG_EST_F16_BSQ) ? KG_ENVI_BSQ : KG_ENVI_BIP,
+		opt->description);
 	m.extra = extra;
 	if (format == KG_EST_WEIGHTS) {
 		if ((rc = basis_keys(k, extra, owned, err)))

@@ -87,6 +87,19 @@ int ap_put_bytes(kg_envi_writer *w, staging *s, const kg_est_block *b, const uin
 	return kg_envi_writer_put(w, b->y0, b->y0 + b->rows, KG_LAYOUT_BIP, v, err);
 }
 
+kg_envi_meta ap_envi_meta(int width, int height, int bands, enum kg_envi_type type,
+                          enum kg_envi_interleave interleave, const char *description)
+{
+	kg_envi_meta m = {0};
+	m.samples = width;
+	m.lines = height;
+	m.bands = bands;
+	m.data_type = type;
+	m.interleave = interleave;
+	m.description = description;
+	return m;
+}
+
 static const char mask_description[] =
 	"kogei pixel flags (bits): 1 = an input channel is NaN or Inf; 2 = clipped: a "
 	"channel >= the clip level; 4 = negative reflectance clamped to 0. A pixel with "
@@ -98,13 +111,8 @@ int ap_open_mask(const char *out_hdr, int width, int height, char **mask_path,
 	int rc = kg_apply_side_path(out_hdr, "_mask.hdr", mask_path, err);
 	if (rc)
 		return rc;
-	kg_envi_meta m = {0};
-	m.samples = width;
-	m.lines = height;
-	m.bands = 1;
-	m.data_type = KG_ENVI_U8;
-	m.interleave = KG_ENVI_BSQ;
-	m.description = mask_description;
+	kg_envi_meta m =
+		ap_envi_meta(width, height, 1, KG_ENVI_U8, KG_ENVI_BSQ, mask_description);
 	return kg_envi_writer_open(*mask_path, &m, w, err); /* its messages name the file */
 }
 
@@ -112,13 +120,8 @@ int ap_open_floats(const char *path, int width, int height, int bands,
                    const char *description, const char *const *band_names,
                    kg_envi_writer **w, kg_err *err)
 {
-	kg_envi_meta m = {0};
-	m.samples = width;
-	m.lines = height;
-	m.bands = bands;
-	m.data_type = KG_ENVI_F32;
-	m.interleave = KG_ENVI_BIP;
-	m.description = description;
+	kg_envi_meta m =
+		ap_envi_meta(width, height, bands, KG_ENVI_F32, KG_ENVI_BIP, description);
 	m.band_names = band_names;
 	return kg_envi_writer_open(path, &m, w, err);
 }
@@ -136,13 +139,8 @@ int ap_open_label_map(const char *path, int width, int height,
 		ap_label_colour(classes, l, lookup + 3 * l);
 	}
 	if (!rc) {
-		kg_envi_meta m = {0};
-		m.samples = width;
-		m.lines = height;
-		m.bands = 1;
-		m.data_type = KG_ENVI_U8;
-		m.interleave = KG_ENVI_BSQ;
-		m.description = description;
+		kg_envi_meta m =
+			ap_envi_meta(width, height, 1, KG_ENVI_U8, KG_ENVI_BSQ, description);
 		m.classes = nlabels;
 		m.class_names = names;
 		m.class_lookup = lookup;

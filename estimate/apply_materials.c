@@ -24,19 +24,6 @@ void kg_est_material_set_free(kg_est_material_set **pset)
 	*pset = NULL;
 }
 
-static void list_library(const kg_material_library *lib, char *buf, size_t size)
-{
-	size_t used = 0;
-	buf[0] = '\0';
-	for (int i = 0; i < kg_material_library_count(lib) && used + 1 < size; i++) {
-		int w = snprintf(buf + used, size - used, "%s%s", i ? ", " : "",
-		                 kg_material_library_get(lib, i)->name);
-		if (w < 0)
-			break;
-		used += (size_t)w;
-	}
-}
-
 int kg_est_material_set_new(const kg_material_library *lib, const char *library,
                             const char *const *only, int nonly, double angle_deg,
                             kg_est_material_set **out, kg_err *err)
@@ -49,7 +36,7 @@ int kg_est_material_set_new(const kg_material_library *lib, const char *library,
 		               library, angle_deg);
 	int n = nonly ? nonly : kg_material_library_count(lib);
 	char known[1024];
-	list_library(lib, known, sizeof(known));
+	kg_material_library_names(lib, known, sizeof(known));
 	if (n < 1)
 		return kg_fail(err, KG_EINVAL, "%s: no materials to classify among", library);
 	if (n > KG_EST_MAX_MATERIALS)

@@ -72,6 +72,9 @@ void ap_written_clear(written *w, int remove);
 int ap_finish_all(kg_envi_writer **ws, const char *const *paths, int n, written *done, kg_err *err);
 float *ap_staging_get(staging *s, size_t n, kg_err *err);
 int ap_put_bytes(kg_envi_writer *w, staging *s, const kg_est_block *b, const uint8_t *src, kg_err *err);
+/* The size, type, interleave and description of an ENVI file; the rest 0. */
+kg_envi_meta ap_envi_meta(int width, int height, int bands, enum kg_envi_type type,
+                          enum kg_envi_interleave interleave, const char *description);
 /* A float32 BIP cube of `bands` bands (its writer). */
 int ap_open_floats(const char *path, int width, int height, int bands, const char *description, const char *const *band_names, kg_envi_writer **w, kg_err *err);
 /* A uint8 ENVI Classification map of classes (unclassified, the classes, unknown,
@@ -141,5 +144,46 @@ int ap_write_labels_json(const char *path, const kg_est_material_set *set,
                          const kg_classify_options *copt, const kg_row_source *img,
                          const kg_apply_options *opt, const kg_classify_info *info,
                          const char *const files[4], const kg_classify_result *res, kg_err *err);
+
+/* ---- one classification call (apply_call.c) ---------------------------------------- */
+
+/* What kg_classify_rows and kg_classify_camera_rows hold alike: the default options,
+ * the writers of the label map, its confidence, its mask and one more, the side files,
+ * the files in place so far and the result. */
+typedef struct classify_call {
+	kg_apply_options opt_default;
+	kg_classify_options copt_default;
+	kg_envi_writer *ws[4]; /* label map, confidence, mask, one more or NULL */
+	const char *paths[4];  /* their headers */
+	int nws;
+	char *conf_path, *mask_path, *json_path, *png_path;
+	written done;
+	kg_classify_result local;
+} classify_call;
+
+/* Clear c, point a NULL *opt or *copt at the defaults, clear *res (if given). */
+void ap_call_begin(classify_call *c, const char *out_hdr, const kg_apply_options **opt,
+                   const kg_classify_options **copt, kg_classify_result *res);
+/* The confidence's, LABELS.json's and the preview's names; the last two writable. */
+int ap_call_paths(classify_call *c, const char *out_hdr, kg_err *err);
+/* Open the label map of classes, the confidence cube (bands) and the mask. */
+int ap_call_open(classify_call *c, const char *out_hdr, int width, int height,
+                 const kg_est_material_set *classes, const char *description, int bands,
+                 const char *conf_description, const char *const *band_names, kg_err *err);
+/* Stream job into sink, refuse an image with nothing estimable, finish the writers. */
+int ap_call_stream(classify_call *c, const kg_est_job *job, int width, int height,
+                   kg_est_sink_fn sink, void *user, const feed *in, const char *out_hdr,
+                   kg_err *err);
+/* Pass 2 of the margins (band 0 of the confidence's bands) and the classes' summary. */
+int ap_call_summary(classify_call *c, const kg_est_kernel *k,
+                    const kg_est_material_set *classes, const uint64_t *count,
+                    class_stats *cs, const char *out_hdr, int bands, int width, int height,
+                    kg_err *err);
+/* The preview PNG, with its legend or not. */
+int ap_call_preview(classify_call *c, const kg_est_material_set *classes,
+                    const uint8_t *preview, int pw, int ph, int legend, kg_err *err);
+/* Abort what is unfinished, remove the files of a failed call (rc != 0), hand the
+ * result to res on success (freed otherwise) and free the names. */
+void ap_call_cleanup(classify_call *c, int rc, kg_classify_result *res);
 
 #endif

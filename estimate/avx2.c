@@ -375,6 +375,24 @@ AVX2 static void store_bsq(const est_plan *p, const est_scratch *s, size_t m,
  * and groups of 32 pixels with every band written at once (61 planes touched 128
  * bytes at a time). The clamped bands are counted per pixel in s->cell (LUT scratch,
  * unused by matrix kernels), which gives both the mask bit and the clamped values. */
+/* One band's value at 8 pixels from i: off + sum of coef[t] terms[t], negatives
+ * clamped to 0 and counted per lane in cnt (when clamp). */
+INLINE_AVX2 __m256 bsq_vector(const int nt, const __m256 *coef, __m256 off,
+                              const float *terms, size_t i, int32_t *cnt, const int clamp)
+{
+	__m256 acc = off;
+#pragma GCC unroll 16
+	for (int t = 0; t < nt; t++)
+		acc = _mm256_fmadd_ps(coef[t], _mm256_load_ps(terms + t * EST_TSTRIDE + i), acc);
+	if (clamp) {
+		__m256 lt = _mm256_cmp_ps(acc, _mm256_setzero_ps(), _CMP_LT_OQ);
+		acc = clamp_negative(acc);
+		__m256i *q = (__m256i *)(cnt + i);
+		_mm256_store_si256(q, _mm256_sub_epi32(_mm256_load_si256(q), _mm256_castps_si256(lt)));
+	}
+	return acc;
+}
+
 /* One band's values for pixels [0, mfull) (whole vectors) into its plane; the
  * store kind and the clamp are constants, so that each combination gets its own
  * branch-free loop. */
@@ -382,18 +400,8 @@ INLINE_AVX2 void bsq_band(const int nt, const __m256 *coef, __m256 off, const fl
                           size_t mfull, void *dst, int32_t *cnt, const int half,
                           const int stream, const int clamp)
 {
-	const __m256 zero = _mm256_setzero_ps();
 	for (size_t i = 0; i < mfull; i += 8) {
-		__m256 acc = off;
-#pragma GCC unroll 16
-		for (int t = 0; t < nt; t++)
-			acc = _mm256_fmadd_ps(coef[t], _mm256_load_ps(terms + t * EST_TSTRIDE + i), acc);
-		if (clamp) {
-			__m256 lt = _mm256_cmp_ps(acc, zero, _CMP_LT_OQ);
-			acc = clamp_negative(acc);
-			__m256i *q = (__m256i *)(cnt + i);
-			_mm256_store_si256(q, _mm256_sub_epi32(_mm256_load_si256(q), _mm256_castps_si256(lt)));
-		}
+		__m256 acc = bsq_vector(nt, coef, off, terms, i, cnt, clamp);
 		if (half) {
 			__m128i h = _mm256_cvtps_ph(acc, _MM_FROUND_TO_NEAREST_INT);
 			if (stream)
@@ -415,7 +423,6 @@ INLINE_AVX2 void matrix_bsq_nt(const est_plan *p, const int nt, est_scratch *s, 
 	const int nb = mp->nb, clamp = mp->clamp, half = p->format == KG_EST_F16_BSQ;
 	const float *a8 = mp->a8, *off8 = mp->off8, *terms = s->terms;
 	int32_t *cnt = s->cell;
-	const __m256 zero = _mm256_setzero_ps();
 	const size_t mv = (m + 7) & ~(size_t)7, mfull = m & ~(size_t)7;
 	if (clamp)
 		memset(cnt, 0, mv * sizeof(int32_t));
@@ -439,15 +446,7 @@ INLINE_AVX2 void matrix_bsq_nt(const est_plan *p, const int nt, est_scratch *s, 
 		}
 		if (mfull < m) { /* the last, partial vector through a small buffer */
 			size_t i = mfull;
-			__m256 acc = off;
-			for (int t = 0; t < nt; t++)
-				acc = _mm256_fmadd_ps(coef[t], _mm256_load_ps(terms + t * EST_TSTRIDE + i), acc);
-			if (clamp) {
-				__m256 lt = _mm256_cmp_ps(acc, zero, _CMP_LT_OQ);
-				acc = clamp_negative(acc);
-				__m256i *q = (__m256i *)(cnt + i);
-				_mm256_store_si256(q, _mm256_sub_epi32(_mm256_load_si256(q), _mm256_castps_si256(lt)));
-			}
+			__m256 acc = bsq_vector(nt, coef, off, terms, i, cnt, clamp);
 			if (half) {
 				uint16_t tmp[8];
 				_mm_storeu_si128((__m128i *)tmp, _mm256_cvtps_ph(acc, _MM_FROUND_TO_NEAREST_INT));

@@ -122,6 +122,37 @@ typedef struct survey_result {
 	double calib_share;
 } survey_result;
 
+/* One call of kg_classify_camera_rows: its inputs, what its stages make, its files. */
+typedef struct cam_call {
+	const kg_est_kernel *k;
+	const kg_est_material_set *set;
+	const kg_classify_camera *cam;
+	const kg_row_source *src;
+	const kg_apply_options *opt;
+	const kg_classify_options *copt;
+	const kg_classify_info *info;
+	const char *out_hdr;
+	double merge_d;              /* the merge distance in force */
+	cam_run run;
+	kg_cs_model *model, *metals; /* metals: NULL without composition */
+	survey_result sv;
+	double *sep;                 /* nm x nm separabilities at the survey's noise */
+	kg_est_material_set classes; /* the label map's classes */
+	cam_sink sink;
+	classify_call files;
+	char *reg_path, *csv_path;   /* the region map and table */
+} cam_call;
+
+/* Stages of the call before the run (labels_cam_setup.c). */
+int lc_check_inputs(const cam_call *c, kg_err *err);
+/* The feed and the noise of c->run, the materials' kinds and the white's reading. */
+int lc_run_init(cam_call *c, kg_err *err);
+/* The materials' model and, with the three pure metals, theirs and the gold range. */
+int lc_models_new(cam_call *c, kg_err *err);
+/* Materials closer than the merge distance (c->sep) joined into the classes. */
+int lc_classes_new(cam_call *c, kg_err *err);
+void lc_classes_free(kg_est_material_set *classes);
+
 static inline double exp_or_zero(double arg) { return arg <= -750.0 ? 0.0 : exp(arg); }
 
 /* nz->P from nz->M2 */

@@ -90,14 +90,9 @@ int lc_write_region_map(regions *g, const kg_est_material_set *classes,
 	if (rc)
 		return rc;
 	const int H = el->meta.lines;
-	kg_envi_meta m = {0};
-	m.samples = W;
-	m.lines = H;
-	m.bands = 1;
-	m.data_type = KG_ENVI_U32;
-	m.interleave = KG_ENVI_BSQ;
-	m.description = "kogei classify regions: region number per pixel (0: none), as in "
-	                "the regions table";
+	kg_envi_meta m = ap_envi_meta(W, H, 1, KG_ENVI_U32, KG_ENVI_BSQ,
+	                              "kogei classify regions: region number per pixel (0: "
+	                              "none), as in the regions table");
 	float *lab = malloc(sizeof(float) * W), *out = malloc(sizeof(float) * W);
 	uint8_t *lab8 = malloc((size_t)W);
 	run_seg *a = malloc(sizeof(run_seg) * ((size_t)W + 1));

@@ -248,6 +248,9 @@ void kg_material_library_free(kg_material_library **lib);
 int kg_material_library_count(const kg_material_library *lib);
 /* Entry i (0 <= i < count) in file order, NULL otherwise. */
 const kg_material *kg_material_library_get(const kg_material_library *lib, int i);
+/* The entries' names as "a, b, c" in buf (size bytes, cut short where they do not
+ * fit), for messages. */
+void kg_material_library_names(const kg_material_library *lib, char *buf, size_t size);
 /* The entry with that name, or NULL. */
 const kg_material *kg_material_library_find(const kg_material_library *lib,
                                             const char *name);

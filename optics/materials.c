@@ -1,5 +1,6 @@
 /* Materials (metal, alloy, lacquer) and the JSON material library. */
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -206,6 +207,18 @@ int kg_material_library_count(const kg_material_library *lib)
 const kg_material *kg_material_library_get(const kg_material_library *lib, int i)
 {
 	return lib && i >= 0 && i < lib->n ? &lib->m[i] : NULL;
+}
+
+void kg_material_library_names(const kg_material_library *lib, char *buf, size_t size)
+{
+	size_t used = 0;
+	buf[0] = '\0';
+	for (int i = 0; i < kg_material_library_count(lib) && used + 1 < size; i++) {
+		int w = snprintf(buf + used, size - used, "%s%s", i ? ", " : "", lib->m[i].name);
+		if (w < 0)
+			break;
+		used += (size_t)w;
+	}
 }
 
 const kg_material *kg_material_library_find(const kg_material_library *lib, const char *name)

@@ -64,37 +64,17 @@ int kg_render_truth_write_labels(const kg_render_truth *t, const char *hdr_path,
 	kg_check_arg(t && hdr_path && t->nclasses >= 1 && t->nclasses <= 256, err);
 	size_t npix = (size_t)t->width * (size_t)t->height;
 	float *labels = malloc(npix * sizeof(*labels));
-	unsigned char *lookup = malloc((size_t)t->nclasses * 3);
-	int ret = 0;
-	if (!labels || !lookup)
-		ret = kg_fail(err, KG_ENOMEM, "%s: out of memory", hdr_path);
-	for (size_t p = 0; !ret && p < npix; p++)
+	if (!labels)
+		return kg_fail(err, KG_ENOMEM, "%s: out of memory", hdr_path);
+	for (size_t p = 0; p < npix; p++)
 		labels[p] = (float)t->label[p];
 	/* background black, the materials in the plots' qualitative colours (as sim/'s
 	 * label maps) */
-	if (!ret) {
-		memset(lookup, 0, 3);
-		for (int k = 1; k < t->nclasses; k++) {
-			double rgb[3];
-			kg_series_colour(k - 1, rgb);
-			for (int c = 0; c < 3; c++)
-				lookup[3 * k + c] = (unsigned char)lrint(fmin(fmax(rgb[c], 0.0), 1.0) * 255.0);
-		}
-		kg_envi_meta meta = {
-		    .samples = t->width,
-		    .lines = t->height,
-		    .bands = 1,
-		    .data_type = KG_ENVI_U8,
-		    .interleave = KG_ENVI_BSQ,
-		    .description = "kogei render: library material of the primary hit of each pixel",
-		    .classes = t->nclasses,
-		    .class_names = (const char *const *)t->class_names,
-		    .class_lookup = lookup,
-		};
-		ret = kg_envi_write(hdr_path, &meta, KG_LAYOUT_BIP, labels, err);
-	}
+	int ret = kg_envi_write_label_map(
+		hdr_path, t->width, t->height, labels, t->nclasses,
+		(const char *const *)t->class_names,
+		"kogei render: library material of the primary hit of each pixel", err);
 	free(labels);
-	free(lookup);
 	return ret;
 }
 

@@ -19,20 +19,6 @@ void kg_sim_material_set_free(kg_sim_material_set **ps)
 	*ps = NULL;
 }
 
-/* The library's names as "a, b, c" for messages. */
-static void known_names(const kg_material_library *lib, char *buf, size_t len)
-{
-	size_t used = 0;
-	buf[0] = '\0';
-	for (int i = 0; i < kg_material_library_count(lib) && used < len; i++) {
-		int w = snprintf(buf + used, len - used, "%s%s", i ? ", " : "",
-		                 kg_material_library_get(lib, i)->name);
-		if (w < 0)
-			break;
-		used += (size_t)w;
-	}
-}
-
 /* Split `only` at commas into the materials to take (blanks around names ignored). */
 static int select_materials(const kg_material_library *lib, const char *library_path,
                             const char *only, const kg_material ***sel, int *n, kg_err *err)
@@ -74,7 +60,7 @@ static int select_materials(const kg_material_library *lib, const char *library_
 		const kg_material *m = kg_material_library_find(lib, tok);
 		if (!m) {
 			char names[768];
-			known_names(lib, names, sizeof(names));
+			kg_material_library_names(lib, names, sizeof(names));
 			ret = kg_fail(err, KG_EINVAL, "%s: no material '%s' (--only); expected one of: %s",
 			              library_path, tok, names);
 			break;

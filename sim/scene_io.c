@@ -92,36 +92,15 @@ int kg_sim_scene_write_labels(const kg_sim_scene *s, const char *hdr_path, kg_er
 		               hdr_path, s->nclasses);
 	size_t npix = (size_t)s->width * (size_t)s->height;
 	float *labels = malloc(npix * sizeof(*labels));
-	unsigned char *lookup = malloc((size_t)s->nclasses * 3);
-	if (!labels || !lookup) {
-		free(labels);
-		free(lookup);
+	if (!labels)
 		return kg_fail(err, KG_ENOMEM, "%s: out of memory", hdr_path);
-	}
 	for (size_t p = 0; p < npix; p++)
 		labels[p] = (float)s->label[p];
 	/* Unclassified black, the rest in the plots' qualitative colours. */
-	memset(lookup, 0, 3);
-	for (int k = 1; k < s->nclasses; k++) {
-		double rgb[3];
-		kg_series_colour(k - 1, rgb);
-		for (int c = 0; c < 3; c++)
-			lookup[3 * k + c] = (unsigned char)lrint(fmin(fmax(rgb[c], 0.0), 1.0) * 255.0);
-	}
-	kg_envi_meta meta = {
-	    .samples = s->width,
-	    .lines = s->height,
-	    .bands = 1,
-	    .data_type = KG_ENVI_U8,
-	    .interleave = KG_ENVI_BSQ,
-	    .description = "kogei sim: true material of each pixel",
-	    .classes = s->nclasses,
-	    .class_names = (const char *const *)s->class_names,
-	    .class_lookup = lookup,
-	};
-	int ret = kg_envi_write(hdr_path, &meta, KG_LAYOUT_BIP, labels, err);
+	int ret = kg_envi_write_label_map(hdr_path, s->width, s->height, labels, s->nclasses,
+	                                  (const char *const *)s->class_names,
+	                                  "kogei sim: true material of each pixel", err);
 	free(labels);
-	free(lookup);
 	return ret;
 }
 
