@@ -433,10 +433,10 @@ static void test_tiff_two_readers(void)
 		kg_image *img = NULL;
 		kg_image_rows *r = NULL;
 		kg_err err = {{0}};
-		CHECK(kg_image_read(io_path(t[i].name), &img, &err) == 0 && img &&
+		CHECK(kg_image_read(kg_test_path(t[i].name), &img, &err) == 0 && img &&
 		          img->width == (int)w && img->height == (int)h,
 		      "%s: read whole: %s", t[i].name, err.msg);
-		CHECK(kg_image_rows_open(io_path(t[i].name), &r, &err) == 0, "%s: rows: %s",
+		CHECK(kg_image_rows_open(kg_test_path(t[i].name), &r, &err) == 0, "%s: rows: %s",
 		      t[i].name, err.msg);
 		float *row = malloc(sizeof(float) * w);
 		long differ = 0, ramp = 0;
@@ -455,7 +455,7 @@ static void test_tiff_two_readers(void)
 		free(row);
 		kg_image_rows_free(&r);
 		kg_image_free(&img);
-		remove(io_path(t[i].name));
+		remove(kg_test_path(t[i].name));
 	}
 }
 
