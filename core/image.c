@@ -1132,6 +1132,16 @@ static int tiff_read_split(kg_image_rows *r, const char *path, float *data, int 
 	kg_err e2 = {{0}};
 	if (rows_open_kind(path, KIND_TIFF, NULL, &r2, &e2))
 		return 0; /* read by one reader, which reports what is wrong */
+	const kg_image *h2 = r2->head;
+	if (h2->width != h->width || h2->height != h->height || h2->channels != h->channels ||
+	    h2->bits != h->bits || h2->is_float != h->is_float || r2->spp != r->spp ||
+	    r2->separate != r->separate || r2->invert != r->invert || r2->tiled != r->tiled ||
+	    r2->tw != r->tw || r2->th != r->th) {
+		/* the file changed between the two opens: never decode the second handle's
+		 * bands into a buffer sized by the first */
+		kg_image_rows_free(&r2);
+		return 0;
+	}
 	struct band_job jobs[2] = {{r, data, 0, bands / 2, 0, {{0}}},
 	                           {r2, data, bands / 2, bands, 0, {{0}}}};
 	pthread_t tid;
