@@ -273,6 +273,7 @@ int kg_chart_detect(const kg_chart_layout *l, const kg_image *img,
 		               "0..1), trim %g (0..0.5), decimate %d (>= 0) or min tags %d (>= 0) "
 		               "out of range", opt.sample_fraction, opt.trim, opt.decimate,
 		               opt.min_tags);
+	const kg_chart_detect_options asked = opt; /* before the defaults below fill it in */
 	/* min_tags 0: the default of 2 tags, with the ColorChecker fallback. */
 	int fallback = opt.min_tags == 0;
 	if (fallback)
@@ -296,16 +297,16 @@ int kg_chart_detect(const kg_chart_layout *l, const kg_image *img,
 		return kg_fail(err, KG_ENOMEM, "out of memory");
 	}
 	snprintf(r->layout, sizeof(r->layout), "%s", l->name);
+	/* OpenCV's colour tables, which mcc builds on its first call in a process, built on
+	 * another thread while the image is prepared and the tags looked for (joined at
+	 * the end, on every path from here) */
+	kg_chart_warm_up(l, &asked);
 	double tp = chart_now_seconds();
 	ret = chart_prepare_image(img, &opt, &wi, err);
 	r->prepare_seconds = chart_now_seconds() - tp;
 	if (ret)
 		goto fail;
 	int tagless = opt.tagless || l->ntags == 0;
-	/* OpenCV's colour tables, which mcc builds on its first call in a process, built on
-	 * another thread while the image is prepared and the tags looked for */
-	if (tagless || (fallback && chart_tagless_fallback(l, r, KG_ENOENT)))
-		chart_tagless_warm_up();
 	if (!tagless) {
 		kg_err tag_err = {{0}};
 		ret = chart_detect_with_tags(&L, &wi, &opt, r, &tag_err);
@@ -338,14 +339,14 @@ int kg_chart_detect(const kg_chart_layout *l, const kg_image *img,
 		ret = kg_fail(err, ret, "out of memory");
 		goto fail;
 	}
-	chart_tagless_warm_wait();
+	kg_chart_warm_wait(); /* no thread may be left inside OpenCV when detection returns */
 	r->total_seconds = chart_now_seconds() - t0;
 	chart_image_free(&wi);
 	layout_arrays_free(&arrays);
 	*out = r;
 	return 0;
 fail:
-	chart_tagless_warm_wait();
+	kg_chart_warm_wait();
 	if (ret == KG_ENOENT && opt.keep_refused) {
 		kg_err sat_err = {{0}};
 		if (!chart_image_levels(&wi, &sat_err))

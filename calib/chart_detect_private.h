@@ -173,11 +173,6 @@ int chart_sample_all(const layout_view *L, const work_image *wi,
 int chart_detect_tagless(const kg_chart_layout *l, const layout_view *L, work_image *wi,
                          const kg_chart_detect_options *opt, kg_chart_result *r, kg_err *err);
 int chart_tagless_fallback(const kg_chart_layout *l, const kg_chart_result *r, int ret);
-/* What OpenCV builds on mcc's first call in a process, built on a thread of its own
- * (kg_mcc_warm_up; nothing without mcc). */
-void chart_tagless_warm_up(void);
-/* joins the warm-up thread: no thread may be left inside OpenCV when detection returns */
-void chart_tagless_warm_wait(void);
 #if KG_HAVE_MCC
 int chart_colorchecker24_patches(const kg_chart_layout *l, int idx[24]);
 void chart_mcc24_box_mm(const layout_view *L, const int idx[24], double box[4][2]);

@@ -346,20 +346,6 @@ int chart_detect_tagless(const kg_chart_layout *l, const layout_view *L, work_im
 }
 #endif
 
-void chart_tagless_warm_up(void)
-{
-#if KG_HAVE_MCC
-	kg_mcc_warm_up();
-#endif
-}
-
-void chart_tagless_warm_wait(void)
-{
-#if KG_HAVE_MCC
-	kg_mcc_warm_wait();
-#endif
-}
-
 void kg_chart_warm_up(const kg_chart_layout *l, const kg_chart_detect_options *opt)
 {
 #if KG_HAVE_MCC
@@ -377,7 +363,9 @@ void kg_chart_warm_up(const kg_chart_layout *l, const kg_chart_detect_options *o
 
 void kg_chart_warm_wait(void)
 {
-	chart_tagless_warm_wait();
+#if KG_HAVE_MCC
+	kg_mcc_warm_wait();
+#endif
 }
 
 /* No tags seen at all: a ColorChecker may still be in view without its frame. */
