@@ -1,13 +1,15 @@
 /* Chart detection: AprilTag fiducials (libapriltag) give points whose positions on the
  * chart are known; a homography mm -> px fitted to all of them (chart_homography.c)
  * places every patch; each patch is sampled over an inner region with robust
- * statistics (chart_sample.c). Tagless ColorCheckers go through OpenCV's mcc detector
- * (chart_tagless.c) when it is available. This file holds the options, the results
- * and kg_chart_detect, which runs the stages:
+ * statistics (chart_sample.c). Tagless ColorCheckers go through the patch-grid finder
+ * and OpenCV's mcc detector (chart_tagless.c) when mcc is available. This file holds
+ * the options, the results and kg_chart_detect, which runs the stages:
  *   chart_image.c      the image as the stages see it (raw frames demosaiced on demand), threads
  *   chart_grey.c       the white level and the 8-bit grey picture of the tag detector
  *   chart_tags.c       AprilTags: detection, choice of one chart's tags, the homography
- *   chart_tagless.c    ColorChecker 24 without tags: OpenCV mcc's box, its four turns
+ *   chart_tagless.c    ColorChecker 24 without tags: a box, its four turns
+ *   chart_grid.c       the patch-grid finder's box (on the reduced copy, tried first)
+ *   chart_mcc.cpp      OpenCV mcc's box
  *   chart_orient.c     which turn: the patches' colours against the ColorChecker's
  *   chart_refine.c     mcc's box from a reduced copy refined on the patch edges
  *   chart_sample.c     each patch's pixels; chart_select.c and chart_count.c their statistics
@@ -299,8 +301,9 @@ int kg_chart_detect(const kg_chart_layout *l, const kg_image *img,
 	snprintf(r->layout, sizeof(r->layout), "%s", l->name);
 	/* OpenCV's colour tables, which mcc builds on its first call in a process, built on
 	 * another thread while the image is prepared and the tags looked for (joined at
-	 * the end, on every path from here) */
-	kg_chart_warm_up(l, &asked);
+	 * the end, on every path from here), when mcc is what the tagless detector would
+	 * try first */
+	chart_tagless_warm_up(l, &asked, img->width, img->height);
 	double tp = chart_now_seconds();
 	ret = chart_prepare_image(img, &opt, &wi, err);
 	r->prepare_seconds = chart_now_seconds() - tp;

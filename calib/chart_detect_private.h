@@ -173,6 +173,10 @@ int chart_sample_all(const layout_view *L, const work_image *wi,
 int chart_detect_tagless(const kg_chart_layout *l, const layout_view *L, work_image *wi,
                          const kg_chart_detect_options *opt, kg_chart_result *r, kg_err *err);
 int chart_tagless_fallback(const kg_chart_layout *l, const kg_chart_result *r, int ret);
+/* kg_chart_warm_up when the tagless detector would start with mcc on an image of
+ * width x height (one too small for the patch-grid finder's reduced copy). */
+void chart_tagless_warm_up(const kg_chart_layout *l, const kg_chart_detect_options *opt,
+                           int width, int height);
 #if KG_HAVE_MCC
 int chart_colorchecker24_patches(const kg_chart_layout *l, int idx[24]);
 void chart_mcc24_box_mm(const layout_view *L, const int idx[24], double box[4][2]);
@@ -181,6 +185,12 @@ void chart_samples_free(kg_chart_sample *p, int n);
 double chart_orientation_score(const kg_chart_sample *p, const int idx[24], int *used);
 double chart_colour_spread(const kg_chart_sample *p, const int idx[24]);
 float *chart_decimate_image(const work_image *wi, int f, int *w, int *h);
+/* chart_grid.c: up to max boxes (as chart_mcc24_box_mm's, in px of img) of 6 x 4 grids
+ * of uniform patches in img (w x h x C floats, white its white level), the most
+ * patches first; costs: the patch centres' RMS off the grid in pitches; counts: the
+ * patches found of 24. The number found. */
+int chart_grid_find(const float *img, int w, int h, int C, double white, int max,
+                    double (*boxes)[4][2], double *costs, int *counts);
 int chart_refine_on_edges(const work_image *wi, const layout_view *L, const int idx[24],
                           double white, double H[9], double *rms);
 #endif

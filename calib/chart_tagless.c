@@ -18,9 +18,59 @@
 
 static int tagless_box(const kg_chart_layout *l, const layout_view *L, work_image *wi,
                        const kg_chart_detect_options *opt, const int idx[24],
-                       const double box_in[4][2], double cost, int f, int small_w,
-                       int small_h, double white, int turns_too, kg_chart_result *r,
-                       kg_err *err);
+                       const double box_in[4][2], double cost, int grid_patches, int f,
+                       int small_w, int small_h, double white, int turns_too,
+                       kg_chart_result *r, kg_err *err);
+
+/* The reduction of the copy the tagless detector looks at first: about 1000 px on the
+ * longer side (opt->tagless_decimate when set), 1 when the image is too small. */
+static int tagless_reduction(int width, int height, const kg_chart_detect_options *opt)
+{
+	int big = width > height ? width : height;
+	int f = opt->tagless_decimate > 0 ? opt->tagless_decimate : big / 1000;
+	while (f > 1 && (width / f < MCC_MIN_SIDE || height / f < MCC_MIN_SIDE))
+		f--;
+	return f;
+}
+
+/* The patch-grid finder's boxes on the reduced copy (chart_grid.c), each tried as
+ * mcc's would be: 0 with the chart in r when one reads as the layout; KG_ENOENT, with
+ * r as it was, when none does (mcc looks next); another code on failure. */
+static int tagless_grid(const kg_chart_layout *l, const layout_view *L, work_image *wi,
+                        const kg_chart_detect_options *opt, const int idx[24],
+                        const float *small, int f, int small_w, int small_h, double white,
+                        kg_chart_result *r, kg_err *err)
+{
+	double boxes[MCC_CANDIDATES][4][2], costs[MCC_CANDIDATES];
+	int counts[MCC_CANDIDATES];
+	double t0 = chart_now_seconds();
+	int n = chart_grid_find(small, small_w, small_h, wi->channels, white, MCC_CANDIDATES,
+	                        boxes, costs, counts);
+	r->tag_seconds += chart_now_seconds() - t0;
+	int ncand = r->ncandidates, ret;
+	if (n && (ret = chart_image_levels(wi, err)))
+		return ret;
+	for (int b = 0; b < n; b++) {
+		for (int k = 0; k < 4; k++)
+			for (int c = 0; c < 2; c++)
+				boxes[b][k][c] *= f;
+		kg_err box_err = {{0}};
+		ret = tagless_box(l, L, wi, opt, idx, boxes[b], costs[b], counts[b], f, small_w,
+		                  small_h, white, 0, r, &box_err);
+		if (ret == 0) {
+			r->tagless_grid = 1;
+			return 0;
+		}
+		/* not this one: r as before it, for the next box or mcc */
+		chart_samples_free(r->patches, L->npatches);
+		r->patches = NULL;
+		r->npatches = 0;
+		r->ncandidates = ncand;
+		if (ret != KG_ENOENT)
+			return kg_fail(err, ret, "%s", box_err.msg);
+	}
+	return KG_ENOENT;
+}
 
 /* Find a ColorChecker 24 without tags: mcc gives the box around its patches; the
  * homography from the box in layout mm to the box in the image places the patches,
@@ -50,10 +100,7 @@ int chart_detect_tagless(const kg_chart_layout *l, const layout_view *L, work_im
 	r->searched[0][1] = r->searched[1][1] = 0;
 	r->searched[2][1] = r->searched[3][1] = wi->height;
 	r->has_searched = 1;
-	int big = wi->width > wi->height ? wi->width : wi->height, small_w = 0, small_h = 0;
-	int f = opt->tagless_decimate > 0 ? opt->tagless_decimate : big / 1000;
-	while (f > 1 && (wi->width / f < MCC_MIN_SIDE || wi->height / f < MCC_MIN_SIDE))
-		f--;
+	int small_w = 0, small_h = 0, f = tagless_reduction(wi->width, wi->height, opt);
 	r->prepare_seconds += chart_now_seconds() - t0;
 	if (f > 1) {
 		double t1 = chart_now_seconds();
@@ -62,6 +109,19 @@ int chart_detect_tagless(const kg_chart_layout *l, const layout_view *L, work_im
 			return kg_fail(err, KG_ENOMEM, "out of memory");
 		double t2 = chart_now_seconds();
 		r->prepare_seconds += t2 - t1;
+		/* the patch-grid finder first (--tagless-decimate 1 asks for mcc alone) */
+		ret = tagless_grid(l, L, wi, opt, idx, small, f, small_w, small_h, white, r, err);
+		if (ret != KG_ENOENT) {
+			free(small);
+			if (!ret) {
+				r->tagless = 1;
+				r->tagless_decimate = f;
+				r->decimate = 0;
+				r->rms_px = 0;
+			}
+			return ret;
+		}
+		t2 = chart_now_seconds();
 		kg_err small_err = {{0}};
 		ret = kg_mcc_find_colorcheckers(small, small_w, small_h, wi->channels, white,
 		                                opt->threads, MCC_CANDIDATES, boxes, costs, &nboxes,
@@ -108,7 +168,7 @@ int chart_detect_tagless(const kg_chart_layout *l, const layout_view *L, work_im
 	char first_msg[sizeof(err->msg)] = "";
 	for (int b = 0; b < nboxes; b++) {
 		kg_err box_err = {{0}};
-		ret = tagless_box(l, L, wi, opt, idx, boxes[b], costs[b], f, small_w, small_h,
+		ret = tagless_box(l, L, wi, opt, idx, boxes[b], costs[b], 0, f, small_w, small_h,
 		                  white, b == 0, r, &box_err);
 		if (ret == 0) {
 			chart_samples_free(first_patches, L->npatches);
@@ -152,9 +212,9 @@ int chart_detect_tagless(const kg_chart_layout *l, const layout_view *L, work_im
  * turns_too, added to r's candidates). */
 static int tagless_box(const kg_chart_layout *l, const layout_view *L, work_image *wi,
                        const kg_chart_detect_options *opt, const int idx[24],
-                       const double box_in[4][2], double cost, int f, int small_w,
-                       int small_h, double white, int turns_too, kg_chart_result *r,
-                       kg_err *err)
+                       const double box_in[4][2], double cost, int grid_patches, int f,
+                       int small_w, int small_h, double white, int turns_too,
+                       kg_chart_result *r, kg_err *err)
 {
 	double box_px[4][2], box_mm[4][2], edge_rms = 0;
 	int ret = 0, refined = 0;
@@ -320,13 +380,21 @@ static int tagless_box(const kg_chart_layout *l, const layout_view *L, work_imag
 	else if (f > 1)
 		snprintf(how, sizeof(how), " on a %d x %d copy averaged over %d x %d pixels (too few "
 		         "patch edges to refine it at full resolution)", small_w, small_h, f, f);
-	ret = chart_add_warning(r, "chart placed by the tagless detector (OpenCV mcc, fit cost "
-	                  "%.3g) from the 4 corners of its box%s, not by tags; orientation "
-	                  "chosen from the patches' colours (%d patches fitted to the layout's "
-	                  "through one 3 x 3 matrix, light level free): colour misfit %.3f, "
-	                  "next best of the 4 turns %.3f%s, %s mcc's own; row A01-A06 runs at "
-	                  "%.0f degrees clockwise from the image's x axis", cost, how, used[best],
-	                  score[best], next, sparse, best == 0 ? "agreeing with" : "overruling",
+	char source[160], own[40] = "";
+	if (grid_patches > 0)
+		snprintf(source, sizeof(source), "its patch-grid finder: %d of the 24 patches found "
+		         "as uniform regions on a 6 x 4 grid, RMS %.2g of a pitch off it",
+		         grid_patches, cost);
+	else
+		snprintf(source, sizeof(source), "OpenCV mcc, fit cost %.3g", cost);
+	if (grid_patches <= 0)
+		snprintf(own, sizeof(own), ", %s mcc's own", best == 0 ? "agreeing with" : "overruling");
+	ret = chart_add_warning(r, "chart placed by the tagless detector (%s) from the 4 corners "
+	                  "of its box%s, not by tags; orientation chosen from the patches' "
+	                  "colours (%d patches fitted to the layout's through one 3 x 3 matrix, "
+	                  "light level free): colour misfit %.3f, next best of the 4 turns "
+	                  "%.3f%s%s; row A01-A06 runs at %.0f degrees clockwise from the image's "
+	                  "x axis", source, how, used[best], score[best], next, sparse, own,
 	                  angle[best]);
 	return ret ? kg_fail(err, ret, "out of memory") : 0;
 }
@@ -358,6 +426,21 @@ void kg_chart_warm_up(const kg_chart_layout *l, const kg_chart_detect_options *o
 #else
 	(void)l;
 	(void)opt;
+#endif
+}
+
+void chart_tagless_warm_up(const kg_chart_layout *l, const kg_chart_detect_options *opt,
+                           int width, int height)
+{
+#if KG_HAVE_MCC
+	/* an image the patch-grid finder reads first may never need mcc */
+	if (opt && tagless_reduction(width, height, opt) <= 1)
+		kg_chart_warm_up(l, opt);
+#else
+	(void)l;
+	(void)opt;
+	(void)width;
+	(void)height;
 #endif
 }
 

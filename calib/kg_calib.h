@@ -580,11 +580,12 @@ typedef struct kg_chart_detect_options {
 	kg_chart_statistic statistic;
 	double trim;             /* trimmed mean: fraction cut at each end (0.1) */
 	const char *family;      /* tag family; NULL: the layout's */
-	int tagless;             /* 1: OpenCV mcc only (ColorChecker 24 / SG layouts) */
+	int tagless;             /* 1: the tagless detector only (ColorChecker 24 layouts) */
 	int tagless_decimate;    /* the tagless detector looks at an N x N box-averaged copy
-	                          * and its box is refined on the patch edges at full
-	                          * resolution; 1: mcc on the full image, no refinement;
-	                          * 0 (default): the longer side / 1000, at least 1 */
+	                          * (the patch-grid finder, then mcc) and its box is refined
+	                          * on the patch edges at full resolution; 1: mcc on the
+	                          * full image, no refinement; 0 (default): the longer
+	                          * side / 1000, at least 1 */
 	int min_tags;            /* fewest tags that place the chart; 0 (the default): 2,
 	                          * and a ColorChecker 24 layout with no tag in view falls
 	                          * back to the tagless detector; N > 0: N, no fallback */
@@ -680,7 +681,8 @@ typedef struct kg_chart_candidate {
 
 typedef struct kg_chart_result {
 	char layout[64];
-	int tagless;              /* found by OpenCV mcc, not by tags */
+	int tagless;              /* found by the tagless detector, not by tags */
+	int tagless_grid;         /* tagless: placed by its patch-grid finder, not OpenCV mcc */
 	int ntags;                /* every tag found, of the layout or not */
 	kg_chart_tag_found *tags;
 	int ntags_used;
@@ -688,7 +690,7 @@ typedef struct kg_chart_result {
 	double rms_px;            /* RMS reprojection error of the points used */
 	double outline[4][2];     /* the layout's chart area in px (tl, tr, br, bl) */
 	int decimate;             /* the quad_decimate used */
-	int tagless_decimate;     /* tagless: the reduction mcc looked at (1: full image) */
+	int tagless_decimate;     /* tagless: the reduction the box was found on (1: full image) */
 	int npatches;
 	kg_chart_sample *patches;
 	int nwarnings;            /* what an operator should know, one sentence each */

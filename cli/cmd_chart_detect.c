@@ -206,8 +206,6 @@ int kg_cmd_chart_detect(int argc, char **argv)
 	if ((code = kg_chart_layout_resolve(layout_path, &layout_file, &err)) ||
 	    (code = kg_chart_layout_load(layout_file, &layout, &err)))
 		goto fail;
-	/* what the tagless detector builds once per process, built while the image is read */
-	kg_chart_warm_up(layout, &opt);
 	if ((code = kg_image_read_as(image_path, &enc, &img, &err)))
 		goto fail;
 	char encoding[32];
@@ -274,7 +272,7 @@ int kg_cmd_chart_detect(int argc, char **argv)
 		"CHART_LAYOUT", layout->name,
 		"CHART_LAYOUT_FILE", layout_file,
 		"IMAGE", image_path,
-		"DETECTOR", res->tagless ? "opencv-mcc" : "apriltag",
+		"DETECTOR", !res->tagless ? "apriltag" : res->tagless_grid ? "patch-grid" : "opencv-mcc",
 		"TAG_FAMILY", opt.family ? opt.family : layout->family,
 		"TAG_DECIMATE", decim,
 		"TAGS_USED", used[0] ? used : "none",

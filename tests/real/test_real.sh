@@ -13,7 +13,8 @@
 #
 # Modes (one test each, tests/real/meson.build):
 #   detect      the composite, the same chart's white-balanced processed image and a
-#               ColorChecker Passport in an outdoor JPEG (cropped PNG): 24 patches in
+#               ColorChecker Passport in an outdoor JPEG (cropped PNG, and the whole
+#               JPEG, where the patch-grid finder places it): 24 patches in
 #               the right orientation (the greys darken from D01; the composite
 #               follows the chart's reflectance at each band, its 180-degree turn does
 #               not; the processed images keep the hue order of the colour row)
@@ -84,6 +85,18 @@ detect)
 	composite comp 100 25 25 && py detect flea3-composite "$T/comp.cgats" "$SPECTRA"
 	detect processed "${NB}d3_wb.tif" && py detect flea3-processed "$T/processed.cgats"
 	detect passport "$PP/below_fishbox_crop.png" && py detect passport-jpeg "$T/passport.cgats"
+	# The whole photograph (2879 x 1294): the tagless detector reads a copy reduced 2 x 2,
+	# where its patch-grid finder looks first, among the Passport's other page of
+	# colours, the pavement and the striped paper; the same checks must hold.
+	if detect passport-full "$PP/below_fishbox.jpg"; then
+		py detect passport-jpeg-full "$T/passport-full.cgats"
+		if grep -q '^DETECTOR "patch-grid"' "$T/passport-full.cgats"; then
+			echo "ok: the whole photograph's chart placed by the patch-grid finder"
+		else
+			echo "FAIL: the whole photograph's chart not placed by the patch-grid finder:"
+			grep DETECTOR "$T/passport-full.cgats"; fail=1
+		fi
+	fi
 	;;
 linearity)
 	need_spectra
