@@ -385,6 +385,9 @@ int chart_grid_find(const float *img, int w, int h, int C, double white, int max
 	for (int i = 0; i < nb; i++)
 		if (patch_like(&b[i], max_area))
 			b[nc++] = b[i];
+	/* growing every candidate's grid costs nc^2: a picture this cluttered is left to mcc */
+	if (nc > 4000)
+		nc = 0;
 	int found = 0;
 	unsigned char *taken = calloc((size_t)(nc ? nc : 1), 1);
 	while (taken && found < max) {

@@ -50,10 +50,24 @@ static int tagless_grid(const kg_chart_layout *l, const layout_view *L, work_ima
 	int ncand = r->ncandidates, ret;
 	if (n && (ret = chart_image_levels(wi, err)))
 		return ret;
+	double box_mm[4][2];
+	chart_mcc24_box_mm(L, idx, box_mm);
+	int winding = chart_quad_signed_area(box_mm) > 0;
 	for (int b = 0; b < n; b++) {
 		for (int k = 0; k < 4; k++)
 			for (int c = 0; c < 2; c++)
 				boxes[b][k][c] *= f;
+		/* The grid's lattice may come out mirrored: the box is given the layout's
+		 * winding here by reversing it along its first side (which stays the row of 6
+		 * patches), not by tagless_box's swap of corners 1 and 3, which would put the
+		 * row of 6 on the box's short side. */
+		if ((chart_quad_signed_area((const double (*)[2])boxes[b]) > 0) != winding) {
+			double t[4][2];
+			memcpy(t, boxes[b], sizeof(t));
+			static const int rev[4] = {1, 0, 3, 2};
+			for (int k = 0; k < 4; k++)
+				memcpy(boxes[b][k], t[rev[k]], sizeof(t[k]));
+		}
 		kg_err box_err = {{0}};
 		ret = tagless_box(l, L, wi, opt, idx, boxes[b], costs[b], counts[b], f, small_w,
 		                  small_h, white, 0, r, &box_err);

@@ -148,6 +148,19 @@ static double check_case(const char *name, const char *layout, const char *spect
 		else
 			CHECK(r->tagless_grid && has_warning(r, "tagless detector (its patch-grid finder"),
 			      "%s: not placed by the patch-grid finder", name);
+		/* The grid's box must start the refinement on the right patch edges: a box
+		 * with its row of 6 patches on its short side (a mirrored lattice given the
+		 * layout's winding by the wrong corner swap) is refined on few edges, several
+		 * pixels off them. */
+		double edge_rms = NAN;
+		for (int i = 0; v > 0 && i < r->nwarnings; i++) {
+			const char *at = strstr(r->warnings[i], "at full resolution (RMS ");
+			if (at)
+				edge_rms = atof(at + strlen("at full resolution (RMS "));
+		}
+		if (v > 0)
+			CHECK(edge_rms < 1.0, "%s: the box refined to an RMS of %.2f px (< 1 px)", name,
+			      edge_rms);
 		CHECK(has_warning(r, "orientation chosen from the patches"),
 		      "%s: the orientation decision is not reported", name);
 		CHECK(!has_warning(r, "orientation uncertain"), "%s: orientation uncertain", name);
