@@ -259,7 +259,8 @@ int kg_chart_detect(const kg_chart_layout *l, const kg_image *img,
                     const kg_chart_detect_options *options, kg_chart_result **out,
                     kg_err *err)
 {
-	kg_check_arg(l && img && img->data && out, err);
+	/* a mapped 16-bit image (kg_image_map) is read through its codes */
+	kg_check_arg(l && img && (img->data || (img->u16 && !img->cfa)) && out, err);
 	*out = NULL;
 	double t0 = chart_now_seconds();
 	kg_chart_detect_options opt;

@@ -60,7 +60,10 @@ void chart_run_parallel(par_fn fn, void *arg, int threads);
  * grey picture), so only what is looked at is converted. */
 typedef struct work_image {
 	int width, height, channels;
-	const float *data; /* NULL for a raw CFA frame until demosaic_all */
+	const float *data; /* NULL for a raw CFA frame until demosaic_all, and for a mapped
+	                    * 16-bit image (u16) */
+	const uint16_t *u16; /* a mapped image's codes (kg_image_map), read through lut */
+	const float *lut;
 	float *owned;
 	const kg_image *raw; /* the CFA frame, or NULL */
 	int cfa_rows, cfa_cols;

@@ -22,6 +22,7 @@
 #include <string.h>
 
 #include "chart_detect_private.h"
+#include "select.h"
 
 #if KG_HAVE_MCC
 
@@ -55,12 +56,6 @@ static float *flat_luma(const float *img, int w, int h, int C, double white)
 	return g;
 }
 
-static int cmp_float(const void *a, const void *b)
-{
-	float x = *(const float *)a, y = *(const float *)b;
-	return (x > y) - (x < y);
-}
-
 /* Flat pixels (1) where the gradient stays below a few times its median. */
 static unsigned char *flat_mask(const float *g, int w, int h)
 {
@@ -92,11 +87,7 @@ static unsigned char *flat_mask(const float *g, int w, int h)
 	for (size_t i = 0; i < n; i += 7)
 		if (isfinite(grad[i]))
 			s[ns++] = grad[i];
-	float med = 0;
-	if (ns) {
-		qsort(s, ns, sizeof(float), cmp_float);
-		med = s[ns / 2];
-	}
+	float med = ns ? kg_select_kth(s, ns, ns / 2) : 0;
 	free(s);
 	float t = 4 * med;
 	t = t < 0.015f ? 0.015f : t > 0.08f ? 0.08f : t;

@@ -151,6 +151,18 @@ const float *chart_image_span(const work_image *wi, int y, int x0, int n, int st
 	int C = wi->channels;
 	if (wi->data && step == 1)
 		return wi->data + ((size_t)y * wi->width + x0) * C;
+	if (!wi->data && wi->u16) {
+		const uint16_t *row = wi->u16 + ((size_t)y * wi->width + x0) * C;
+		const float *lut = wi->lut;
+		if (step == 1)
+			for (size_t i = 0; i < (size_t)n * C; i++)
+				scratch[i] = lut[row[i]];
+		else
+			for (int i = 0; i < n; i++)
+				for (int c = 0; c < C; c++)
+					scratch[(size_t)i * C + c] = lut[row[(size_t)i * step * C + c]];
+		return scratch;
+	}
 	if (!wi->data) {
 		demosaic_span(wi, y, x0, n, step, scratch);
 		return scratch;
@@ -169,18 +181,21 @@ typedef struct demosaic_job {
 static void demosaic_rows(void *arg, int t, int n)
 {
 	demosaic_job *j = arg;
-	int H = j->wi->height, W = j->wi->width;
+	int H = j->wi->height, W = j->wi->width, C = j->wi->channels;
 	for (int y = (int)((long)H * t / n); y < (int)((long)H * (t + 1) / n); y++)
-		demosaic_span(j->wi, y, 0, W, 1, j->out + (size_t)y * W * 3);
+		if (j->wi->u16)
+			chart_image_span(j->wi, y, 0, W, 1, j->out + (size_t)y * W * C);
+		else
+			demosaic_span(j->wi, y, 0, W, 1, j->out + (size_t)y * W * 3);
 }
 
-/* The whole frame demosaiced, for the stages that need every pixel (the overlay, mcc
- * at full resolution). */
+/* The whole frame demosaiced (or a mapped image's floats), for the stages that need
+ * every pixel (mcc at full resolution). */
 int chart_demosaic_all(work_image *wi, kg_err *err)
 {
 	if (wi->data)
 		return 0;
-	wi->owned = malloc((size_t)wi->width * wi->height * 3 * sizeof(float));
+	wi->owned = malloc((size_t)wi->width * wi->height * wi->channels * sizeof(float));
 	if (!wi->owned)
 		return kg_fail(err, KG_ENOMEM, "demosaic: out of memory");
 	demosaic_job j = {wi, wi->owned};
@@ -207,6 +222,10 @@ int chart_prepare_image(const kg_image *img, const kg_chart_detect_options *opt,
 	wi->height = img->height;
 	wi->channels = img->channels;
 	wi->data = img->data;
+	if (!img->data && img->u16 && !img->cfa) {
+		wi->u16 = img->u16;
+		wi->lut = kg_image_u16_lut();
+	}
 	wi->threads = chart_clamp_threads(opt->threads);
 	if (opt->clip_level > 0)
 		wi->clip_level = opt->clip_level;

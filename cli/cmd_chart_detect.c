@@ -206,7 +206,12 @@ int kg_cmd_chart_detect(int argc, char **argv)
 	if ((code = kg_chart_layout_resolve(layout_path, &layout_file, &err)) ||
 	    (code = kg_chart_layout_load(layout_file, &layout, &err)))
 		goto fail;
-	if ((code = kg_image_read_as(image_path, &enc, &img, &err)))
+	/* an uncompressed 16-bit TIFF is mapped, not decoded into floats, unless the
+	 * overlay (which draws from floats) is asked for */
+	code = overlay ? KG_ENOTSUP : kg_image_map(image_path, &img, &err);
+	if (code == KG_ENOTSUP)
+		code = kg_image_read_as(image_path, &enc, &img, &err);
+	if (code)
 		goto fail;
 	char encoding[32];
 	kg_image_encoding_name(img, encoding, sizeof(encoding));

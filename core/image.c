@@ -81,6 +81,8 @@ int kg_image_new(int width, int height, int channels, kg_image **out, kg_err *er
 void kg_image_free(kg_image **img)
 {
 	if (img && *img) {
+		if ((*img)->map)
+			munmap((*img)->map, (*img)->map_len);
 		free((*img)->cfa);
 		free(*img);
 		*img = NULL;
@@ -1215,6 +1217,81 @@ int kg_image_read_as(const char *path, const kg_image_encoding *enc, kg_image **
 	if (kind == KIND_RAW)
 		return kg_raw_read(path, out, NULL, err);
 	return kind < 0 ? kind : read_whole(path, kind, enc, out, err);
+}
+
+static float u16_lut[65536];
+static pthread_once_t u16_once = PTHREAD_ONCE_INIT;
+
+static void u16_lut_fill(void)
+{
+	for (int k = 0; k < 65536; k++)
+		u16_lut[k] = (float)k / 65535.0f; /* as tiff_row_u16 */
+}
+
+const float *kg_image_u16_lut(void)
+{
+	pthread_once(&u16_once, u16_lut_fill);
+	return u16_lut;
+}
+
+int kg_image_map(const char *path, kg_image **out, kg_err *err)
+{
+	kg_check_arg(path && out, err);
+	*out = NULL;
+	int kind = image_kind(path, err);
+	if (kind < 0)
+		return kind;
+	if (kind != KIND_TIFF)
+		return kg_fail(err, KG_ENOTSUP, "%s: not a TIFF: read, not mapped", path);
+	kg_image_rows *r;
+	int ret = rows_open_kind(path, KIND_TIFF, NULL, &r, err);
+	if (ret)
+		return ret;
+	const kg_image *h = r->head;
+	TIFF *tif = r->tif;
+	uint16_t compression = COMPRESSION_NONE;
+	TIFFGetFieldDefaulted(tif, TIFFTAG_COMPRESSION, &compression);
+	int plain = compression == COMPRESSION_NONE && !r->tiled && !r->separate && !r->invert &&
+	            h->bits == 16 && !h->is_float && !h->cfa && r->spp == h->channels &&
+	            !TIFFIsByteSwapped(tif);
+	/* the strips one after another: rows at a fixed stride from the first */
+	size_t row_bytes = (size_t)h->width * (size_t)h->channels * 2;
+	uint64_t off0 = plain ? TIFFGetStrileOffset(tif, 0) : 0;
+	uint32_t n = plain ? TIFFNumberOfStrips(tif) : 0;
+	for (uint32_t i = 0; plain && i < n; i++)
+		plain = TIFFGetStrileOffset(tif, i) == off0 + (uint64_t)i * r->th * row_bytes;
+	struct stat st;
+	int fd = TIFFFileno(tif);
+	plain = plain && off0 % 2 == 0 && fstat(fd, &st) == 0 &&
+	        off0 + (uint64_t)row_bytes * (uint64_t)h->height <= (uint64_t)st.st_size;
+	if (!plain) {
+		kg_image_rows_free(&r);
+		return kg_fail(err, KG_ENOTSUP, "%s: not an uncompressed 16-bit TIFF in one run: "
+		               "read, not mapped", path);
+	}
+	kg_image *img = calloc(1, sizeof(*img));
+	/* MAP_POPULATE: the page tables filled from the page cache at once, not a fault
+	 * per page as the image is read */
+	void *base = img ? mmap(NULL, (size_t)st.st_size, PROT_READ, MAP_PRIVATE | MAP_POPULATE,
+	                        fd, 0)
+	                 : MAP_FAILED;
+	if (base == MAP_FAILED) {
+		free(img);
+		kg_image_rows_free(&r);
+		return kg_fail(err, KG_ENOTSUP, "%s: cannot map: read instead", path);
+	}
+	img->width = h->width;
+	img->height = h->height;
+	img->channels = h->channels;
+	img->bits = 16;
+	img->encoding = h->encoding;
+	memcpy(img->note, h->note, sizeof(img->note));
+	img->map = base;
+	img->map_len = (size_t)st.st_size;
+	img->u16 = (const uint16_t *)(const void *)((const unsigned char *)base + off0);
+	kg_image_rows_free(&r); /* the map outlives the descriptor */
+	*out = img;
+	return 0;
 }
 
 int kg_image_read_tiff(const char *path, kg_image **out, kg_err *err)

@@ -7,6 +7,9 @@
 #ifndef KG_IMAGE_H
 #define KG_IMAGE_H
 
+#include <stddef.h>
+#include <stdint.h>
+
 #include "error.h"
 
 /* How a display-encoded file (JPEG) maps to linear values. A JPEG is gamma-encoded
@@ -36,6 +39,12 @@ typedef struct kg_image {
 	char note[256];  /* what the reader changed (alpha dropped, ...), "" if nothing */
 	int jpeg;        /* read from a JPEG: display-encoded by the camera */
 	kg_image_encoding encoding; /* a JPEG's encoding as read (UNSTATED: not stated) */
+	/* kg_image_map: the file's 16-bit samples where they lie in it (interleaved,
+	 * width * channels a row; sample k is the float kg_image_u16_lut()[k]), and data
+	 * NULL. Only the consumers that say so take such an image. */
+	const uint16_t *u16;
+	void *map;
+	size_t map_len;
 } kg_image;
 
 /* Largest image accepted: 2^28 pixels per image and 2^20 per side. */
@@ -51,6 +60,14 @@ int kg_image_set_cfa(kg_image *img, const char *pattern, int rows, int cols, kg_
 int kg_image_read(const char *path, kg_image **out, kg_err *err);
 /* The same, with a JPEG decoded through a stated encoding (NULL: not stated). JPEG
  * needs a build with libjpeg (KG_ENOTSUP without). */
+/* An uncompressed 16-bit grey or RGB TIFF (strips in order, the machine's byte order,
+ * no extra samples) mapped rather than decoded: no copy of its pixels is made (u16
+ * above). KG_ENOTSUP for any other file, which kg_image_read then reads. For a
+ * one-pass reader of a large file (chart detection): a 12 Mpix RGB image otherwise
+ * costs 144 MB of floats that the kernel must first zero. */
+int kg_image_map(const char *path, kg_image **out, kg_err *err);
+/* The float of every 16-bit code k, k / 65535 as the readers compute it. */
+const float *kg_image_u16_lut(void);
 int kg_image_read_as(const char *path, const kg_image_encoding *enc, kg_image **out,
                      kg_err *err);
 /* "srgb", "linear" or "gamma:G" (0.2 <= G <= 5). */

@@ -255,6 +255,8 @@ static int sat_channels(const kg_image *img, int *mosaic)
 int kg_saturation_of_image(const kg_image *img, double nominal_clip, kg_saturation *out,
                            kg_err *err)
 {
+	if (img && !img->data && img->u16)
+		return kg_saturation_of_u16(img, nominal_clip, out, err);
 	kg_check_arg(img && img->data && out, err);
 	int mosaic;
 	int C = sat_channels(img, &mosaic);

@@ -107,6 +107,10 @@ void kg_sat_hist_result(const kg_sat_hist *h, double nominal_clip, kg_saturation
  * the clipped fractions counted. */
 int kg_saturation_of_image(const kg_image *img, double nominal_clip, kg_saturation *out,
                            kg_err *err);
+/* The same for a mapped 16-bit image (kg_image_map), which kg_saturation_of_image
+ * hands to it: the same results, counted on the codes. */
+int kg_saturation_of_u16(const kg_image *img, double nominal_clip, kg_saturation *out,
+                         kg_err *err);
 /* The same over a row source (read top to bottom once, in bands). */
 int kg_saturation_of_rows(const kg_row_source *src, int steps, double nominal_clip,
                           kg_saturation *out, kg_err *err);

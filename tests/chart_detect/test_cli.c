@@ -19,7 +19,7 @@ int main(int argc, char **argv)
 	if (argc < 2)
 		kg_test_skip("no kogei program given");
 	const char *kogei = argv[1];
-	char dir[] = "/tmp/kogei-chart-detect-XXXXXX", cmd[4096];
+	char dir[] = "/tmp/kogei-chart-detect-XXXXXX", cmd[16384];
 	CHECK(mkdtemp(dir) != NULL, "mkdtemp");
 	const char *layout = KG_SOURCE_ROOT "/fixtures/charts/colorchecker24-frame.json";
 	if (!kg_test_file_exists(layout))
@@ -44,6 +44,21 @@ int main(int argc, char **argv)
 	kg_patchset_free(&ps);
 	snprintf(path, sizeof(path), "%s/o.png", dir);
 	CHECK(kg_test_file_exists(path), "overlay written");
+
+	/* The same frame as a 16-bit TIFF, which chart detect maps rather than reads
+	 * unless the overlay is asked for: both give the same patch file. */
+	kg_image *frame = NULL;
+	snprintf(path, sizeof(path), "%s/frame.png", dir);
+	CHECK(kg_image_read(path, &frame, &err) == 0, "%s", err.msg);
+	snprintf(path, sizeof(path), "%s/frame16.tif", dir);
+	CHECK(frame && kg_image_write(frame, path, 16, &err) == 0, "%s", err.msg);
+	kg_image_free(&frame);
+	snprintf(cmd, sizeof(cmd), "%s chart detect --layout %s %s -o %s/m.cgats 2>/dev/null && "
+	         "%s chart detect --layout %s %s -o %s/r.cgats --overlay %s/o16.png 2>/dev/null && "
+	         "cmp -s %s/m.cgats %s/r.cgats", kogei, layout, path, dir, kogei, layout, path, dir,
+	         dir, dir, dir);
+	CHECK(run(cmd) == 0, "16-bit TIFF: the mapped image's patch file differs from the "
+	      "read one's (or detection failed)");
 
 	/* a picture with no chart: exit 1, a message, no patch file */
 	kg_image *img = NULL;

@@ -459,6 +459,117 @@ static void test_tiff_two_readers(void)
 	}
 }
 
+/* A 16-bit RGB TIFF of w x h from codes, contiguous strips of rps rows. */
+static int write_rgb16(const char *name, int w, int h, int rps, const uint16_t *codes)
+{
+	TIFF *tif = TIFFOpen(kg_test_path(name), "w");
+	if (!tif)
+		return -1;
+	TIFFSetField(tif, TIFFTAG_IMAGEWIDTH, (uint32_t)w);
+	TIFFSetField(tif, TIFFTAG_IMAGELENGTH, (uint32_t)h);
+	TIFFSetField(tif, TIFFTAG_SAMPLESPERPIXEL, (uint16_t)3);
+	TIFFSetField(tif, TIFFTAG_BITSPERSAMPLE, (uint16_t)16);
+	TIFFSetField(tif, TIFFTAG_PHOTOMETRIC, (uint16_t)PHOTOMETRIC_RGB);
+	TIFFSetField(tif, TIFFTAG_PLANARCONFIG, (uint16_t)PLANARCONFIG_CONTIG);
+	TIFFSetField(tif, TIFFTAG_ROWSPERSTRIP, (uint32_t)rps);
+	int ok = 1;
+	for (int y = 0; y < h; y++)
+		ok &= TIFFWriteScanline(tif, (void *)(codes + (size_t)y * w * 3), (uint32_t)y, 0) == 1;
+	TIFFClose(tif);
+	return ok ? 0 : -1;
+}
+
+/* kg_image_map: an uncompressed 16-bit grey or RGB TIFF in order is mapped, each code
+ * reading (through kg_image_u16_lut) as the float the reader gives, and its saturation
+ * scan gives what the floats' does; every other layout is KG_ENOTSUP, to be read. */
+static void test_tiff_map(void)
+{
+	const struct tiff_spec specs[] = {
+		{"map_rgb16.tif", 3, 16, SAMPLEFORMAT_UINT, PHOTOMETRIC_RGB, PLANARCONFIG_CONTIG, 0, 3, COMPRESSION_NONE},
+		{"map_grey16.tif", 1, 16, SAMPLEFORMAT_UINT, PHOTOMETRIC_MINISBLACK, PLANARCONFIG_CONTIG, 0, 21, COMPRESSION_NONE},
+		{"map_sep16.tif", 3, 16, SAMPLEFORMAT_UINT, PHOTOMETRIC_RGB, PLANARCONFIG_SEPARATE, 0, 3, COMPRESSION_NONE},
+		{"map_tile16.tif", 3, 16, SAMPLEFORMAT_UINT, PHOTOMETRIC_RGB, PLANARCONFIG_CONTIG, 16, 0, COMPRESSION_NONE},
+		{"map_rgb8.tif", 3, 8, SAMPLEFORMAT_UINT, PHOTOMETRIC_RGB, PLANARCONFIG_CONTIG, 0, 3, COMPRESSION_NONE},
+		{"map_rgba16.tif", 4, 16, SAMPLEFORMAT_UINT, PHOTOMETRIC_RGB, PLANARCONFIG_CONTIG, 0, 3, COMPRESSION_NONE},
+		{"map_white16.tif", 1, 16, SAMPLEFORMAT_UINT, PHOTOMETRIC_MINISWHITE, PLANARCONFIG_CONTIG, 0, 3, COMPRESSION_NONE},
+		{"map_float.tif", 3, 32, SAMPLEFORMAT_IEEEFP, PHOTOMETRIC_RGB, PLANARCONFIG_CONTIG, 0, 3, COMPRESSION_NONE},
+		{"map_deflate16.tif", 3, 16, SAMPLEFORMAT_UINT, PHOTOMETRIC_RGB, PLANARCONFIG_CONTIG, 0, 8, COMPRESSION_ADOBE_DEFLATE},
+	};
+	const int w = 40, h = 21;
+	const float *lut = kg_image_u16_lut();
+	for (size_t k = 0; k < sizeof(specs) / sizeof(specs[0]); k++) {
+		const struct tiff_spec *t = &specs[k];
+		if (!TIFFIsCODECConfigured((uint16_t)t->compression))
+			continue;
+		CHECK(write_tiff(t, w, h) == 0, "%s: libtiff write", t->name);
+		kg_image *read = NULL, *map = NULL;
+		kg_err err = {{0}};
+		CHECK(kg_image_read(kg_test_path(t->name), &read, &err) == 0, "%s: %s", t->name, err.msg);
+		int ret = kg_image_map(kg_test_path(t->name), &map, &err);
+		int mappable = k < 2;
+		if (!mappable) {
+			CHECK(ret == KG_ENOTSUP && !map && strstr(err.msg, t->name),
+			      "%s: mapped (%d), expected KG_ENOTSUP naming the file: %s", t->name, ret,
+			      err.msg);
+		} else {
+			CHECK(ret == 0 && map && map->u16 && !map->data, "%s: not mapped: %s", t->name,
+			      err.msg);
+			if (map && read) {
+				CHECK(map->width == read->width && map->height == read->height &&
+				          map->channels == read->channels && map->bits == read->bits &&
+				          !map->is_float && !strcmp(map->note, read->note),
+				      "%s: header differs from the reader's", t->name);
+				size_t n = (size_t)w * h * read->channels, bad = 0;
+				for (size_t i = 0; i < n; i++)
+					bad += memcmp(&lut[map->u16[i]], &read->data[i], sizeof(float)) != 0;
+				CHECK(bad == 0, "%s: %zu samples read otherwise than mapped", t->name, bad);
+			}
+		}
+		kg_image_free(&map);
+		kg_image_free(&read);
+		remove(kg_test_path(t->name));
+	}
+	/* the saturation scan: R and G pile up below full scale (5 % of the pixels at
+	 * 60000 and 60001), B does not; then nothing piles up at all */
+	const int sw = 256, sh = 200;
+	uint16_t *codes = malloc((size_t)sw * sh * 3 * sizeof(*codes));
+	for (int pass = 0; codes && pass < 2; pass++) {
+		unsigned s = 99;
+		for (size_t i = 0; i < (size_t)sw * sh; i++)
+			for (int c = 0; c < 3; c++) {
+				s = s * 1103515245u + 12345u;
+				uint16_t v = (uint16_t)(5000 + (s >> 8) % 55000);
+				if (pass == 0 && c < 2 && (s >> 4) % 20 == 0)
+					v = (uint16_t)(60000 + (s >> 12) % 2);
+				codes[i * 3 + c] = v;
+			}
+		CHECK(write_rgb16("map_sat.tif", sw, sh, 16, codes) == 0, "map_sat: write");
+		kg_image *read = NULL, *map = NULL;
+		kg_err err = {{0}};
+		kg_saturation a, b;
+		memset(&a, 0, sizeof(a));
+		memset(&b, 0, sizeof(b));
+		CHECK(kg_image_read(kg_test_path("map_sat.tif"), &read, &err) == 0 &&
+		          kg_image_map(kg_test_path("map_sat.tif"), &map, &err) == 0,
+		      "map_sat: %s", err.msg);
+		if (read && map) {
+			CHECK(kg_saturation_of_image(read, 1.0, &a, &err) == 0 &&
+			          kg_saturation_of_image(map, 1.0, &b, &err) == 0,
+			      "map_sat: saturation: %s", err.msg);
+			CHECK(!memcmp(&a, &b, sizeof(a)), "map_sat pass %d: the mapped image's saturation "
+			      "differs from the floats' (any %.6f vs %.6f)", pass, b.fraction_any,
+			      a.fraction_any);
+			CHECK(pass == 1 || (a.found[0] && a.found[1] && !a.found[2] && a.fraction_any > 0.05),
+			      "map_sat: the pile-up in R and G not found (%d %d %d, any %.4f)", a.found[0],
+			      a.found[1], a.found[2], a.fraction_any);
+		}
+		kg_image_free(&map);
+		kg_image_free(&read);
+	}
+	free(codes);
+	remove(kg_test_path("map_sat.tif"));
+}
+
 static void test_cfa(void)
 {
 	kg_image *img = make_image(1), *back = NULL;
@@ -747,6 +858,7 @@ int main(void)
 	test_tiff_refused();
 	test_tiff_lies();
 	test_tiff_two_readers();
+	test_tiff_map();
 	test_cfa();
 	test_png_kinds();
 	test_malformed();
