@@ -36,6 +36,25 @@ static void decimate_rows(void *arg, int t, int n)
 	for (int oy = (int)((long)j->h * t / n); oy < (int)((long)j->h * (t + 1) / n); oy++) {
 		memset(acc, 0, (size_t)w * C * sizeof(double));
 		for (int dy = 0; dy < f; dy++) {
+			if (C == 3 && !wi->data && wi->u16) {
+				/* a mapped image: the same sums of the same floats, read from its
+				 * codes without a copy of the row */
+				const uint16_t *q = wi->u16 + (size_t)(oy * f + dy) * wi->width * 3;
+				const float *lut = wi->lut;
+				for (int ox = 0; ox < w; ox++) {
+					const uint16_t *p = q + (size_t)ox * f * 3;
+					double *a = acc + (size_t)ox * 3, a0 = a[0], a1 = a[1], a2 = a[2];
+					for (int dx = 0; dx < f; dx++, p += 3) {
+						a0 += lut[p[0]];
+						a1 += lut[p[1]];
+						a2 += lut[p[2]];
+					}
+					a[0] = a0;
+					a[1] = a1;
+					a[2] = a2;
+				}
+				continue;
+			}
 			const float *row = chart_image_span(wi, oy * f + dy, 0, w * f, 1, scratch);
 			if (C == 3) {
 				/* the same sums in the same order, kept in registers over a block */
