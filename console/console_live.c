@@ -1215,6 +1215,9 @@ json_t *console_chart_check(console *c)
 	json_object_set_new(j, "found", json_true());
 	json_object_set_new(j, "go", json_boolean(go));
 	json_object_set_new(j, "tagless", json_boolean(r->tagless));
+	json_object_set_new(j, "detector", json_string(!r->tagless ? "apriltag"
+	                                                : r->tagless_grid ? "patch-grid"
+	                                                                  : "opencv-mcc"));
 	json_object_set_new(j, "tags_used", json_integer(r->ntags_used));
 	json_object_set_new(j, "rms_px", jnum(r->rms_px));
 	json_object_set_new(j, "outline", points(r->outline, 4, sx, sy));

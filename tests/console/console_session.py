@@ -61,6 +61,8 @@ def main():
         st, j = c.json("GET", "/api/chart")
         check(j.get("found") and j.get("go"), "chart check GO: %s %s" % (j.get("error"),
                                                                          j.get("reasons")))
+        check(j.get("detector") == "apriltag" and not j.get("tagless"),
+              "the framed chart found by its tags: %s" % j.get("detector"))
         s = capture(c, {"kind": "chart", "camera": 2, "exposure_us": 10000, "gain": 0})
         check(s["job"]["result"].get("chart_layout") == "cie-tcs-frame",
               "the chart capture records its layout")
