@@ -3,6 +3,9 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#ifdef __SSE2__
+#include <emmintrin.h>
+#endif
 
 #include "saturation.h"
 
@@ -112,8 +115,10 @@ int kg_sat_hist_init(kg_sat_hist *h, int channels, int steps, kg_err *err)
 		               KG_SAT_MAX_CHANNELS);
 	h->channels = channels;
 	h->steps = steps;
+	/* one bin more than the histogram: the scan counts non-finite samples there instead
+	 * of branching on each sample */
 	for (int c = 0; c < channels; c++)
-		if (!(h->bins[c] = calloc((size_t)steps + 1, sizeof(uint64_t)))) {
+		if (!(h->bins[c] = calloc((size_t)steps + 2, sizeof(uint64_t)))) {
 			kg_sat_hist_free(h);
 			return kg_fail(err, KG_ENOMEM, "out of memory");
 		}
@@ -138,6 +143,54 @@ static inline int bin_of(double v, int steps)
 	return (int)x;
 }
 
+/* bin_of for a sample, and steps + 1 when it is not finite (infinite or NaN: the
+ * exponent all ones), a bin the histogram then leaves out. */
+static inline uint32_t bin_or_dump(float v, int steps)
+{
+	uint32_t u;
+	memcpy(&u, &v, sizeof(u));
+	return (u & 0x7f800000u) == 0x7f800000u ? (uint32_t)steps + 1 : (uint32_t)bin_of(v, steps);
+}
+
+/* bin_or_dump for n samples. With SSE2, four at a time in single precision, which is
+ * close but not exact: x = v * steps + 0.5, computed exactly in bin_of, is within 2^-7
+ * of its float counterpart r (each of the two roundings errs by at most 2^-8 below
+ * 2^16; r is clamped to 0.25 .. steps + 0.75, where the bin no longer changes). The
+ * bin is floor(r) whenever r lies at least 1/16 from an integer (r - floor(r) is exact),
+ * which holds for every value that is a count divided by steps (x is then the count
+ * plus 0.5, give or take 0.004). A sample closer to a bin boundary, or not finite, is
+ * binned again by bin_or_dump. */
+static void bins_of(const float *v, size_t n, int steps, uint32_t *out)
+{
+	size_t i = 0;
+#ifdef __SSE2__
+	const __m128 vs = _mm_set1_ps((float)steps), half = _mm_set1_ps(0.5f);
+	const __m128 lo = _mm_set1_ps(0.25f), hi = _mm_set1_ps((float)steps + 0.75f);
+	const __m128 margin = _mm_set1_ps(0.5f - 0.0625f);
+	const __m128i absmask = _mm_set1_epi32(0x7fffffff), maxfinite = _mm_set1_epi32(0x7f7fffff);
+	for (; i + 4 <= n; i += 4) {
+		__m128 f = _mm_loadu_ps(v + i);
+		__m128 r = _mm_add_ps(_mm_mul_ps(f, vs), half);
+		/* maxps gives its second operand for NaN: lo */
+		r = _mm_min_ps(_mm_max_ps(r, lo), hi);
+		__m128i k = _mm_cvttps_epi32(r);
+		__m128 frac = _mm_sub_ps(r, _mm_cvtepi32_ps(k));
+		__m128 off = _mm_and_ps(_mm_sub_ps(frac, half), _mm_castsi128_ps(absmask));
+		__m128i nonfinite = _mm_cmpgt_epi32(_mm_and_si128(_mm_castps_si128(f), absmask),
+		                                    maxfinite);
+		int redo = _mm_movemask_ps(_mm_or_ps(_mm_cmpgt_ps(off, margin),
+		                                     _mm_castsi128_ps(nonfinite)));
+		_mm_storeu_si128((__m128i *)(void *)(out + i), k);
+		for (; redo; redo &= redo - 1) {
+			int j = __builtin_ctz((unsigned)redo);
+			out[i + (size_t)j] = bin_or_dump(v[i + (size_t)j], steps);
+		}
+	}
+#endif
+	for (; i < n; i++)
+		out[i] = bin_or_dump(v[i], steps);
+}
+
 void kg_sat_hist_add1(kg_sat_hist *h, int c, double v)
 {
 	if (c < 0 || c >= h->channels || !isfinite(v))
@@ -146,17 +199,26 @@ void kg_sat_hist_add1(kg_sat_hist *h, int c, double v)
 	h->total[c]++;
 }
 
+/* Samples per bins_of call: a small buffer that stays in the first-level cache. */
+enum { SAT_CHUNK = 768 };
+
 void kg_sat_hist_add(kg_sat_hist *h, const float *px, size_t n)
 {
 	int C = h->channels, S = h->steps;
-	for (size_t i = 0; i < n; i++)
-		for (int c = 0; c < C; c++) {
-			float v = px[i * (size_t)C + (size_t)c];
-			if (isfinite(v)) {
-				h->bins[c][bin_of(v, S)]++;
-				h->total[c]++;
-			}
-		}
+	uint32_t k[SAT_CHUNK];
+	size_t per = SAT_CHUNK / (size_t)C; /* whole pixels per chunk */
+	for (size_t i = 0; i < n; i += per) {
+		size_t m = n - i < per ? n - i : per;
+		bins_of(px + i * (size_t)C, m * (size_t)C, S, k);
+		for (size_t j = 0; j < m; j++)
+			for (int c = 0; c < C; c++)
+				h->bins[c][k[j * (size_t)C + (size_t)c]]++;
+	}
+	/* the samples counted are those not in the extra bin */
+	for (int c = 0; c < C; c++) {
+		h->total[c] += n - h->bins[c][S + 1];
+		h->bins[c][S + 1] = 0;
+	}
 }
 
 void kg_sat_hist_result(const kg_sat_hist *h, double nominal_clip, kg_saturation *out)
@@ -252,6 +314,183 @@ static int sat_channels(const kg_image *img, int *mosaic)
 	return *mosaic ? 4 : img->channels;
 }
 
+/* The whole-image scan works on blocks of up to SAT_BLOCK pixels of a row (whole pixels
+ * within SAT_CHUNK samples) and keeps each block's highest bin per channel: the passes
+ * that concern only samples at or above a clip level then read just the blocks that can
+ * hold one. bin_of never decreases as the value grows, so a sample >= clip has a bin >=
+ * bin_of(clip): a block whose highest bin in every channel is below that has no such
+ * sample (a non-finite sample's bin, steps + 1, sends its block to the exact test). */
+enum { SAT_BLOCK = 256 };
+
+typedef struct sat_scan {
+	int C, S, mosaic, slots; /* slots: channels kept per block (a mosaic row has 2) */
+	size_t W, H, nbx;        /* nbx: blocks per row */
+	/* two histograms per channel, alternate pixels in each: consecutive increments of
+	 * the same bin (flat areas) do not wait on one another */
+	uint32_t *sub[KG_SAT_MAX_CHANNELS][2];
+	uint32_t *top;           /* per block and slot, the highest bin */
+} sat_scan;
+
+static void scan_free(sat_scan *s)
+{
+	for (int c = 0; c < KG_SAT_MAX_CHANNELS; c++)
+		for (int k = 0; k < 2; k++)
+			free(s->sub[c][k]);
+	free(s->top);
+}
+
+/* The two histograms of each channel into h, emptied. */
+static void scan_flush(sat_scan *s, kg_sat_hist *h)
+{
+	for (int c = 0; c < s->C; c++) {
+		uint64_t n = 0;
+		uint64_t *bins = h->bins[c];
+		uint32_t *a = s->sub[c][0], *b = s->sub[c][1];
+		for (int k = 0; k <= s->S; k++) {
+			uint64_t v = (uint64_t)a[k] + b[k];
+			bins[k] += v;
+			n += v;
+		}
+		h->total[c] += n;
+		memset(a, 0, ((size_t)s->S + 2) * sizeof(uint32_t));
+		memset(b, 0, ((size_t)s->S + 2) * sizeof(uint32_t));
+	}
+}
+
+/* One block of n interleaved pixels of C channels, their bins in k. */
+static void scan_pixels(sat_scan *s, const uint32_t *k, size_t n, int C, uint32_t *top)
+{
+	uint32_t m[KG_SAT_MAX_CHANNELS] = {0};
+	for (size_t i = 0; i < n; i++)
+		for (int c = 0; c < C; c++) {
+			uint32_t b = k[i * (size_t)C + (size_t)c];
+			s->sub[c][i & 1][b]++;
+			m[c] = b > m[c] ? b : m[c];
+		}
+	for (int c = 0; c < C; c++)
+		top[c] = m[c];
+}
+
+/* The same for 3 channels, two pixels at a time, the maxima in registers. */
+static void scan_rgb(sat_scan *s, const uint32_t *k, size_t n, uint32_t *top)
+{
+	uint32_t *r0 = s->sub[0][0], *g0 = s->sub[1][0], *b0 = s->sub[2][0];
+	uint32_t *r1 = s->sub[0][1], *g1 = s->sub[1][1], *b1 = s->sub[2][1];
+	uint32_t mr = 0, mg = 0, mb = 0;
+	size_t i = 0;
+	for (; i + 2 <= n; i += 2, k += 6) {
+		uint32_t kr = k[0], kg = k[1], kb = k[2], lr = k[3], lg = k[4], lb = k[5];
+		r0[kr]++;
+		g0[kg]++;
+		b0[kb]++;
+		r1[lr]++;
+		g1[lg]++;
+		b1[lb]++;
+		kr = lr > kr ? lr : kr;
+		kg = lg > kg ? lg : kg;
+		kb = lb > kb ? lb : kb;
+		mr = kr > mr ? kr : mr;
+		mg = kg > mg ? kg : mg;
+		mb = kb > mb ? kb : mb;
+	}
+	if (i < n) {
+		r0[k[0]]++;
+		g0[k[1]]++;
+		b0[k[2]]++;
+		mr = k[0] > mr ? k[0] : mr;
+		mg = k[1] > mg ? k[1] : mg;
+		mb = k[2] > mb ? k[2] : mb;
+	}
+	top[0] = mr;
+	top[1] = mg;
+	top[2] = mb;
+}
+
+/* One block of a mosaic row: channels base and base + 1 alternate from x0 (even). */
+static void scan_mosaic(sat_scan *s, const uint32_t *k, size_t n, int base, uint32_t *top)
+{
+	uint32_t m0 = 0, m1 = 0;
+	uint32_t *a0 = s->sub[base][0], *a1 = s->sub[base + 1][0];
+	uint32_t *b0 = s->sub[base][1], *b1 = s->sub[base + 1][1];
+	size_t i = 0;
+	for (; i + 4 <= n; i += 4) {
+		uint32_t k0 = k[i], k1 = k[i + 1], k2 = k[i + 2], k3 = k[i + 3];
+		a0[k0]++;
+		a1[k1]++;
+		b0[k2]++;
+		b1[k3]++;
+		m0 = k0 > m0 ? k0 : m0;
+		m1 = k1 > m1 ? k1 : m1;
+		m0 = k2 > m0 ? k2 : m0;
+		m1 = k3 > m1 ? k3 : m1;
+	}
+	for (; i < n; i++) {
+		uint32_t b = k[i];
+		if (i & 1) {
+			a1[b]++;
+			m1 = b > m1 ? b : m1;
+		} else {
+			a0[b]++;
+			m0 = b > m0 ? b : m0;
+		}
+	}
+	top[0] = m0;
+	top[1] = m1;
+}
+
+static int scan_image(const kg_image *img, sat_scan *s, kg_sat_hist *h, kg_err *err)
+{
+	size_t nblocks = s->nbx * s->H;
+	if (!(s->top = malloc((nblocks ? nblocks : 1) * (size_t)s->slots * sizeof(uint32_t))))
+		return kg_fail(err, KG_ENOMEM, "out of memory");
+	for (int c = 0; c < s->C; c++)
+		for (int k = 0; k < 2; k++)
+			if (!(s->sub[c][k] = calloc((size_t)s->S + 2, sizeof(uint32_t))))
+				return kg_fail(err, KG_ENOMEM, "out of memory");
+	int ch = img->channels;
+	size_t block = (size_t)SAT_CHUNK / (size_t)ch;
+	if (block > SAT_BLOCK)
+		block = SAT_BLOCK;
+	uint32_t k[SAT_CHUNK];
+	/* a histogram's count may not wrap: each sees at most half the pixels between two
+	 * flushes */
+	size_t since = 0, limit = (size_t)1 << 31;
+	for (size_t y = 0; y < s->H; y++) {
+		for (size_t bx = 0; bx < s->nbx; bx++) {
+			size_t x0 = bx * block, n = s->W - x0 < block ? s->W - x0 : block;
+			const float *p = img->data + (y * s->W + x0) * (size_t)ch;
+			uint32_t *top = s->top + (y * s->nbx + bx) * (size_t)s->slots;
+			bins_of(p, n * (size_t)ch, s->S, k);
+			if (s->mosaic)
+				scan_mosaic(s, k, n, (int)(y & 1) * 2, top);
+			else if (ch == 3)
+				scan_rgb(s, k, n, top);
+			else
+				scan_pixels(s, k, n, ch, top);
+			if ((since += n) >= limit) {
+				scan_flush(s, h);
+				since = 0;
+			}
+		}
+	}
+	scan_flush(s, h);
+	return 0;
+}
+
+/* 1 when block b of row y may hold a sample >= the clip level of a channel marked in
+ * want, thr[c] being that clip level's bin. */
+static int block_may_clip(const sat_scan *s, size_t y, size_t b, const uint32_t *thr,
+                          const int *want)
+{
+	const uint32_t *top = s->top + (y * s->nbx + b) * (size_t)s->slots;
+	for (int j = 0; j < s->slots; j++) {
+		int c = s->mosaic ? (int)(y & 1) * 2 + j : j;
+		if (want[c] && top[j] >= thr[c])
+			return 1;
+	}
+	return 0;
+}
+
 int kg_saturation_of_image(const kg_image *img, double nominal_clip, kg_saturation *out,
                            kg_err *err)
 {
@@ -266,33 +505,65 @@ int kg_saturation_of_image(const kg_image *img, double nominal_clip, kg_saturati
 	if (ret)
 		return ret;
 	size_t W = (size_t)img->width, H = (size_t)img->height;
-	if (mosaic) {
-		for (size_t y = 0; y < H; y++)
-			for (size_t x = 0; x < W; x++)
-				kg_sat_hist_add1(&h, (int)((y & 1) * 2 + (x & 1)), img->data[y * W + x]);
-	} else {
-		kg_sat_hist_add(&h, img->data, W * H);
+	sat_scan s = {0};
+	s.C = C;
+	s.S = h.steps;
+	s.mosaic = mosaic;
+	s.slots = mosaic ? 2 : C;
+	s.W = W;
+	s.H = H;
+	size_t block = (size_t)SAT_CHUNK / (size_t)img->channels;
+	if (block > SAT_BLOCK)
+		block = SAT_BLOCK;
+	s.nbx = (W + block - 1) / block;
+	if ((ret = scan_image(img, &s, &h, err))) {
+		scan_free(&s);
+		kg_sat_hist_free(&h);
+		return ret;
 	}
 	kg_sat_hist_result(&h, nominal_clip, out);
 	kg_sat_hist_free(&h);
+	uint32_t thr[KG_SAT_MAX_CHANNELS];
+	int want[KG_SAT_MAX_CHANNELS];
 	if (!mosaic && C == 3 && kg_saturation_below(out, nominal_clip)) {
+		/* only pixels with a found channel at or above its clip level count here, in
+		 * the order of the image */
 		kg_sat_flat f;
 		kg_sat_flat_init(&f, out);
-		kg_sat_flat_add(&f, img->data, W * H);
+		for (int c = 0; c < C; c++) {
+			thr[c] = (uint32_t)bin_of(out->clip[c], s.S);
+			want[c] = out->found[c];
+		}
+		for (size_t y = 0; y < H; y++)
+			for (size_t b = 0; b < s.nbx; b++)
+				if (block_may_clip(&s, y, b, thr, want)) {
+					size_t x0 = b * block, n = W - x0 < block ? W - x0 : block;
+					kg_sat_flat_add(&f, img->data + (y * W + x0) * 3, n);
+				}
 		kg_sat_flat_result(&f, out);
+	}
+	for (int c = 0; c < C; c++) {
+		thr[c] = (uint32_t)bin_of(out->clip[c], s.S);
+		want[c] = 1;
 	}
 	size_t any = 0, n = W * H;
 	for (size_t y = 0; y < H; y++)
-		for (size_t x = 0; x < W; x++) {
-			const float *p = img->data + (y * W + x) * (size_t)img->channels;
-			int hit = 0;
-			if (mosaic)
-				hit = p[0] >= out->clip[(y & 1) * 2 + (x & 1)];
-			else
-				for (int c = 0; c < C; c++)
-					hit |= p[c] >= out->clip[c];
-			any += (size_t)hit;
+		for (size_t b = 0; b < s.nbx; b++) {
+			if (!block_may_clip(&s, y, b, thr, want))
+				continue;
+			size_t x1 = (b + 1) * block < W ? (b + 1) * block : W;
+			for (size_t x = b * block; x < x1; x++) {
+				const float *p = img->data + (y * W + x) * (size_t)img->channels;
+				int hit = 0;
+				if (mosaic)
+					hit = p[0] >= out->clip[(y & 1) * 2 + (x & 1)];
+				else
+					for (int c = 0; c < C; c++)
+						hit |= p[c] >= out->clip[c];
+				any += (size_t)hit;
+			}
 		}
+	scan_free(&s);
 	out->fraction_any = n ? (double)any / (double)n : 0;
 	return 0;
 }
