@@ -152,43 +152,81 @@ static inline uint32_t bin_or_dump(float v, int steps)
 	return (u & 0x7f800000u) == 0x7f800000u ? (uint32_t)steps + 1 : (uint32_t)bin_of(v, steps);
 }
 
-/* bin_or_dump for n samples. With SSE2, four at a time in single precision, which is
- * close but not exact: x = v * steps + 0.5, computed exactly in bin_of, is within 2^-7
- * of its float counterpart r (each of the two roundings errs by at most 2^-8 below
- * 2^16; r is clamped to 0.25 .. steps + 0.75, where the bin no longer changes). The
- * bin is floor(r) whenever r lies at least 1/16 from an integer (r - floor(r) is exact),
- * which holds for every value that is a count divided by steps (x is then the count
- * plus 0.5, give or take 0.004). A sample closer to a bin boundary, or not finite, is
- * binned again by bin_or_dump. */
-static void bins_of(const float *v, size_t n, int steps, uint32_t *out)
+/* bin_or_dump for n samples, and in top[i % period] the highest of the bins of samples
+ * i (period 1, 2 or 3: the channels of a block; top holds period values, raised, never
+ * lowered). With SSE2, four samples at a time in single precision, which is close but
+ * not exact: x = v * steps + 0.5, computed exactly in bin_of, is within 2^-7 of its
+ * float counterpart r (each of the two roundings errs by at most 2^-8 below 2^16; r is
+ * clamped to 0.25 .. steps + 0.75, where the bin no longer changes). The bin is
+ * floor(r) whenever r lies at least 1/16 from an integer (r - floor(r) is exact), which
+ * holds for every value that is a count divided by steps (x is then the count plus 0.5,
+ * give or take 0.004). A sample closer to a bin boundary, or not finite, is binned
+ * again by bin_or_dump, and its exact bin raised into top too. A float's approximate
+ * bin is the exact one or one above it (the half-way points are floats below 2^22 and
+ * rounding keeps order), so the maxima can only come out high, which is safe for their
+ * use (a block read that need not have been). */
+#ifdef __SSE2__
+typedef struct bins_sse2 {
+	__m128 vs, half, lo, hi, margin;
+	__m128i absmask, maxfinite;
+} bins_sse2;
+
+/* Four samples: their approximate bins stored, the lanes to redo returned as bits,
+ * the bins as floats raised into *m. */
+static inline int bins4(const bins_sse2 *q, const float *v, uint32_t *out, __m128 *m)
+{
+	__m128 f = _mm_loadu_ps(v);
+	__m128 r = _mm_add_ps(_mm_mul_ps(f, q->vs), q->half);
+	/* maxps gives its second operand for NaN: lo */
+	r = _mm_min_ps(_mm_max_ps(r, q->lo), q->hi);
+	__m128i k = _mm_cvttps_epi32(r);
+	__m128 kf = _mm_cvtepi32_ps(k);
+	__m128 off = _mm_and_ps(_mm_sub_ps(_mm_sub_ps(r, kf), q->half),
+	                        _mm_castsi128_ps(q->absmask));
+	__m128i nonfinite =
+	    _mm_cmpgt_epi32(_mm_and_si128(_mm_castps_si128(f), q->absmask), q->maxfinite);
+	_mm_storeu_si128((__m128i *)(void *)out, k);
+	*m = _mm_max_ps(*m, kf);
+	return _mm_movemask_ps(
+	    _mm_or_ps(_mm_cmpgt_ps(off, q->margin), _mm_castsi128_ps(nonfinite)));
+}
+#endif
+
+static void bins_of(const float *v, size_t n, int steps, uint32_t *out, int period,
+                    uint32_t *top)
 {
 	size_t i = 0;
 #ifdef __SSE2__
-	const __m128 vs = _mm_set1_ps((float)steps), half = _mm_set1_ps(0.5f);
-	const __m128 lo = _mm_set1_ps(0.25f), hi = _mm_set1_ps((float)steps + 0.75f);
-	const __m128 margin = _mm_set1_ps(0.5f - 0.0625f);
-	const __m128i absmask = _mm_set1_epi32(0x7fffffff), maxfinite = _mm_set1_epi32(0x7f7fffff);
-	for (; i + 4 <= n; i += 4) {
-		__m128 f = _mm_loadu_ps(v + i);
-		__m128 r = _mm_add_ps(_mm_mul_ps(f, vs), half);
-		/* maxps gives its second operand for NaN: lo */
-		r = _mm_min_ps(_mm_max_ps(r, lo), hi);
-		__m128i k = _mm_cvttps_epi32(r);
-		__m128 frac = _mm_sub_ps(r, _mm_cvtepi32_ps(k));
-		__m128 off = _mm_and_ps(_mm_sub_ps(frac, half), _mm_castsi128_ps(absmask));
-		__m128i nonfinite = _mm_cmpgt_epi32(_mm_and_si128(_mm_castps_si128(f), absmask),
-		                                    maxfinite);
-		int redo = _mm_movemask_ps(_mm_or_ps(_mm_cmpgt_ps(off, margin),
-		                                     _mm_castsi128_ps(nonfinite)));
-		_mm_storeu_si128((__m128i *)(void *)(out + i), k);
-		for (; redo; redo &= redo - 1) {
-			int j = __builtin_ctz((unsigned)redo);
-			out[i + (size_t)j] = bin_or_dump(v[i + (size_t)j], steps);
+	bins_sse2 q = {_mm_set1_ps((float)steps), _mm_set1_ps(0.5f), _mm_set1_ps(0.25f),
+	               _mm_set1_ps((float)steps + 0.75f), _mm_set1_ps(0.5f - 0.0625f),
+	               _mm_set1_epi32(0x7fffffff), _mm_set1_epi32(0x7f7fffff)};
+	/* twelve samples at a time, a whole number of periods: lane l of vector a holds
+	 * sample 4a + l of the twelve */
+	__m128 m[3] = {_mm_setzero_ps(), _mm_setzero_ps(), _mm_setzero_ps()};
+	for (; i + 12 <= n; i += 12)
+		for (int a = 0; a < 3; a++) {
+			size_t o = i + 4 * (size_t)a;
+			for (int redo = bins4(&q, v + o, out + o, &m[a]); redo; redo &= redo - 1) {
+				size_t j = o + (size_t)__builtin_ctz((unsigned)redo);
+				out[j] = bin_or_dump(v[j], steps);
+				uint32_t *t = top + (j % (size_t)period);
+				*t = out[j] > *t ? out[j] : *t;
+			}
 		}
-	}
+	float mf[3][4];
+	for (int a = 0; a < 3; a++)
+		_mm_storeu_ps(mf[a], m[a]);
+	for (int a = 0; a < 3; a++)
+		for (int l = 0; l < 4; l++) {
+			uint32_t b = (uint32_t)mf[a][l], *t = top + (4 * a + l) % period;
+			*t = b > *t ? b : *t;
+		}
 #endif
-	for (; i < n; i++)
+	for (; i < n; i++) {
 		out[i] = bin_or_dump(v[i], steps);
+		uint32_t *t = top + (i % (size_t)period);
+		*t = out[i] > *t ? out[i] : *t;
+	}
 }
 
 void kg_sat_hist_add1(kg_sat_hist *h, int c, double v)
@@ -209,7 +247,8 @@ void kg_sat_hist_add(kg_sat_hist *h, const float *px, size_t n)
 	size_t per = SAT_CHUNK / (size_t)C; /* whole pixels per chunk */
 	for (size_t i = 0; i < n; i += per) {
 		size_t m = n - i < per ? n - i : per;
-		bins_of(px + i * (size_t)C, m * (size_t)C, S, k);
+		uint32_t top = 0;
+		bins_of(px + i * (size_t)C, m * (size_t)C, S, k, 1, &top);
 		for (size_t j = 0; j < m; j++)
 			for (int c = 0; c < C; c++)
 				h->bins[c][k[j * (size_t)C + (size_t)c]]++;
@@ -357,85 +396,50 @@ static void scan_flush(sat_scan *s, kg_sat_hist *h)
 	}
 }
 
-/* One block of n interleaved pixels of C channels, their bins in k. */
-static void scan_pixels(sat_scan *s, const uint32_t *k, size_t n, int C, uint32_t *top)
+/* The histograms' counts for one block of n interleaved pixels of C channels, their
+ * bins in k. */
+static void scan_pixels(sat_scan *s, const uint32_t *k, size_t n, int C)
 {
-	uint32_t m[KG_SAT_MAX_CHANNELS] = {0};
 	for (size_t i = 0; i < n; i++)
-		for (int c = 0; c < C; c++) {
-			uint32_t b = k[i * (size_t)C + (size_t)c];
-			s->sub[c][i & 1][b]++;
-			m[c] = b > m[c] ? b : m[c];
-		}
-	for (int c = 0; c < C; c++)
-		top[c] = m[c];
+		for (int c = 0; c < C; c++)
+			s->sub[c][i & 1][k[i * (size_t)C + (size_t)c]]++;
 }
 
-/* The same for 3 channels, two pixels at a time, the maxima in registers. */
-static void scan_rgb(sat_scan *s, const uint32_t *k, size_t n, uint32_t *top)
+/* The same for 3 channels, two pixels at a time. */
+static void scan_rgb(sat_scan *s, const uint32_t *k, size_t n)
 {
 	uint32_t *r0 = s->sub[0][0], *g0 = s->sub[1][0], *b0 = s->sub[2][0];
 	uint32_t *r1 = s->sub[0][1], *g1 = s->sub[1][1], *b1 = s->sub[2][1];
-	uint32_t mr = 0, mg = 0, mb = 0;
 	size_t i = 0;
 	for (; i + 2 <= n; i += 2, k += 6) {
-		uint32_t kr = k[0], kg = k[1], kb = k[2], lr = k[3], lg = k[4], lb = k[5];
-		r0[kr]++;
-		g0[kg]++;
-		b0[kb]++;
-		r1[lr]++;
-		g1[lg]++;
-		b1[lb]++;
-		kr = lr > kr ? lr : kr;
-		kg = lg > kg ? lg : kg;
-		kb = lb > kb ? lb : kb;
-		mr = kr > mr ? kr : mr;
-		mg = kg > mg ? kg : mg;
-		mb = kb > mb ? kb : mb;
+		r0[k[0]]++;
+		g0[k[1]]++;
+		b0[k[2]]++;
+		r1[k[3]]++;
+		g1[k[4]]++;
+		b1[k[5]]++;
 	}
 	if (i < n) {
 		r0[k[0]]++;
 		g0[k[1]]++;
 		b0[k[2]]++;
-		mr = k[0] > mr ? k[0] : mr;
-		mg = k[1] > mg ? k[1] : mg;
-		mb = k[2] > mb ? k[2] : mb;
 	}
-	top[0] = mr;
-	top[1] = mg;
-	top[2] = mb;
 }
 
 /* One block of a mosaic row: channels base and base + 1 alternate from x0 (even). */
-static void scan_mosaic(sat_scan *s, const uint32_t *k, size_t n, int base, uint32_t *top)
+static void scan_mosaic(sat_scan *s, const uint32_t *k, size_t n, int base)
 {
-	uint32_t m0 = 0, m1 = 0;
 	uint32_t *a0 = s->sub[base][0], *a1 = s->sub[base + 1][0];
 	uint32_t *b0 = s->sub[base][1], *b1 = s->sub[base + 1][1];
 	size_t i = 0;
 	for (; i + 4 <= n; i += 4) {
-		uint32_t k0 = k[i], k1 = k[i + 1], k2 = k[i + 2], k3 = k[i + 3];
-		a0[k0]++;
-		a1[k1]++;
-		b0[k2]++;
-		b1[k3]++;
-		m0 = k0 > m0 ? k0 : m0;
-		m1 = k1 > m1 ? k1 : m1;
-		m0 = k2 > m0 ? k2 : m0;
-		m1 = k3 > m1 ? k3 : m1;
+		a0[k[i]]++;
+		a1[k[i + 1]]++;
+		b0[k[i + 2]]++;
+		b1[k[i + 3]]++;
 	}
-	for (; i < n; i++) {
-		uint32_t b = k[i];
-		if (i & 1) {
-			a1[b]++;
-			m1 = b > m1 ? b : m1;
-		} else {
-			a0[b]++;
-			m0 = b > m0 ? b : m0;
-		}
-	}
-	top[0] = m0;
-	top[1] = m1;
+	for (; i < n; i++)
+		(i & 1 ? a1 : a0)[k[i]]++;
 }
 
 static int scan_image(const kg_image *img, sat_scan *s, kg_sat_hist *h, kg_err *err)
@@ -460,13 +464,14 @@ static int scan_image(const kg_image *img, sat_scan *s, kg_sat_hist *h, kg_err *
 			size_t x0 = bx * block, n = s->W - x0 < block ? s->W - x0 : block;
 			const float *p = img->data + (y * s->W + x0) * (size_t)ch;
 			uint32_t *top = s->top + (y * s->nbx + bx) * (size_t)s->slots;
-			bins_of(p, n * (size_t)ch, s->S, k);
+			memset(top, 0, (size_t)s->slots * sizeof(uint32_t));
+			bins_of(p, n * (size_t)ch, s->S, k, s->slots, top);
 			if (s->mosaic)
-				scan_mosaic(s, k, n, (int)(y & 1) * 2, top);
+				scan_mosaic(s, k, n, (int)(y & 1) * 2);
 			else if (ch == 3)
-				scan_rgb(s, k, n, top);
+				scan_rgb(s, k, n);
 			else
-				scan_pixels(s, k, n, ch, top);
+				scan_pixels(s, k, n, ch);
 			if ((since += n) >= limit) {
 				scan_flush(s, h);
 				since = 0;

@@ -529,6 +529,76 @@ static void test_fast_paths(void)
 			kg_image_free(&one);
 			kg_image_free(&img);
 		}
+	/* lone samples at the level of the one channel found clipped, scattered where the
+	 * other channels are far from their own (higher) clip levels: each pixel counts in
+	 * fraction_any only if the scan keeps its channels apart */
+	for (int bits = 12; bits <= 16; bits += 4) {
+		double fs = (double)((1 << bits) - 1);
+		kg_image *img = scene_gains(3, bits, 1.3, fs - 3, 1.0, (unsigned)(60 + bits), NULL,
+		                            gains[0]);
+		CHECK(img != NULL, "no image");
+		if (!img)
+			continue;
+		kg_saturation s;
+		CHECK(kg_saturation_of_image(img, 1.0, &s, &err) == 0, "%s", err.msg);
+		CHECK(s.found[0] && !s.found[1] && !s.found[2], "%d bits: red alone not found",
+		      bits);
+		/* at the level, and the least float at or above the clip level (next to a bin
+		 * boundary, where the single-precision binning defers to the exact one) */
+		float edge = (float)s.clip[0];
+		if (edge < s.clip[0])
+			edge = nextafterf(edge, INFINITY);
+		for (int k = 0; k < 600; k++) {
+			size_t px = kg_rng_next(&rng) % ((size_t)W * H);
+			img->data[3 * px] = k & 1 ? edge : (float)s.level[0];
+		}
+		char what[96];
+		snprintf(what, sizeof(what), "%d-bit scene, lone samples at red's clip level", bits);
+		ok &= matches_reference(what, img, 1.0);
+		/* three columns fewer: rows that end part-way through the scan's groups */
+		kg_image *narrow = NULL;
+		CHECK(kg_image_new(W - 3, H, 3, &narrow, &err) == 0, "%s", err.msg);
+		if (narrow) {
+			narrow->bits = bits;
+			narrow->is_float = 0;
+			for (size_t y = 0; y < H; y++) {
+				memcpy(narrow->data + y * (W - 3) * 3, img->data + y * W * 3,
+				       (W - 3) * 3 * sizeof(float));
+				if (y % 5 == 0) /* and in the last pixel of a row */
+					narrow->data[(y * (W - 3) + W - 4) * 3] = (float)s.level[0];
+			}
+			ok &= matches_reference(what, narrow, 1.0);
+			kg_image_free(&narrow);
+		}
+		kg_image_free(&img);
+	}
+	/* a user's clip level just past a bin boundary, and lone samples on either side of
+	 * it in a dull image: a sample at or above that level shares the level's bin */
+	{
+		kg_image *img = NULL;
+		CHECK(kg_image_new(W - 1, 50, 3, &img, &err) == 0, "%s", err.msg);
+		if (img) {
+			img->bits = 16;
+			img->is_float = 0;
+			size_t n = (size_t)img->width * (size_t)img->height;
+			for (size_t i = 0; i < 3 * n; i++)
+				img->data[i] = 0.25f;
+			float b = (float)((50000 - 0.5) / 65535), near[7];
+			near[3] = b;
+			for (int k = 1; k <= 3; k++) {
+				near[3 + k] = nextafterf(near[2 + k], INFINITY);
+				near[3 - k] = nextafterf(near[4 - k], -INFINITY);
+			}
+			for (int k = 0; k < 200; k++)
+				img->data[kg_rng_next(&rng) % (3 * n)] = near[k % 7];
+			for (int k = 0; k < 7; k++) {
+				ok &= matches_reference("lone samples by a bin boundary", img, near[k]);
+				ok &= matches_reference("lone samples by a bin boundary", img,
+				                        near[k] + 1e-12);
+			}
+			kg_image_free(&img);
+		}
+	}
 	/* clipped at full scale: samples at exactly 1, the clip level's own bin */
 	for (int bits = 8; bits <= 16; bits += 8)
 		for (int g = 0; g < 3; g++) {
