@@ -157,14 +157,14 @@ static inline uint32_t bin_or_dump(float v, int steps)
  * lowered). With SSE2, four samples at a time in single precision, which is close but
  * not exact: x = v * steps + 0.5, computed exactly in bin_of, is within 2^-7 of its
  * float counterpart r (each of the two roundings errs by at most 2^-8 below 2^16; r is
- * clamped to 0.25 .. steps + 0.75, where the bin no longer changes). The bin is
- * floor(r) whenever r lies at least 1/16 from an integer (r - floor(r) is exact), which
- * holds for every value that is a count divided by steps (x is then the count plus 0.5,
- * give or take 0.004). A sample closer to a bin boundary, or not finite, is binned
- * again by bin_or_dump, and its exact bin raised into top too. A float's approximate
- * bin is the exact one or one above it (the half-way points are floats below 2^22 and
- * rounding keeps order), so the maxima can only come out high, which is safe for their
- * use (a block read that need not have been). */
+ * clamped to 0.25 .. steps + 0.75, where the bin no longer changes). floor(r) is never
+ * below the exact bin floor(x): the half-way points count - 0.5 are floats, and
+ * rounding keeps order. So floor(r) is the bin unless r lies less than 2^-7 above an
+ * integer (r - floor(r) is exact); a sample with r less than 1/64 above one, or not
+ * finite, is binned again by bin_or_dump, and its exact bin raised into top too. A
+ * value that is a count divided by steps has r near the count plus 0.5 and is never
+ * binned again; an arbitrary float is, one in 64. The maxima can only come out high,
+ * which is safe for their use (a block read that need not have been). */
 #ifdef __SSE2__
 typedef struct bins_sse2 {
 	__m128 vs, half, lo, hi, margin;
@@ -181,14 +181,13 @@ static inline int bins4(const bins_sse2 *q, const float *v, uint32_t *out, __m12
 	r = _mm_min_ps(_mm_max_ps(r, q->lo), q->hi);
 	__m128i k = _mm_cvttps_epi32(r);
 	__m128 kf = _mm_cvtepi32_ps(k);
-	__m128 off = _mm_and_ps(_mm_sub_ps(_mm_sub_ps(r, kf), q->half),
-	                        _mm_castsi128_ps(q->absmask));
+	__m128 frac = _mm_sub_ps(r, kf);
 	__m128i nonfinite =
 	    _mm_cmpgt_epi32(_mm_and_si128(_mm_castps_si128(f), q->absmask), q->maxfinite);
 	_mm_storeu_si128((__m128i *)(void *)out, k);
 	*m = _mm_max_ps(*m, kf);
 	return _mm_movemask_ps(
-	    _mm_or_ps(_mm_cmpgt_ps(off, q->margin), _mm_castsi128_ps(nonfinite)));
+	    _mm_or_ps(_mm_cmplt_ps(frac, q->margin), _mm_castsi128_ps(nonfinite)));
 }
 #endif
 
@@ -198,7 +197,7 @@ static void bins_of(const float *v, size_t n, int steps, uint32_t *out, int peri
 	size_t i = 0;
 #ifdef __SSE2__
 	bins_sse2 q = {_mm_set1_ps((float)steps), _mm_set1_ps(0.5f), _mm_set1_ps(0.25f),
-	               _mm_set1_ps((float)steps + 0.75f), _mm_set1_ps(0.5f - 0.0625f),
+	               _mm_set1_ps((float)steps + 0.75f), _mm_set1_ps(1.0f / 64),
 	               _mm_set1_epi32(0x7fffffff), _mm_set1_epi32(0x7f7fffff)};
 	/* twelve samples at a time, a whole number of periods: lane l of vector a holds
 	 * sample 4a + l of the twelve */
