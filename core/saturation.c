@@ -300,24 +300,48 @@ void kg_sat_flat_add(kg_sat_flat *f, const float *px, size_t n)
 	const kg_saturation *s = &f->sat;
 	if (s->channels != 3)
 		return;
+	/* the loop works on local copies, unrolled, which the compiler keeps in registers;
+	 * each accumulator sees the same operations in the same order as pixel by pixel */
+	double clip[3] = {s->clip[0], s->clip[1], s->clip[2]};
+	int found[3] = {s->found[0], s->found[1], s->found[2]};
+	double ref[3][3], sum[3][3], sumsq[3][3];
+	uint64_t cnt[3][3], piled[3];
+	memcpy(ref, f->ref, sizeof(ref));
+	memcpy(sum, f->sum, sizeof(sum));
+	memcpy(sumsq, f->sumsq, sizeof(sumsq));
+	memcpy(cnt, f->n, sizeof(cnt));
+	memcpy(piled, f->piled, sizeof(piled));
 	for (size_t i = 0; i < n; i++) {
 		const float *p = px + 3 * i;
+		int hit[3];
+#pragma GCC unroll 3
+		for (int c = 0; c < 3; c++)
+			hit[c] = found[c] && p[c] >= clip[c];
+		if (!(hit[0] | hit[1] | hit[2]))
+			continue;
+#pragma GCC unroll 3
 		for (int c = 0; c < 3; c++) {
-			if (!s->found[c] || !(p[c] >= s->clip[c]))
+			if (!hit[c])
 				continue;
-			f->piled[c]++;
+			piled[c]++;
+#pragma GCC unroll 3
 			for (int d = 0; d < 3; d++) {
-				if (d == c || !(p[d] < s->clip[d]) || !isfinite(p[d]))
+				if (d == c || !(p[d] < clip[d]) || !isfinite(p[d]))
 					continue;
-				if (!f->n[c][d])
-					f->ref[c][d] = p[d];
-				f->n[c][d]++;
-				double dv = p[d] - f->ref[c][d];
-				f->sum[c][d] += dv;
-				f->sumsq[c][d] += dv * dv;
+				if (!cnt[c][d])
+					ref[c][d] = p[d];
+				cnt[c][d]++;
+				double dv = p[d] - ref[c][d];
+				sum[c][d] += dv;
+				sumsq[c][d] += dv * dv;
 			}
 		}
 	}
+	memcpy(f->ref, ref, sizeof(ref));
+	memcpy(f->sum, sum, sizeof(sum));
+	memcpy(f->sumsq, sumsq, sizeof(sumsq));
+	memcpy(f->n, cnt, sizeof(cnt));
+	memcpy(f->piled, piled, sizeof(piled));
 }
 
 int kg_sat_flat_result(const kg_sat_flat *f, kg_saturation *out)

@@ -286,6 +286,32 @@ static int ref_channel(const kg_image *img, size_t x, size_t y, int c, int *mosa
 	return *mosaic ? (int)((y & 1) * 2 + (x & 1)) : c;
 }
 
+/* The flat-object guard's sums, pixel by pixel. */
+static void ref_flat_add(kg_sat_flat *f, const float *px, size_t n)
+{
+	const kg_saturation *s = &f->sat;
+	if (s->channels != 3)
+		return;
+	for (size_t i = 0; i < n; i++) {
+		const float *p = px + 3 * i;
+		for (int c = 0; c < 3; c++) {
+			if (!s->found[c] || !(p[c] >= s->clip[c]))
+				continue;
+			f->piled[c]++;
+			for (int d = 0; d < 3; d++) {
+				if (d == c || !(p[d] < s->clip[d]) || !isfinite(p[d]))
+					continue;
+				if (!f->n[c][d])
+					f->ref[c][d] = p[d];
+				f->n[c][d]++;
+				double dv = p[d] - f->ref[c][d];
+				f->sum[c][d] += dv;
+				f->sumsq[c][d] += dv * dv;
+			}
+		}
+	}
+}
+
 static int ref_saturation(const kg_image *img, double nominal, kg_saturation *out)
 {
 	kg_err err = {{0}};
@@ -310,8 +336,7 @@ static int ref_saturation(const kg_image *img, double nominal, kg_saturation *ou
 	if (!mosaic && C == 3 && kg_saturation_below(out, nominal)) {
 		kg_sat_flat f;
 		kg_sat_flat_init(&f, out);
-		for (size_t i = 0; i < nx * ny; i++) /* one pixel at a time */
-			kg_sat_flat_add(&f, img->data + 3 * i, 1);
+		ref_flat_add(&f, img->data, nx * ny);
 		kg_sat_flat_result(&f, out);
 	}
 	size_t any = 0;
@@ -352,6 +377,34 @@ static int matches_reference(const char *what, const kg_image *img, double nomin
 	      s.fraction_any, r.fraction_any, s.found[0], r.found[0], s.clip[0], r.clip[0],
 	      s.fraction[0], r.fraction[0]);
 	return ok;
+}
+
+/* kg_sat_flat_add against the reference, over the whole image in bands of uneven
+ * sizes, every sum bit for bit. */
+static void flat_matches_reference(const char *what, const kg_image *img, double nominal)
+{
+	kg_saturation s;
+	kg_err err = {{0}};
+	CHECK(kg_saturation_of_image(img, nominal, &s, &err) == 0, "%s", err.msg);
+	for (int c = 0; c < 3; c++) /* the guard over every channel, found or not */
+		if (!s.found[c]) {
+			s.found[c] = 1;
+			s.clip[c] = 0.9;
+		}
+	kg_sat_flat f, r;
+	kg_sat_flat_init(&f, &s);
+	kg_sat_flat_init(&r, &s);
+	size_t n = (size_t)img->width * (size_t)img->height;
+	for (size_t i = 0, m = 1; i < n; i += m, m = m * 7 % 1001 + 1)
+		kg_sat_flat_add(&f, img->data + 3 * i, n - i < m ? n - i : m);
+	ref_flat_add(&r, img->data, n);
+	CHECK(!memcmp(f.piled, r.piled, sizeof(f.piled)) && !memcmp(f.n, r.n, sizeof(f.n)) &&
+	          !memcmp(f.ref, r.ref, sizeof(f.ref)) && !memcmp(f.sum, r.sum, sizeof(f.sum)) &&
+	          !memcmp(f.sumsq, r.sumsq, sizeof(f.sumsq)),
+	      "%s: the flat-object guard's sums differ from the reference (red over green: "
+	      "%llu %.17g %.17g, reference %llu %.17g %.17g)", what,
+	      (unsigned long long)f.n[0][1], f.sum[0][1], f.sumsq[0][1],
+	      (unsigned long long)r.n[0][1], r.sum[0][1], r.sumsq[0][1]);
 }
 
 /* kg_sat_hist_add against the reference binning, bin by bin. */
@@ -508,6 +561,7 @@ static void test_fast_paths(void)
 			snprintf(what, sizeof(what), "%d-bit scene, %d channel(s) clipped, with NaN and "
 			         "infinities", bits, g + 1);
 			ok &= matches_reference(what, img, 1.0);
+			flat_matches_reference(what, img, 1.0);
 			ok &= matches_reference(what, img, 1.0 - 0.5 / fs);
 			/* the same samples as one channel and as a mosaic */
 			kg_image *one = NULL;
