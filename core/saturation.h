@@ -87,7 +87,8 @@ int kg_saturation_steps(const kg_image *img);
 /* An accumulator over values on the 0..1 scale, channel by channel. */
 typedef struct kg_sat_hist {
 	int channels, steps;
-	uint64_t *bins[KG_SAT_MAX_CHANNELS]; /* steps + 1 each */
+	uint64_t *bins[KG_SAT_MAX_CHANNELS]; /* steps + 1 each, and one more the scan uses
+	                                      * for the samples it leaves out */
 	uint64_t total[KG_SAT_MAX_CHANNELS];
 } kg_sat_hist;
 
