@@ -294,6 +294,7 @@ typedef struct sample_job {
 	const kg_chart_detect_options *opt;
 	const double *H, *Hinv;
 	kg_chart_sample *patches;
+	sample_buffers *bufs; /* one set per thread */
 	int fast, stride;
 	int failed[MAX_THREADS];
 } sample_job;
@@ -302,18 +303,16 @@ typedef struct sample_job {
 static void sample_patches(void *arg, int t, int n)
 {
 	sample_job *j = arg;
-	sample_buffers buf = {0};
 	for (int i = t; i < j->L->npatches && !j->failed[t]; i += n)
 		j->failed[t] = sample_patch(j->wi, j->H, j->Hinv, j->L->patch_center[i],
-		                            j->L->patch_size[i], j->opt, j->fast, j->stride, &buf,
-		                            &j->patches[i]) != 0;
-	chart_buffers_free(&buf);
+		                            j->L->patch_size[i], j->opt, j->fast, j->stride,
+		                            &j->bufs[t], &j->patches[i]) != 0;
 }
 
 /* Every patch of L in wi through r->H into r->patches: fast or the reference, every
  * stride-th row and column of each region (1: every pixel; more gives the patch
  * values of a sparse sample, whose pixel counts and flags are those of the sample). */
-int chart_sample_all_with(const layout_view *L, const work_image *wi,
+int chart_sample_all_with(const layout_view *L, work_image *wi,
                            const kg_chart_detect_options *opt, int fast, int stride,
                            kg_chart_result *r, kg_err *err)
 {
@@ -328,7 +327,8 @@ int chart_sample_all_with(const layout_view *L, const work_image *wi,
 		if (!(r->patches[i].id = strdup(L->patch_ids[i])))
 			return kg_fail(err, KG_ENOMEM, "out of memory");
 	}
-	sample_job j = {L, wi, opt, r->H, Hinv, r->patches, fast, stride > 1 ? stride : 1, {0}};
+	sample_job j = {L, wi, opt, r->H, Hinv, r->patches, wi->sample_bufs, fast,
+	                stride > 1 ? stride : 1, {0}};
 	chart_run_parallel(sample_patches, &j, opt->threads);
 	for (int t = 0; t < MAX_THREADS; t++)
 		if (j.failed[t])
@@ -338,7 +338,7 @@ int chart_sample_all_with(const layout_view *L, const work_image *wi,
 	return 0;
 }
 
-int chart_sample_all(const layout_view *L, const work_image *wi,
+int chart_sample_all(const layout_view *L, work_image *wi,
                       const kg_chart_detect_options *opt, kg_chart_result *r, kg_err *err)
 {
 	return chart_sample_all_with(L, wi, opt, 1, 1, r, err);
