@@ -162,7 +162,8 @@ static int sample_patch(const work_image *wi, const double H[9], const double Hi
 			continue;
 		const float *row = chart_image_span(wi, (int)y, (int)xa, (int)((xb - xa - 1) / stride + 1),
 		                              stride, buf->row);
-		for (long x = xa; x < xb; x += stride) {
+		/* j: x's pixel in the span, (x - xa) / stride, counted rather than divided */
+		for (long x = xa, j = 0; x < xb; x += stride, j++) {
 			double X = x + 0.5;
 			int q = 0, in;
 			if (fast) {
@@ -179,7 +180,7 @@ static int sample_patch(const work_image *wi, const double H[9], const double Hi
 			}
 			if (!in)
 				continue;
-			const float *px = row + (x - xa) / stride * C;
+			const float *px = row + j * C;
 			float v0 = px[0], v1 = px[C == 3 ? 1 : 0], v2 = px[C == 3 ? 2 : 0];
 			double sum = 0;
 			sum += v0;
