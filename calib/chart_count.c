@@ -49,6 +49,7 @@ void chart_buffers_free(sample_buffers *b)
 	free(b->keys);
 	free(b->row);
 	free(b->cnt);
+	free(b->seen);
 }
 
 
@@ -63,7 +64,9 @@ void chart_buffers_free(sample_buffers *b)
  * order statistic is a walk over the counts, equal to what selection finds. Returns -1
  * (select instead) for a value negative (-0 included) or beyond 2^26 / scale or not
  * finite, a distance of half COUNT_SPREAD steps or more, a range of keys much wider
- * than the values are many, or no memory. */
+ * than the values are many, or no memory. The walks skip empty bins 64 at a time (the
+ * seen bits), so a range of up to 64 keys a value costs about what the values do:
+ * a region across two patches of different colours still counts. */
 enum { COUNT_SPREAD = 8, COUNT_MAX_BINS = 1 << 22 };
 
 static uint32_t float_bits(float f)
@@ -148,28 +151,83 @@ static int count_keys(const float *v, long n, float scale, uint32_t *keys, uint3
 }
 #endif
 
+/* The counts of the last values counted back to zero: only the bins seen. */
+static void clear_counts(sample_buffers *b)
+{
+	for (long w = 0; w < (b->nb + 63) / 64; w++) {
+		for (uint64_t m = b->seen[w]; m; m &= m - 1)
+			b->cnt[w * 64 + __builtin_ctzll(m)] = 0;
+		b->seen[w] = 0;
+	}
+	b->nb = 0;
+}
+
 int chart_count_values(const float *v, long n, float scale, sample_buffers *b)
 {
+	clear_counts(b);
 	uint32_t lo = UINT32_MAX, hi = 0;
 	if (count_keys(v, n, scale, b->keys, &lo, &hi))
 		return -1;
 	long nb = n ? (long)(hi - lo) + 1 : 0;
-	if (nb > COUNT_MAX_BINS || nb > 4 * n + 65536)
+	if (nb > COUNT_MAX_BINS || nb > 64 * n + 65536)
 		return -1;
 	if (nb > b->bins_cap) {
+		/* grown, the new bins zeroed like the rest */
+		long ow = (b->bins_cap + 63) / 64, nw = (nb + 63) / 64;
 		int32_t *c = realloc(b->cnt, (size_t)nb * sizeof(*c));
 		if (!c)
 			return -1;
 		b->cnt = c;
+		memset(c + b->bins_cap, 0, (size_t)(nb - b->bins_cap) * sizeof(*c));
+		uint64_t *w = realloc(b->seen, (size_t)nw * sizeof(*w));
+		if (!w)
+			return -1;
+		b->seen = w;
+		memset(w + ow, 0, (size_t)(nw - ow) * sizeof(*w));
 		b->bins_cap = nb;
 	}
-	memset(b->cnt, 0, (size_t)nb * sizeof(*b->cnt));
-	for (long i = 0; i < n; i++)
-		b->cnt[b->keys[i] - lo]++;
+	int32_t *cnt = b->cnt;
+	uint64_t *seen = b->seen;
+	const uint32_t *keys = b->keys;
+	for (long i = 0; i < n; i++) {
+		uint32_t k = keys[i] - lo;
+		cnt[k]++;
+		seen[k / 64] |= (uint64_t)1 << (k % 64);
+	}
 	b->lo = lo;
 	b->nb = nb;
 	b->inv = 1.0f / scale;
 	return 0;
+}
+
+/* The first bin at or after k with a count (nb when none). */
+static long next_bin(const sample_buffers *b, long k)
+{
+	if (k >= b->nb)
+		return b->nb;
+	long w = k / 64, nw = (b->nb + 63) / 64;
+	uint64_t m = b->seen[w] & (~(uint64_t)0 << (k % 64));
+	while (!m) {
+		if (++w >= nw)
+			return b->nb;
+		m = b->seen[w];
+	}
+	return w * 64 + __builtin_ctzll(m);
+}
+
+/* The last bin at or before k with a count (-1 when none). */
+static long prev_bin(const sample_buffers *b, long k)
+{
+	if (k < 0)
+		return -1;
+	long w = k / 64;
+	uint64_t m = b->seen[w] & (~(uint64_t)0 >> (63 - k % 64));
+	while (!m) {
+		if (--w < 0)
+			return -1;
+		m = b->seen[w];
+	}
+	return w * 64 + 63 - __builtin_clzll(m);
 }
 
 /* The value of counting bin k: its key's integer over scale as count_keys computes
@@ -207,25 +265,23 @@ static double pick_median(const rank_pick *p, long n)
 
 /* chart_robust_stats from the counts of chart_count_values: the same numbers. The median's
  * absolute deviations come from walking outward from the median in both directions
- * at once, each side's deviations growing as it goes. */
+ * at once, each side's deviations growing as it goes. Every walk visits only the bins
+ * with a count, in order. */
 void chart_counted_stats(const sample_buffers *b, long n, const kg_chart_detect_options *opt,
                           double quantum, double *loc, double *sigma)
 {
 	const int32_t *cnt = b->cnt;
 	long nb = b->nb;
 	rank_pick m = {{n / 2 - 1, n / 2}, 0, {0, 0}};
-	long up = 0;
+	long up = next_bin(b, 0);
 	while (!pick(&m, bin_value(b, up), cnt[up]))
-		for (up++; !cnt[up]; up++)
-			;
+		up = next_bin(b, up + 1);
 	double med = pick_median(&m, n);
 	float fm = (float)med;
 	/* the deviations fabsf(v - fm), as the selection computes them */
-	for (up = 0; up < nb && !(cnt[up] && bin_value(b, up) >= fm); up++)
+	for (up = next_bin(b, 0); up < nb && !(bin_value(b, up) >= fm); up = next_bin(b, up + 1))
 		;
-	long down = up - 1;
-	while (down >= 0 && !cnt[down])
-		down--;
+	long down = prev_bin(b, up - 1);
 	rank_pick d = {{n / 2 - 1, n / 2}, 0, {0, 0}};
 	for (;;) {
 		float du = up < nb ? fabsf(bin_value(b, up) - fm) : INFINITY;
@@ -233,12 +289,10 @@ void chart_counted_stats(const sample_buffers *b, long n, const kg_chart_detect_
 		int done;
 		if (du <= dd) {
 			done = pick(&d, du, cnt[up]);
-			for (up++; up < nb && !cnt[up]; up++)
-				;
+			up = next_bin(b, up + 1);
 		} else {
 			done = pick(&d, dd, cnt[down]);
-			for (down--; down >= 0 && !cnt[down]; down--)
-				;
+			down = prev_bin(b, down - 1);
 		}
 		if (done)
 			break;
@@ -250,7 +304,7 @@ void chart_counted_stats(const sample_buffers *b, long n, const kg_chart_detect_
 			cut = (n - 1) / 2;
 		double s = 0;
 		long at = 0;
-		for (long k = 0; k < nb && at < n - cut; k++) {
+		for (long k = next_bin(b, 0); k < nb && at < n - cut; k = next_bin(b, k + 1)) {
 			for (long i = 0; i < cnt[k] && at < n - cut; i++, at++)
 				if (at >= cut)
 					s += bin_value(b, k);
@@ -258,9 +312,7 @@ void chart_counted_stats(const sample_buffers *b, long n, const kg_chart_detect_
 		*loc = s / (double)(n - 2 * cut);
 	} else if (quantum > 0) {
 		long below = 0, at = 0;
-		for (long k = 0; k < nb; k++) {
-			if (!cnt[k])
-				continue;
+		for (long k = next_bin(b, 0); k < nb; k = next_bin(b, k + 1)) {
 			if (bin_value(b, k) < med - 0.5 * quantum)
 				below += cnt[k];
 			else if (bin_value(b, k) <= med + 0.5 * quantum)
@@ -276,10 +328,7 @@ void chart_counted_stats(const sample_buffers *b, long n, const kg_chart_detect_
 long chart_counted_above(const sample_buffers *b, double t)
 {
 	long c = 0;
-	for (long k = b->nb - 1; k >= 0; k--)
-		if (b->cnt[k] && !(bin_value(b, k) > t))
-			break;
-		else
-			c += b->cnt[k];
+	for (long k = prev_bin(b, b->nb - 1); k >= 0 && bin_value(b, k) > t; k = prev_bin(b, k - 1))
+		c += b->cnt[k];
 	return c;
 }

@@ -54,6 +54,26 @@ void chart_run_parallel(par_fn fn, void *arg, int threads);
 
 /* ---- chart_image.c: the image as the sampler sees it ----------------------------- */
 
+/* The patch sampler's scratch (chart_sample.c, chart_count.c): one set per thread. */
+typedef struct sample_buffers {
+	float *ch[3];
+	float *sum;
+	float *work;
+	uint32_t *keys;
+	long cap;
+	float *row; /* one row of the region, demosaiced or gathered */
+	long row_cap;
+	/* counting (count_values): keys lo .. lo + nb - 1 and their counts; a key is its
+	 * value (bin_value), inv the 1 / scale it was made with. seen has a bit per bin,
+	 * set where the count is not 0, so the walks over the counts step from one
+	 * occupied bin to the next; both arrays are all zero again (the bins that were
+	 * counted cleared) before the next values are counted. */
+	int32_t *cnt;
+	uint64_t *seen;
+	float inv;
+	long lo, nb, bins_cap;
+} sample_buffers;
+
 /* Interleaved linear floats with 1 or 3 channels. A raw CFA frame is not demosaiced
  * as a whole: the stages read it through image_span, which demosaics the pixels they
  * ask for (the patch regions, every 4th pixel for the white level, the rows of the
@@ -90,6 +110,10 @@ typedef struct work_image {
 	 * averages), so the sampler can count them; 0 for float images. */
 	float count_scale;
 	int threads;
+	/* The patch sampler's scratch, one set per thread, kept from one sampling of the
+	 * image to the next (the tagless detector samples it up to 8 times), so its pages
+	 * are faulted in once; freed by chart_image_free. */
+	sample_buffers sample_bufs[MAX_THREADS];
 } work_image;
 
 /* Pixels x0, x0 + step, ... (n of them) of row y, interleaved: a pointer into the
@@ -141,20 +165,6 @@ int chart_detect_with_tags(const layout_view *L, const work_image *wi,
 
 /* ---- chart_sample.c, chart_select.c, chart_count.c ------------------------------ */
 
-typedef struct sample_buffers {
-	float *ch[3];
-	float *sum;
-	float *work;
-	uint32_t *keys;
-	long cap;
-	float *row; /* one row of the region, demosaiced or gathered */
-	long row_cap;
-	/* counting (count_values): keys lo .. lo + nb - 1 and their counts; a key is its
-	 * value (bin_value), inv the 1 / scale it was made with */
-	int32_t *cnt;
-	float inv;
-	long lo, nb, bins_cap;
-} sample_buffers;
 
 int chart_buffers_reserve(sample_buffers *b, long n, long row);
 void chart_buffers_free(sample_buffers *b);
@@ -165,10 +175,10 @@ int chart_count_values(const float *v, long n, float scale, sample_buffers *b);
 void chart_counted_stats(const sample_buffers *b, long n, const kg_chart_detect_options *opt,
                          double quantum, double *loc, double *sigma);
 long chart_counted_above(const sample_buffers *b, double t);
-int chart_sample_all_with(const layout_view *L, const work_image *wi,
+int chart_sample_all_with(const layout_view *L, work_image *wi,
                           const kg_chart_detect_options *opt, int fast, int stride,
                           kg_chart_result *r, kg_err *err);
-int chart_sample_all(const layout_view *L, const work_image *wi,
+int chart_sample_all(const layout_view *L, work_image *wi,
                      const kg_chart_detect_options *opt, kg_chart_result *r, kg_err *err);
 
 /* ---- chart_tagless.c, chart_orient.c, chart_refine.c ------------------------------ */

@@ -89,12 +89,67 @@ static void span_columns(const span_row *s, double hx, double hy, long *x0, long
 		*x1 = db > (double)*x0 ? (long)db : *x0;
 }
 
+/* Where along the row the affine form a + b X is positive: *lo < X < *hi narrowed. */
+static void positive_part(double a, double b, double *lo, double *hi)
+{
+	if (b > 0)
+		*lo = fmax(*lo, -a / b);
+	else if (b < 0)
+		*hi = fmin(*hi, -a / b);
+	else if (!(a > 0))
+		*hi = -INFINITY;
+}
+
+/* The runs of the row's columns [xa, xb) whose pixels are clearly inside one quadrant:
+ * more than m (in mm, m twice the exact test's band) inside each side and away from
+ * the quadrant boundaries, then one more pixel in at each end. There the per-pixel
+ * classification, whose rounding is far below the band, can only take the pixel in
+ * that quadrant: the sampler adds those pixels without classifying them. At most 4
+ * runs (one a quadrant, as the row crosses them), in order along the row; returns how
+ * many. */
+static int clear_runs(const span_row *s, double hx, double hy, double m, long xa, long xb,
+                      long run[4][2], int quad[4])
+{
+	int k = 0;
+	if (!(hx > 2 * m && hy > 2 * m))
+		return 0;
+	for (int q = 0; q < 4; q++) {
+		double sx = q & 1 ? 1 : -1, sy = q & 2 ? 1 : -1, lo = -INFINITY, hi = INFINITY;
+		/* m w < sx A < (hx - m) w and m w < sy B < (hy - m) w, w > 0 */
+		positive_part(sx * s->a[0] - m * s->a[2], sx * s->b[0] - m * s->b[2], &lo, &hi);
+		positive_part((hx - m) * s->a[2] - sx * s->a[0], (hx - m) * s->b[2] - sx * s->b[0],
+		              &lo, &hi);
+		positive_part(sy * s->a[1] - m * s->a[2], sy * s->b[1] - m * s->b[2], &lo, &hi);
+		positive_part((hy - m) * s->a[2] - sy * s->a[1], (hy - m) * s->b[2] - sy * s->b[1],
+		              &lo, &hi);
+		/* pixel x's centre is x + 0.5: the columns strictly inside, less one each end */
+		double first = floor(lo - 0.5) + 2, last = ceil(hi - 0.5) - 2;
+		long r0 = first > (double)xa ? (first < (double)xb ? (long)first : xb) : xa;
+		long r1 = last + 1 < (double)xb ? (last + 1 > (double)r0 ? (long)(last + 1) : r0) : xb;
+		if (r0 >= r1)
+			continue;
+		int at = k++;
+		while (at > 0 && run[at - 1][0] > r0) {
+			run[at][0] = run[at - 1][0];
+			run[at][1] = run[at - 1][1];
+			quad[at] = quad[at - 1];
+			at--;
+		}
+		run[at][0] = r0;
+		run[at][1] = r1;
+		quad[at] = q;
+	}
+	return k;
+}
+
 /* Sample one patch: every pixel whose centre maps inside the patch's centred
  * sample_fraction. The reference maps every pixel of the region's bounding box
  * through the inverse homography; fast rasterises the region row by row (span_row),
  * classifies by the affine forms and falls back to the reference test within 1e-9
  * of the patch scale of a side or a quadrant boundary, so both take the same pixels
- * in the same order, and selects by radix_pair: the same values. */
+ * in the same order, and counts or selects by radix_pair: the same values. Within a
+ * row, the runs of pixels clearly inside one quadrant (clear_runs) are taken without
+ * classifying each. */
 static int sample_patch(const work_image *wi, const double H[9], const double Hinv[9],
                         const double center[2], const double size[2],
                         const kg_chart_detect_options *opt, int fast, int stride,
@@ -162,42 +217,76 @@ static int sample_patch(const work_image *wi, const double H[9], const double Hi
 			continue;
 		const float *row = chart_image_span(wi, (int)y, (int)xa, (int)((xb - xa - 1) / stride + 1),
 		                              stride, buf->row);
-		for (long x = xa; x < xb; x += stride) {
-			double X = x + 0.5;
-			int q = 0, in;
-			if (fast) {
-				double A = s.a[0] + s.b[0] * X, B = s.a[1] + s.b[1] * X, w = s.a[2] + s.b[2] * X;
-				double dA = fabs(A), dB = fabs(B), t = tol * w;
-				if (fabs(dA - hx * w) <= t || fabs(dB - hy * w) <= t || dA <= t || dB <= t) {
-					in = inside_exact(Hinv, X, Y, center, hx, hy, &q);
+		long run[4][2];
+		int quad[4], nruns = fast ? clear_runs(&s, hx, hy, 2 * tol, xa, xb, run, quad) : 0;
+		/* j: x's pixel in the span, (x - xa) / stride, counted rather than divided. The
+		 * pixels before each clear run are classified one by one, the run's are not. */
+		long x = xa, j = 0;
+		for (int r = 0; r <= nruns; r++) {
+			for (long end = r < nruns ? run[r][0] : xb; x < end; x += stride, j++) {
+				double X = x + 0.5;
+				int q = 0, in;
+				if (fast) {
+					double A = s.a[0] + s.b[0] * X, B = s.a[1] + s.b[1] * X, w = s.a[2] + s.b[2] * X;
+					double dA = fabs(A), dB = fabs(B), t = tol * w;
+					if (fabs(dA - hx * w) <= t || fabs(dB - hy * w) <= t || dA <= t || dB <= t) {
+						in = inside_exact(Hinv, X, Y, center, hx, hy, &q);
+					} else {
+						in = dA < hx * w && dB < hy * w;
+						q = (A > 0) + 2 * (B > 0);
+					}
 				} else {
-					in = dA < hx * w && dB < hy * w;
-					q = (A > 0) + 2 * (B > 0);
+					in = inside_exact(Hinv, X, Y, center, hx, hy, &q);
 				}
-			} else {
-				in = inside_exact(Hinv, X, Y, center, hx, hy, &q);
+				if (!in)
+					continue;
+				const float *px = row + j * C;
+				float v0 = px[0], v1 = px[C == 3 ? 1 : 0], v2 = px[C == 3 ? 2 : 0];
+				double sum = 0;
+				sum += v0;
+				sum += v1;
+				sum += v2;
+				ch0[n] = v0;
+				ch1[n] = v1;
+				ch2[n] = v2;
+				sums[n] = (float)sum;
+				nclipped += (v0 >= clip3[0]) | (v1 >= clip3[1]) | (v2 >= clip3[2]);
+				switch (q) {
+				case 0: qs0 += sum; break;
+				case 1: qs1 += sum; break;
+				case 2: qs2 += sum; break;
+				default: qs3 += sum;
+				}
+				qn[q]++;
+				n++;
 			}
-			if (!in)
-				continue;
-			const float *px = row + (x - xa) / stride * C;
-			float v0 = px[0], v1 = px[C == 3 ? 1 : 0], v2 = px[C == 3 ? 2 : 0];
-			double sum = 0;
-			sum += v0;
-			sum += v1;
-			sum += v2;
-			ch0[n] = v0;
-			ch1[n] = v1;
-			ch2[n] = v2;
-			sums[n] = (float)sum;
-			nclipped += (v0 >= clip3[0]) | (v1 >= clip3[1]) | (v2 >= clip3[2]);
+			if (r == nruns)
+				break;
+			int q = quad[r];
+			double acc = q == 0 ? qs0 : q == 1 ? qs1 : q == 2 ? qs2 : qs3;
+			long n0 = n;
+			for (; x < run[r][1]; x += stride, j++) {
+				const float *px = row + j * C;
+				float v0 = px[0], v1 = px[C == 3 ? 1 : 0], v2 = px[C == 3 ? 2 : 0];
+				double sum = 0;
+				sum += v0;
+				sum += v1;
+				sum += v2;
+				ch0[n] = v0;
+				ch1[n] = v1;
+				ch2[n] = v2;
+				sums[n] = (float)sum;
+				nclipped += (v0 >= clip3[0]) | (v1 >= clip3[1]) | (v2 >= clip3[2]);
+				acc += sum;
+				n++;
+			}
+			qn[q] += n - n0;
 			switch (q) {
-			case 0: qs0 += sum; break;
-			case 1: qs1 += sum; break;
-			case 2: qs2 += sum; break;
-			default: qs3 += sum;
+			case 0: qs0 = acc; break;
+			case 1: qs1 = acc; break;
+			case 2: qs2 = acc; break;
+			default: qs3 = acc;
 			}
-			qn[q]++;
-			n++;
 		}
 	}
 	double qsum[4] = {qs0, qs1, qs2, qs3};
@@ -294,6 +383,7 @@ typedef struct sample_job {
 	const kg_chart_detect_options *opt;
 	const double *H, *Hinv;
 	kg_chart_sample *patches;
+	sample_buffers *bufs; /* one set per thread */
 	int fast, stride;
 	int failed[MAX_THREADS];
 } sample_job;
@@ -302,18 +392,16 @@ typedef struct sample_job {
 static void sample_patches(void *arg, int t, int n)
 {
 	sample_job *j = arg;
-	sample_buffers buf = {0};
 	for (int i = t; i < j->L->npatches && !j->failed[t]; i += n)
 		j->failed[t] = sample_patch(j->wi, j->H, j->Hinv, j->L->patch_center[i],
-		                            j->L->patch_size[i], j->opt, j->fast, j->stride, &buf,
-		                            &j->patches[i]) != 0;
-	chart_buffers_free(&buf);
+		                            j->L->patch_size[i], j->opt, j->fast, j->stride,
+		                            &j->bufs[t], &j->patches[i]) != 0;
 }
 
 /* Every patch of L in wi through r->H into r->patches: fast or the reference, every
  * stride-th row and column of each region (1: every pixel; more gives the patch
  * values of a sparse sample, whose pixel counts and flags are those of the sample). */
-int chart_sample_all_with(const layout_view *L, const work_image *wi,
+int chart_sample_all_with(const layout_view *L, work_image *wi,
                            const kg_chart_detect_options *opt, int fast, int stride,
                            kg_chart_result *r, kg_err *err)
 {
@@ -328,7 +416,8 @@ int chart_sample_all_with(const layout_view *L, const work_image *wi,
 		if (!(r->patches[i].id = strdup(L->patch_ids[i])))
 			return kg_fail(err, KG_ENOMEM, "out of memory");
 	}
-	sample_job j = {L, wi, opt, r->H, Hinv, r->patches, fast, stride > 1 ? stride : 1, {0}};
+	sample_job j = {L, wi, opt, r->H, Hinv, r->patches, wi->sample_bufs, fast,
+	                stride > 1 ? stride : 1, {0}};
 	chart_run_parallel(sample_patches, &j, opt->threads);
 	for (int t = 0; t < MAX_THREADS; t++)
 		if (j.failed[t])
@@ -338,7 +427,7 @@ int chart_sample_all_with(const layout_view *L, const work_image *wi,
 	return 0;
 }
 
-int chart_sample_all(const layout_view *L, const work_image *wi,
+int chart_sample_all(const layout_view *L, work_image *wi,
                       const kg_chart_detect_options *opt, kg_chart_result *r, kg_err *err)
 {
 	return chart_sample_all_with(L, wi, opt, 1, 1, r, err);
