@@ -60,6 +60,22 @@ int main(int argc, char **argv)
 	CHECK(run(cmd) == 0, "16-bit TIFF: the mapped image's patch file differs from the "
 	      "read one's (or detection failed)");
 
+	/* Low-contrast tags: exposed at 2 % of full scale with sensor noise, and printed
+	 * in grey ink (0.6 on 0.85 paper). The tag detector leaves tiles of less than 10
+	 * codes' contrast unsegmented (against the specks of a dark background's noise):
+	 * these tags must stay well above that. */
+	static const char *hard[] = {"--white-level 0.02 --noise 20000:5:12", "--ink 0.6",
+	                             "--ink 0.5 --white-level 0.1 --noise 20000:5:12 --blur 2"};
+	for (int k = 0; k < 3; k++) {
+		snprintf(cmd, sizeof(cmd), "%s sim chart --layout %s --camera demo-reference "
+		         "--illuminant D65 --width 1600 --height 1200 --tilt 30 %s -o %s/hard%d.tif "
+		         ">/dev/null 2>&1 && %s chart detect --layout %s %s/hard%d.tif -o %s/hard%d.cgats "
+		         "2>%s/hard%d.err && grep -q 'chart colorchecker24-frame: 4 tags used' "
+		         "%s/hard%d.err", kogei, layout, hard[k], dir, k, kogei, layout, dir, k, dir, k,
+		         dir, k, dir, k);
+		CHECK(run(cmd) == 0, "low-contrast tags (%s): not all 4 found", hard[k]);
+	}
+
 	/* a picture with no chart: exit 1, a message, no patch file */
 	kg_image *img = NULL;
 	kg_image_new(320, 240, 3, &img, NULL);
