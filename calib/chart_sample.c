@@ -301,7 +301,8 @@ static int sample_patch(const work_image *wi, const double H[9], const double Hi
 	p->pixels = n;
 	if (n > 0)
 		p->clipped_fraction /= (double)n;
-	double inside = expected > 0 ? n / expected : 0;
+	/* a sparse sample's pixel stands for stride x stride of the region's */
+	double inside = expected > 0 ? (double)n * stride * stride / expected : 0;
 	if (n == 0) {
 		p->flags |= KG_CHART_FLAG_REJECTED;
 		flag(p, KG_CHART_FLAG_OUT_OF_FRAME, "outside the image");
