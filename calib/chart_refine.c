@@ -179,6 +179,45 @@ static int edge_on_profile(const work_image *wi, const double H[9], const double
 	return 0;
 }
 
+/* One pass's profiles: 3 across each side of each of the 24 patches, each found or
+ * not, in slots by (patch, side, place), so the points keep one order whatever the
+ * threads. */
+typedef struct profile_job {
+	const work_image *wi;
+	const layout_view *L;
+	const int *idx;
+	const double *H;
+	double R, step, white;
+	int found[24 * 4 * 3];
+	double src[24 * 4 * 3][2], dst[24 * 4 * 3][2];
+} profile_job;
+
+/* Thread t takes patches t, t + n, ... */
+static void profile_patches(void *arg, int t, int n)
+{
+	profile_job *j = arg;
+	for (int i = t; i < 24; i += n) {
+		const double *c = j->L->patch_center[j->idx[i]], *s = j->L->patch_size[j->idx[i]];
+		for (int k = 0; k < 4; k++) {
+			double nrm[2] = {k == 0 ? -1 : k == 1 ? 1 : 0, k == 2 ? -1 : k == 3 ? 1 : 0};
+			double tan[2] = {nrm[1], nrm[0]};
+			double half_n = 0.5 * (k < 2 ? s[0] : s[1]), half_t = 0.5 * (k < 2 ? s[1] : s[0]);
+			for (int q = -1; q <= 1; q++) {
+				int slot = (i * 4 + k) * 3 + q + 1;
+				double e[2] = {c[0] + nrm[0] * half_n + tan[0] * 0.6 * q * half_t,
+				               c[1] + nrm[1] * half_n + tan[1] * 0.6 * q * half_t};
+				double d;
+				j->found[slot] = edge_on_profile(j->wi, j->H, e, nrm, tan, j->R, j->step,
+				                                 0.15 * half_t, 0.02 * j->white, &d);
+				if (!j->found[slot])
+					continue;
+				memcpy(j->src[slot], e, sizeof(e));
+				kg_homography_map(j->H, e[0] + nrm[0] * d, e[1] + nrm[1] * d, j->dst[slot]);
+			}
+		}
+	}
+}
+
 static int cmp_double(const void *a, const void *b)
 {
 	double x = *(const double *)a, y = *(const double *)b;
@@ -216,25 +255,19 @@ int chart_refine_on_edges(const work_image *wi, const layout_view *L, const int 
 	for (int pass = 0; pass < 2; pass++, R *= 0.5) {
 		double step = fmax(0.5 / px_per_mm, 2 * R / (EDGE_SAMPLES - 1));
 		int n = 0;
-		for (int i = 0; i < 24; i++) {
-			const double *c = L->patch_center[idx[i]], *s = L->patch_size[idx[i]];
-			for (int k = 0; k < 4; k++) {
-				double nrm[2] = {k == 0 ? -1 : k == 1 ? 1 : 0, k == 2 ? -1 : k == 3 ? 1 : 0};
-				double tan[2] = {nrm[1], nrm[0]};
-				double half_n = 0.5 * (k < 2 ? s[0] : s[1]), half_t = 0.5 * (k < 2 ? s[1] : s[0]);
-				for (int j = -1; j <= 1; j++) {
-					double e[2] = {c[0] + nrm[0] * half_n + tan[0] * 0.6 * j * half_t,
-					               c[1] + nrm[1] * half_n + tan[1] * 0.6 * j * half_t};
-					double t;
-					if (!edge_on_profile(wi, Hk, e, nrm, tan, R, step, 0.15 * half_t,
-					                     0.02 * white, &t))
-						continue;
-					memcpy(src[n], e, sizeof(e));
-					kg_homography_map(Hk, e[0] + nrm[0] * t, e[1] + nrm[1] * t, dst[n]);
-					n++;
-				}
+		profile_job *job = malloc(sizeof(*job));
+		if (!job)
+			goto done;
+		*job = (profile_job){.wi = wi, .L = L, .idx = idx, .H = Hk, .R = R, .step = step,
+		                     .white = white};
+		chart_run_parallel(profile_patches, job, wi->threads);
+		for (int m = 0; m < MAXP; m++)
+			if (job->found[m]) {
+				memcpy(src[n], job->src[m], sizeof(src[n]));
+				memcpy(dst[n], job->dst[m], sizeof(dst[n]));
+				n++;
 			}
-		}
+		free(job);
 		double Hn[9], r = 0;
 		for (int round = 0; round < 2; round++) {
 			kg_err tmp;
