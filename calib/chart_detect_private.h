@@ -84,6 +84,11 @@ typedef struct work_image {
 	                    * 16-bit image (u16) */
 	const uint16_t *u16; /* a mapped image's codes (kg_image_map), read through lut */
 	const float *lut;
+	/* the tag search's 8-bit grey picture (sRGB-encoded, every grey_zoom-th pixel of
+	 * every grey_zoom-th row), kept for the tagless detector's patch-grid finder; NULL
+	 * when there is none */
+	unsigned char *grey;
+	int grey_w, grey_h, grey_zoom;
 	float *owned;
 	const kg_image *raw; /* the CFA frame, or NULL */
 	int cfa_rows, cfa_cols;
@@ -159,7 +164,7 @@ typedef struct layout_view {
 
 /* ---- chart_tags.c -------------------------------------------------------------- */
 
-int chart_detect_with_tags(const layout_view *L, const work_image *wi,
+int chart_detect_with_tags(const layout_view *L, work_image *wi,
                            const kg_chart_detect_options *opt, kg_chart_result *r,
                            kg_err *err);
 
@@ -204,6 +209,9 @@ float *chart_decimate_image(const work_image *wi, int f, int *w, int *h);
  * patches found of 24. The number found. */
 int chart_grid_find(const float *img, int w, int h, int C, double white, int max,
                     double (*boxes)[4][2], double *costs, int *counts);
+/* The same on a luminance already perceptually encoded on 0..1 (w x h). */
+int chart_grid_find_encoded(const float *g, int w, int h, int max, double (*boxes)[4][2],
+                            double *costs, int *counts);
 int chart_refine_on_edges(const work_image *wi, const layout_view *L, const int idx[24],
                           double white, double H[9], double *rms);
 #endif

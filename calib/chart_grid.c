@@ -363,8 +363,17 @@ int chart_grid_find(const float *img, int w, int h, int C, double white, int max
 	if (!img || w < 16 || h < 16 || (C != 1 && C != 3) || max < 1)
 		return 0;
 	float *g = flat_luma(img, w, h, C, white);
-	unsigned char *m = g ? flat_mask(g, w, h) : NULL;
+	int n = g ? chart_grid_find_encoded(g, w, h, max, boxes, costs, counts) : 0;
 	free(g);
+	return n;
+}
+
+int chart_grid_find_encoded(const float *g, int w, int h, int max, double (*boxes)[4][2],
+                            double *costs, int *counts)
+{
+	if (!g || w < 16 || h < 16 || max < 1)
+		return 0;
+	unsigned char *m = flat_mask(g, w, h);
 	int nb = 0;
 	blob *b = m ? find_blobs(m, w, h, &nb) : NULL;
 	free(m);

@@ -322,6 +322,8 @@ void chart_image_free(work_image *wi)
 	}
 	free(wi->owned);
 	wi->owned = NULL;
+	free(wi->grey);
+	wi->grey = NULL;
 	for (int t = 0; t < MAX_THREADS; t++) {
 		chart_buffers_free(&wi->sample_bufs[t]);
 		memset(&wi->sample_bufs[t], 0, sizeof(wi->sample_bufs[t]));

@@ -19,7 +19,7 @@
 static int tagless_box(const kg_chart_layout *l, const layout_view *L, work_image *wi,
                        const kg_chart_detect_options *opt, const int idx[24],
                        const double box_in[4][2], double cost, int grid_patches, int f,
-                       int small_w, int small_h, double white, int turns_too,
+                       const char *copy, double white, int turns_too,
                        kg_chart_result *r, kg_err *err);
 
 /* The reduction of the copy the tagless detector looks at first: about 1000 px on the
@@ -33,20 +33,16 @@ static int tagless_reduction(int width, int height, const kg_chart_detect_option
 	return f;
 }
 
-/* The patch-grid finder's boxes on the reduced copy (chart_grid.c), each tried as
- * mcc's would be: 0 with the chart in r when one reads as the layout; KG_ENOENT, with
- * r as it was, when none does (mcc looks next); another code on failure. */
+/* The patch-grid finder's boxes (chart_grid.c; px of the full image, found on the
+ * copy described), each tried as mcc's would be: 0 with the chart in r when one reads
+ * as the layout; KG_ENOENT, with r as it was, when none does (mcc looks next); another
+ * code on failure. */
 static int tagless_grid(const kg_chart_layout *l, const layout_view *L, work_image *wi,
                         const kg_chart_detect_options *opt, const int idx[24],
-                        const float *small, int f, int small_w, int small_h, double white,
-                        kg_chart_result *r, kg_err *err)
+                        double (*boxes)[4][2], const double *costs, const int *counts, int n,
+                        int f, const char *copy, double white, kg_chart_result *r,
+                        kg_err *err)
 {
-	double boxes[MCC_CANDIDATES][4][2], costs[MCC_CANDIDATES];
-	int counts[MCC_CANDIDATES];
-	double t0 = chart_now_seconds();
-	int n = chart_grid_find(small, small_w, small_h, wi->channels, white, MCC_CANDIDATES,
-	                        boxes, costs, counts);
-	r->tag_seconds += chart_now_seconds() - t0;
 	int ncand = r->ncandidates, ret;
 	if (n && (ret = chart_image_levels(wi, err)))
 		return ret;
@@ -54,9 +50,6 @@ static int tagless_grid(const kg_chart_layout *l, const layout_view *L, work_ima
 	chart_mcc24_box_mm(L, idx, box_mm);
 	int winding = chart_quad_signed_area(box_mm) > 0;
 	for (int b = 0; b < n; b++) {
-		for (int k = 0; k < 4; k++)
-			for (int c = 0; c < 2; c++)
-				boxes[b][k][c] *= f;
 		/* The grid's lattice may come out mirrored: the box is given the layout's
 		 * winding here by reversing it along its first side (which stays the row of 6
 		 * patches), not by tagless_box's swap of corners 1 and 3, which would put the
@@ -69,8 +62,8 @@ static int tagless_grid(const kg_chart_layout *l, const layout_view *L, work_ima
 				memcpy(boxes[b][k], t[rev[k]], sizeof(t[k]));
 		}
 		kg_err box_err = {{0}};
-		ret = tagless_box(l, L, wi, opt, idx, boxes[b], costs[b], counts[b], f, small_w,
-		                  small_h, white, 0, r, &box_err);
+		ret = tagless_box(l, L, wi, opt, idx, boxes[b], costs[b], counts[b], f, copy, white,
+		                  0, r, &box_err);
 		if (ret == 0) {
 			r->tagless_grid = 1;
 			return 0;
@@ -117,14 +110,69 @@ int chart_detect_tagless(const kg_chart_layout *l, const layout_view *L, work_im
 	int small_w = 0, small_h = 0, f = tagless_reduction(wi->width, wi->height, opt);
 	r->prepare_seconds += chart_now_seconds() - t0;
 	if (f > 1) {
-		double t1 = chart_now_seconds();
-		float *small = chart_decimate_image(wi, f, &small_w, &small_h);
-		if (!small)
-			return kg_fail(err, KG_ENOMEM, "out of memory");
-		double t2 = chart_now_seconds();
-		r->prepare_seconds += t2 - t1;
-		/* the patch-grid finder first (--tagless-decimate 1 asks for mcc alone) */
-		ret = tagless_grid(l, L, wi, opt, idx, small, f, small_w, small_h, white, r, err);
+		/* The patch-grid finder first (--tagless-decimate 1 asks for mcc alone): on the
+		 * tag search's grey picture reduced to the copy's size when there is one (no
+		 * pass over the image), else on the reduced copy mcc would read. */
+		double t1 = chart_now_seconds(), gboxes[MCC_CANDIDATES][4][2], gcosts[MCC_CANDIDATES];
+		int gcounts[MCC_CANDIDATES], ng = 0, z = wi->grey_zoom;
+		char copy[200];
+		float *small = NULL;
+		if (wi->grey && z >= 1 && f % z == 0) {
+			int q = f / z, gw = wi->grey_w / q, gh = wi->grey_h / q;
+			float *gs = malloc((size_t)gw * gh * sizeof(float));
+			if (!gs)
+				return kg_fail(err, KG_ENOMEM, "out of memory");
+			for (int y = 0; y < gh; y++)
+				for (int x = 0; x < gw; x++) {
+					unsigned sum = 0;
+					for (int dy = 0; dy < q; dy++)
+						for (int dx = 0; dx < q; dx++)
+							sum += wi->grey[(size_t)(y * q + dy) * wi->grey_w + x * q + dx];
+					gs[(size_t)y * gw + x] = (float)sum / (255.0f * (float)(q * q));
+				}
+			double t2 = chart_now_seconds();
+			r->prepare_seconds += t2 - t1;
+			ng = chart_grid_find_encoded(gs, gw, gh, MCC_CANDIDATES, gboxes, gcosts, gcounts);
+			free(gs);
+			r->tag_seconds += chart_now_seconds() - t2;
+			/* a grey pixel is the image's pixel (z i, z j): a position x on the reduced
+			 * grey is f x - z / 2 + 1 / 2 in the image */
+			for (int b = 0; b < ng; b++)
+				for (int k = 0; k < 4; k++)
+					for (int c = 0; c < 2; c++)
+						gboxes[b][k][c] = f * gboxes[b][k][c] - 0.5 * z + 0.5;
+			if (z > 1)
+				snprintf(copy, sizeof(copy), "the tag search's grey picture (every %d%s pixel of "
+				         "every %d%s row) reduced to %d x %d", z, z == 2 ? "nd" : "th", z,
+				         z == 2 ? "nd" : "th", gw, gh);
+			else
+				snprintf(copy, sizeof(copy), "the tag search's grey picture reduced to %d x %d",
+				         gw, gh);
+		} else {
+			small = chart_decimate_image(wi, f, &small_w, &small_h);
+			if (!small)
+				return kg_fail(err, KG_ENOMEM, "out of memory");
+			double t2 = chart_now_seconds();
+			r->prepare_seconds += t2 - t1;
+			ng = chart_grid_find(small, small_w, small_h, wi->channels, white, MCC_CANDIDATES,
+			                     gboxes, gcosts, gcounts);
+			r->tag_seconds += chart_now_seconds() - t2;
+			for (int b = 0; b < ng; b++)
+				for (int k = 0; k < 4; k++)
+					for (int c = 0; c < 2; c++)
+						gboxes[b][k][c] *= f;
+			snprintf(copy, sizeof(copy), "a %d x %d copy averaged over %d x %d pixels", small_w,
+			         small_h, f, f);
+		}
+		ret = tagless_grid(l, L, wi, opt, idx, gboxes, gcosts, gcounts, ng, f, copy, white, r,
+		                   err);
+		if (ret == KG_ENOENT && !small) {
+			double t3 = chart_now_seconds();
+			small = chart_decimate_image(wi, f, &small_w, &small_h);
+			if (!small)
+				return kg_fail(err, KG_ENOMEM, "out of memory");
+			r->prepare_seconds += chart_now_seconds() - t3;
+		}
 		if (ret != KG_ENOENT) {
 			free(small);
 			if (!ret) {
@@ -135,7 +183,7 @@ int chart_detect_tagless(const kg_chart_layout *l, const layout_view *L, work_im
 			}
 			return ret;
 		}
-		t2 = chart_now_seconds();
+		double t2 = chart_now_seconds();
 		kg_err small_err = {{0}};
 		ret = kg_mcc_find_colorcheckers(small, small_w, small_h, wi->channels, white,
 		                                opt->threads, MCC_CANDIDATES, boxes, costs, &nboxes,
@@ -182,8 +230,11 @@ int chart_detect_tagless(const kg_chart_layout *l, const layout_view *L, work_im
 	char first_msg[sizeof(err->msg)] = "";
 	for (int b = 0; b < nboxes; b++) {
 		kg_err box_err = {{0}};
-		ret = tagless_box(l, L, wi, opt, idx, boxes[b], costs[b], 0, f, small_w, small_h,
-		                  white, b == 0, r, &box_err);
+		char copy[120];
+		snprintf(copy, sizeof(copy), "a %d x %d copy averaged over %d x %d pixels", small_w,
+		         small_h, f, f);
+		ret = tagless_box(l, L, wi, opt, idx, boxes[b], costs[b], 0, f, copy, white, b == 0, r,
+		                  &box_err);
 		if (ret == 0) {
 			chart_samples_free(first_patches, L->npatches);
 			if (b > 0 && chart_add_warning(r, "mcc's best box (fit cost %.3g) was refused (%s); "
@@ -227,7 +278,7 @@ int chart_detect_tagless(const kg_chart_layout *l, const layout_view *L, work_im
 static int tagless_box(const kg_chart_layout *l, const layout_view *L, work_image *wi,
                        const kg_chart_detect_options *opt, const int idx[24],
                        const double box_in[4][2], double cost, int grid_patches, int f,
-                       int small_w, int small_h, double white, int turns_too,
+                       const char *copy, double white, int turns_too,
                        kg_chart_result *r, kg_err *err)
 {
 	double box_px[4][2], box_mm[4][2], edge_rms = 0;
@@ -386,14 +437,13 @@ static int tagless_box(const kg_chart_layout *l, const layout_view *L, work_imag
 	if (next_sparse)
 		snprintf(sparse, sizeof(sparse), " (on every %d%s row and column)", stride,
 		         stride == 2 ? "nd" : stride == 3 ? "rd" : "th");
-	char how[200] = "";
+	char how[300] = "";
 	if (f > 1 && refined)
-		snprintf(how, sizeof(how), " on a %d x %d copy averaged over %d x %d pixels, refined "
-		         "on %d points of the patch edges at full resolution (RMS %.2f px)", small_w,
-		         small_h, f, f, refined, edge_rms);
+		snprintf(how, sizeof(how), " on %s, refined on %d points of the patch edges at full "
+		         "resolution (RMS %.2f px)", copy, refined, edge_rms);
 	else if (f > 1)
-		snprintf(how, sizeof(how), " on a %d x %d copy averaged over %d x %d pixels (too few "
-		         "patch edges to refine it at full resolution)", small_w, small_h, f, f);
+		snprintf(how, sizeof(how), " on %s (too few patch edges to refine it at full "
+		         "resolution)", copy);
 	char source[160], own[40] = "";
 	if (grid_patches > 0)
 		snprintf(source, sizeof(source), "its patch-grid finder: %d of the 24 patches found "

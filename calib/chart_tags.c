@@ -285,7 +285,7 @@ done:
 }
 #endif
 
-int chart_detect_with_tags(const layout_view *L, const work_image *wi,
+int chart_detect_with_tags(const layout_view *L, work_image *wi,
                             const kg_chart_detect_options *opt, kg_chart_result *r,
                             kg_err *err)
 {
@@ -327,7 +327,16 @@ int chart_detect_with_tags(const layout_view *L, const work_image *wi,
 	if (!ret)
 		ret = run_apriltag(g, gw, gh, zoom, family, decimate / zoom,
 		                   opt->threads > 0 ? opt->threads : 1, r, err);
-	free(g);
+	if (!(zoom == 2 && blocks)) {
+		/* every zoom-th pixel: kept for the patch-grid finder, should no tag be found */
+		free(wi->grey);
+		wi->grey = g;
+		wi->grey_w = gw;
+		wi->grey_h = gh;
+		wi->grey_zoom = zoom;
+	} else {
+		free(g);
+	}
 	r->tag_seconds = chart_now_seconds() - t1;
 	if (ret)
 		return ret;
