@@ -89,6 +89,7 @@ typedef struct work_image {
 	 * when there is none */
 	unsigned char *grey;
 	int grey_w, grey_h, grey_zoom;
+	double white; /* chart_white_level's, once found (0: not yet) */
 	float *owned;
 	const kg_image *raw; /* the CFA frame, or NULL */
 	int cfa_rows, cfa_cols;

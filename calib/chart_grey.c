@@ -80,6 +80,11 @@ static void white_rows(void *arg, int t, int n)
  * 1/16 of the image); 1 if that is 0, or if memory ran out. */
 double chart_white_level(const work_image *wi)
 {
+	/* found once per detection (the tag search's grey picture, then the tagless
+	 * detector); only the detection's own thread asks, and every work_image is the
+	 * detection's own, never a const object */
+	if (wi->white > 0)
+		return wi->white;
 	int n = wi->threads;
 	white_job j = {wi, calloc((size_t)n, sizeof(*j.hist)), 0};
 	if (!j.hist)
@@ -87,6 +92,8 @@ double chart_white_level(const work_image *wi)
 	chart_run_parallel(white_rows, &j, n);
 	double white = j.failed ? 1.0 : white_of(j.hist, n);
 	free(j.hist);
+	if (!j.failed)
+		((work_image *)wi)->white = white;
 	return white;
 }
 
