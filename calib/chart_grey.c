@@ -134,6 +134,21 @@ static void grey_rows(void *arg, int t, int n)
 	}
 	const float k = j->k;
 	for (int y = (int)((long)j->gh * t / n); y < (int)((long)j->gh * (t + 1) / n); y++) {
+		if (!wi->data && wi->u16) {
+			/* a mapped image: the same sums of the same floats, from its codes */
+			const uint16_t *row = wi->u16 + (size_t)y * j->step * wi->width * C;
+			const float *lut = wi->lut;
+			unsigned char *o = j->g + (size_t)y * gw;
+			size_t stride = (size_t)j->step * C;
+			for (int x = 0; x < gw; x++) {
+				const uint16_t *q = row + (size_t)x * stride;
+				float v = (C == 1 ? lut[q[0]]
+				                  : 0.2126f * lut[q[0]] + 0.7152f * lut[q[1]] + 0.0722f * lut[q[2]]) *
+				          k;
+				o[x] = grey_code(j->lut, v);
+			}
+			continue;
+		}
 		const float *p = chart_image_span(wi, y * j->step, 0, gw, j->step, scratch);
 		unsigned char *o = j->g + (size_t)y * gw;
 		for (int x = 0; x < gw; x++) {
