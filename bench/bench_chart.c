@@ -1,5 +1,5 @@
 /* kogei-bench-chart: chart detection and patch sampling time on 12 Mpix simulated
- * photographs, beside the patch-value error (issue 4, item 7; issue 17, item 2).
+ * photographs, beside the patch-value error.
  *
  * `kogei sim chart` renders the ColorChecker 24 in its AprilTag frame
  * (fixtures/charts/colorchecker24-frame.json; spectra from ../shared/reference when
@@ -9,8 +9,9 @@
  * (1, 2, 4) and thread count (1, 2), reporting its stages: image preparation (white
  * level, 8-bit grey, demosaicing), tag detection, patch sampling and the total.
  * The same chart on black paper (its tags vanish: an unframed ColorChecker) goes to
- * the tagless detector twice per thread count: the default path (mcc on a reduced
- * copy, its box refined at full resolution) and mcc on the full image
+ * the tagless detector twice per thread count: the default path (the patch-grid
+ * finder, then mcc, on a reduced copy, its box refined at full resolution) and mcc on
+ * the full image
  * (tagless_decimate 1), with the ratio of their totals. Times are the median of
  * --reps runs (CLOCK_MONOTONIC); the error is the largest and the mean
  * |measured - truth| over all patches and channels, in % of full scale. Markdown
@@ -329,9 +330,10 @@ int main(int argc, char **argv)
 			printf("| %s | %d | %d | - | - | - | - | - | - (%s) |\n", r->image, r->decimate,
 			       r->threads, r->note);
 	}
-	printf("\nUnframed chart (tagless): the default path (mcc on a copy reduced by the "
-	       "decimate shown, box refined at full resolution) against mcc on the full image; "
-	       "speed-up: the full-image total over the default's.\n\n");
+	printf("\nUnframed chart (tagless): the default path (the patch-grid finder, then mcc "
+	       "if no grid reads as the layout, on a copy reduced by the decimate shown, box "
+	       "refined at full resolution) against mcc on the full image; speed-up: the "
+	       "full-image total over the default's.\n\n");
 	printf("| image | method | decimate | threads | prepare (ms) | detector (ms) | sampling (ms) "
 	       "| total (ms) | max err (%%) | mean err (%%) | speed-up |\n"
 	       "|---|---|---|---|---|---|---|---|---|---|---|\n");

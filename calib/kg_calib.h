@@ -722,13 +722,13 @@ typedef struct kg_chart_result {
 int kg_chart_detect(const kg_chart_layout *l, const kg_image *img,
                     const kg_chart_detect_options *opt, kg_chart_result **out, kg_err *err);
 void kg_chart_result_free(kg_chart_result **r);
-/* When a detection of layout l with options opt may use the tagless detector (a
- * ColorChecker 24 layout), start building what it needs once per process (OpenCV's
- * colour tables, about 0.7 s of one core) on a thread of its own; otherwise nothing.
- * Call it as soon as the layout is known, before the image is read, so the build
- * overlaps the read. kg_chart_detect joins the thread before it returns; a caller
- * that ends without detecting calls kg_chart_warm_wait (a no-op when nothing
- * runs). */
+/* When a detection of layout l with options opt may use OpenCV mcc (a ColorChecker 24
+ * layout), start building what it needs once per process (OpenCV's colour tables,
+ * about 0.13 s of one core) on a thread of its own; otherwise nothing. For a
+ * long-lived caller (the console) that will detect many times. kg_chart_detect itself
+ * starts it only when mcc would be tried first (an image too small for the patch-grid
+ * finder's reduced copy), and joins the thread before it returns; a caller that ends
+ * without detecting calls kg_chart_warm_wait (a no-op when nothing runs). */
 void kg_chart_warm_up(const kg_chart_layout *l, const kg_chart_detect_options *opt);
 void kg_chart_warm_wait(void);
 
