@@ -142,6 +142,25 @@ static int clear_runs(const span_row *s, double hx, double hy, double m, long xa
 	return k;
 }
 
+/* One pixel's channels (grey repeated) into the sample buffers at n, counted when
+ * clipped: its channel sum, added in the order the quadrant sums expect. */
+static inline double take_pixel(const float *px, int C, const float clip3[3], long n,
+                                float *ch0, float *ch1, float *ch2, float *sums,
+                                long *nclipped)
+{
+	float v0 = px[0], v1 = px[C == 3 ? 1 : 0], v2 = px[C == 3 ? 2 : 0];
+	double sum = 0;
+	sum += v0;
+	sum += v1;
+	sum += v2;
+	ch0[n] = v0;
+	ch1[n] = v1;
+	ch2[n] = v2;
+	sums[n] = (float)sum;
+	*nclipped += (v0 >= clip3[0]) | (v1 >= clip3[1]) | (v2 >= clip3[2]);
+	return sum;
+}
+
 /* Sample one patch: every pixel whose centre maps inside the patch's centred
  * sample_fraction. The reference maps every pixel of the region's bounding box
  * through the inverse homography; fast rasterises the region row by row (span_row),
@@ -240,17 +259,7 @@ static int sample_patch(const work_image *wi, const double H[9], const double Hi
 				}
 				if (!in)
 					continue;
-				const float *px = row + j * C;
-				float v0 = px[0], v1 = px[C == 3 ? 1 : 0], v2 = px[C == 3 ? 2 : 0];
-				double sum = 0;
-				sum += v0;
-				sum += v1;
-				sum += v2;
-				ch0[n] = v0;
-				ch1[n] = v1;
-				ch2[n] = v2;
-				sums[n] = (float)sum;
-				nclipped += (v0 >= clip3[0]) | (v1 >= clip3[1]) | (v2 >= clip3[2]);
+				double sum = take_pixel(row + j * C, C, clip3, n, ch0, ch1, ch2, sums, &nclipped);
 				switch (q) {
 				case 0: qs0 += sum; break;
 				case 1: qs1 += sum; break;
@@ -266,18 +275,7 @@ static int sample_patch(const work_image *wi, const double H[9], const double Hi
 			double acc = q == 0 ? qs0 : q == 1 ? qs1 : q == 2 ? qs2 : qs3;
 			long n0 = n;
 			for (; x < run[r][1]; x += stride, j++) {
-				const float *px = row + j * C;
-				float v0 = px[0], v1 = px[C == 3 ? 1 : 0], v2 = px[C == 3 ? 2 : 0];
-				double sum = 0;
-				sum += v0;
-				sum += v1;
-				sum += v2;
-				ch0[n] = v0;
-				ch1[n] = v1;
-				ch2[n] = v2;
-				sums[n] = (float)sum;
-				nclipped += (v0 >= clip3[0]) | (v1 >= clip3[1]) | (v2 >= clip3[2]);
-				acc += sum;
+				acc += take_pixel(row + j * C, C, clip3, n, ch0, ch1, ch2, sums, &nclipped);
 				n++;
 			}
 			qn[q] += n - n0;
