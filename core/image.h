@@ -64,7 +64,9 @@ int kg_image_read(const char *path, kg_image **out, kg_err *err);
  * no extra samples) mapped rather than decoded: no copy of its pixels is made (u16
  * above). KG_ENOTSUP for any other file, which kg_image_read then reads. For a
  * one-pass reader of a large file (chart detection): a 12 Mpix RGB image otherwise
- * costs 144 MB of floats that the kernel must first zero. */
+ * costs 144 MB of floats that the kernel must first zero. The pages are the file's:
+ * a file cut short by another program while it is mapped ends the process (SIGBUS),
+ * so it is for commands that read their image once and soon, not for long jobs. */
 int kg_image_map(const char *path, kg_image **out, kg_err *err);
 /* The float of every 16-bit code k, k / 65535 as the readers compute it. */
 const float *kg_image_u16_lut(void);
