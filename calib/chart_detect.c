@@ -11,7 +11,7 @@
  *   chart_grid.c       the patch-grid finder's box (on the reduced copy, tried first)
  *   chart_mcc.cpp      OpenCV mcc's box
  *   chart_orient.c     which turn: the patches' colours against the ColorChecker's
- *   chart_refine.c     mcc's box from a reduced copy refined on the patch edges
+ *   chart_refine.c     a tagless box from a reduced copy refined on the patch edges
  *   chart_sample.c     each patch's pixels; chart_select.c and chart_count.c their statistics
  *   chart_overlay.c    the overlay PNG
  *

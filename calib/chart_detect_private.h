@@ -210,6 +210,10 @@ float *chart_decimate_image(const work_image *wi, int f, int *w, int *h);
  * patches found of 24. The number found. */
 int chart_grid_find(const float *img, int w, int h, int C, double white, int max,
                     double (*boxes)[4][2], double *costs, int *counts);
+/* The same on an 8-bit perceptually encoded grey picture (w x h) averaged over q x q
+ * blocks (its size in *rw x *rh; the boxes in its px). */
+int chart_grid_find_grey8(const unsigned char *grey, int w, int h, int q, int max,
+                          double (*boxes)[4][2], double *costs, int *counts, int *rw, int *rh);
 /* The same on a luminance already perceptually encoded on 0..1 (w x h). */
 int chart_grid_find_encoded(const float *g, int w, int h, int max, double (*boxes)[4][2],
                             double *costs, int *counts);

@@ -33,7 +33,6 @@ typedef struct blob {
 
 typedef struct grid_fit {
 	int count;
-	int cols, rows; /* 6 x 4 after transposing */
 	double H[9];    /* (col, row) -> px of the reduced copy */
 	double rms;     /* of the centroids about the grid, in pitches */
 	int member[24];
@@ -178,25 +177,9 @@ static int patch_like(const blob *b, long max_area)
 	return fill > 0.85 && fill < 1.15 && l2 > 0 && l1 / l2 < 6.25;
 }
 
-/* The lattice coordinates of p from origin o and steps a, b. */
-static int lattice_coords(const double o[2], const double a[2], const double b[2], double px,
-                          double py, double *u, double *v)
-{
-	double det = a[0] * b[1] - a[1] * b[0];
-	if (fabs(det) < 1e-9)
-		return 0;
-	double dx = px - o[0], dy = py - o[1];
-	*u = (dx * b[1] - dy * b[0]) / det;
-	*v = (a[0] * dy - a[1] * dx) / det;
-	return 1;
-}
-
-/* The candidates on the grid of homography G (lattice -> px; NULL: the affine
- * lattice o, a, b), one per cell within 7 cells of the origin, nearest its cell's
- * centre: their cells in cu, cv; the count. */
-static int assign(const blob *c, int nc, const double *G, const double o[2],
-                  const double a[2], const double b[2], int *cu, int *cv, int *who,
-                  double *err)
+/* The candidates on the grid of homography G (lattice -> px), one per cell within 7
+ * cells of the origin, nearest its cell's centre: their cells in cu, cv; the count. */
+static int assign(const blob *c, int nc, const double G[9], int *cu, int *cv, int *who)
 {
 	enum { SPAN = 15 };
 	double best[SPAN * SPAN];
@@ -206,18 +189,12 @@ static int assign(const blob *c, int nc, const double *G, const double o[2],
 		owner[k] = -1;
 	}
 	double Ginv[9];
-	if (G && kg_homography_invert(G, Ginv))
+	if (kg_homography_invert(G, Ginv))
 		return 0;
 	for (int i = 0; i < nc; i++) {
-		double u, v, m[2];
-		if (G) {
-			kg_homography_map(Ginv, c[i].x, c[i].y, m);
-			u = m[0];
-			v = m[1];
-		} else if (!lattice_coords(o, a, b, c[i].x, c[i].y, &u, &v)) {
-			return 0;
-		}
-		double ru = round(u), rv = round(v), d = hypot(u - ru, v - rv);
+		double m[2];
+		kg_homography_map(Ginv, c[i].x, c[i].y, m);
+		double u = m[0], v = m[1], ru = round(u), rv = round(v), d = hypot(u - ru, v - rv);
 		if (!(d < 0.25) || fabs(ru) > 7 || fabs(rv) > 7)
 			continue;
 		int cell = (int)(rv + 7) * SPAN + (int)(ru + 7);
@@ -227,16 +204,13 @@ static int assign(const blob *c, int nc, const double *G, const double o[2],
 		}
 	}
 	int n = 0;
-	double e = 0;
 	for (int k = 0; k < SPAN * SPAN; k++)
 		if (owner[k] >= 0) {
 			cu[n] = k % SPAN - 7;
 			cv[n] = k / SPAN - 7;
 			who[n] = owner[k];
-			e += best[k] * best[k];
 			n++;
 		}
-	*err = n ? sqrt(e / n) : INFINITY;
 	return n;
 }
 
@@ -306,14 +280,15 @@ static int grow_grid(const blob *c, int nc, int i, grid_fit *out)
 	}
 	if (k < 0)
 		return 0;
-	double o[2] = {c[i].x, c[i].y}, b[2] = {c[k].x - c[i].x, c[k].y - c[i].y};
-	int cu[225], cv[225], who[225], n;
-	double err, G[9];
-	n = assign(c, nc, NULL, o, a, b, cu, cv, who, &err);
+	/* the affine lattice of the two steps from candidate i, then the homography
+	 * refitted to the cells it assigns, three times */
+	double G[9] = {a[0], c[k].x - c[i].x, c[i].x, a[1], c[k].y - c[i].y, c[i].y, 0, 0, 1};
+	int cu[225], cv[225], who[225];
+	int n = assign(c, nc, G, cu, cv, who);
 	for (int it = 0; it < 3; it++) {
 		if (!fit_cells(c, cu, cv, who, n, G))
 			return 0;
-		n = assign(c, nc, G, NULL, NULL, NULL, cu, cv, who, &err);
+		n = assign(c, nc, G, cu, cv, who);
 	}
 	if (n < 12 || n > 24)
 		return 0;
@@ -346,8 +321,6 @@ static int grow_grid(const blob *c, int nc, int i, grid_fit *out)
 		pitch += hypot(p1[0] - p0[0], p1[1] - p0[1]);
 	}
 	out->count = n;
-	out->cols = 6;
-	out->rows = 4;
 	memcpy(out->H, G, sizeof(out->H));
 	out->rms = sqrt(e2 / n) / (pitch / n);
 	for (int q = 0; q < 24; q++)
@@ -364,6 +337,30 @@ int chart_grid_find(const float *img, int w, int h, int C, double white, int max
 		return 0;
 	float *g = flat_luma(img, w, h, C, white);
 	int n = g ? chart_grid_find_encoded(g, w, h, max, boxes, costs, counts) : 0;
+	free(g);
+	return n;
+}
+
+int chart_grid_find_grey8(const unsigned char *grey, int w, int h, int q, int max,
+                          double (*boxes)[4][2], double *costs, int *counts, int *rw, int *rh)
+{
+	int gw = q > 0 ? w / q : 0, gh = q > 0 ? h / q : 0;
+	*rw = gw;
+	*rh = gh;
+	if (!grey || gw < 16 || gh < 16)
+		return 0;
+	float *g = malloc((size_t)gw * gh * sizeof(float));
+	if (!g)
+		return 0;
+	for (int y = 0; y < gh; y++)
+		for (int x = 0; x < gw; x++) {
+			unsigned sum = 0;
+			for (int dy = 0; dy < q; dy++)
+				for (int dx = 0; dx < q; dx++)
+					sum += grey[(size_t)(y * q + dy) * w + x * q + dx];
+			g[(size_t)y * gw + x] = (float)sum / (255.0f * (float)(q * q));
+		}
+	int n = chart_grid_find_encoded(g, gw, gh, max, boxes, costs, counts);
 	free(g);
 	return n;
 }

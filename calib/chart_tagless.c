@@ -118,23 +118,10 @@ int chart_detect_tagless(const kg_chart_layout *l, const layout_view *L, work_im
 		char copy[200];
 		float *small = NULL;
 		if (wi->grey && z >= 1 && f % z == 0) {
-			int q = f / z, gw = wi->grey_w / q, gh = wi->grey_h / q;
-			float *gs = malloc((size_t)gw * gh * sizeof(float));
-			if (!gs)
-				return kg_fail(err, KG_ENOMEM, "out of memory");
-			for (int y = 0; y < gh; y++)
-				for (int x = 0; x < gw; x++) {
-					unsigned sum = 0;
-					for (int dy = 0; dy < q; dy++)
-						for (int dx = 0; dx < q; dx++)
-							sum += wi->grey[(size_t)(y * q + dy) * wi->grey_w + x * q + dx];
-					gs[(size_t)y * gw + x] = (float)sum / (255.0f * (float)(q * q));
-				}
-			double t2 = chart_now_seconds();
-			r->prepare_seconds += t2 - t1;
-			ng = chart_grid_find_encoded(gs, gw, gh, MCC_CANDIDATES, gboxes, gcosts, gcounts);
-			free(gs);
-			r->tag_seconds += chart_now_seconds() - t2;
+			int gw, gh;
+			ng = chart_grid_find_grey8(wi->grey, wi->grey_w, wi->grey_h, f / z, MCC_CANDIDATES,
+			                           gboxes, gcosts, gcounts, &gw, &gh);
+			r->tag_seconds += chart_now_seconds() - t1;
 			/* a grey pixel is the image's pixel (z i, z j): a position x on the reduced
 			 * grey is f x - z / 2 + 1 / 2 in the image */
 			for (int b = 0; b < ng; b++)
@@ -228,11 +215,11 @@ int chart_detect_tagless(const kg_chart_layout *l, const layout_view *L, work_im
 	kg_chart_sample *first_patches = NULL;
 	double first_H[9], first_outline[4][2];
 	char first_msg[sizeof(err->msg)] = "";
+	char copy[120];
+	snprintf(copy, sizeof(copy), "a %d x %d copy averaged over %d x %d pixels", small_w,
+	         small_h, f, f);
 	for (int b = 0; b < nboxes; b++) {
 		kg_err box_err = {{0}};
-		char copy[120];
-		snprintf(copy, sizeof(copy), "a %d x %d copy averaged over %d x %d pixels", small_w,
-		         small_h, f, f);
 		ret = tagless_box(l, L, wi, opt, idx, boxes[b], costs[b], 0, f, copy, white, b == 0, r,
 		                  &box_err);
 		if (ret == 0) {
