@@ -45,7 +45,8 @@ static const char usage_acquire[] =
 	"  --no-record          do not store the raw frames (no replay possible)\n"
 	"  --meta KEY=VALUE     object record, repeatable: accession, title, operator,\n"
 	"                       lighting, notes or a free key of [A-Za-z0-9_.-]{1,64};\n"
-	"                       the value UTF-8, at most 4096 bytes, no control characters;\n"
+	"                       the value UTF-8, at most 4096 bytes, no control characters\n"
+	"                       and no invisible or bidirectional format characters;\n"
 	"                       stored as the capture's \"meta\" in SESSION/session.json\n"
 	"  Exit 0 ok, 1 bad input, 2 bad usage, 3 the camera failed (timeouts, dropped or\n"
 	"  incomplete frames: the counts are printed and nothing is added to the session).";

@@ -1,4 +1,5 @@
 #include <stdarg.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -30,9 +31,19 @@ static const kg_command commands[] = {
 	{"devices", kg_cmd_devices, "camera and spectrometer backends built, spectrometers attached"},
 };
 
+/* A message that may quote what the user or a file gave, printed so that the terminal
+ * shows every byte (control sequences and format characters escaped, text.h). */
+static void print_visible(FILE *f, const char *msg)
+{
+	static char shown[4 * sizeof(((kg_err *)0)->msg) + 16];
+	fputs(kg_text_visible(msg, SIZE_MAX, shown, sizeof(shown)), f);
+}
+
 int kg_cli_error(const kg_err *err, int code)
 {
-	fprintf(stderr, "kogei: %s\n", err && err->msg[0] ? err->msg : "failed");
+	fputs("kogei: ", stderr);
+	print_visible(stderr, err && err->msg[0] ? err->msg : "failed");
+	fputc('\n', stderr);
 	if (code == KG_ENODEV || code == KG_ETIMEDOUT)
 		return KG_EXIT_DEVICE;
 	return KG_EXIT_INPUT;
@@ -41,10 +52,12 @@ int kg_cli_error(const kg_err *err, int code)
 int kg_cli_usage_error(const char *usage, const char *fmt, ...)
 {
 	va_list ap;
+	char msg[2048];
 	fputs("kogei: ", stderr);
 	va_start(ap, fmt);
-	vfprintf(stderr, fmt, ap);
+	vsnprintf(msg, sizeof(msg), fmt, ap);
 	va_end(ap);
+	print_visible(stderr, msg);
 	fprintf(stderr, "\nusage: %s\n", usage);
 	return KG_EXIT_USAGE;
 }
@@ -110,7 +123,10 @@ int main(int argc, char **argv)
 			shown = 1;
 		}
 	}
-	if (!shown)
-		fprintf(stderr, "kogei: unknown command '%s' (see 'kogei --help')\n", argv[1]);
+	if (!shown) {
+		char arg[256];
+		fprintf(stderr, "kogei: unknown command '%s' (see 'kogei --help')\n",
+		        kg_text_visible(argv[1], 60, arg, sizeof(arg)));
+	}
 	return KG_EXIT_USAGE;
 }

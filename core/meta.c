@@ -4,6 +4,7 @@
 #include <string.h>
 
 #include "meta.h"
+#include "text.h"
 
 const char *const kg_meta_known_keys[] = {"accession", "title", "operator", "lighting",
                                           "notes", NULL};
@@ -31,37 +32,43 @@ const char *kg_meta_value_problem(const char *value)
 	if (n > KG_META_VALUE_MAX)
 		return "expected at most 4096 bytes of UTF-8";
 	for (size_t i = 0; i < n;) {
-		unsigned c = s[i], cp, len;
-		if (c < 0x80) {
-			cp = c;
-			len = 1;
-		} else if ((c & 0xE0) == 0xC0) {
-			cp = c & 0x1F;
-			len = 2;
-		} else if ((c & 0xF0) == 0xE0) {
-			cp = c & 0x0F;
-			len = 3;
-		} else if ((c & 0xF8) == 0xF0) {
-			cp = c & 0x07;
-			len = 4;
-		} else {
-			return "expected UTF-8 text (an invalid byte)";
-		}
-		if (i + len > n)
-			return "expected UTF-8 text (a truncated character)";
-		for (unsigned k = 1; k < len; k++) {
-			if ((s[i + k] & 0xC0) != 0x80)
-				return "expected UTF-8 text (an invalid continuation byte)";
-			cp = cp << 6 | (s[i + k] & 0x3F);
-		}
-		static const unsigned minimum[5] = {0, 0, 0x80, 0x800, 0x10000};
-		if (cp < minimum[len] || cp > 0x10FFFF || (cp >= 0xD800 && cp <= 0xDFFF))
-			return "expected UTF-8 text (an overlong form or a code point out of range)";
+		unsigned cp;
+		const char *why;
+		int len = kg_utf8_decode(s + i, n - i, &cp, &why);
+		if (!len)
+			return why;
 		if (cp < 0x20 || (cp >= 0x7F && cp <= 0x9F))
 			return "expected no control characters (tabs, line breaks and the like)";
-		i += len;
+		if (kg_unicode_is_format(cp))
+			return "expected no invisible or bidirectional format character (it would "
+			       "make the record display differently from what it holds)";
+		i += (size_t)len;
 	}
 	return NULL;
+}
+
+/* The first character of value that kg_meta_value_problem refuses, for the message:
+ * "U+202E RIGHT-TO-LEFT OVERRIDE at byte 7" (empty when there is none). */
+static void first_refused(const char *value, char *out, size_t size)
+{
+	const unsigned char *s = (const unsigned char *)value;
+	size_t n = strlen(value);
+	out[0] = 0;
+	for (size_t i = 0; i < n;) {
+		unsigned cp;
+		int len = kg_utf8_decode(s + i, n - i, &cp, NULL);
+		if (!len) {
+			snprintf(out, size, " (byte 0x%02X at byte %zu)", s[i], i + 1);
+			return;
+		}
+		const char *name = kg_unicode_format_name(cp);
+		if (name || cp < 0x20 || (cp >= 0x7F && cp <= 0x9F)) {
+			snprintf(out, size, " (U+%04X%s%s at byte %zu)", cp, name ? " " : "",
+			         name ? name : "", i + 1);
+			return;
+		}
+		i += (size_t)len;
+	}
 }
 
 int kg_meta_set(json_t *obj, const char *what, const char *key, const char *value,
@@ -73,8 +80,12 @@ int kg_meta_set(json_t *obj, const char *what, const char *key, const char *valu
 		               "accession, title, operator, lighting, notes)",
 		               what, KG_META_KEY_MAX);
 	const char *why = kg_meta_value_problem(value);
-	if (why)
-		return kg_fail(err, KG_EINVAL, "%s: value: %s", what, why);
+	if (why) {
+		char where[128] = "";
+		if (value && strlen(value) <= KG_META_VALUE_MAX)
+			first_refused(value, where, sizeof(where));
+		return kg_fail(err, KG_EINVAL, "%s: value: %s%s", what, why, where);
+	}
 	if (json_object_get(obj, key))
 		return kg_fail(err, KG_EINVAL, "%s: key '%s' given twice: expected each key once",
 		               what, key);
@@ -92,10 +103,11 @@ int kg_meta_parse_arg(json_t *obj, const char *opt, const char *arg, kg_err *err
 		arg = "";
 	if (!opt)
 		opt = "--meta";
-	char what[160];
-	size_t alen = strnlen(arg, 101);
-	snprintf(what, sizeof(what), "%s '%.*s%s'", opt, (int)(alen > 100 ? 100 : alen), arg,
-	         alen > 100 ? "..." : "");
+	/* the argument as the terminal should show it: controls and format characters
+	 * escaped, at most 100 bytes of it */
+	char shown[512], what[560];
+	kg_text_visible(arg, 100, shown, sizeof(shown));
+	snprintf(what, sizeof(what), "%s '%s'", opt, shown);
 	const char *eq = strchr(arg, '=');
 	if (!eq)
 		return kg_fail(err, KG_EINVAL, "%s: expected KEY=VALUE (e.g. accession=1987.12.3)",
@@ -121,14 +133,21 @@ int kg_meta_validate(const char *file, const char *key, const json_t *meta, kg_e
 	const json_t *v;
 	json_object_foreach((json_t *)meta, k, v)
 	{
-		if (!kg_meta_key_ok(k))
+		if (!kg_meta_key_ok(k)) {
+			char shown[400];
 			return kg_fail(err, KG_EINVAL,
-			               "%s: %s: key '%.80s': expected 1 to %d of A-Z a-z 0-9 '_' '.' '-'",
-			               file, key, k, KG_META_KEY_MAX);
+			               "%s: %s: key '%s': expected 1 to %d of A-Z a-z 0-9 '_' '.' '-'",
+			               file, key, kg_text_visible(k, 80, shown, sizeof(shown)),
+			               KG_META_KEY_MAX);
+		}
 		const char *why = json_is_string(v) ? kg_meta_value_problem(json_string_value(v))
 		                                    : "expected a string";
-		if (why)
-			return kg_fail(err, KG_EINVAL, "%s: %s.%s: %s", file, key, k, why);
+		if (why) {
+			char where[128] = "";
+			if (json_is_string(v) && json_string_length(v) <= KG_META_VALUE_MAX)
+				first_refused(json_string_value(v), where, sizeof(where));
+			return kg_fail(err, KG_EINVAL, "%s: %s.%s: %s%s", file, key, k, why, where);
+		}
 	}
 	return 0;
 }

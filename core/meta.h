@@ -5,8 +5,9 @@
  * A key is 1 to KG_META_KEY_MAX of [A-Za-z0-9_.-]; the known keys (accession, title,
  * operator, lighting, notes) come first in the report, free keys after them. A value is
  * UTF-8 (well formed, no surrogates, no overlong forms) of at most KG_META_VALUE_MAX
- * bytes with no control character (U+0000..U+001F, U+007F..U+009F). At most
- * KG_META_MAX_KEYS keys. */
+ * bytes with no control character (U+0000..U+001F, U+007F..U+009F) and no invisible or
+ * bidirectional format character (text.h: U+200B, U+202E, U+FEFF, U+2028, ...), so a
+ * record displays as what it holds. At most KG_META_MAX_KEYS keys. */
 #ifndef KG_META_H
 #define KG_META_H
 

@@ -156,7 +156,11 @@ def view_and_ranges(c):
                        ({"kind": "dark", "meta": {"title": 3}}, "meta.title"),
                        ({"kind": "dark", "meta": {"bad key": "x"}}, "meta.bad key"),
                        ({"kind": "dark", "meta": {"notes": "a\nb"}}, "meta.notes"),
-                       ({"kind": "dark", "meta": {"notes": "x" * 4097}}, "meta.notes")):
+                       ({"kind": "dark", "meta": {"notes": "x" * 4097}}, "meta.notes"),
+                       ({"kind": "dark", "meta": {"accession": "1987\u202e321"}},
+                        "meta.accession"),
+                       ({"kind": "dark", "meta": {"title": "a\u200bb"}}, "meta.title"),
+                       ({"kind": "dark", "meta": {"notes": "a\u2028b"}}, "meta.notes")):
         st, j = c.json("POST", "/api/capture", body)
         check(st == 400 and "'%s'" % word in j.get("error", ""),
               "capture %s: expected 400 naming '%s', got %d %s" % (body, word, st, j))

@@ -55,6 +55,17 @@ refuse "empty key" '=x' 'key: expected'
 refuse "control character" "$(printf 'notes=a\tb')" 'control characters'
 refuse "invalid UTF-8" "$(printf 'notes=a\377b')" 'UTF-8'
 refuse "too long" "notes=$(head -c 4097 /dev/zero | tr '\0' a)" '4096 bytes'
+# Characters that make a record display differently from its bytes: bidi overrides and
+# isolates, zero-width and invisible characters, the BOM, line/paragraph separators.
+for cp in '\342\200\256' '\342\200\213' '\357\273\277' '\342\200\250' '\342\200\251' \
+	'\342\201\246' '\302\255' '\342\201\240'; do
+	refuse "format character $cp" "$(printf "accession=1987${cp}321")" 'format character'
+done
+# A refused argument is echoed escaped: no control byte reaches the terminal.
+refuse "escape sequence" "$(printf 'title=\033]0;x\007\033[2Jz\342\200\256')" '\x1B]0;x\x07\x1B[2Jz\u{202E}'
+if LC_ALL=C grep -q "$(printf '[\033\007]')" err.log; then
+	echo "FAIL: a refused --meta echoed control bytes to the terminal"; fail=1
+fi
 "$KOGEI" acquire --camera "sim:object.tif?$CAM" --out S --kind object --exposure 10000 \
 	--gain 0 --meta title=a --meta title=b >out.log 2>err.log
 rc=$?

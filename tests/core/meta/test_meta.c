@@ -33,6 +33,14 @@ int main(void)
 	CHECK(!value_ok("\xf4\x90\x80\x80"), "above U+10FFFF refused");
 	CHECK(!value_ok("\xe6\xbc") && !value_ok("\xff") && !value_ok("\xe6x\x86"),
 	      "truncated, invalid and broken sequences refused");
+	/* format characters: a record must display as what it holds */
+	const char *hidden[] = {"1987.12\xe2\x80\xae" "3", "a\xe2\x80\x8b" "b", "\xef\xbb\xbf" "x",
+	                        "a\xe2\x80\xa8" "b", "a\xe2\x80\xa9" "b", "a\xe2\x81\xa6" "b",
+	                        "a\xc2\xad" "b", "a\xf3\xa0\x81\x81" "b"};
+	for (size_t i = 0; i < sizeof(hidden) / sizeof(hidden[0]); i++)
+		CHECK(!value_ok(hidden[i]), "format character %zu refused", i);
+	CHECK(value_ok("\xd8\xb3\xd9\x8a\xd9\x81 \xd7\xa9\xd7\x9c\xd7\x95\xd7\x9d"),
+	      "right-to-left scripts themselves are text");
 	static char big[KG_META_VALUE_MAX + 2];
 	memset(big, 'a', KG_META_VALUE_MAX);
 	CHECK(value_ok(big), "%d bytes", KG_META_VALUE_MAX);
@@ -52,6 +60,15 @@ int main(void)
 	CHECK(kg_meta_parse_arg(m, "--meta", "novalue", &err) == KG_EINVAL &&
 	          strstr(err.msg, "KEY=VALUE"),
 	      "no '=': %s", err.msg);
+	CHECK(kg_meta_parse_arg(m, "--meta", "accession=1987\xe2\x80\xae" "321", &err) ==
+	              KG_EINVAL &&
+	          strstr(err.msg, "'accession=1987\\u{202E}321'") &&
+	          strstr(err.msg, "U+202E RIGHT-TO-LEFT OVERRIDE at byte 5"),
+	      "a bidi override refused, shown escaped and named: %s", err.msg);
+	CHECK(kg_meta_parse_arg(m, "--meta", "title=\x1b]0;pwned\x07\x1b[2J", &err) == KG_EINVAL &&
+	          !strchr(err.msg, '\x1b') && !strchr(err.msg, '\x07') &&
+	          strstr(err.msg, "\\x1B]0;pwned\\x07"),
+	      "terminal control sequences are echoed escaped: %s", err.msg);
 	CHECK(json_object_size(m) == 2, "refused arguments add nothing (%zu keys)",
 	      json_object_size(m));
 
