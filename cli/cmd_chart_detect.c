@@ -224,7 +224,16 @@ int kg_cmd_chart_detect(int argc, char **argv)
 		goto fail;
 	/* a refusal keeps what was searched, for the overlay */
 	opt.keep_refused = overlay != NULL;
-	if ((code = kg_chart_detect(layout, img, &opt, &res, &err))) {
+	code = kg_chart_detect(layout, img, &opt, &res, &err);
+	/* a mapped file cut short or changed during the detection: that is the cause,
+	 * whatever the detection made of the pixels */
+	kg_err merr = {{0}};
+	if (kg_image_map_check(img, &merr)) {
+		err = merr;
+		code = KG_EIO;
+		goto fail;
+	}
+	if (code) {
 		kg_err_prefix(&err, "%s: chart %s %s", image_path, layout->name,
 		              code == KG_ENOENT ? "not found" : "refused");
 		if (res && overlay) {

@@ -8,7 +8,6 @@
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
-#include <sys/mman.h>
 #include <sys/stat.h>
 #include <tiffio.h>
 #include <unistd.h>
@@ -18,6 +17,7 @@
 
 #include "fsutil.h"
 #include "image.h"
+#include "mapfile.h"
 #include "raw.h"
 #include "kg_config.h"
 
@@ -81,8 +81,7 @@ int kg_image_new(int width, int height, int channels, kg_image **out, kg_err *er
 void kg_image_free(kg_image **img)
 {
 	if (img && *img) {
-		if ((*img)->map)
-			munmap((*img)->map, (*img)->map_len);
+		kg_mapfile_free(&(*img)->map);
 		free((*img)->cfa);
 		free(*img);
 		*img = NULL;
@@ -1270,12 +1269,10 @@ int kg_image_map(const char *path, kg_image **out, kg_err *err)
 		               "read, not mapped", path);
 	}
 	kg_image *img = calloc(1, sizeof(*img));
-	/* MAP_POPULATE: the page tables filled from the page cache at once, not a fault
-	 * per page as the image is read */
-	void *base = img ? mmap(NULL, (size_t)st.st_size, PROT_READ, MAP_PRIVATE | MAP_POPULATE,
-	                        fd, 0)
-	                 : MAP_FAILED;
-	if (base == MAP_FAILED) {
+	/* populate: the page tables filled from the page cache at once, not a fault per
+	 * page as the image is read */
+	const void *base = NULL;
+	if (!img || kg_mapfile_open(fd, (size_t)st.st_size, 1, path, &img->map, &base, NULL)) {
 		free(img);
 		kg_image_rows_free(&r);
 		return kg_fail(err, KG_ENOTSUP, "%s: cannot map: read instead", path);
@@ -1286,12 +1283,15 @@ int kg_image_map(const char *path, kg_image **out, kg_err *err)
 	img->bits = 16;
 	img->encoding = h->encoding;
 	memcpy(img->note, h->note, sizeof(img->note));
-	img->map = base;
-	img->map_len = (size_t)st.st_size;
 	img->u16 = (const uint16_t *)(const void *)((const unsigned char *)base + off0);
-	kg_image_rows_free(&r); /* the map outlives the descriptor */
+	kg_image_rows_free(&r); /* the map keeps its own descriptor */
 	*out = img;
 	return 0;
+}
+
+int kg_image_map_check(const kg_image *img, kg_err *err)
+{
+	return img && img->map ? kg_mapfile_check(img->map, err) : 0;
 }
 
 int kg_image_read_tiff(const char *path, kg_image **out, kg_err *err)

@@ -43,8 +43,7 @@ typedef struct kg_image {
 	 * width * channels a row; sample k is the float kg_image_u16_lut()[k]), and data
 	 * NULL. Only the consumers that say so take such an image. */
 	const uint16_t *u16;
-	void *map;
-	size_t map_len;
+	struct kg_mapfile *map;
 } kg_image;
 
 /* Largest image accepted: 2^28 pixels per image and 2^20 per side. */
@@ -64,10 +63,15 @@ int kg_image_read(const char *path, kg_image **out, kg_err *err);
  * no extra samples) mapped rather than decoded: no copy of its pixels is made (u16
  * above). KG_ENOTSUP for any other file, which kg_image_read then reads. For a
  * one-pass reader of a large file (chart detection): a 12 Mpix RGB image otherwise
- * costs 144 MB of floats that the kernel must first zero. The pages are the file's:
- * a file cut short by another program while it is mapped ends the process (SIGBUS),
- * so it is for commands that read their image once and soon, not for long jobs. */
+ * costs 144 MB of floats that the kernel must first zero. The pages are the file's
+ * (mapfile.h): a file cut short by another program while it is mapped reads as zeros
+ * from there on instead of ending the process, and kg_image_map_check then fails, so
+ * a reader checks it after its last read of the pixels and before it writes anything
+ * from them. */
 int kg_image_map(const char *path, kg_image **out, kg_err *err);
+/* 0 for an image that is not mapped, or whose file is still as it was mapped; KG_EIO
+ * naming the file when it was cut short or changed in place while mapped. */
+int kg_image_map_check(const kg_image *img, kg_err *err);
 /* The float of every 16-bit code k, k / 65535 as the readers compute it. */
 const float *kg_image_u16_lut(void);
 int kg_image_read_as(const char *path, const kg_image_encoding *enc, kg_image **out,

@@ -21,5 +21,6 @@
 #include "select.h"
 #include "meta.h"
 #include "text.h"
+#include "mapfile.h"
 
 #endif

@@ -1420,13 +1420,24 @@ int kg_ply_load(const char *path, kg_mesh **out, kg_err *err)
 		close(fd);
 		return kg_ply_load_mem("", 0, path, out, err);
 	}
-	void *map = mmap(NULL, len, PROT_READ, MAP_PRIVATE, fd, 0);
+	/* mapped through kg_mapfile: a mesh cut short by another program while it is read
+	 * is refused naming the file, not a SIGBUS */
+	kg_mapfile *map = NULL;
+	const void *base = NULL;
+	int ret = kg_mapfile_open(fd, len, 0, path, &map, &base, err);
 	close(fd);
-	if (map == MAP_FAILED)
-		return kg_fail(err, KG_EIO, "%s: cannot map: %s", path, strerror(errno));
-	madvise(map, len, MADV_SEQUENTIAL);
-	int ret = kg_ply_load_mem(map, len, path, out, err);
-	munmap(map, len);
+	if (ret)
+		return ret;
+	madvise((void *)(uintptr_t)base, len, MADV_SEQUENTIAL);
+	ret = kg_ply_load_mem(base, len, path, out, err);
+	kg_err merr = {{0}};
+	if (kg_mapfile_check(map, &merr)) {
+		kg_mesh_free(out);
+		if (err)
+			*err = merr;
+		ret = KG_EIO;
+	}
+	kg_mapfile_free(&map);
 	return ret;
 }
 
