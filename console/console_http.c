@@ -119,8 +119,33 @@ static int rel_path_ok(const char *rel)
 
 /* Serve base/rel when it resolves (symbolic links followed) to a regular file inside
  * base resolved. */
+/* 503 with Retry-After: the results are being put in place. */
+static enum MHD_Result send_busy(struct MHD_Connection *conn, const char *why)
+{
+	struct MHD_Response *r = NULL;
+	json_t *j = json_pack("{s:s}", "error", why);
+	char *body = j ? json_dumps(j, JSON_COMPACT) : NULL;
+	json_decref(j);
+	if (body)
+		r = MHD_create_response_from_buffer(strlen(body), body, MHD_RESPMEM_MUST_FREE);
+	else
+		return MHD_NO;
+	if (!r) {
+		free(body);
+		return MHD_NO;
+	}
+	MHD_add_response_header(r, "Content-Type", "application/json");
+	MHD_add_response_header(r, "Retry-After", "1");
+	MHD_add_response_header(r, "Cache-Control", "no-store");
+	enum MHD_Result ret = MHD_queue_response(conn, 503, r);
+	MHD_destroy_response(r);
+	return ret;
+}
+
+/* A file below base; with results (OUTDIR), refused while a commit is under way there,
+ * checked after the file is opened. */
 static enum MHD_Result send_file(struct MHD_Connection *conn, const char *base,
-                                 const char *rel)
+                                 const char *rel, const char *results)
 {
 	if (!rel_path_ok(rel))
 		return send_error(conn, 403, "'%s': refused (only plain relative paths inside the "
@@ -141,6 +166,10 @@ static enum MHD_Result send_file(struct MHD_Connection *conn, const char *base,
 			close(fd);
 		return send_error(conn, 404, "'%s': not a readable file", rel);
 	}
+	if (results && kg_outdir_in_commit(results)) {
+		close(fd);
+		return send_busy(conn, "the results are being put in place: retry in a moment");
+	}
 	struct MHD_Response *r = MHD_create_response_from_fd((uint64_t)st.st_size, fd);
 	if (!r) {
 		close(fd);
@@ -152,6 +181,19 @@ static enum MHD_Result send_file(struct MHD_Connection *conn, const char *base,
 	enum MHD_Result ret = MHD_queue_response(conn, 200, r);
 	MHD_destroy_response(r);
 	return ret;
+}
+
+/* A file of the results: OUTDIR settled first (a commit a killed run left half-done
+ * completed, a live run's commit waited for), and the file served only when no commit
+ * began while it was opened, so the page never mixes two runs' results. */
+static enum MHD_Result send_result(struct MHD_Connection *conn, const char *outdir,
+                                   const char *rel)
+{
+	kg_err err = {{0}};
+	int ret = kg_outdir_settle(outdir, "kogei console", NULL, 2000, NULL, &err);
+	if (ret && ret != KG_ENOENT)
+		return send_busy(conn, err.msg);
+	return send_file(conn, outdir, rel, outdir);
 }
 
 /* ---- security -------------------------------------------------------------------- */
@@ -368,9 +410,9 @@ static enum MHD_Result handle_get(console *c, struct MHD_Connection *conn, const
 	if (!strcmp(url, "/api/chart"))
 		return send_json(conn, 200, console_chart_check(c));
 	if (!strncmp(url, "/session/", 9))
-		return send_file(conn, c->session_dir, url + 9);
+		return send_file(conn, c->session_dir, url + 9, NULL);
 	if (!strncmp(url, "/out/", 5))
-		return send_file(conn, c->outdir, url + 5);
+		return send_result(conn, c->outdir, url + 5);
 	return send_error(conn, 404, "%s: no such page", url);
 }
 

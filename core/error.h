@@ -18,6 +18,8 @@
 #define KG_ENOTSUP (-ENOTSUP)
 #define KG_ETIMEDOUT (-ETIMEDOUT)
 #define KG_ENODEV (-ENODEV)
+/* A folder is in use by another process (locked): the user's to wait for. */
+#define KG_EBUSY (-EBUSY)
 /* A write failed because the disk (or the quota) is full: the user's to fix, not a
  * device failure. */
 #define KG_ENOSPC (-ENOSPC)

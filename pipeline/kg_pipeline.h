@@ -114,6 +114,27 @@ int kg_process_run(const kg_process_options *o, kg_process_summary *summary, kg_
  * before any other thread starts. -1 if the thread cannot be started. */
 int kg_process_watch_signals(void);
 
+/* Readers of a processed OUTDIR (report, console, deposit, collection). A run puts its
+ * results in place by several renames (a journal folder .kogei-commit.PID, then each
+ * object folder, then the files, process.json last); a run killed among them leaves
+ * the journal, and OUTDIR half old and half new until it is completed.
+ * kg_outdir_settle makes OUTDIR whole before it is read: when it holds a journal and
+ * no run is live (the OUTDIR lock is free) it takes the lock and completes every
+ * journal and clears every leftover of a dead run, saying so on progress as
+ * "<who>: ..."; when a run is live and putting its results in place, it waits up to
+ * wait_ms for it to finish.
+ * With lock_fd, the caller gets the lock and keeps it (it will write into OUTDIR:
+ * kg_outdir_unlock when done), and a live run is waited for whatever it is doing;
+ * without it, a live run that is still computing is no obstacle (its results are
+ * invisible until they are complete). KG_EBUSY naming OUTDIR when the wait ends
+ * first; KG_ENOENT when OUTDIR does not exist. */
+int kg_outdir_settle(const char *outdir, const char *who, FILE *progress, int wait_ms,
+                     int *lock_fd, kg_err *err);
+void kg_outdir_unlock(int *lock_fd);
+/* 1 while OUTDIR holds a journal (a run is putting results in place, or died doing
+ * so): a reader that opened a file meanwhile may hold a half-made view. */
+int kg_outdir_in_commit(const char *outdir);
+
 /* ==== Report ====================================================================== */
 
 /* The operator's report (docs/report.md): one self-contained HTML file that a
@@ -123,7 +144,8 @@ int kg_process_watch_signals(void);
  * missing image file) is stated in the page, never dropped. */
 
 /* Read OUTDIR/process.json and the files it names and write OUTDIR/report.html
- * atomically. A missing or mistyped required key is KG_EINVAL naming
+ * atomically, under the OUTDIR lock after kg_outdir_settle (an unfinished commit
+ * completed first, noted on stderr; KG_EBUSY while a run is live). A missing or mistyped required key is KG_EINVAL naming
  * OUTDIR/process.json and the key path (e.g. "calibration.cond_M2"). */
 int kg_report_write(const char *outdir, kg_err *err);
 

@@ -27,11 +27,13 @@
 #include <ftw.h>
 #include <pthread.h>
 #include <signal.h>
+#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/file.h>
 #include <sys/stat.h>
+#include <time.h>
 #include <unistd.h>
 
 #include "pipeline_private.h"
@@ -323,14 +325,29 @@ static int apply_commit(const char *outdir, const char *journal, const char *old
 	return 0;
 }
 
-/* Leftovers of runs that died (SIGKILL, a crash, power): under the lock no other run
- * is live, so every staging, trash and old folder goes, and a journal is completed. */
-static int recover(proc *p)
+/* A progress line "<who>: ..." to progress (NULL: none). */
+static void say(FILE *progress, const char *who, const char *fmt, ...) KG_PRINTF(3, 4);
+static void say(FILE *progress, const char *who, const char *fmt, ...)
 {
-	const char *out = p->o->outdir;
+	if (!progress)
+		return;
+	va_list ap;
+	va_start(ap, fmt);
+	fprintf(progress, "%s: ", who);
+	vfprintf(progress, fmt, ap);
+	fputc('\n', progress);
+	fflush(progress);
+	va_end(ap);
+}
+
+/* Leftovers of runs that died (SIGKILL, a crash, power): under the lock no other run
+ * is live, so every staging, trash and old folder goes, and a journal is completed.
+ * Progress lines go to progress as "<who>: ...". */
+static int recover_dir(const char *out, FILE *progress, const char *who, kg_err *err)
+{
 	DIR *d = opendir(out);
 	if (!d)
-		return kg_fail(p->err, KG_EIO, "%s: cannot open: %s", out, strerror(errno));
+		return kg_fail(err, KG_EIO, "%s: cannot open: %s", out, strerror(errno));
 	char **names = NULL;
 	size_t n = 0, cap = 0;
 	for (struct dirent *e; (e = readdir(d));) {
@@ -357,12 +374,12 @@ static int recover(proc *p)
 			continue;
 		snprintf(path, sizeof(path), "%s/%s", out, names[i]);
 		snprintf(old, sizeof(old), "%s/" OLD_TAG "%ld", out, pid);
-		ret = apply_commit(out, path, old, p->err);
+		ret = apply_commit(out, path, old, err);
 		if (ret)
-			kg_err_prefix(p->err, "completing the results of an interrupted run (process "
+			kg_err_prefix(err, "completing the results of an interrupted run (process "
 			              "%ld): ", pid);
 		else
-			proc_progress(p, "completed the results of a run that was stopped while it "
+			say(progress, who, "completed the results of a run that was stopped while it "
 			              "put them in place (process %ld)", pid);
 	}
 	for (size_t i = 0; i < n && !ret; i++) {
@@ -371,18 +388,18 @@ static int recover(proc *p)
 		if (tag_pid(names[i], STAGE_TAG) || tag_pid(names[i], TRASH_TAG) ||
 		    tag_pid(names[i], OLD_TAG) || kind == 1) {
 			proc_remove_tree(path);
-			proc_progress(p, "removed %s, left by an interrupted run", path);
+			say(progress, who, "removed %s, left by an interrupted run", path);
 		} else if (kind == 2) {
 			/* an old kogei moved the earlier folder aside and stopped before its new
 			 * one was in place: the earlier one back (process.json describes it) */
 			snprintf(final, sizeof(final), "%s/%s", out, obj);
 			if (access(final, F_OK) != 0 && kg_name_is_safe(obj, 256) &&
 			    rename(path, final) == 0) {
-				proc_progress(p, "restored %s from %s, left by an interrupted run", final,
+				say(progress, who, "restored %s from %s, left by an interrupted run", final,
 				              path);
 			} else {
 				proc_remove_tree(path);
-				proc_progress(p, "removed %s, left by an interrupted run", path);
+				say(progress, who, "removed %s, left by an interrupted run", path);
 			}
 		}
 	}
@@ -391,6 +408,11 @@ static int recover(proc *p)
 	free(names);
 	kg_atomicfile_sweep(out);
 	return ret;
+}
+
+static int recover(proc *p)
+{
+	return recover_dir(p->o->outdir, p->o->progress, "kogei process", p->err);
 }
 
 /* ---- before anything is written ---------------------------------------------------- */
@@ -708,6 +730,34 @@ static int check_tree(const char *path, int depth, kg_err *err)
 	return ret;
 }
 
+/* Every folder of the staging tree flushed to disk (its files already are, by their
+ * writers), so a crash after the renames cannot leave entries that point nowhere. */
+static int sync_tree(const char *path, int depth, kg_err *err)
+{
+	int fd = open(path, O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+	if (fd < 0)
+		return kg_fail(err, KG_EIO, "%s: cannot open: %s", path, strerror(errno));
+	DIR *d = fdopendir(fd);
+	if (!d) {
+		close(fd);
+		return kg_fail(err, KG_EIO, "%s: cannot open: %s", path, strerror(errno));
+	}
+	int ret = 0;
+	char sub[4200];
+	for (struct dirent *e; !ret && (e = readdir(d));) {
+		if (!strcmp(e->d_name, ".") || !strcmp(e->d_name, ".."))
+			continue;
+		snprintf(sub, sizeof(sub), "%s/%s", path, e->d_name);
+		struct stat st;
+		if (depth < 8 && lstat(sub, &st) == 0 && S_ISDIR(st.st_mode))
+			ret = sync_tree(sub, depth + 1, err);
+	}
+	if (!ret && fsync(dirfd(d)) != 0 && errno != EINVAL)
+		ret = kg_fail_write(err, errno, path, "cannot flush to disk");
+	closedir(d);
+	return ret;
+}
+
 /* The files under path are this tool's outputs, some read back while they were made
  * (labels.json, the report's images): not inputs of a later job in this process (the
  * console), whose swap would otherwise refuse to replace them. */
@@ -754,6 +804,8 @@ int proc_outdir_commit(proc *p, json_t *root)
 	}
 	if (d)
 		closedir(d);
+	if (!ret)
+		ret = sync_tree(p->stage, 0, p->err);
 	if (ret)
 		return ret;
 	char journal[4200], old[4200];
@@ -812,4 +864,79 @@ void proc_outdir_close(proc *p, int failed)
 	if (p->lock_fd >= 0)
 		close(p->lock_fd);
 	p->lock_fd = -1;
+}
+
+/* ---- readers: OUTDIR settled before it is read ------------------------------------- */
+
+/* 1 when outdir holds a journal: a run is putting its results in place, or died
+ * doing so. */
+static int in_commit(const char *outdir)
+{
+	DIR *d = opendir(outdir);
+	if (!d)
+		return 0;
+	int found = 0;
+	for (struct dirent *e; !found && (e = readdir(d));)
+		found = tag_pid(e->d_name, COMMIT_TAG) != 0;
+	closedir(d);
+	return found;
+}
+
+int kg_outdir_in_commit(const char *outdir)
+{
+	return outdir && in_commit(outdir);
+}
+
+int kg_outdir_settle(const char *outdir, const char *who, FILE *progress, int wait_ms,
+                     int *lock_fd, kg_err *err)
+{
+	kg_check_arg(outdir && who, err);
+	if (lock_fd)
+		*lock_fd = -1;
+	else if (!in_commit(outdir))
+		return 0; /* whole, and a reader holds no lock: a run may start at any time */
+	int fd = open(outdir, O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+	if (fd < 0)
+		return kg_fail(err, errno == ENOENT ? KG_ENOENT : KG_EIO, "%s: cannot open: %s",
+		               outdir, strerror(errno));
+	for (int waited = 0;; waited += 10) {
+		if (flock(fd, LOCK_EX | LOCK_NB) == 0) {
+			/* no run is live: complete or clear what a dead one left */
+			int ret = recover_dir(outdir, progress, who, err);
+			if (ret || !lock_fd)
+				close(fd);
+			else
+				*lock_fd = fd;
+			return ret;
+		}
+		if (errno != EWOULDBLOCK) {
+			int e = errno;
+			close(fd);
+			return kg_fail(err, KG_EIO, "%s: cannot lock: %s", outdir, strerror(e));
+		}
+		/* a live run: its staging is invisible until it puts the results in place,
+		 * which takes a moment; a reader that needs no lock goes on when it is done */
+		if (!lock_fd && !in_commit(outdir)) {
+			close(fd);
+			return 0;
+		}
+		if (waited >= wait_ms) {
+			close(fd);
+			return kg_fail(err, KG_EBUSY,
+			               "%s: in use by another kogei process, %s (the folder is "
+			               "locked); wait for it to finish",
+			               outdir, lock_fd ? "which is writing its results"
+			                               : "which is putting its results in place");
+		}
+		struct timespec ts = {0, 10 * 1000 * 1000};
+		nanosleep(&ts, NULL);
+	}
+}
+
+void kg_outdir_unlock(int *lock_fd)
+{
+	if (lock_fd && *lock_fd >= 0) {
+		close(*lock_fd);
+		*lock_fd = -1;
+	}
 }

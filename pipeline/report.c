@@ -1443,7 +1443,15 @@ static void write_page(report *r)
 
 int kg_report_write(const char *outdir, kg_err *err)
 {
-	return report_write_staged(outdir, NULL, err);
+	kg_check_arg(outdir, err);
+	int lock = -1;
+	int ret = kg_outdir_settle(outdir, "kogei report", stderr, 0, &lock, err);
+	if (ret == KG_ENOENT)
+		ret = 0; /* said below, as process.json missing */
+	if (!ret)
+		ret = report_write_staged(outdir, NULL, err);
+	kg_outdir_unlock(&lock);
+	return ret;
 }
 
 int report_write_staged(const char *outdir, const char *stage, kg_err *err)

@@ -11,7 +11,7 @@ python3 python3-numpy python3-spectral
 libapriltag-dev libopencv-dev libopencv-contrib-dev
 libusb-1.0-0-dev umockdev libumockdev-dev
 libaravis-dev aravis-tools aravis-tools-cli libcamera-dev
-libembree-dev assimp-testmodels iproute2 util-linux
+libembree-dev assimp-testmodels iproute2 util-linux strace
 chromium python3-websocket
 libraw-dev libgphoto2-dev libmicrohttpd-dev
 liblcms2-dev liblcms2-utils imagemagick
