@@ -137,6 +137,10 @@ typedef struct kg_session kg_session;
  * was expected. Every reader of a session calls it: kg_session_open,
  * kg_session_image_identify, replay: (the recording part), kogei process. */
 int kg_session_manifest_validate(const char *file, const json_t *root, kg_err *err);
+/* 1 when id is a session id: a UUID in lower-case hexadecimal, 8-4-4-4-12. A session's
+ * manifest holds one ("id", made at its creation, or added at the next capture to a
+ * session recorded before ids): the session is the same wherever it is moved. */
+int kg_session_id_ok(const char *id);
 
 /* Open a session directory, creating it (and a new manifest in memory) when absent;
  * an existing manifest is read, validated (kg_session_manifest_validate) and captures

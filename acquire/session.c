@@ -6,6 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/file.h>
+#include <sys/random.h>
 #include <sys/stat.h>
 #include <time.h>
 #include <unistd.h>
@@ -181,13 +182,29 @@ static int load_manifest(kg_session *s, kg_err *err)
 	return kg_session_manifest_validate(f, s->root, err);
 }
 
+/* A random (version 4) UUID, the session's identity wherever it is moved or copied. */
+static int new_session_id(char out[37])
+{
+	unsigned char b[16];
+	if (getrandom(b, sizeof(b), 0) != (ssize_t)sizeof(b))
+		return -1;
+	b[6] = (unsigned char)((b[6] & 0x0F) | 0x40);
+	b[8] = (unsigned char)((b[8] & 0x3F) | 0x80);
+	snprintf(out, 37, "%02x%02x%02x%02x-%02x%02x-%02x%02x-%02x%02x-%02x%02x%02x%02x%02x%02x",
+	         b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7], b[8], b[9], b[10], b[11], b[12],
+	         b[13], b[14], b[15]);
+	return 0;
+}
+
 static json_t *new_manifest(void)
 {
-	char now[32];
+	char now[32], id[37];
 	kg_utc_now(now);
-	return json_pack("{s:s, s:{s:s, s:s}, s:s, s:{s:[]}, s:[]}", "format", KG_SESSION_FORMAT,
-	                 "station", "software", "kogei", "version", KG_VERSION, "created", now,
-	                 "devices", "cameras", "captures");
+	if (new_session_id(id))
+		return NULL;
+	return json_pack("{s:s, s:s, s:{s:s, s:s}, s:s, s:{s:[]}, s:[]}", "format",
+	                 KG_SESSION_FORMAT, "id", id, "station", "software", "kogei", "version",
+	                 KG_VERSION, "created", now, "devices", "cameras", "captures");
 }
 
 int kg_session_open(const char *dir, kg_session **out, kg_err *err)
@@ -226,8 +243,14 @@ int kg_session_open(const char *dir, kg_session **out, kg_err *err)
 	if (!ret)
 		ret = check_links(s, err);
 	if (!ret) {
-		if (stat(s->manifest_path, &st) == 0)
+		if (stat(s->manifest_path, &st) == 0) {
 			ret = load_manifest(s, err);
+			/* a session recorded before sessions had ids gets one with its next capture */
+			char id[37];
+			if (!ret && !json_object_get(s->root, "id") &&
+			    (new_session_id(id) || json_object_set_new(s->root, "id", json_string(id))))
+				ret = kg_fail(err, KG_ENOMEM, "%s: out of memory", dir);
+		}
 		else if (!(s->root = new_manifest()))
 			ret = kg_fail(err, KG_ENOMEM, "%s: out of memory", dir);
 		else /* frames of a first capture that never finished */

@@ -311,6 +311,17 @@ static int check_capture(check_ctx *c, size_t i)
 	return check_layout(c, k, prefix);
 }
 
+int kg_session_id_ok(const char *id)
+{
+	static const char form[] = "xxxxxxxx-xxxx-xxxx-xxxx-xxxxxxxxxxxx";
+	if (!id || strlen(id) != sizeof(form) - 1)
+		return 0;
+	for (size_t i = 0; form[i]; i++)
+		if (form[i] == '-' ? id[i] != '-' : !strchr("0123456789abcdef", id[i]))
+			return 0;
+	return 1;
+}
+
 int kg_session_manifest_validate(const char *file, const json_t *root, kg_err *err)
 {
 	kg_check_arg(file && root, err);
@@ -326,6 +337,10 @@ int kg_session_manifest_validate(const char *file, const json_t *root, kg_err *e
 	    strcmp(format, KG_SESSION_FORMAT))
 		ret = kg_fail(err, KG_EINVAL, "%s: format '%s': expected \"%s\"", file, format,
 		              KG_SESSION_FORMAT);
+	const json_t *id = json_object_get(root, "id");
+	if (!ret && id && !kg_session_id_ok(json_string_value(id)))
+		ret = kg_fail(err, KG_EINVAL, "%s: id: expected a UUID (8-4-4-4-12 hexadecimal digits)",
+		              file);
 	if (!ret)
 		ret = check_cameras(&c);
 	if (!ret && !(ret = kg_json_get(file, root, "captures", &caps, err)) && !json_is_array(caps))

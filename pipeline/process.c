@@ -565,6 +565,9 @@ int kg_process_run(const kg_process_options *o, kg_process_summary *summary, kg_
 			ret = kg_fail(err, KG_ENOMEM, "out of memory");
 		if (!ret && o->command)
 			json_object_set_new(root, "command", json_string(o->command));
+		const json_t *sid = json_object_get(p.manifest, "id");
+		if (!ret && json_is_string(sid))
+			json_object_set(json_object_get(root, "session"), "id", (json_t *)sid);
 		if (!ret)
 			json_object_set(root, "skipped_captures", p.skipped);
 		if (!ret)

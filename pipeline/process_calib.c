@@ -602,8 +602,17 @@ int proc_calibrate(proc *p)
 	json_object_set_new(p->calibration, "detect_seconds", json_real(res->total_seconds));
 	if (!o->reference)
 		json_object_set_new(p->calibration, "reference_file", json_string("reference.json"));
-	/* What the calibration rests on: the inputs read so far and the parameters. */
-	p->calib_key = json_pack("{s:o, s:f, s:i, s:b}", "inputs", json_deep_copy(p->inputs),
+	/* What the calibration rests on: the inputs read so far, by role and content (not
+	 * where they lie: a session moved to another disk is unchanged), and the
+	 * parameters. */
+	json_t *content = json_array();
+	size_t i;
+	json_t *in;
+	json_array_foreach(p->inputs, i, in)
+		json_array_append_new(content, json_pack("{s:O, s:O}", "role",
+		                                         json_object_get(in, "role"), "sha256",
+		                                         json_object_get(in, "sha256")));
+	p->calib_key = json_pack("{s:o, s:f, s:i, s:b}", "inputs", content,
 	                         "max_residual", o->max_residual, "min_tags", o->min_tags, "force",
 	                         o->force);
 done:

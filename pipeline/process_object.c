@@ -139,6 +139,13 @@ int proc_cube_format(const proc *p, kg_est_format *format)
 	return strcmp(name, "none") != 0;
 }
 
+/* The last part of a path (the library's content is in the calibration key's inputs). */
+static const char *file_name(const char *path)
+{
+	const char *slash = path ? strrchr(path, '/') : NULL;
+	return slash ? slash + 1 : path ? path : "";
+}
+
 /* What an object's result depends on; equal keys mean the files can be kept. */
 static json_t *object_key(proc *p, const proc_capture *c)
 {
@@ -146,7 +153,8 @@ static json_t *object_key(proc *p, const proc_capture *c)
 	                 c->name, "outputs", json_object_get(c->j, "outputs"), "corrections",
 	                 json_object_get(c->j, "corrections"), "parameters",
 	                 json_pack("{s:s, s:f, s:o, s:o, s:b, s:b, s:s, s:s, s:[fff], s:[ff]}",
-	                           "materials", p->library_path, "angle_deg", p->o->angle_deg,
+	                           "materials", file_name(p->library_path), "angle_deg",
+	                           p->o->angle_deg,
 	                           "mesh", p->o->mesh ? json_string(p->o->mesh) : json_null(),
 	                           "mask", p->o->mask ? json_string(p->o->mask)
 	                                   : background_of(p, c) ? json_string(background_of(p, c)->name)

@@ -3,7 +3,8 @@
  *
  * Before anything is written: OUTDIR is not the session nor inside it; it is new,
  * empty, or an earlier output of this session (its process.json names the session's
- * path and its manifest's "created"); a file or folder at an object's name that the
+ * id, or for a session recorded before ids, its manifest's "created", wherever the
+ * session now lies); a file or folder at an object's name that the
  * earlier process.json does not list is never replaced; no input (--mask, --reference,
  * --spectra, --mesh, --layout, --materials, the session) lies inside what the run
  * would replace. A folder this run created for OUTDIR is removed when the run fails.
@@ -575,22 +576,35 @@ static int check_previous(proc *p, const char *pj)
 	if (!p->previous)
 		return kg_fail(p->err, KG_EINVAL, "%s: exists but is not a %s file: refusing to write "
 		               "into %s", pj, KG_PROCESS_FORMAT, p->o->outdir);
+	/* The session is its id (session.json "id"), wherever it lies: a session moved or
+	 * copied to another disk is the same session. Results of a session recorded before
+	 * ids are matched by the time it was recorded. */
 	const json_t *s = json_object_get(p->previous, "session");
 	const char *path = json_string_value(json_object_get(s, "path"));
 	const char *real = json_string_value(json_object_get(s, "realpath"));
+	const char *id = json_string_value(json_object_get(s, "id"));
+	const char *my_id = json_string_value(json_object_get(p->manifest, "id"));
 	const char *created = json_string_value(json_object_get(s, "created"));
 	const char *mine = json_string_value(json_object_get(p->manifest, "created"));
-	char *r = real ? NULL : path ? realpath(path, NULL) : NULL;
-	int same_path = (real || r) && !strcmp(real ? real : r, p->session_abs);
-	int same_created = !created || !mine || !strcmp(created, mine) ||
-	                   p->o->accept_rerecorded;
-	free(r);
-	if (!same_path || !same_created)
-		return kg_fail(p->err, KG_EINVAL, "%s: holds the results of the session %s (recorded "
-		               "%s), not of %s (recorded %s): one folder holds one session's results; "
-		               "choose another -o", p->o->outdir, real ? real : path ? path : "?",
-		               created ? created : "?", p->o->session, mine ? mine : "?");
-	return 0;
+	int same_created = !created || !mine || !strcmp(created, mine);
+	int same = id && my_id ? !strcmp(id, my_id) : same_created;
+	if (same || p->o->accept_rerecorded)
+		return 0;
+	char differs[1024];
+	size_t at = 0;
+	if (id && my_id)
+		at += (size_t)snprintf(differs + at, sizeof(differs) - at, "session id %s there, %s "
+		                       "here", id, my_id);
+	if (!same_created && at < sizeof(differs))
+		at += (size_t)snprintf(differs + at, sizeof(differs) - at, "%srecorded %s there, %s "
+		                       "here", at ? "; " : "", created, mine);
+	if (!at)
+		snprintf(differs, sizeof(differs), "recorded at the same time, but one has an id "
+		         "and the other not");
+	return kg_fail(p->err, KG_EINVAL, "%s: holds the results of another session (%s, now "
+	               "processing %s: %s): one folder holds one session's results; choose "
+	               "another -o",
+	               p->o->outdir, real ? real : path ? path : "?", p->o->session, differs);
 }
 
 /* What is in OUTDIR: nothing, or this session's earlier output; nothing at an

@@ -75,6 +75,13 @@ O=$T/res
 expect_exit 0 "$KOGEI" process $P -o "$O"
 tree_sum "$S" >"$T/session.sum"
 tree_sum "$O" >"$T/out.sum"
+# The same session moved to another disk with its results (cp -a, the original gone):
+# re-processed in place, nothing to redo.
+mkdir "$T/nas" && cp -a "$S" "$T/nas/S" && cp -a "$O" "$T/nas/res"
+expect_exit 0 "$KOGEI" process "$T/nas/S" --spectra "$T/chart.cgats" --no-render --threads 1 \
+	-o "$T/nas/res"
+check "a moved session re-processed into its moved results" grep -q "0 processed, 4 unchanged" "$T/out"
+rm -rf "$T/nas"
 
 # ---- item 1: OUTDIR refusals, before anything is written ------------------------------
 # Inside the session: its captures, its frames, a new folder in it.
@@ -93,12 +100,19 @@ expect_exit 1 "$KOGEI" process $P -o "$F"
 check "foreign folder refused, naming what is there" grep -q "holds no process.json" "$T/err"
 check "foreign folder: its file named" grep -q "IMG_0001.dng" "$T/err"
 check "foreign folder unchanged" same_tree "$F" "$T/f.sum"
-# Another session's output (a copy of the session elsewhere is another session).
+# Another session's output (another recording: a session of its own id).
 cp -r "$S" "$T/S2"
+"$PY" - "$T/S2/session.json" <<'PY'
+import json, sys
+d = json.load(open(sys.argv[1]))
+d["id"] = "00000000-0000-4000-8000-000000000001"
+json.dump(d, open(sys.argv[1], "w"))
+PY
 cp -r "$O" "$T/other"
 tree_sum "$T/other" >"$T/o.sum"
 expect_exit 1 "$KOGEI" process "$T/S2" --spectra "$T/chart.cgats" --no-render -o "$T/other"
-check "another session's output refused" grep -q "holds the results of the session" "$T/err"
+check "another session's output refused" grep -q "holds the results of another session" "$T/err"
+check "another session's output: what differs said" grep -q "session id .* there, 00000000-0000-4000-8000-000000000001 here" "$T/err"
 check "another session's output unchanged" same_tree "$T/other" "$T/o.sum"
 # A folder at an object's name that process.json does not list.
 cp -r "$O" "$T/unlisted"
