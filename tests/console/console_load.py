@@ -246,7 +246,7 @@ def keepalive_idlers(slow, c, source, n):
             conn.request("GET", "/api/state", headers={"Host": c.hostport})
             conn.getresponse().read()
             slow.add(conn.sock, time.monotonic(), "idle")
-        except OSError:
+        except (OSError, http.client.HTTPException):
             with slow.lock:
                 slow.socks.append([socket.socket(), t0, t0, "idle"])
 
