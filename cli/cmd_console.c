@@ -13,6 +13,7 @@ const char kg_console_usage[] =
 	"kogei console --session DIR [--camera URI]... [--spectro URI] [--layout L]\n"
 	"              [--listen ADDRESS:PORT] [--out OUTDIR] [--spectra-out FILE]\n"
 	"              [--reference REF.json] [--frames N] [--header-timeout S]\n"
+	"              [--send-timeout S]\n"
 	"  The operator's console: a web page served on ADDRESS:PORT (default\n"
 	"  127.0.0.1:8080) with the live view of the camera (clipping, histograms, focus\n"
 	"  and exposure aids), the chart check, guided dark, flat, chart and object\n"
@@ -38,8 +39,12 @@ const char kg_console_usage[] =
 	"                      measured chart spectra make it a lab session\n"
 	"  --frames N          frames per capture offered by the page (default 10)\n"
 	"  --header-timeout S  seconds a connection has to send its request in full, from\n"
-	"                      its start or its previous answer (default 10, 0.1..3600);\n"
-	"                      at most 16 connections per client address, 256 in all\n"
+	"                      its start or its previous answer (default 10, 0.1..3600)\n"
+	"  --send-timeout S    seconds an answer has to move 64 KiB on to the client: one\n"
+	"                      the client stopped reading is cut off (default 10,\n"
+	"                      0.1..3600); at most 16 connections per client address, 256\n"
+	"                      in all, the stalest waiting or stalled one closed for a new\n"
+	"                      one\n"
 	"  Stops on Ctrl-C (SIGINT) or SIGTERM, after the job that is running.\n"
 	"  Exit 0 stopped, 1 bad input (a session in use, a layout that does not load),\n"
 	"  2 bad usage or a kogei built without the console, 3 the camera failed at start.";
@@ -81,6 +86,14 @@ static int parse_listen(const char *text, listen_addr *c)
 	return 0;
 }
 
+/* A deadline in seconds, 0.1..3600. */
+static int parse_timeout(const char *text, double *out)
+{
+	char *end;
+	*out = strtod(text, &end);
+	return end == text || *end || !(*out >= 0.1 && *out <= 3600) ? -1 : 0;
+}
+
 /* The sibling of the session directory: DIR + suffix (a trailing slash dropped). */
 static int sibling(const char *dir, const char *suffix, char *out, size_t n)
 {
@@ -101,7 +114,7 @@ int kg_cmd_console(int argc, char **argv)
 	const char *session = NULL, *out = NULL, *spectra_out = NULL, *listen = "127.0.0.1:8080";
 	o.frames = 10;
 	enum { O_SESSION = 256, O_CAMERA, O_SPECTRO, O_LAYOUT, O_LISTEN, O_OUT, O_SPECTRA_OUT,
-	       O_REFERENCE, O_FRAMES, O_HEADER_TIMEOUT };
+	       O_REFERENCE, O_FRAMES, O_HEADER_TIMEOUT, O_SEND_TIMEOUT };
 	static const struct option opts[] = {
 		{"session", required_argument, NULL, O_SESSION},
 		{"camera", required_argument, NULL, O_CAMERA},
@@ -113,6 +126,7 @@ int kg_cmd_console(int argc, char **argv)
 		{"reference", required_argument, NULL, O_REFERENCE},
 		{"frames", required_argument, NULL, O_FRAMES},
 		{"header-timeout", required_argument, NULL, O_HEADER_TIMEOUT},
+		{"send-timeout", required_argument, NULL, O_SEND_TIMEOUT},
 		{NULL, 0, NULL, 0},
 	};
 	optind = 1;
@@ -141,10 +155,13 @@ int kg_cmd_console(int argc, char **argv)
 				                          optarg);
 			break;
 		case O_HEADER_TIMEOUT:
-			o.header_timeout = strtod(optarg, &end);
-			if (end == optarg || *end || !(o.header_timeout >= 0.1 && o.header_timeout <= 3600))
-				return kg_cli_usage_error(kg_console_usage, "--header-timeout '%s': expected "
-				                          "seconds 0.1..3600", optarg);
+		case O_SEND_TIMEOUT:
+			if (parse_timeout(optarg, opt == O_SEND_TIMEOUT ? &o.send_timeout
+			                                                : &o.header_timeout))
+				return kg_cli_usage_error(kg_console_usage, "--%s '%s': expected seconds "
+				                          "0.1..3600", opt == O_SEND_TIMEOUT ? "send-timeout"
+				                                                             : "header-timeout",
+				                          optarg);
 			break;
 		case ':':
 			return kg_cli_usage_error(kg_console_usage, "option %s needs a value",

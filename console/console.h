@@ -8,6 +8,7 @@
 #include <pthread.h>
 #include <stddef.h>
 #include <stdint.h>
+#include <sys/socket.h>
 
 #include <jansson.h>
 
@@ -18,14 +19,23 @@
 #define CONSOLE_HIST_BINS 64
 #define CONSOLE_PER_CLIENT_MAX 16   /* connections from one address */
 #define CONSOLE_CONNECTIONS_MAX 256 /* connections in all */
+/* slots: also for connections closed but not yet reported closed by the server */
+#define CONSOLE_CONN_SLOTS (CONSOLE_CONNECTIONS_MAX + 64)
+#define CONSOLE_SEND_FLOOR 65536    /* bytes an answer moves per --send-timeout, at least */
 
-/* A connection, from its start to its close: its request deadline (docs/console.md,
- * "Security"). */
+/* A connection, from its start to its close (console_conn.c; docs/console.md,
+ * "Security"): waiting for a request (from its start or its last answer), being
+ * handled (our code runs), or being sent its answer. */
+enum { CONSOLE_CONN_WAIT, CONSOLE_CONN_HANDLE, CONSOLE_CONN_SEND };
 typedef struct console_conn {
 	int used;
+	int closing;            /* shut down: it is served no more */
 	int fd;
-	int armed;        /* a request is being received: deadline applies */
-	double deadline;  /* monotonic */
+	unsigned char addr[16]; /* the client's (IPv4 as ::ffff:a.b.c.d) */
+	int phase;              /* CONSOLE_CONN_* */
+	double since;           /* monotonic: the wait's start, or when the answer last
+	                         * moved CONSOLE_SEND_FLOOR bytes on */
+	uint64_t acked;         /* bytes the client had acknowledged at that moment */
 } console_conn;
 
 typedef struct console {
@@ -46,12 +56,16 @@ typedef struct console {
 	kg_chart_layout *chart_layout; /* loaded from layout, or NULL */
 	double header_timeout;       /* s from a connection's start (or its last answer) to
 	                              * its next request received in full */
+	double send_timeout;         /* s an answer has to move CONSOLE_SEND_FLOOR bytes on */
 
 	/* connections and their deadlines: conn_lock */
 	pthread_mutex_t conn_lock;
-	console_conn conns[CONSOLE_CONNECTIONS_MAX + 16];
+	console_conn conns[CONSOLE_CONN_SLOTS];
 	int conn_stop;
-	long conns_timed_out;
+	long conns_timed_out;        /* at the request deadline */
+	long conns_send_timed_out;   /* at the send deadline */
+	long conns_evicted;          /* closed for a newcomer */
+	long conns_refused;
 	pthread_t reaper_thread;
 
 	kg_session *session;         /* open (and locked) for the console's lifetime */
@@ -116,6 +130,23 @@ typedef struct console {
 } console;
 
 double console_now(void);
+
+/* console_conn.c: a connection that starts (fd, the client's address) gets a slot, or
+ * NULL when it is refused (its socket shut down): every connection of its address
+ * (CONSOLE_PER_CLIENT_MAX), or of all (CONSOLE_CONNECTIONS_MAX), being handled. At
+ * a limit the stalest connection waiting or sending makes room. */
+console_conn *console_conn_admit(console *c, int fd, const struct sockaddr *client);
+void console_conn_release(console *c, console_conn *k); /* it closed */
+/* A request's part comes in: 0 when the connection was closed (serve it no more). */
+int console_conn_begin(console *c, console_conn *k);
+/* ... handled: `answered` (an answer queued) or its request continues. */
+void console_conn_end(console *c, console_conn *k, int answered);
+void console_conn_answered(console *c, console_conn *k); /* the answer went out */
+/* The reaper: it closes connections past their deadline; stopping it reports what
+ * was closed. */
+int console_conn_start(console *c);
+void console_conn_stop(console *c);
+
 void console_log(console *c, const char *fmt, ...) KG_PRINTF(2, 3); /* with c->lock held */
 
 /* console_live.c */

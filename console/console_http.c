@@ -233,77 +233,34 @@ typedef struct request {
 	char *body;
 	size_t size;
 	int too_big;
-	int answered; /* received in full (or refused): the deadline is off */
+	int answered; /* received in full: its answer is queued */
 } request;
 
-/* ---- connections and their deadlines ----------------------------------------------- */
+/* ---- connections (console_conn.c) ------------------------------------------------ */
 
-/* A connection has header_timeout seconds from its start, and again from each answer
- * it was sent (keep-alive), to send its next request in full (headers and body);
- * past that the reaper shuts its socket down and libmicrohttpd closes it. While a
- * request is being answered there is no deadline (a long poll, a large file).
- * libmicrohttpd's own timeout is an idle one: a byte every few seconds resets it. */
 static void on_connection(void *cls, struct MHD_Connection *conn, void **socket_context,
                           enum MHD_ConnectionNotificationCode code)
 {
 	console *c = cls;
-	pthread_mutex_lock(&c->conn_lock);
 	if (code == MHD_CONNECTION_NOTIFY_STARTED) {
-		const union MHD_ConnectionInfo *ci =
+		const union MHD_ConnectionInfo *fd =
 			MHD_get_connection_info(conn, MHD_CONNECTION_INFO_CONNECTION_FD);
-		size_t nslots = sizeof(c->conns) / sizeof(c->conns[0]);
-		for (size_t i = 0; ci && i < nslots; i++)
-			if (!c->conns[i].used) {
-				console_conn *k = &c->conns[i];
-				k->used = 1;
-				k->fd = ci->connect_fd;
-				k->armed = 1;
-				k->deadline = console_now() + c->header_timeout;
-				*socket_context = k;
-				break;
-			}
+		const union MHD_ConnectionInfo *client =
+			MHD_get_connection_info(conn, MHD_CONNECTION_INFO_CLIENT_ADDRESS);
+		*socket_context =
+			fd && client ? console_conn_admit(c, fd->connect_fd, client->client_addr) : NULL;
 	} else if (*socket_context) {
-		/* libmicrohttpd closes the socket after this: it is never shut down once its
-		 * number may belong to another file */
-		((console_conn *)*socket_context)->used = 0;
+		/* the server closes the socket after this */
+		console_conn_release(c, *socket_context);
 		*socket_context = NULL;
 	}
-	pthread_mutex_unlock(&c->conn_lock);
 }
 
-static void conn_deadline(console *c, struct MHD_Connection *conn, int armed)
+static console_conn *conn_of(struct MHD_Connection *conn)
 {
 	const union MHD_ConnectionInfo *ci =
 		MHD_get_connection_info(conn, MHD_CONNECTION_INFO_SOCKET_CONTEXT);
-	console_conn *k = ci ? ci->socket_context : NULL;
-	if (!k)
-		return;
-	pthread_mutex_lock(&c->conn_lock);
-	k->armed = armed;
-	k->deadline = console_now() + c->header_timeout;
-	pthread_mutex_unlock(&c->conn_lock);
-}
-
-static void *reaper_main(void *arg)
-{
-	console *c = arg;
-	pthread_mutex_lock(&c->conn_lock);
-	while (!c->conn_stop) {
-		double now = console_now();
-		for (size_t i = 0; i < sizeof(c->conns) / sizeof(c->conns[0]); i++) {
-			console_conn *k = &c->conns[i];
-			if (k->used && k->armed && now >= k->deadline) {
-				shutdown(k->fd, SHUT_RDWR);
-				k->armed = 0;
-				c->conns_timed_out++;
-			}
-		}
-		pthread_mutex_unlock(&c->conn_lock);
-		nanosleep(&(struct timespec){0, 50000000L}, NULL);
-		pthread_mutex_lock(&c->conn_lock);
-	}
-	pthread_mutex_unlock(&c->conn_lock);
-	return NULL;
+	return ci ? ci->socket_context : NULL;
 }
 
 static double qnum(struct MHD_Connection *conn, const char *key, double dflt)
@@ -516,9 +473,7 @@ static enum MHD_Result serve_request(void *cls, struct MHD_Connection *conn, con
 		*upload_size = 0;
 		return MHD_YES;
 	}
-	/* received in full: no deadline while it is answered (a long poll, a large file) */
 	rq->answered = 1;
-	conn_deadline(c, conn, 0);
 	if (rq->too_big)
 		return send_error(conn, 413, "request body larger than %d bytes", MAX_BODY);
 	if (!strcmp(method, "POST"))
@@ -526,25 +481,31 @@ static enum MHD_Result serve_request(void *cls, struct MHD_Connection *conn, con
 	return handle_get(c, conn, url);
 }
 
-/* The deadline is off once the request is in (above) or refused at its headers. */
+/* A request's part is handled only on a connection still open (one closed for a
+ * newcomer may have sent it); then its answer, queued when the request is in or was
+ * refused at its headers, is sent under the send deadline. */
 static enum MHD_Result on_request(void *cls, struct MHD_Connection *conn, const char *url,
                                   const char *method, const char *version,
                                   const char *upload, size_t *upload_size, void **state)
 {
+	console_conn *k = conn_of(conn);
+	if (!console_conn_begin(cls, k))
+		return MHD_NO;
 	enum MHD_Result ret =
 		serve_request(cls, conn, url, method, version, upload, upload_size, state);
 	const request *rq = *state;
-	if (!rq || rq->answered)
-		conn_deadline(cls, conn, 0);
+	console_conn_end(cls, k, !rq || rq->answered);
 	return ret;
 }
 
-/* A request answered: the connection's next one has header_timeout from now. */
+/* A request answered: the connection waits for its next one. */
 static void on_completed(void *cls, struct MHD_Connection *conn, void **state,
                          enum MHD_RequestTerminationCode toe)
 {
 	(void)toe;
-	conn_deadline(cls, conn, 1);
+	console_conn *k = conn_of(conn);
+	if (k)
+		console_conn_answered(cls, k);
 	request *rq = *state;
 	if (rq) {
 		free(rq->body);
@@ -554,14 +515,6 @@ static void on_completed(void *cls, struct MHD_Connection *conn, void **state,
 }
 
 /* ---- running it ------------------------------------------------------------------ */
-
-static void reaper_stop(console *c)
-{
-	pthread_mutex_lock(&c->conn_lock);
-	c->conn_stop = 1;
-	pthread_mutex_unlock(&c->conn_lock);
-	pthread_join(c->reaper_thread, NULL);
-}
 
 static int make_token(char token[33])
 {
@@ -622,9 +575,11 @@ int kg_console_run(const kg_console_options *o, int *device_failure, kg_err *err
 	c->reference = o->reference;
 	c->frames = o->frames > 0 ? o->frames : 10;
 	c->header_timeout = o->header_timeout > 0 ? o->header_timeout : 10;
-	if (!(c->header_timeout >= 0.1 && c->header_timeout <= 3600))
-		return kg_fail(err, KG_EINVAL, "console: header timeout %g s: expected 0.1..3600",
-		               c->header_timeout);
+	c->send_timeout = o->send_timeout > 0 ? o->send_timeout : 10;
+	if (!(c->header_timeout >= 0.1 && c->header_timeout <= 3600) ||
+	    !(c->send_timeout >= 0.1 && c->send_timeout <= 3600))
+		return kg_fail(err, KG_EINVAL, "console: header timeout %g s, send timeout %g s: "
+		               "expected 0.1..3600", c->header_timeout, c->send_timeout);
 	struct in6_addr a6;
 	struct in_addr a4;
 	int v6 = inet_pton(AF_INET6, c->host, &a6) == 1;
@@ -697,16 +652,19 @@ int kg_console_run(const kg_console_options *o, int *device_failure, kg_err *err
 		sa4.sin_port = htons((uint16_t)c->port);
 		sa4.sin_addr = a4;
 	}
+	/* The limits per address and in all are console_conn.c's (libmicrohttpd's would
+	 * refuse a newcomer where a stalled connection can make room); its own timeout,
+	 * of idleness, only backs up the deadlines. */
+	unsigned idle_timeout = (unsigned)ceil(fmax(c->header_timeout, c->send_timeout)) + 5;
 	struct MHD_Daemon *d = MHD_start_daemon(
 		MHD_USE_THREAD_PER_CONNECTION | MHD_USE_INTERNAL_POLLING_THREAD |
 			(v6 ? MHD_USE_IPv6 : 0),
 		(uint16_t)c->port, NULL, NULL, on_request, c, MHD_OPTION_SOCK_ADDR,
 		v6 ? (struct sockaddr *)&sa6 : (struct sockaddr *)&sa4, MHD_OPTION_CONNECTION_LIMIT,
-		(unsigned)CONSOLE_CONNECTIONS_MAX, MHD_OPTION_PER_IP_CONNECTION_LIMIT,
-		(unsigned)CONSOLE_PER_CLIENT_MAX, MHD_OPTION_CONNECTION_TIMEOUT, (unsigned)60,
+		(unsigned)CONSOLE_CONN_SLOTS, MHD_OPTION_CONNECTION_TIMEOUT, idle_timeout,
 		MHD_OPTION_NOTIFY_CONNECTION, on_connection, c, MHD_OPTION_NOTIFY_COMPLETED,
 		on_completed, c, MHD_OPTION_END);
-	if (d && pthread_create(&c->reaper_thread, NULL, reaper_main, c)) {
+	if (d && console_conn_start(c)) {
 		MHD_stop_daemon(d);
 		rc = kg_fail(err, KG_EIO, "console: cannot start the connection reaper thread");
 		goto done;
@@ -721,7 +679,7 @@ int kg_console_run(const kg_console_options *o, int *device_failure, kg_err *err
 		c->port = info->port;
 	if ((rc = console_live_start(c, err))) {
 		MHD_stop_daemon(d);
-		reaper_stop(c);
+		console_conn_stop(c);
 		goto done;
 	}
 	fprintf(announce, "kogei console: session %s, output %s\n", c->session_dir, c->outdir);
@@ -738,10 +696,7 @@ int kg_console_run(const kg_console_options *o, int *device_failure, kg_err *err
 	console_jobs_stop(c);
 	console_live_stop(c);
 	MHD_stop_daemon(d);
-	reaper_stop(c);
-	if (c->conns_timed_out)
-		fprintf(stderr, "kogei console: %ld connection(s) closed at the request deadline "
-		        "(--header-timeout %g s)\n", c->conns_timed_out, c->header_timeout);
+	console_conn_stop(c);
 done:
 	kg_chart_warm_wait();
 	kg_camera_free(&c->cam);

@@ -26,6 +26,8 @@ typedef struct kg_console_options {
 	int port;                 /* 0: a free one */
 	double header_timeout;    /* s a connection has to send a request in full, from its
 	                           * start or its previous answer (0: 10) */
+	double send_timeout;      /* s an answer has to move 64 KiB on to the client, else it
+	                           * is cut off (0: 10) */
 	FILE *announce;           /* the address to open is printed here (NULL: stdout) */
 } kg_console_options;
 
