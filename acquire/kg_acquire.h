@@ -144,10 +144,16 @@ int kg_session_id_ok(const char *id);
 
 /* Open a session directory, creating it (and a new manifest in memory) when absent;
  * an existing manifest is read, validated (kg_session_manifest_validate) and captures
- * are appended; a recording without a manifest is validated too. A directory that holds
- * anything other than a session's files is refused. The session is locked (flock on
- * DIR/.lock) until kg_session_free: a second writer gets KG_EINVAL naming the lock. */
+ * are appended; a recording without a manifest is validated too. A directory without a
+ * manifest that holds anything other than a session's files is refused (it is not a
+ * session); a session's own folder may hold files kogei did not write (the chart's
+ * spectra measured into it, notes), which are kept and listed (kg_session_foreign).
+ * The session is locked (flock on DIR/.lock) until kg_session_free: a second writer
+ * gets KG_EINVAL naming the lock. */
 int kg_session_open(const char *dir, kg_session **out, kg_err *err);
+/* The entries of the session's folder that kogei did not write, "a, b and 3 more"
+ * ("" when none): not part of the session's record (no sha256 in the manifest). */
+const char *kg_session_foreign(const kg_session *s);
 void kg_session_free(kg_session **s);
 const char *kg_session_dir(const kg_session *s);
 /* The manifest (borrowed; valid until the next append or free). */

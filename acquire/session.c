@@ -23,6 +23,7 @@ struct kg_session {
 	char *manifest_path;
 	json_t *root;
 	int lock_fd;
+	char foreign[512]; /* entries kogei did not write, of a session that has a manifest */
 };
 
 void kg_utc_now(char buf[32])
@@ -111,21 +112,30 @@ static int session_entry(const char *name)
 }
 
 /* Check the directory's entries; remove temporaries of the manifest a killed writer left
- * (the lock is held, so nobody is writing one). */
+ * (the lock is held, so nobody is writing one). A folder with a manifest is a session:
+ * entries kogei did not write (the spectra measured into it, notes) are kept and listed
+ * in s->foreign. A folder without one that holds anything else is not a session. */
 static int check_entries(kg_session *s, kg_err *err)
 {
 	DIR *d = opendir(s->dir);
 	if (!d)
 		return kg_fail(err, KG_EIO, "%s: cannot read the directory: %s", s->dir,
 		               strerror(errno));
-	int ret = 0;
+	struct stat st;
+	int has_manifest = lstat(s->manifest_path, &st) == 0 && S_ISREG(st.st_mode);
+	int ret = 0, nforeign = 0;
+	size_t at = 0;
 	for (struct dirent *e; !ret && (e = readdir(d));) {
-		if (!session_entry(e->d_name))
+		if (!session_entry(e->d_name) && !has_manifest) {
 			ret = kg_fail(err, KG_EINVAL,
-			              "%s: not a kogei session (it holds '%s'); give --out a new or empty "
-			              "directory or an existing session",
+			              "%s: not a kogei session: it has no session.json and holds '%s'; "
+			              "give --out a new or empty directory or an existing session",
 			              s->dir, e->d_name);
-		else if (!strncmp(e->d_name, KG_SESSION_MANIFEST ".tmp.", 17)) {
+		} else if (!session_entry(e->d_name)) {
+			if (nforeign++ < 8 && at < sizeof(s->foreign))
+				at += (size_t)snprintf(s->foreign + at, sizeof(s->foreign) - at, "%s%s",
+				                       at ? ", " : "", e->d_name);
+		} else if (!strncmp(e->d_name, KG_SESSION_MANIFEST ".tmp.", 17)) {
 			char *p = kg_session_path(s, e->d_name);
 			if (p)
 				unlink(p);
@@ -133,7 +143,14 @@ static int check_entries(kg_session *s, kg_err *err)
 		}
 	}
 	closedir(d);
+	if (nforeign > 8 && at < sizeof(s->foreign))
+		snprintf(s->foreign + at, sizeof(s->foreign) - at, " and %d more", nforeign - 8);
 	return ret;
+}
+
+const char *kg_session_foreign(const kg_session *s)
+{
+	return s ? s->foreign : "";
 }
 
 /* No symbolic link where kogei writes or reads: the manifest, frames/, captures/,

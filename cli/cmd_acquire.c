@@ -291,6 +291,12 @@ int kg_cmd_acquire(int argc, char **argv)
 		r = exit_for(&err, code, 0);
 		goto done;
 	}
+	if (kg_session_foreign(s)[0]) {
+		char shown[1024];
+		fprintf(stderr, "kogei: note: %s also holds files kogei did not write (%s): kept, "
+		        "not part of the session's record\n", out,
+		        kg_text_visible(kg_session_foreign(s), SIZE_MAX, shown, sizeof(shown)));
+	}
 	code = kg_camera_open(uri, &camera, &err);
 	if (code) {
 		r = exit_for(&err, code,

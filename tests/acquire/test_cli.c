@@ -269,9 +269,54 @@ static void bayer_capture(void)
 	json_decref(root);
 }
 
+/* A session's folder may hold files kogei did not write (the spectra measured into it,
+ * as an older raw workflow did): later captures go on, with a note naming them, and the
+ * manifest does not list them. A folder without session.json that holds a file is not a
+ * session, and the message says so. */
+static void foreign_files(void)
+{
+	char s[4200], f[4300], other[4200];
+	snprintf(s, sizeof(s), "%s", kg_test_path("foreign"));
+	int rc = acq_run("acquire", "--camera", "sim:", "--out", s, "--kind", "dark", "--frames",
+	                 "1", "--exposure", "1000", NULL);
+	CHECK(rc == 0, "first capture: exit %d: %s", rc, acq_errtext);
+	snprintf(f, sizeof(f), "%s/chart.cgats", s);
+	FILE *fp = fopen(f, "w");
+	if (fp) {
+		fputs("CGATS.17\n", fp);
+		fclose(fp);
+	}
+	rc = acq_run("acquire", "--camera", "sim:", "--out", s, "--kind", "dark", "--frames", "1",
+	             "--exposure", "2000", NULL);
+	CHECK(rc == 0, "a capture into a session holding chart.cgats: exit %d: %s", rc,
+	      acq_errtext);
+	CHECK(contains(acq_errtext, "also holds files kogei did not write (chart.cgats)"),
+	      "the note names the file: %s", acq_errtext);
+	char manifest[8192];
+	snprintf(f, sizeof(f), "%s/session.json", s);
+	kg_test_slurp(f, manifest, sizeof(manifest));
+	CHECK(!contains(manifest, "chart.cgats"), "the manifest does not list it");
+	CHECK(contains(manifest, "\"id\""), "the manifest has the session's id");
+
+	snprintf(other, sizeof(other), "%s", kg_test_path("not-a-session"));
+	mkdir(other, 0777);
+	snprintf(f, sizeof(f), "%s/IMG_0001.dng", other);
+	fp = fopen(f, "w");
+	if (fp) {
+		fputs("raw", fp);
+		fclose(fp);
+	}
+	rc = acq_run("acquire", "--camera", "sim:", "--out", other, "--kind", "dark", "--frames",
+	             "1", NULL);
+	CHECK(rc == 1 && contains(acq_errtext, "not a kogei session: it has no session.json and "
+	                                       "holds 'IMG_0001.dng'"),
+	      "a folder that is not a session: exit %d: %s", rc, acq_errtext);
+}
+
 int main(int argc, char **argv)
 {
 	acq_init(argc, argv, "acquire-cli");
+	foreign_files();
 	bad_options();
 	failing_camera();
 	bayer_capture();
