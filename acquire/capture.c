@@ -510,22 +510,63 @@ static int load_corrections(cap_ctx *c, kg_image **dark, kg_image **flat, kg_err
 				     r->format.offset_y);
 		}
 	}
-	if (o->flat) {
-		if (o->kind == KG_CAPTURE_FLAT || o->kind == KG_CAPTURE_DARK)
-			return kg_fail(err, KG_EINVAL, "--flat: does not apply to a %s capture",
-			               kg_capture_kind_name(o->kind));
-		if ((ret = find_kind(c, o->flat, "flat", "--flat", &fcap, err)))
-			return ret;
-		settings_differ(fcap, &r->format, NAN, NAN, NAN, why, sizeof(why));
-		if (why[0])
-			return kg_fail(err, KG_EINVAL,
-			               "--flat %s: taken with %s; a flat must match the capture's format "
-			               "and size",
-			               o->flat, why);
-		if (json_is_null(json_object_get(json_object_get(fcap, "corrections"), "dark")))
+	int flat_applies = o->kind != KG_CAPTURE_FLAT && o->kind != KG_CAPTURE_DARK;
+	int latest = !o->flat || !strcmp(o->flat, "latest");
+	if (o->flat && !flat_applies && strcmp(o->flat, "none"))
+		return kg_fail(err, KG_EINVAL, "--flat: does not apply to a %s capture",
+		               kg_capture_kind_name(o->kind));
+	if (flat_applies && !(o->flat && !strcmp(o->flat, "none"))) {
+		/* the session's newest flat of this camera, format and size */
+		const json_t *newest = NULL, *cap;
+		json_t *caps = json_object_get(kg_session_manifest(c->s), "captures");
+		size_t i;
+		json_array_foreach(caps, i, cap)
+		{
+			const char *k = json_string_value(json_object_get(cap, "kind"));
+			if (!k || strcmp(k, "flat"))
+				continue;
+			settings_differ(cap, &r->format, NAN, NAN, NAN, why, sizeof(why));
+			if (!why[0])
+				camera_differs(c, cap, why, sizeof(why));
+			if (!why[0])
+				newest = cap; /* the latest wins */
+		}
+		if (latest) {
+			fcap = newest;
+			if (!fcap && o->flat)
+				return kg_fail(err, KG_EINVAL, "--flat latest: the session has no flat "
+				               "capture of this camera with format %s %dx%d+%d+%d",
+				               kg_pixfmt_name(r->format.pixfmt), r->format.width,
+				               r->format.height, r->format.offset_x, r->format.offset_y);
+			if (!fcap)
+				note(c, "no flat applied: the session has no flat capture of this camera "
+				        "with format %s %dx%d+%d+%d",
+				     kg_pixfmt_name(r->format.pixfmt), r->format.width, r->format.height,
+				     r->format.offset_x, r->format.offset_y);
+		} else {
+			if ((ret = find_kind(c, o->flat, "flat", "--flat", &fcap, err)))
+				return ret;
+			settings_differ(fcap, &r->format, NAN, NAN, NAN, why, sizeof(why));
+			if (why[0])
+				return kg_fail(err, KG_EINVAL,
+				               "--flat %s: taken with %s; a flat must match the capture's "
+				               "format and size",
+				               o->flat, why);
+			const char *nn = json_string_value(json_object_get(newest, "name"));
+			if (newest && newest != fcap)
+				note(c, "warning: --flat %s is older than the session's newest flat of this "
+				        "camera and format, %s (taken %s): the light or the lens may have "
+				        "changed since; without --flat the newest is used",
+				     o->flat, nn ? nn : "?",
+				     json_string_value(json_object_get(newest, "started"))
+				         ? json_string_value(json_object_get(newest, "started"))
+				         : "later");
+		}
+		if (fcap &&
+		    json_is_null(json_object_get(json_object_get(fcap, "corrections"), "dark")))
 			note(c, "flat %s was taken without a dark subtracted: its offset remains in "
 			        "the correction",
-			     o->flat);
+			     json_string_value(json_object_get(fcap, "name")));
 	}
 	if (dcap) {
 		if ((ret = load_mean(c, dcap, dark, err)))
@@ -540,6 +581,9 @@ static int load_corrections(cap_ctx *c, kg_image **dark, kg_image **flat, kg_err
 			return ret;
 		snprintf(r->flat, sizeof(r->flat), "%s",
 		         json_string_value(json_object_get(fcap, "name")));
+		if (latest)
+			note(c, "flat %s applied (the session's newest of this camera and format)",
+			     r->flat);
 	}
 	return 0;
 }
@@ -889,7 +933,8 @@ int kg_capture_run(kg_session *s, kg_camera *camera, const kg_capture_options *o
 	if (o->dark && strcmp(o->dark, "none") &&
 	    (ret = find_kind(&c, o->dark, "dark", "--dark", &tmp, err)))
 		return ret;
-	if (o->flat && (ret = find_kind(&c, o->flat, "flat", "--flat", &tmp, err)))
+	if (o->flat && strcmp(o->flat, "latest") && strcmp(o->flat, "none") &&
+	    (ret = find_kind(&c, o->flat, "flat", "--flat", &tmp, err)))
 		return ret;
 
 	c.frames = json_array();

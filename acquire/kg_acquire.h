@@ -230,7 +230,10 @@ typedef struct kg_capture_options {
 	kg_frame_format format;  /* pixfmt/bits/cfa/width/height/offset requests (0 keeps) */
 	const char *dark;        /* NULL: the latest matching dark of the session (if any);
 	                          * "none": no dark; else a capture name */
-	const char *flat;        /* NULL: none; else a capture name */
+	const char *flat;        /* NULL or "latest": the session's newest flat of this
+	                          * camera, format and size (none when it has none; for a
+	                          * chart, object or background capture); "none"; else a
+	                          * capture name (a warning note when a newer flat exists) */
 	int timeout_ms;          /* per frame; 0: 2000 ms plus twice the exposure */
 	long max_dropped;        /* dropped frames tolerated (0) */
 	int force_nonlinear;     /* accept YUYV and MJPEG */

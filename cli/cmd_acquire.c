@@ -37,7 +37,10 @@ static const char usage_acquire[] =
 	"  --roi WxH+X+Y        region of the sensor\n"
 	"  --dark NAME|none     dark capture to subtract (default: the session's latest\n"
 	"                       dark with the same exposure, gain, format and size)\n"
-	"  --flat NAME          flat capture to divide by (normalised to its mean)\n"
+	"  --flat NAME|latest|none  flat capture to divide by (normalised to its mean);\n"
+	"                       default latest: the session's newest flat of this camera,\n"
+	"                       format and size (none when it has none); a NAME older than\n"
+	"                       that newest one is used with a warning\n"
 	"  --timeout-ms T       wait per frame (default 2000 + twice the exposure)\n"
 	"  --max-dropped N      dropped frames tolerated (default 0)\n"
 	"  --force-nonlinear    accept YUYV or MJPEG (display-encoded, MJPEG lossy: not\n"
@@ -69,7 +72,10 @@ static void progress(void *user, const char *name, int i, int n, double fps)
 static void note(void *user, const char *message)
 {
 	(void)user;
-	fprintf(stderr, "kogei: note: %s\n", message);
+	if (!strncmp(message, "warning: ", 9))
+		fprintf(stderr, "kogei: %s\n", message);
+	else
+		fprintf(stderr, "kogei: note: %s\n", message);
 }
 
 /* ---- options ---------------------------------------------------------------------- */
@@ -259,7 +265,8 @@ int kg_cmd_acquire(int argc, char **argv)
 		                          "exposure of the captures it is for");
 	if (o.kind == KG_CAPTURE_DARK && o.dark && strcmp(o.dark, "none"))
 		return kg_cli_usage_error(usage_acquire, "--dark: does not apply to --kind dark");
-	if ((o.kind == KG_CAPTURE_DARK || o.kind == KG_CAPTURE_FLAT) && o.flat)
+	if ((o.kind == KG_CAPTURE_DARK || o.kind == KG_CAPTURE_FLAT) && o.flat &&
+	    strcmp(o.flat, "none"))
 		return kg_cli_usage_error(usage_acquire, "--flat: does not apply to --kind %s", kind);
 
 	kg_chart_level cm = {0};

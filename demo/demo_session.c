@@ -82,7 +82,8 @@ static int options_from(const char *file, const json_t *cap, kg_capture_options 
 	o->format.height = (int)h;
 	o->format.offset_x = (int)ox;
 	o->format.offset_y = (int)oy;
-	o->dark = "none"; /* the bundle has no darks; its captures were taken without */
+	o->dark = "none"; /* the bundle has no darks or flats; its captures were taken without */
+	o->flat = "none";
 	o->chart_layout = json_string_value(json_object_get(cap, "chart_layout"));
 	return 0;
 }

@@ -226,6 +226,39 @@ static void dark_and_flat(void)
 	      acq_errtext);
 	acq_slurp(mp, m2, sizeof(m2));
 	CHECK(!strcmp(m1, m2), "a refused capture changed session.json");
+
+	/* flats by default: the newest of this camera and format; a named older one warns */
+	rc = acq_run("acquire", "--camera", flat_uri, "--out", a, "--kind", "flat", "--frames", "2",
+	             "--exposure", "10000", NULL);
+	CHECK(rc == 0, "second flat: exit %d: %s", rc, acq_errtext);
+	rc = acq_run("acquire", "--camera", obj_uri, "--out", a, "--kind", "object", "--frames",
+	             "2", "--exposure", "10000", "--name", "by-default", NULL);
+	CHECK(rc == 0 && contains(acq_errtext, "flat flat-0002 applied (the session's newest"),
+	      "no --flat: the newest flat, said: exit %d: %s", rc, acq_errtext);
+	rc = acq_run("acquire", "--camera", obj_uri, "--out", a, "--kind", "object", "--frames",
+	             "2", "--exposure", "10000", "--flat", "flat-0001", "--name", "named-old", NULL);
+	CHECK(rc == 0 && contains(acq_errtext, "kogei: warning: --flat flat-0001 is older than the "
+	                                       "session's newest flat of this camera and format, "
+	                                       "flat-0002"),
+	      "an older flat named: a warning: exit %d: %s", rc, acq_errtext);
+	rc = acq_run("acquire", "--camera", obj_uri, "--out", a, "--kind", "object", "--frames",
+	             "2", "--exposure", "10000", "--flat", "none", "--name", "no-flat", NULL);
+	CHECK(rc == 0, "--flat none: exit %d: %s", rc, acq_errtext);
+	root = acq_manifest(a);
+	static const char *const want[][2] = {
+		{"by-default", "flat-0002"}, {"named-old", "flat-0001"}, {"no-flat", NULL}};
+	for (int k = 0; k < 3; k++) {
+		const json_t *cap = NULL, *e;
+		size_t i;
+		json_array_foreach(json_object_get(root, "captures"), i, e)
+			if (!strcmp(json_string_value(json_object_get(e, "name")), want[k][0]))
+				cap = e;
+		const char *got = json_string_value(kg_json_find(cap, "corrections.flat"));
+		CHECK(cap && (want[k][1] ? got && !strcmp(got, want[k][1]) : !got),
+		      "%s: corrections.flat %s, expected %s", want[k][0], got ? got : "null",
+		      want[k][1] ? want[k][1] : "null");
+	}
+	json_decref(root);
 out:
 	kg_image_free(&C);
 	kg_image_free(&U);
