@@ -95,6 +95,8 @@ static const char help_process[] =
 	"                        written); needs LittleCMS and an f32 or f16 cube\n"
 	"  --master-illuminant I the master's illuminant: D50 (default), D65, A, D<nn>,\n"
 	"                        <T>K or a CGATS spectrum file\n"
+	"  --icc-version 2|4     the ICC version of the master's profile and camera.icc:\n"
+	"                        2 (default: ArgyllCMS and older software read it) or 4\n"
 	"  --threads N           worker threads (default: all)\n"
 	"  --quiet               no progress on standard error\n"
 	"\n"
@@ -150,7 +152,7 @@ int kg_cmd_process(int argc, char **argv)
 	}
 	enum { O_REF = 256, O_SPECTRA, O_MAT, O_ONLY, O_LAYOUT, O_CHART, O_VERIFY, O_MESH, O_ANGLE,
 	       O_MINTAGS, O_MAXRES, O_FORCE, O_SAME, O_NORENDER, O_THREADS, O_QUIET, O_MASK, O_CUBE,
-	       O_METHOD, O_ANGLES, O_INTENSITY, O_SKIP, O_META, O_MSPACE, O_MILL };
+	       O_METHOD, O_ANGLES, O_INTENSITY, O_SKIP, O_META, O_MSPACE, O_MILL, O_ICCV };
 	static const struct option longopts[] = {
 		{"reference", required_argument, NULL, O_REF},
 		{"spectra", required_argument, NULL, O_SPECTRA},
@@ -163,6 +165,7 @@ int kg_cmd_process(int argc, char **argv)
 		{"mask", required_argument, NULL, O_MASK},
 		{"cube", required_argument, NULL, O_CUBE},
 		{"master-space", required_argument, NULL, O_MSPACE},
+		{"icc-version", required_argument, NULL, O_ICCV},
 		{"master-illuminant", required_argument, NULL, O_MILL},
 		{"angle", required_argument, NULL, O_ANGLE},
 		{"method", required_argument, NULL, O_METHOD},
@@ -216,6 +219,14 @@ int kg_cmd_process(int argc, char **argv)
 			o.master_space = optarg;
 			break;
 		case O_MILL: o.master_illuminant = optarg; break;
+		case O_ICCV: {
+			kg_icc_version v;
+			kg_err verr = {{0}};
+			if (kg_icc_version_parse(optarg, &v, &verr))
+				return kg_cli_usage_error(usage_process, "--icc-version: %s", verr.msg);
+			o.icc_version = optarg;
+			break;
+		}
 		case O_METHOD:
 			if (strcmp(optarg, "camera") && strcmp(optarg, "eq11"))
 				return kg_cli_usage_error(usage_process, "--method %s: expected camera or eq11",

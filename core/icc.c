@@ -34,6 +34,19 @@ int kg_icc_space_parse(const char *name, kg_icc_space *out, kg_err *err)
 	               "prophoto or none", name ? name : "");
 }
 
+int kg_icc_version_parse(const char *name, kg_icc_version *out, kg_err *err)
+{
+	if (name && (!strcasecmp(name, "2") || !strcasecmp(name, "v2"))) {
+		*out = KG_ICC_V2;
+		return 0;
+	}
+	if (name && (!strcasecmp(name, "4") || !strcasecmp(name, "v4"))) {
+		*out = KG_ICC_V4;
+		return 0;
+	}
+	return kg_fail(err, KG_EINVAL, "ICC version '%s': expected 2 or 4", name ? name : "");
+}
+
 const char *kg_icc_space_name(kg_icc_space s)
 {
 	for (size_t i = 0; i < sizeof(spaces) / sizeof(spaces[0]); i++)
@@ -60,7 +73,7 @@ int kg_icc_available(void)
 }
 
 /* The space's profile (NULL for none or when LittleCMS fails). */
-static cmsHPROFILE space_profile(kg_icc_space s)
+static cmsHPROFILE space_profile(kg_icc_space s, kg_icc_version v)
 {
 	cmsCIExyY white;
 	cmsCIExyYTRIPLE prim;
@@ -95,6 +108,7 @@ static cmsHPROFILE space_profile(kg_icc_space s)
 	cmsFreeToneCurve(curve);
 	if (!h)
 		return NULL;
+	cmsSetProfileVersion(h, v == KG_ICC_V4 ? 4.3 : 2.4);
 	cmsMLU *desc = cmsMLUalloc(NULL, 1), *cprt = cmsMLUalloc(NULL, 1);
 	int ok = desc && cprt && cmsMLUsetASCII(desc, "en", "US", kg_icc_space_description(s)) &&
 	         cmsMLUsetASCII(cprt, "en", "US", "No copyright, use freely") &&
@@ -109,11 +123,12 @@ static cmsHPROFILE space_profile(kg_icc_space s)
 	return h;
 }
 
-int kg_icc_profile_bytes(kg_icc_space s, unsigned char **buf, size_t *len, kg_err *err)
+int kg_icc_profile_bytes(kg_icc_space s, kg_icc_version v, unsigned char **buf, size_t *len,
+                         kg_err *err)
 {
 	*buf = NULL;
 	*len = 0;
-	cmsHPROFILE h = space_profile(s);
+	cmsHPROFILE h = space_profile(s, v);
 	cmsUInt32Number n = 0;
 	if (!h || !cmsSaveProfileToMem(h, NULL, &n) || n == 0 || !(*buf = malloc(n)) ||
 	    !cmsSaveProfileToMem(h, *buf, &n)) {
@@ -146,7 +161,8 @@ static float half_to_float(float stored)
 }
 
 int kg_master_write(const char *cube, const kg_illuminant *ill, kg_icc_space space,
-                    const char *path, const unsigned char *lit, long *clipped, kg_err *err)
+                    kg_icc_version ver, const char *path, const unsigned char *lit,
+                    long *clipped, kg_err *err)
 {
 	kg_envi *e = NULL;
 	cmsHPROFILE xyz = NULL, rgb = NULL;
@@ -174,8 +190,12 @@ int kg_master_write(const char *cube, const kg_illuminant *ill, kg_icc_space spa
 			ret = kg_fail(err, KG_EINVAL, "%s: band %d at %g nm: expected %g nm", cube,
 			              b + 1, m->wavelength[b], 400.0 + 5.0 * b);
 	if (!ret)
-		ret = kg_icc_profile_bytes(space, &icc, &icc_len, err);
+		ret = kg_icc_profile_bytes(space, ver, &icc, &icc_len, err);
 	if (!ret) {
+		/* encoded through the profile it embeds, so a reader decodes what was meant
+		 * within that profile's precision: a v2 profile holds eciRGB v2's L* curve as
+		 * a 4096-entry table and ProPhoto's gamma 1.8 as 461/256, whose decoded
+		 * colours differ from the exact curves' by up to about 0.07 CIEDE2000 */
 		xyz = cmsCreateXYZProfile();
 		rgb = cmsOpenProfileFromMem(icc, (cmsUInt32Number)icc_len);
 		t = xyz && rgb ? cmsCreateTransform(xyz, TYPE_XYZ_DBL, rgb, TYPE_RGB_DBL,
@@ -306,8 +326,8 @@ int kg_master_write(const char *cube, const kg_illuminant *ill, kg_icc_space spa
 }
 
 int kg_icc_camera_profile(const double (*rgb)[3], const double (*xyz)[3], int n,
-                          const char *description, double m[9], unsigned char **buf,
-                          size_t *len, kg_err *err)
+                          const char *description, kg_icc_version ver, double m[9],
+                          unsigned char **buf, size_t *len, kg_err *err)
 {
 	*buf = NULL;
 	*len = 0;
@@ -347,7 +367,7 @@ int kg_icc_camera_profile(const double (*rgb)[3], const double (*xyz)[3], int n,
 	cmsToneCurve *lin = cmsBuildGamma(NULL, 1.0);
 	int ok = h && lin;
 	if (ok) {
-		cmsSetProfileVersion(h, 4.3);
+		cmsSetProfileVersion(h, ver == KG_ICC_V4 ? 4.3 : 2.4);
 		cmsSetDeviceClass(h, cmsSigInputClass);
 		cmsSetColorSpace(h, cmsSigRgbData);
 		cmsSetPCS(h, cmsSigXYZData);
@@ -388,8 +408,8 @@ int kg_icc_camera_profile(const double (*rgb)[3], const double (*xyz)[3], int n,
 #else
 
 int kg_icc_camera_profile(const double (*rgb)[3], const double (*xyz)[3], int n,
-                          const char *description, double m[9], unsigned char **buf,
-                          size_t *len, kg_err *err)
+                          const char *description, kg_icc_version ver, double m[9],
+                          unsigned char **buf, size_t *len, kg_err *err)
 {
 	*buf = NULL;
 	*len = 0;
@@ -401,7 +421,8 @@ int kg_icc_available(void)
 	return 0;
 }
 
-int kg_icc_profile_bytes(kg_icc_space s, unsigned char **buf, size_t *len, kg_err *err)
+int kg_icc_profile_bytes(kg_icc_space s, kg_icc_version v, unsigned char **buf, size_t *len,
+                         kg_err *err)
 {
 	*buf = NULL;
 	*len = 0;
@@ -410,7 +431,8 @@ int kg_icc_profile_bytes(kg_icc_space s, unsigned char **buf, size_t *len, kg_er
 }
 
 int kg_master_write(const char *cube, const kg_illuminant *ill, kg_icc_space space,
-                    const char *path, const unsigned char *lit, long *clipped, kg_err *err)
+                    kg_icc_version ver, const char *path, const unsigned char *lit,
+                    long *clipped, kg_err *err)
 {
 	if (clipped)
 		*clipped = 0;

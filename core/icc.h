@@ -32,8 +32,18 @@ int kg_icc_space_parse(const char *name, kg_icc_space *out, kg_err *err);
 const char *kg_icc_space_name(kg_icc_space s);
 const char *kg_icc_space_description(kg_icc_space s);
 
-/* The ICC profile (v4 matrix/shaper) of a space, serialised: *buf (caller frees). */
-int kg_icc_profile_bytes(kg_icc_space s, unsigned char **buf, size_t *len, kg_err *err);
+/* The ICC version a profile is written in: v2 (2.4, the default: ArgyllCMS 2.3's
+ * iccdump and profcheck, older viewers and the archives' own tools read it) or v4
+ * (4.3, on request). In v2 a parametric curve (eciRGB v2's L* curve) is written as a
+ * sampled curve. */
+typedef enum { KG_ICC_V2 = 2, KG_ICC_V4 = 4 } kg_icc_version;
+/* "2" or "4" (also "v2", "v4") -> *out; else KG_EINVAL naming the value. */
+int kg_icc_version_parse(const char *name, kg_icc_version *out, kg_err *err);
+
+/* The ICC profile (matrix/shaper, version v) of a space, serialised: *buf (caller
+ * frees). */
+int kg_icc_profile_bytes(kg_icc_space s, kg_icc_version v, unsigned char **buf, size_t *len,
+                         kg_err *err);
 
 /* OUTDIR/<object>/master.tif: the reflectance cube `cube` (an ENVI cube on the 61-band
  * grid, 400-700 nm at 5 nm) rendered to XYZ under `ill` (CIE 1931 2 degree), adapted
@@ -44,15 +54,16 @@ int kg_icc_profile_bytes(kg_icc_space s, unsigned char **buf, size_t *len, kg_er
  * NULL) counts the pixels with a channel clipped among those set in lit (a bitmap,
  * pixel i = y * width + x at bit i % 8 of byte i / 8; NULL: every pixel counts). */
 int kg_master_write(const char *cube, const kg_illuminant *ill, kg_icc_space space,
-                    const char *path, const unsigned char *lit, long *clipped, kg_err *err);
+                    kg_icc_version v, const char *path, const unsigned char *lit,
+                    long *clipped, kg_err *err);
 
-/* A camera input profile (ICC v4, class input, matrix/shaper with linear curves) from
+/* A camera input profile (ICC version v, class input, matrix/shaper with linear curves) from
  * n >= 3 chart patches: rgb their camera values (linear, 0..1) and xyz their XYZ
  * under D50 (Y = 1 for the perfect diffuser). The matrix is the least-squares fit
  * xyz = M rgb; M (row-major 3 x 3) is returned in m when not NULL. *buf: the profile
  * (caller frees). */
 int kg_icc_camera_profile(const double (*rgb)[3], const double (*xyz)[3], int n,
-                          const char *description, double m[9], unsigned char **buf,
-                          size_t *len, kg_err *err);
+                          const char *description, kg_icc_version v, double m[9],
+                          unsigned char **buf, size_t *len, kg_err *err);
 
 #endif

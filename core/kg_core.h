@@ -22,5 +22,6 @@
 #include "meta.h"
 #include "text.h"
 #include "mapfile.h"
+#include "icc.h"
 
 #endif

@@ -83,6 +83,8 @@ typedef struct kg_process_options {
 	const char *master_space;  /* each object's master.tif: "ecirgb-v2" (NULL: the
 	                            * default), "adobe-rgb", "prophoto" or "none" */
 	const char *master_illuminant; /* its illuminant, NAME|FILE (NULL: D50) */
+	const char *icc_version;   /* "2" (NULL: the default) or "4": the ICC version of
+	                            * the master's profile and camera.icc */
 	int threads;               /* 0: all */
 	FILE *progress;            /* progress lines, or NULL */
 	const char *command;       /* how it was invoked, for process.json (may be NULL) */

@@ -15,6 +15,15 @@ static const char *space_arg(const proc *p)
 	return p->o->master_space ? p->o->master_space : "ecirgb-v2";
 }
 
+/* The profiles' ICC version: v2 unless --icc-version 4 (checked by proc_master_check). */
+static kg_icc_version icc_version(const proc *p)
+{
+	kg_icc_version v = KG_ICC_V2;
+	if (p->o->icc_version)
+		kg_icc_version_parse(p->o->icc_version, &v, NULL);
+	return v;
+}
+
 static const char *ill_arg(const proc *p)
 {
 	return p->o->master_illuminant ? p->o->master_illuminant : "D50";
@@ -23,9 +32,14 @@ static const char *ill_arg(const proc *p)
 int proc_master_check(proc *p)
 {
 	kg_icc_space s;
+	kg_icc_version v;
 	int ret = kg_icc_space_parse(space_arg(p), &s, p->err);
 	if (ret) {
 		kg_err_prefix(p->err, "--master-space: ");
+		return ret;
+	}
+	if (p->o->icc_version && (ret = kg_icc_version_parse(p->o->icc_version, &v, p->err))) {
+		kg_err_prefix(p->err, "--icc-version: ");
 		return ret;
 	}
 	kg_illuminant *ill = NULL;
@@ -70,7 +84,7 @@ int proc_master(proc *p, const proc_capture *c, const char *dir, const char *cub
 	if (!ret) {
 		proc_progress(p, "%s: master.tif (%s, %s)", c->name, kg_icc_space_description(s),
 		              ill->name);
-		ret = kg_master_write(cube, ill, s, path, lit, &clipped, p->err);
+		ret = kg_master_write(cube, ill, s, icc_version(p), path, lit, &clipped, p->err);
 	}
 	if (!ret) {
 		char rel[300];
@@ -203,7 +217,7 @@ int proc_camera_icc(proc *p, const kg_patchset *measured)
 	         cam->identity.model[0] ? cam->identity.model : "camera", cam->identity.serial, scale);
 	if (!ret)
 		ret = kg_icc_camera_profile((const double (*)[3])rgb, (const double (*)[3])xyz, n, desc,
-		                            M, &icc, &len, p->err);
+		                            icc_version(p), M, &icc, &len, p->err);
 	if (!ret)
 		ret = write_bytes(icc_path, icc, len, p->err);
 	if (!ret)

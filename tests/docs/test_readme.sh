@@ -20,23 +20,42 @@ src = sys.argv[1]
 pages = [os.path.join(src, "README.md")]
 pages += [os.path.join(src, "docs", f) for f in sorted(os.listdir(os.path.join(src, "docs")))
           if f.endswith(".md")]
-bad = 0
+def anchors(path):
+    """The anchors of a Markdown page's headings, as GitHub makes them: lower case,
+    punctuation but '-' and '_' dropped, spaces to '-', repeats numbered -1, -2..."""
+    text = re.sub(r"```.*?```", "", open(path, encoding="utf-8").read(), flags=re.S)
+    seen, out = {}, set()
+    for m in re.finditer(r"^#{1,6}\s+(.*?)\s*#*\s*$", text, flags=re.M):
+        slug = re.sub(r"[^\w\- ]", "", m.group(1).strip().lower()).replace(" ", "-")
+        n = seen.get(slug, 0)
+        seen[slug] = n + 1
+        out.add(slug if n == 0 else f"{slug}-{n}")
+    return out
+
+bad = nanchors = 0
 for page in pages:
     text = open(page, encoding="utf-8").read()
     # links and images outside code spans and fences
     text = re.sub(r"```.*?```", "", text, flags=re.S)
     for m in re.finditer(r"!?\[[^\]]*\]\(([^)\s]+)\)", text):
         target = m.group(1).strip("`<>")
-        if re.match(r"[a-z]+:", target) or target.startswith("#"):
+        if re.match(r"[a-z]+:", target):
             continue
-        path = os.path.normpath(os.path.join(os.path.dirname(page), target.split("#")[0]))
+        file, _, frag = target.partition("#")
+        path = os.path.normpath(os.path.join(os.path.dirname(page), file)) if file else page
         if not os.path.exists(path):
             print(f"FAIL: {os.path.relpath(page, src)}: link to {target}: no such file")
             bad += 1
         elif not path.startswith(os.path.realpath(src) + os.sep) and not path.startswith(src + os.sep):
             print(f"FAIL: {os.path.relpath(page, src)}: link to {target} leaves the repository")
             bad += 1
-print(f"links: {len(pages)} pages checked, {bad} broken")
+        elif frag and path.endswith(".md"):
+            nanchors += 1
+            if frag not in anchors(path):
+                print(f"FAIL: {os.path.relpath(page, src)}: link to {target}: "
+                      f"{os.path.relpath(path, src)} has no heading with that anchor")
+                bad += 1
+print(f"links: {len(pages)} pages checked, {nanchors} anchors among the links, {bad} broken")
 sys.exit(1 if bad else 0)
 PY
 

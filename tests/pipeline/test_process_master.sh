@@ -3,8 +3,10 @@
 #  - OUTDIR/<object>/master.tif: 16-bit RGB with the eciRGB v2 profile embedded,
 #    recorded in process.json (path, space, illuminant);
 #  - decoded through its embedded profile with LittleCMS (icc_decode) it matches the
-#    object's cube rendered under D50: CIEDE2000 max under 0.05 (16-bit quantisation and
-#    the profile's fixed-point matrix: measured about 0.005), for each space, and under
+#    object's cube rendered under D50: CIEDE2000 max under 0.1 for the default ICC v2
+#    profile (which holds eciRGB v2's L* curve as a table and ProPhoto's gamma as an
+#    8.8 number: measured 0.06-0.07) and under 0.05 for --icc-version 4 (16-bit
+#    quantisation and the profile's fixed-point matrix), for each space, and under
 #    --master-illuminant D65 against the cube under D65 adapted to D50;
 #    and from an f16 cube;
 #  - ImageMagick's identify shows the embedded profile (skipped when absent);
@@ -14,6 +16,9 @@
 #    4.43 on the 9 CIE-TCS patches: a 3x3 matrix from a camera that is not colorimetric,
 #    lit by A, to D50); colprof (ArgyllCMS) builds a profile from camera.ti3 (skipped
 #    when absent);
+#  - ArgyllCMS reads the profiles (ICC v2 by default): iccdump of camera.icc and of the
+#    master's embedded profile says version 2, and profcheck checks camera.icc against
+#    camera.ti3; with --icc-version 4 both are v4 (which Argyll 2.3 refuses);
 #  - --master-space none writes none (master null); an unknown space or illuminant
 #    refuses the run naming the option, and writes nothing.
 # usage: test_process_master.sh KOGEI SOURCE_ROOT HAVE_TAGS_AND_DEMOSAIC HAVE_LCMS ICC_DECODE
@@ -68,13 +73,43 @@ assert bool(w) == (m["clipped_pixels"] > 0), w
 assert all("lit pixels outside" in x for x in w), w
 PY
 # decoded through its own profile: within 0.05 of the cube under D50
-check_decode() { # master cube illuminant label
+check_decode() { # master cube illuminant label [limit]
 	r=$("$DECODE" "$1" "$2" "$3") || { echo "FAIL: icc_decode $1: $r"; fail=1; return; }
 	echo "$4: $r"
 	max=$(echo "$r" | sed 's/.* max //')
 	n=$(echo "$r" | sed 's/^pixels \([0-9]*\) .*/\1/')
-	"$PY" -c "import sys; sys.exit(0 if float('$max') < 0.05 and int('$n') > 1000 else 1)" ||
-		{ echo "FAIL: $4: decoded master against the cube: $r (max dE00 < 0.05 over > 1000 pixels expected)"; fail=1; }
+	lim=${5:-0.1}
+	"$PY" -c "import sys; sys.exit(0 if float('$max') < $lim and int('$n') > 1000 else 1)" ||
+		{ echo "FAIL: $4: decoded master against the cube: $r (max dE00 < $lim over > 1000 pixels expected)"; fail=1; }
+}
+# the profile embedded in a TIFF (tag 34675), written out for Argyll
+embedded_icc() { # TIFF OUT.icc
+	"$PY" - "$1" "$2" <<'PY'
+import struct, sys
+d = open(sys.argv[1], "rb").read()
+e = "<" if d[:2] == b"II" else ">"
+off = struct.unpack(e + "I", d[4:8])[0]
+n = struct.unpack(e + "H", d[off:off + 2])[0]
+for i in range(n):
+    tag, typ, cnt, val = struct.unpack(e + "HHII", d[off + 2 + 12 * i: off + 14 + 12 * i])
+    if tag == 34675:
+        open(sys.argv[2], "wb").write(d[val:val + cnt])
+        sys.exit(0)
+sys.exit(1)
+PY
+}
+argyll_reads() { # PROFILE VERSION LABEL
+	if ! command -v iccdump >/dev/null 2>&1; then
+		echo "iccdump (ArgyllCMS) not installed: that check skipped"; return
+	fi
+	iccdump "$1" >"$T/iccdump" 2>&1
+	if [ "$2" = 2 ]; then
+		grep -q "Version *= 2\." "$T/iccdump" ||
+			{ echo "FAIL: $3: iccdump does not read a v2 profile:"; head -5 "$T/iccdump"; fail=1; }
+	else
+		grep -q "V4 not supported" "$T/iccdump" ||
+			{ echo "FAIL: $3: expected a v4 profile, which Argyll 2.3 refuses"; head -5 "$T/iccdump"; fail=1; }
+	fi
 }
 check_decode "$A/obj/master.tif" "$A/obj/cube.hdr" D50 ecirgb-v2
 if command -v identify >/dev/null 2>&1; then
@@ -108,6 +143,23 @@ if command -v colprof >/dev/null 2>&1; then
 else
 	echo "colprof (ArgyllCMS) not installed: that check skipped"
 fi
+# ICC v2 by default: ArgyllCMS reads camera.icc and the master's profile, and checks
+# camera.icc against the chart's patches
+argyll_reads "$A/camera.icc" 2 "camera.icc"
+embedded_icc "$A/obj/master.tif" "$T/master.icc" || { echo "FAIL: no profile in master.tif"; fail=1; }
+argyll_reads "$T/master.icc" 2 "master.tif's profile"
+if command -v profcheck >/dev/null 2>&1; then
+	cp "$A/camera.ti3" "$T/pc.ti3"
+	(cd "$T" && profcheck -v pc.ti3 "$A/camera.icc") >"$T/profcheck" 2>&1 ||
+		{ echo "FAIL: profcheck cannot check camera.icc"; tail -5 "$T/profcheck"; fail=1; }
+	echo "profcheck: $(grep -i "average" "$T/profcheck" | head -1)"
+fi
+# --icc-version 4: v4 profiles, the master within 0.05
+expect_exit 0 "$KOGEI" process "$S" --spectra "$T/chart.cgats" -o "$T/v4" --no-render \
+	--icc-version 4
+argyll_reads "$T/v4/camera.icc" 4 "camera.icc v4"
+[ -s "$T/v4/obj/master.tif" ] && check_decode "$T/v4/obj/master.tif" "$T/v4/obj/cube.hdr" D50 "ecirgb-v2 v4" 0.05
+expect_exit 2 "$KOGEI" process "$S" --spectra "$T/chart.cgats" -o "$T/v3" --icc-version 3
 for sp in adobe-rgb prophoto; do
 	expect_exit 0 "$KOGEI" process "$S" --spectra "$T/chart.cgats" -o "$T/$sp" --no-render \
 		--master-space "$sp"
