@@ -7,6 +7,7 @@
 #include "error.h"
 #include "fsutil.h"
 #include "memutil.h"
+#include "text.h"
 #include "spectrum.h"
 #include "cgats.h"
 #include "csv.h"

@@ -214,7 +214,8 @@ static void test_spectral_fields(void)
 	PATCHSET_FAILS("SPEC_ alone", SPEC4("", "SPEC_400 SPEC_ SPEC_600 SPEC_700", "0.1 0.2 0.3 0.4"),
 	               0, KG_EINVAL, "field SPEC_:", "finite wavelength");
 	PATCHSET_FAILS("SPEC_0", SPEC4("", "SPEC_0 SPEC_400 SPEC_600 SPEC_700", "0.1 0.2 0.3 0.4"),
-	               0, KG_EINVAL, "field SPEC_0:", "finite wavelength");
+	               0, KG_EINVAL, "field SPEC_0:", "0 nm: expected a wavelength between 100 "
+	               "and 5000 nm");
 	PATCHSET_FAILS("duplicate wavelength",
 	               SPEC4("", "SPEC_400 SPEC_500 SPEC_500.0 SPEC_700", "0.1 0.2 0.3 0.4"), 0,
 	               KG_EINVAL, "SPEC_500 and SPEC_500.0", "500 nm", "each wavelength once");
