@@ -29,15 +29,15 @@ accepted() {
 # refused DESC FILE PATTERN...: both commands refuse FILE as spectra with exit 1, a
 # message naming the file and matching each PATTERN, and leave no file behind.
 refused() {
-	desc=$1 file=$2
+	what=$1 file=$2
 	shift 2
 	rm -f "$T/ref.json" "$T/xyz.cgats"
 	before=$(files_now)
 	expect_exit 1 "$KOGEI" calib reference --spectra "$file" --rgb "$T/rgb.cgats" -o "$T/ref.json"
-	refusal_named "$desc: calib reference" "$file" "$@"
+	refusal_named "$what: calib reference" "$file" "$@"
 	expect_exit 1 "$KOGEI" spectra xyz "$file" -o "$T/xyz.cgats"
-	refusal_named "$desc: spectra xyz" "$file" "$@"
-	check "$desc: nothing left behind" test "$(files_now)" = "$before"
+	refusal_named "$what: spectra xyz" "$file" "$@"
+	check "$what: nothing left behind" test "$(files_now)" = "$before"
 }
 
 refusal_named() { # DESC FILE PATTERN...
