@@ -133,9 +133,9 @@ int kg_text_utf8(const char *buf, size_t len, const char *name, const char **tex
 		name = "<memory>";
 	size_t bad = kg_utf8_invalid_at(buf, len);
 	if (bad == len) {
-		size_t bom = len >= 3 && memcmp(buf, "\xEF\xBB\xBF", 3) == 0 ? 3 : 0;
-		*text = buf + bom;
-		*text_len = len - bom;
+		int bom = len >= 3 && memcmp(buf, "\xEF\xBB\xBF", 3) == 0;
+		*text = bom ? buf + 3 : buf;
+		*text_len = bom ? len - 3 : len;
 		return 0;
 	}
 	size_t good = first_utf8_multibyte(buf, len);
