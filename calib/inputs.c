@@ -278,12 +278,13 @@ int calib_patchset_without(const kg_patchset *ps, const char *const *ids, int ni
 	return 0;
 }
 
-/* Spectra from CGATS (SPEC_*) or from a `patch,name,<nm>...` CSV table. */
+/* The chart's reflectance spectra from CGATS (SPEC_*) or from a `patch,name,<nm>...`
+ * CSV table. */
 static int read_spectra(const char *path, kg_patchset **out, kg_err *err)
 {
 	if (has_suffix(path, ".csv"))
-		return kg_csv_read_spectra_rows(path, 0, out, err);
-	return kg_patchset_read(path, 0, out, err);
+		return kg_csv_read_spectra_rows(path, KG_PATCH_REFLECTANCE, out, err);
+	return kg_patchset_read(path, KG_PATCH_REFLECTANCE, out, err);
 }
 
 int kg_reference_fit_files(const char *spectra_path, const char *rgb_path,

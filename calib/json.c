@@ -51,9 +51,13 @@
 /* ---- writing ------------------------------------------------------------------ */
 
 /* A builder that remembers the first failure, so a document is assembled without
- * checking every call. */
+ * checking every call: out of memory, or a string that is not UTF-8 (which JSON cannot
+ * hold), remembered with what it was. */
 typedef struct jw {
 	int bad;
+	char text_what[96]; /* the first string that is not UTF-8, e.g. "a patch id" */
+	size_t text_offset;    /* its first byte that is not */
+	unsigned char text_byte;
 } jw;
 
 static json_t *jnum(double v)
@@ -94,7 +98,28 @@ static json_t *jmat(jw *w, const double *v, int rows, int cols, int rs, int cs)
 	return a;
 }
 
-static json_t *jstrv(jw *w, char *const *v, int n)
+/* 1 when a string from outside kogei (a path, a file's patch id or keyword) is UTF-8;
+ * else 0, remembered with `what` it is. */
+static int text_ok(jw *w, const char *what, const char *s)
+{
+	size_t n = strlen(s), bad = kg_utf8_invalid_at(s, n);
+	if (bad == n)
+		return 1;
+	if (!w->text_what[0]) {
+		snprintf(w->text_what, sizeof(w->text_what), "%s", what);
+		w->text_offset = bad;
+		w->text_byte = (unsigned char)s[bad];
+	}
+	w->bad = 1;
+	return 0;
+}
+
+static json_t *jtext(jw *w, const char *what, const char *s)
+{
+	return text_ok(w, what, s) ? json_string(s) : NULL;
+}
+
+static json_t *jstrv(jw *w, const char *what, char *const *v, int n)
 {
 	json_t *a = json_array();
 	if (!a) {
@@ -102,7 +127,7 @@ static json_t *jstrv(jw *w, char *const *v, int n)
 		return NULL;
 	}
 	for (int i = 0; i < n; i++)
-		if (json_array_append_new(a, json_string(v[i])) != 0)
+		if (json_array_append_new(a, jtext(w, what, v[i])) != 0)
 			w->bad = 1;
 	return a;
 }
@@ -133,10 +158,14 @@ static json_t *jsources(jw *w, const kg_calib_source *s, int n)
 	for (int i = 0; a && i < n; i++) {
 		json_t *o = json_object(), *kw = json_object();
 		put(w, o, "role", json_string(s[i].role));
-		put(w, o, "path", json_string(s[i].path));
+		char what[96];
+		snprintf(what, sizeof(what), "the path of the %.40s file", s[i].role);
+		put(w, o, "path", jtext(w, what, s[i].path));
 		put(w, o, "sha256", s[i].sha256[0] ? json_string(s[i].sha256) : json_null());
 		for (int k = 0; kw && k < s[i].nkeywords; k++)
-			put(w, kw, s[i].keyword_names[k], json_string(s[i].keyword_values[k]));
+			if (text_ok(w, "a keyword's name in an input file", s[i].keyword_names[k]))
+				put(w, kw, s[i].keyword_names[k],
+				    jtext(w, "a keyword's value in an input file", s[i].keyword_values[k]));
 		put(w, o, "keywords", kw);
 		if (json_array_append_new(a, o) != 0)
 			w->bad = 1;
@@ -172,7 +201,7 @@ static json_t *jdevices(jw *w, const kg_calib_source *s, int n)
 	for (int i = 0; o && i < n; i++) {
 		const char *v = source_keyword(s, n, s[i].role, device_keywords);
 		if (v)
-			put(w, o, s[i].role, json_string(v));
+			put(w, o, s[i].role, jtext(w, "a keyword's value in an input file", v));
 	}
 	if (!o)
 		w->bad = 1;
@@ -181,8 +210,14 @@ static json_t *jdevices(jw *w, const kg_calib_source *s, int n)
 
 static int finish(jw *w, json_t *root, const char *path, kg_err *err)
 {
-	int ret = w->bad || !root ? kg_fail(err, KG_ENOMEM, "%s: out of memory building JSON", path)
-	                          : kg_json_write(root, path, err);
+	int ret;
+	if (w->text_what[0])
+		ret = kg_fail(err, KG_EINVAL, "%s: not written: %s is not UTF-8 text (byte 0x%02X at "
+		              "offset %zu): expected UTF-8, which JSON holds", path, w->text_what,
+		              w->text_byte, w->text_offset);
+	else
+		ret = w->bad || !root ? kg_fail(err, KG_ENOMEM, "%s: out of memory building JSON", path)
+		                      : kg_json_write(root, path, err);
 	json_decref(root);
 	return ret;
 }
@@ -251,7 +286,7 @@ static json_t *jresponse(jw *w, const kg_response *r)
 	if (!r->available)
 		return json_null();
 	json_t *o = json_object();
-	put(w, o, "source", json_string(r->source));
+	put(w, o, "source", jtext(w, "the response's source", r->source));
 	put(w, o, "patches", json_integer(r->patches));
 	put(w, o, "F", jmat(w, &r->F[0][0], 3, NB, NB, 1));
 	put(w, o, "lambda", jrow(w, r->lambda, 3, 1));
@@ -300,7 +335,7 @@ int kg_reference_save(const kg_reference *ref, const char *path, kg_err *err)
 
 	json_t *tr = json_object();
 	put(&w, tr, "patches", json_integer(ref->m));
-	put(&w, tr, "ids", jstrv(&w, ref->ids, ref->m));
+	put(&w, tr, "ids", jstrv(&w, "a patch id", ref->ids, ref->m));
 	put(&w, tr, "rho", jmat(&w, &ref->train_rgb[0][0], ref->m, 3, 3, 1));
 	put(&w, tr, "rmse", jrow(&w, ref->rmse, ref->m, 1));
 	put(&w, tr, "gfc", jrow(&w, ref->gfc, ref->m, 1));
@@ -314,7 +349,7 @@ int kg_reference_save(const kg_reference *ref, const char *path, kg_err *err)
 	put(&w, root, "training", tr);
 
 	json_t *field = json_object();
-	put(&w, field, "ids", jstrv(&w, ref->field_ids, ref->k));
+	put(&w, field, "ids", jstrv(&w, "a patch id", ref->field_ids, ref->k));
 	put(&w, field, "rho0", jmat(&w, &ref->rho0[0][0], 3, ref->k, 1, 3));
 	put(&w, field, "condition_number", jnum(ref->cond_rho0));
 	put(&w, root, "field", field);
@@ -322,7 +357,8 @@ int kg_reference_save(const kg_reference *ref, const char *path, kg_err *err)
 
 	put(&w, root, "devices", jdevices(&w, ref->sources, ref->nsources));
 	const char *ill = source_keyword(ref->sources, ref->nsources, NULL, illuminant_keywords);
-	put(&w, root, "illuminant", ill ? json_string(ill) : json_null());
+	put(&w, root, "illuminant",
+	    ill ? jtext(&w, "a keyword's value in an input file", ill) : json_null());
 	put(&w, root, "sources", jsources(&w, ref->sources, ref->nsources));
 	return finish(&w, root, path, err);
 }
@@ -338,7 +374,7 @@ int kg_camera_save(const kg_camera_calib *cam, const char *path, kg_err *err)
 	json_t *refo = json_object();
 	for (int i = 0; i < cam->nsources; i++)
 		if (strcmp(cam->sources[i].role, "reference") == 0) {
-			put(&w, refo, "path", json_string(cam->sources[i].path));
+			put(&w, refo, "path", jtext(&w, "the path of the reference file", cam->sources[i].path));
 			put(&w, refo, "sha256", json_string(cam->sources[i].sha256));
 		}
 	put(&w, root, "reference", refo);
@@ -361,7 +397,7 @@ int kg_camera_save(const kg_camera_calib *cam, const char *path, kg_err *err)
 
 	json_t *fit = json_object();
 	put(&w, fit, "patches", json_integer(cam->k));
-	put(&w, fit, "ids", jstrv(&w, cam->ids, cam->k));
+	put(&w, fit, "ids", jstrv(&w, "a patch id", cam->ids, cam->k));
 	put(&w, fit, "rho_r", jmat(&w, &cam->rho_r[0][0], 3, cam->k, 1, 3));
 	put(&w, fit, "rho0", jmat(&w, &cam->rho0[0][0], 3, cam->k, 1, 3));
 	put(&w, fit, "residual", jmat(&w, &cam->residual[0][0], 3, cam->k, 1, 3));

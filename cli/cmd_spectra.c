@@ -67,7 +67,7 @@ static int xyz_over_range(const kg_cgats *cg, const char *path, const kg_illumin
 {
 	double *wl = NULL, *v = NULL;
 	int n = 0;
-	int ret = kg_cgats_spectra(cg->tables[0], 0, &wl, &v, &n, NULL, err);
+	int ret = kg_cgats_spectra(cg->tables[0], KG_PATCH_REFLECTANCE, &wl, &v, &n, NULL, err);
 	if (!ret && n < 2)
 		ret = kg_fail(err, KG_EINVAL, "%s: expected at least 2 SPEC_<nm> fields", path);
 	if (!ret && kind == RANGE_FILE) {
@@ -134,7 +134,7 @@ int kg_cmd_spectra_xyz(int argc, char **argv)
 	if (!ret)
 		ret = kg_cgats_read(path, &cg, &err);
 	if (!ret)
-		ret = kg_patchset_from_cgats(cg, 0, &ps, &err);
+		ret = kg_patchset_from_cgats(cg, KG_PATCH_REFLECTANCE, &ps, &err);
 	if (!ret && !ps->spectra)
 		ret = kg_fail(&err, KG_EINVAL, "%s: no spectral fields: expected SPEC_<nm> columns",
 		              path);

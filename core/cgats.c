@@ -9,6 +9,7 @@
 
 #include "cgats.h"
 #include "fsutil.h"
+#include "text.h"
 
 /* Largest NUMBER_OF_FIELDS accepted; real files have at most a few hundred. */
 #define MAX_FIELDS 100000
@@ -263,6 +264,10 @@ static const char *not_a_number_hint(const char *text)
 		low[i] = (char)tolower((unsigned char)text[i]);
 	if (strstr(low, "nan") || strstr(low, "inf"))
 		return " (NaN and infinity are not accepted)";
+	char *end;
+	if (*text && strspn(text, "0123456789+-.eE") == strlen(text) &&
+	    isinf(strtod(text, &end)) && !*end)
+		return " (beyond the largest number a double holds, about 1.8e308)";
 	return "";
 }
 
@@ -551,8 +556,11 @@ int kg_cgats_parse(const char *buf, size_t len, const char *name, kg_cgats **out
 	if (!(ps.cg = cgats_alloc(name)))
 		return kg_fail(err, KG_ENOMEM, "out of memory");
 	ps.path = ps.cg->path;
+	/* Every string kept is UTF-8, so that any of them may reach JSON or HTML. */
+	char *converted = NULL;
+	int r = kg_text_utf8(buf, len, ps.path, &buf, &len, &converted, err);
 
-	int r = 0, lineno = 0;
+	int lineno = 0;
 	size_t pos = 0;
 	while (pos < len && r == 0) {
 		lineno++;
@@ -577,6 +585,7 @@ int kg_cgats_parse(const char *buf, size_t len, const char *name, kg_cgats **out
 			r = parse_line(&ps, &tk, lineno, err);
 	}
 	tokens_free(&tk);
+	free(converted);
 
 	if (r == 0) {
 		switch (ps.state) {
@@ -673,6 +682,16 @@ const char *kg_cgats_cell(const kg_cgats_table *t, int set, int field)
 	return t->cells[(size_t)set * (size_t)t->nfields + (size_t)field];
 }
 
+/* "line N" for a set read from a file, "set N" for one built in memory. */
+static const char *set_where(const kg_cgats_table *t, int set, char buf[32])
+{
+	if (t->set_lines[set] > 0)
+		snprintf(buf, 32, "line %d", t->set_lines[set]);
+	else
+		snprintf(buf, 32, "set %d", set + 1);
+	return buf;
+}
+
 int kg_cgats_number(const kg_cgats_table *t, int set, int field, double *out,
                     kg_err *err)
 {
@@ -683,45 +702,73 @@ int kg_cgats_number(const kg_cgats_table *t, int set, int field, double *out,
 		               field + 1);
 	if (kg_cgats_parse_number(c, out) == 0)
 		return 0;
-	if (t->set_lines[set] > 0)
-		return kg_fail(err, KG_EINVAL, "%s: line %d: field %.60s: expected a number, found "
-		               "'%.40s'%s", t->path, t->set_lines[set], t->fields[field], c,
-		               not_a_number_hint(c));
-	return kg_fail(err, KG_EINVAL, "%s: set %d: field %.60s: expected a number, found "
-	               "'%.40s'%s", t->path, set + 1, t->fields[field], c, not_a_number_hint(c));
+	char where[32];
+	return kg_fail(err, KG_EINVAL, "%s: %s: field %.60s: expected a number, found "
+	               "'%.40s'%s", t->path, set_where(t, set, where), t->fields[field], c,
+	               not_a_number_hint(c));
 }
+
+/* Wavelengths a spectral field may name, nm: from the vacuum ultraviolet to the mid
+ * infrared, wider than any colour instrument reads and narrow enough to catch a name
+ * misread (SPEC_5, or SPEC_50000 read as picometres). */
+#define SPEC_NM_MIN 100.0
+#define SPEC_NM_MAX 5000.0
 
 /* The wavelength part of a spectral field name, or NULL for a field of another kind:
  * CGATS.17's SPEC_<nm> (ArgyllCMS, colord), X-Rite i1Profiler's SPECTRAL_NM<nm> (also
- * SPECTRAL_NM_<nm>) and X-Rite MeasureTool's nm<nm> (any case). */
+ * SPECTRAL_NM_<nm>) and X-Rite MeasureTool's nm<nm>, each in any case. A name with one
+ * of these prefixes is spectral whatever follows ("nmInf", "nm-5", "nm", "SPEC_"). */
 static const char *spec_name_number(const char *name)
 {
-	if (strncmp(name, "SPEC_", 5) == 0)
+	if (strncasecmp(name, "SPEC_", 5) == 0)
 		return name + 5;
 	if (strncasecmp(name, "SPECTRAL_NM", 11) == 0)
 		return name + 11 + (name[11] == '_');
-	if (strncasecmp(name, "NM", 2) == 0 && name[2] >= '0' && name[2] <= '9')
+	if (strncasecmp(name, "NM", 2) == 0)
 		return name + 2;
 	return NULL;
 }
 
-/* Wavelength in a spectral field name (spec_name_number): 1 and *nm for a spectral
- * field, 0 for a field of another kind, -1 for a SPEC_ (or SPECTRAL_NM) name without a
- * finite positive wavelength (SPEC_abc, SPEC_Inf, SPEC_), which must not be passed
- * over: dropping a band would interpolate across the gap. colord writes picometres
- * (SPEC_300000 = 300 nm). */
-static int spec_name_nm(const char *name, double *nm)
+/* What a field name says of its wavelength (spec_name_nm). */
+enum spec_name_kind {
+	SPEC_NAME_OTHER = 0,    /* not a spectral field */
+	SPEC_NAME_NM = 1,       /* a spectral field; *nm holds its wavelength */
+	SPEC_NAME_NO_NUMBER = -1, /* a spectral prefix without a plain number after it */
+	SPEC_NAME_OUT_OF_RANGE = -2, /* a number outside SPEC_NM_MIN..SPEC_NM_MAX (*nm) */
+};
+
+/* Wavelength in a spectral field name (spec_name_number). A spectral name that does not
+ * hold a plausible wavelength must not be passed over: dropping a band would
+ * interpolate across the gap. colord writes picometres (SPEC_300000 = 300 nm): numbers
+ * from 10000 up are read so. */
+static enum spec_name_kind spec_name_nm(const char *name, double *nm)
 {
 	const char *num = spec_name_number(name);
 	if (!num)
-		return 0;
+		return SPEC_NAME_OTHER;
 	double v;
-	if (kg_cgats_parse_number(num, &v) != 0 || !(v > 0))
-		return -1;
+	if (kg_cgats_parse_number(num, &v) != 0)
+		return SPEC_NAME_NO_NUMBER;
 	if (v >= 10000)
 		v /= 1000;
 	*nm = v;
-	return 1;
+	return v >= SPEC_NM_MIN && v <= SPEC_NM_MAX ? SPEC_NAME_NM : SPEC_NAME_OUT_OF_RANGE;
+}
+
+/* The refusal of a spectral field name whose wavelength is unreadable or implausible. */
+static int refuse_spec_name(const kg_cgats_table *t, const char *name,
+                            enum spec_name_kind kind, double nm, kg_err *err)
+{
+	if (kind == SPEC_NAME_NO_NUMBER)
+		return kg_fail(err, KG_EINVAL, "%s: field %.60s: expected SPEC_<nm> (or X-Rite's "
+		               "SPECTRAL_NM<nm>, nm<nm>) with a finite wavelength in nm as a plain "
+		               "number (e.g. SPEC_550, nm550)", t->path, name);
+	double raw = nm;
+	kg_cgats_parse_number(spec_name_number(name), &raw);
+	return kg_fail(err, KG_EINVAL, "%s: field %.60s: %g nm%s: expected a wavelength between "
+	               "%g and %g nm", t->path, name, nm,
+	               raw >= 10000 ? " (a number from 10000 up is read as picometres)" : "",
+	               SPEC_NM_MIN, SPEC_NM_MAX);
 }
 
 /* The spectral keywords a table gives (each may be absent). */
@@ -793,13 +840,11 @@ int kg_cgats_spectral_fields(const kg_cgats_table *t, int **fields, double **wl,
 	*wl = NULL;
 	*n = 0;
 	int count = 0;
-	double nm;
+	double nm = 0;
 	for (int i = 0; i < t->nfields; i++) {
-		int kind = spec_name_nm(t->fields[i], &nm);
+		enum spec_name_kind kind = spec_name_nm(t->fields[i], &nm);
 		if (kind < 0)
-			return kg_fail(err, KG_EINVAL, "%s: field %.60s: expected SPEC_<nm> (or X-Rite's "
-			               "SPECTRAL_NM<nm>, nm<nm>) with a finite wavelength in nm (e.g. "
-			               "SPEC_550)", t->path, t->fields[i]);
+			return refuse_spec_name(t, t->fields[i], kind, nm, err);
 		count += kind;
 	}
 	if (count == 0)
@@ -1408,9 +1453,10 @@ int kg_patchset_extra_index(const kg_patchset *ps, const char *name)
 }
 
 /* Fill *dst (nsets x 3) from the three named fields and mark them used. Leaves *dst
- * NULL when none of the three exist; an error when only some do. */
+ * NULL when none of the three exist; an error when only some do, or when a value's
+ * magnitude exceeds max_abs. */
 static int read_triplet(const kg_cgats_table *t, const char *const names[3],
-                        double (**dst)[3], int *used, kg_err *err)
+                        double max_abs, double (**dst)[3], int *used, kg_err *err)
 {
 	int f[3], found = 0;
 	for (int k = 0; k < 3; k++)
@@ -1428,6 +1474,11 @@ static int read_triplet(const kg_cgats_table *t, const char *const names[3],
 	for (int s = 0; s < t->nsets; s++)
 		for (int k = 0; k < 3; k++) {
 			int r = kg_cgats_number(t, s, f[k], &v[s][k], err);
+			char where[32];
+			if (r == 0 && !(fabs(v[s][k]) <= max_abs))
+				r = kg_fail(err, KG_ERANGE, "%s: %s: field %s: '%.40s': expected a value of "
+				            "magnitude at most %g", t->path, set_where(t, s, where),
+				            names[k], kg_cgats_cell(t, s, f[k]), max_abs);
 			if (r != 0) {
 				free(v);
 				return r;
@@ -1495,6 +1546,32 @@ static int spectral_norm_of(const kg_cgats_table *t, const int *fields, int nspe
 	return 0;
 }
 
+const char *kg_spectral_value_expected(double v, unsigned flags)
+{
+	if (flags & KG_PATCH_REFLECTANCE)
+		return v >= KG_REFLECTANCE_MIN && v <= KG_REFLECTANCE_MAX
+		           ? NULL
+		           : "expected a reflectance between -1 and 10 (-100 % and 1000 %)";
+	return fabs(v) <= KG_SPECTRAL_MAX_ABS ? NULL
+	                                      : "expected a spectral value of magnitude at most 1e30";
+}
+
+/* A spectral value once scaled (kg_spectral_value_expected). */
+static int check_spectral_value(const kg_cgats_table *t, int set, int field, double v,
+                                const spectral_norm *sn, unsigned flags, kg_err *err)
+{
+	const char *expected = kg_spectral_value_expected(v, flags);
+	if (!expected)
+		return 0;
+	char where[32], scaled[64] = "";
+	double scale = pow(10.0, sn->shift) / sn->norm;
+	if (scale != 1.0)
+		snprintf(scaled, sizeof(scaled), " (%g once scaled by %g)", v, scale);
+	return kg_fail(err, KG_ERANGE, "%s: %s: field %.60s: '%.40s'%s: %s", t->path,
+	               set_where(t, set, where), t->fields[field], kg_cgats_cell(t, set, field),
+	               scaled, expected);
+}
+
 int kg_cgats_spectra(const kg_cgats_table *t, unsigned flags, double **wl,
                      double **values, int *n, double *scale, kg_err *err)
 {
@@ -1517,10 +1594,10 @@ int kg_cgats_spectra(const kg_cgats_table *t, unsigned flags, double **wl,
 				break;
 			/* The cell is a valid finite number: only an overflow can fail here. */
 			if (parse_number_shifted(kg_cgats_cell(t, s, fields[k]), sn.shift, dst) != 0)
-				r = kg_fail(err, KG_ERANGE, "%s: line %d: field %.60s: value out of range "
-				            "once scaled", t->path, t->set_lines[s], t->fields[fields[k]]);
+				*dst = INFINITY;
 			else
 				*dst /= sn.norm;
+			r = check_spectral_value(t, s, fields[k], *dst, &sn, flags, err);
 		}
 	free(fields);
 	if (r != 0) {
@@ -1641,11 +1718,11 @@ int kg_patchset_from_table(const kg_cgats_table *t, unsigned flags, kg_patchset 
 	if (r == 0)
 		r = read_spectra(t, ps, flags, used, err);
 	if (r == 0)
-		r = read_triplet(t, rgb, &ps->rgb, used, err);
+		r = read_triplet(t, rgb, KG_RGB_MAX_ABS, &ps->rgb, used, err);
 	if (r == 0)
-		r = read_triplet(t, xyz, &ps->xyz, used, err);
+		r = read_triplet(t, xyz, KG_SPECTRAL_MAX_ABS, &ps->xyz, used, err);
 	if (r == 0)
-		r = read_triplet(t, lab, &ps->lab, used, err);
+		r = read_triplet(t, lab, KG_SPECTRAL_MAX_ABS, &ps->lab, used, err);
 	if (r == 0)
 		r = read_extras(t, ps, used, err);
 	free(used);

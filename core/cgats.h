@@ -5,7 +5,9 @@
  * ("CGATS.17", "CTI3", "SPECT", ...), has keywords with values, a list of field names
  * (BEGIN_DATA_FORMAT ... END_DATA_FORMAT) and data sets (BEGIN_DATA ... END_DATA), one
  * set per line. Cells are kept as text; kg_cgats_number() converts one with an error
- * that names the file, the line, the field and what was expected. */
+ * that names the file, the line, the field and what was expected. Every name, keyword
+ * value and cell is UTF-8: a file in Windows-1252 (Latin-1) is converted, one in
+ * neither encoding refused, as text.h describes. */
 #ifndef KG_CGATS_H
 #define KG_CGATS_H
 
@@ -72,22 +74,25 @@ int kg_cgats_number(const kg_cgats_table *t, int set, int field, double *out,
 /* Parse text as a finite decimal number (the rule kg_cgats_number uses). 0 or
  * KG_EINVAL, no message. */
 int kg_cgats_parse_number(const char *text, double *out);
-/* The spectral fields of a table: indices of the SPEC_<nm> fields (in field order)
- * and their wavelengths in nm. Names written in picometres by colord (SPEC_300000)
- * are understood. Refused (KG_EINVAL, naming the file and the field): a SPEC_ name
- * without a finite positive wavelength (SPEC_abc, SPEC_Inf, SPEC_), a wavelength
- * given twice, fields out of order, and SPECTRAL_START_NM / SPECTRAL_END_NM /
- * SPECTRAL_BANDS that disagree with the fields (by more than 1 nm, or in the count);
- * when all three are given the exact keyword grid is used (Argyll rounds 3.33 nm
- * steps in the names). *n = 0 and NULL arrays when there are none. Caller frees both
- * arrays. */
+/* The spectral fields of a table: indices of the spectral fields (in field order) and
+ * their wavelengths in nm. A spectral field is named SPEC_<nm>, or as X-Rite writes
+ * SPECTRAL_NM<nm>, SPECTRAL_NM_<nm> or nm<nm>, each prefix in any case; numbers from
+ * 10000 up are picometres, as colord writes them (SPEC_300000). Refused (KG_EINVAL,
+ * naming the file and the field): a name with one of these prefixes whose rest is not
+ * a plain number (SPEC_abc, SPEC_Inf, nmInf, nm-x, nm400x, "nm 400", SPEC_, nm), a
+ * wavelength outside 100..5000 nm (nm-5, SPEC_5), a wavelength given twice (also in
+ * two forms: SPEC_400 and nm400), fields out of order, and SPECTRAL_START_NM /
+ * SPECTRAL_END_NM / SPECTRAL_BANDS that disagree with the fields (by more than 1 nm,
+ * or in the count); when all three are given the exact keyword grid is used (Argyll
+ * rounds 3.33 nm steps in the names). *n = 0 and NULL arrays when there are none.
+ * Caller frees both arrays. */
 int kg_cgats_spectral_fields(const kg_cgats_table *t, int **fields, double **wl, int *n,
                              kg_err *err);
 /* The spectra of a table at the file's own wavelengths (kg_cgats_spectral_fields),
- * brought to fractions by the rule of the patch sets (see KG_PATCH_KEEP_SCALE, which
- * `flags` may hold): *wl (n nm), *values (nsets x n, row-major) and, if scale is not
- * NULL, the factor applied. *n = 0 and NULL arrays when there are none. Caller frees
- * both arrays. */
+ * brought to fractions by the rule of the patch sets (see KG_PATCH_KEEP_SCALE and
+ * KG_PATCH_REFLECTANCE, which `flags` may hold, and the range every value must keep):
+ * *wl (n nm), *values (nsets x n, row-major) and, if scale is not NULL, the factor
+ * applied. *n = 0 and NULL arrays when there are none. Caller frees both arrays. */
 int kg_cgats_spectra(const kg_cgats_table *t, unsigned flags, double **wl,
                      double **values, int *n, double *scale, kg_err *err);
 
@@ -141,6 +146,26 @@ enum {
  * (ArgyllCMS's measured spectra, which carry no SPECTRAL_NORM), as fractions
  * otherwise (colord's CIE-TCS.sp). */
 #define KG_PATCH_KEEP_SCALE (1u << 8)
+/* Extra flag, as KG_PATCH_KEEP_SCALE: the spectra are reflectance (or transmittance)
+ * factors, and each value, once brought to a fraction, must lie within
+ * KG_REFLECTANCE_MIN..KG_REFLECTANCE_MAX: a little below 0 (noise on a black, an
+ * estimate's ringing) and above 1 (fluorescence, a white brighter than the reference)
+ * are measured; far beyond them the file is wrong. Whatever the flags, every spectral
+ * value (once scaled) must be at most KG_SPECTRAL_MAX_ABS in magnitude: beyond any unit
+ * a spectrum is written in, and small enough that sums of products over a chart stay
+ * finite. Refusals name the file, the line, the field and the value. */
+#define KG_PATCH_REFLECTANCE (1u << 9)
+#define KG_REFLECTANCE_MIN (-1.0)
+#define KG_REFLECTANCE_MAX 10.0
+#define KG_SPECTRAL_MAX_ABS 1e30
+/* RGB_R/G/B values must be at most KG_RGB_MAX_ABS in magnitude (scales 0-1, 0-100,
+ * 0-255 and 0-65535 with room for noise), XYZ and L*a*b* values at most
+ * KG_SPECTRAL_MAX_ABS. */
+#define KG_RGB_MAX_ABS 1e6
+/* NULL when v, a spectral value once scaled, keeps the range that `flags` asks for
+ * (KG_PATCH_REFLECTANCE, else KG_SPECTRAL_MAX_ABS), else what was expected ("expected
+ * a reflectance between ..."), for a message that names the file and the field. */
+const char *kg_spectral_value_expected(double v, unsigned flags);
 
 typedef struct kg_patchset {
 	int n;

@@ -299,7 +299,6 @@ int kg_illuminant_from_file(const char *path, kg_illuminant **out, kg_err *err)
 	kg_check_arg(path && out, err);
 	*out = NULL;
 	kg_cgats *cg = NULL;
-	int *fields = NULL;
 	double *wl = NULL, *v = NULL;
 	int n = 0;
 	int ret = kg_cgats_read(path, &cg, err);
@@ -311,7 +310,7 @@ int kg_illuminant_from_file(const char *path, kg_illuminant **out, kg_err *err)
 		goto done;
 	}
 	const kg_cgats_table *t = cg->tables[0];
-	ret = kg_cgats_spectral_fields(t, &fields, &wl, &n, err);
+	ret = kg_cgats_spectra(t, KG_PATCH_KEEP_SCALE, &wl, &v, &n, NULL, err);
 	if (ret)
 		goto done;
 	if (n < 2) {
@@ -327,16 +326,6 @@ int kg_illuminant_from_file(const char *path, kg_illuminant **out, kg_err *err)
 		              t->nsets);
 		goto done;
 	}
-	v = malloc(sizeof(double) * (size_t)n);
-	if (!v) {
-		ret = kg_fail(err, KG_ENOMEM, "%s: out of memory", path);
-		goto done;
-	}
-	for (int i = 0; i < n; i++) {
-		ret = kg_cgats_number(t, 0, fields[i], &v[i], err);
-		if (ret)
-			goto done;
-	}
 	/* The path names the data in messages; the illuminant is named by the file. */
 	ret = kg_illuminant_from_samples(path, wl, v, n, out, err);
 	if (ret == 0) {
@@ -344,7 +333,6 @@ int kg_illuminant_from_file(const char *path, kg_illuminant **out, kg_err *err)
 		snprintf((*out)->name, sizeof((*out)->name), "%s", base ? base + 1 : path);
 	}
 done:
-	free(fields);
 	free(wl);
 	free(v);
 	kg_cgats_free(&cg);

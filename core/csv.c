@@ -5,6 +5,7 @@
 
 #include "csv.h"
 #include "fsutil.h"
+#include "text.h"
 
 /* Longest line accepted (the same cap as for CGATS). */
 #define CSV_MAX_LINE KG_CGATS_MAX_LINE
@@ -91,7 +92,9 @@ int kg_csv_parse(const char *buf, size_t len, const char *name, kg_csv **out, kg
 		free(t);
 		return kg_fail(err, KG_ENOMEM, "out of memory");
 	}
-	int r = 0, lineno = 0, cap = 0;
+	char *converted = NULL;
+	int r = kg_text_utf8(buf, len, t->path, &buf, &len, &converted, err);
+	int lineno = 0, cap = 0;
 	size_t pos = 0;
 	while (pos < len && r == 0) {
 		lineno++;
@@ -143,6 +146,7 @@ int kg_csv_parse(const char *buf, size_t len, const char *name, kg_csv **out, kg
 			free(cells[i]);
 		free(cells);
 	}
+	free(converted);
 	if (r == 0 && !t->names)
 		r = kg_fail(err, KG_EINVAL, "%s: empty: expected a header row of column names",
 		            t->path);
@@ -248,8 +252,14 @@ int kg_csv_read_spectra_rows(const char *path, unsigned flags, kg_patchset **out
 	}
 	for (int i = 0; i < t->nrows && r == 0; i++) {
 		r = kg_patchset_set_id(ps, i, kg_csv_cell(t, i, id), err);
-		for (int k = 0; k < nwl && r == 0; k++)
+		for (int k = 0; k < nwl && r == 0; k++) {
 			r = kg_csv_number(t, i, cols[k], &val[k], err);
+			const char *expected = r ? NULL : kg_spectral_value_expected(val[k], flags);
+			if (expected)
+				r = kg_fail(err, KG_ERANGE, "%s: line %d: column %s: '%.40s': %s", path,
+				            t->row_lines[i], t->names[cols[k]], kg_csv_cell(t, i, cols[k]),
+				            expected);
+		}
 		if (r == 0) {
 			char what[256];
 			snprintf(what, sizeof(what), "%s: line %d: patch %.40s", path, t->row_lines[i],

@@ -1,6 +1,6 @@
 /* Numeric CSV tables as used by the reference data (../shared/reference) and by
- * `kogei model`: one header row of column names, comma-separated, no quoting, one
- * record per line. Blank lines and lines starting with '#' are ignored. Cells are
+ * `kogei model`: UTF-8 text (or Windows-1252, converted: text.h), one header row of
+ * column names, comma-separated, no quoting, one record per line. Blank lines and lines starting with '#' are ignored. Cells are
  * kept as text; kg_csv_number() converts one with an error naming the file, the line
  * and the column. */
 #ifndef KG_CSV_H
@@ -37,7 +37,8 @@ int kg_csv_number(const kg_csv *t, int row, int col, double *out, kg_err *err);
  * spectrum per row, ids from the `patch` column, every column whose header is a
  * number taken as a wavelength in nm (text columns such as `name` or `natural` are
  * skipped), resampled to the grid (flags: KG_RESAMPLE_*; data not covering 400-700 nm
- * need KG_RESAMPLE_EXTRAPOLATE). Values are taken as they are (fractions). */
+ * need KG_RESAMPLE_EXTRAPOLATE). Values are taken as they are (fractions), within the
+ * range kg_spectral_value_expected gives for `flags` (KG_PATCH_REFLECTANCE). */
 int kg_csv_read_spectra_rows(const char *path, unsigned flags, kg_patchset **out,
                              kg_err *err);
 

@@ -7,6 +7,7 @@
 #include "error.h"
 #include "fsutil.h"
 #include "memutil.h"
+#include "text.h"
 #include "spectrum.h"
 #include "cgats.h"
 #include "csv.h"
@@ -20,7 +21,6 @@
 #include "saturation.h"
 #include "select.h"
 #include "meta.h"
-#include "text.h"
 #include "mapfile.h"
 #include "icc.h"
 

@@ -19,6 +19,7 @@ int kg_sim_read_spectra(const char *path, unsigned flags, kg_patchset **out, kg_
 	kg_check_arg(path && out, err);
 	*out = NULL;
 	kg_patchset *ps = NULL;
+	flags |= KG_PATCH_REFLECTANCE;
 	int ret = has_suffix(path, ".csv") ? kg_csv_read_spectra_rows(path, flags, &ps, err)
 	                                   : kg_patchset_read(path, flags, &ps, err);
 	if (ret) {

@@ -55,7 +55,8 @@ void kg_sim_noise_image(const kg_sim_noise *n, kg_image *img, uint64_t seed);
 
 /* Reflectance spectra from CGATS (SPEC_<nm> fields) or from a CSV laid out as
  * `patch,name,<nm>,<nm>,...` (the reference charts; chosen by the .csv suffix),
- * resampled to the grid (flags: KG_RESAMPLE_*). A file without spectra is refused. */
+ * resampled to the grid (flags: KG_RESAMPLE_*), each value a reflectance
+ * (KG_PATCH_REFLECTANCE). A file without spectra is refused. */
 int kg_sim_read_spectra(const char *path, unsigned flags, kg_patchset **out, kg_err *err);
 /* An illuminant by name (D65, D50, A, E, Dnn, <T>K), from a CGATS file, or from a
  * CSV `wavelength_nm,<relative power>` (by the .csv suffix). */

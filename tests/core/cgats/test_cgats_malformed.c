@@ -140,7 +140,8 @@ static void test_numbers(void)
 	          strstr(err.msg, "NaN"), "NaN: %s", err.msg);
 	CHECK(kg_cgats_number(t, 3, 2, &v, &err) == KG_EINVAL && strstr(err.msg, "line 12") &&
 	          strstr(err.msg, "field RGB_G"), "inf: %s", err.msg);
-	CHECK(kg_cgats_number(t, 4, 1, &v, &err) == KG_EINVAL && strstr(err.msg, "line 13"),
+	CHECK(kg_cgats_number(t, 4, 1, &v, &err) == KG_EINVAL && strstr(err.msg, "line 13") &&
+	          strstr(err.msg, "beyond the largest number a double holds"),
 	      "overflow to infinity: %s", err.msg);
 	CHECK(kg_cgats_parse_number("0x1p3", &v) == KG_EINVAL, "hex floats refused");
 	CHECK(kg_cgats_parse_number("-1.5e-3", &v) == 0 && v == -1.5e-3, "exponent");
@@ -214,7 +215,8 @@ static void test_spectral_fields(void)
 	PATCHSET_FAILS("SPEC_ alone", SPEC4("", "SPEC_400 SPEC_ SPEC_600 SPEC_700", "0.1 0.2 0.3 0.4"),
 	               0, KG_EINVAL, "field SPEC_:", "finite wavelength");
 	PATCHSET_FAILS("SPEC_0", SPEC4("", "SPEC_0 SPEC_400 SPEC_600 SPEC_700", "0.1 0.2 0.3 0.4"),
-	               0, KG_EINVAL, "field SPEC_0:", "finite wavelength");
+	               0, KG_EINVAL, "field SPEC_0:", "0 nm: expected a wavelength between 100 "
+	               "and 5000 nm");
 	PATCHSET_FAILS("duplicate wavelength",
 	               SPEC4("", "SPEC_400 SPEC_500 SPEC_500.0 SPEC_700", "0.1 0.2 0.3 0.4"), 0,
 	               KG_EINVAL, "SPEC_500 and SPEC_500.0", "500 nm", "each wavelength once");
@@ -254,6 +256,153 @@ static void test_spectral_fields(void)
 	kg_cgats_free(&cg);
 }
 
+#define SCALED(type, keywords, row)                                                     \
+	type "\n" keywords "BEGIN_DATA_FORMAT\nSAMPLE_ID SPEC_400 SPEC_500 SPEC_600 SPEC_700\n" \
+	"END_DATA_FORMAT\nBEGIN_DATA\nP1 " row "\nEND_DATA\n"
+
+/* Every prefix the reader takes as spectral (SPEC_, SPECTRAL_NM, SPECTRAL_NM_, nm, in
+ * any case) reads the same bands, and is refused, never passed over, when what follows
+ * is not a plausible wavelength. */
+static void test_field_forms(void)
+{
+	static const char *const forms[] = { "nm", "NM", "Nm", "SPECTRAL_NM", "spectral_nm_",
+		                                 "spec_" };
+	for (size_t i = 0; i < sizeof(forms) / sizeof(forms[0]); i++) {
+		char names[128], text[512];
+		snprintf(names, sizeof(names), "%s400 %s500 %s600 %s700", forms[i], forms[i],
+		         forms[i], forms[i]);
+		snprintf(text, sizeof(text), SPEC4("", "%s", "0.1 0.2 0.3 0.4"), names);
+		kg_err err = { { 0 } };
+		kg_cgats *cg = NULL;
+		kg_patchset *ps = NULL;
+		CHECK(kg_cgats_parse(text, strlen(text), "f.cgats", &cg, &err) == 0 &&
+		          kg_patchset_from_cgats(cg, 0, &ps, &err) == 0 && ps->spectra,
+		      "%s<nm>: %s", forms[i], err.msg);
+		if (ps && ps->spectra) {
+			CHECK(ps->spectra[0].v[0] == 0.1 && ps->spectra[0].v[60] == 0.4,
+			      "%s<nm>: 400 and 700 nm read", forms[i]);
+			CHECK_NEAR(ps->spectra[0].v[30], 0.25, 1e-12, "550 nm between the bands");
+		}
+		kg_patchset_free(&ps);
+		kg_cgats_free(&cg);
+	}
+	static const struct {
+		const char *in_file, *name;
+	} unreadable[] = {
+		{ "nmInf", "nmInf" }, { "nmnan", "nmnan" }, { "NMinf", "NMinf" }, { "nm-x", "nm-x" },
+		{ "nm400x", "nm400x" }, { "nm+", "nm+" }, { "\"nm 400\"", "nm 400" }, { "nm", "nm" },
+		{ "spec_Inf", "spec_Inf" }, { "SPECTRAL_NM_abc", "SPECTRAL_NM_abc" },
+		{ "SPECTRAL_NM", "SPECTRAL_NM" }, { "nm0x1p9", "nm0x1p9" },
+	};
+	for (size_t i = 0; i < sizeof(unreadable) / sizeof(unreadable[0]); i++) {
+		char names[128], text[512], field[64];
+		snprintf(names, sizeof(names), "nm400 nm500 %s nm700", unreadable[i].in_file);
+		snprintf(text, sizeof(text), SPEC4("", "%s", "0.1 0.2 0.3 0.4"), names);
+		snprintf(field, sizeof(field), "field %s:", unreadable[i].name);
+		PATCHSET_FAILS(unreadable[i].name, text, 0, KG_EINVAL, "bad.cgats", field,
+		               "with a finite wavelength in nm as a plain number");
+	}
+	static const char *const implausible[] = { "nm-5", "nm0", "nm50", "SPEC_99.9",
+		                                       "SPEC_5001", "nm9999", "SPEC_50000" };
+	for (size_t i = 0; i < sizeof(implausible) / sizeof(implausible[0]); i++) {
+		char names[128], text[512], field[64];
+		snprintf(names, sizeof(names), "%s SPEC_400 SPEC_500 SPEC_700", implausible[i]);
+		snprintf(text, sizeof(text), SPEC4("", "%s", "0.1 0.2 0.3 0.4"), names);
+		snprintf(field, sizeof(field), "field %s:", implausible[i]);
+		PATCHSET_FAILS(implausible[i], text, 0, KG_EINVAL, field,
+		               "expected a wavelength between 100 and 5000 nm");
+	}
+	PATCHSET_FAILS("picometres named", SPEC4("", "SPEC_50000 SPEC_400 SPEC_500 SPEC_700",
+	                                          "0.1 0.2 0.3 0.4"),
+	               0, KG_EINVAL, "50 nm (a number from 10000 up is read as picometres)");
+	PATCHSET_FAILS("one wavelength in two forms",
+	               SPEC4("", "nm400 nm500 SPEC_500 nm700", "0.1 0.2 0.3 0.4"), 0, KG_EINVAL,
+	               "nm500 and SPEC_500 both hold 500 nm", "each wavelength once");
+	PATCHSET_FAILS("one wavelength in nm and picometres",
+	               SPEC4("", "nm400 SPECTRAL_NM_500 SPEC_500000 nm700", "0.1 0.2 0.3 0.4"), 0,
+	               KG_EINVAL, "SPECTRAL_NM_500 and SPEC_500000 both hold 500 nm");
+}
+
+/* A table of one reflectance spectrum (SPECTRAL_NORM 1: taken as written) with one
+ * value replaced, the rest 0.5. */
+#define ONE_VALUE(v) SCALED("CGATS.17", "SPECTRAL_NORM 1\n", "0.5 " v " 0.5 0.5")
+#define RGB_ROW(row)                                                                   \
+	"CGATS.17\nBEGIN_DATA_FORMAT\nSAMPLE_ID RGB_R RGB_G RGB_B XYZ_X XYZ_Y XYZ_Z\n"       \
+	"END_DATA_FORMAT\nBEGIN_DATA\nA1 0.1 0.2 0.3 1 2 3\nA2 " row "\nEND_DATA\n"
+
+/* Parses and gives a patch set with these flags (the value is in range). */
+static void expect_taken(const char *what, const char *text, unsigned flags)
+{
+	kg_err err = { { 0 } };
+	kg_cgats *cg = NULL;
+	kg_patchset *ps = NULL;
+	CHECK(kg_cgats_parse(text, strlen(text), what, &cg, &err) == 0 &&
+	          kg_patchset_from_cgats(cg, flags, &ps, &err) == 0,
+	      "%s: expected it taken: %s", what, err.msg);
+	kg_patchset_free(&ps);
+	kg_cgats_free(&cg);
+}
+
+/* Values that would overflow later (an eigen-decomposition, XYZ) or are no
+ * reflectance are refused where they are read, naming the line and the field. */
+static void test_value_ranges(void)
+{
+	const unsigned refl = KG_PATCH_REFLECTANCE;
+	static const char *const far[] = { "1e308", "-1e308", "10.001", "-1.001", "1e30" };
+	for (size_t i = 0; i < sizeof(far) / sizeof(far[0]); i++) {
+		char text[512], cell[64];
+		snprintf(text, sizeof(text), ONE_VALUE("%s"), far[i]);
+		snprintf(cell, sizeof(cell), "line 7: field SPEC_500: '%s'", far[i]);
+		PATCHSET_FAILS(far[i], text, refl, KG_ERANGE, "bad.cgats", cell,
+		               "expected a reflectance between -1 and 10 (-100 % and 1000 %)");
+	}
+	expect_taken("10 as a reflectance", ONE_VALUE("10"), refl);
+	expect_taken("-1 as a reflectance", ONE_VALUE("-1"), refl);
+	expect_taken("1.07 as a reflectance", ONE_VALUE("1.07"), refl);
+	expect_taken("-0.02 as a reflectance", ONE_VALUE("-0.02"), refl);
+	/* Without KG_PATCH_REFLECTANCE (an illuminant, a basis): any unit, up to 1e30. */
+	expect_taken("1e30 as a spectral value", ONE_VALUE("1e30"), 0);
+	expect_taken("-1e30 as stored", ONE_VALUE("-1e30"), KG_PATCH_KEEP_SCALE);
+	PATCHSET_FAILS("1.000001e30", ONE_VALUE("1.000001e30"), 0, KG_ERANGE,
+	               "line 7: field SPEC_500: '1.000001e30'", "magnitude at most 1e30");
+	PATCHSET_FAILS("1e308 as stored", ONE_VALUE("1e308"), KG_PATCH_KEEP_SCALE, KG_ERANGE,
+	               "field SPEC_500: '1e308'", "magnitude at most 1e30");
+	/* Finite in the file, beyond a double once scaled. */
+	PATCHSET_FAILS("overflow once scaled",
+	               SCALED("CGATS.17", "SPECTRAL_NORM 0.001\n", "0.5 1e306 0.5 0.5"), 0,
+	               KG_ERANGE, "line 7: field SPEC_500: '1e306' (inf once scaled by 1000)");
+	/* Percent read as a fraction: the value as written and as scaled. */
+	PATCHSET_FAILS("percent", SCALED("SPECT", "", "50 2000 50 50"), refl, KG_ERANGE,
+	               "'2000' (20 once scaled by 0.01): expected a reflectance");
+
+	expect_taken("RGB and XYZ at their limits", RGB_ROW("1e6 -1e6 65535 1e30 -1e30 0"), 0);
+	PATCHSET_FAILS("RGB 1e308", RGB_ROW("0.1 1e308 0.3 1 2 3"), 0, KG_ERANGE, "bad.cgats",
+	               "line 7: field RGB_G: '1e308'", "magnitude at most 1e+06");
+	PATCHSET_FAILS("RGB -2e6", RGB_ROW("-2e6 0.2 0.3 1 2 3"), 0, KG_ERANGE, "field RGB_R");
+	PATCHSET_FAILS("XYZ 1e31", RGB_ROW("0.1 0.2 0.3 1 1e31 3"), 0, KG_ERANGE,
+	               "line 7: field XYZ_Y: '1e31'", "magnitude at most 1e+30");
+
+	/* The chart CSV layout keeps the same range. */
+	kg_test_scratch_dir("cgats-malformed");
+	const char *csv = kg_test_path("chart.csv");
+	FILE *fp = fopen(csv, "w");
+	CHECK(fp != NULL, "cannot write %s", csv);
+	if (fp) {
+		fprintf(fp, "patch,name,400,550,700\nA1,white,0.9,0.9,0.9\nA2,red,0.1,1e308,0.6\n");
+		fclose(fp);
+		kg_err err = { { 0 } };
+		kg_patchset *ps = NULL;
+		CHECK(kg_csv_read_spectra_rows(csv, refl, &ps, &err) == KG_ERANGE && !ps &&
+		          strstr(err.msg, "chart.csv: line 3: column 550: '1e308'") &&
+		          strstr(err.msg, "expected a reflectance between -1 and 10"),
+		      "CSV 1e308: %s", err.msg);
+		CHECK(kg_csv_read_spectra_rows(csv, 0, &ps, &err) == KG_ERANGE &&
+		          strstr(err.msg, "magnitude at most 1e30"), "CSV 1e308 as any spectrum: %s",
+		      err.msg);
+	}
+	kg_test_scratch_remove();
+}
+
 /* Which scale a table's spectral values are on, whatever its type identifier. */
 static void expect_scale(const char *what, const char *text, double scale, double at700)
 {
@@ -271,10 +420,6 @@ static void expect_scale(const char *what, const char *text, double scale, doubl
 	kg_patchset_free(&ps);
 	kg_cgats_free(&cg);
 }
-
-#define SCALED(type, keywords, row)                                                     \
-	type "\n" keywords "BEGIN_DATA_FORMAT\nSAMPLE_ID SPEC_400 SPEC_500 SPEC_600 SPEC_700\n" \
-	"END_DATA_FORMAT\nBEGIN_DATA\nP1 " row "\nEND_DATA\n"
 
 static void test_spectral_scale(void)
 {
@@ -312,5 +457,7 @@ int main(void)
 	test_patchsets();
 	test_spectral_fields();
 	test_spectral_scale();
+	test_field_forms();
+	test_value_ranges();
 	return kg_test_done("cgats-malformed");
 }

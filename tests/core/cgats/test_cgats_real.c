@@ -132,6 +132,12 @@ static void known_values(void)
 	}
 	kg_patchset_free(&ps);
 
+	/* Reflectance and transmittance files keep the reflectance range. */
+	ps = read_ps(COLORD "/ref/CIE-TCS.sp", KG_PATCH_REFLECTANCE);
+	kg_patchset_free(&ps);
+	ps = read_ps(ARGYLL "/SOtele.sp", KG_PATCH_REFLECTANCE);
+	kg_patchset_free(&ps);
+
 	/* colord CIE-A.sp: fields in picometres (SPEC_300000), 1 nm, 1.0 at 560 nm. No
 	 * SPECTRAL_NORM nor MEAS_TYPE and values up to 2.4: the percent rule applies; as
 	 * stored with KG_PATCH_KEEP_SCALE (kg_illuminant_from_file reads it so). */
