@@ -20,5 +20,6 @@
 #include "saturation.h"
 #include "select.h"
 #include "meta.h"
+#include "escape.h"
 
 #endif

@@ -49,6 +49,9 @@ int kg_material_validate(const kg_material *mat, kg_err *err)
 	if (!memchr(mat->name, '\0', sizeof(mat->name)) || !mat->name[0])
 		return kg_fail(err, KG_EINVAL, "material: field name: expected 1 to %d characters",
 		               KG_MATERIAL_NAME_MAX - 1);
+	int ret = kg_text_check_controls("material: field name", mat->name, err);
+	if (ret)
+		return ret;
 	const char *name = mat->name;
 	if (!(mat->roughness > 0.0) || !isfinite(mat->roughness))
 		return kg_fail(err, KG_EINVAL, "material '%s': field roughness = %g: expected a "
@@ -479,6 +482,11 @@ static int parse_common(const char *file, int i, const json_t *entry,
 	if (!name[0] || strlen(name) >= KG_MATERIAL_NAME_MAX)
 		return kg_fail(err, KG_EINVAL, "%s: field name: expected 1 to %d characters", label,
 		               KG_MATERIAL_NAME_MAX - 1);
+	/* a name reaches files of every format and messages on a terminal */
+	char what[KG_MATERIAL_NAME_MAX + 1100];
+	snprintf(what, sizeof(what), "%s: field name", label);
+	if ((r = kg_text_check_controls(what, name, err)) != 0)
+		return r;
 	for (int j = 0; j < i; j++)
 		if (strcmp(lib->m[j].name, name) == 0)
 			return kg_fail(err, KG_EINVAL, "%s: field name: '%s' is already used by "
