@@ -897,9 +897,8 @@ int kg_cgats_set_keyword(kg_cgats_table *t, const char *name, const char *value,
 		return r;
 	char what[96];
 	snprintf(what, sizeof(what), "keyword %s: value", name);
-	int r2 = kg_cgats_check(what, value, err);
-	if (r2 != 0)
-		return r2;
+	if ((r = kg_cgats_check(what, value, err)) != 0)
+		return r;
 	for (int i = 0; i < t->nkeywords; i++)
 		if (strcmp(t->keywords[i].name, name) == 0) {
 			char *v = strdup(value);

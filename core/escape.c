@@ -31,138 +31,126 @@ int kg_utf8_char(const char *s, size_t n, uint32_t *cp)
 	return len;
 }
 
-/* The first character of s (length n) that `ok` refuses, or a byte that is not UTF-8:
- * its offset, with *cp the character (*len 0 for a byte). -1 when there is none. */
-static long find_bad(const char *s, size_t n, int (*ok)(uint32_t, void *), void *arg,
-                     uint32_t *cp, int *len)
-{
-	for (size_t i = 0; i < n;) {
-		int l = kg_utf8_char(s + i, n - i, cp);
-		if (l == 0 || (ok && !ok(*cp, arg))) {
-			*len = l;
-			if (l == 0)
-				*cp = (unsigned char)s[i];
-			return (long)i;
-		}
-		i += (size_t)l;
-	}
-	return -1;
-}
-
-/* The message for a refused character or byte at `at`. */
-static int refuse(kg_err *err, const char *what, long at, uint32_t cp, int len,
-                  const char *why)
-{
-	if (len == 0)
-		return kg_fail(err, KG_EINVAL, "%s: byte %ld (0x%02X) is not UTF-8: %s", what, at + 1,
-		               (unsigned)cp, why);
-	return kg_fail(err, KG_EINVAL, "%s: U+%04lX at byte %ld: %s", what, (unsigned long)cp,
-	               at + 1, why);
-}
-
-int kg_utf8_check(const char *what, const char *s, const char *format, kg_err *err)
-{
-	uint32_t cp;
-	int len;
-	long at = find_bad(s, strlen(s), NULL, NULL, &cp, &len);
-	if (at < 0)
-		return 0;
-	char why[64];
-	snprintf(why, sizeof(why), "%s text is UTF-8", format);
-	return refuse(err, what, at, cp, len, why);
-}
-
-static int not_control(uint32_t cp, void *unused)
-{
-	(void)unused;
-	return cp >= 0x20 && !(cp >= 0x7F && cp <= 0x9F);
-}
-
-int kg_text_check_controls(const char *what, const char *s, kg_err *err)
-{
-	uint32_t cp;
-	int len;
-	long at = find_bad(s, strlen(s), not_control, NULL, &cp, &len);
-	if (at < 0)
-		return 0;
-	return refuse(err, what, at, cp, len,
-	              len ? "expected no control characters (tabs, line breaks and the like)"
-	                  : "expected UTF-8 text");
-}
-
-/* ---- XML ------------------------------------------------------------------------- */
-
-static int xml_char(uint32_t cp, void *unused)
-{
-	(void)unused;
-	return cp >= 0x20 ? cp != 0xFFFE && cp != 0xFFFF : cp == '\t' || cp == '\n' || cp == '\r';
-}
-
-int kg_xml_check(const char *what, const char *s, kg_err *err)
-{
-	uint32_t cp;
-	int len;
-	long at = find_bad(s, strlen(s), xml_char, NULL, &cp, &len);
-	if (at < 0)
-		return 0;
-	return refuse(err, what, at, cp, len,
-	              len ? "XML 1.0 cannot hold it (a control character, U+FFFE or U+FFFF)"
-	                  : "XML text is UTF-8");
-}
-
-void kg_xml_put(FILE *fp, const char *s)
+/* 0 when s is UTF-8 and `ok` (if any) takes each of its characters; else KG_EINVAL
+ * naming the first character it refuses (why_char) or byte that is not UTF-8
+ * (why_byte). */
+static int check_chars(kg_err *err, const char *what, const char *s, int (*ok)(uint32_t),
+                       const char *why_char, const char *why_byte)
 {
 	size_t n = strlen(s);
 	for (size_t i = 0; i < n;) {
 		uint32_t cp;
 		int len = kg_utf8_char(s + i, n - i, &cp);
-		if (len == 0 || !xml_char(cp, NULL)) {
-			fputs(replacement, fp);
-			i += len ? (size_t)len : 1;
-			continue;
-		}
-		switch (cp) {
-		case '&': fputs("&amp;", fp); break;
-		case '<': fputs("&lt;", fp); break;
-		case '>': fputs("&gt;", fp); break;
-		case '"': fputs("&quot;", fp); break;
-		case '\'': fputs("&apos;", fp); break;
-		case '\t': fputs("&#9;", fp); break;
-		case '\n': fputs("&#10;", fp); break;
-		case '\r': fputs("&#13;", fp); break;
-		case '-':
-			fputs(i > 0 && s[i - 1] == '-' ? "&#45;" : i + 1 == n ? "&#45;" : "-", fp);
-			break;
-		default: fwrite(s + i, 1, (size_t)len, fp);
-		}
+		if (len == 0)
+			return kg_fail(err, KG_EINVAL, "%s: byte %zu (0x%02X) is not UTF-8: %s", what,
+			               i + 1, (unsigned)(unsigned char)s[i], why_byte);
+		if (ok && !ok(cp))
+			return kg_fail(err, KG_EINVAL, "%s: U+%04lX at byte %zu: %s", what,
+			               (unsigned long)cp, i + 1, why_char);
 		i += (size_t)len;
 	}
+	return 0;
+}
+
+int kg_utf8_check(const char *what, const char *s, const char *format, kg_err *err)
+{
+	char why[64];
+	snprintf(why, sizeof(why), "%s text is UTF-8", format);
+	return check_chars(err, what, s, NULL, NULL, why);
+}
+
+static int not_control(uint32_t cp)
+{
+	return cp >= 0x20 && !(cp >= 0x7F && cp <= 0x9F);
+}
+
+int kg_text_check_controls(const char *what, const char *s, kg_err *err)
+{
+	return check_chars(err, what, s, not_control,
+	                   "expected no control characters (tabs, line breaks and the like)",
+	                   "expected UTF-8 text");
+}
+
+/* ---- XML ------------------------------------------------------------------------- */
+
+static int xml_char(uint32_t cp)
+{
+	return cp >= 0x20 ? cp != 0xFFFE && cp != 0xFFFF : cp == '\t' || cp == '\n' || cp == '\r';
+}
+
+int kg_xml_check(const char *what, const char *s, kg_err *err)
+{
+	return check_chars(err, what, s, xml_char,
+	                   "XML 1.0 cannot hold it (a control character, U+FFFE or U+FFFF)",
+	                   "XML text is UTF-8");
+}
+
+/* s written with each character `entity` gives a replacement for replaced (a byte
+ * that is not UTF-8: U+FFFD), the runs between written as they are. */
+typedef const char *(*entity_fn)(const char *s, size_t i, size_t n, uint32_t cp);
+
+static void put_escaped(FILE *fp, const char *s, entity_fn entity)
+{
+	if (!s)
+		return;
+	size_t n = strlen(s), run = 0;
+	for (size_t i = 0; i < n;) {
+		uint32_t cp;
+		int len = kg_utf8_char(s + i, n - i, &cp);
+		const char *e = len ? entity(s, i, n, cp) : replacement;
+		if (e) {
+			fwrite(s + run, 1, i - run, fp);
+			fputs(e, fp);
+		}
+		i += len ? (size_t)len : 1;
+		if (e)
+			run = i;
+	}
+	fwrite(s + run, 1, n - run, fp);
+}
+
+static const char *xml_entity(const char *s, size_t i, size_t n, uint32_t cp)
+{
+	if (!xml_char(cp))
+		return replacement;
+	switch (cp) {
+	case '&': return "&amp;";
+	case '<': return "&lt;";
+	case '>': return "&gt;";
+	case '"': return "&quot;";
+	case '\'': return "&apos;";
+	case '\t': return "&#9;";
+	case '\n': return "&#10;";
+	case '\r': return "&#13;";
+	case '-': return (i > 0 && s[i - 1] == '-') || i + 1 == n ? "&#45;" : NULL;
+	default: return NULL;
+	}
+}
+
+void kg_xml_put(FILE *fp, const char *s)
+{
+	put_escaped(fp, s, xml_entity);
 }
 
 /* ---- HTML ------------------------------------------------------------------------ */
 
+static const char *html_entity(const char *s, size_t i, size_t n, uint32_t cp)
+{
+	(void)s, (void)i, (void)n;
+	switch (cp) {
+	case '&': return "&amp;";
+	case '<': return "&lt;";
+	case '>': return "&gt;";
+	case '"': return "&quot;";
+	case '\'': return "&#39;";
+	case '\r': return "&#13;";
+	default: return NULL;
+	}
+}
+
 void kg_html_put(FILE *fp, const char *s)
 {
-	size_t n = s ? strlen(s) : 0;
-	for (size_t i = 0; i < n;) {
-		uint32_t cp;
-		int len = kg_utf8_char(s + i, n - i, &cp);
-		if (len == 0) {
-			fputs(replacement, fp);
-			i++;
-			continue;
-		}
-		switch (cp) {
-		case '&': fputs("&amp;", fp); break;
-		case '<': fputs("&lt;", fp); break;
-		case '>': fputs("&gt;", fp); break;
-		case '"': fputs("&quot;", fp); break;
-		case '\'': fputs("&#39;", fp); break;
-		case '\r': fputs("&#13;", fp); break;
-		default: fwrite(s + i, 1, (size_t)len, fp);
-		}
-		i += (size_t)len;
-	}
+	put_escaped(fp, s, html_entity);
 }
 
 void kg_html_putf(FILE *fp, const char *fmt, ...)
@@ -192,24 +180,22 @@ json_t *kg_json_text(const char *what, const char *s, kg_err *err)
 	return j;
 }
 
+static const char *no_entity(const char *s, size_t i, size_t n, uint32_t cp)
+{
+	(void)s, (void)i, (void)n, (void)cp;
+	return NULL;
+}
+
 json_t *kg_json_message(const char *s)
 {
-	size_t n = strlen(s);
-	char *fixed = malloc(3 * n + 1);
-	if (!fixed)
+	char *text = NULL;
+	size_t len = 0;
+	FILE *f = open_memstream(&text, &len);
+	if (!f)
 		return NULL;
-	size_t o = 0;
-	for (size_t i = 0; i < n;) {
-		uint32_t cp;
-		int len = kg_utf8_char(s + i, n - i, &cp);
-		const char *from = len ? s + i : replacement;
-		size_t k = len ? (size_t)len : 3;
-		memcpy(fixed + o, from, k);
-		o += k;
-		i += len ? (size_t)len : 1;
-	}
-	json_t *j = json_stringn(fixed, o);
-	free(fixed);
+	put_escaped(f, s, no_entity);
+	json_t *j = fclose(f) == 0 ? json_stringn(text, len) : NULL;
+	free(text);
 	return j;
 }
 
@@ -244,6 +230,25 @@ void kg_cgats_put(FILE *fp, const char *s, int quoted)
 	for (const char *p = s; plain && *p; p++)
 		plain = !isspace((unsigned char)*p);
 	fprintf(fp, plain ? "%s" : "\"%s\"", s);
+}
+
+/* ---- CSV ------------------------------------------------------------------------- */
+
+void kg_csv_put(FILE *fp, const char *s)
+{
+	size_t n = strlen(s);
+	if (!strpbrk(s, ",\"\r\n") && !(n && (isspace((unsigned char)s[0]) ||
+	                                      isspace((unsigned char)s[n - 1])))) {
+		fputs(s, fp);
+		return;
+	}
+	fputc('"', fp);
+	for (const char *p = s; *p; p++) {
+		if (*p == '"')
+			fputc('"', fp);
+		fputc(*p, fp);
+	}
+	fputc('"', fp);
 }
 
 /* ---- ENVI ------------------------------------------------------------------------ */

@@ -14,6 +14,7 @@
  *                          kg_cgats_check refuses what CGATS cannot quote.
  *   ENVI header            kg_envi_check: the format has no escapes, so a value
  *                          that would read back otherwise is refused.
+ *   CSV (tables of names)  kg_csv_put (RFC 4180 quoting).
  *   TIFF                   kogei's TIFF files carry no text from input: only
  *                          Software, "kogei VERSION".
  *
@@ -83,6 +84,10 @@ int kg_cgats_check(const char *what, const char *s, kg_err *err);
  * (keyword values) or when it is not one plain word (empty, blanks, '#', a reserved
  * word), else as it is. Read back by kg_cgats_parse as the same text. */
 void kg_cgats_put(FILE *fp, const char *s, int quoted);
+
+/* A CSV field (RFC 4180): between double quotes, each inner one doubled, when it holds
+ * a comma, a double quote, a line break or white space at either end; else as it is. */
+void kg_csv_put(FILE *fp, const char *s);
 
 /* 0 when s can stand in an ENVI header value in braces and read back the same: as an
  * element of a list (`list`: band names, class names) no comma and no line break, and

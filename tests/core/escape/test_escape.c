@@ -1,8 +1,8 @@
 /* Text written into other formats (core/escape.c): UTF-8 decoding; XML and HTML
- * escaping and what XML cannot hold; JSON strings of messages that are not UTF-8;
- * CGATS cells and keyword values and ENVI header names written by kogei's writers and
- * read back by kogei's readers, the same or refused. The written files are parsed by
- * outside parsers in tests/cli/test_hostile_names.sh. */
+ * escaping and what XML cannot hold; CSV quoting; JSON strings of messages that are
+ * not UTF-8; CGATS cells and keyword values and ENVI header names written by kogei's
+ * writers and read back by kogei's readers, the same or refused. The written files
+ * are parsed by outside parsers in tests/formats/test_hostile_names.sh. */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -129,6 +129,17 @@ static void test_html(void)
 	free(got);
 }
 
+static void test_csv(void)
+{
+	const char *fmt = "CSV of '%s': '%s', expected '%s'";
+	check_put(kg_csv_put, fmt, "gold|copper", "gold|copper");
+	check_put(kg_csv_put, fmt, "\"double\" 'single'", "\"\"\"double\"\" 'single'\"");
+	check_put(kg_csv_put, fmt, "a,b", "\"a,b\"");
+	check_put(kg_csv_put, fmt, " lead", "\" lead\"");
+	check_put(kg_csv_put, fmt, "two\nlines", "\"two\nlines\"");
+	check_put(kg_csv_put, fmt, hostile[0], "\"x--><include filename=\"\"/etc/passwd\"\"/><!--\"");
+}
+
 static void test_json(void)
 {
 	json_t *m = kg_json_message("f\xe9: x\xe6\xbc");
@@ -253,6 +264,7 @@ int main(void)
 	test_utf8();
 	test_xml();
 	test_html();
+	test_csv();
 	test_json();
 	test_cgats(dir);
 	test_envi(dir);
