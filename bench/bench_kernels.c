@@ -88,6 +88,7 @@ int main(int argc, char **argv)
 	const char *json_path = NULL;
 	kg_est_isa isa = KG_EST_ISA_AUTO;
 	kg_outfile json = {0};
+	json_t *doc = NULL, *results = NULL;
 	for (int i = 1; i < argc; i++) {
 		if (!strcmp(argv[i], "--mpix") && i + 1 < argc)
 			mpix = atof(argv[++i]);
@@ -212,15 +213,14 @@ int main(int argc, char **argv)
 	if (json_path) {
 		if (kg_outfile_open(&json, json_path, 1, &err) < 0)
 			goto fail;
-		fprintf(json.fp,
-		        "{\n  \"format\": \"kogei-bench-kernels/1\",\n  \"width\": %d,\n  \"height\": %d,\n"
-		        "  \"repetitions\": %d,\n  \"kernels\": \"%s\",\n  \"results\": [",
-		        WIDTH, height, reps, kg_bench_isa_name(isa));
+		doc = json_pack("{s:s, s:i, s:i, s:i, s:s, s:[]}", "format", "kogei-bench-kernels/1",
+		                "width", WIDTH, "height", height, "repetitions", reps, "kernels",
+		                kg_bench_isa_name(isa), "results");
+		results = json_object_get(doc, "results");
 	}
 	printf("| method | output | bytes/px | Mpix/s 1 thr | Mpix/s 2 thr | limit 1 thr | limit 2 "
 	       "thr | of limit 1 thr | of limit 2 thr |\n");
 	printf("|---|---|---:|---:|---:|---:|---:|---:|---:|\n");
-	int first = 1;
 	for (int mi = 0; mi < nmethods; mi++)
 		for (int o = 0; o < nout; o++) {
 			if (only && strcmp(outputs[o].name, only))
@@ -249,18 +249,22 @@ int main(int argc, char **argv)
 			       outputs[o].name, outputs[o].bytes_per_pixel, speed[0], speed[1], limit[0], limit[1],
 			       speed[0] / limit[0], speed[1] / limit[1]);
 			fflush(stdout);
-			if (json_path)
-				fprintf(json.fp,
-				        "%s\n    {\"method\": \"%s\", \"output\": \"%s\", \"bytes_per_pixel\": %zu, "
-				        "\"mpix_s\": [%.3f, %.3f], \"limit_mpix_s\": [%.3f, %.3f], "
-				        "\"fraction_of_limit\": [%.4f, %.4f]}",
-				        first ? "" : ",", methods[mi].name, outputs[o].name,
-				        outputs[o].bytes_per_pixel, speed[0], speed[1], limit[0], limit[1],
-				        speed[0] / limit[0], speed[1] / limit[1]);
-			first = 0;
+			if (results)
+				json_array_append_new(results, json_pack(
+					"{s:s, s:s, s:I, s:[f,f], s:[f,f], s:[f,f]}", "method", methods[mi].name,
+					"output", outputs[o].name, "bytes_per_pixel",
+					(json_int_t)outputs[o].bytes_per_pixel, "mpix_s", speed[0], speed[1],
+					"limit_mpix_s", limit[0], limit[1], "fraction_of_limit",
+					speed[0] / limit[0], speed[1] / limit[1]));
 		}
 	if (json_path) {
-		fprintf(json.fp, "\n  ]\n}\n");
+		if (json_dumpf(doc, json.fp, JSON_INDENT(2) | JSON_REAL_PRECISION(6)) != 0 ||
+		    fputc('\n', json.fp) == EOF) {
+			kg_fail(&err, KG_EIO, "%s: write failed", json_path);
+			goto fail;
+		}
+		json_decref(doc);
+		doc = NULL;
 		if (kg_outfile_commit(&json, &err) < 0)
 			goto fail;
 	}
@@ -276,6 +280,7 @@ int main(int argc, char **argv)
 	return 0;
 fail:
 	fprintf(stderr, "kogei-bench-kernels: %s\n", err.msg);
+	json_decref(doc);
 	if (json.fp)
 		kg_outfile_abort(&json);
 	return 1;

@@ -437,14 +437,16 @@ int kg_cmd_estimate(int argc, char **argv)
 		rc = open_image(image, 3, &img, &src, &err);
 	if (!rc)
 		rc = data_saturation("estimate", image, &src, &opt, quiet, &err);
+	/* the header's description names the calibration, whose path must fit in it */
+	char *desc = NULL;
+	if (!rc && asprintf(&desc, "kogei estimate: %s, method %s%s, calibration %s", format,
+	                    lut ? "lut of " : "",
+	                    kg_method_name(m == KG_METHOD_AUTO ? cam->method : m), calib) < 0)
+		rc = kg_fail(&err, KG_ENOMEM, "out of memory"), desc = NULL;
+	if (!rc)
+		rc = kg_envi_check("--calib: its path, written into the output header's description",
+		                   desc, 0, &err);
 	if (!rc) {
-		char desc[256];
-		snprintf(desc, sizeof(desc), "kogei estimate: %s, method %s%s, calibration %s",
-		         format, lut ? "lut of " : "",
-		         kg_method_name(m == KG_METHOD_AUTO ? cam->method : m), calib);
-		for (char *p = desc; *p; p++)
-			if (*p == '{' || *p == '}')
-				*p = '_';
 		opt.description = desc;
 		opt.pre = pre_needed ? pre : NULL;
 		opt.progress = quiet ? NULL : stderr;
@@ -462,6 +464,7 @@ int kg_cmd_estimate(int argc, char **argv)
 			       format, fmt == KG_EST_WEIGHTS ? "bip" : interleave, mask);
 		free(mask);
 	}
+	free(desc);
 	kg_est_kernel_free(&k);
 	kg_image_rows_free(&img);
 	free_demosaiced();

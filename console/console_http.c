@@ -69,7 +69,7 @@ static enum MHD_Result send_error(struct MHD_Connection *conn, unsigned status,
 	va_start(ap, fmt);
 	vsnprintf(msg, sizeof(msg), fmt, ap);
 	va_end(ap);
-	return send_json(conn, status, json_pack("{s:s}", "error", msg));
+	return send_json(conn, status, json_pack("{s:o}", "error", kg_json_message(msg)));
 }
 
 /* ---- files ---------------------------------------------------------------------- */

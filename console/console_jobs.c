@@ -22,7 +22,7 @@ void console_log(console *c, const char *fmt, ...)
 	va_start(ap, fmt);
 	vsnprintf(line, sizeof(line), fmt, ap);
 	va_end(ap);
-	json_array_append_new(c->job_log, json_string(line));
+	json_array_append_new(c->job_log, kg_json_message(line));
 	while (json_array_size(c->job_log) > LOG_MAX)
 		json_array_remove(c->job_log, 0);
 }

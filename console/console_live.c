@@ -1007,7 +1007,8 @@ json_t *console_live_json(console *c, uint64_t after)
 	}
 	json_t *j = c->live ? json_deep_copy(c->live) : json_object();
 	json_object_set_new(j, "paused", json_boolean(c->camera_owned));
-	json_object_set_new(j, "error", c->live_error[0] ? json_string(c->live_error) : json_null());
+	json_object_set_new(j, "error",
+	                    c->live_error[0] ? kg_json_message(c->live_error) : json_null());
 	pthread_mutex_unlock(&c->lock);
 	return j;
 }
@@ -1166,7 +1167,7 @@ json_t *console_chart_check(console *c)
 	                 : kg_fail(&err, KG_EINVAL, "no camera");
 	pthread_mutex_unlock(&c->cam_lock);
 	if (ret)
-		return json_pack("{s:b, s:s}", "go", 0, "error", err.msg);
+		return json_pack("{s:b, s:o}", "go", 0, "error", kg_json_message(err.msg));
 	kg_chart_detect_options opt;
 	kg_chart_detect_options_default(&opt);
 	kg_chart_result *r = NULL;
@@ -1179,7 +1180,7 @@ json_t *console_chart_check(console *c)
 	if (ret) {
 		json_object_set_new(j, "go", json_false());
 		json_object_set_new(j, "found", json_false());
-		json_object_set_new(j, "error", json_string(err.msg));
+		json_object_set_new(j, "error", kg_json_message(err.msg));
 		json_object_set_new(j, "reasons", json_pack("[s]", "the chart was not found"));
 		return j;
 	}
@@ -1206,11 +1207,11 @@ json_t *console_chart_check(console *c)
 		if (p->flags & hard) {
 			char why[320];
 			snprintf(why, sizeof(why), "patch %s: %s", p->id, p->warning);
-			json_array_append_new(reasons, json_string(why));
+			json_array_append_new(reasons, kg_json_message(why));
 		}
 	}
 	for (int i = 0; i < r->nwarnings; i++)
-		json_array_append_new(warnings, json_string(r->warnings[i]));
+		json_array_append_new(warnings, kg_json_message(r->warnings[i]));
 	int go = nbad == 0;
 	json_object_set_new(j, "found", json_true());
 	json_object_set_new(j, "go", json_boolean(go));

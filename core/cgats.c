@@ -8,6 +8,7 @@
 #include <strings.h>
 
 #include "cgats.h"
+#include "escape.h"
 #include "fsutil.h"
 #include "text.h"
 
@@ -355,17 +356,6 @@ typedef struct parser {
 	int data_line; /* line of BEGIN_DATA */
 } parser;
 
-static int is_structure_word(const char *s)
-{
-	static const char *const words[] = { "BEGIN_DATA_FORMAT", "END_DATA_FORMAT",
-		                                 "BEGIN_DATA", "END_DATA", "NUMBER_OF_FIELDS",
-		                                 "NUMBER_OF_SETS", "KEYWORD" };
-	for (size_t i = 0; i < sizeof(words) / sizeof(words[0]); i++)
-		if (strcmp(s, words[i]) == 0)
-			return 1;
-	return 0;
-}
-
 static int parse_count(const char *text, int max, int *out)
 {
 	double v;
@@ -392,7 +382,7 @@ static int format_line(parser *ps, tokens *tk, int lineno, kg_err *err)
 			ps->format_done = 1;
 			return 0;
 		}
-		if (is_structure_word(w))
+		if (kg_cgats_reserved(w))
 			return kg_fail(err, KG_EINVAL, "%s: line %d: %s inside the field list: "
 			               "expected END_DATA_FORMAT first", ps->path, lineno, w);
 		if (ps->t->nfields >= MAX_FIELDS)
@@ -525,7 +515,7 @@ static int parse_line(parser *ps, tokens *tk, int lineno, kg_err *err)
 		return 0;
 	switch (ps->state) {
 	case EXPECT_TYPE:
-		if (tk->n != 1 || is_structure_word(tk->tok[0]))
+		if (tk->n != 1 || kg_cgats_reserved(tk->tok[0]))
 			return kg_fail(err, KG_EINVAL, "%s: line %d: expected a file-type identifier "
 			               "line (e.g. CGATS.17, CTI3, SPECT), found '%.40s'", ps->path,
 			               lineno, tk->tok[0]);
@@ -909,12 +899,6 @@ int kg_cgats_new(const char *type, kg_cgats **out, kg_err *err)
 	return 0;
 }
 
-/* Text that can stand in a CGATS file between quotes. */
-static int writable_text(const char *s)
-{
-	return !strpbrk(s, "\"\r\n");
-}
-
 int kg_cgats_add_table(kg_cgats *cg, const char *type, kg_cgats_table **out,
                        kg_err *err)
 {
@@ -925,7 +909,7 @@ int kg_cgats_add_table(kg_cgats *cg, const char *type, kg_cgats_table **out,
 		if (isspace((unsigned char)*p) || *p == '"' || *p == '#')
 			return kg_fail(err, KG_EINVAL, "table type '%.40s': expected one word such as "
 			               "CGATS.17", type);
-	if (!*type || is_structure_word(type))
+	if (!*type || kg_cgats_reserved(type))
 		return kg_fail(err, KG_EINVAL, "table type '%.40s': expected one word such as "
 		               "CGATS.17", type);
 	kg_cgats_table *t = cgats_push_table(cg, type, 0);
@@ -944,7 +928,7 @@ static int check_name(const char *what, const char *name, kg_err *err)
 		if (isspace((unsigned char)*p) || *p == '"' || *p == '#')
 			return kg_fail(err, KG_EINVAL, "%s name '%.40s': expected a word without "
 			               "blanks, quotes or '#'", what, name);
-	if (is_structure_word(name))
+	if (kg_cgats_reserved(name))
 		return kg_fail(err, KG_EINVAL, "%s name %s: reserved by CGATS", what, name);
 	return 0;
 }
@@ -956,9 +940,10 @@ int kg_cgats_set_keyword(kg_cgats_table *t, const char *name, const char *value,
 	int r = check_name("keyword", name, err);
 	if (r != 0)
 		return r;
-	if (!writable_text(value))
-		return kg_fail(err, KG_EINVAL, "keyword %s: value may not contain '\"' or a line "
-		               "break", name);
+	char what[96];
+	snprintf(what, sizeof(what), "keyword %s: value", name);
+	if ((r = kg_cgats_check(what, value, err)) != 0)
+		return r;
 	for (int i = 0; i < t->nkeywords; i++)
 		if (strcmp(t->keywords[i].name, name) == 0) {
 			char *v = strdup(value);
@@ -1128,11 +1113,12 @@ static int standard_field(const char *name)
 	return 0;
 }
 
-/* A cell goes unquoted when it is one plain word, else between quotes. */
-static void write_cell(FILE *fp, const char *s)
+/* The declaration of a keyword or field CGATS.17 does not predefine. */
+static void put_keyword_line(FILE *fp, const char *name)
 {
-	int plain = *s && !strpbrk(s, " \t\v\f#") && !is_structure_word(s);
-	fprintf(fp, plain ? "%s" : "\"%s\"", s);
+	fputs("KEYWORD ", fp);
+	kg_cgats_put(fp, name, 1);
+	fputc('\n', fp);
 }
 
 static int write_table(FILE *fp, const kg_cgats_table *t, const char *path, int index,
@@ -1140,27 +1126,32 @@ static int write_table(FILE *fp, const kg_cgats_table *t, const char *path, int 
 {
 	if (t->nfields == 0)
 		return kg_fail(err, KG_EINVAL, "%s: table %d has no fields", path, index + 1);
-	for (int i = 0; i < t->nkeywords; i++)
-		if (!writable_text(t->keywords[i].value))
-			return kg_fail(err, KG_EINVAL, "%s: keyword %s: value cannot be written",
-			               path, t->keywords[i].name);
+	char what[256];
+	for (int i = 0; i < t->nkeywords; i++) {
+		snprintf(what, sizeof(what), "%s: keyword %s: value", path, t->keywords[i].name);
+		if (kg_cgats_check(what, t->keywords[i].value, err))
+			return KG_EINVAL;
+	}
 	size_t ncells = (size_t)t->nsets * (size_t)t->nfields;
-	for (size_t i = 0; i < ncells; i++)
-		if (!writable_text(t->cells[i]))
-			return kg_fail(err, KG_EINVAL, "%s: set %zu: field %s: text containing '\"' "
-			               "or a line break cannot be written", path,
-			               i / (size_t)t->nfields + 1, t->fields[i % (size_t)t->nfields]);
+	for (size_t i = 0; i < ncells; i++) {
+		snprintf(what, sizeof(what), "%s: set %zu: field %s", path, i / (size_t)t->nfields + 1,
+		         t->fields[i % (size_t)t->nfields]);
+		if (kg_cgats_check(what, t->cells[i], err))
+			return KG_EINVAL;
+	}
 
 	fprintf(fp, "%s\n\n", t->type);
 	for (int i = 0; i < t->nkeywords; i++) {
 		const kg_cgats_kw *kw = &t->keywords[i];
 		if (!standard_keyword(kw->name))
-			fprintf(fp, "KEYWORD \"%s\"\n", kw->name);
-		fprintf(fp, "%s \"%s\"\n", kw->name, kw->value);
+			put_keyword_line(fp, kw->name);
+		fprintf(fp, "%s ", kw->name);
+		kg_cgats_put(fp, kw->value, 1);
+		fputc('\n', fp);
 	}
 	for (int i = 0; i < t->nfields; i++)
 		if (!standard_field(t->fields[i]))
-			fprintf(fp, "KEYWORD \"%s\"\n", t->fields[i]);
+			put_keyword_line(fp, t->fields[i]);
 	fprintf(fp, "\nNUMBER_OF_FIELDS %d\nBEGIN_DATA_FORMAT\n", t->nfields);
 	for (int i = 0; i < t->nfields; i++)
 		fprintf(fp, "%s%s", i ? "\t" : "", t->fields[i]);
@@ -1169,7 +1160,7 @@ static int write_table(FILE *fp, const kg_cgats_table *t, const char *path, int 
 		for (int i = 0; i < t->nfields; i++) {
 			if (i)
 				fputc('\t', fp);
-			write_cell(fp, t->cells[(size_t)s * (size_t)t->nfields + (size_t)i]);
+			kg_cgats_put(fp, t->cells[(size_t)s * (size_t)t->nfields + (size_t)i], 0);
 		}
 		fputc('\n', fp);
 	}

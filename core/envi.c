@@ -12,6 +12,7 @@
 #include <unistd.h>
 
 #include "envi.h"
+#include "escape.h"
 #include "fsutil.h"
 #include "plot.h"
 
@@ -126,17 +127,17 @@ int kg_envi_format_list(const double *v, int n, char **out, kg_err *err)
 	return 0;
 }
 
-/* Text that must fit in a header list element or description. */
-static int check_text(const char *what, const char *s, const char *forbidden, kg_err *err)
+/* A description (list 0) or the element i of a list (band or class names). */
+static int check_text(const char *what, int i, const char *s, int list, kg_err *err)
 {
+	char label[128];
+	if (list)
+		snprintf(label, sizeof(label), "ENVI header: %s %d '%.40s'", what, i + 1, s ? s : "");
+	else
+		snprintf(label, sizeof(label), "ENVI header: %s", what);
 	if (!s)
-		return kg_fail(err, KG_EINVAL, "ENVI header: %s is missing", what);
-	const char *bad = strpbrk(s, forbidden);
-	if (bad)
-		return kg_fail(err, KG_EINVAL,
-		               "ENVI header: %s \"%s\" contains '%s': not representable in a header",
-		               what, s, *bad == '\n' ? "\\n" : (char[]){*bad, 0});
-	return 0;
+		return kg_fail(err, KG_EINVAL, "%s is missing", label);
+	return kg_envi_check(label, s, list, err);
 }
 
 static const char *const known_keys[] = {
@@ -199,7 +200,7 @@ static int render_header(const kg_envi_meta *m, char **text, kg_err *err)
 		return kg_fail(err, KG_EINVAL, "ENVI header: scale factor %g: expected a positive number "
 		               "or 0 for none", m->scale);
 	int ret;
-	if (m->description && (ret = check_text("description", m->description, "{}", err)))
+	if (m->description && (ret = check_text("description", 0, m->description, 0, err)))
 		return ret;
 	if (m->wavelength)
 		for (int b = 0; b < m->bands; b++)
@@ -208,7 +209,7 @@ static int render_header(const kg_envi_meta *m, char **text, kg_err *err)
 				               "numbers", b, m->wavelength[b]);
 	if (m->band_names)
 		for (int b = 0; b < m->bands; b++)
-			if ((ret = check_text("band name", m->band_names[b], ",{}\n", err)))
+			if ((ret = check_text("band name", b, m->band_names[b], 1, err)))
 				return ret;
 	if (m->classes < 0)
 		return kg_fail(err, KG_EINVAL, "ENVI header: %d classes: expected 0 or more", m->classes);
@@ -225,7 +226,7 @@ static int render_header(const kg_envi_meta *m, char **text, kg_err *err)
 		if (!m->class_names)
 			return kg_fail(err, KG_EINVAL, "ENVI classification: class names are missing");
 		for (int c = 0; c < m->classes; c++)
-			if ((ret = check_text("class name", m->class_names[c], ",{}\n", err)))
+			if ((ret = check_text("class name", c, m->class_names[c], 1, err)))
 				return ret;
 	}
 	if (m->n_extra < 0 || (m->n_extra > 0 && !m->extra))

@@ -23,5 +23,6 @@
 #include "meta.h"
 #include "mapfile.h"
 #include "icc.h"
+#include "escape.h"
 
 #endif

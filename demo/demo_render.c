@@ -72,27 +72,25 @@ static int write_sky(const char *path, kg_err *err)
 
 static int write_scene(const char *path, kg_err *err)
 {
-	kg_outfile o;
-	int ret = kg_outfile_open(&o, path, 0, err);
-	if (ret)
-		return ret;
-	fprintf(o.fp,
-	        "{\n"
-	        "  \"format\": \"kogei-scene/1\",\n"
-	        "  \"note\": \"Written by kogei demo: the demo object (a tsuba) in one material "
-	        "under a studio environment (render_sky.tif) and a D65 light. Try: kogei render "
-	        "--scene render_scene.json --material copper -o copper.png\",\n"
-	        "  \"mesh\": {\"generator\": \"tsuba\", \"segments\": 192},\n"
-	        "  \"materials\": {\"material\": \"%s\"},\n"
-	        "  \"light\": {\"illuminant\": \"D65\", \"direction\": [-0.6, -1, 1.6], "
-	        "\"intensity\": 1.2},\n"
-	        "  \"environment\": {\"illuminant\": \"D65\", \"image\": \"render_sky.tif\", "
-	        "\"intensity\": 0.6},\n"
-	        "  \"camera\": {\"position\": [0, -2.2, 1.85], \"look_at\": [0, 0, -0.05], "
-	        "\"fov_deg\": 36, \"width\": %d, \"height\": %d},\n"
-	        "  \"sampling\": {\"spp\": %d, \"wavelengths\": 4, \"bounces\": 4, \"seed\": 1}\n"
-	        "}\n", fig13[0], TILE_W, TILE_H, TILE_SPP);
-	return kg_outfile_commit(&o, err);
+	json_t *scene = json_pack(
+		"{s:s, s:s, s:{s:s, s:i}, s:{s:s}, s:{s:s, s:[f,f,f], s:f}, s:{s:s, s:s, s:f}, "
+		"s:{s:[f,f,f], s:[f,f,f], s:f, s:i, s:i}, s:{s:i, s:i, s:i, s:i}}",
+		"format", "kogei-scene/1",
+		"note", "Written by kogei demo: the demo object (a tsuba) in one material under a "
+		        "studio environment (render_sky.tif) and a D65 light. Try: kogei render "
+		        "--scene render_scene.json --material copper -o copper.png",
+		"mesh", "generator", "tsuba", "segments", 192,
+		"materials", "material", fig13[0],
+		"light", "illuminant", "D65", "direction", -0.6, -1.0, 1.6, "intensity", 1.2,
+		"environment", "illuminant", "D65", "image", "render_sky.tif", "intensity", 0.6,
+		"camera", "position", 0.0, -2.2, 1.85, "look_at", 0.0, 0.0, -0.05, "fov_deg", 36.0,
+		"width", TILE_W, "height", TILE_H,
+		"sampling", "spp", TILE_SPP, "wavelengths", 4, "bounces", 4, "seed", 1);
+	if (!scene)
+		return kg_fail(err, KG_ENOMEM, "%s: out of memory", path);
+	int ret = kg_json_write(scene, path, err);
+	json_decref(scene);
+	return ret;
 }
 
 static cairo_status_t write_stream(void *closure, const unsigned char *data,

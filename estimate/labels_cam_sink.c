@@ -162,8 +162,11 @@ int lc_write_region_table(const regions *g, const kg_est_material_set *set,
 		region_decision d = lc_decide(g, id, group, classes->n);
 		double c[6];
 		lc_region_composition(g, id, gold_range, c);
-		fprintf(of.fp, "%u,%llu,%s,%s,%.6g,%.6g", f, (unsigned long long)g->count[id],
-		        classes->names[d.cls], lc_region_label(&d, set, classes), d.posterior, d.d2_mean);
+		fprintf(of.fp, "%u,%llu,", f, (unsigned long long)g->count[id]);
+		kg_csv_put(of.fp, classes->names[d.cls]);
+		fputc(',', of.fp);
+		kg_csv_put(of.fp, lc_region_label(&d, set, classes));
+		fprintf(of.fp, ",%.6g,%.6g", d.posterior, d.d2_mean);
 		for (int q = 0; q < 6; q++)
 			isfinite(c[q]) ? fprintf(of.fp, ",%.4f", c[q]) : fprintf(of.fp, ",");
 		fprintf(of.fp, "\n");

@@ -43,12 +43,30 @@ static int check_nk(const char *name, const char *field, const kg_nk *nk, int di
 	return 0;
 }
 
+/* A name reaches files of every format, messages on a terminal, lists of names (--only
+ * a,b,c), compound classes (a|b) and the class names of label maps (an ENVI header
+ * list): no control characters, and nothing a label map's header could not hold. */
+static int check_name(const char *what, const char *name, kg_err *err)
+{
+	int ret = kg_text_check_controls(what, name, err);
+	if (!ret)
+		ret = kg_envi_check(what, name, 1, err);
+	const char *bar = strchr(name, '|');
+	if (!ret && bar)
+		ret = kg_fail(err, KG_EINVAL, "%s: byte %ld: '|' joins the names of a compound "
+		              "class (a|b): expected a name without it", what, (long)(bar - name) + 1);
+	return ret;
+}
+
 int kg_material_validate(const kg_material *mat, kg_err *err)
 {
 	kg_check_arg(mat, err);
 	if (!memchr(mat->name, '\0', sizeof(mat->name)) || !mat->name[0])
 		return kg_fail(err, KG_EINVAL, "material: field name: expected 1 to %d characters",
 		               KG_MATERIAL_NAME_MAX - 1);
+	int ret = check_name("material: field name", mat->name, err);
+	if (ret)
+		return ret;
 	const char *name = mat->name;
 	if (!(mat->roughness > 0.0) || !isfinite(mat->roughness))
 		return kg_fail(err, KG_EINVAL, "material '%s': field roughness = %g: expected a "
@@ -479,6 +497,10 @@ static int parse_common(const char *file, int i, const json_t *entry,
 	if (!name[0] || strlen(name) >= KG_MATERIAL_NAME_MAX)
 		return kg_fail(err, KG_EINVAL, "%s: field name: expected 1 to %d characters", label,
 		               KG_MATERIAL_NAME_MAX - 1);
+	char what[KG_MATERIAL_NAME_MAX + 1100];
+	snprintf(what, sizeof(what), "%s: field name", label);
+	if ((r = check_name(what, name, err)) != 0)
+		return r;
 	for (int j = 0; j < i; j++)
 		if (strcmp(lib->m[j].name, name) == 0)
 			return kg_fail(err, KG_EINVAL, "%s: field name: '%s' is already used by "

@@ -121,37 +121,39 @@ static int write_bytes(const char *path, const unsigned char *buf, size_t len, k
 }
 
 /* ArgyllCMS's colprof input: CGATS CTI3 (COLOR_REP XYZ_RGB as its scanin writes for
- * an input device), device RGB and XYZ both 0..100. */
+ * an input device), device RGB and XYZ both 0..100; the ids as CGATS writes text
+ * (kg_cgats_put). */
 static int write_ti3(const char *path, char **ids, const double (*rgb)[3],
                      const double (*xyz)[3], int n, double scale, kg_err *err)
 {
-	kg_outfile o;
-	int ret = kg_outfile_open(&o, path, 0, err);
-	if (ret)
-		return ret;
-	FILE *f = o.fp;
-	fprintf(f, "CTI3\n\nDESCRIPTOR \"Argyll Calibration Target chart information 3\"\n"
-	        "ORIGINATOR \"kogei " KG_VERSION "\"\n"
-	        "KEYWORD \"DEVICE_CLASS\"\nDEVICE_CLASS \"INPUT\"\n"
-	        "KEYWORD \"COLOR_REP\"\nCOLOR_REP \"XYZ_RGB\"\n"
-	        "KEYWORD \"KOGEI_RGB_SCALE\"\nKOGEI_RGB_SCALE \"%.9g\"\n"
-	        "KEYWORD \"KOGEI_ILLUMINANT\"\nKOGEI_ILLUMINANT \"D50\"\n\n"
-	        "NUMBER_OF_FIELDS 7\nBEGIN_DATA_FORMAT\n"
-	        "SAMPLE_ID RGB_R RGB_G RGB_B XYZ_X XYZ_Y XYZ_Z\nEND_DATA_FORMAT\n\n"
-	        "NUMBER_OF_SETS %d\nBEGIN_DATA\n", scale, n);
-	for (int i = 0; i < n; i++) {
-		fputc('"', f);
-		for (const char *c = ids[i]; *c; c++)
-			fputc(*c == '"' || *c == ' ' ? '_' : *c, f);
-		fprintf(f, "\" %.6f %.6f %.6f %.6f %.6f %.6f\n", 100 * rgb[i][0], 100 * rgb[i][1],
-		        100 * rgb[i][2], 100 * xyz[i][0], 100 * xyz[i][1], 100 * xyz[i][2]);
+	static const char *const fields[7] = {"SAMPLE_ID", "RGB_R", "RGB_G", "RGB_B",
+	                                      "XYZ_X",     "XYZ_Y", "XYZ_Z"};
+	static const char *const keywords[][2] = {
+		{"DESCRIPTOR", "Argyll Calibration Target chart information 3"},
+		{"ORIGINATOR", "kogei " KG_VERSION},
+		{"DEVICE_CLASS", "INPUT"},
+		{"COLOR_REP", "XYZ_RGB"},
+	};
+	kg_cgats *cg = NULL;
+	int ret = kg_cgats_new("CTI3", &cg, err);
+	kg_cgats_table *t = ret ? NULL : cg->tables[0];
+	for (size_t k = 0; !ret && k < sizeof(keywords) / sizeof(keywords[0]); k++)
+		ret = kg_cgats_set_keyword(t, keywords[k][0], keywords[k][1], err);
+	if (!ret)
+		ret = kg_cgats_set_keyword_number(t, "KOGEI_RGB_SCALE", scale, err);
+	if (!ret)
+		ret = kg_cgats_set_keyword(t, "KOGEI_ILLUMINANT", "D50", err);
+	if (!ret)
+		ret = kg_cgats_set_fields(t, fields, 7, err);
+	for (int i = 0; !ret && i < n; i++) {
+		double v[6] = {100 * rgb[i][0], 100 * rgb[i][1], 100 * rgb[i][2],
+		               100 * xyz[i][0], 100 * xyz[i][1], 100 * xyz[i][2]};
+		ret = kg_cgats_add_row_numbers(t, ids[i], v, 6, err);
 	}
-	fprintf(f, "END_DATA\n");
-	if (ferror(f)) {
-		kg_outfile_abort(&o);
-		return kg_fail_write(err, errno, path, "cannot write");
-	}
-	return kg_outfile_commit(&o, err);
+	if (!ret)
+		ret = kg_cgats_write(cg, path, err);
+	kg_cgats_free(&cg);
+	return ret;
 }
 
 int proc_camera_icc(proc *p, const kg_patchset *measured)

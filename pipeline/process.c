@@ -49,9 +49,9 @@ void proc_warn(proc *p, json_t *list, const char *fmt, ...)
 	va_start(ap, fmt);
 	vsnprintf(msg, sizeof(msg), fmt, ap);
 	va_end(ap);
-	json_array_append_new(list ? list : p->warnings, json_string(msg));
+	json_array_append_new(list ? list : p->warnings, kg_json_message(msg));
 	if (list && list != p->warnings)
-		json_array_append_new(p->warnings, json_string(msg));
+		json_array_append_new(p->warnings, kg_json_message(msg));
 	if (p->o->progress)
 		fprintf(p->o->progress, "kogei process: warning: %s\n", msg);
 }

@@ -172,8 +172,8 @@ static const double *spectrum(report *r, double out[KG_NBANDS], const char *fmt,
 
 /* ---- HTML pieces ------------------------------------------------------------------ */
 
-#define text(r, s) report_put_text((r)->fp, (s))
-#define textf(r, ...) report_put_textf((r)->fp, __VA_ARGS__)
+#define text(r, s) kg_html_put((r)->fp, (s))
+#define textf(r, ...) kg_html_putf((r)->fp, __VA_ARGS__)
 
 static void html(report *r, const char *fmt, ...) KG_PRINTF(2, 3);
 static void html(report *r, const char *fmt, ...)
@@ -261,12 +261,13 @@ static void num_row(report *r, const char *key, double v, int digits, const char
 static void rowf(report *r, const char *key, const char *fmt, ...) KG_PRINTF(3, 4);
 static void rowf(report *r, const char *key, const char *fmt, ...)
 {
-	char buf[1024];
+	char *buf = NULL;
 	va_list ap;
 	va_start(ap, fmt);
-	vsnprintf(buf, sizeof(buf), fmt, ap);
+	int n = vasprintf(&buf, fmt, ap);
 	va_end(ap);
-	row(r, key, buf);
+	row(r, key, n >= 0 ? buf : "(out of memory)");
+	free(buf);
 }
 
 /* A path process.json names is read only inside OUTDIR: relative, no "..", no

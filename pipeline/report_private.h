@@ -1,5 +1,5 @@
 /* Inside pipeline/: the pieces of the report (report.c) kept in their own files:
- * HTML text and images (report_html.c) and figures (report_figures.c). */
+ * images (report_html.c; text goes through core's kg_html_put) and figures (report_figures.c). */
 #ifndef KG_REPORT_PRIVATE_H
 #define KG_REPORT_PRIVATE_H
 
@@ -12,13 +12,8 @@
  * run staged it, else from outdir (process_outdir.c). */
 int report_write_staged(const char *outdir, const char *stage, kg_err *err);
 
-/* Text with & < > " ' replaced by entities: safe in element content and in quoted
- * attribute values. NULL writes nothing. */
-void report_put_text(FILE *fp, const char *s);
-/* printf, then the result escaped as by report_put_text. */
-void report_put_textf(FILE *fp, const char *fmt, ...) KG_PRINTF(2, 3);
 /* A PNG held in memory as <img src="data:image/png;base64,..."> with its size from
- * the PNG header and the alt text (escaped). Bytes that are not a PNG are KG_EINVAL
+ * the PNG header and the alt text (kg_html_put). Bytes that are not a PNG are KG_EINVAL
  * naming `what`. */
 int report_put_png(FILE *fp, const unsigned char *png, size_t len, const char *alt,
                    const char *cls, const char *what, kg_err *err);

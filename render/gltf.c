@@ -168,15 +168,22 @@ static int add_library_material(doc *g, const kg_material *m, kg_err *err)
 	int ret = kg_gltf_material_pbr(m, &pbr, err);
 	if (ret)
 		return ret;
-	json_t *extras = json_pack("{s:s, s:s, s:f, s:f, s:f, s:f, s:f, s:b}", "kogei_material",
-	                           m->name, "kind", kind_name(m->kind), "gloss", m->gloss,
+	char what[KG_MATERIAL_NAME_MAX + 64];
+	snprintf(what, sizeof(what), "material '%s': name", m->name);
+	json_t *name = kg_json_text(what, m->name, err);
+	if (!name)
+		return KG_EINVAL;
+	json_t *extras = json_pack("{s:O, s:s, s:f, s:f, s:f, s:f, s:f, s:b}", "kogei_material",
+	                           name, "kind", kind_name(m->kind), "gloss", m->gloss,
 	                           "mirror", m->mirror, "beckmann_slope", m->roughness,
 	                           "mirror_width_rad", m->mirror_width, "alpha", pbr.alpha,
 	                           "base_color_clipped", pbr.clipped);
-	json_t *mat = json_pack("{s:s, s:{s:o, s:f, s:f}, s:o}", "name", m->name,
+	json_t *mat = json_pack("{s:o, s:{s:o, s:f, s:f}, s:o}", "name", name,
 	                        "pbrMetallicRoughness", "baseColorFactor", rgba(pbr.base_color),
 	                        "metallicFactor", pbr.metallic, "roughnessFactor", pbr.roughness,
 	                        "extras", extras);
+	if (!mat)
+		return kg_fail(err, KG_ENOMEM, "out of memory");
 	if (m->kind == KG_MATERIAL_DIELECTRIC) {
 		json_object_set_new(mat, "extensions",
 		                    json_pack("{s:{s:f}, s:{s:f}}", "KHR_materials_ior", "ior", pbr.ior,
@@ -536,6 +543,38 @@ static int read_png(const char *path, char **data, size_t *len, int *w, int *h, 
 	return 0;
 }
 
+/* asset.extras.kogei: where the scene came from (paths, names), each checked to be
+ * UTF-8 as JSON text must be. */
+static int asset_extras_new(const kg_scene *s, const kg_gltf_options *opt, const char *path,
+                            json_t **out, kg_err *err)
+{
+	const char *keys[5] = {"scene", "library", "white", "source", "illuminant"};
+	const char *vals[5] = {s->path, s->library_path, s->white_name,
+	                       opt->source ? opt->source : "", s->env_illuminant};
+	json_t *k = json_object(), *text[5] = {NULL};
+	int ret = k ? 0 : kg_fail(err, KG_ENOMEM, "out of memory");
+	for (int i = 0; !ret && i < (s->has_env ? 5 : 4); i++) {
+		char what[512];
+		snprintf(what, sizeof(what), "%s: asset.extras.kogei.%s%s", path,
+		         i == 4 ? "environment." : "", keys[i]);
+		if (!(text[i] = kg_json_text(what, vals[i], err)))
+			ret = KG_EINVAL;
+	}
+	for (int i = 0; !ret && i < 4; i++)
+		json_object_set_new(k, keys[i], text[i]);
+	if (!ret && s->has_env)
+		json_object_set_new(k, "environment", json_pack("{s:o, s:f}", "illuminant", text[4],
+		                                                "intensity", s->env_intensity));
+	if (ret) {
+		for (int i = 0; i < 5; i++)
+			json_decref(text[i]);
+		json_decref(k);
+		return ret;
+	}
+	*out = json_pack("{s:o}", "kogei", k);
+	return *out ? 0 : kg_fail(err, KG_ENOMEM, "out of memory");
+}
+
 int kg_gltf_write(const kg_scene *s, const kg_gltf_options *opt, const char *path,
                   kg_err *err)
 {
@@ -690,13 +729,9 @@ int kg_gltf_write(const kg_scene *s, const kg_gltf_options *opt, const char *pat
 	json_t *scene_nodes = json_array();
 	for (size_t i = 0; i < json_array_size(g.nodes); i++)
 		json_array_append_new(scene_nodes, json_integer((json_int_t)i));
-	json_t *asset_extras = json_pack("{s:{s:s, s:s, s:s, s:s}}", "kogei", "scene", s->path,
-	                                 "library", s->library_path, "white", s->white_name,
-	                                 "source", opt->source ? opt->source : "");
-	if (s->has_env)
-		json_object_set_new(json_object_get(asset_extras, "kogei"), "environment",
-		                    json_pack("{s:s, s:f}", "illuminant", s->env_illuminant,
-		                              "intensity", s->env_intensity));
+	json_t *asset_extras = NULL;
+	if ((ret = asset_extras_new(s, opt, path, &asset_extras, err)))
+		goto done;
 	json_object_set_new(g.root, "asset",
 	                    json_pack("{s:s, s:s, s:o}", "version", "2.0", "generator",
 	                              "kogei " KG_VERSION, "extras", asset_extras));

@@ -59,6 +59,15 @@ static void indent(FILE *fp, int depth)
 		fputs("    ", fp);
 }
 
+/* <bsdf type="TYPE" id="ID"> on its own line. */
+static void bsdf_open(FILE *fp, int depth, const char *type, const char *id)
+{
+	indent(fp, depth);
+	fprintf(fp, "<bsdf type=\"%s\" id=\"", type);
+	kg_xml_put(fp, id);
+	fputs("\">\n", fp);
+}
+
 /* A spectrum on the grid; hold: extend to Mitsuba's range with the end values. */
 static void spectrum_values(FILE *fp, int depth, const char *name, const double *v, int hold)
 {
@@ -102,10 +111,8 @@ static void emitter_values(const kg_scene *s, FILE *fp, int depth, const char *n
 static void lobe(FILE *fp, int depth, const char *id, const kg_material *m, const kg_nk *nk,
                  double alpha, double scale)
 {
-	indent(fp, depth);
 	int dielectric = m->kind == KG_MATERIAL_DIELECTRIC;
-	fprintf(fp, "<bsdf type=\"%s\" id=\"%s\">\n", dielectric ? "roughplastic" : "roughconductor",
-	        id);
+	bsdf_open(fp, depth, dielectric ? "roughplastic" : "roughconductor", id);
 	indent(fp, depth + 1);
 	fputs("<string name=\"distribution\" value=\"beckmann\"/>\n", fp);
 	indent(fp, depth + 1);
@@ -141,8 +148,7 @@ static void surface(FILE *fp, int depth, const char *id, const kg_material *m, c
 		lobe(fp, depth, gloss ? a : b, m, nk, gloss ? m->roughness : 0.5 * m->mirror_width, sum);
 		return;
 	}
-	indent(fp, depth);
-	fprintf(fp, "<bsdf type=\"blendbsdf\" id=\"%s\">\n", id);
+	bsdf_open(fp, depth, "blendbsdf", id);
 	indent(fp, depth + 1);
 	fprintf(fp, "<!-- gloss lobe (Beckmann, m = %.4g) and mirror lobe (cone width %.4g rad), "
 	        "weights %.4g and %.4g -->\n", m->roughness, m->mirror_width, m->gloss, m->mirror);
@@ -169,10 +175,11 @@ static void alloy(FILE *fp, int depth, const char *id, const kg_material *m, int
 	double sum = 0.0;
 	for (int i = 0; i <= last; i++)
 		sum += m->component[i].fraction;
-	indent(fp, depth);
-	fprintf(fp, "<bsdf type=\"blendbsdf\" id=\"%s\">\n", id);
+	bsdf_open(fp, depth, "blendbsdf", id);
 	indent(fp, depth + 1);
-	fprintf(fp, "<!-- %s: fraction %.4g of the components so far -->\n", m->component[last].name,
+	fputs("<!-- ", fp);
+	kg_xml_put(fp, m->component[last].name);
+	fprintf(fp, ": fraction %.4g of the components so far -->\n",
 	        sum > 0 ? m->component[last].fraction / sum : 0.0);
 	indent(fp, depth + 1);
 	fprintf(fp, "<float name=\"weight\" value=\"%.6g\"/>\n",
@@ -190,15 +197,15 @@ static void material_bsdf(FILE *fp, const kg_material *m, const char *id)
 {
 	static const char *const kinds[] = {"metal", "alloy", "dielectric"};
 	indent(fp, 1);
-	fprintf(fp, "<!-- %s (%s) -->\n", id, kinds[m->kind]);
-	indent(fp, 1);
-	fprintf(fp, "<bsdf type=\"twosided\" id=\"%s\">\n", id);
+	fputs("<!-- ", fp);
+	kg_xml_put(fp, m->name);
+	fprintf(fp, " (%s) -->\n", kinds[m->kind]);
+	bsdf_open(fp, 1, "twosided", id);
 	char inner[160];
 	snprintf(inner, sizeof(inner), "%s_surface", id);
 	if (strcmp(m->name, KG_SCENE_NEUTRAL_GREY) == 0 && m->kind == KG_MATERIAL_DIELECTRIC &&
 	    m->nk.n.v[0] == 1.0) {
-		indent(fp, 2);
-		fprintf(fp, "<bsdf type=\"diffuse\" id=\"%s\">\n", inner);
+		bsdf_open(fp, 2, "diffuse", inner);
 		indent(fp, 3);
 		fprintf(fp, "<spectrum name=\"reflectance\" value=\"%.6g\"/>\n", m->body.v[0]);
 		indent(fp, 2);
@@ -295,6 +302,32 @@ static const char *base_name(const char *p)
 	return s ? s + 1 : p;
 }
 
+/* The text the XML takes from input (file names, material names, in comments and
+ * attributes) is text XML 1.0 can hold: refused before anything is written. */
+static int check_texts(const kg_scene *s, const char *xml_path, const char *dir, kg_err *err)
+{
+	const char *names[3][2] = {{"the scene's file name", base_name(s->path)},
+	                           {"its own file name", base_name(xml_path)},
+	                           {"the meshes' folder", base_name(dir)}};
+	char what[512];
+	int ret = 0;
+	for (int i = 0; !ret && i < 3; i++) {
+		snprintf(what, sizeof(what), "%s: %s", xml_path, names[i][0]);
+		ret = kg_xml_check(what, names[i][1], err);
+	}
+	for (int i = 0; !ret && i < s->nmat; i++) {
+		const kg_material *m = s->mat[i];
+		snprintf(what, sizeof(what), "%s: material %d: name", xml_path, i + 1);
+		ret = kg_xml_check(what, m->name, err);
+		for (int c = 0; !ret && m->kind == KG_MATERIAL_ALLOY && c < m->ncomponents; c++) {
+			snprintf(what, sizeof(what), "%s: material %d: component %d: name", xml_path, i + 1,
+			         c + 1);
+			ret = kg_xml_check(what, m->component[c].name, err);
+		}
+	}
+	return ret;
+}
+
 int kg_scene_write_mitsuba(const kg_scene *s, const char *xml_path, int threads, kg_err *err)
 {
 	/* the XML's folder must exist: only the meshes' folder is made */
@@ -329,6 +362,8 @@ int kg_scene_write_mitsuba(const kg_scene *s, const char *xml_path, int threads,
 				              ids[i]);
 	}
 	if (!ret)
+		ret = check_texts(s, xml_path, dir, err);
+	if (!ret)
 		ret = kg_mkdir_p(dir, err);
 	const char *rel = base_name(dir);
 	/* the meshes, each written atomically; the XML last, so it never names a missing
@@ -354,13 +389,15 @@ int kg_scene_write_mitsuba(const kg_scene *s, const char *xml_path, int threads,
 		FILE *fp = o.fp;
 		const rd_view *v = &s->view;
 		fputs("<?xml version=\"1.0\" encoding=\"utf-8\"?>\n", fp);
-		fprintf(fp, "<!-- Written by kogei from the scene %s (kogei-scene/1). Mitsuba 3, a "
-		        "spectral variant\n     (scalar_spectral or llvm_ad_spectral): mitsuba -m "
-		        "scalar_spectral %s\n     Units: metres. The spectra are the material "
-		        "library's, on 400-700 nm in 5 nm steps;\n     n and k are held at their "
-		        "end values to 360 and 830 nm, the lights are zero outside\n     400-700 nm "
-		        "as in kogei. Untested by a Mitsuba render: checked against the plugin\n"
-		        "     reference only. -->\n", base_name(s->path), base_name(xml_path));
+		fputs("<!-- Written by kogei from the scene ", fp);
+		kg_xml_put(fp, base_name(s->path));
+		fputs(" (kogei-scene/1). Mitsuba 3, a spectral variant\n     (scalar_spectral or "
+		      "llvm_ad_spectral): mitsuba -m scalar_spectral ", fp);
+		kg_xml_put(fp, base_name(xml_path));
+		fputs("\n     Units: metres. The spectra are the material library's, on 400-700 nm "
+		      "in 5 nm steps;\n     n and k are held at their end values to 360 and 830 nm, "
+		      "the lights are zero outside\n     400-700 nm as in kogei. Untested by a "
+		      "Mitsuba render: checked against the plugin\n     reference only. -->\n", fp);
 		fputs("<scene version=\"3.0.0\">\n", fp);
 		indent(fp, 1);
 		fprintf(fp, "<integrator type=\"path\">\n");
@@ -450,15 +487,23 @@ int kg_scene_write_mitsuba(const kg_scene *s, const char *xml_path, int threads,
 			if (!count[i])
 				continue;
 			indent(fp, 1);
-			fprintf(fp, "<shape type=\"ply\" id=\"shape_%s\">\n", ids[i]);
+			fputs("<shape type=\"ply\" id=\"shape_", fp);
+			kg_xml_put(fp, ids[i]);
+			fputs("\">\n", fp);
 			indent(fp, 2);
-			fprintf(fp, "<string name=\"filename\" value=\"%s/%s.ply\"/>\n", rel, ids[i]);
+			fputs("<string name=\"filename\" value=\"", fp);
+			kg_xml_put(fp, rel);
+			fputc('/', fp);
+			kg_xml_put(fp, ids[i]);
+			fputs(".ply\"/>\n", fp);
 			if (!s->mesh->normal) {
 				indent(fp, 2);
 				fputs("<boolean name=\"face_normals\" value=\"true\"/>\n", fp);
 			}
 			indent(fp, 2);
-			fprintf(fp, "<ref id=\"%s\"/>\n", ids[i]);
+			fputs("<ref id=\"", fp);
+			kg_xml_put(fp, ids[i]);
+			fputs("\"/>\n", fp);
 			indent(fp, 1);
 			fputs("</shape>\n", fp);
 		}
