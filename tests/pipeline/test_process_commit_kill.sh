@@ -55,7 +55,7 @@ cp -a "$B" "$T/probe"
 strace -f -qq -o "$T/renames" -e trace=rename -e signal=none "$KOGEI" process $P --cube f16 \
 	-o "$T/probe" >/dev/null 2>&1 || { echo "FAIL: the traced run"; exit 1; }
 main=$(awk 'NR == 1 {print $1}' "$T/renames")
-grep "^$main rename(" "$T/renames" | awk '{print NR": "$0}' >"$T/main"
+awk -v m="$main" '$1 == m && $2 ~ /^rename\(/ {print ++n ": " $0}' "$T/renames" >"$T/main"
 J=$(grep -m1 'kogei-commit' "$T/main" | cut -d: -f1)
 N=$(wc -l <"$T/main")
 [ -n "$J" ] && [ "$N" -gt "$J" ] || { echo "FAIL: no commit among the renames"; cat "$T/renames"; exit 1; }
@@ -69,7 +69,7 @@ for k in $J $((J + 1)) $((J + 2)) $((J + 3)) $((J + 4)) $((J + 5)) $((N - 1)) $N
 	cp -a "$B" "$O"
 	strace -f -qq -o /dev/null -e trace=rename -e inject=rename:signal=KILL:when=$k \
 		"$KOGEI" process $P --cube f16 -o "$O" >"$T/out" 2>"$T/err"
-	what=$(sed -n "${k}p" "$T/main" | sed 's/^[0-9]*: [0-9]* //')
+	what=$(sed -n "${k}p" "$T/main" | sed 's/^[0-9]*: [0-9]* *//')
 	ls -d "$O"/.kogei-commit.* "$O"/.kogei-run.* 2>/dev/null | grep -q . ||
 		{ echo "FAIL: rename $k ($what): the run was not stopped inside its commit"; fail=1; }
 	if [ $k = $((J + 1)) ]; then

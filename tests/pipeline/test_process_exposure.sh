@@ -115,8 +115,9 @@ cp -r "$S" "$S2"
 sim_acquire "$S2" dark "$OBJ" 7000 '&light=0&serial=site-2' || fail=1
 sim_acquire "$S2" object "$OBJ" 7000 '' --name object-nodark || fail=1
 sim_acquire "$S2" flat "$OBJ" 10000 '&uniform=0.6' || fail=1
-sim_acquire "$S2" object "$OBJ" 40000 '' --name object-over || fail=1
-sim_acquire "$S2" object "$OBJ" 10000 '&light=0' --name object-black || fail=1
+# recorded without a flat (--flat none), so that process applies the session's
+sim_acquire "$S2" object "$OBJ" 40000 '' --name object-over --flat none || fail=1
+sim_acquire "$S2" object "$OBJ" 10000 '&light=0' --name object-black --flat none || fail=1
 sim_acquire "$S2" object "$OBJ" 10000 '&serial=site-2' --name object-foreign || fail=1
 [ $fail = 0 ] || exit 1
 check "acquire: another camera's dark not subtracted" "$PY" - "$S2/session.json" <<'PY'
