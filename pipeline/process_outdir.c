@@ -719,13 +719,14 @@ int proc_outdir_open(proc *p)
 
 /* ---- the end of the run --------------------------------------------------------------- */
 
-/* Every file under path (a folder about to be displaced) checked against the inputs
- * of the run. */
-static int check_tree(const char *path, int depth, kg_err *err)
+/* The tree under path, 8 levels at most: file() on each regular file, dir() on each
+ * folder after its entries (either may be NULL); the first failure ends the walk. */
+static int walk_tree(const char *path, int depth, int (*file)(const char *, kg_err *),
+                     int (*dir)(const char *, kg_err *), kg_err *err)
 {
 	DIR *d = opendir(path);
 	if (!d)
-		return 0;
+		return dir ? dir(path, err) : 0;
 	int ret = 0;
 	char sub[4200];
 	for (struct dirent *e; !ret && (e = readdir(d));) {
@@ -736,40 +737,39 @@ static int check_tree(const char *path, int depth, kg_err *err)
 		if (lstat(sub, &st) != 0)
 			continue;
 		if (S_ISDIR(st.st_mode) && depth < 8)
-			ret = check_tree(sub, depth + 1, err);
-		else if (S_ISREG(st.st_mode))
-			ret = kg_inputs_check_output(sub, err);
+			ret = walk_tree(sub, depth + 1, file, dir, err);
+		else if (S_ISREG(st.st_mode) && file)
+			ret = file(sub, err);
 	}
 	closedir(d);
-	return ret;
+	return !ret && dir ? dir(path, err) : ret;
 }
 
-/* Every folder of the staging tree flushed to disk (its files already are, by their
- * writers), so a crash after the renames cannot leave entries that point nowhere. */
-static int sync_tree(const char *path, int depth, kg_err *err)
+/* A folder flushed to disk. */
+static int sync_folder(const char *path, kg_err *err)
 {
 	int fd = open(path, O_RDONLY | O_DIRECTORY | O_CLOEXEC);
 	if (fd < 0)
 		return kg_fail(err, KG_EIO, "%s: cannot open: %s", path, strerror(errno));
-	DIR *d = fdopendir(fd);
-	if (!d) {
-		close(fd);
-		return kg_fail(err, KG_EIO, "%s: cannot open: %s", path, strerror(errno));
-	}
-	int ret = 0;
-	char sub[4200];
-	for (struct dirent *e; !ret && (e = readdir(d));) {
-		if (!strcmp(e->d_name, ".") || !strcmp(e->d_name, ".."))
-			continue;
-		snprintf(sub, sizeof(sub), "%s/%s", path, e->d_name);
-		struct stat st;
-		if (depth < 8 && lstat(sub, &st) == 0 && S_ISDIR(st.st_mode))
-			ret = sync_tree(sub, depth + 1, err);
-	}
-	if (!ret && fsync(dirfd(d)) != 0 && errno != EINVAL)
-		ret = kg_fail_write(err, errno, path, "cannot flush to disk");
-	closedir(d);
+	int ret = fsync(fd) != 0 && errno != EINVAL ? kg_fail_write(err, errno, path,
+	                                                            "cannot flush to disk")
+	                                            : 0;
+	close(fd);
 	return ret;
+}
+
+/* Every file under path (a folder about to be displaced) checked against the inputs
+ * of the run. */
+static int check_tree(const char *path, kg_err *err)
+{
+	return walk_tree(path, 0, kg_inputs_check_output, NULL, err);
+}
+
+/* Every folder of the staging tree flushed to disk (its files already are, by their
+ * writers), so a crash after the renames cannot leave entries that point nowhere. */
+static int sync_tree(const char *path, kg_err *err)
+{
+	return walk_tree(path, 0, NULL, sync_folder, err);
 }
 
 /* The files under path are this tool's outputs, some read back while they were made
@@ -812,14 +812,14 @@ int proc_outdir_commit(proc *p, json_t *root)
 		if (is_top_file(e->d_name))
 			ret = kg_inputs_check_output(to, p->err);
 		else if (is_object_name(p, e->d_name))
-			ret = check_tree(to, 0, p->err);
+			ret = check_tree(to, p->err);
 		if (ret)
 			kg_err_prefix(p->err, "nothing replaced: ");
 	}
 	if (d)
 		closedir(d);
 	if (!ret)
-		ret = sync_tree(p->stage, 0, p->err);
+		ret = sync_tree(p->stage, p->err);
 	if (ret)
 		return ret;
 	char journal[4200], old[4200];

@@ -5,8 +5,8 @@
 # `kogei report OUTDIR` first completes the commit (saying so) or keeps the earlier
 # results, then every object process.json names is there, made with the cube format
 # process.json records (the run before wrote f32 cubes, the killed one f16), and
-# report.html is of that process.json; the console serves the settled folder; a later
-# `kogei process` finds nothing to repair. Needs strace.
+# report.html is of that process.json; the console serves the settled folder (the
+# first object moved aside). Needs strace.
 # usage: test_process_commit_kill.sh KOGEI SOURCE_ROOT HAVE_TAGS_AND_DEMOSAIC
 set -u
 . "$(dirname "$0")/../lib.sh"
