@@ -632,6 +632,8 @@ enum {
 	KG_CHART_FLAG_OUT_OF_FRAME = 1 << 3, /* some of the region is outside the image */
 	KG_CHART_FLAG_NONUNIFORM = 1 << 4,   /* quadrants differ (occlusion, shadow, glare) */
 	KG_CHART_FLAG_REJECTED = 1 << 5,     /* no usable pixel */
+	KG_CHART_FLAG_MISFIT = 1 << 6,       /* its colour does not fit the layout's expected
+	                                      * colour there (covered, painted, shadowed) */
 };
 
 /* One sampled patch, in the layout's order. */
@@ -651,7 +653,21 @@ typedef struct kg_chart_sample {
 	double centre_mm[2], half_mm[2]; /* the sampled region on the chart */
 	double light;            /* the light field at the patch centre the values were
 	                          * divided by (1: none) */
+	double misfit;           /* against the layout's expected colour: the larger of its
+	                          * hue and level misfits over their thresholds (> 1:
+	                          * flagged KG_CHART_FLAG_MISFIT); NaN when not judged */
 } kg_chart_sample;
+
+/* The patches against the layout's expected colours (calib/chart_colours.c). */
+typedef struct kg_chart_colour_check {
+	int checked;             /* 0: the layout has no expected colours, or too few
+	                          * unflagged patches have one */
+	int used;                /* patches judged */
+	int flagged;             /* of them, flagged KG_CHART_FLAG_MISFIT */
+	double threshold_level, threshold_hue; /* in units of each patch's tolerance */
+	double worst;            /* the largest misfit of a patch not flagged (< 1) */
+	char worst_id[32];
+} kg_chart_colour_check;
 
 /* The light over the chart as estimated from the patches (calib/light_field.c):
  * ln L(u, v) = c0 + c1 u + c2 v + c3 u^2 + c4 u v + c5 v^2 + c6 u^3 + c7 u^2 v +
@@ -702,6 +718,7 @@ typedef struct kg_chart_result {
 	double sample_seconds;    /* patch sampling (all four turns when tagless) */
 	double total_seconds;
 	kg_chart_light light;     /* the light field removed from the patch values */
+	kg_chart_colour_check colours; /* the patches against the layout's colours */
 	/* a refusal (options.keep_refused): patches, when present, are the regions of the
 	 * best reading tried, not a chart found */
 	int refused;
