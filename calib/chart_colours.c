@@ -29,7 +29,6 @@
 #include <string.h>
 
 #include "chart_detect_private.h"
-#include "linalg.h"
 
 /* fewest patches with an expected colour for the check to run */
 #define MIN_PATCHES 12
@@ -49,6 +48,8 @@
  * STEP_MIN_SIDE patches at least */
 #define STEP_DIRECTIONS 12
 #define STEP_MIN_SIDE 3
+#define STEP_LOSS_RATIO 0.25
+#define STEP_LOSS_DROP 1.0
 enum { NTERMS = 5 }; /* level: offset, tone, [x, y], [step] */
 
 typedef struct cpatch {
@@ -66,8 +67,10 @@ typedef struct cfit {
 	double M[9];
 	double c[NTERMS];
 	double t_level, t_hue; /* thresholds, in tolerance units */
+	int keep_thresholds;   /* 1: t_level, t_hue as they are (the step fits: the flat
+	                        * fit's, so the losses compare) */
 	int nout;              /* patches with score > 1 */
-	double rss;            /* of the active patches' level misfits (tolerance units) */
+	double loss;           /* sum of min(score^2, 1): outliers count 1 */
 } cfit;
 
 typedef struct cwork {
@@ -144,37 +147,25 @@ static double level_predicted(const cwork *w, const cpatch *p, const double c[NT
  * the terms are not determined (a step side with no active patch). */
 static int fit_level(const cwork *w, const int *act, int step, double c[NTERMS])
 {
-	double a[NTERMS];
+	double N[NTERMS][NTERMS] = {{0}}, b[NTERMS] = {0}, a[NTERMS];
 	int m = level_terms(w, &w->p[0], step, a), k = 0;
-	for (int i = 0; i < w->n; i++)
-		k += act[i];
-	if (k < m + 2)
-		return KG_EINVAL;
-	kg_mat *X = NULL, *y = NULL, *b = NULL;
-	kg_err err;
-	int rank = 0;
-	int ret = kg_mat_new(k, m, &X, &err);
-	if (!ret)
-		ret = kg_mat_new(k, 1, &y, &err);
-	for (int i = 0, r = 0; !ret && i < w->n; i++) {
+	for (int i = 0; i < w->n; i++) {
 		if (!act[i])
 			continue;
-		double sw = 1 / w->p[i].tol_level;
+		double wt = 1 / (w->p[i].tol_level * w->p[i].tol_level);
 		level_terms(w, &w->p[i], step, a);
-		for (int j = 0; j < m; j++)
-			X->a[r * m + j] = a[j] * sw;
-		y->a[r++] = w->p[i].q * sw;
+		for (int j = 0; j < m; j++) {
+			b[j] += wt * a[j] * w->p[i].q;
+			for (int l = 0; l < m; l++)
+				N[j][l] += wt * a[j] * a[l];
+		}
+		k++;
 	}
-	if (!ret)
-		ret = kg_lstsq(X, y, 0, 1e-10, &b, &rank, &err);
-	if (!ret && rank < m)
-		ret = KG_EINVAL;
 	for (int j = 0; j < NTERMS; j++)
-		c[j] = !ret && j < m ? b->a[j] : 0;
-	kg_mat_free(&X);
-	kg_mat_free(&y);
-	kg_mat_free(&b);
-	return ret;
+		c[j] = 0;
+	if (k < m + 2 || calib_solve_normal(&N[0][0], NTERMS, b, m, c))
+		return KG_EINVAL;
+	return 0;
 }
 
 /* Each patch's hue misfit (through f->M), level and misfits against the level model,
@@ -194,7 +185,6 @@ static void score(cwork *w, int step, cfit *f, const int *act)
 	}
 	if (act && fit_level(w, act, step, f->c))
 		f->c[0] = NAN;
-	f->rss = 0;
 	for (int i = 0; i < w->n; i++) {
 		cpatch *p = &w->p[i];
 		double a[NTERMS], pred = 0;
@@ -204,16 +194,18 @@ static void score(cwork *w, int step, cfit *f, const int *act)
 		p->level = fabs(p->q - pred) / p->tol_level;
 		if (!isfinite(p->level))
 			p->level = INFINITY;
-		if (act && act[i])
-			f->rss += p->level * p->level;
 	}
-	f->t_level = threshold(w, 1);
-	f->t_hue = threshold(w, 0);
+	if (!f->keep_thresholds) {
+		f->t_level = threshold(w, 1);
+		f->t_hue = threshold(w, 0);
+	}
 	f->nout = 0;
+	f->loss = 0;
 	for (int i = 0; i < w->n; i++) {
 		cpatch *p = &w->p[i];
 		p->score = fmax(p->level / f->t_level, p->hue / f->t_hue);
 		f->nout += !(p->score <= 1);
+		f->loss += p->score <= 1 ? p->score * p->score : 1;
 	}
 }
 
@@ -298,13 +290,12 @@ static const char *where(double dx, double dy)
 	return names[(k % 8 + 8) % 8];
 }
 
-/* The best step line: the one whose fit (M kept) leaves the fewest patches over the
- * threshold, then the smallest misfit; its sides in w->p[].side, its step in *s.
- * 0 when no line was fitted. */
-static int best_step(cwork *w, const cfit *flat, double *s, int *nout)
+/* The best step line: the one whose fit (M and the thresholds kept) leaves the
+ * smallest loss; its sides in w->p[].side, its step (ln of the light on side 1 over
+ * side 0) in *s, its loss in *loss. 0 when no line was fitted. */
+static int best_step(cwork *w, const cfit *flat, double *s, double *loss)
 {
 	int n = w->n, found = 0;
-	double best_rss = INFINITY;
 	int *best_side = malloc((size_t)n * sizeof(*best_side));
 	double *proj = malloc((size_t)n * sizeof(*proj));
 	if (!best_side || !proj) {
@@ -319,28 +310,23 @@ static int best_step(cwork *w, const cfit *flat, double *s, int *nout)
 		for (int i = 0; i < n; i++) {
 			/* the line just past patch i's projection (patches within 1e-6 alike) */
 			double t = proj[i] + 1e-6;
-			int na = 0;
+			int na = 0, dup = 0;
 			for (int j = 0; j < n; j++)
 				na += (w->p[j].side = proj[j] < t);
-			if (na < STEP_MIN_SIDE || n - na < STEP_MIN_SIDE)
-				continue;
-			int dup = 0; /* the same split from an earlier patch of equal projection */
-			for (int j = 0; j < i && !dup; j++)
+			for (int j = 0; j < i && !dup; j++) /* the same split as an earlier patch's */
 				dup = fabs(proj[j] - proj[i]) < 1e-6;
-			if (dup)
+			if (dup || na < STEP_MIN_SIDE || n - na < STEP_MIN_SIDE)
 				continue;
 			cfit f = *flat;
-			if (robust_fit(w, 1, 1, &f))
+			f.keep_thresholds = 1;
+			if (robust_fit(w, 1, 1, &f) || (found && !(f.loss < *loss)))
 				continue;
-			if (!found || f.nout < *nout || (f.nout == *nout && f.rss < best_rss)) {
-				found = 1;
-				*nout = f.nout;
-				best_rss = f.rss;
-				double a[NTERMS];
-				*s = f.c[level_terms(w, &w->p[0], 1, a) - 1];
-				for (int j = 0; j < n; j++)
-					best_side[j] = w->p[j].side;
-			}
+			found = 1;
+			*loss = f.loss;
+			double a[NTERMS];
+			*s = f.c[level_terms(w, &w->p[0], 1, a) - 1];
+			for (int j = 0; j < n; j++)
+				best_side[j] = w->p[j].side;
 		}
 	}
 	for (int j = 0; found && j < n; j++)
@@ -350,22 +336,14 @@ static int best_step(cwork *w, const cfit *flat, double *s, int *nout)
 	return found;
 }
 
-/* A step is the light's, not a few odd patches': it leaves STEP_MIN_SIDE or more
- * fewer patches over the threshold than the fit without it, is larger than the level
- * threshold of a neutral patch, and two thirds of the smaller side (3 at least) read
- * off in its direction without it (flat's levels, kept in lv). */
-static int is_step(const cwork *w, const cfit *flat, const double *lv, const double *sg,
-                   double s, int nout)
+/* A step is the light's, not a few odd patches' or a gradient's: larger than the
+ * level threshold of a neutral patch, and explaining most of what the fit without it
+ * leaves (its loss STEP_LOSS_RATIO of that or less, and STEP_LOSS_DROP less: one
+ * outlier's worth). */
+static int is_step(const cfit *flat, double s, double loss)
 {
-	int n = w->n, na = 0, support = 0;
-	for (int i = 0; i < n; i++) {
-		na += w->p[i].side;
-		double dir = (w->p[i].side ? 1 : -1) * (s > 0 ? 1 : -1);
-		support += dir * sg[i] > 0 && lv[i] > 0.5 * flat->t_level;
-	}
-	int small = na < n - na ? na : n - na;
-	return flat->nout - nout >= STEP_MIN_SIDE && fabs(s) > flat->t_level * TOL_LEVEL &&
-	       support >= 3 && 3 * support >= 2 * small;
+	return fabs(s) > flat->t_level * TOL_LEVEL && loss <= STEP_LOSS_RATIO * flat->loss &&
+	       flat->loss - loss >= STEP_LOSS_DROP;
 }
 
 static int refuse_step(const kg_chart_result *r, const cwork *w, double s, kg_err *err)
@@ -502,10 +480,8 @@ int chart_check_colours(const kg_chart_layout *l, kg_chart_result *r, kg_err *er
 	w.u = malloc(np * sizeof(*w.u));
 	w.eu = malloc(np * sizeof(*w.eu));
 	w.tmp = malloc(np * sizeof(*w.tmp));
-	double *lv = malloc(np * sizeof(*lv)), *sg = malloc(np * sizeof(*sg));
 	int ret = 0;
-	if (!lin || !have || !w.p || !w.act || !w.order || !w.s || !w.u || !w.eu || !w.tmp ||
-	    !lv || !sg) {
+	if (!lin || !have || !w.p || !w.act || !w.order || !w.s || !w.u || !w.eu || !w.tmp) {
 		ret = kg_fail(err, KG_ENOMEM, "out of memory");
 		goto done;
 	}
@@ -524,20 +500,17 @@ int chart_check_colours(const kg_chart_layout *l, kg_chart_result *r, kg_err *er
 	memset(&flat, 0, sizeof(flat));
 	if (robust_fit(&w, 0, 0, &flat))
 		goto done; /* the colours cannot be fitted: nothing is judged */
-	for (int i = 0; i < w.n; i++) {
-		lv[i] = w.p[i].level;
-		sg[i] = w.p[i].q - level_predicted(&w, &w.p[i], flat.c);
-	}
 	cpatch *keep = malloc((size_t)w.n * sizeof(*keep));
 	if (!keep) {
 		ret = kg_fail(err, KG_ENOMEM, "out of memory");
 		goto done;
 	}
 	memcpy(keep, w.p, (size_t)w.n * sizeof(*keep));
-	double s = 0;
-	int nout = 0;
-	if (flat.nout >= STEP_MIN_SIDE && best_step(&w, &flat, &s, &nout) &&
-	    is_step(&w, &flat, lv, sg, s, nout)) {
+	double s = 0, loss = 0;
+	int stepped = best_step(&w, &flat, &s, &loss);
+	if (getenv("KG_DEBUG_COLOURS"))
+		fprintf(stderr, "colours: flat loss %.3f nout %d; best step %.3f loss %.3f\n", flat.loss, flat.nout, s, loss);
+	if (stepped && is_step(&flat, s, loss)) {
 		ret = refuse_step(r, &w, s, err);
 		free(keep);
 		goto done;
@@ -551,8 +524,6 @@ int chart_check_colours(const kg_chart_layout *l, kg_chart_result *r, kg_err *er
 done:
 	free(lin);
 	free(have);
-	free(lv);
-	free(sg);
 	work_free(&w);
 	return ret;
 }
