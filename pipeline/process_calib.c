@@ -429,7 +429,8 @@ int proc_calibrate(proc *p)
 	if (o->threads > 0)
 		dopt.threads = o->threads;
 	if ((ret = kg_chart_detect(p->layout, img.rgb, &dopt, &res, err))) {
-		kg_err_prefix(err, "capture %s: no chart %s: ", p->chart->name, p->layout->name);
+		kg_err_prefix(err, "capture %s: %s chart %s: ", p->chart->name,
+		              ret == KG_ENOENT ? "no" : "refused the", p->layout->name);
 		goto done;
 	}
 	memcpy(p->chart_H, res->H, sizeof(p->chart_H));
