@@ -247,7 +247,8 @@ static void describe_flags(unsigned f, char *buf, size_t n)
 	             {KG_CHART_FLAG_FEW_PIXELS, "too few pixels"},
 	             {KG_CHART_FLAG_OUT_OF_FRAME, "out of frame"},
 	             {KG_CHART_FLAG_NONUNIFORM, "non-uniform"},
-	             {KG_CHART_FLAG_REJECTED, "rejected"}};
+	             {KG_CHART_FLAG_REJECTED, "rejected"},
+	             {KG_CHART_FLAG_MISFIT, "colour not the layout's"}};
 	size_t at = 0;
 	buf[0] = 0;
 	for (size_t i = 0; i < sizeof(names) / sizeof(names[0]) && at < n; i++)
