@@ -202,6 +202,10 @@ typedef struct kg_reference {
 	kg_calib_source *sources;
 	char id_rule[256];         /* how the spectra's and RGB's ids were paired when not
 	                            * as written (kg_patch_ids_match), else "" */
+	int nflagged;              /* field patches left out because chart detection
+	                            * flagged them (FLAGS column != 0) */
+	char **flagged_ids;
+	unsigned *flagged_flags;   /* their FLAGS (KG_CHART_FLAG_*) */
 } kg_reference;
 
 /* Pair spectra and RGB by SAMPLE_ID into one patch set (spectra + rgb), in the order
@@ -215,9 +219,12 @@ int kg_calib_pair_rule(const kg_patchset *spectra, const kg_patchset *rgb,
                        kg_patchset **out, const char **rule, kg_err *err);
 
 /* Fit everything on a training chart (spectra + rgb) for a field chart (rgb; may be
- * the training set itself). Refused (KG_EINVAL, naming the patches): non-finite or
- * clipped values, near-black field patches, nearly collinear RGB (the site test of
- * kg_camera_fit, on both charts), too few patches, options out of range. */
+ * the training set itself). Patches the field chart's FLAGS column flags (chart
+ * detection: clipped, glare, a colour that is not the layout's, ...) are left out of
+ * both, as opt->exclude's are, and listed in flagged_ids. Refused (KG_EINVAL, naming
+ * the patches): non-finite or clipped values, near-black field patches, nearly
+ * collinear RGB (the site test of kg_camera_fit, on both charts), too few patches,
+ * options out of range. */
 int kg_reference_fit(const kg_patchset *train, const kg_patchset *field,
                      const kg_reference_options *opt, kg_reference **out, kg_err *err);
 /* Read the inputs and fit: spectra from CGATS (SPEC_*) or a `patch,name,<nm>...` CSV,

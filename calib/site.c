@@ -51,6 +51,16 @@ static int is_excluded(const kg_camera_options *opt, const char *id)
 	return 0;
 }
 
+/* The index in ref->flagged_ids of a patch the reference left out because chart
+ * detection flagged it on the reference's chart, else -1. */
+static int ref_flagged(const kg_reference *ref, const char *id)
+{
+	for (int i = 0; i < ref->nflagged; i++)
+		if (strcmp(ref->flagged_ids[i], id) == 0)
+			return i;
+	return -1;
+}
+
 /* Fold M2 into a reference map: linear methods get A M2, root-polynomial ones keep
  * A and apply M2 first. */
 static void site_map_from(const kg_spectral_map *ref, const double M2[9], kg_site_map *out)
@@ -134,7 +144,8 @@ static int match_patches(const kg_reference *ref, const kg_patchset *site,
 		goto done;
 	}
 	for (int i = 0; i < n; i++)
-		if (!is_excluded(opt, site->ids[i]) && alias[i] < 0)
+		if (!is_excluded(opt, site->ids[i]) && ref_flagged(ref, site->ids[i]) < 0 &&
+		    alias[i] < 0)
 			unknown[nunknown++] = i;
 	if (nunknown) {
 		free(alias);
@@ -259,19 +270,30 @@ static void describe_flags(unsigned f, char *buf, size_t n)
 }
 
 /* Leave out the pairs whose site patch the detector flagged (FLAGS column != 0),
- * recording them in cam; fewer than 3 left is refused naming them. */
+ * recording them in cam with the site patches the reference left out because they
+ * were flagged on its chart; fewer than 3 left is refused naming them. */
 static int drop_flagged(const kg_patchset *site, const char *what, int *idx_ref,
                         int *idx_site, int *k, const kg_reference *ref, kg_camera_calib *cam,
                         kg_err *err)
 {
 	int col = kg_patchset_extra_index(site, "FLAGS");
-	if (col < 0)
-		return 0;
 	int kept = 0, n = *k;
-	cam->flagged_ids = calloc(n > 0 ? (size_t)n : 1, sizeof(char *));
-	cam->flagged_flags = calloc(n > 0 ? (size_t)n : 1, sizeof(unsigned));
+	size_t cap = (size_t)n + (size_t)ref->nflagged + 1;
+	cam->flagged_ids = calloc(cap, sizeof(char *));
+	cam->flagged_flags = calloc(cap, sizeof(unsigned));
 	if (!cam->flagged_ids || !cam->flagged_flags)
 		return kg_fail(err, KG_ENOMEM, "out of memory");
+	/* the site's patches the reference left out, flagged on its chart */
+	for (int i = 0; i < site->n; i++) {
+		int r = ref_flagged(ref, site->ids[i]);
+		if (r < 0)
+			continue;
+		if (!(cam->flagged_ids[cam->nflagged] = strdup(site->ids[i])))
+			return kg_fail(err, KG_ENOMEM, "out of memory");
+		cam->flagged_flags[cam->nflagged++] = ref->flagged_flags[r];
+	}
+	if (col < 0)
+		return 0;
 	for (int i = 0; i < n; i++) {
 		double f = site->extra[(size_t)idx_site[i] * site->nextra + col];
 		if (f == 0 || !isfinite(f) || f < 0) {
