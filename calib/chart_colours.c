@@ -168,11 +168,11 @@ static int fit_level(const cwork *w, const int *act, int step, double c[NTERMS])
 	return 0;
 }
 
-/* Each patch's hue misfit (through f->M), level and misfits against the level model,
- * the thresholds and scores. */
-static void score(cwork *w, int step, cfit *f, const int *act)
+/* Each patch's hue misfit and level q (through f->M; kept when fixed_hue), its misfit
+ * against the level model, the thresholds and scores. */
+static void score(cwork *w, int step, cfit *f, const int *act, int fixed_hue)
 {
-	for (int i = 0; i < w->n; i++) {
+	for (int i = 0; !fixed_hue && i < w->n; i++) { /* M kept: hue and q are as they were */
 		cpatch *p = &w->p[i];
 		double pm[3], pp = 0, mp = 0;
 		for (int r = 0; r < 3; r++) {
@@ -221,7 +221,7 @@ static int fit_once(cwork *w, const int *act, int step, int fixed_hue, cfit *f)
 		                     w->s, f->M) >= 1)
 			return KG_EINVAL;
 	}
-	score(w, step, f, act);
+	score(w, step, f, act, fixed_hue);
 	return isfinite(f->c[0]) ? 0 : KG_EINVAL;
 }
 
@@ -508,8 +508,6 @@ int chart_check_colours(const kg_chart_layout *l, kg_chart_result *r, kg_err *er
 	memcpy(keep, w.p, (size_t)w.n * sizeof(*keep));
 	double s = 0, loss = 0;
 	int stepped = best_step(&w, &flat, &s, &loss);
-	if (getenv("KG_DEBUG_COLOURS"))
-		fprintf(stderr, "colours: flat loss %.3f nout %d; best step %.3f loss %.3f\n", flat.loss, flat.nout, s, loss);
 	if (stepped && is_step(&flat, s, loss)) {
 		ret = refuse_step(r, &w, s, err);
 		free(keep);
