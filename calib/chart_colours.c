@@ -97,17 +97,6 @@ static int expected_colours(const kg_chart_layout *l, double (*lin)[3], int *hav
 	return 24;
 }
 
-static double median_of(double *v, int n)
-{
-	for (int i = 1; i < n; i++) /* insertion sort: a few dozen values */
-		for (int j = i; j > 0 && v[j - 1] > v[j]; j--) {
-			double t = v[j];
-			v[j] = v[j - 1];
-			v[j - 1] = t;
-		}
-	return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
 /* The threshold for the patches' level (hue) misfits in tolerance units: MISFIT_SPREAD
  * times their robust spread, within MISFIT_MIN..MISFIT_MAX (the median breaks down
  * when half the chart is off: in a shadow). */
@@ -115,7 +104,7 @@ static double threshold(const cwork *w, int level)
 {
 	for (int i = 0; i < w->n; i++)
 		w->tmp[i] = level ? w->p[i].level : w->p[i].hue;
-	return fmin(MISFIT_MAX, fmax(MISFIT_MIN, MISFIT_SPREAD * 1.4826 * median_of(w->tmp, w->n)));
+	return fmin(MISFIT_MAX, fmax(MISFIT_MIN, MISFIT_SPREAD * 1.4826 * calib_median(w->tmp, w->n)));
 }
 
 /* The level model's terms at patch p (the step's last); their number. */
