@@ -44,6 +44,13 @@
 #define MISFIT_MIN 4.5
 #define MISFIT_SPREAD 5.0
 #define MISFIT_MAX 10.0
+/* patches whose hues miss the layout's by more than this sine at the median are not
+ * the layout's chart (a chart of one's own with ColorChecker ids): not judged. Real
+ * ColorCheckers: 0.013-0.067 (a camera JPEG the largest) */
+#define NOT_THE_COLOURS 0.15
+/* the measured colours' spread (RMS sine from their mean direction) below which the
+ * picture has no colour to judge: the tagless detector's, KG_ORIENT_SPREAD_MIN */
+#define KG_CHART_COLOUR_SPREAD_MIN 0.05
 /* the step search: lines at this many directions over 180 degrees, each side holding
  * STEP_MIN_SIDE patches at least */
 #define STEP_DIRECTIONS 12
@@ -479,16 +486,37 @@ int chart_check_colours(const kg_chart_layout *l, kg_chart_result *r, kg_err *er
 	w.n = gather(r, (const double (*)[3])lin, have, w.p);
 	/* the light field removed, what it leaves is not a gradient to fit */
 	w.plane = !r->light.fitted;
-	if (w.n < MIN_PATCHES)
+	if (w.n < MIN_PATCHES) {
+		snprintf(r->colours.note, sizeof(r->colours.note), "not judged: %d patches with an "
+		         "expected colour and no other flag, %d needed", w.n, MIN_PATCHES);
 		goto done;
+	}
 	for (int i = 0; i < w.n; i++) {
 		memcpy(w.u[i], w.p[i].u, sizeof(w.u[i]));
 		memcpy(w.eu[i], w.p[i].eu, sizeof(w.eu[i]));
+		w.act[i] = 1;
+	}
+	/* a grey picture (one channel, or a camera without colour) fits any colours */
+	double spread = chart_direction_spread(w.n, (const double (*)[3])w.u, w.act);
+	if (!(spread > KG_CHART_COLOUR_SPREAD_MIN)) {
+		snprintf(r->colours.note, sizeof(r->colours.note), "not judged: the patches have "
+		         "next to no colour (spread %.3f, a sine; %.2f needed)", spread,
+		         KG_CHART_COLOUR_SPREAD_MIN);
+		goto done;
 	}
 	cfit flat;
 	memset(&flat, 0, sizeof(flat));
 	if (robust_fit(&w, 0, 0, &flat))
 		goto done; /* the colours cannot be fitted: nothing is judged */
+	for (int i = 0; i < w.n; i++)
+		w.tmp[i] = w.p[i].hue * w.p[i].tol_hue;
+	double hue = calib_median(w.tmp, w.n);
+	if (!(hue <= NOT_THE_COLOURS)) {
+		snprintf(r->colours.note, sizeof(r->colours.note), "not judged: the patches' colours "
+		         "do not read as the layout's (median hue misfit %.2f, a sine; above %.2f)",
+		         hue, NOT_THE_COLOURS);
+		goto done;
+	}
 	cpatch *keep = malloc((size_t)w.n * sizeof(*keep));
 	if (!keep) {
 		ret = kg_fail(err, KG_ENOMEM, "out of memory");

@@ -211,6 +211,9 @@ double chart_colour_sin2(const double M[9], const double e[3], const double u[3]
  * no fit). */
 double chart_colour_fit(int n, const double (*u)[3], const double (*e)[3], const int *use,
                         double *s, double M[9]);
+/* How much colour the directions u_i (unit, i < n with use[i]) have: the RMS sine of
+ * their angles from their mean direction (0 for a grey picture). */
+double chart_direction_spread(int n, const double (*u)[3], const int *use);
 /* chart_colours.c: every patch against its layout's expected colour (a patch that does
  * not fit is flagged KG_CHART_FLAG_MISFIT) and the chart's light against a step
  * between its patches (refused, KG_EINVAL). */

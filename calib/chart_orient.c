@@ -149,6 +149,28 @@ double chart_colour_fit(int n, const double (*u)[3], const double (*e)[3], const
 	return k ? sum / k : 1;
 }
 
+double chart_direction_spread(int n, const double (*u)[3], const int *use)
+{
+	double mean[3] = {0, 0, 0};
+	int k = 0;
+	for (int i = 0; i < n; i++)
+		if (use[i]) {
+			for (int c = 0; c < 3; c++)
+				mean[c] += u[i][c];
+			k++;
+		}
+	if (!k)
+		return 0;
+	double m[3], sum = 0;
+	chart_unit3(mean, m);
+	for (int i = 0; i < n; i++)
+		if (use[i]) {
+			double d = u[i][0] * m[0] + u[i][1] * m[1] + u[i][2] * m[2];
+			sum += fmax(0, 1 - d * d);
+		}
+	return sqrt(sum / k);
+}
+
 #if KG_HAVE_MCC
 /* A patch whose value can say which colour it is: sampled, in the frame, fewer than
  * half of its pixels clipped (so the median is not), every channel above zero. */
@@ -205,25 +227,12 @@ double chart_orientation_score(const kg_chart_sample *p, const int idx[24], int 
  * has next to none, and then fits any orientation. */
 double chart_colour_spread(const kg_chart_sample *p, const int idx[24])
 {
-	double mean[3] = {0, 0, 0}, u[24][3];
-	int use[24], n = 0;
+	double u[24][3];
+	int use[24];
 	for (int i = 0; i < 24; i++)
-		if ((use[i] = colour_usable(&p[idx[i]]))) {
+		if ((use[i] = colour_usable(&p[idx[i]])))
 			chart_unit3(p[idx[i]].rgb, u[i]);
-			for (int c = 0; c < 3; c++)
-				mean[c] += u[i][c];
-			n++;
-		}
-	if (!n)
-		return 0;
-	double m[3], sum = 0;
-	chart_unit3(mean, m);
-	for (int i = 0; i < 24; i++)
-		if (use[i]) {
-			double d = u[i][0] * m[0] + u[i][1] * m[1] + u[i][2] * m[2];
-			sum += fmax(0, 1 - d * d);
-		}
-	return sqrt(sum / n);
+	return chart_direction_spread(24, (const double (*)[3])u, use);
 }
 
 #endif

@@ -674,6 +674,7 @@ typedef struct kg_chart_colour_check {
 	double threshold_level, threshold_hue; /* in units of each patch's tolerance */
 	double worst;            /* the largest misfit of a patch not flagged (< 1) */
 	char worst_id[32];
+	char note[160];          /* why not checked, when the layout has colours: "" */
 } kg_chart_colour_check;
 
 /* The light over the chart as estimated from the patches (calib/light_field.c):

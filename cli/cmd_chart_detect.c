@@ -274,8 +274,10 @@ int kg_cmd_chart_detect(int argc, char **argv)
 	}
 	/* the patches against the layout's colours */
 	const kg_chart_colour_check *cc = &res->colours;
-	char colours[200] = "none (the layout has no expected colours, or too few patches)";
-	if (cc->checked)
+	char colours[200] = "none (the layout has no expected colours)";
+	if (cc->note[0])
+		snprintf(colours, sizeof(colours), "%s", cc->note);
+	else if (cc->checked)
 		snprintf(colours, sizeof(colours), "%d patches judged, %d flagged; worst of the others "
 		         "%s at %.2f of its threshold (level %.2f, hue %.2f tolerances)", cc->used,
 		         cc->flagged, cc->worst_id[0] ? cc->worst_id : "none", cc->worst,

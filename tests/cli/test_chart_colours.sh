@@ -9,7 +9,7 @@
 # exactly those four flagged; clipped patches are still flagged clipped. A chart whose
 # layout has no expected colours (the CIE test colours) with a card over a patch or
 # one painted another's colour: calib camera leaves it out of M2 as not fitting.
-# Reads ../shared/reference (skipped without it).
+# Reads the reference data set (kg_need_reference; skipped without it).
 # usage: test_chart_colours.sh KOGEI SOURCE_ROOT HAVE_APRILTAG HAVE_MCC
 set -u
 . "$(dirname "$0")/../lib.sh"

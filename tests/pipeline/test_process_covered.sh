@@ -4,7 +4,8 @@
 # colours, listed in process.json's patches_flagged with their reason and left out of
 # the reference and site fits, so the calibration's error on the patches it used stays
 # that of a clean chart; a session whose chart has its left half in shadow is refused
-# with the cause and writes nothing. Reads ../shared/reference (skipped without it).
+# with the cause and writes nothing. Reads the reference data
+# set (kg_need_reference; skipped without it).
 # usage: test_process_covered.sh KOGEI SOURCE_ROOT HAVE_TAGS_AND_DEMOSAIC
 set -u
 . "$(dirname "$0")/../lib.sh"

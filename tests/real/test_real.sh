@@ -18,7 +18,7 @@
 #               the right orientation (the greys darken from D01; the composite
 #               follows the chart's reflectance at each band, its 180-degree turn does
 #               not; the processed images keep the hue order of the colour row); and
-#               three daylight raws of the reference set (../shared/reference/real).
+#               three daylight raws of the reference data set (its real/ folder).
 #               In every mode no patch of these charts may be flagged for a colour
 #               that does not fit the layout's (COLOUR_CHECK: the worst one's margin)
 #   linearity   patches proportional to the exposure (25-250 ms) and the greys to the
@@ -98,7 +98,7 @@ detect)
 	# The whole photograph (2879 x 1294): the tagless detector reads a copy reduced 2 x 2,
 	# where its patch-grid finder looks first, among the Passport's other page of
 	# colours, the pavement and the striped paper; the same checks must hold.
-	# The development set's real raws (../shared/reference/real): daylight, a chart of
+	# The reference data set's real raws (its real/ folder): daylight, a chart of
 	# about 200 px among grass, bricks and shade, demosaiced by kogei.
 	for n in 1 3 4; do
 		raw=$REF/real/iisp_outdoor${n}_2592x1536_8bit_grbg.raw
