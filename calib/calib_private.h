@@ -70,6 +70,13 @@ int calib_chart_sample(const kg_chart_layout *l, const kg_image *img, const doub
                        const kg_chart_detect_options *opt, int reference,
                        kg_chart_result **out, kg_err *err);
 
+/* The median of v[0..n) (v sorted in place: for a few dozen values); NaN when n is 0. */
+double calib_median(double *v, int n);
+
+/* Solve the m x m system N c = b (N row-major with row stride `stride`, b: both
+ * overwritten) by Gaussian elimination with partial pivoting; 1 when singular. */
+int calib_solve_normal(double *N, int stride, double *b, int m, double *c);
+
 /* Estimate the light over the chart from the patches' quadrant means (each patch's
  * own gradient), divide every patch's values by it, judge the "non-uniform" flag on
  * what the field does not explain, and fill r->light (calib/light_field.c). A field

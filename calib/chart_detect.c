@@ -12,6 +12,7 @@
  *   chart_mcc.cpp      OpenCV mcc's box
  *   chart_orient.c     which turn: the patches' colours against the ColorChecker's
  *   chart_refine.c     a tagless box from a reduced copy refined on the patch edges
+ *   chart_colours.c    every patch against the layout's colour: covered patches, steps in light
  *   chart_sample.c     each patch's pixels; chart_select.c and chart_count.c their statistics
  *   chart_overlay.c    the overlay PNG
  *
@@ -338,6 +339,8 @@ int kg_chart_detect(const kg_chart_layout *l, const kg_image *img,
 	if ((ret = chart_image_levels(&wi, err)) || (ret = saturation_warning(r, &wi, err)))
 		goto fail;
 	if (opt.light_field && (ret = calib_light_field_apply(r, &opt, err)))
+		goto fail;
+	if ((ret = chart_check_colours(l, r, err)))
 		goto fail;
 	if ((ret = patch_summary_warnings(r))) {
 		ret = kg_fail(err, ret, "out of memory");

@@ -196,8 +196,30 @@ int chart_tagless_fallback(const kg_chart_layout *l, const kg_chart_result *r, i
  * width x height (one too small for the patch-grid finder's reduced copy). */
 void chart_tagless_warm_up(const kg_chart_layout *l, const kg_chart_detect_options *opt,
                            int width, int height);
-#if KG_HAVE_MCC
+/* chart_orient.c: the ColorChecker 24's patches in a layout (idx[k]: the layout's index
+ * of A01..D06 row by row; 0 when the layout does not have exactly these 24) and
+ * X-Rite's published colour of its k-th patch, linear sRGB. */
 int chart_colorchecker24_patches(const kg_chart_layout *l, int idx[24]);
+void chart_cc24_linear(int k, double lin[3]);
+void chart_unit3(const double v[3], double u[3]);
+/* sin^2 of the angle between u (unit) and M e, 1 when M e points away from u. */
+double chart_colour_sin2(const double M[9], const double e[3], const double u[3]);
+/* M (3 x 3) and per-patch scales s_i (s: n of scratch) minimising sum |u_i - s_i M e_i|^2
+ * over the patches i < n with use[i], by alternating least squares from the plain
+ * regression of u on e (u, e unit vectors): the colours up to any camera primaries,
+ * white balance and light level per patch. The mean sin^2 of the angles left (1 when
+ * no fit). */
+double chart_colour_fit(int n, const double (*u)[3], const double (*e)[3], const int *use,
+                        double *s, double M[9]);
+/* How much colour the directions u_i (unit, i < n with use[i]) have: the RMS sine of
+ * their angles from their mean direction (0 for a grey picture). */
+double chart_direction_spread(int n, const double (*u)[3], const int *use);
+/* chart_colours.c: every patch against its layout's expected colour (a patch that does
+ * not fit is flagged KG_CHART_FLAG_MISFIT) and the chart's light against a step
+ * between its patches (refused, KG_EINVAL). */
+int chart_check_colours(const kg_chart_layout *l, kg_chart_result *r, kg_err *err);
+
+#if KG_HAVE_MCC
 void chart_mcc24_box_mm(const layout_view *L, const int idx[24], double box[4][2]);
 double chart_quad_signed_area(const double q[4][2]);
 void chart_samples_free(kg_chart_sample *p, int n);

@@ -1,6 +1,8 @@
-/* Which way up a ColorChecker 24 found without tags lies: the sampled patches'
- * colours against the chart's published ones through the 3 x 3 matrix that fits them
- * best, for each of the four turns of mcc's box. */
+/* The ColorChecker 24's published colours and the 3 x 3 matrix that maps expected
+ * colours onto sampled ones (any camera, white balance and light level): which way up
+ * a ColorChecker 24 found without tags lies (its four turns against the chart's
+ * colours), and the check of every chart's patches against its layout's colours
+ * (chart_colours.c). */
 #include <limits.h>
 #include <math.h>
 #include <stdint.h>
@@ -10,9 +12,6 @@
 
 #include "chart_detect_private.h"
 
-/* ---- tagless: OpenCV mcc ------------------------------------------------------ */
-
-#if KG_HAVE_MCC
 /* The patches of a ColorChecker 24 layout by chart position, row-major from A01
  * (dark skin) to D06 (black 2): 1 when the layout has exactly these 24 ids. */
 int chart_colorchecker24_patches(const kg_chart_layout *l, int idx[24])
@@ -28,6 +27,7 @@ int chart_colorchecker24_patches(const kg_chart_layout *l, int idx[24])
 	return 1;
 }
 
+#if KG_HAVE_MCC
 /* mcc's box in layout mm (tl, tr, br, bl as the chart is read, A01 top left): the
  * centres of A01, A06 and D01 give one pitch along a row and down a column, and the
  * box lies KG_MCC24_BOX_MARGIN_PITCH pitches beyond the outer patch centres. */
@@ -57,9 +57,12 @@ void chart_samples_free(kg_chart_sample *p, int n)
 	free(p);
 }
 
+#endif
+
 /* The ColorChecker 24's colours as X-Rite publishes them in sRGB (8 bit, D65),
  * row-major from A01 (dark skin) to D06 (black 2). Only their directions in RGB
- * matter below: the camera's own primaries, white balance and exposure are fitted. */
+ * matter to the orientation: the camera's own primaries, white balance and exposure
+ * are fitted. */
 static const unsigned char cc24_srgb8[24][3] = {
 	{115, 82, 68},   {194, 150, 130}, {98, 122, 157},  {87, 108, 67},   {133, 128, 177},
 	{103, 189, 170}, {214, 126, 44},  {80, 91, 166},   {193, 90, 99},   {94, 60, 108},
@@ -68,24 +71,22 @@ static const unsigned char cc24_srgb8[24][3] = {
 	{160, 160, 160}, {122, 122, 121}, {85, 85, 85},    {52, 52, 52},
 };
 
-/* A patch whose value can say which colour it is: sampled, in the frame, fewer than
- * half of its pixels clipped (so the median is not), every channel above zero. */
-static int colour_usable(const kg_chart_sample *p)
+void chart_cc24_linear(int k, double lin[3])
 {
-	return !(p->flags & (KG_CHART_FLAG_REJECTED | KG_CHART_FLAG_OUT_OF_FRAME)) &&
-	       p->clipped_fraction < 0.5 && p->rgb[0] > 0 && p->rgb[1] > 0 && p->rgb[2] > 0 &&
-	       isfinite(p->rgb[0] + p->rgb[1] + p->rgb[2]);
+	for (int c = 0; c < 3; c++) {
+		double v = cc24_srgb8[k][c] / 255.0;
+		lin[c] = v <= 0.04045 ? v / 12.92 : pow((v + 0.055) / 1.055, 2.4);
+	}
 }
 
-static void unit3(const double v[3], double u[3])
+void chart_unit3(const double v[3], double u[3])
 {
 	double n = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
 	for (int c = 0; c < 3; c++)
 		u[c] = n > 0 ? v[c] / n : 0;
 }
 
-/* sin^2 of the angle between u (unit) and M e, 1 when M e points away from u. */
-static double colour_sin2(const double M[9], const double e[3], const double u[3])
+double chart_colour_sin2(const double M[9], const double e[3], const double u[3])
 {
 	double p[3], pp = 0, up = 0;
 	for (int r = 0; r < 3; r++) {
@@ -96,19 +97,14 @@ static double colour_sin2(const double M[9], const double e[3], const double u[3
 	return up > 0 && pp > 0 ? fmax(0, 1 - up * up / pp) : 1;
 }
 
-/* M (3 x 3) and per-patch scales s_i minimising sum |u_i - s_i M e_i|^2 over the
- * patches with use[i], by alternating least squares from the plain regression of u
- * on e: the colours up to any camera primaries, white balance and light level per
- * patch. Returns the mean sin^2 of the angles left. */
-static double colour_fit(const double u[24][3], const double e[24][3], const int use[24],
-                         double M[9])
+double chart_colour_fit(int n, const double (*u)[3], const double (*e)[3], const int *use,
+                        double *s, double M[9])
 {
-	double s[24];
-	for (int i = 0; i < 24; i++)
+	for (int i = 0; i < n; i++)
 		s[i] = 1;
 	for (int iter = 0; iter < 40; iter++) {
 		double A[9] = {0}, B[9] = {0}, Binv[9];
-		for (int i = 0; i < 24; i++) {
+		for (int i = 0; i < n; i++) {
 			if (!use[i])
 				continue;
 			for (int r = 0; r < 3; r++)
@@ -130,7 +126,7 @@ static double colour_fit(const double u[24][3], const double e[24][3], const int
 			return 1;
 		for (int k = 0; k < 9; k++)
 			M[k] /= sqrt(F);
-		for (int i = 0; i < 24; i++) {
+		for (int i = 0; i < n; i++) {
 			if (!use[i])
 				continue;
 			double p[3], pp = 0, up = 0;
@@ -144,13 +140,45 @@ static double colour_fit(const double u[24][3], const double e[24][3], const int
 		}
 	}
 	double sum = 0;
-	int n = 0;
-	for (int i = 0; i < 24; i++)
+	int k = 0;
+	for (int i = 0; i < n; i++)
 		if (use[i]) {
-			sum += colour_sin2(M, e[i], u[i]);
-			n++;
+			sum += chart_colour_sin2(M, e[i], u[i]);
+			k++;
 		}
-	return n ? sum / n : 1;
+	return k ? sum / k : 1;
+}
+
+double chart_direction_spread(int n, const double (*u)[3], const int *use)
+{
+	double mean[3] = {0, 0, 0};
+	int k = 0;
+	for (int i = 0; i < n; i++)
+		if (use[i]) {
+			for (int c = 0; c < 3; c++)
+				mean[c] += u[i][c];
+			k++;
+		}
+	if (!k)
+		return 0;
+	double m[3], sum = 0;
+	chart_unit3(mean, m);
+	for (int i = 0; i < n; i++)
+		if (use[i]) {
+			double d = u[i][0] * m[0] + u[i][1] * m[1] + u[i][2] * m[2];
+			sum += fmax(0, 1 - d * d);
+		}
+	return sqrt(sum / k);
+}
+
+#if KG_HAVE_MCC
+/* A patch whose value can say which colour it is: sampled, in the frame, fewer than
+ * half of its pixels clipped (so the median is not), every channel above zero. */
+static int colour_usable(const kg_chart_sample *p)
+{
+	return !(p->flags & (KG_CHART_FLAG_REJECTED | KG_CHART_FLAG_OUT_OF_FRAME)) &&
+	       p->clipped_fraction < 0.5 && p->rgb[0] > 0 && p->rgb[1] > 0 && p->rgb[2] > 0 &&
+	       isfinite(p->rgb[0] + p->rgb[1] + p->rgb[2]);
 }
 
 /* How far the sampled patches are from a ColorChecker read in this orientation:
@@ -162,37 +190,34 @@ static double colour_fit(const double u[24][3], const double e[24][3], const int
  * greys onto six colours and reads far worse. *used: the patches fitted. */
 double chart_orientation_score(const kg_chart_sample *p, const int idx[24], int *used)
 {
-	double u[24][3], e[24][3], M[9];
+	double u[24][3], e[24][3], M[9], s[24];
 	int use[24], n = 0;
 	for (int i = 0; i < 24; i++) {
 		const kg_chart_sample *q = &p[idx[i]];
 		double lin[3];
-		for (int c = 0; c < 3; c++) {
-			double v = cc24_srgb8[i][c] / 255.0;
-			lin[c] = v <= 0.04045 ? v / 12.92 : pow((v + 0.055) / 1.055, 2.4);
-		}
-		unit3(lin, e[i]);
+		chart_cc24_linear(i, lin);
+		chart_unit3(lin, e[i]);
 		use[i] = colour_usable(q);
 		if (use[i])
-			unit3(q->rgb, u[i]);
+			chart_unit3(q->rgb, u[i]);
 		n += use[i];
 	}
 	*used = n;
 	if (n < 12)
 		return 1;
-	double ms = colour_fit(u, e, use, M);
+	double ms = chart_colour_fit(24, (const double (*)[3])u, (const double (*)[3])e, use, s, M);
 	if (n >= 14) {
 		for (int drop = 0; drop < 2; drop++) {
 			int worst = -1;
 			double w = -1;
 			for (int i = 0; i < 24; i++)
-				if (use[i] && colour_sin2(M, e[i], u[i]) > w) {
-					w = colour_sin2(M, e[i], u[i]);
+				if (use[i] && chart_colour_sin2(M, e[i], u[i]) > w) {
+					w = chart_colour_sin2(M, e[i], u[i]);
 					worst = i;
 				}
 			use[worst] = 0;
 		}
-		ms = colour_fit(u, e, use, M);
+		ms = chart_colour_fit(24, (const double (*)[3])u, (const double (*)[3])e, use, s, M);
 	}
 	return sqrt(ms);
 }
@@ -202,25 +227,12 @@ double chart_orientation_score(const kg_chart_sample *p, const int idx[24], int 
  * has next to none, and then fits any orientation. */
 double chart_colour_spread(const kg_chart_sample *p, const int idx[24])
 {
-	double mean[3] = {0, 0, 0}, u[24][3];
-	int use[24], n = 0;
+	double u[24][3];
+	int use[24];
 	for (int i = 0; i < 24; i++)
-		if ((use[i] = colour_usable(&p[idx[i]]))) {
-			unit3(p[idx[i]].rgb, u[i]);
-			for (int c = 0; c < 3; c++)
-				mean[c] += u[i][c];
-			n++;
-		}
-	if (!n)
-		return 0;
-	double m[3], sum = 0;
-	unit3(mean, m);
-	for (int i = 0; i < 24; i++)
-		if (use[i]) {
-			double d = u[i][0] * m[0] + u[i][1] * m[1] + u[i][2] * m[2];
-			sum += fmax(0, 1 - d * d);
-		}
-	return sqrt(sum / n);
+		if ((use[i] = colour_usable(&p[idx[i]])))
+			chart_unit3(p[idx[i]].rgb, u[i]);
+	return chart_direction_spread(24, (const double (*)[3])u, use);
 }
 
 #endif

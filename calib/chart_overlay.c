@@ -232,7 +232,7 @@ int kg_chart_overlay_write(const kg_chart_result *r, const kg_image *img, const 
 		path_quad(cr, p->quad, s);
 		cairo_stroke(cr);
 		if (p->flags & (KG_CHART_FLAG_REJECTED | KG_CHART_FLAG_CLIPPED |
-		                KG_CHART_FLAG_GLARE)) {
+		                KG_CHART_FLAG_GLARE | KG_CHART_FLAG_MISFIT)) {
 			cairo_move_to(cr, p->quad[0][0] * s, p->quad[0][1] * s);
 			cairo_line_to(cr, p->quad[2][0] * s, p->quad[2][1] * s);
 			cairo_move_to(cr, p->quad[1][0] * s, p->quad[1][1] * s);
@@ -252,7 +252,8 @@ int kg_chart_overlay_write(const kg_chart_result *r, const kg_image *img, const 
 			         : p->flags & KG_CHART_FLAG_CLIPPED ? "clipped"
 			         : p->flags & KG_CHART_FLAG_GLARE ? "glare"
 			         : p->flags & KG_CHART_FLAG_OUT_OF_FRAME ? "out of frame"
-			         : p->flags & KG_CHART_FLAG_NONUNIFORM ? "non-uniform" : "few pixels");
+			         : p->flags & KG_CHART_FLAG_NONUNIFORM ? "non-uniform"
+			         : p->flags & KG_CHART_FLAG_MISFIT ? "not its colour" : "few pixels");
 			label(cr, cx, cy + font * 1.1, font * 0.8, why, 1, 0.3, 0.3);
 		}
 	}

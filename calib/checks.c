@@ -31,6 +31,17 @@ char **calib_strv_dup(char *const *v, int n)
 	return out;
 }
 
+double calib_median(double *v, int n)
+{
+	for (int i = 1; i < n; i++) /* insertion sort: a few dozen values */
+		for (int j = i; j > 0 && v[j - 1] > v[j]; j--) {
+			double t = v[j];
+			v[j] = v[j - 1];
+			v[j - 1] = t;
+		}
+	return n <= 0 ? NAN : n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
 void calib_list_ids(char *buf, size_t len, char *const *ids, const int *which, int n,
                     int max)
 {

@@ -406,6 +406,8 @@ void kg_reference_free(kg_reference **pref)
 	calib_strv_free(ref->field_ids, ref->k);
 	free(ref->rho0);
 	calib_sources_free(&ref->sources, &ref->nsources);
+	calib_strv_free(ref->flagged_ids, ref->nflagged);
+	free(ref->flagged_flags);
 	free(ref);
 	*pref = NULL;
 }
@@ -700,12 +702,75 @@ error:
 	return ret;
 }
 
+/* The field chart's patches chart detection flagged (FLAGS != 0): *n of them, their
+ * ids and flags (newly allocated, also on failure; NULL without a FLAGS column). */
+static int flagged_patches(const kg_patchset *field, int *n, char ***ids, unsigned **flags,
+                           kg_err *err)
+{
+	int col = kg_patchset_extra_index(field, "FLAGS");
+	*n = 0;
+	*ids = NULL;
+	*flags = NULL;
+	if (col < 0)
+		return 0;
+	size_t cap = field->n > 0 ? (size_t)field->n : 1;
+	if (!(*ids = calloc(cap, sizeof(char *))) || !(*flags = calloc(cap, sizeof(unsigned))))
+		return kg_fail(err, KG_ENOMEM, "out of memory");
+	for (int i = 0; i < field->n; i++) {
+		double f = field->extra[(size_t)i * field->nextra + col];
+		if (!(f > 0) || !isfinite(f))
+			continue;
+		if (!((*ids)[*n] = strdup(field->ids[i])))
+			return kg_fail(err, KG_ENOMEM, "out of memory");
+		/* detection writes small whole numbers; anything else still counts as flagged */
+		(*flags)[(*n)++] = f < 65536 ? (unsigned)f : 0xffffu;
+	}
+	return 0;
+}
+
+static int fit_excluding(const kg_patchset *train, const kg_patchset *field,
+                         const kg_reference_options *opt, kg_reference **out, kg_err *err);
+
 int kg_reference_fit(const kg_patchset *train, const kg_patchset *field,
                      const kg_reference_options *opt, kg_reference **out, kg_err *err)
 {
 	kg_check_arg(train && field && opt && out, err);
 	kg_check_arg(opt->nexclude == 0 || opt->exclude, err);
 	*out = NULL;
+	int nflagged = 0;
+	char **ids = NULL;
+	unsigned *flags = NULL;
+	const char **ex = NULL;
+	int ret = flagged_patches(field, &nflagged, &ids, &flags, err);
+	kg_reference_options o = *opt;
+	if (!ret && nflagged) {
+		/* opt's exclusions and the flagged patches, in one list */
+		if (!(ex = calloc((size_t)(opt->nexclude + nflagged), sizeof(*ex))))
+			ret = kg_fail(err, KG_ENOMEM, "out of memory");
+		for (int i = 0; ex && i < opt->nexclude; i++)
+			ex[i] = opt->exclude[i];
+		for (int i = 0; ex && i < nflagged; i++)
+			ex[opt->nexclude + i] = ids[i];
+		o.exclude = ex;
+		o.nexclude = opt->nexclude + nflagged;
+	}
+	if (!ret)
+		ret = fit_excluding(train, field, &o, out, err);
+	free(ex);
+	if (!ret) {
+		(*out)->nflagged = nflagged;
+		(*out)->flagged_ids = ids;
+		(*out)->flagged_flags = flags;
+	} else {
+		calib_strv_free(ids, nflagged);
+		free(flags);
+	}
+	return ret;
+}
+
+static int fit_excluding(const kg_patchset *train, const kg_patchset *field,
+                         const kg_reference_options *opt, kg_reference **out, kg_err *err)
+{
 	int ret = check_options(opt, err);
 	if (ret || opt->nexclude == 0)
 		return ret ? ret : fit_reference(train, field, opt, out, err);

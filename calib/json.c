@@ -17,7 +17,8 @@
  *   validation {loo_rmse_by_K, loo_rmse_by_method},
  *   training {patches, ids, rho (m x 3), rmse, gfc, de00_d65, projection_rmse,
  *     weight_residual, mean_rmse, mean_de00_d65, max_de00_d65, condition_number_rho},
- *   field {ids, rho0 (3 x k), condition_number},
+ *   field {ids, rho0 (3 x k), condition_number, flagged [{id, flags}]: patches chart
+ *         detection flagged, left out of the fit (optional)},
  *   response {source, patches, F (3 x 61), lambda, loo_rmse (3 each), loo_relative}:
  *     the reference camera's spectral response (response.c), null or absent in older
  *     files,
@@ -128,6 +129,20 @@ static json_t *jstrv(jw *w, const char *what, char *const *v, int n)
 	}
 	for (int i = 0; i < n; i++)
 		if (json_array_append_new(a, jtext(w, what, v[i])) != 0)
+			w->bad = 1;
+	return a;
+}
+
+static int get_flagged(const char *file, const json_t *root, const char *key, int *nflagged,
+                       char ***ids, unsigned **flags, kg_err *err);
+
+/* Patches left out because chart detection flagged them: [{id, flags}]. */
+static json_t *jflagged(jw *w, int n, char *const *ids, const unsigned *flags)
+{
+	json_t *a = json_array();
+	for (int i = 0; a && i < n; i++)
+		if (json_array_append_new(a, json_pack("{s:s, s:i}", "id", ids[i], "flags",
+		                                       (int)flags[i])))
 			w->bad = 1;
 	return a;
 }
@@ -352,6 +367,8 @@ int kg_reference_save(const kg_reference *ref, const char *path, kg_err *err)
 	put(&w, field, "ids", jstrv(&w, "a patch id", ref->field_ids, ref->k));
 	put(&w, field, "rho0", jmat(&w, &ref->rho0[0][0], 3, ref->k, 1, 3));
 	put(&w, field, "condition_number", jnum(ref->cond_rho0));
+	put(&w, field, "flagged", jflagged(&w, ref->nflagged, ref->flagged_ids,
+	                                   ref->flagged_flags));
 	put(&w, root, "field", field);
 	put(&w, root, "response", jresponse(&w, &ref->response));
 
@@ -407,12 +424,7 @@ int kg_camera_save(const kg_camera_calib *cam, const char *path, kg_err *err)
 	put(&w, fit, "condition_number_equilibrated", jnum(cam->cond_equilibrated));
 	put(&w, fit, "singular_values", jrow(&w, cam->singular_values, 3, 1));
 	put(&w, fit, "rank", json_integer(cam->rank));
-	json_t *flagged = json_array();
-	for (int i = 0; flagged && i < cam->nflagged; i++)
-		if (json_array_append_new(flagged, json_pack("{s:s, s:i}", "id", cam->flagged_ids[i],
-		                                             "flags", (int)cam->flagged_flags[i])))
-			w.bad = 1;
-	put(&w, fit, "flagged", flagged);
+	put(&w, fit, "flagged", jflagged(&w, cam->nflagged, cam->flagged_ids, cam->flagged_flags));
 	put(&w, root, "site", fit);
 	put(&w, root, "response", jresponse(&w, &cam->response));
 	const kg_camera_identity *id = &cam->identity;
@@ -824,6 +836,9 @@ static int load_reference(const char *file, const json_t *root, kg_reference *re
 	if (!ret)
 		ret = get_num_or_null(file, root, "field.condition_number", &ref->cond_rho0, err);
 	if (!ret)
+		ret = get_flagged(file, root, "field.flagged", &ref->nflagged, &ref->flagged_ids,
+		                  &ref->flagged_flags, err);
+	if (!ret)
 		ret = get_sources(file, root, &ref->sources, &ref->nsources, err);
 	calib_reference_derive(ref);
 	return ret;
@@ -848,29 +863,31 @@ int kg_reference_load(const char *path, kg_reference **out, kg_err *err)
 	return 0;
 }
 
-/* site.flagged, optional: [{id, flags}]. */
-static int get_flagged(const char *file, const json_t *root, kg_camera_calib *cam, kg_err *err)
+/* key (site.flagged, field.flagged), optional: [{id, flags}], the patches left out
+ * because chart detection flagged them. */
+static int get_flagged(const char *file, const json_t *root, const char *key, int *nflagged,
+                       char ***ids, unsigned **flags, kg_err *err)
 {
-	json_t *a = kg_json_find(root, "site.flagged");
+	json_t *a = kg_json_find(root, key);
 	if (!a)
 		return 0;
 	if (!json_is_array(a))
-		return kg_fail(err, KG_EINVAL, "%s: site.flagged: expected an array", file);
+		return kg_fail(err, KG_EINVAL, "%s: %s: expected an array", file, key);
 	int n = (int)json_array_size(a);
-	cam->flagged_ids = calloc(n > 0 ? (size_t)n : 1, sizeof(char *));
-	cam->flagged_flags = calloc(n > 0 ? (size_t)n : 1, sizeof(unsigned));
-	if (!cam->flagged_ids || !cam->flagged_flags)
+	*ids = calloc(n > 0 ? (size_t)n : 1, sizeof(char *));
+	*flags = calloc(n > 0 ? (size_t)n : 1, sizeof(unsigned));
+	if (!*ids || !*flags)
 		return kg_fail(err, KG_ENOMEM, "out of memory");
 	for (int i = 0; i < n; i++) {
 		json_t *o = json_array_get(a, (size_t)i);
 		json_t *id = json_object_get(o, "id"), *f = json_object_get(o, "flags");
 		if (!json_is_string(id) || !json_is_integer(f) || json_integer_value(f) < 0)
-			return kg_fail(err, KG_EINVAL, "%s: site.flagged[%d]: expected {\"id\": a string, "
-			               "\"flags\": a whole number >= 0}", file, i);
-		if (!(cam->flagged_ids[i] = strdup(json_string_value(id))))
+			return kg_fail(err, KG_EINVAL, "%s: %s[%d]: expected {\"id\": a string, "
+			               "\"flags\": a whole number >= 0}", file, key, i);
+		if (!((*ids)[i] = strdup(json_string_value(id))))
 			return kg_fail(err, KG_ENOMEM, "out of memory");
-		cam->flagged_flags[i] = (unsigned)json_integer_value(f);
-		cam->nflagged = i + 1;
+		(*flags)[i] = (unsigned)json_integer_value(f);
+		*nflagged = i + 1;
 	}
 	return 0;
 }
@@ -964,7 +981,8 @@ static int load_camera(const char *file, const json_t *root, kg_camera_calib *ca
 		ret = kg_json_get_int(file, root, "site.rank", 0, 3, &rank, err);
 	cam->rank = (int)rank;
 	if (!ret)
-		ret = get_flagged(file, root, cam, err);
+		ret = get_flagged(file, root, "site.flagged", &cam->nflagged, &cam->flagged_ids,
+		                  &cam->flagged_flags, err);
 	if (!ret)
 		ret = get_identity(file, root, &cam->identity, err);
 	if (!ret)

@@ -202,6 +202,10 @@ typedef struct kg_reference {
 	kg_calib_source *sources;
 	char id_rule[256];         /* how the spectra's and RGB's ids were paired when not
 	                            * as written (kg_patch_ids_match), else "" */
+	int nflagged;              /* field patches left out because chart detection
+	                            * flagged them (FLAGS column != 0) */
+	char **flagged_ids;
+	unsigned *flagged_flags;   /* their FLAGS (KG_CHART_FLAG_*) */
 } kg_reference;
 
 /* Pair spectra and RGB by SAMPLE_ID into one patch set (spectra + rgb), in the order
@@ -215,9 +219,12 @@ int kg_calib_pair_rule(const kg_patchset *spectra, const kg_patchset *rgb,
                        kg_patchset **out, const char **rule, kg_err *err);
 
 /* Fit everything on a training chart (spectra + rgb) for a field chart (rgb; may be
- * the training set itself). Refused (KG_EINVAL, naming the patches): non-finite or
- * clipped values, near-black field patches, nearly collinear RGB (the site test of
- * kg_camera_fit, on both charts), too few patches, options out of range. */
+ * the training set itself). Patches the field chart's FLAGS column flags (chart
+ * detection: clipped, glare, a colour that is not the layout's, ...) are left out of
+ * both, as opt->exclude's are, and listed in flagged_ids. Refused (KG_EINVAL, naming
+ * the patches): non-finite or clipped values, near-black field patches, nearly
+ * collinear RGB (the site test of kg_camera_fit, on both charts), too few patches,
+ * options out of range. */
 int kg_reference_fit(const kg_patchset *train, const kg_patchset *field,
                      const kg_reference_options *opt, kg_reference **out, kg_err *err);
 /* Read the inputs and fit: spectra from CGATS (SPEC_*) or a `patch,name,<nm>...` CSV,
@@ -632,6 +639,8 @@ enum {
 	KG_CHART_FLAG_OUT_OF_FRAME = 1 << 3, /* some of the region is outside the image */
 	KG_CHART_FLAG_NONUNIFORM = 1 << 4,   /* quadrants differ (occlusion, shadow, glare) */
 	KG_CHART_FLAG_REJECTED = 1 << 5,     /* no usable pixel */
+	KG_CHART_FLAG_MISFIT = 1 << 6,       /* its colour does not fit the layout's expected
+	                                      * colour there (covered, painted, shadowed) */
 };
 
 /* One sampled patch, in the layout's order. */
@@ -651,7 +660,22 @@ typedef struct kg_chart_sample {
 	double centre_mm[2], half_mm[2]; /* the sampled region on the chart */
 	double light;            /* the light field at the patch centre the values were
 	                          * divided by (1: none) */
+	double misfit;           /* against the layout's expected colour: the larger of its
+	                          * hue and level misfits over their thresholds (> 1:
+	                          * flagged KG_CHART_FLAG_MISFIT); NaN when not judged */
 } kg_chart_sample;
+
+/* The patches against the layout's expected colours (calib/chart_colours.c). */
+typedef struct kg_chart_colour_check {
+	int checked;             /* 0: the layout has no expected colours, or too few
+	                          * unflagged patches have one */
+	int used;                /* patches judged */
+	int flagged;             /* of them, flagged KG_CHART_FLAG_MISFIT */
+	double threshold_level, threshold_hue; /* in units of each patch's tolerance */
+	double worst;            /* the largest misfit of a patch not flagged (< 1) */
+	char worst_id[32];
+	char note[160];          /* why not checked, when the layout has colours: "" */
+} kg_chart_colour_check;
 
 /* The light over the chart as estimated from the patches (calib/light_field.c):
  * ln L(u, v) = c0 + c1 u + c2 v + c3 u^2 + c4 u v + c5 v^2 + c6 u^3 + c7 u^2 v +
@@ -702,6 +726,7 @@ typedef struct kg_chart_result {
 	double sample_seconds;    /* patch sampling (all four turns when tagless) */
 	double total_seconds;
 	kg_chart_light light;     /* the light field removed from the patch values */
+	kg_chart_colour_check colours; /* the patches against the layout's colours */
 	/* a refusal (options.keep_refused): patches, when present, are the regions of the
 	 * best reading tried, not a chart found */
 	int refused;

@@ -59,46 +59,46 @@ double kg_chart_light_log(const kg_chart_light *f, double x_mm, double y_mm)
 	return s;
 }
 
-/* Solve the m x m system N c = b in place (Gaussian elimination, partial pivoting);
- * 1 when singular. */
-static int solve(double N[NT][NT], double b[NT], int m, double c[NT])
+int calib_solve_normal(double *N, int stride, double *b, int m, double *c)
 {
+#define AT(i, j) N[(i) * stride + (j)]
 	double scale = 0;
 	for (int i = 0; i < m; i++)
-		scale = fmax(scale, fabs(N[i][i]));
+		scale = fmax(scale, fabs(AT(i, i)));
 	if (!(scale > 0))
 		return 1;
 	for (int k = 0; k < m; k++) {
 		int piv = k;
 		for (int i = k + 1; i < m; i++)
-			if (fabs(N[i][k]) > fabs(N[piv][k]))
+			if (fabs(AT(i, k)) > fabs(AT(piv, k)))
 				piv = i;
-		if (!(fabs(N[piv][k]) > 1e-10 * scale))
+		if (!(fabs(AT(piv, k)) > 1e-10 * scale))
 			return 1;
 		if (piv != k) {
 			for (int j = 0; j < m; j++) {
-				double t = N[k][j];
-				N[k][j] = N[piv][j];
-				N[piv][j] = t;
+				double t = AT(k, j);
+				AT(k, j) = AT(piv, j);
+				AT(piv, j) = t;
 			}
 			double t = b[k];
 			b[k] = b[piv];
 			b[piv] = t;
 		}
 		for (int i = k + 1; i < m; i++) {
-			double f = N[i][k] / N[k][k];
+			double f = AT(i, k) / AT(k, k);
 			for (int j = k; j < m; j++)
-				N[i][j] -= f * N[k][j];
+				AT(i, j) -= f * AT(k, j);
 			b[i] -= f * b[k];
 		}
 	}
 	for (int i = m - 1; i >= 0; i--) {
 		double s = b[i];
 		for (int j = i + 1; j < m; j++)
-			s -= N[i][j] * c[j];
-		c[i] = s / N[i][i];
+			s -= AT(i, j) * c[j];
+		c[i] = s / AT(i, i);
 	}
 	return 0;
+#undef AT
 }
 
 typedef struct obs {
@@ -133,7 +133,7 @@ static int robust_fit(obs *o, int n, int m, double c[NT], double *rms)
 		}
 		for (int j = 0; j < NT; j++)
 			c[j] = 0;
-		if ((ret = solve(N, b, m, c)))
+		if ((ret = calib_solve_normal(&N[0][0], NT, b, m, c)))
 			break;
 		for (int i = 0; i < n; i++) {
 			double r = o[i].y;

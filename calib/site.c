@@ -51,6 +51,16 @@ static int is_excluded(const kg_camera_options *opt, const char *id)
 	return 0;
 }
 
+/* The index in ref->flagged_ids of a patch the reference left out because chart
+ * detection flagged it on the reference's chart, else -1. */
+static int ref_flagged(const kg_reference *ref, const char *id)
+{
+	for (int i = 0; i < ref->nflagged; i++)
+		if (strcmp(ref->flagged_ids[i], id) == 0)
+			return i;
+	return -1;
+}
+
 /* Fold M2 into a reference map: linear methods get A M2, root-polynomial ones keep
  * A and apply M2 first. */
 static void site_map_from(const kg_spectral_map *ref, const double M2[9], kg_site_map *out)
@@ -134,7 +144,8 @@ static int match_patches(const kg_reference *ref, const kg_patchset *site,
 		goto done;
 	}
 	for (int i = 0; i < n; i++)
-		if (!is_excluded(opt, site->ids[i]) && alias[i] < 0)
+		if (!is_excluded(opt, site->ids[i]) && ref_flagged(ref, site->ids[i]) < 0 &&
+		    alias[i] < 0)
 			unknown[nunknown++] = i;
 	if (nunknown) {
 		free(alias);
@@ -191,6 +202,23 @@ done:
 	return ret;
 }
 
+/* The residuals rho0 - M2 rho_r of the k patches, their RMS and relative size. */
+static void m2_residuals(kg_camera_calib *cam)
+{
+	double res2 = 0, ref2 = 0;
+	for (int i = 0; i < cam->k; i++)
+		for (int r = 0; r < 3; r++) {
+			double p = cam->M2[r * 3 + 0] * cam->rho_r[i][0] +
+			           cam->M2[r * 3 + 1] * cam->rho_r[i][1] +
+			           cam->M2[r * 3 + 2] * cam->rho_r[i][2];
+			cam->residual[i][r] = cam->rho0[i][r] - p;
+			res2 += cam->residual[i][r] * cam->residual[i][r];
+			ref2 += cam->rho0[i][r] * cam->rho0[i][r];
+		}
+	cam->residual_rms = sqrt(res2 / (3.0 * cam->k));
+	cam->residual_relative = ref2 > 0 ? sqrt(res2 / ref2) : 0;
+}
+
 /* M2 = R0 pinv(R) with R, R0 the 3 x k site and reference values. */
 static int solve_m2(kg_camera_calib *cam, double rtol, kg_err *err)
 {
@@ -217,20 +245,8 @@ static int solve_m2(kg_camera_calib *cam, double rtol, kg_err *err)
 		 * refusal as a loaded calibration's */
 		ret = kg_mat3_check_invertible(cam->M2, NULL, "M2", err);
 	}
-	if (ret == 0) {
-		double res2 = 0, ref2 = 0;
-		for (int i = 0; i < k; i++)
-			for (int r = 0; r < 3; r++) {
-				double p = cam->M2[r * 3 + 0] * cam->rho_r[i][0] +
-				           cam->M2[r * 3 + 1] * cam->rho_r[i][1] +
-				           cam->M2[r * 3 + 2] * cam->rho_r[i][2];
-				cam->residual[i][r] = cam->rho0[i][r] - p;
-				res2 += cam->residual[i][r] * cam->residual[i][r];
-				ref2 += cam->rho0[i][r] * cam->rho0[i][r];
-			}
-		cam->residual_rms = sqrt(res2 / (3.0 * k));
-		cam->residual_relative = ref2 > 0 ? sqrt(res2 / ref2) : 0;
-	}
+	if (ret == 0)
+		m2_residuals(cam);
 	kg_mat_free(&R);
 	kg_mat_free(&P);
 	return ret;
@@ -247,7 +263,8 @@ static void describe_flags(unsigned f, char *buf, size_t n)
 	             {KG_CHART_FLAG_FEW_PIXELS, "too few pixels"},
 	             {KG_CHART_FLAG_OUT_OF_FRAME, "out of frame"},
 	             {KG_CHART_FLAG_NONUNIFORM, "non-uniform"},
-	             {KG_CHART_FLAG_REJECTED, "rejected"}};
+	             {KG_CHART_FLAG_REJECTED, "rejected"},
+	             {KG_CHART_FLAG_MISFIT, "colour not the layout's"}};
 	size_t at = 0;
 	buf[0] = 0;
 	for (size_t i = 0; i < sizeof(names) / sizeof(names[0]) && at < n; i++)
@@ -258,19 +275,30 @@ static void describe_flags(unsigned f, char *buf, size_t n)
 }
 
 /* Leave out the pairs whose site patch the detector flagged (FLAGS column != 0),
- * recording them in cam; fewer than 3 left is refused naming them. */
+ * recording them in cam with the site patches the reference left out because they
+ * were flagged on its chart; fewer than 3 left is refused naming them. */
 static int drop_flagged(const kg_patchset *site, const char *what, int *idx_ref,
                         int *idx_site, int *k, const kg_reference *ref, kg_camera_calib *cam,
                         kg_err *err)
 {
 	int col = kg_patchset_extra_index(site, "FLAGS");
-	if (col < 0)
-		return 0;
 	int kept = 0, n = *k;
-	cam->flagged_ids = calloc(n > 0 ? (size_t)n : 1, sizeof(char *));
-	cam->flagged_flags = calloc(n > 0 ? (size_t)n : 1, sizeof(unsigned));
+	size_t cap = (size_t)n + (size_t)ref->nflagged + 1;
+	cam->flagged_ids = calloc(cap, sizeof(char *));
+	cam->flagged_flags = calloc(cap, sizeof(unsigned));
 	if (!cam->flagged_ids || !cam->flagged_flags)
 		return kg_fail(err, KG_ENOMEM, "out of memory");
+	/* the site's patches the reference left out, flagged on its chart */
+	for (int i = 0; i < site->n; i++) {
+		int r = ref_flagged(ref, site->ids[i]);
+		if (r < 0)
+			continue;
+		if (!(cam->flagged_ids[cam->nflagged] = strdup(site->ids[i])))
+			return kg_fail(err, KG_ENOMEM, "out of memory");
+		cam->flagged_flags[cam->nflagged++] = ref->flagged_flags[r];
+	}
+	if (col < 0)
+		return 0;
 	for (int i = 0; i < n; i++) {
 		double f = site->extra[(size_t)idx_site[i] * site->nextra + col];
 		if (f == 0 || !isfinite(f) || f < 0) {
@@ -304,6 +332,132 @@ static int drop_flagged(const kg_patchset *site, const char *what, int *idx_ref,
 	               "least 3. Was the chart detected with its own layout, evenly lit and in "
 	               "full view?",
 	               what, cam->nflagged, n, list, kept, kept == 1 ? "" : "es");
+}
+
+/* A patch that does not fit the others through M2 (a card over it on the site chart,
+ * a patch painted over): its residual relative to its reference value (floored at
+ * M2_MISFIT_FLOOR of the brightest, so dark patches' noise does not count) above
+ * M2_MISFIT_SPREAD times the patches' robust spread (1.4826 x their median), and
+ * above M2_MISFIT_MIN, the residuals from M2 fitted three times on the three quarters
+ * of the patches that fit best (so the patch does not bend the fit it is judged by).
+ * Left out worst first, at most a quarter of the patches, and 6 stay; M2 is fitted
+ * again on the rest (docs/calib-camera.md). */
+#define M2_MISFIT_FLOOR 0.05
+#define M2_MISFIT_SPREAD 6.0
+#define M2_MISFIT_MIN 0.25
+
+/* The patches' relative residuals in e. */
+static void misfits(const kg_camera_calib *cam, double *e)
+{
+	double bright = 0;
+	for (int i = 0; i < cam->k; i++)
+		bright = fmax(bright, sqrt(cam->rho0[i][0] * cam->rho0[i][0] +
+		                           cam->rho0[i][1] * cam->rho0[i][1] +
+		                           cam->rho0[i][2] * cam->rho0[i][2]));
+	for (int i = 0; i < cam->k; i++) {
+		const double *r = cam->residual[i], *v = cam->rho0[i];
+		double nv = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+		e[i] = sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2]) /
+		       fmax(nv, M2_MISFIT_FLOOR * bright);
+	}
+}
+
+static void swap_patches(kg_camera_calib *cam, int i, int j)
+{
+	double a[3];
+	char *id = cam->ids[i];
+	cam->ids[i] = cam->ids[j];
+	cam->ids[j] = id;
+	memcpy(a, cam->rho_r[i], sizeof(a));
+	memcpy(cam->rho_r[i], cam->rho_r[j], sizeof(a));
+	memcpy(cam->rho_r[j], a, sizeof(a));
+	memcpy(a, cam->rho0[i], sizeof(a));
+	memcpy(cam->rho0[i], cam->rho0[j], sizeof(a));
+	memcpy(cam->rho0[j], a, sizeof(a));
+}
+
+/* The k patches sorted by key (ascending), their arrays and `other` alongside. */
+static void sort_patches(kg_camera_calib *cam, int k, double *key, double *other)
+{
+	for (int i = 1; i < k; i++) /* insertion sort: a few dozen patches */
+		for (int j = i; j > 0 && key[j - 1] > key[j]; j--) {
+			double t = key[j];
+			key[j] = key[j - 1];
+			key[j - 1] = t;
+			t = other[j];
+			other[j] = other[j - 1];
+			other[j - 1] = t;
+			swap_patches(cam, j, j - 1);
+		}
+}
+
+/* e[i]: patch i's misfit to M2 fitted to the other patches; 0 when one of those fits
+ * fails (too few colours without it). */
+static int deleted_misfits(kg_camera_calib *cam, const kg_camera_options *opt, double *e)
+{
+	int k = cam->k, ok = 1;
+	double *all = malloc((size_t)k * sizeof(*all));
+	if (!all)
+		return 0;
+	for (int i = 0; i < k && ok; i++) {
+		swap_patches(cam, i, k - 1);
+		kg_err ignored;
+		cam->k = k - 1;
+		ok = solve_m2(cam, opt->pinv_rtol, &ignored) == 0;
+		cam->k = k;
+		m2_residuals(cam);
+		misfits(cam, all);
+		e[i] = all[k - 1];
+		swap_patches(cam, i, k - 1);
+	}
+	free(all);
+	return ok;
+}
+
+static int drop_misfits(kg_camera_calib *cam, const kg_camera_options *opt, kg_err *err)
+{
+	int k = cam->k, most = k / 4;
+	if (most < 1 || k - most < 6)
+		return 0;
+	/* e: misfits; pos: each patch's place in the reference's order, restored at the end */
+	double *e = malloc((size_t)k * sizeof(*e)), *pos = malloc((size_t)k * sizeof(*pos));
+	if (!e || !pos) {
+		free(e);
+		free(pos);
+		return kg_fail(err, KG_ENOMEM, "out of memory");
+	}
+	for (int i = 0; i < k; i++)
+		pos[i] = i;
+	/* the first ranking by each patch's misfit to M2 fitted without it, so a patch
+	 * far from the others (a white card among dark colours) cannot fit itself */
+	int fitted = deleted_misfits(cam, opt, e);
+	for (int round = 0; fitted && round < 3; round++) {
+		if (round)
+			misfits(cam, e);
+		sort_patches(cam, k, e, pos);
+		cam->k = k - most; /* the best three quarters */
+		kg_err ignored;
+		fitted = solve_m2(cam, opt->pinv_rtol, &ignored) == 0;
+		cam->k = k;
+		m2_residuals(cam);
+	}
+	if (fitted) {
+		misfits(cam, e);
+		sort_patches(cam, k, e, pos);
+		double t = fmax(M2_MISFIT_MIN, M2_MISFIT_SPREAD * 1.4826 * calib_median(e, k));
+		/* listed with the flagged patches (their arrays hold room for every pair) */
+		while (cam->k > k - most && e[cam->k - 1] > t) {
+			cam->k--;
+			cam->flagged_ids[cam->nflagged] = cam->ids[cam->k];
+			cam->flagged_flags[cam->nflagged++] = KG_CHART_FLAG_MISFIT;
+			cam->ids[cam->k] = NULL;
+		}
+	}
+	sort_patches(cam, cam->k, pos, e); /* back in the reference's order */
+	free(e);
+	free(pos);
+	/* M2 of the patches kept (all of them when none was left out) */
+	return solve_m2(cam, opt->pinv_rtol, err);
 }
 
 /* A fit whose residual cannot be checked (k = 3) or is too large is refused. */
@@ -420,6 +574,8 @@ int kg_camera_fit(const kg_reference *ref, const kg_patchset *site,
 	if (ret)
 		goto error;
 	ret = solve_m2(cam, opt->pinv_rtol, err);
+	if (!ret)
+		ret = drop_misfits(cam, opt, err);
 	if (!ret)
 		ret = check_residual(cam, opt, what, err);
 	if (ret)

@@ -29,7 +29,9 @@ static const char usage_reference[] =
 	"  within 1 % of it, the first in the order above (the simplest).\n"
 	"  --ridge L >= 0 (default 0), --noise SIGMA > 0 (camera noise, 0..1 scale,\n"
 	"  default 0.01). rho0, the reference camera's values of the field chart, come\n"
-	"  from --field-rgb, else from --rgb. --exclude leaves patches out of both.\n"
+	"  from --field-rgb, else from --rgb. --exclude leaves patches out of both, and so\n"
+	"  are the patches chart detection flagged (the field file's FLAGS column: clipped,\n"
+	"  glare, a colour that is not the layout's, ...), listed in a note.\n"
 	"  Refused: clipped (a channel >= 0.98) or non-finite patches, near-black field\n"
 	"  patches (< 0.01), nearly collinear RGB (as in calib camera; limit C, default\n"
 	"  100). Writes kogei-reference/1 JSON and prints the leave-one-out table.\n"
@@ -45,9 +47,10 @@ static const char usage_camera[] =
 	"  Site calibration: the site camera's values rho_r of the field chart, matched to\n"
 	"  the reference's rho0 by SAMPLE_ID, give M2 = rho0 pinv(rho_r) (SVD). Patches\n"
 	"  chart detection flagged (FLAGS: clipped, glare, too few pixels, out of frame,\n"
-	"  non-uniform) are left out and listed. Refused, naming the patches: site ids not\n"
-	"  on the reference's chart, fewer than 3 patches in common or left after the\n"
-	"  flagged ones, clipped patches (a channel >= V, default 0.98; a clipped-fraction\n"
+	"  non-uniform, a colour that is not the layout's) are left out and listed.\n"
+	"  Refused, naming the patches: site ids not on the reference's chart, fewer than\n"
+	"  3 patches in common or left after the flagged ones, clipped patches (a channel\n"
+	"  >= V, default 0.98; a clipped-fraction\n"
 	"  column > 0 when the file has one), near-black patches (brightest channel < V,\n"
 	"  default 0.01), nearly collinear charts (condition number of rho_r with each\n"
 	"  channel scaled to unit RMS above C, default 100: e.g. neutral patches only), a\n"
@@ -172,6 +175,17 @@ static int shared_option(int c, const char *usage, shared_args *a, int *bad)
 	}
 }
 
+/* The patches chart detection flagged, left out of a fit (what: "M2", "the fit"). */
+static void note_flagged(int n, char *const *ids, const unsigned *flags, const char *rgb,
+                         const char *what)
+{
+	fprintf(stderr, "kogei: note: %s: %d patch%s flagged by chart detection left out of %s:",
+	        rgb, n, n == 1 ? "" : "es", what);
+	for (int i = 0; i < n; i++)
+		fprintf(stderr, "%s %s (flags %u)", i ? "," : "", ids[i], flags[i]);
+	fputc('\n', stderr);
+}
+
 int kg_cmd_calib_reference(int argc, char **argv)
 {
 	const char *u = usage_reference;
@@ -266,6 +280,9 @@ int kg_cmd_calib_reference(int argc, char **argv)
 	if (!ret && ref->id_rule[0])
 		fprintf(stderr, "kogei: note: %s and %s: patch ids paired as %s\n", spectra, rgb,
 		        ref->id_rule);
+	if (!ret && ref->nflagged)
+		note_flagged(ref->nflagged, ref->flagged_ids, ref->flagged_flags,
+		             field ? field : rgb, "the fit");
 	if (!ret)
 		print_reference(report_stream(a.out), ref, a.out);
 	kg_reference_free(&ref);
@@ -300,17 +317,6 @@ static void print_camera(FILE *fp, const kg_camera_calib *cam, const char *out)
 	fprintf(fp, "camera: %s\n", id);
 	if (strcmp(out, "-") != 0)
 		fprintf(fp, "wrote %s\n", out);
-}
-
-/* The patches chart detection flagged, left out of M2. */
-static void note_flagged(const kg_camera_calib *cam, const char *rgb)
-{
-	fprintf(stderr, "kogei: note: %s: %d patch%s flagged by chart detection left out of M2:",
-	        rgb, cam->nflagged, cam->nflagged == 1 ? "" : "es");
-	for (int i = 0; i < cam->nflagged; i++)
-		fprintf(stderr, "%s %s (flags %u)", i ? "," : "", cam->flagged_ids[i],
-		        cam->flagged_flags[i]);
-	fputc('\n', stderr);
 }
 
 int kg_cmd_calib_camera(int argc, char **argv)
@@ -384,7 +390,7 @@ int kg_cmd_calib_camera(int argc, char **argv)
 		fprintf(stderr, "kogei: note: %s: patch ids matched with the reference's as %s\n",
 		        rgb, cam->id_rule);
 	if (!ret && cam->nflagged)
-		note_flagged(cam, rgb);
+		note_flagged(cam->nflagged, cam->flagged_ids, cam->flagged_flags, rgb, "M2");
 	if (!ret && cam->k == 3)
 		fprintf(stderr, "kogei: warning: --force: M2 from exactly 3 patches; its residual is "
 		                "0 by construction, so the fit was not checked\n");

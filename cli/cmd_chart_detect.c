@@ -281,6 +281,16 @@ int kg_cmd_chart_detect(int argc, char **argv)
 		snprintf(lf_frame, sizeof(lf_frame), "%.3f %.3f %.3f", lf->origin_mm[0],
 		         lf->origin_mm[1], lf->scale_mm);
 	}
+	/* the patches against the layout's colours */
+	const kg_chart_colour_check *cc = &res->colours;
+	char colours[200] = "none (the layout has no expected colours)";
+	if (cc->note[0])
+		snprintf(colours, sizeof(colours), "%s", cc->note);
+	else if (cc->checked)
+		snprintf(colours, sizeof(colours), "%d patches judged, %d flagged; worst of the others "
+		         "%s at %.2f of its threshold (level %.2f, hue %.2f tolerances)", cc->used,
+		         cc->flagged, cc->worst_id[0] ? cc->worst_id : "none", cc->worst,
+		         cc->threshold_level, cc->threshold_hue);
 	const char *keywords[] = {
 		"ORIGINATOR", "kogei chart detect",
 		"CHART_LAYOUT", layout->name,
@@ -299,6 +309,7 @@ int kg_cmd_chart_detect(int argc, char **argv)
 		"LIGHT_FIELD_RANGE", lf_range,
 		"LIGHT_FIELD_COEFFICIENTS", lf_coef,
 		"LIGHT_FIELD_ORIGIN_SCALE_MM", lf_frame,
+		"COLOUR_CHECK", colours,
 		"IMAGE_ENCODING", encoding,
 		/* the camera, when the image is a session's capture */
 		"CAMERA_BACKEND", id.backend,
@@ -329,6 +340,8 @@ int kg_cmd_chart_detect(int argc, char **argv)
 		fprintf(stderr, "kogei: the light over the chart varies by %.1f %% (%.3f to %.3f of "
 		        "its mean; degree %d from %d patches): removed from the patch values\n",
 		        100 * lf->variation, lf->min, lf->max, lf->degree, lf->used);
+	if (!quiet && cc->checked)
+		fprintf(stderr, "kogei: the patches against the layout's colours: %s\n", colours);
 fail:
 	kg_chart_warm_wait();
 	kg_patchset_free(&ps);

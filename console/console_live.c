@@ -1194,7 +1194,8 @@ json_t *console_chart_check(console *c)
 	for (int i = 0; i < r->npatches; i++) {
 		const kg_chart_sample *p = &r->patches[i];
 		unsigned hard = KG_CHART_FLAG_CLIPPED | KG_CHART_FLAG_REJECTED |
-		                KG_CHART_FLAG_OUT_OF_FRAME | KG_CHART_FLAG_GLARE;
+		                KG_CHART_FLAG_OUT_OF_FRAME | KG_CHART_FLAG_GLARE |
+		                KG_CHART_FLAG_MISFIT;
 		nbad += (p->flags & hard) != 0;
 		nflag += p->flags != 0;
 		json_array_append_new(patches,

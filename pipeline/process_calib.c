@@ -370,6 +370,28 @@ static json_t *flat_nonuniformity(const proc *p, const char *flat)
 	return json_null();
 }
 
+/* The patches the site fit left out for not fitting the others through M2 (a card over
+ * them: calib/site.c), flagged in the chart's result as the detector's are, so
+ * process.json, the report and the held-out estimates treat them alike. */
+static void note_m2_misfits(proc *p, const kg_camera_calib *cam, kg_chart_result *res,
+                            char **flagged, int *nflagged)
+{
+	for (int f = 0; f < cam->nflagged; f++) {
+		if (cam->flagged_flags[f] != KG_CHART_FLAG_MISFIT)
+			continue;
+		for (int i = 0; i < res->npatches; i++) {
+			kg_chart_sample *s = &res->patches[i];
+			if (strcmp(s->id, cam->flagged_ids[f]) || s->flags)
+				continue;
+			s->flags |= KG_CHART_FLAG_MISFIT;
+			snprintf(s->warning, sizeof(s->warning), "does not fit the other patches "
+			         "through M2 against the reference's chart: covered or painted over?");
+			flagged[(*nflagged)++] = s->id;
+			proc_warn(p, NULL, "chart: patch %s left out of M2: %s", s->id, s->warning);
+		}
+	}
+}
+
 int proc_calibrate(proc *p)
 {
 	const kg_process_options *o = p->o;
@@ -429,7 +451,8 @@ int proc_calibrate(proc *p)
 	if (o->threads > 0)
 		dopt.threads = o->threads;
 	if ((ret = kg_chart_detect(p->layout, img.rgb, &dopt, &res, err))) {
-		kg_err_prefix(err, "capture %s: no chart %s: ", p->chart->name, p->layout->name);
+		kg_err_prefix(err, "capture %s: %s chart %s: ", p->chart->name,
+		              ret == KG_ENOENT ? "no" : "refused the", p->layout->name);
 		goto done;
 	}
 	memcpy(p->chart_H, res->H, sizeof(p->chart_H));
@@ -499,6 +522,7 @@ int proc_calibrate(proc *p)
 		kg_err_prefix(err, "capture %s: site calibration: ", p->chart->name);
 		goto done;
 	}
+	note_m2_misfits(p, cam, res, flagged, &nflagged);
 	if (cam->k <= 3)
 		proc_warn(p, NULL, "M2 rests on %d patches and cannot be checked (--force)", cam->k);
 	chart_identity(p, &cam->identity);

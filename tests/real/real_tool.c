@@ -14,17 +14,23 @@
  *   real_tool compare A B                  B against A sample by sample: the slope of
  *                                          B = k A (least squares) and the largest
  *                                          |B - k A|, over samples A < 0.999 (a raw
- *                                          import keeps a fixture's values linear) */
+ *                                          import keeps a fixture's values linear)
+ *   real_tool raw IN OUT.tif W H PATTERN BLACK WHITE
+ *                                          a headerless 8-bit mosaic (W x H, a 2 x 2
+ *                                          CFA PATTERN) as a 16-bit TIFF carrying its
+ *                                          pattern, (code - BLACK) / (WHITE - BLACK)
+ *                                          clamped to 0..1 */
 #include "image.h"
 
 #include <math.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 static int usage(void)
 {
 	fprintf(stderr, "usage: real_tool cfa IN OUT PATTERN | stats IN | compose OUT R G B | "
-	                "compare A B\n");
+	                "compare A B | raw IN OUT W H PATTERN BLACK WHITE\n");
 	return 2;
 }
 
@@ -119,6 +125,41 @@ done:
 	return ret;
 }
 
+static int raw8(int argc, char **argv)
+{
+	if (argc != 9)
+		return usage();
+	int w = atoi(argv[4]), h = atoi(argv[5]);
+	double black = atof(argv[7]), white = atof(argv[8]);
+	kg_err err = {0};
+	kg_image *img = NULL;
+	FILE *f = fopen(argv[2], "rb");
+	unsigned char *codes = w > 0 && h > 0 ? malloc((size_t)w * h) : NULL;
+	int ret = 1;
+	if (!f || !codes || fread(codes, 1, (size_t)w * h, f) != (size_t)w * h ||
+	    !(white > black)) {
+		fprintf(stderr, "real_tool: %s: expected %d x %d 8-bit samples and BLACK < WHITE\n",
+		        argv[2], w, h);
+		goto done;
+	}
+	if (kg_image_new(w, h, 1, &img, &err) || kg_image_set_cfa(img, argv[6], 2, 2, &err))
+		goto fail;
+	for (size_t i = 0; i < (size_t)w * h; i++)
+		img->data[i] = (float)fmin(1, fmax(0, (codes[i] - black) / (white - black)));
+	if (kg_image_write_tiff(img, argv[3], 16, &err))
+		goto fail;
+	ret = 0;
+	goto done;
+fail:
+	fprintf(stderr, "real_tool: %s\n", err.msg);
+done:
+	if (f)
+		fclose(f);
+	free(codes);
+	kg_image_free(&img);
+	return ret;
+}
+
 int main(int argc, char **argv)
 {
 	kg_err err = {0};
@@ -129,6 +170,8 @@ int main(int argc, char **argv)
 		return compose(argc, argv);
 	if (!strcmp(argv[1], "compare"))
 		return compare(argc, argv);
+	if (!strcmp(argv[1], "raw"))
+		return raw8(argc, argv);
 	if (kg_image_read(argv[2], &img, &err)) {
 		fprintf(stderr, "real_tool: %s\n", err.msg);
 		return 1;

@@ -17,7 +17,10 @@
 #               JPEG, where the patch-grid finder places it): 24 patches in
 #               the right orientation (the greys darken from D01; the composite
 #               follows the chart's reflectance at each band, its 180-degree turn does
-#               not; the processed images keep the hue order of the colour row)
+#               not; the processed images keep the hue order of the colour row); and
+#               three daylight raws of the reference data set (its real/ folder).
+#               In every mode no patch of these charts may be flagged for a colour
+#               that does not fit the layout's (COLOUR_CHECK: the worst one's margin)
 #   linearity   patches proportional to the exposure (25-250 ms) and the greys to the
 #               chart's reflectance at the band (../shared/reference)
 #   saturation  the 550 nm frame at 4x the exposure: patches the short frame predicts
@@ -66,12 +69,19 @@ composite() {
 		{ echo "FAIL: real_tool compose $1"; exit 1; }
 	detect "$1" "$T/$1.tif"
 }
-# detect NAME IMAGE: kogei chart detect (tagless) to $T/NAME.cgats and its overlay
+# detect NAME IMAGE: kogei chart detect (tagless) to $T/NAME.cgats and its overlay; no
+# patch of these evenly lit charts may read a colour that does not fit the layout's
+# (FLAGS 64), and the worst patch's misfit, as a fraction of its threshold, is printed
 detect() {
 	if "$KOGEI" chart detect --layout colorchecker24-frame --tagless "$2" \
 		-o "$T/$1.cgats" --overlay "$T/$1.png" 2>"$T/$1.err"; then
 		echo "ok: chart detect found the chart in $1"
 		grep -o 'orientation chosen[^;]*' "$T/$1.err" | head -1
+		c=$(sed -n 's/^COLOUR_CHECK "\(.*\)"$/\1/p' "$T/$1.cgats")
+		case "$c" in
+		*" 0 flagged;"*) echo "ok: $1: no patch flagged against the layout's colours: $c" ;;
+		*) echo "FAIL: $1: patches flagged against the layout's colours: $c"; fail=1 ;;
+		esac
 	else
 		echo "FAIL: chart detect $1 ($2):"; cat "$T/$1.err"; fail=1
 		return 1
@@ -88,6 +98,14 @@ detect)
 	# The whole photograph (2879 x 1294): the tagless detector reads a copy reduced 2 x 2,
 	# where its patch-grid finder looks first, among the Passport's other page of
 	# colours, the pavement and the striped paper; the same checks must hold.
+	# The reference data set's real raws (its real/ folder): daylight, a chart of
+	# about 200 px among grass, bricks and shade, demosaiced by kogei.
+	for n in 1 3 4; do
+		raw=$REF/real/iisp_outdoor${n}_2592x1536_8bit_grbg.raw
+		[ -r "$raw" ] || { echo "skip: $raw missing"; continue; }
+		"$TOOL" raw "$raw" "$T/iisp$n.tif" 2592 1536 GRBG 12.5 255 &&
+			detect iisp$n "$T/iisp$n.tif" || { echo "FAIL: iisp$n"; fail=1; }
+	done
 	if detect passport-full "$PP/below_fishbox.jpg"; then
 		py detect passport-jpeg-full "$T/passport-full.cgats"
 		if grep -q '^DETECTOR "patch-grid"' "$T/passport-full.cgats"; then
