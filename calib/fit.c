@@ -406,6 +406,7 @@ void kg_reference_free(kg_reference **pref)
 	calib_strv_free(ref->field_ids, ref->k);
 	free(ref->rho0);
 	calib_sources_free(&ref->sources, &ref->nsources);
+	kg_pairing_record_free(&ref->pairing);
 	free(ref);
 	*pref = NULL;
 }
