@@ -82,10 +82,14 @@ typedef struct calib_pair_result {
 /* Pair a's patches with b's as `how` says and check the pairs by colour
  * (KG_CALIB_PAIR_MAX_MISFIT, KG_CALIB_PAIR_MIN_GAIN); KG_EINVAL naming both files,
  * their ids' conventions and the pairing that fits (stated with `option`, or NULL
- * when the caller has none). *r is filled on success; free with
- * calib_pair_result_free. */
+ * when the caller has none). With `whole`, a misfit above the limit is refused
+ * whatever its cause; without, only when another pairing read from the ids fits (the
+ * caller judges the whole chart itself: calib camera's relative residual). Pairs
+ * whose camera values do not span three colours, or fewer than
+ * KG_CALIB_PAIR_MIN_CHECK, are not judged (misfit NAN). *r is filled on success;
+ * free with calib_pair_result_free. */
 int calib_pair_check(const calib_pair_side *a, const calib_pair_side *b, kg_id_pairing how,
-                     const char *option, calib_pair_result *r, kg_err *err);
+                     int whole, const char *option, calib_pair_result *r, kg_err *err);
 void calib_pair_result_free(calib_pair_result *r);
 /* Fill rec's unpaired lists (the patches of a and of b that r left without a partner)
  * and its counts. */

@@ -287,7 +287,7 @@ int kg_calib_pair_checked(const kg_patchset *spectra, const kg_patchset *rgb,
 	if (ret == 0)
 		ret = camera_side(rgb, opt, &b, err);
 	if (ret == 0)
-		ret = calib_pair_check(&a, &b, opt->pairing, opt->option, &r, err);
+		ret = calib_pair_check(&a, &b, opt->pairing, 1, opt->option, &r, err);
 	if (ret == 0)
 		ret = check_paired(&a, &b, r.npairs, opt->pairing, err);
 	if (ret == 0 && rec)
@@ -368,7 +368,7 @@ static int check_field(const kg_patchset *spectra, const kg_patchset *field,
 		ret = camera_side(field, opt, &b, err);
 	int n = ret == 0 ? calib_pair_map(&a, &b, opt->pairing, map, &alias) : 0;
 	if (ret == 0 && n == a.n && n == b.n)
-		ret = calib_pair_check(&a, &b, opt->pairing, opt->option, &r, err);
+		ret = calib_pair_check(&a, &b, opt->pairing, 1, opt->option, &r, err);
 	calib_pair_result_free(&r);
 	calib_pair_side_free(&a);
 	calib_pair_side_free(&b);

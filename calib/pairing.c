@@ -230,36 +230,6 @@ int calib_pair_map(const calib_pair_side *a, const calib_pair_side *b, kg_id_pai
 	return n;
 }
 
-/* How a file names its patches: "A01..D06 (4 letters A-D x 6 numbers 1-6)", "1..24
- * (plain numbers)", or its first and last ids when they are not a grid. */
-static void describe_ids(const calib_pair_side *s, char *buf, size_t size)
-{
-	int *order = malloc((size_t)s->n * sizeof(int)), *letter = malloc((size_t)s->n * sizeof(int));
-	long *number = malloc((size_t)s->n * sizeof(long));
-	if (!order || !letter || !number || !grid_order(s, 0, order) ||
-	    !grid_of(s, letter, number)) {
-		snprintf(buf, size, "%s..%s (not a letter-and-number grid)", s->ids[0],
-		         s->ids[s->n - 1]);
-	} else {
-		int l0 = letter[order[0]], l1 = letter[order[s->n - 1]];
-		long n0 = number[0], n1 = number[0];
-		for (int i = 1; i < s->n; i++) {
-			n0 = number[i] < n0 ? number[i] : n0;
-			n1 = number[i] > n1 ? number[i] : n1;
-		}
-		const char *first = s->ids[order[0]], *last = s->ids[order[s->n - 1]];
-		const char *from = n0 == 0 ? ", counted from 0" : "";
-		if (l0 == 0)
-			snprintf(buf, size, "%s..%s (plain numbers%s)", first, last, from);
-		else
-			snprintf(buf, size, "%s..%s (%d letters %c-%c x %ld numbers %ld-%ld%s)", first,
-			         last, l1 - l0 + 1, 'A' + l0 - 1, 'A' + l1 - 1, n1 - n0 + 1, n0, n1, from);
-	}
-	free(order);
-	free(letter);
-	free(number);
-}
-
 /* A grid's size: letters (0 for plain numbers) and numbers it spans. */
 static int grid_shape(const calib_pair_side *s, int *letters, long *numbers)
 {
@@ -279,6 +249,43 @@ static int grid_shape(const calib_pair_side *s, int *letters, long *numbers)
 	free(letter);
 	free(number);
 	return ok;
+}
+
+/* How a file names its patches: "A01..D06 (4 letters A-D x 6 numbers 1-6)", "1..24
+ * (plain numbers)", or its first and last ids when they are not a grid; and when the
+ * other file's grid has its letters and numbers the other way round, that too. */
+static void describe_ids(const calib_pair_side *s, const calib_pair_side *other, char *buf,
+                         size_t size)
+{
+	int *order = malloc((size_t)s->n * sizeof(int)), *letter = malloc((size_t)s->n * sizeof(int));
+	long *number = malloc((size_t)s->n * sizeof(long));
+	int lo, ls;
+	long no, ns;
+	if (!order || !letter || !number || !grid_order(s, 0, order) ||
+	    !grid_of(s, letter, number)) {
+		snprintf(buf, size, "%s..%s (not a letter-and-number grid)", s->ids[0],
+		         s->ids[s->n - 1]);
+	} else {
+		int l0 = letter[order[0]], l1 = letter[order[s->n - 1]];
+		long n0 = number[0], n1 = number[0];
+		for (int i = 1; i < s->n; i++) {
+			n0 = number[i] < n0 ? number[i] : n0;
+			n1 = number[i] > n1 ? number[i] : n1;
+		}
+		const char *first = s->ids[order[0]], *last = s->ids[order[s->n - 1]];
+		const char *from = n0 == 0 ? ", counted from 0" : "";
+		int turned = other && grid_shape(s, &ls, &ns) && grid_shape(other, &lo, &no) && ls > 0 &&
+		             ls != ns && ls == no && ns == lo;
+		if (l0 == 0)
+			snprintf(buf, size, "%s..%s (plain numbers%s)", first, last, from);
+		else
+			snprintf(buf, size, "%s..%s (%d letters %c-%c x %ld numbers %ld-%ld%s%s)", first,
+			         last, l1 - l0 + 1, 'A' + l0 - 1, 'A' + l1 - 1, n1 - n0 + 1, n0, n1, from,
+			         turned ? ": the other file's grid turned, letters for its numbers" : "");
+	}
+	free(order);
+	free(letter);
+	free(number);
 }
 
 /* ---- the colour fit ------------------------------------------------------------- */
@@ -655,6 +662,8 @@ static int misplaced_text(const calib_pair_side *a, const calib_pair_side *b, co
 	int *to = malloc((size_t)p->n * sizeof(int));
 	double *own = malloc((size_t)p->n * sizeof(double)), *moved = malloc((size_t)p->n * sizeof(double));
 	int count = to && own && moved ? misplaced(p, to, own, moved) : -1;
+	if (2 * count > p->n)
+		count = 0; /* not a few patches: the robust fit's premise fails */
 	char ids[240] = "";
 	size_t at = 0, ai = 0;
 	if (count > 0)
@@ -685,55 +694,48 @@ static int misplaced_text(const calib_pair_side *a, const calib_pair_side *b, co
 	return count;
 }
 
-/* How the first file names its patches, and, when the second's grid has its letters
- * and numbers the other way round, that too. */
-static void describe_first(const calib_pair_side *a, const calib_pair_side *b, char *buf,
-                           size_t size)
-{
-	describe_ids(a, buf, size);
-	int la, lb;
-	long na, nb;
-	if (grid_shape(a, &la, &na) && grid_shape(b, &lb, &nb) && la > 0 && la != na &&
-	    la == nb && na == lb) {
-		size_t at = strlen(buf);
-		snprintf(buf + at, size - at, ": %s's grid turned, letters for its numbers", b->file);
-	}
-}
-
 /* Why the stated pairing failed, and what would fit: an id convention (a pairing read
- * from the ids), else the single patches that moved, else the files' row order. */
+ * from the ids), else a few patches that moved, else (only when `any`) the files' row
+ * order or nothing. 1 when buf holds an explanation, 0 when none was found, -1 out of
+ * memory. */
 static int explain(const calib_pair_side *a, const calib_pair_side *b, kg_id_pairing how,
-                   const pairs *p, double misfit, const char *option, char *buf, size_t size)
+                   const pairs *p, double misfit, int any, const char *option, char *buf,
+                   size_t size)
 {
 	if (suggest(a, b, how, misfit, 0, option, buf, size))
-		return 0;
+		return 1;
 	int moved = misplaced_text(a, b, p, option, buf, size);
-	if (moved < 0)
-		return -1;
-	if (moved == 0 && !suggest(a, b, how, misfit, 1, option, buf, size))
+	if (moved != 0 || !any)
+		return moved < 0 ? -1 : moved > 0;
+	if (!suggest(a, b, how, misfit, 1, option, buf, size))
 		snprintf(buf, size, "No other pairing fits (grid order, either file's ids by number, "
 		         "ids one number or letter apart, file order): are both files of the same "
 		         "chart, and the camera values linear (not gamma-encoded)?");
-	return 0;
+	return 1;
 }
 
+/* A pairing whose misfit is above the limit: refused with the explanation; when
+ * not `any`, only if another pairing read from the ids fits or a few patches moved. */
 static int refuse_misfit(const calib_pair_side *a, const calib_pair_side *b,
-                         kg_id_pairing how, const pairs *p, double misfit,
+                         kg_id_pairing how, const pairs *p, double misfit, int any,
                          const char *option, kg_err *err)
 {
 	char da[240], db[200], why[700], name[64];
-	if (explain(a, b, how, p, misfit, option, why, sizeof(why)))
-		return kg_fail(err, KG_ENOMEM, "out of memory");
-	describe_first(a, b, da, sizeof(da));
-	describe_ids(b, db, sizeof(db));
+	int found = explain(a, b, how, p, misfit, any, option, why, sizeof(why));
+	if (found <= 0)
+		return found ? kg_fail(err, KG_ENOMEM, "out of memory") : 0;
+	describe_ids(a, b, da, sizeof(da));
+	describe_ids(b, NULL, db, sizeof(db));
 	kg_id_pairing_name(how, a->role, b->role, name, sizeof(name));
+	if (strcmp(da, db) == 0)
+		snprintf(db, sizeof(db), "the same");
 	return kg_fail(err, KG_EINVAL,
 	               "%s and %s: the %d patches paired by %s are not the same patches: %s miss "
 	               "the camera values by %.1f %% through the best 3 x 3 matrix (correct "
-	               "pairings: under %.0f %%). %s names its patches %s, %s %s. %s",
+	               "pairings: under %.0f %%). Ids: %s in %s, %s in %s. %s",
 	               a->file, b->file, p->n, how == KG_ID_PAIRING_NAMES ? "SAMPLE_ID" : name,
-	               a->what, 100 * misfit, 100 * KG_CALIB_PAIR_MAX_MISFIT, a->file, da, b->file,
-	               strcmp(da, db) ? db : "the same", why);
+	               a->what, 100 * misfit, 100 * KG_CALIB_PAIR_MAX_MISFIT, da, a->file, db,
+	               b->file, why);
 }
 
 /* Pairs that fit as a whole may still hold a few patches that fit others' colours. */
@@ -759,8 +761,19 @@ void calib_pair_result_free(calib_pair_result *r)
 	r->misfit = NAN;
 }
 
+/* Camera values that do not span three colours (greys, two inks) cannot tell a 3 x 3
+ * matrix: they are left to the collinearity refusal. */
+static int spans_three(const pairs *p)
+{
+	double cond, cond_eq, sv[3], sv_eq[3];
+	kg_err ignored = {{0}};
+	return calib_rgb_conditioning((const double(*)[3])p->c, p->n, &cond, &cond_eq, sv, sv_eq,
+	                              &ignored) == 0 &&
+	       cond_eq <= KG_CALIB_MAX_COND;
+}
+
 int calib_pair_check(const calib_pair_side *a, const calib_pair_side *b, kg_id_pairing how,
-                     const char *option, calib_pair_result *r, kg_err *err)
+                     int whole, const char *option, calib_pair_result *r, kg_err *err)
 {
 	memset(r, 0, sizeof(*r));
 	r->misfit = NAN;
@@ -776,10 +789,10 @@ int calib_pair_check(const calib_pair_side *a, const calib_pair_side *b, kg_id_p
 	}
 	r->nchecked = p.n;
 	int ret = 0;
-	if (p.n >= KG_CALIB_PAIR_MIN_CHECK) {
+	if (p.n >= KG_CALIB_PAIR_MIN_CHECK && spans_three(&p)) {
 		r->misfit = misfit_of(&p);
 		if (r->misfit > KG_CALIB_PAIR_MAX_MISFIT)
-			ret = refuse_misfit(a, b, how, &p, r->misfit, option, err);
+			ret = refuse_misfit(a, b, how, &p, r->misfit, whole, option, err);
 		else
 			ret = check_patches(a, b, &p, option, err);
 	}

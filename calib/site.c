@@ -116,7 +116,8 @@ static int pair_site(const kg_reference *ref, const kg_patchset *site,
 	if (ret == 0) {
 		calib_pair_side_skip(&a, opt->exclude, opt->nexclude, NULL, 0);
 		calib_pair_side_skip(&b, opt->exclude, opt->nexclude, site, opt->clip_level);
-		ret = calib_pair_check(&a, &b, opt->id_pairing, opt->id_pairing_option, &r, err);
+		ret = calib_pair_check(&a, &b, opt->id_pairing, 0, opt->id_pairing_option, &r,
+		                       err);
 	}
 	if (ret == 0)
 		ret = calib_pair_record(&a, &b, &r, opt->id_pairing, rec, err);
