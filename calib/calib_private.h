@@ -62,7 +62,8 @@ int calib_pair_side_new(const char *file, const char *role, const char *what,
                         char *const *ids, int n, const double (*colour)[3],
                         calib_pair_side *s, kg_err *err);
 /* Skip the patches whose ids are listed and, when `camera` (the side's own patch set)
- * is given, those it flags (a FLAGS column != 0) or has clipped (a channel >= clip). */
+ * is given, those it flags (a FLAGS column != 0) or has clipped (a channel >= clip, or
+ * at or below 0: no signal). */
 void calib_pair_side_skip(calib_pair_side *s, const char *const *exclude, int nexclude,
                           const kg_patchset *camera, double clip);
 void calib_pair_side_free(calib_pair_side *s);
@@ -83,13 +84,21 @@ typedef struct calib_pair_result {
  * (KG_CALIB_PAIR_MAX_MISFIT, KG_CALIB_PAIR_MIN_GAIN); KG_EINVAL naming both files,
  * their ids' conventions and the pairing that fits (stated with `option`, or NULL
  * when the caller has none). With `whole`, a misfit above the limit is refused
- * whatever its cause; without, only when another pairing read from the ids fits (the
- * caller judges the whole chart itself: calib camera's relative residual). Pairs
- * whose camera values do not span three colours, or fewer than
- * KG_CALIB_PAIR_MIN_CHECK, are not judged (misfit NAN). *r is filled on success;
- * free with calib_pair_result_free. */
+ * whatever its cause, and single patches are checked; without, only a misfit that
+ * another pairing read from the ids explains is refused (the caller judges the whole
+ * chart itself, as calib camera's relative residual does, and then its single patches
+ * with calib_pair_check_patches). Pairs whose camera values do not span three
+ * colours, or fewer than KG_CALIB_PAIR_MIN_CHECK, are not judged (misfit NAN). *r is
+ * filled on success; free with calib_pair_result_free. */
 int calib_pair_check(const calib_pair_side *a, const calib_pair_side *b, kg_id_pairing how,
                      int whole, const char *option, calib_pair_result *r, kg_err *err);
+/* The single-patch check of a pairing calib_pair_check made (KG_CALIB_PAIR_MIN_GAIN). */
+int calib_pair_check_patches(const calib_pair_side *a, const calib_pair_side *b,
+                             const calib_pair_result *r, const char *option, kg_err *err);
+/* The same as words for another refusal ("N patches fit other patches' colours ...");
+ * the number of patches (0: buf ""), -1 out of memory. */
+int calib_pair_moved(const calib_pair_side *a, const calib_pair_side *b,
+                     const calib_pair_result *r, const char *option, char *buf, size_t size);
 void calib_pair_result_free(calib_pair_result *r);
 /* Fill rec's unpaired lists (the patches of a and of b that r left without a partner)
  * and its counts. */

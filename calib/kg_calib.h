@@ -179,10 +179,13 @@ int kg_id_pairing_parse(const char *name, const char *first, const char *second,
 /* Fewer patches than this in common are not checked by colour (M has 9 unknowns). */
 #define KG_CALIB_PAIR_MIN_CHECK 6
 /* Single patches: under the matrix fitted robustly (least median of squares over
- * triples of patches, then least squares on the patches it fits), the one-to-one
- * re-pairing of camera values with known colours that fits best (Hungarian
- * assignment). A cycle of patches it moves (two swapped, a row read one patch late)
- * whose errors fall by more than this in sum is refused, naming the patches. Correct
+ * triples of patches, then least squares on the patches it fits, whose RMS error is
+ * sigma), the one-to-one re-pairing of camera values with known colours that fits
+ * best (Hungarian assignment). A cycle of patches it moves (two swapped, a row read
+ * one patch late) whose errors fall in sum by more than this and by more than
+ * 3 sigma sqrt(its length) is refused, naming the patches whose error falls, unless
+ * such cycles move half the patches or more (then the whole pairing is wrong, and
+ * KG_CALIB_PAIR_MAX_MISFIT judges it). Correct
  * pairings: 0 on every simulated chart above and on the raw photographs, 0.07 on the
  * linearised JPEG; any two ColorChecker patches swapped: 0.18 and more in simulation,
  * 271-276 of the 276 swaps above it on the real photographs. */

@@ -19,7 +19,7 @@
  * drawn by a fixed sequence. */
 #define PAIR_MAX_TRIPLES 4000
 /* The single-patch check (an n x n assignment) is skipped above this many pairs. */
-#define PAIR_MAX_ASSIGN 400
+#define PAIR_MAX_ASSIGN 600
 
 static double dot3(const double a[3], const double b[3])
 {
@@ -95,9 +95,8 @@ void calib_pair_side_skip(calib_pair_side *s, const char *const *exclude, int ne
 			s->skip[i] |= strcmp(exclude[e], s->ids[i]) == 0;
 		if (flags >= 0)
 			s->skip[i] |= camera->extra[(size_t)i * camera->nextra + flags] != 0;
-		if (camera)
-			s->skip[i] |= camera->rgb[i][0] >= clip || camera->rgb[i][1] >= clip ||
-			              camera->rgb[i][2] >= clip;
+		for (int c = 0; camera && c < 3; c++)
+			s->skip[i] |= camera->rgb[i][c] >= clip || camera->rgb[i][c] <= 0;
 	}
 }
 
@@ -431,9 +430,10 @@ static void try_triple(const pairs *p, const int q[3], double *e, double *best, 
 /* A matrix a few wrong pairs cannot pull: of the matrices through triples of pairs
  * (every triple while there are at most PAIR_MAX_TRIPLES, else that many drawn by a
  * fixed linear congruential sequence), the one with the least median error, refitted
- * by least squares on the pairs within 2.5 times that median. -1 out of memory or
- * when no triple spans three colours. */
-static int robust_matrix(const pairs *p, double M[9])
+ * by least squares on the pairs within 2.5 times that median (the inliers); *sigma
+ * the RMS error of the inliers under it. -1 out of memory or when no triple spans
+ * three colours. */
+static int robust_matrix(const pairs *p, double M[9], double *sigma)
 {
 	int n = p->n, q[3];
 	double *e = malloc((size_t)n * sizeof(double)), best = INFINITY, Mt[9];
@@ -453,11 +453,19 @@ static int robust_matrix(const pairs *p, double M[9])
 			try_triple(p, q, e, &best, M);
 		}
 	}
-	int ret = e && use && isfinite(best) ? 0 : -1;
+	int ret = e && use && isfinite(best) ? 0 : -1, inliers = 0;
 	for (int i = 0; ret == 0 && i < n; i++)
 		use[i] = pair_error(p, M, i, i) <= 2.5 * best;
 	if (ret == 0 && fit_matrix(p, use, Mt) == 0)
 		memcpy(M, Mt, sizeof(Mt));
+	*sigma = 0;
+	for (int i = 0; ret == 0 && i < n; i++)
+		if (use[i]) {
+			double x = pair_error(p, M, i, i);
+			*sigma += x * x;
+			inliers++;
+		}
+	*sigma = inliers ? sqrt(*sigma / inliers) : 0;
 	free(e);
 	free(use);
 	return ret;
@@ -523,57 +531,50 @@ static int assign(const double *a, int n, int *to)
 	return ret;
 }
 
-/* The gain of each cycle of a re-pairing: how much the errors of its pairs fall when
- * each camera value i takes known colour to[i]. cycle[i] numbers i's cycle. */
-static void cycle_gains(const double *cost, int n, const int *to, int *cycle, double *gain)
+/* The pairs that moved: where the best re-pairing gives camera value i another known
+ * colour to[i], i's error as paired stands out from the fit's (above 5 sigma, sigma
+ * the robust fit's RMS error of a patch where it belongs, and above
+ * KG_CALIB_PAIR_MIN_GAIN) and falls by two thirds or more. A patch that trades places
+ * with its twin (a repeated white) or with a similar colour its camera confuses does
+ * neither. */
+static void moved_pairs(const double *cost, int n, const int *to, double sigma, int *moved)
 {
-	int ncycles = 0;
-	for (int i = 0; i < n; i++)
-		cycle[i] = -1;
 	for (int i = 0; i < n; i++) {
-		if (cycle[i] >= 0)
-			continue;
-		gain[ncycles] = 0;
-		for (int k = i; cycle[k] < 0; k = to[k]) {
-			cycle[k] = ncycles;
-			gain[ncycles] += cost[(size_t)k * n + k] - cost[(size_t)k * n + to[k]];
-		}
-		ncycles++;
+		double own = cost[(size_t)i * n + i], there = cost[(size_t)i * n + to[i]];
+		moved[i] = to[i] != i && own > fmax(KG_CALIB_PAIR_MIN_GAIN, 5 * sigma) &&
+		           there < own / 3;
 	}
 }
 
 /* The pairs whose camera values fit other known colours: to[i] (-1: i is where it
- * belongs) over the cycles of the best re-pairing whose errors fall by more than
- * KG_CALIB_PAIR_MIN_GAIN; own[i] and moved[i] the errors as paired and re-paired.
- * Returns the number of pairs moved, -1 out of memory. */
+ * belongs) for the pairs that moved (moved_pairs); own[i] and moved[i] the errors as
+ * paired and re-paired. Returns the number of pairs moved, -1 out of memory. */
 static int misplaced(const pairs *p, int *to, double *own, double *moved)
 {
-	double M[9];
+	double M[9], sigma;
 	int n = p->n, count = 0;
-	double *cost = malloc((size_t)n * n * sizeof(double)), *gain = malloc((size_t)n * sizeof(double));
-	int *cycle = malloc((size_t)n * sizeof(int));
-	int ret = cost && gain && cycle ? 0 : -1;
-	if (ret == 0 && robust_matrix(p, M) == 0) {
+	double *cost = malloc((size_t)n * n * sizeof(double));
+	int *flag = malloc((size_t)n * sizeof(int));
+	int ret = cost && flag ? 0 : -1;
+	if (ret == 0 && robust_matrix(p, M, &sigma) == 0) {
 		for (int i = 0; i < n; i++)
 			for (int j = 0; j < n; j++)
 				cost[(size_t)i * n + j] = pair_error(p, M, i, j);
 		ret = assign(cost, n, to);
 		if (ret == 0)
-			cycle_gains(cost, n, to, cycle, gain);
+			moved_pairs(cost, n, to, sigma, flag);
 		for (int i = 0; ret == 0 && i < n; i++) {
-			if (to[i] == i || !(gain[cycle[i]] > KG_CALIB_PAIR_MIN_GAIN))
+			if (!flag[i]) {
+				to[i] = -1;
 				continue;
+			}
 			own[i] = cost[(size_t)i * n + i];
 			moved[i] = cost[(size_t)i * n + to[i]];
 			count++;
 		}
-		for (int i = 0; ret == 0 && i < n; i++)
-			if (to[i] == i || !(gain[cycle[i]] > KG_CALIB_PAIR_MIN_GAIN))
-				to[i] = -1;
 	}
 	free(cost);
-	free(gain);
-	free(cycle);
+	free(flag);
 	return ret ? -1 : count;
 }
 
@@ -669,7 +670,7 @@ static int misplaced_text(const calib_pair_side *a, const calib_pair_side *b, co
 	if (count > 0)
 		at = (size_t)snprintf(buf, size, "%d patch%s fit%s other patches' colours far better "
 		                      "than their own (mislabelled or swapped?); %s's patch -> the "
-		                      "%s patch it fits (error; as paired): ", count,
+		                      "patch of %s it fits (error; as paired): ", count,
 		                      count == 1 ? "" : "es", count == 1 ? "s" : "", b->file, a->file);
 	for (int i = 0, shown = 0; count > 0 && i < p->n; i++) {
 		if (to[i] < 0)
@@ -695,8 +696,8 @@ static int misplaced_text(const calib_pair_side *a, const calib_pair_side *b, co
 }
 
 /* Why the stated pairing failed, and what would fit: an id convention (a pairing read
- * from the ids), else a few patches that moved, else (only when `any`) the files' row
- * order or nothing. 1 when buf holds an explanation, 0 when none was found, -1 out of
+ * from the ids), else (only when `any`) a few patches that moved, the files' row order
+ * or nothing. 1 when buf holds an explanation, 0 when none was found, -1 out of
  * memory. */
 static int explain(const calib_pair_side *a, const calib_pair_side *b, kg_id_pairing how,
                    const pairs *p, double misfit, int any, const char *option, char *buf,
@@ -704,9 +705,11 @@ static int explain(const calib_pair_side *a, const calib_pair_side *b, kg_id_pai
 {
 	if (suggest(a, b, how, misfit, 0, option, buf, size))
 		return 1;
+	if (!any)
+		return 0;
 	int moved = misplaced_text(a, b, p, option, buf, size);
-	if (moved != 0 || !any)
-		return moved < 0 ? -1 : moved > 0;
+	if (moved != 0)
+		return moved < 0 ? -1 : 1;
 	if (!suggest(a, b, how, misfit, 1, option, buf, size))
 		snprintf(buf, size, "No other pairing fits (grid order, either file's ids by number, "
 		         "ids one number or letter apart, file order): are both files of the same "
@@ -715,7 +718,7 @@ static int explain(const calib_pair_side *a, const calib_pair_side *b, kg_id_pai
 }
 
 /* A pairing whose misfit is above the limit: refused with the explanation; when
- * not `any`, only if another pairing read from the ids fits or a few patches moved. */
+ * not `any`, only if another pairing read from the ids fits. */
 static int refuse_misfit(const calib_pair_side *a, const calib_pair_side *b,
                          kg_id_pairing how, const pairs *p, double misfit, int any,
                          const char *option, kg_err *err)
@@ -793,13 +796,38 @@ int calib_pair_check(const calib_pair_side *a, const calib_pair_side *b, kg_id_p
 		r->misfit = misfit_of(&p);
 		if (r->misfit > KG_CALIB_PAIR_MAX_MISFIT)
 			ret = refuse_misfit(a, b, how, &p, r->misfit, whole, option, err);
-		else
+		else if (whole)
 			ret = check_patches(a, b, &p, option, err);
 	}
 	pairs_free(&p);
 	if (ret)
 		calib_pair_result_free(r);
 	return ret;
+}
+
+int calib_pair_check_patches(const calib_pair_side *a, const calib_pair_side *b,
+                             const calib_pair_result *r, const char *option, kg_err *err)
+{
+	pairs p;
+	if (pairs_from(a, b, r->match, &p))
+		return kg_fail(err, KG_ENOMEM, "out of memory");
+	int ret = p.n >= KG_CALIB_PAIR_MIN_CHECK && spans_three(&p)
+	              ? check_patches(a, b, &p, option, err) : 0;
+	pairs_free(&p);
+	return ret;
+}
+
+int calib_pair_moved(const calib_pair_side *a, const calib_pair_side *b,
+                     const calib_pair_result *r, const char *option, char *buf, size_t size)
+{
+	pairs p;
+	buf[0] = 0;
+	if (pairs_from(a, b, r->match, &p))
+		return -1;
+	int count = p.n >= KG_CALIB_PAIR_MIN_CHECK && spans_three(&p)
+	                ? misplaced_text(a, b, &p, option, buf, size) : 0;
+	pairs_free(&p);
+	return count;
 }
 
 /* The ids of a side that no pair uses. */
