@@ -43,6 +43,69 @@ void calib_sources_free(kg_calib_source **sources, int *n);
 int calib_sources_copy(const kg_calib_source *src, int n, kg_calib_source **out,
                        kg_err *err);
 
+/* One side of a pairing (pairing.c): a file's patch ids and colours, as the first file
+ * (known colours: the spectra's XYZ, the reference's rho0) or the second (a camera's
+ * values of the same chart). */
+typedef struct calib_pair_side {
+	const char *file;           /* named in messages */
+	const char *role;           /* its name in --id-pairing values ("spectra", "rgb") */
+	const char *what;           /* what its colours are ("the spectra's XYZ under D65") */
+	char *const *ids;
+	int n;
+	double (*colour)[3];        /* n, owned */
+	unsigned char *skip;        /* n, owned: 1 left out of the colour check */
+} calib_pair_side;
+
+/* A side with a copy of n colours (file, role, what and ids are borrowed) and nothing
+ * skipped; free with calib_pair_side_free. */
+int calib_pair_side_new(const char *file, const char *role, const char *what,
+                        char *const *ids, int n, const double (*colour)[3],
+                        calib_pair_side *s, kg_err *err);
+/* Skip the patches whose ids are listed and, when `camera` (the side's own patch set)
+ * is given, those it flags (a FLAGS column != 0) or has clipped (a channel >= clip, or
+ * at or below 0: no signal). */
+void calib_pair_side_skip(calib_pair_side *s, const char *const *exclude, int nexclude,
+                          const kg_patchset *camera, double clip);
+void calib_pair_side_free(calib_pair_side *s);
+/* The pairing's map alone: map[i] the second side's patch paired with the first's i-th
+ * (-1 none); the number paired, -1 out of memory. */
+int calib_pair_map(const calib_pair_side *a, const calib_pair_side *b, kg_id_pairing how,
+                   int *map, const char **alias);
+
+typedef struct calib_pair_result {
+	int *match;        /* a->n entries: the second file's patch, or -1 */
+	int npairs;
+	const char *alias; /* kg_patch_ids_match's rule when NAMES paired through it */
+	int nchecked;      /* pairs judged by colour */
+	double misfit;     /* NAN when fewer than KG_CALIB_PAIR_MIN_CHECK */
+} calib_pair_result;
+
+/* Pair a's patches with b's as `how` says and check the pairs by colour
+ * (KG_CALIB_PAIR_MAX_MISFIT, KG_CALIB_PAIR_MIN_GAIN); KG_EINVAL naming both files,
+ * their ids' conventions and the pairing that fits (stated with `option`, or NULL
+ * when the caller has none). With `whole`, a misfit above the limit is refused
+ * whatever its cause, and single patches are checked; without, only a misfit that
+ * another pairing read from the ids explains is refused (the caller judges the whole
+ * chart itself, as calib camera's relative residual does, and then its single patches
+ * with calib_pair_check_patches). Pairs whose camera values do not span three
+ * colours, or fewer than KG_CALIB_PAIR_MIN_CHECK, are not judged (misfit NAN). *r is
+ * filled on success; free with calib_pair_result_free. */
+int calib_pair_check(const calib_pair_side *a, const calib_pair_side *b, kg_id_pairing how,
+                     int whole, const char *option, calib_pair_result *r, kg_err *err);
+/* The single-patch check of a pairing calib_pair_check made (KG_CALIB_PAIR_MIN_GAIN). */
+int calib_pair_check_patches(const calib_pair_side *a, const calib_pair_side *b,
+                             const calib_pair_result *r, const char *option, kg_err *err);
+/* The same as words for another refusal ("N patches fit other patches' colours ...");
+ * the number of patches (0: buf ""), -1 out of memory. */
+int calib_pair_moved(const calib_pair_side *a, const calib_pair_side *b,
+                     const calib_pair_result *r, const char *option, char *buf, size_t size);
+void calib_pair_result_free(calib_pair_result *r);
+/* Fill rec's unpaired lists (the patches of a and of b that r left without a partner)
+ * and its counts. */
+int calib_pair_record(const calib_pair_side *a, const calib_pair_side *b,
+                      const calib_pair_result *r, kg_id_pairing how, kg_pairing_record *rec,
+                      kg_err *err);
+
 /* CIEDE2000 between reflectances under D65 (CIE 1931 2 degree observer). */
 typedef struct calib_d65 {
 	kg_xyz_weights w;

@@ -408,6 +408,7 @@ void kg_reference_free(kg_reference **pref)
 	calib_sources_free(&ref->sources, &ref->nsources);
 	calib_strv_free(ref->flagged_ids, ref->nflagged);
 	free(ref->flagged_flags);
+	kg_pairing_record_free(&ref->pairing);
 	free(ref);
 	*pref = NULL;
 }

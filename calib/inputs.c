@@ -4,6 +4,8 @@
 #include <string.h>
 #include <strings.h>
 
+#include <math.h>
+
 #include <openssl/evp.h>
 
 #include "calib_private.h"
@@ -166,16 +168,46 @@ static int check_unique(const kg_patchset *ps, const char *what, kg_err *err)
 int kg_calib_pair(const kg_patchset *spectra, const kg_patchset *rgb, kg_patchset **out,
                   kg_err *err)
 {
-	return kg_calib_pair_rule(spectra, rgb, out, NULL, err);
+	return kg_calib_pair_checked(spectra, rgb, NULL, out, NULL, NULL, err);
 }
 
-int kg_calib_pair_rule(const kg_patchset *spectra, const kg_patchset *rgb,
-                       kg_patchset **out, const char **rule, kg_err *err)
+/* The spectra as the first side of a pairing: their XYZ under D65. */
+static int spectra_side(const kg_patchset *spectra, const kg_pair_options *opt,
+                        calib_pair_side *s, kg_err *err)
 {
-	kg_check_arg(spectra && rgb && out, err);
-	if (rule)
-		*rule = NULL;
-	*out = NULL;
+	calib_d65 d65;
+	double(*xyz)[3] = malloc((spectra->n > 0 ? (size_t)spectra->n : 1) * sizeof(*xyz));
+	int ret = xyz ? calib_d65_init(&d65, err) : kg_fail(err, KG_ENOMEM, "out of memory");
+	for (int i = 0; ret == 0 && i < spectra->n; i++) {
+		kg_xyz v = kg_xyz_from_weights(&d65.w, &spectra->spectra[i]);
+		xyz[i][0] = v.X;
+		xyz[i][1] = v.Y;
+		xyz[i][2] = v.Z;
+	}
+	if (ret == 0)
+		ret = calib_pair_side_new(spectra->source ? spectra->source : "spectra", "spectra",
+		                          "the spectra's colours (XYZ under D65)", spectra->ids,
+		                          spectra->n, (const double(*)[3])xyz, s, err);
+	if (ret == 0)
+		calib_pair_side_skip(s, opt->exclude, opt->nexclude, NULL, 0);
+	free(xyz);
+	return ret;
+}
+
+/* A camera's patch file as the second side: its RGB, without the patches it flags
+ * or clips and the excluded ones. */
+static int camera_side(const kg_patchset *rgb, const kg_pair_options *opt,
+                       calib_pair_side *s, kg_err *err)
+{
+	int ret = calib_pair_side_new(rgb->source ? rgb->source : "RGB patch file", "rgb", "",
+	                              rgb->ids, rgb->n, (const double(*)[3])rgb->rgb, s, err);
+	if (ret == 0)
+		calib_pair_side_skip(s, opt->exclude, opt->nexclude, rgb, KG_CALIB_CLIP_LEVEL);
+	return ret;
+}
+
+static int check_inputs(const kg_patchset *spectra, const kg_patchset *rgb, kg_err *err)
+{
 	const char *sname = spectra->source ? spectra->source : "spectra";
 	const char *rname = rgb->source ? rgb->source : "RGB patch file";
 	if (!spectra->spectra)
@@ -184,49 +216,90 @@ int kg_calib_pair_rule(const kg_patchset *spectra, const kg_patchset *rgb,
 	if (!rgb->rgb)
 		return kg_fail(err, KG_EINVAL, "%s: expected fields RGB_R RGB_G RGB_B", rname);
 	int ret = check_unique(spectra, sname, err);
-	if (!ret)
-		ret = check_unique(rgb, rname, err);
-	if (ret)
-		return ret;
-	int *match = malloc((spectra->n > 0 ? (size_t)spectra->n : 1) * sizeof(int));
-	if (!match)
-		return kg_fail(err, KG_ENOMEM, "out of memory");
-	int n = kg_patch_ids_match(spectra->ids, spectra->n, rgb->ids, rgb->n, match, rule);
-	if (n < 0) {
-		free(match);
-		return kg_fail(err, KG_ENOMEM, "out of memory");
-	}
-	if (n == 0) {
-		char a[256] = "", b[256] = "";
-		calib_list_ids(a, sizeof(a), spectra->ids, NULL, spectra->n, 6);
-		calib_list_ids(b, sizeof(b), rgb->ids, NULL, rgb->n, 6);
-		free(match);
+	return ret ? ret : check_unique(rgb, rname, err);
+}
+
+/* Refuse a pairing that leaves most patches without a partner: none at all, or
+ * fewer than half of the smaller file's. */
+static int check_paired(const calib_pair_side *a, const calib_pair_side *b, int npairs,
+                        kg_id_pairing how, kg_err *err)
+{
+	int smaller = a->n < b->n ? a->n : b->n;
+	if (npairs > 0 && 2 * npairs >= smaller)
+		return 0;
+	char x[256] = "", y[256] = "", name[64];
+	calib_list_ids(x, sizeof(x), a->ids, NULL, a->n, 6);
+	calib_list_ids(y, sizeof(y), b->ids, NULL, b->n, 6);
+	kg_id_pairing_name(how, a->role, b->role, name, sizeof(name));
+	if (npairs == 0 && how == KG_ID_PAIRING_NAMES)
 		return kg_fail(err, KG_EINVAL,
-		               "%s and %s: no SAMPLE_ID in common (spectra: %s; RGB: %s); expected the "
-		               "same chart's patch names in both (as written, A1 = A01, or patch "
+		               "%s and %s: no SAMPLE_ID in common (spectra: %s; RGB: %s); expected "
+		               "the same chart's patch names in both (as written, A1 = A01, or patch "
 		               "numbers 1..n against letter-and-number ids)",
-		               sname, rname, a, b);
-	}
+		               a->file, b->file, x, y);
+	return kg_fail(err, KG_EINVAL,
+	               "%s and %s: only %d of their %d and %d patches pair (by %s); expected at "
+	               "least half of the smaller file's: they do not seem to name the same "
+	               "chart's patches (spectra: %s; RGB: %s)",
+	               a->file, b->file, npairs, a->n, b->n, name, x, y);
+}
+
+/* The paired patches: spectra in the order of `spectra`, the RGB file's values and ids
+ * (the camera file's spelling, which the field chart (rho0) shares). */
+static int paired_set(const kg_patchset *spectra, const kg_patchset *rgb,
+                      const calib_pair_result *r, kg_patchset **out, kg_err *err)
+{
 	kg_patchset *ps = NULL;
-	ret = kg_patchset_new(n, KG_PATCH_SPECTRA | KG_PATCH_RGB, &ps, err);
+	int ret = kg_patchset_new(r->npairs, KG_PATCH_SPECTRA | KG_PATCH_RGB, &ps, err);
 	for (int i = 0, j = 0; ret == 0 && i < spectra->n; i++) {
-		if (match[i] < 0)
+		if (r->match[i] < 0)
 			continue;
-		/* the camera file's spelling, which the field chart (rho0) shares */
-		ret = kg_patchset_set_id(ps, j, rgb->ids[match[i]], err);
+		ret = kg_patchset_set_id(ps, j, rgb->ids[r->match[i]], err);
 		ps->spectra[j] = spectra->spectra[i];
-		memcpy(ps->rgb[j], rgb->rgb[match[i]], sizeof(ps->rgb[j]));
+		memcpy(ps->rgb[j], rgb->rgb[r->match[i]], sizeof(ps->rgb[j]));
 		j++;
 	}
-	free(match);
-	if (ret == 0 && !(ps->source = strdup(rname)))
+	if (ret == 0 && !(ps->source = strdup(rgb->source ? rgb->source : "RGB patch file")))
 		ret = kg_fail(err, KG_ENOMEM, "out of memory");
-	if (ret) {
+	if (ret)
 		kg_patchset_free(&ps);
-		return ret;
-	}
 	*out = ps;
-	return 0;
+	return ret;
+}
+
+int kg_calib_pair_checked(const kg_patchset *spectra, const kg_patchset *rgb,
+                          const kg_pair_options *opt, kg_patchset **out,
+                          kg_pairing_record *rec, const char **rule, kg_err *err)
+{
+	kg_check_arg(spectra && rgb && out, err);
+	kg_pair_options defaults = {KG_ID_PAIRING_NAMES, NULL, 0, NULL};
+	if (!opt)
+		opt = &defaults;
+	if (rule)
+		*rule = NULL;
+	*out = NULL;
+	int ret = check_inputs(spectra, rgb, err);
+	if (ret)
+		return ret;
+	calib_pair_side a = {0}, b = {0};
+	calib_pair_result r = {0};
+	ret = spectra_side(spectra, opt, &a, err);
+	if (ret == 0)
+		ret = camera_side(rgb, opt, &b, err);
+	if (ret == 0)
+		ret = calib_pair_check(&a, &b, opt->pairing, 1, opt->option, &r, err);
+	if (ret == 0)
+		ret = check_paired(&a, &b, r.npairs, opt->pairing, err);
+	if (ret == 0 && rec)
+		ret = calib_pair_record(&a, &b, &r, opt->pairing, rec, err);
+	if (ret == 0)
+		ret = paired_set(spectra, rgb, &r, out, err);
+	if (ret == 0 && rule)
+		*rule = r.alias;
+	calib_pair_result_free(&r);
+	calib_pair_side_free(&a);
+	calib_pair_side_free(&b);
+	return ret;
 }
 
 static int listed(const char *const *ids, int n, const char *id)
@@ -278,6 +351,31 @@ int calib_patchset_without(const kg_patchset *ps, const char *const *ids, int ni
 	return 0;
 }
 
+/* A field chart (--field-rgb) that names the very patches the spectra do, one to one,
+ * is that chart photographed again: its colours must fit the spectra as the training
+ * RGB's do. A field chart of other patches is paired with nothing here (the site
+ * calibration pairs it with the site camera's file). */
+static int check_field(const kg_patchset *spectra, const kg_patchset *field,
+                       const kg_pair_options *opt, kg_err *err)
+{
+	calib_pair_side a = {0}, b = {0};
+	calib_pair_result r = {0};
+	int *map = malloc((spectra->n > 0 ? (size_t)spectra->n : 1) * sizeof(int));
+	const char *alias;
+	int ret = map ? spectra_side(spectra, opt, &a, err) : kg_fail(err, KG_ENOMEM,
+	                                                               "out of memory");
+	if (ret == 0)
+		ret = camera_side(field, opt, &b, err);
+	int n = ret == 0 ? calib_pair_map(&a, &b, opt->pairing, map, &alias) : 0;
+	if (ret == 0 && n == a.n && n == b.n)
+		ret = calib_pair_check(&a, &b, opt->pairing, 1, opt->option, &r, err);
+	calib_pair_result_free(&r);
+	calib_pair_side_free(&a);
+	calib_pair_side_free(&b);
+	free(map);
+	return ret;
+}
+
 /* The chart's reflectance spectra from CGATS (SPEC_*) or from a `patch,name,<nm>...`
  * CSV table. */
 static int read_spectra(const char *path, kg_patchset **out, kg_err *err)
@@ -313,12 +411,22 @@ int kg_reference_fit_files(const char *spectra_path, const char *rgb_path,
 	if (ret == KG_ENOMEM)
 		kg_fail(err, ret, "out of memory");
 	const char *rule = NULL;
+	kg_pair_options popt = {opt->id_pairing, opt->exclude, opt->nexclude,
+	                        opt->id_pairing_option};
+	kg_pairing_record rec = {.misfit = NAN};
 	if (ret == 0)
-		ret = kg_calib_pair_rule(spectra, rgb, &train, &rule, err);
+		ret = kg_calib_pair_checked(spectra, rgb, &popt, &train, &rec, &rule, err);
+	if (ret == 0 && field)
+		ret = check_field(spectra, field, &popt, err);
 	if (ret == 0)
 		ret = kg_reference_fit(train, field ? field : rgb, opt, &ref, err);
 	if (ret == 0 && rule)
 		snprintf(ref->id_rule, sizeof(ref->id_rule), "%s", rule);
+	if (ret == 0) {
+		ref->pairing = rec;
+		memset(&rec, 0, sizeof(rec));
+	}
+	kg_pairing_record_free(&rec);
 	if (ret == 0)
 		ret = calib_source_add(&ref->sources, &ref->nsources, "spectra", spectra_path, err);
 	if (ret == 0)

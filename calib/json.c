@@ -22,6 +22,10 @@
  *   response {source, patches, F (3 x 61), lambda, loo_rmse (3 each), loo_relative}:
  *     the reference camera's spectral response (response.c), null or absent in older
  *     files,
+ *   pairing {rule (kg_id_pairing_name), aliases (kg_patch_ids_match's rule, or null),
+ *     pairs, checked, misfit (null: not checked), misfit_limit, unpaired {spectra: [id],
+ *     rgb: [id]}}: how the spectra and the RGB were paired (pairing.c); absent in older
+ *     files and in calibrations fitted without pairing two files,
  *   devices {role: INSTRUMENTATION|DEVICE|CAMERA|... keyword}, illuminant,
  *   sources [{role, path, sha256, keywords {...}}].
  *
@@ -33,7 +37,7 @@
  *   site {patches, ids, rho_r, rho0, residual (3 x k each), residual_rms,
  *     residual_relative, condition_number, condition_number_equilibrated,
  *     singular_values, rank, flagged [{id, flags}]: patches chart detection flagged,
- *     left out},
+ *     left out, pairing: as the reference's, unpaired {reference, rgb}},
  *   camera {backend, model, serial, pixfmt, white_level, demosaic, capture}: the site
  *     camera, null when unknown (files without the key load as unknown),
  *   response: the reference's, as above,
@@ -223,6 +227,25 @@ static json_t *jdevices(jw *w, const kg_calib_source *s, int n)
 	return o;
 }
 
+/* How two files' patches were paired; unpaired ids under the files' roles. */
+static json_t *jpairing(jw *w, const kg_pairing_record *rec, const char *alias,
+                        const char *first, const char *second)
+{
+	json_t *o = json_object(), *un = json_object();
+	char rule[64];
+	kg_id_pairing_name(rec->rule, first, second, rule, sizeof(rule));
+	put(w, o, "rule", json_string(rule));
+	put(w, o, "aliases", alias[0] ? json_string(alias) : json_null());
+	put(w, o, "pairs", json_integer(rec->pairs));
+	put(w, o, "checked", json_integer(rec->checked));
+	put(w, o, "misfit", jnum(rec->misfit));
+	put(w, o, "misfit_limit", json_real(KG_CALIB_PAIR_MAX_MISFIT));
+	put(w, un, first, jstrv(w, "a patch id", rec->unpaired[0], rec->nunpaired[0]));
+	put(w, un, second, jstrv(w, "a patch id", rec->unpaired[1], rec->nunpaired[1]));
+	put(w, o, "unpaired", un);
+	return o;
+}
+
 static int finish(jw *w, json_t *root, const char *path, kg_err *err)
 {
 	int ret;
@@ -371,6 +394,8 @@ int kg_reference_save(const kg_reference *ref, const char *path, kg_err *err)
 	                                   ref->flagged_flags));
 	put(&w, root, "field", field);
 	put(&w, root, "response", jresponse(&w, &ref->response));
+	if (ref->pairing.pairs)
+		put(&w, root, "pairing", jpairing(&w, &ref->pairing, ref->id_rule, "spectra", "rgb"));
 
 	put(&w, root, "devices", jdevices(&w, ref->sources, ref->nsources));
 	const char *ill = source_keyword(ref->sources, ref->nsources, NULL, illuminant_keywords);
@@ -425,6 +450,8 @@ int kg_camera_save(const kg_camera_calib *cam, const char *path, kg_err *err)
 	put(&w, fit, "singular_values", jrow(&w, cam->singular_values, 3, 1));
 	put(&w, fit, "rank", json_integer(cam->rank));
 	put(&w, fit, "flagged", jflagged(&w, cam->nflagged, cam->flagged_ids, cam->flagged_flags));
+	if (cam->pairing.pairs)
+		put(&w, fit, "pairing", jpairing(&w, &cam->pairing, cam->id_rule, "reference", "rgb"));
 	put(&w, root, "site", fit);
 	put(&w, root, "response", jresponse(&w, &cam->response));
 	const kg_camera_identity *id = &cam->identity;
@@ -722,6 +749,53 @@ static int get_response(const char *file, const json_t *root, kg_response *r, kg
 	return 0;
 }
 
+/* An array of strings at path (its length in *n). */
+static int get_strv_any(const char *file, const json_t *root, const char *path, char ***out,
+                        int *n, kg_err *err)
+{
+	int ret = get_len(file, root, path, n, err);
+	return ret ? ret : get_strv(file, root, path, *n, out, err);
+}
+
+/* pairing (at path), optional: how two files' patches were paired. */
+static int get_pairing(const char *file, const json_t *root, const char *path,
+                       const char *first, const char *second, kg_pairing_record *rec,
+                       char *alias, size_t alias_size, kg_err *err)
+{
+	kg_pairing_record_free(rec);
+	if (!kg_json_find(root, path))
+		return 0;
+	char key[96];
+	const char *rule = NULL;
+	long pairs = 0, checked = 0;
+	snprintf(key, sizeof(key), "%s.rule", path);
+	int ret = kg_json_get_string(file, root, key, &rule, err);
+	kg_err bad = {{0}};
+	if (!ret && kg_id_pairing_parse(rule, first, second, &rec->rule, &bad))
+		ret = kg_fail(err, KG_EINVAL, "%s: %s: %s", file, key, bad.msg);
+	snprintf(key, sizeof(key), "%s.aliases", path);
+	json_t *al = kg_json_find(root, key);
+	if (json_is_string(al))
+		snprintf(alias, alias_size, "%s", json_string_value(al));
+	snprintf(key, sizeof(key), "%s.pairs", path);
+	if (!ret)
+		ret = kg_json_get_int(file, root, key, 0, 1 << 24, &pairs, err);
+	snprintf(key, sizeof(key), "%s.checked", path);
+	if (!ret)
+		ret = kg_json_get_int(file, root, key, 0, 1 << 24, &checked, err);
+	snprintf(key, sizeof(key), "%s.misfit", path);
+	if (!ret)
+		ret = get_num_or_null(file, root, key, &rec->misfit, err);
+	const char *role[2] = {first, second};
+	for (int s = 0; !ret && s < 2; s++) {
+		snprintf(key, sizeof(key), "%s.unpaired.%s", path, role[s]);
+		ret = get_strv_any(file, root, key, &rec->unpaired[s], &rec->nunpaired[s], err);
+	}
+	rec->pairs = (int)pairs;
+	rec->checked = (int)checked;
+	return ret;
+}
+
 static int load_reference(const char *file, const json_t *root, kg_reference *ref,
                           kg_err *err)
 {
@@ -840,6 +914,9 @@ static int load_reference(const char *file, const json_t *root, kg_reference *re
 		                  &ref->flagged_flags, err);
 	if (!ret)
 		ret = get_sources(file, root, &ref->sources, &ref->nsources, err);
+	if (!ret)
+		ret = get_pairing(file, root, "pairing", "spectra", "rgb", &ref->pairing, ref->id_rule,
+		                  sizeof(ref->id_rule), err);
 	calib_reference_derive(ref);
 	return ret;
 }
@@ -983,6 +1060,9 @@ static int load_camera(const char *file, const json_t *root, kg_camera_calib *ca
 	if (!ret)
 		ret = get_flagged(file, root, "site.flagged", &cam->nflagged, &cam->flagged_ids,
 		                  &cam->flagged_flags, err);
+	if (!ret)
+		ret = get_pairing(file, root, "site.pairing", "reference", "rgb", &cam->pairing,
+		                  cam->id_rule, sizeof(cam->id_rule), err);
 	if (!ret)
 		ret = get_identity(file, root, &cam->identity, err);
 	if (!ret)

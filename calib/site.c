@@ -31,6 +31,7 @@ void kg_camera_calib_free(kg_camera_calib **pcam)
 	calib_strv_free(cam->flagged_ids, cam->nflagged);
 	free(cam->flagged_flags);
 	calib_sources_free(&cam->sources, &cam->nsources);
+	kg_pairing_record_free(&cam->pairing);
 	free(cam);
 	*pcam = NULL;
 }
@@ -105,12 +106,93 @@ static int check_options(const kg_camera_options *opt, kg_err *err)
 	return 0;
 }
 
+/* The reference's field chart (rho0) and the site file as the two sides of a pairing,
+ * without the excluded patches and the site's flagged and clipped ones. */
+static int site_sides(const kg_reference *ref, const kg_patchset *site,
+                      const kg_camera_options *opt, const char *what, calib_pair_side *a,
+                      calib_pair_side *b, kg_err *err)
+{
+	int ret = calib_pair_side_new("the reference", "reference",
+	                              "the reference camera's values of the field chart (rho0)",
+	                              ref->field_ids, ref->k, (const double(*)[3])ref->rho0, a,
+	                              err);
+	if (ret == 0)
+		ret = calib_pair_side_new(what, "rgb", "", site->ids, site->n,
+		                          (const double(*)[3])site->rgb, b, err);
+	if (ret == 0) {
+		calib_pair_side_skip(a, opt->exclude, opt->nexclude, NULL, 0);
+		calib_pair_side_skip(b, opt->exclude, opt->nexclude, site, opt->clip_level);
+	}
+	return ret;
+}
+
+/* Pair the site file's patches with the reference's field chart, refusing ids that
+ * another pairing explains (calib_pair_check; the whole chart is judged by the
+ * relative residual, single patches by check_site_patches): alias[i] is the reference
+ * patch of site patch i, or -1. */
+static int pair_site(const kg_reference *ref, const kg_patchset *site,
+                     const kg_camera_options *opt, const char *what, int *alias,
+                     const char **id_rule, kg_pairing_record *rec, kg_err *err)
+{
+	calib_pair_side a = {0}, b = {0};
+	calib_pair_result r = {0};
+	int ret = site_sides(ref, site, opt, what, &a, &b, err);
+	if (ret == 0)
+		ret = calib_pair_check(&a, &b, opt->id_pairing, 0, opt->id_pairing_option, &r, err);
+	if (ret == 0)
+		ret = calib_pair_record(&a, &b, &r, opt->id_pairing, rec, err);
+	for (int i = 0; ret == 0 && i < site->n; i++)
+		alias[i] = -1;
+	for (int j = 0; ret == 0 && j < ref->k; j++)
+		if (r.match[j] >= 0)
+			alias[r.match[j]] = j;
+	if (ret == 0)
+		*id_rule = r.alias;
+	calib_pair_result_free(&r);
+	calib_pair_side_free(&a);
+	calib_pair_side_free(&b);
+	return ret;
+}
+
+/* Single patches that fit other patches' colours. On a chart that reads as the
+ * reference's (relative residual within the default limit) they are refused; when
+ * the residual was refused (`refused`), they are named after its message, since two
+ * swapped patches raise the residual too; a chart accepted only by a raised
+ * --max-residual gives no fit to judge them by. */
+static int check_site_patches(const kg_reference *ref, const kg_patchset *site,
+                              const kg_camera_options *opt, const char *what,
+                              const kg_camera_calib *cam, int refused, kg_err *err)
+{
+	if (!refused && cam->residual_relative > KG_CALIB_MAX_RESIDUAL)
+		return 0;
+	calib_pair_side a = {0}, b = {0};
+	calib_pair_result r = {0};
+	kg_err own = {{0}};
+	int ret = site_sides(ref, site, opt, what, &a, &b, &own);
+	if (ret == 0)
+		ret = calib_pair_check(&a, &b, opt->id_pairing, 0, opt->id_pairing_option, &r, &own);
+	if (ret == 0 && !refused) {
+		ret = calib_pair_check_patches(&a, &b, &r, opt->id_pairing_option, err);
+	} else if (ret == 0) {
+		char moved[800];
+		size_t at = strlen(err->msg);
+		if (calib_pair_moved(&a, &b, &r, opt->id_pairing_option, moved, sizeof(moved)) > 0 &&
+		    at < sizeof(err->msg))
+			snprintf(err->msg + at, sizeof(err->msg) - at, ". Also, %s", moved);
+	}
+	calib_pair_result_free(&r);
+	calib_pair_side_free(&a);
+	calib_pair_side_free(&b);
+	return ret;
+}
+
 /* Which site patches take part: every non-excluded site id must be on the
  * reference's field chart, and at least 3 must be in common. idx_ref/idx_site
  * receive the pairs in the reference's order. */
 static int match_patches(const kg_reference *ref, const kg_patchset *site,
                          const kg_camera_options *opt, const char *what, int *idx_ref,
-                         int *idx_site, int *k, const char **id_rule, kg_err *err)
+                         int *idx_site, int *k, const char **id_rule,
+                         kg_pairing_record *rec, kg_err *err)
 {
 	int n = site->n, nunknown = 0, nmissing = 0;
 	int *unknown = malloc((n > 0 ? (size_t)n : 1) * sizeof(int));
@@ -135,12 +217,15 @@ static int match_patches(const kg_reference *ref, const kg_patchset *site,
 			              opt->exclude[e], what);
 			goto done;
 		}
-	/* the site file's ids as the reference's (kg_patch_ids_match: A1 = A01 = 1) */
+	/* the site file's patches as the reference's (kg_patch_ids_match: A1 = A01 = 1, or
+	 * as opt->id_pairing says), checked by colour */
 	int *alias = malloc((n > 0 ? (size_t)n : 1) * sizeof(int));
-	if (!alias || kg_patch_ids_match(site->ids, n, ref->field_ids, ref->k, alias,
-	                                 id_rule) < 0) {
-		free(alias);
+	if (!alias) {
 		ret = kg_fail(err, KG_ENOMEM, "out of memory");
+		goto done;
+	}
+	if ((ret = pair_site(ref, site, opt, what, alias, id_rule, rec, err))) {
+		free(alias);
 		goto done;
 	}
 	for (int i = 0; i < n; i++)
@@ -531,7 +616,8 @@ int kg_camera_fit(const kg_reference *ref, const kg_patchset *site,
 		goto error;
 	}
 	const char *id_rule = NULL;
-	ret = match_patches(ref, site, opt, what, idx_ref, idx_site, &k, &id_rule, err);
+	ret = match_patches(ref, site, opt, what, idx_ref, idx_site, &k, &id_rule, &cam->pairing,
+	                    err);
 	if (!ret && id_rule)
 		snprintf(cam->id_rule, sizeof(cam->id_rule), "%s", id_rule);
 	if (!ret)
@@ -578,6 +664,11 @@ int kg_camera_fit(const kg_reference *ref, const kg_patchset *site,
 		ret = drop_misfits(cam, opt, err);
 	if (!ret)
 		ret = check_residual(cam, opt, what, err);
+	if (!ret || ret == KG_EINVAL) {
+		int refused = ret;
+		ret = check_site_patches(ref, site, opt, what, cam, refused != 0, err);
+		ret = refused ? refused : ret;
+	}
 	if (ret)
 		goto error;
 

@@ -14,9 +14,19 @@ static const char usage_reference[] =
 	"                      [--ridge L] [--noise SIGMA] [--method NAME|auto]\n"
 	"                      [--max-cond C] [--exclude ID[,ID...]]\n"
 	"                      [--camera CSS.csv --illuminant NAME|FILE]\n"
+	"                      [--id-pairing PAIRING]\n"
 	"  Reference calibration (docs/architecture.md, step 1). The chart's spectra S\n"
 	"  (CGATS SPEC_* fields, or a patch,name,<nm>... CSV table) and the reference\n"
-	"  camera's linear RGB rho (RGB_R RGB_G RGB_B) are matched by SAMPLE_ID. Fitted:\n"
+	"  camera's linear RGB rho (RGB_R RGB_G RGB_B) are matched by SAMPLE_ID and\n"
+	"  checked by colour: the spectra's XYZ under D65 must fit the RGB through one\n"
+	"  3 x 3 matrix (misfit under 35 %), and no patch may fit another's colour far\n"
+	"  better than its own; a pairing that does not fit is refused, saying how each\n"
+	"  file names its patches and which other pairing fits. --id-pairing states one:\n"
+	"  names (default), file-order, grid-order (both files' ids sorted by letter,\n"
+	"  then number: A00..D05 with A01..D06), spectra-by-number or rgb-by-number\n"
+	"  (that file's ids sorted by number, then letter: A1, B1, .., A2, ..),\n"
+	"  number+1, number-1 (the spectra's X<n> with the RGB's X<n+1>, X<n-1>),\n"
+	"  letter+1, letter-1. Patches without a partner are listed in a note. Fitted:\n"
 	"    pca        B = the K leading right singular vectors of S (--centred: about\n"
 	"               the mean spectrum, with an affine M), M = W^T rho (rho^T rho + L I)^-1\n"
 	"    linear     A = S^T rho (rho^T rho + L I)^-1 (61 x 3)\n"
@@ -44,8 +54,12 @@ static const char usage_camera[] =
 	"kogei calib camera --reference REF.json --rgb P.cgats -o CAM.json\n"
 	"                   [--method NAME] [--max-cond C] [--max-residual R] [--force]\n"
 	"                   [--clip-level V] [--black-level V] [--exclude ID[,ID...]]\n"
+	"                   [--id-pairing PAIRING]\n"
 	"  Site calibration: the site camera's values rho_r of the field chart, matched to\n"
-	"  the reference's rho0 by SAMPLE_ID, give M2 = rho0 pinv(rho_r) (SVD). Patches\n"
+	"  the reference's rho0 by SAMPLE_ID, give M2 = rho0 pinv(rho_r) (SVD). The pairing\n"
+	"  is checked by colour as in calib reference (--id-pairing: the same names, with\n"
+	"  reference-by-number for rho0's ids; number+1 pairs rho0's X<n> with the site\n"
+	"  file's X<n+1>); reference patches the site file lacks are listed. Patches\n"
 	"  chart detection flagged (FLAGS: clipped, glare, too few pixels, out of frame,\n"
 	"  non-uniform, a colour that is not the layout's) are left out and listed.\n"
 	"  Refused, naming the patches: site ids not on the reference's chart, fewer than\n"
@@ -110,6 +124,37 @@ static FILE *report_stream(const char *out)
 	return strcmp(out, "-") == 0 ? stderr : stdout;
 }
 
+/* The patches of either file that found no partner, left out. */
+static void note_unpaired(const kg_pairing_record *rec, const char *first,
+                          const char *second)
+{
+	const char *file[2] = {first, second};
+	for (int s = 0; s < 2; s++) {
+		if (!rec->nunpaired[s])
+			continue;
+		fprintf(stderr, "kogei: note: %s: %d patch%s paired with nothing in %s, left out:",
+		        file[s], rec->nunpaired[s], rec->nunpaired[s] == 1 ? "" : "es",
+		        file[1 - s]);
+		for (int i = 0; i < rec->nunpaired[s]; i++)
+			fprintf(stderr, "%s %s", i ? "," : "", rec->unpaired[s][i]);
+		fputc('\n', stderr);
+	}
+}
+
+/* How the patches were paired and how well their colours agree. */
+static void print_pairing(FILE *fp, const kg_pairing_record *rec, const char *first,
+                          const char *second)
+{
+	char name[64];
+	kg_id_pairing_name(rec->rule, first, second, name, sizeof(name));
+	fprintf(fp, "patch pairing: %d pairs by %s; ", rec->pairs, name);
+	if (isnan(rec->misfit))
+		fprintf(fp, "%d with usable values, too few to check by colour\n", rec->checked);
+	else
+		fprintf(fp, "colour misfit %.1f %% over %d (limit %.0f %%)\n", 100 * rec->misfit,
+		        rec->checked, 100 * KG_CALIB_PAIR_MAX_MISFIT);
+}
+
 static void print_reference(FILE *fp, const kg_reference *ref, const char *out)
 {
 	fprintf(fp, "reference calibration: %d training patches, %d field patches\n", ref->m,
@@ -143,6 +188,8 @@ static void print_reference(FILE *fp, const kg_reference *ref, const char *out)
 	}
 	fprintf(fp, "%s on the chart: mean RMSE %.5f, mean dE00 %.3f (max %.3f) under D65\n",
 	        kg_method_name(ref->method), rm / ref->m, de / ref->m, demax);
+	if (ref->pairing.pairs)
+		print_pairing(fp, &ref->pairing, "spectra", "rgb");
 	if (ref->response.available)
 		fprintf(fp, "camera response (camera-space labels): from the %s, leave-one-out error "
 		        "%.4f relative\n", strcmp(ref->response.source, "camera") ? "chart"
@@ -206,6 +253,7 @@ int kg_cmd_calib_reference(int argc, char **argv)
 		{"exclude", required_argument, NULL, 'x'},
 		{"camera", required_argument, NULL, 'S'},
 		{"illuminant", required_argument, NULL, 'I'},
+		{"id-pairing", required_argument, NULL, 'P'},
 		{"output", required_argument, NULL, 'o'},
 		{"help", no_argument, NULL, 'h'},
 		{0, 0, 0, 0},
@@ -225,6 +273,10 @@ int kg_cmd_calib_reference(int argc, char **argv)
 		switch (c) {
 		case 'S': camera = optarg; break;
 		case 'I': illuminant = optarg; break;
+		case 'P':
+			if (kg_id_pairing_parse(optarg, "spectra", "rgb", &opt.id_pairing, &err))
+				return kg_cli_usage_error(u, "--id-pairing: %s", err.msg);
+			break;
 		case 's': spectra = optarg; break;
 		case 'r': rgb = optarg; break;
 		case 'f': field = optarg; break;
@@ -273,6 +325,7 @@ int kg_cmd_calib_reference(int argc, char **argv)
 	if (split_ids(a.exclude, &ids, &opt.nexclude, &err))
 		return kg_cli_error(&err, KG_ENOMEM);
 	opt.exclude = (const char *const *)ids;
+	opt.id_pairing_option = "--id-pairing";
 	kg_reference *ref = NULL;
 	int ret = kg_reference_fit_files(spectra, rgb, field, &opt, &ref, &err);
 	if (!ret)
@@ -283,6 +336,8 @@ int kg_cmd_calib_reference(int argc, char **argv)
 	if (!ret && ref->nflagged)
 		note_flagged(ref->nflagged, ref->flagged_ids, ref->flagged_flags,
 		             field ? field : rgb, "the fit");
+	if (!ret)
+		note_unpaired(&ref->pairing, spectra, rgb);
 	if (!ret)
 		print_reference(report_stream(a.out), ref, a.out);
 	kg_reference_free(&ref);
@@ -311,6 +366,8 @@ static void print_camera(FILE *fp, const kg_camera_calib *cam, const char *out)
 		}
 	}
 	fprintf(fp, "largest residual: patch %s (%.5f)\n", cam->ids[worst], wv);
+	if (cam->pairing.pairs)
+		print_pairing(fp, &cam->pairing, "reference", "rgb");
 	fprintf(fp, "default method: %s\n", kg_method_name(cam->method));
 	char id[512];
 	kg_camera_identity_describe(&cam->identity, id, sizeof(id));
@@ -337,6 +394,7 @@ int kg_cmd_calib_camera(int argc, char **argv)
 		{"max-residual", required_argument, NULL, 'X'},
 		{"force", no_argument, NULL, 'f'},
 		{"exclude", required_argument, NULL, 'x'},
+		{"id-pairing", required_argument, NULL, 'P'},
 		{"output", required_argument, NULL, 'o'},
 		{"help", no_argument, NULL, 'h'},
 		{0, 0, 0, 0},
@@ -367,6 +425,10 @@ int kg_cmd_calib_camera(int argc, char **argv)
 			                        &opt.max_residual);
 			break;
 		case 'f': opt.force = 1; break;
+		case 'P':
+			if (kg_id_pairing_parse(optarg, "reference", "rgb", &opt.id_pairing, &err))
+				return kg_cli_usage_error(u, "--id-pairing: %s", err.msg);
+			break;
 		case 'h': puts(u); return KG_EXIT_OK;
 		default: return kg_cli_usage_error(u, "bad option");
 		}
@@ -382,6 +444,7 @@ int kg_cmd_calib_camera(int argc, char **argv)
 	if (split_ids(a.exclude, &ids, &opt.nexclude, &err))
 		return kg_cli_error(&err, KG_ENOMEM);
 	opt.exclude = (const char *const *)ids;
+	opt.id_pairing_option = "--id-pairing";
 	kg_camera_calib *cam = NULL;
 	int ret = kg_camera_fit_files(refpath, rgb, &opt, &cam, &err);
 	if (!ret && method != KG_METHOD_AUTO)
@@ -389,6 +452,8 @@ int kg_cmd_calib_camera(int argc, char **argv)
 	if (!ret && cam->id_rule[0])
 		fprintf(stderr, "kogei: note: %s: patch ids matched with the reference's as %s\n",
 		        rgb, cam->id_rule);
+	if (!ret)
+		note_unpaired(&cam->pairing, refpath, rgb);
 	if (!ret && cam->nflagged)
 		note_flagged(cam->nflagged, cam->flagged_ids, cam->flagged_flags, rgb, "M2");
 	if (!ret && cam->k == 3)

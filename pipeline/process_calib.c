@@ -344,6 +344,23 @@ static int measured_spectra(proc *p, kg_patchset **out)
 }
 
 /* The light field removed from the chart's patch values (calib/light_field.c). */
+/* The patches of the spectra or of the chart that found no partner, left out. */
+static void note_unpaired(proc *p, const kg_pairing_record *rec, const char *spectra)
+{
+	const char *file[2] = {spectra, "the chart"};
+	for (int s = 0; s < 2; s++) {
+		if (!rec->nunpaired[s])
+			continue;
+		char list[400] = "";
+		size_t at = 0;
+		for (int i = 0; i < rec->nunpaired[s] && at < sizeof(list); i++)
+			at += (size_t)snprintf(list + at, sizeof(list) - at, "%s%s", i ? ", " : "",
+			                       rec->unpaired[s][i]);
+		proc_warn(p, NULL, "%s: %d patch%s paired with nothing in %s, left out: %s", file[s],
+		          rec->nunpaired[s], rec->nunpaired[s] == 1 ? "" : "es", file[1 - s], list);
+	}
+}
+
 static json_t *light_field_json(const kg_chart_light *f)
 {
 	if (!f->fitted)
@@ -496,11 +513,18 @@ int proc_calibrate(proc *p)
 		kg_reference_options_default(&ropt);
 		ropt.exclude = (const char *const *)flagged;
 		ropt.nexclude = nflagged;
+		kg_pairing_record rec = {.misfit = NAN};
 		ret = kg_sim_read_spectra(o->spectra, 0, &spectra, err);
 		if (!ret)
-			ret = kg_calib_pair(spectra, ps, &train, err);
+			ret = kg_calib_pair_checked(spectra, ps, NULL, &train, &rec, NULL, err);
 		if (!ret)
 			ret = kg_reference_fit(train, ps, &ropt, &p->ref, err);
+		if (!ret) {
+			note_unpaired(p, &rec, o->spectra);
+			p->ref->pairing = rec;
+		} else {
+			kg_pairing_record_free(&rec);
+		}
 		if (!ret)
 			ret = kg_reference_add_source(p->ref, "spectra", o->spectra, err);
 		if (ret) {
