@@ -149,8 +149,9 @@ static const char *value_problem(const char *value)
 {
 	if (!*value)
 		return "expected a value";
-	const char *why = kg_meta_value_problem(value);
-	return why ? why : NULL;
+	if (strpbrk(value, "\r\n"))
+		return "holds a line break";
+	return kg_meta_value_problem(value);
 }
 
 int kg_deposit_check(const kg_deposit_options *o, kg_err *err)
