@@ -18,20 +18,6 @@
 
 #define WALK_DEPTH_MAX 64
 
-int bag_write_all(int fd, const unsigned char *p, size_t n)
-{
-	while (n) {
-		ssize_t w = write(fd, p, n);
-		if (w < 0 && errno == EINTR)
-			continue;
-		if (w <= 0)
-			return -1;
-		p += w;
-		n -= (size_t)w;
-	}
-	return 0;
-}
-
 /* ---- checksums ------------------------------------------------------------------------ */
 
 static void to_hex(const unsigned char *md, unsigned len, char *hex)
@@ -71,7 +57,7 @@ static int digest_fd(EVP_MD_CTX *ctx, int in, int out, const bag_copy *c, unsign
 			return 0;
 		if (!EVP_DigestUpdate(ctx, c->buf, (size_t)n))
 			return kg_fail(err, KG_ENOMEM, "%s: cannot compute its %s", c->src, c->alg);
-		if (out >= 0 && bag_write_all(out, c->buf, (size_t)n))
+		if (out >= 0 && kg_write_all(out, c->buf, (size_t)n))
 			return kg_fail_write(err, errno, c->dst, "write failed");
 		*size += (unsigned long long)n;
 	}
@@ -212,7 +198,7 @@ static int decode_path(char *p)
 /* ---- kg_bag_verify -------------------------------------------------------------------- */
 
 typedef struct verify {
-	const char *bag;
+	char *bag;                 /* as given, without a trailing '/' */
 	FILE *problems, *progress;
 	kg_err *err;
 	char **payload;            /* "data/..." of every payload file, sorted */
@@ -275,15 +261,28 @@ static int find_payload(const verify *v, const char *rel)
 	return hit ? (int)(hit - v->payload) : -1;
 }
 
+/* BAG/name read whole: *path and *text (the caller frees both; *text NULL when there
+ * is no such file). */
+static int read_bag_file(verify *v, const char *name, char **path, char **text)
+{
+	struct stat st;
+	size_t len;
+	*text = NULL;
+	if (!(*path = kg_path_join(v->bag, name)))
+		return kg_fail(v->err, KG_ENOMEM, "out of memory");
+	if (lstat(*path, &st) != 0 && errno == ENOENT)
+		return 0;
+	return kg_read_file(*path, text, &len, v->err);
+}
+
 /* Each line of a manifest: "CHECKSUM PATH" (one or more spaces or tabs between);
  * calls line(v, alg, checksum, path, lineno, manifest) for each well-formed one. */
 typedef void (*manifest_line)(verify *v, const char *alg, const char *sum, const char *path,
                               const char *manifest);
 static int read_manifest(verify *v, const char *name, const char *alg, manifest_line line)
 {
-	char *path = kg_path_join(v->bag, name), *text = NULL;
-	size_t len;
-	int ret = path ? kg_read_file(path, &text, &len, v->err) : KG_ENOMEM;
+	char *path, *text;
+	int ret = read_bag_file(v, name, &path, &text);
 	int lineno = 0;
 	for (char *s = text, *next; !ret && s && *s; s = next) {
 		next = s + strcspn(s, "\n");
@@ -325,6 +324,19 @@ static int differs(verify *v, const char *alg, const char *rel, const char *sum,
 	return ret ? ret : strcasecmp(hex, sum) != 0;
 }
 
+/* rel's checksum against the one manifest records: a problem when it differs, or when
+ * the file cannot be read. i: its index among the payload files, -1 for a tag file. */
+static void compare(verify *v, const char *alg, const char *sum, const char *rel,
+                    const char *manifest, int i)
+{
+	int d = differs(v, alg, rel, sum, i);
+	if (d > 0)
+		problem(v, &v->changed, "%s/%s: changed (its %s is not the one %s records)", v->bag,
+		        rel, alg, manifest);
+	else if (d < 0)
+		problem(v, &v->other, "%s", v->err->msg);
+}
+
 static void payload_line(verify *v, const char *alg, const char *sum, const char *rel,
                          const char *manifest)
 {
@@ -337,12 +349,7 @@ static void payload_line(verify *v, const char *alg, const char *sum, const char
 		problem(v, &v->other, "%s/%s: listed twice in %s", v->bag, rel, manifest);
 	} else {
 		v->seen[i] = 1;
-		int d = differs(v, alg, rel, sum, i);
-		if (d > 0)
-			problem(v, &v->changed, "%s/%s: changed (its %s is not the one %s records)",
-			        v->bag, rel, alg, manifest);
-		else if (d < 0)
-			problem(v, &v->other, "%s", v->err->msg);
+		compare(v, alg, sum, rel, manifest, i);
 	}
 }
 
@@ -356,12 +363,7 @@ static void tag_line(verify *v, const char *alg, const char *sum, const char *re
 	} else if (!path || lstat(path, &st) != 0 || !S_ISREG(st.st_mode)) {
 		problem(v, &v->missing, "%s/%s: missing (listed in %s)", v->bag, rel, manifest);
 	} else {
-		int d = differs(v, alg, rel, sum, -1);
-		if (d > 0)
-			problem(v, &v->changed, "%s/%s: changed (its %s is not the one %s records)",
-			        v->bag, rel, alg, manifest);
-		else if (d < 0)
-			problem(v, &v->other, "%s", v->err->msg);
+		compare(v, alg, sum, rel, manifest, -1);
 	}
 	free(path);
 }
@@ -369,14 +371,10 @@ static void tag_line(verify *v, const char *alg, const char *sum, const char *re
 /* bagit.txt: "BagIt-Version: M.N" and "Tag-File-Character-Encoding: UTF-8". */
 static int check_bagit_txt(verify *v)
 {
-	char *path = kg_path_join(v->bag, "bagit.txt"), *text = NULL;
-	size_t len;
-	struct stat st;
-	if (!path)
-		return kg_fail(v->err, KG_ENOMEM, "out of memory");
-	int ret = stat(path, &st) != 0
-	              ? kg_fail(v->err, KG_EINVAL, "%s: not a bag (no bagit.txt)", v->bag)
-	              : kg_read_file(path, &text, &len, v->err);
+	char *path, *text;
+	int ret = read_bag_file(v, "bagit.txt", &path, &text);
+	if (!ret && !text)
+		ret = kg_fail(v->err, KG_EINVAL, "%s: not a bag (no bagit.txt)", v->bag);
 	unsigned major, minor;
 	char enc[16], end;
 	if (!ret && (sscanf(text, "BagIt-Version: %u.%u%c", &major, &minor, &end) != 3 ||
@@ -395,12 +393,8 @@ static int check_bagit_txt(verify *v)
 /* bag-info.txt's Payload-Oxum (when there is one) against the payload. */
 static int check_oxum(verify *v)
 {
-	char *path = kg_path_join(v->bag, "bag-info.txt"), *text = NULL;
-	size_t len;
-	struct stat st;
-	if (!path)
-		return kg_fail(v->err, KG_ENOMEM, "out of memory");
-	int ret = stat(path, &st) != 0 ? 0 : kg_read_file(path, &text, &len, v->err);
+	char *path, *text;
+	int ret = read_bag_file(v, "bag-info.txt", &path, &text);
 	for (const char *s = text; !ret && s && *s; s += strcspn(s, "\n"), s += *s == '\n') {
 		unsigned long long octets, files;
 		char end;
@@ -493,15 +487,19 @@ int kg_bag_verify(const char *bag, FILE *problems, FILE *progress, kg_deposit_su
 	verify *v = calloc(1, sizeof(*v));
 	if (!v)
 		return kg_fail(err, KG_ENOMEM, "out of memory");
-	v->bag = bag;
+	size_t n = strlen(bag);
+	while (n > 1 && bag[n - 1] == '/')
+		n--;
+	v->bag = strndup(bag, n); /* "bag/" names its files bag/data/..., not bag//data/... */
 	v->problems = problems;
 	v->progress = progress;
 	v->err = err;
-	int ret = verify_run(v, sum);
+	int ret = v->bag ? verify_run(v, sum) : kg_fail(err, KG_ENOMEM, "out of memory");
 	for (int i = 0; i < v->n; i++)
 		free(v->payload[i]);
 	free(v->payload);
 	free(v->seen);
+	free(v->bag);
 	free(v);
 	return ret;
 }

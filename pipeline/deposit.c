@@ -231,7 +231,6 @@ typedef struct dep {
 	int nfiles, fcap;
 	char **dirs;              /* the staging tree's folders, parents first */
 	int ndirs, dcap;
-	unsigned long long bytes;
 	FILE *manifest;           /* manifest-sha512.txt as it is made */
 	char *manifest_text;
 	size_t manifest_len;
@@ -637,7 +636,6 @@ static int place_file(dep *d, int i, kg_deposit_summary *sum)
 	fprintf(d->manifest, "%s  ", hex);
 	bag_put_path(d->manifest, f->rel);
 	fputc('\n', d->manifest);
-	d->bytes += size;
 	sum->files++;
 	sum->bytes += size;
 	*(linked ? &sum->linked : &sum->copied) += 1;
@@ -652,7 +650,7 @@ static int write_tag(dep *d, const char *name, const char *text, size_t len, FIL
 	if (!path)
 		return oom(d);
 	int fd = open(path, O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
-	int ret = fd < 0 || bag_write_all(fd, (const unsigned char *)text, len) || fsync(fd) != 0
+	int ret = fd < 0 || kg_write_all(fd, text, len) || fsync(fd) != 0
 	              ? kg_fail_write(d->err, errno, path, "write failed")
 	              : 0;
 	if (fd >= 0 && close(fd) != 0 && !ret)

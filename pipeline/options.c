@@ -146,9 +146,11 @@ int kg_opt_from_json(const kg_opt_table *t, const json_t *obj, void *opts, kg_er
 	return 0;
 }
 
-/* text's words from column col on, wrapped at HELP_WIDTH and indented by HELP_INDENT. */
-static void print_wrapped(FILE *fp, const char *text, int col)
+/* text's words from column HELP_INDENT on, wrapped at HELP_WIDTH, each line after the
+ * first indented to HELP_INDENT. */
+static void print_wrapped(FILE *fp, const char *text)
 {
+	int col = HELP_INDENT;
 	for (const char *w = text; *w;) {
 		while (*w == ' ')
 			w++;
@@ -185,6 +187,6 @@ void kg_opt_print_help(FILE *fp, const kg_opt_table *t)
 			fprintf(fp, "\n%*s", HELP_INDENT, "");
 		else
 			fprintf(fp, "%*s", HELP_INDENT - n, "");
-		print_wrapped(fp, s->help, HELP_INDENT);
+		print_wrapped(fp, s->help);
 	}
 }

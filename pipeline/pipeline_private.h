@@ -223,7 +223,5 @@ typedef int (*bag_visit)(void *user, const char *path, const char *rel, const st
 int bag_walk(const char *dir, const char *rel, bag_visit visit, void *user, kg_err *err);
 /* rel as a manifest writes it: CR, LF and '%' percent-encoded (RFC 8493, 2.1.3). */
 void bag_put_path(FILE *f, const char *rel);
-/* All of p to fd (EINTR retried): 0, or -1 with errno. */
-int bag_write_all(int fd, const unsigned char *p, size_t n);
 
 #endif
