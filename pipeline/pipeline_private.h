@@ -224,4 +224,22 @@ int bag_walk(const char *dir, const char *rel, bag_visit visit, void *user, kg_e
 /* rel as a manifest writes it: CR, LF and '%' percent-encoded (RFC 8493, 2.1.3). */
 void bag_put_path(FILE *f, const char *rel);
 
+/* ---- kogei deposit's bag-info.txt values (deposit_info.c) -------------------------- */
+
+#define DEPOSIT_NGIVEN 6 /* Source-Organization ... External-Description */
+typedef struct deposit_info {
+	char *config_text;                  /* the config file, its values cut out in place */
+	const char *values[DEPOSIT_NGIVEN]; /* the operator's labels: the option's value, else
+	                                     * the config's; NULL: not given */
+} deposit_info;
+/* The config file's values (o->config), then the options' over them; KG_EINVAL naming
+ * "FILE: line N" for a line that is not "Label: value" of a label taken. */
+int deposit_info_load(deposit_info *in, const kg_deposit_options *o, kg_err *err);
+/* The values given as bag-info.txt lines, in its order. */
+void deposit_info_print(const deposit_info *in, FILE *f);
+void deposit_info_clear(deposit_info *in);
+/* NULL when value can be a bag-info.txt value (one line of UTF-8 text, not empty: no
+ * line break, other control or format character), else what is wrong (a phrase). */
+const char *deposit_value_problem(const char *value);
+
 #endif
