@@ -182,29 +182,40 @@ static int same_session(dep *d, const char *dir)
 	return ret;
 }
 
-/* with_session: --session, else process.json's session.realpath, else session.path. */
+static int holds_session(const char *dir)
+{
+	char *m = dir ? kg_path_join(dir, KG_SESSION_MANIFEST) : NULL;
+	struct stat st;
+	int yes = m && stat(m, &st) == 0;
+	free(m);
+	return yes;
+}
+
+/* with_session: --session; else where process.json records the session (its realpath,
+ * then its path as given); else a folder of the session's name beside RESULTS that is
+ * the same session (a working folder moved or copied whole). */
 static int find_session(dep *d)
 {
-	const char *dir = d->o->session;
 	const char *real = json_string_value(kg_json_find(d->pj, "session.realpath"));
 	const char *path = json_string_value(kg_json_find(d->pj, "session.path"));
-	char *m = NULL;
-	struct stat st;
-	for (int k = 0; !dir && k < 2; k++) {
-		const char *cand = k ? path : real;
-		free(m);
-		m = cand ? kg_path_join(cand, KG_SESSION_MANIFEST) : NULL;
-		if (m && stat(m, &st) == 0)
-			dir = cand;
-	}
-	free(m);
-	if (!dir)
-		return kg_fail(d->err, KG_EINVAL, "%s: records its session at %s, which holds no %s now "
-		               "(moved?): give the session's folder with --session DIR", d->pj_path,
-		               real ? real : path ? path : "(no session.path)", KG_SESSION_MANIFEST);
-	int ret = same_session(d, dir);
+	const char *name = real ? strrchr(real, '/') : NULL;
+	char *parent = kg_path_dir(d->results_abs);
+	char *beside = parent && name && name[1] ? kg_path_join(parent, name + 1) : NULL;
+	const char *cand[3] = {real, path, beside};
+	const char *dir = d->o->session;
+	for (int k = 0; !dir && k < 3; k++)
+		if (holds_session(cand[k]) && (k < 2 || !same_session(d, cand[k])))
+			dir = cand[k];
+	int ret = dir ? same_session(d, dir)
+	              : kg_fail(d->err, KG_EINVAL, "%s: records its session at %s, which holds no "
+	                        "%s now, nor does a folder of its name beside the results (moved?): "
+	                        "give the session's folder with --session DIR", d->pj_path,
+	                        real ? real : path ? path : "(no session.path)",
+	                        KG_SESSION_MANIFEST);
 	if (!ret && !(d->session_dir = realpath(dir, NULL)))
 		ret = kg_fail(d->err, KG_EIO, "%s: cannot resolve: %s", dir, strerror(errno));
+	free(parent);
+	free(beside);
 	return ret;
 }
 

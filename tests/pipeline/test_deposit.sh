@@ -7,7 +7,8 @@
 # --with-session, hard-linked and copied, with a config file and options over it, a
 # file name that needs percent-encoding; --verify on a good bag and after a changed
 # byte, a deleted file, an added file and a changed tag file (each named); a moved
-# session (--session); refusals (RESULTS not a process output, BAG a folder that is not
+# session (found beside its results when the two moved together, else --session DIR,
+# another session refused by its id); refusals (RESULTS not a process output, BAG a folder that is not
 # a bag, an existing bag without --force, values with a line break, bad config lines,
 # BAG inside RESULTS); interrupted deposits (SIGKILL and SIGINT mid-copy by strace's
 # syscall injection, a write failing with EFBIG under ulimit -f) leave nothing at BAG.
@@ -99,6 +100,16 @@ expect_exit 1 "$KOGEI" deposit --verify "$T/plain"
 check "--verify of a folder that is no bag" grep -q "not a bag (no bagit.txt)" "$T/err"
 
 # ---- a moved session --------------------------------------------------------------------------
+# The working folder moved whole (the session beside the results, as before): found
+# there by its name and id.
+mkdir "$T/nas" && mv "$S" "$R" "$T/nas/"
+expect_exit 0 "$KOGEI" deposit "$T/nas/results" -o "$T/bags/nas" --with-session
+expect_exit 0 "$PY" "$CHECKER" "$T/bags/nas" --id A1 --id B2 --source "$T/nas/S" data/session \
+	--source "$T/nas/results" data/results
+check_eval "the moved session's files are the bag's (hard links)" \
+	'[ "$(ino "$T/nas/S/session.json")" = "$(ino "$T/bags/nas/data/session/session.json")" ]'
+mv "$T/nas/S" "$T/nas/results" "$T/" && rm -rf "$T/nas" "$T/bags/nas"
+# Moved elsewhere: --session DIR.
 mv "$S" "$T/S-moved"
 expect_exit 1 "$KOGEI" deposit "$R" -o "$T/bags/moved" --with-session
 check "a moved session: --session asked for" grep -q "give the session's folder with --session" "$T/err"
