@@ -3,9 +3,9 @@
 # differ (accession A1 and B2), processed: the bag checked by a BagIt reader of the
 # test's own (bagit_check.py: bagit.txt, every sha512 recomputed, the manifest against
 # data/, the tag manifest, Payload-Oxum, Bagging-Date, both External-Identifier lines,
-# the payload against RESULTS and the session file by file), without and with --with-
-# session, hard-linked and copied, with a config file and options over it, a file name
-# that needs percent-encoding; --verify on a good bag and after a changed byte, a
+# the payload against RESULTS and the session file by file), without and with
+# --with-session, hard-linked and copied, with a config file and options over it, a file
+# name that needs percent-encoding; --verify on a good bag and after a changed byte, a
 # deleted file, an added file and a changed tag file (each named); a moved session
 # (found beside its results when the two moved together, else --session DIR, another
 # session refused by its id); refusals (RESULTS not a process output, BAG a folder that
