@@ -26,6 +26,7 @@ static const kg_command commands[] = {
 	{"export", kg_cmd_export, "a scene as binary glTF 2.0 for Blender and web viewers"},
 	{"process", kg_cmd_process, "a recorded session to calibration, material maps, scenes and report"},
 	{"report", kg_cmd_report, "write a processed session's report.html again from its process.json"},
+	{"deposit", kg_cmd_deposit, "a BagIt bag of a processed session for a repository; --verify re-checks one"},
 	{"bench", kg_cmd_bench, "speed against error of every estimation method"},
 	{"demo", kg_cmd_demo, "run the whole pipeline on the bundled default"},
 	{"devices", kg_cmd_devices, "camera and spectrometer backends built, spectrometers attached"},

@@ -111,7 +111,7 @@ typedef struct console {
 	pthread_t job_thread;
 	int job_joinable;
 	int job_running;
-	char job_kind[32];           /* "capture", "measure", "process" */
+	char job_kind[32];           /* "capture", "measure", "process", "deposit" */
 	char job_title[128];
 	json_t *job_log;             /* lines */
 	json_t *job_result;          /* the summary when it ended, or NULL */
@@ -192,6 +192,8 @@ int console_job_capture(console *c, const json_t *req, char *why, size_t n);
 int console_job_measure(console *c, const json_t *req, char *why, size_t n);
 int console_job_answer(console *c, const json_t *req, char *why, size_t n);
 int console_job_process(console *c, const json_t *req, char *why, size_t n);
+/* OUTDIR into the bag OUTDIR.bag beside it (kogei deposit's options as JSON keys). */
+int console_job_deposit(console *c, const json_t *req, char *why, size_t n);
 int console_settings_set(console *c, const json_t *req, char *why, size_t n);
 void console_jobs_stop(console *c);
 void console_manifest_refresh(console *c); /* with c->lock held */

@@ -399,6 +399,8 @@ static enum MHD_Result handle_post(console *c, struct MHD_Connection *conn, cons
 		status = console_job_answer(c, req, why, sizeof(why));
 	else if (!strcmp(url, "/api/process"))
 		status = console_job_process(c, req, why, sizeof(why));
+	else if (!strcmp(url, "/api/deposit"))
+		status = console_job_deposit(c, req, why, sizeof(why));
 	else if (!strcmp(url, "/api/settings"))
 		status = console_settings_set(c, req, why, sizeof(why));
 	else {
@@ -449,7 +451,8 @@ static enum MHD_Result serve_request(void *cls, struct MHD_Connection *conn, con
 		}
 		if (!strcmp(method, "GET") && !strncmp(url, "/api/", 5) &&
 		    (!strcmp(url, "/api/capture") || !strncmp(url, "/api/measure", 12) ||
-		     !strcmp(url, "/api/process") || !strcmp(url, "/api/settings") ||
+		     !strcmp(url, "/api/process") || !strcmp(url, "/api/deposit") ||
+		     !strcmp(url, "/api/settings") ||
 		     !strcmp(url, "/api/view")))
 			return send_error(conn, 405, "%s: an action: POST only", url);
 		rq = calloc(1, sizeof(*rq));

@@ -1,8 +1,9 @@
 /* kogei console: the jobs the page starts, one at a time, each in a worker thread
  * through the library calls of the commands (docs/console.md, "Actions"): captures
  * (kg_capture_run, as kogei acquire), the spectrometer's guided chart
- * (kg_measure_flow_chart, as kogei measure --chart) and processing (kg_process_run,
- * as kogei process). */
+ * (kg_measure_flow_chart, as kogei measure --chart), processing (kg_process_run, as
+ * kogei process) and the deposit (kg_deposit_run with the options of kogei deposit's
+ * table, from the request's JSON). */
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -577,16 +578,23 @@ static ssize_t progress_write(void *cookie, const char *buf, size_t size)
 	return (ssize_t)size;
 }
 
+/* A job's progress stream: its lines go to the page's log (NULL when out of memory). */
+static FILE *job_progress(console *c)
+{
+	cookie_io_functions_t io = {.write = progress_write};
+	FILE *progress = fopencookie(c, "w", io);
+	if (progress)
+		setvbuf(progress, NULL, _IOLBF, 0);
+	return progress;
+}
+
 static void *process_main(void *arg)
 {
 	job *jb = arg;
 	console *c = jb->c;
 	kg_process_options o;
 	kg_process_options_default(&o);
-	cookie_io_functions_t io = {.write = progress_write};
-	FILE *progress = fopencookie(c, "w", io);
-	if (progress)
-		setvbuf(progress, NULL, _IOLBF, 0);
+	FILE *progress = job_progress(c);
 	o.session = c->session_dir;
 	o.outdir = c->outdir;
 	o.reference = c->reference;
@@ -620,4 +628,61 @@ int console_job_process(console *c, const json_t *req, char *why, size_t n)
 	if (bool_field(req, "process", "render", why, n))
 		return 400;
 	return job_start(c, "process", "kogei process", process_main, req, why, n);
+}
+
+/* ---- the deposit -------------------------------------------------------------------- */
+
+/* The deposit of OUTDIR into OUTDIR.bag beside it, with the request's options
+ * (kg_deposit_table: with_session, copy, force, the bag-info values). */
+static int deposit_options(console *c, const json_t *req, kg_deposit_options *o, char *bag,
+                           size_t size, kg_err *err)
+{
+	kg_deposit_options_default(o);
+	size_t n = strlen(c->outdir);
+	while (n > 1 && c->outdir[n - 1] == '/')
+		n--;
+	snprintf(bag, size, "%.*s.bag", (int)n, c->outdir);
+	o->results = c->outdir;
+	o->bag = bag;
+	int ret = kg_opt_from_json(&kg_deposit_table, req, o, err);
+	return ret ? ret : kg_deposit_check(o, err);
+}
+
+static void *deposit_main(void *arg)
+{
+	job *jb = arg;
+	console *c = jb->c;
+	kg_deposit_options o;
+	char bag[PATH_MAX + 8];
+	kg_err err = {{0}};
+	kg_deposit_summary sum;
+	int ret = deposit_options(c, jb->req, &o, bag, sizeof(bag), &err);
+	o.progress = job_progress(c);
+	if (!ret)
+		ret = kg_deposit_run(&o, &sum, &err);
+	if (o.progress)
+		fclose(o.progress);
+	json_t *result = ret ? NULL
+	                     : json_pack("{s:s, s:i, s:I, s:i, s:i, s:i}", "bag", bag, "files",
+	                                 sum.files, "bytes", (json_int_t)sum.bytes, "linked",
+	                                 sum.linked, "copied", sum.copied, "identifiers",
+	                                 sum.identifiers);
+	if (result)
+		log_locked(c, "the bag is complete");
+	job_finish(c, result, ret ? err.msg : NULL);
+	json_decref(jb->req);
+	free(jb);
+	return NULL;
+}
+
+int console_job_deposit(console *c, const json_t *req, char *why, size_t n)
+{
+	kg_deposit_options o;
+	char bag[PATH_MAX + 8];
+	kg_err err = {{0}};
+	if (deposit_options(c, req, &o, bag, sizeof(bag), &err)) {
+		snprintf(why, n, "deposit: %s", err.msg);
+		return 400;
+	}
+	return job_start(c, "deposit", "kogei deposit", deposit_main, req, why, n);
 }

@@ -491,6 +491,21 @@ int kg_read_file(const char *path, char **buf, size_t *len, kg_err *err)
 	return 0;
 }
 
+int kg_write_all(int fd, const void *buf, size_t n)
+{
+	const char *p = buf;
+	while (n) {
+		ssize_t w = write(fd, p, n);
+		if (w < 0 && errno == EINTR)
+			continue;
+		if (w <= 0)
+			return -1;
+		p += w;
+		n -= (size_t)w;
+	}
+	return 0;
+}
+
 int kg_mkdir_p(const char *path, kg_err *err)
 {
 	char *p = strdup(path);

@@ -85,6 +85,9 @@ int kg_inputs_check_output(const char *path, kg_err *err);
  * that writes what it read) starts each job with no inputs. */
 void kg_inputs_reset(void);
 
+/* All n bytes of buf to fd, a write interrupted by a signal (EINTR) tried again: 0, or
+ * -1 with errno set. */
+int kg_write_all(int fd, const void *buf, size_t n);
 /* Read a whole file into a NUL-terminated buffer (caller frees); the file is noted as
  * an input. */
 int kg_read_file(const char *path, char **buf, size_t *len, kg_err *err);

@@ -288,20 +288,6 @@ static int capture_begin(kg_frame_recorder *r, kg_err *err)
 	return 0;
 }
 
-static int write_all(int fd, const char *buf, size_t len)
-{
-	while (len) {
-		ssize_t n = write(fd, buf, len);
-		if (n < 0 && errno == EINTR)
-			continue;
-		if (n <= 0)
-			return -1;
-		buf += n;
-		len -= (size_t)n;
-	}
-	return 0;
-}
-
 static json_t *json_number_or_null(double v)
 {
 	return isfinite(v) ? json_real(v) : json_null();
@@ -321,7 +307,7 @@ static int write_frame_file(const char *path, const void *data, size_t size, kg_
 	int ret = kg_atomicfile_open_flags(&t, path, KG_ATOMICFILE_NO_SWEEP, err);
 	if (ret)
 		return ret;
-	if (size && write_all(t.fd, data, size) != 0) {
+	if (size && kg_write_all(t.fd, data, size) != 0) {
 		ret = kg_fail_write(err, errno, path, "write failed");
 		kg_atomicfile_abort(&t);
 		return ret;
@@ -378,7 +364,7 @@ int kg_frame_recorder_write(kg_frame_recorder *r, const kg_frame *f, kg_err *err
 	 * becomes the newline. */
 	size_t len = strlen(text);
 	text[len] = '\n';
-	if (write_all(r->index_fd, text, len + 1) != 0) {
+	if (kg_write_all(r->index_fd, text, len + 1) != 0) {
 		int e = errno;
 		/* Take a partial line back so the next append starts cleanly. */
 		if (ftruncate(r->index_fd, r->index_size) != 0)

@@ -137,6 +137,138 @@ void kg_outdir_unlock(int *lock_fd);
  * so): a reader that opened a file meanwhile may hold a half-made view. */
 int kg_outdir_in_commit(const char *outdir);
 
+/* ==== Options of an operation (options.c) ===========================================
+ * An operation that several front ends start (kogei deposit from the command line, the
+ * console's POST /api/deposit; later kogei collection) declares its options once, as a
+ * table: each option's name, its value's name, its type, where it goes in the
+ * operation's options struct and its help. The command line is parsed through the
+ * table (kg_opt_parse_argv), --help is printed from it (kg_opt_print_help) and a JSON
+ * request fills the same struct (kg_opt_from_json), so no front end spells the options
+ * out again. Checking the values is the operation's (one function both front ends
+ * call), not the table's. */
+
+typedef enum kg_opt_type {
+	KG_OPT_FLAG,   /* an int set to 1 (JSON: true or false) */
+	KG_OPT_STRING, /* a const char * (JSON: a string, borrowed from the request) */
+} kg_opt_type;
+
+enum {
+	KG_OPT_CLI_ONLY = 1u << 0, /* not taken from JSON: a path on the operator's machine,
+	                            * the console's own choice */
+};
+
+typedef struct kg_opt_spec {
+	const char *name;  /* "contact-name": --contact-name, JSON key "contact_name" */
+	char letter;       /* the short form (-o), or 0 */
+	const char *value; /* the value's name in the help ("NAME"); NULL for a flag */
+	kg_opt_type type;
+	size_t offset;     /* of its field in the options struct */
+	unsigned flags;    /* KG_OPT_* */
+	const char *help;  /* one paragraph, wrapped when printed */
+} kg_opt_spec;
+
+typedef struct kg_opt_table {
+	const char *synopsis;    /* the usage lines ("kogei deposit RESULTS -o BAG ...") */
+	const char *description; /* what the operation does, printed before the options */
+	const char *positional;  /* the name of its one positional argument, or NULL */
+	size_t positional_offset; /* of the const char * it goes to */
+	const kg_opt_spec *specs;
+	int nspecs;
+} kg_opt_table;
+
+/* argv[1..argc-1] into opts: --name VALUE, --name=VALUE, -l VALUE, -lVALUE, flags, the
+ * positional argument, "--" before a positional that starts with '-'. A later string
+ * option replaces an earlier one. KG_EINVAL with a message for the usage error (an
+ * unknown option, a missing value, a value given to a flag, an unexpected argument). */
+int kg_opt_parse_argv(const kg_opt_table *t, int argc, char **argv, void *opts, kg_err *err);
+/* The members of a JSON object into opts (keys with '_' where the option has '-'): a
+ * flag takes true or false, a string option a string. An unknown key, a KG_OPT_CLI_ONLY
+ * one or a value of the wrong type is KG_EINVAL naming the key and what was expected.
+ * Strings are borrowed from obj. */
+int kg_opt_from_json(const kg_opt_table *t, const json_t *obj, void *opts, kg_err *err);
+/* "usage: SYNOPSIS", the description and every option with its help. */
+void kg_opt_print_help(FILE *fp, const kg_opt_table *t);
+
+/* ==== A BagIt deposit (deposit.c, docs/deposit.md) ===================================
+ * kogei deposit RESULTS -o BAG: a BagIt 1.0 bag (RFC 8493) of one processed OUTDIR,
+ * for a repository to ingest:
+ *
+ *   BAG/bagit.txt               BagIt-Version 1.0, Tag-File-Character-Encoding UTF-8
+ *   BAG/data/                   every file of RESULTS, or with with_session
+ *                               data/results/ (RESULTS) and data/session/ (the session
+ *                               process.json names)
+ *   BAG/manifest-sha512.txt     the sha512 of every payload file
+ *   BAG/bag-info.txt            Source-Organization ... Contact-Email (options, config),
+ *                               External-Identifier (each accession of process.json),
+ *                               Internal-Sender-Identifier (the session's id),
+ *                               Bagging-Date, Payload-Oxum, Bag-Software-Agent
+ *   BAG/tagmanifest-sha512.txt  the sha512 of the three tag files above
+ *
+ * RESULTS is settled and locked while it is read (kg_outdir_settle). Payload files are
+ * hard links to RESULTS' (and the session's) files where the file system allows it,
+ * else (or with copy) copies. The bag is staged in BAG's parent as
+ * .BASE.kogei-tmp.PID, flushed to disk and renamed to BAG in one step; an existing BAG
+ * is replaced (in one exchange) only when it is a bag and force is set. A failure, or
+ * a signal caught by kg_deposit_catch_signals, removes the staging folder: nothing is
+ * left; after SIGKILL the next deposit beside BAG removes it. */
+
+typedef struct kg_deposit_options {
+	const char *results;      /* RESULTS: an OUTDIR of kogei process */
+	const char *bag;          /* -o BAG */
+	const char *verify;       /* --verify BAG: check a bag instead */
+	int with_session;         /* the session's files too (data/session/) */
+	const char *session;      /* the session's folder when it is no longer where
+	                           * process.json says (implies with_session) */
+	int copy;                 /* copy every payload file, never hard-link */
+	int force;                /* replace an existing bag at BAG */
+	const char *config;       /* bag-info.txt values, "Label: value" lines */
+	/* bag-info.txt values given by the operator (over the config's) */
+	const char *source_organization;
+	const char *organization_address;
+	const char *contact_name;
+	const char *contact_phone;
+	const char *contact_email;
+	const char *external_description;
+	int show_progress;        /* --progress: progress lines even off a terminal */
+	FILE *progress;           /* where progress lines go, or NULL */
+} kg_deposit_options;
+
+extern const kg_opt_table kg_deposit_table;
+
+void kg_deposit_options_default(kg_deposit_options *o);
+/* The options' combination and every bag-info value (one line of text: no line break
+ * or other control character, well-formed UTF-8) before anything is read: KG_EINVAL
+ * naming the option. */
+int kg_deposit_check(const kg_deposit_options *o, kg_err *err);
+
+typedef struct kg_deposit_summary {
+	int files;              /* payload files */
+	unsigned long long bytes; /* their octets */
+	int linked, copied;     /* how each came into the bag */
+	int identifiers;        /* External-Identifier lines */
+} kg_deposit_summary;
+
+/* Write the bag. KG_EINVAL for bad input (RESULTS not a kogei-process/1 output, a
+ * config line, BAG a folder that is not a bag, BAG without force, BAG and RESULTS
+ * inside each other), KG_EBUSY while a run holds RESULTS, KG_EIO or KG_ENOSPC for a
+ * failed write, -EINTR when a caught signal stopped it; nothing left at BAG then. */
+int kg_deposit_run(const kg_deposit_options *o, kg_deposit_summary *sum, kg_err *err);
+
+/* For a program that runs one deposit (kogei deposit): SIGINT, SIGTERM and SIGHUP stop
+ * kg_deposit_run at its next block of data (-EINTR, the staging folder removed).
+ * kg_deposit_signal is the signal that did it, or 0. */
+void kg_deposit_catch_signals(void);
+int kg_deposit_signal(void);
+
+/* Re-check a bag: bagit.txt, every file of every payload manifest (manifest-ALG.txt,
+ * any digest OpenSSL knows) present with its checksum and every payload file in every
+ * manifest, the tag manifests' files and checksums, bag-info.txt's Payload-Oxum. Each
+ * problem is a line on problems ("BAG/data/x: changed: ..."), all of them; then
+ * KG_EINVAL with the counts ("BAG: invalid: 1 missing, ..."). 0 and *sum for a valid
+ * bag. */
+int kg_bag_verify(const char *bag, FILE *problems, FILE *progress, kg_deposit_summary *sum,
+                  kg_err *err);
+
 /* ==== Report ====================================================================== */
 
 /* The operator's report (docs/report.md): one self-contained HTML file that a

@@ -2,6 +2,8 @@
 #ifndef KG_PIPELINE_PRIVATE_H
 #define KG_PIPELINE_PRIVATE_H
 
+#include <signal.h>
+
 #include "kg_acquire.h"
 #include "kg_calib.h"
 #include "kg_pipeline.h"
@@ -136,6 +138,12 @@ void proc_outdir_close(proc *p, int failed);
 /* path and everything below it removed (links themselves, not what they point to);
  * what cannot be removed is left. */
 void proc_remove_tree(const char *path);
+/* path made absolute with every symbolic link resolved, also when its last components
+ * do not exist yet (those taken as written, "." and ".." lexically); NULL when it cannot
+ * be resolved. Caller frees. */
+char *proc_abs_path(const char *path);
+/* 1 when a is dir or inside it (both absolute, as proc_abs_path makes them). */
+int proc_is_under(const char *a, const char *dir);
 /* The previous run's process.json entry of the object whose folder is name (its "dir",
  * or in records without one its "capture"); NULL when there is none. */
 const json_t *proc_previous_object(const proc *p, const char *name);
@@ -191,5 +199,47 @@ int proc_preview_write(proc_preview *pv, const char *path, kg_err *err);
 /* The q-quantile of the samples taken so far (every channel), NAN when none. */
 double proc_preview_quantile(proc_preview *pv, double q);
 void proc_preview_free(proc_preview **pv);
+
+/* ---- BagIt (bagit.c) for the deposit (deposit.c) ------------------------------------ */
+
+/* A file read to its end for its checksum, and copied on the way when dst is set. */
+typedef struct bag_copy {
+	const char *alg;             /* OpenSSL's digest name ("sha512") */
+	const char *src;
+	const char *dst;             /* a new file (O_EXCL) the data go to, fsynced; or NULL */
+	unsigned char *buf;          /* bufsize bytes of working space */
+	size_t bufsize;
+	volatile sig_atomic_t *stop; /* when it is set: -EINTR at the next block */
+} bag_copy;
+/* hex: 2 * EVP_MAX_MD_SIZE + 1 characters (lower case); *size: the octets read. */
+int bag_digest_file(const bag_copy *c, char *hex, unsigned long long *size, kg_err *err);
+/* The same of text in memory: 0, or -1 for an unknown algorithm. */
+int bag_digest_text(const char *alg, const char *text, size_t len, char *hex);
+/* Every entry under dir, in byte order of the names, a folder before what it holds:
+ * visit gets its path, its path relative to the walk (rel/...) and its lstat; it
+ * returns 0 to go on (into a folder), 1 to go on past the entry, or an error code,
+ * which ends the walk. Folders deeper than 64 are refused. */
+typedef int (*bag_visit)(void *user, const char *path, const char *rel, const struct stat *st);
+int bag_walk(const char *dir, const char *rel, bag_visit visit, void *user, kg_err *err);
+/* rel as a manifest writes it: CR, LF and '%' percent-encoded (RFC 8493, 2.1.3). */
+void bag_put_path(FILE *f, const char *rel);
+
+/* ---- kogei deposit's bag-info.txt values (deposit_info.c) -------------------------- */
+
+#define DEPOSIT_NGIVEN 6 /* Source-Organization ... External-Description */
+typedef struct deposit_info {
+	char *config_text;                  /* the config file, its values cut out in place */
+	const char *values[DEPOSIT_NGIVEN]; /* the operator's labels: the option's value, else
+	                                     * the config's; NULL: not given */
+} deposit_info;
+/* The config file's values (o->config), then the options' over them; KG_EINVAL naming
+ * "FILE: line N" for a line that is not "Label: value" of a label taken. */
+int deposit_info_load(deposit_info *in, const kg_deposit_options *o, kg_err *err);
+/* The values given as bag-info.txt lines, in its order. */
+void deposit_info_print(const deposit_info *in, FILE *f);
+void deposit_info_clear(deposit_info *in);
+/* NULL when value can be a bag-info.txt value (one line of UTF-8 text, not empty: no
+ * line break, other control or format character), else what is wrong (a phrase). */
+const char *deposit_value_problem(const char *value);
 
 #endif

@@ -179,7 +179,7 @@ static void watch_set(proc *p, int phase)
 
 /* path made absolute with every symbolic link resolved, also when its last
  * components do not exist yet (those are taken as written, "." and ".." lexically). */
-static char *abs_path(const char *path)
+char *proc_abs_path(const char *path)
 {
 	char *r = realpath(path, NULL);
 	if (r)
@@ -234,7 +234,7 @@ static char *abs_path(const char *path)
 }
 
 /* a is dir or inside it (both absolute). */
-static int is_under(const char *a, const char *dir)
+int proc_is_under(const char *a, const char *dir)
 {
 	size_t n = strlen(dir);
 	if (n == 1 && dir[0] == '/')
@@ -449,7 +449,7 @@ static int check_inputs(proc *p, const char *outabs)
 			if (p->caps[i].kind != KG_CAPTURE_OBJECT)
 				continue;
 			snprintf(place, sizeof(place), "%s/%s", outabs, p->caps[i].name);
-			if (is_under(r, place))
+			if (proc_is_under(r, place))
 				ret = kg_fail(p->err, KG_EINVAL, "%s %s: is inside %s/%s, the folder this run "
 				              "writes for capture %s (replacing what is there): move it out "
 				              "of %s or choose another -o", in[k].what, in[k].path,
@@ -670,14 +670,14 @@ int proc_outdir_open(proc *p)
 	if (stat(o->outdir, &st) == 0 && !S_ISDIR(st.st_mode))
 		return kg_fail(p->err, KG_EINVAL, "%s: exists and is not a directory", o->outdir);
 	p->session_abs = realpath(o->session, NULL);
-	char *outabs = abs_path(o->outdir);
+	char *outabs = proc_abs_path(o->outdir);
 	int ret = p->session_abs && outabs ? 0 : kg_fail(p->err, KG_EIO, "%s: cannot resolve: %s",
 	                                                 p->session_abs ? o->outdir : o->session,
 	                                                 strerror(errno));
 	if (!ret && !strcmp(outabs, p->session_abs))
 		ret = kg_fail(p->err, KG_EINVAL, "%s: is the session directory: choose another -o",
 		              o->outdir);
-	else if (!ret && is_under(outabs, p->session_abs))
+	else if (!ret && proc_is_under(outabs, p->session_abs))
 		ret = kg_fail(p->err, KG_EINVAL, "%s: is inside the session directory %s: the results "
 		              "would replace the session's own files; choose another -o", o->outdir,
 		              o->session);

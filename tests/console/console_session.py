@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """A whole sim session through the console's API alone, as the page drives it: the
 scenes of tests/pipeline/sim_session.sh, a dark, a flat, the chart check (GO), the
-chart, an object, the spectrometer's chart, kogei process, and the report served.
+chart, an object, the spectrometer's chart, kogei process, the report served, and the
+deposit of the results with their session into a BagIt bag.
 
 usage: console_session.py KOGEI SOURCE_ROOT PARENT_DIR"""
 import os
@@ -39,6 +40,37 @@ def capture(c, body):
     s = c.wait_job(90)
     check(s and not s["job"]["error"], "capture %s: %s" % (body, s and s["job"]["error"]))
     return s
+
+
+def deposit(c, kogei, work):
+    """POST /api/deposit: OUTDIR into OUTDIR.bag through kogei deposit's options as JSON;
+    requests with a key the page may not set or a value of the wrong kind refused."""
+    bag = work + "/S.processed.bag"
+    for body, key in (({"bag": "/tmp/elsewhere"}, "'bag'"), ({"with_session": "yes"},
+                      "'with_session'"), ({"contact_name": "A\nB"}, "--contact-name"),
+                      ({"config": "/etc/passwd"}, "'config'")):
+        st, j = c.json("POST", "/api/deposit", body)
+        check(st == 400 and key in (j.get("error") or ""),
+              "deposit %s refused naming %s: %d %s" % (body, key, st, j.get("error")))
+    check(not os.path.exists(bag), "nothing deposited by the refused requests")
+    st, j = c.json("POST", "/api/deposit", {"with_session": True,
+                                            "source_organization": "Kogei Test Museum",
+                                            "contact_email": "lab@example.org"})
+    check(st == 200, "deposit started: %d %s" % (st, j.get("error")))
+    s = c.wait_job(120)
+    check(s and not s["job"]["error"], "deposit: %s" % (s and s["job"]["error"]))
+    res = (s and s["job"]["result"]) or {}
+    check(res.get("bag") == bag and res.get("files", 0) > 10,
+          "deposit: the bag beside OUTDIR: %s" % res)
+    info = open(bag + "/bag-info.txt").read() if os.path.exists(bag + "/bag-info.txt") else ""
+    check("Source-Organization: Kogei Test Museum\n" in info and
+          "Contact-Email: lab@example.org\n" in info, "deposit: bag-info.txt %r" % info)
+    check(os.path.exists(bag + "/data/session/session.json") and
+          os.path.exists(bag + "/data/results/process.json"),
+          "deposit with_session: data/results/ and data/session/")
+    r = subprocess.run([kogei, "deposit", "--verify", bag], capture_output=True, text=True)
+    check(r.returncode == 0 and ": valid: %d files" % res.get("files", -1) in r.stdout,
+          "the console's bag verifies: %s %s" % (r.stdout, r.stderr))
 
 
 def main():
@@ -98,6 +130,7 @@ def main():
         check(s and not s["job"]["error"], "process again: %s" % (s and s["job"]["error"]))
         check(s and s["job"]["result"] and s["job"]["result"]["processed"] == 1,
               "process again: the object processed anew")
+        deposit(c, kogei, work)
         _, m = c.json("GET", "/api/session")
         kinds = sorted(x["kind"] for x in m["manifest"]["captures"])
         check(kinds == ["chart", "dark", "flat", "object"], "the session holds %s" % kinds)
