@@ -437,7 +437,7 @@ static int robust_matrix(const pairs *p, double M[9], double *sigma)
 {
 	int n = p->n, q[3];
 	double *e = malloc((size_t)n * sizeof(double)), best = INFINITY, Mt[9];
-	int *use = malloc((size_t)n * sizeof(int));
+	int *use = calloc((size_t)n, sizeof(int));
 	if (e && use && (long)n * (n - 1) * (n - 2) / 6 <= PAIR_MAX_TRIPLES) {
 		for (q[0] = 0; q[0] < n; q[0]++)
 			for (q[1] = q[0] + 1; q[1] < n; q[1]++)
