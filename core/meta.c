@@ -23,8 +23,13 @@ int kg_meta_key_ok(const char *key)
 	return 1;
 }
 
-const char *kg_meta_value_problem(const char *value)
+/* What is wrong with value (a static phrase), or NULL; where (size bytes, may be NULL)
+ * gets the first refused character for the message, " (U+202E RIGHT-TO-LEFT OVERRIDE
+ * at byte 7)" or " (byte 0xFF at byte 3)", or "". One walk serves both. */
+static const char *value_check(const char *value, char *where, size_t size)
 {
+	if (where && size)
+		where[0] = 0;
 	if (!value)
 		return "expected a value";
 	const unsigned char *s = (const unsigned char *)value;
@@ -35,40 +40,30 @@ const char *kg_meta_value_problem(const char *value)
 		unsigned cp;
 		const char *why;
 		int len = kg_utf8_decode(s + i, n - i, &cp, &why);
-		if (!len)
+		if (!len) {
+			if (where)
+				snprintf(where, size, " (byte 0x%02X at byte %zu)", s[i], i + 1);
 			return why;
-		if (cp < 0x20 || (cp >= 0x7F && cp <= 0x9F))
-			return "expected no control characters (tabs, line breaks and the like)";
-		if (kg_unicode_is_format(cp))
-			return "expected no invisible or bidirectional format character (it would "
-			       "make the record display differently from what it holds)";
+		}
+		const char *name = kg_unicode_format_name(cp);
+		int control = cp < 0x20 || (cp >= 0x7F && cp <= 0x9F);
+		if (control || name) {
+			if (where)
+				snprintf(where, size, " (U+%04X%s%s at byte %zu)", cp, name ? " " : "",
+				         name ? name : "", i + 1);
+			return control ? "expected no control characters (tabs, line breaks and the "
+			                 "like)"
+			               : "expected no invisible or bidirectional format character (it "
+			                 "would make the record display differently from what it holds)";
+		}
 		i += (size_t)len;
 	}
 	return NULL;
 }
 
-/* The first character of value that kg_meta_value_problem refuses, for the message:
- * "U+202E RIGHT-TO-LEFT OVERRIDE at byte 7" (empty when there is none). */
-static void first_refused(const char *value, char *out, size_t size)
+const char *kg_meta_value_problem(const char *value)
 {
-	const unsigned char *s = (const unsigned char *)value;
-	size_t n = strlen(value);
-	out[0] = 0;
-	for (size_t i = 0; i < n;) {
-		unsigned cp;
-		int len = kg_utf8_decode(s + i, n - i, &cp, NULL);
-		if (!len) {
-			snprintf(out, size, " (byte 0x%02X at byte %zu)", s[i], i + 1);
-			return;
-		}
-		const char *name = kg_unicode_format_name(cp);
-		if (name || cp < 0x20 || (cp >= 0x7F && cp <= 0x9F)) {
-			snprintf(out, size, " (U+%04X%s%s at byte %zu)", cp, name ? " " : "",
-			         name ? name : "", i + 1);
-			return;
-		}
-		i += (size_t)len;
-	}
+	return value_check(value, NULL, 0);
 }
 
 int kg_meta_set(json_t *obj, const char *what, const char *key, const char *value,
@@ -79,13 +74,10 @@ int kg_meta_set(json_t *obj, const char *what, const char *key, const char *valu
 		               "%s: key: expected 1 to %d of A-Z a-z 0-9 '_' '.' '-' (known keys: "
 		               "accession, title, operator, lighting, notes)",
 		               what, KG_META_KEY_MAX);
-	const char *why = kg_meta_value_problem(value);
-	if (why) {
-		char where[128] = "";
-		if (value && strlen(value) <= KG_META_VALUE_MAX)
-			first_refused(value, where, sizeof(where));
+	char where[128];
+	const char *why = value_check(value, where, sizeof(where));
+	if (why)
 		return kg_fail(err, KG_EINVAL, "%s: value: %s%s", what, why, where);
-	}
 	if (json_object_get(obj, key))
 		return kg_fail(err, KG_EINVAL, "%s: key '%s' given twice: expected each key once",
 		               what, key);
@@ -140,14 +132,12 @@ int kg_meta_validate(const char *file, const char *key, const json_t *meta, kg_e
 			               file, key, kg_text_visible(k, 80, shown, sizeof(shown)),
 			               KG_META_KEY_MAX);
 		}
-		const char *why = json_is_string(v) ? kg_meta_value_problem(json_string_value(v))
+		char where[128] = "";
+		const char *why = json_is_string(v) ? value_check(json_string_value(v), where,
+		                                                  sizeof(where))
 		                                    : "expected a string";
-		if (why) {
-			char where[128] = "";
-			if (json_is_string(v) && json_string_length(v) <= KG_META_VALUE_MAX)
-				first_refused(json_string_value(v), where, sizeof(where));
+		if (why)
 			return kg_fail(err, KG_EINVAL, "%s: %s.%s: %s%s", file, key, k, why, where);
-		}
 	}
 	return 0;
 }
