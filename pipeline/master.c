@@ -238,8 +238,9 @@ int proc_camera_icc(proc *p, const kg_patchset *measured)
 			mx = de > mx ? de : mx;
 		}
 		json_object_set_new(cal, "camera_icc",
-		                    json_pack("{s:s, s:s, s:i, s:f, s:[fffffffff], s:f, s:f}", "path",
-		                              "camera.icc", "ti3", "camera.ti3", "patches", n,
+		                    json_pack("{s:s, s:i, s:s, s:i, s:f, s:[fffffffff], s:f, s:f}",
+		                              "path", "camera.icc", "icc_version", (int)icc_version(p),
+		                              "ti3", "camera.ti3", "patches", n,
 		                              "rgb_scale", scale, "matrix", M[0], M[1], M[2], M[3], M[4],
 		                              M[5], M[6], M[7], M[8], "fit_de00_mean", sum / n,
 		                              "fit_de00_max", mx));
