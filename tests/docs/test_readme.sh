@@ -66,7 +66,7 @@ out=$(grep -n -e '\.\./shared' -e 'DESIGN\.md' -e 'NOTES\.md' -e 'STYLE\.md' \
 [ -z "$out" ] || fail "a page points outside the repository: $out"
 for c in "" demo acquire measure console process report "chart print" "chart detect" \
 	"calib reference" "calib camera" estimate classify "materials learn" render export \
-	"spectra xyz" model "sim patches" "sim image" "sim chart" devices bench; do
+	"spectra xyz" model "sim patches" "sim image" "sim chart" devices bench deposit; do
 	# shellcheck disable=SC2086
 	"$KOGEI" $c --help > "$T/help" 2>&1 || true
 	[ -s "$T/help" ] || fail "kogei $c --help printed nothing"
@@ -104,8 +104,16 @@ python3 - "$R/process.json" <<'PY' || exit 1
 import json, sys
 p = json.load(open(sys.argv[1]))
 text = json.dumps(p)
-for v in ("2026.1.1", "Alloy coupons", "tungsten, 45 degrees"):
+for v in ("2026.1.1", "2026.1.2", "Alloy coupons", "tungsten, 45 degrees"):
     if v not in text:
         sys.exit(f"FAIL: process.json lacks the record {v!r} the README's session gives")
+accs = [o.get("meta", {}).get("accession") for o in p["objects"]]
+if accs != ["2026.1.1", "2026.1.2"]:
+    sys.exit(f"FAIL: the README's two objects carry accessions {accs}")
 PY
+B="$T/first-session/bag"
+[ -s "$B/bagit.txt" ] && [ -s "$B/manifest-sha512.txt" ] || fail "the README's session wrote no bag"
+for a in 2026.1.1 2026.1.2; do
+	grep -q "^External-Identifier: $a\$" "$B/bag-info.txt" || fail "bag-info.txt lacks External-Identifier $a"
+done
 echo "the README's first session: ok ($(grep -c '' "$T/session.sh") lines)"
