@@ -645,6 +645,14 @@ static void section_calibration(report *r)
 			      num(r, "calibration.camera_icc.patches"),
 			      num(r, "calibration.camera_icc.fit_de00_mean"),
 			      num(r, "calibration.camera_icc.fit_de00_max"));
+			/* held out: each patch through the matrix fitted on the others (files of
+			 * earlier versions lack it) */
+			double lm = has(r, "calibration.camera_icc.loo_de00_mean")
+			                    ? opt_num(r, "calibration.camera_icc.loo_de00_mean")
+			                    : NAN;
+			if (isfinite(lm))
+				textf(r, "; held out (leave-one-out) mean %.2f, max %.2f", lm,
+				      opt_num(r, "calibration.camera_icc.loo_de00_max"));
 			html(r, "); ");
 			put_link(r, str(r, "calibration.camera_icc.ti3"));
 			html(r, " (ArgyllCMS colprof input, CGATS XYZ_RGB)");
