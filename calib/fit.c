@@ -389,6 +389,7 @@ void kg_reference_options_default(kg_reference_options *o)
 	o->noise_sigma = 0.01;
 	o->method = KG_METHOD_PCA;
 	o->max_cond = KG_CALIB_MAX_COND;
+	o->max_flare = KG_CALIB_MAX_FLARE;
 }
 
 void kg_reference_free(kg_reference **pref)
@@ -732,8 +733,98 @@ static int flagged_patches(const kg_patchset *field, int *n, char ***ids, unsign
 static int fit_excluding(const kg_patchset *train, const kg_patchset *field,
                          const kg_reference_options *opt, kg_reference **out, kg_err *err);
 
+static int fit_flagged(const kg_patchset *train, const kg_patchset *field,
+                       const kg_reference_options *opt, kg_reference **out, kg_err *err);
+
+/* The chosen method's mean leave-one-out dE00. */
+static double chosen_loo(const kg_reference *r)
+{
+	return r->maps[r->method].loo_de00;
+}
+
+/* Flare (calib/flare.c): measured on the training chart (and the field chart when it
+ * is another frame); refused above opt->max_flare; the fit made with the flare kept
+ * and with it removed, and the removal kept when its chosen method validates better
+ * by more than KG_CALIB_K_TOLERANCE (so a frame without flare keeps its values). */
 int kg_reference_fit(const kg_patchset *train, const kg_patchset *field,
                      const kg_reference_options *opt, kg_reference **out, kg_err *err)
+{
+	kg_check_arg(train && field && opt && out, err);
+	*out = NULL;
+	kg_flare fl, ffl;
+	int same = field == train;
+	if (!same && field->n == train->n && field->rgb && train->rgb) {
+		same = 1; /* the same frame's values under the same ids (kogei process) */
+		for (int i = 0; same && i < train->n; i++) {
+			int j = kg_patchset_find(field, train->ids[i]);
+			same = j >= 0 && !memcmp(field->rgb[j], train->rgb[i], sizeof(train->rgb[i]));
+		}
+	}
+	int ret = kg_flare_estimate(train, same ? field : NULL, opt->exclude, opt->nexclude, &fl,
+	                            err);
+	if (!ret && same)
+		ffl = fl;
+	else if (!ret)
+		ret = kg_flare_estimate(train, field, opt->exclude, opt->nexclude, &ffl, err);
+	if (ret)
+		return ret;
+	double limit = opt->max_flare > 0 ? opt->max_flare : KG_CALIB_MAX_FLARE;
+	const kg_flare *worst = kg_flare_max_fraction(&ffl) > kg_flare_max_fraction(&fl) ? &ffl : &fl;
+	if (kg_flare_max_fraction(worst) > limit) {
+		const kg_patchset *ps = worst == &fl ? train : field;
+		return kg_fail(err, KG_EINVAL,
+		               "%s: flare: the chart's %d neutral patches (%s .. %s) meet zero at "
+		               "%.1f %% (R), %.1f %% (G), %.1f %% (B) of white, above the %.1f %% a "
+		               "calibration can trust (light scattered in the lens: shade the lens "
+		               "and the chart from the light source and the sky, or --max-flare)",
+		               set_name(ps, "the chart"), worst->n, worst->ids[0],
+		               worst->ids[worst->n - 1], 100 * worst->white_fraction[0],
+		               100 * worst->white_fraction[1], 100 * worst->white_fraction[2],
+		               100 * limit);
+	}
+	kg_reference *kept = NULL, *removed = NULL;
+	if ((ret = fit_flagged(train, field, opt, &kept, err)))
+		return ret;
+	kept->flare = fl;
+	kept->field_flare = ffl;
+	kept->flare_loo_kept = chosen_loo(kept);
+	kept->flare_loo_removed = NAN;
+	if (opt->no_flare || !fl.found || !ffl.found) {
+		*out = kept;
+		return 0;
+	}
+	kg_patchset *t2 = NULL, *f2 = NULL;
+	kg_err e2;
+	int r2 = kg_flare_remove(train, &fl, &t2, &e2);
+	if (!r2)
+		r2 = kg_flare_remove(field, &ffl, &f2, &e2);
+	if (!r2)
+		r2 = fit_flagged(t2, f2, opt, &removed, &e2);
+	kg_patchset_free(&t2);
+	kg_patchset_free(&f2);
+	if (r2) { /* a fit that fails without the offset leaves the one with it */
+		*out = kept;
+		return 0;
+	}
+	double lk = chosen_loo(kept), lr = chosen_loo(removed);
+	if (isfinite(lr) && (!isfinite(lk) || lr < lk * (1 - KG_CALIB_K_TOLERANCE) - 1e-6)) {
+		removed->flare = fl;
+		removed->field_flare = ffl;
+		removed->flare_removed = 1;
+		removed->flare_loo_kept = lk;
+		removed->flare_loo_removed = lr;
+		kg_reference_free(&kept);
+		*out = removed;
+	} else {
+		kept->flare_loo_removed = lr;
+		kg_reference_free(&removed);
+		*out = kept;
+	}
+	return 0;
+}
+
+static int fit_flagged(const kg_patchset *train, const kg_patchset *field,
+                       const kg_reference_options *opt, kg_reference **out, kg_err *err)
 {
 	kg_check_arg(train && field && opt && out, err);
 	kg_check_arg(opt->nexclude == 0 || opt->exclude, err);

@@ -246,6 +246,38 @@ static json_t *jpairing(jw *w, const kg_pairing_record *rec, const char *alias,
 	return o;
 }
 
+/* A chart's flare (calib/flare.c): null when it could not be measured. */
+static json_t *jflare(jw *w, const kg_flare *f)
+{
+	if (!f->found)
+		return json_null();
+	json_t *o = json_object(), *ids = json_array();
+	for (int i = 0; i < f->n; i++)
+		json_array_append_new(ids, json_string(f->ids[i]));
+	put(w, o, "neutrals", ids);
+	put(w, o, "offset", jrow(w, f->offset, 3, 1));
+	put(w, o, "slope", jrow(w, f->slope, 3, 1));
+	put(w, o, "white_fraction", jrow(w, f->white_fraction, 3, 1));
+	put(w, o, "residual", jrow(w, f->residual, 3, 1));
+	return o;
+}
+
+static json_t *jflare_record(jw *w, const kg_reference *ref)
+{
+	json_t *o = json_object();
+	put(w, o, "training", jflare(w, &ref->flare));
+	put(w, o, "field", jflare(w, &ref->field_flare));
+	put(w, o, "removed", json_boolean(ref->flare_removed));
+	put(w, o, "loo_de00_kept", jnum(ref->flare_loo_kept));
+	put(w, o, "loo_de00_removed", jnum(ref->flare_loo_removed));
+	put(w, o, "description",
+	    json_string("flare (veiling glare) from the neutral patches: camera value = offset + "
+	                "slope Y per channel; white_fraction = offset / slope; removed: "
+	                "subtracted from the training RGB and rho0 before the fit because the "
+	                "chosen method's leave-one-out dE00 was lower"));
+	return o;
+}
+
 static int finish(jw *w, json_t *root, const char *path, kg_err *err)
 {
 	int ret;
@@ -396,6 +428,7 @@ int kg_reference_save(const kg_reference *ref, const char *path, kg_err *err)
 	put(&w, root, "response", jresponse(&w, &ref->response));
 	if (ref->pairing.pairs)
 		put(&w, root, "pairing", jpairing(&w, &ref->pairing, ref->id_rule, "spectra", "rgb"));
+	put(&w, root, "flare", jflare_record(&w, ref));
 
 	put(&w, root, "devices", jdevices(&w, ref->sources, ref->nsources));
 	const char *ill = source_keyword(ref->sources, ref->nsources, NULL, illuminant_keywords);
@@ -452,6 +485,8 @@ int kg_camera_save(const kg_camera_calib *cam, const char *path, kg_err *err)
 	put(&w, fit, "flagged", jflagged(&w, cam->nflagged, cam->flagged_ids, cam->flagged_flags));
 	if (cam->pairing.pairs)
 		put(&w, fit, "pairing", jpairing(&w, &cam->pairing, cam->id_rule, "reference", "rgb"));
+	put(&w, fit, "flare", jflare(&w, &cam->flare));
+	put(&w, fit, "flare_removed", json_boolean(cam->flare_removed));
 	put(&w, root, "site", fit);
 	put(&w, root, "response", jresponse(&w, &cam->response));
 	const kg_camera_identity *id = &cam->identity;
@@ -758,6 +793,65 @@ static int get_strv_any(const char *file, const json_t *root, const char *path, 
 }
 
 /* pairing (at path), optional: how two files' patches were paired. */
+/* A flare as jflare wrote it (absent or null: not found). */
+static int get_flare(const char *file, const json_t *root, const char *path, kg_flare *f,
+                     kg_err *err)
+{
+	memset(f, 0, sizeof(*f));
+	const json_t *o = kg_json_find(root, path);
+	if (!o || json_is_null(o))
+		return 0;
+	char key[96];
+	const struct {
+		const char *name;
+		double *v;
+	} rows[] = {{"offset", f->offset},
+	            {"slope", f->slope},
+	            {"white_fraction", f->white_fraction},
+	            {"residual", f->residual}};
+	for (size_t r = 0; r < sizeof(rows) / sizeof(rows[0]); r++) {
+		snprintf(key, sizeof(key), "%s.%s", path, rows[r].name);
+		int ret = kg_json_get_numbers(file, root, key, 3, rows[r].v, err);
+		if (ret)
+			return ret;
+	}
+	snprintf(key, sizeof(key), "%s.neutrals", path);
+	const json_t *ids = kg_json_find(root, key);
+	size_t i;
+	const json_t *id;
+	json_array_foreach(ids, i, id)
+	{
+		if (!json_is_string(id) || f->n >= KG_FLARE_MAX_NEUTRALS)
+			return kg_fail(err, KG_EINVAL, "%s: key '%s[%zu]': expected a patch id (at most "
+			               "%d)", file, key, i, KG_FLARE_MAX_NEUTRALS);
+		snprintf(f->ids[f->n++], sizeof(f->ids[0]), "%s", json_string_value(id));
+	}
+	f->found = 1;
+	return 0;
+}
+
+static int get_flare_record(const char *file, const json_t *root, kg_reference *ref,
+                            kg_err *err)
+{
+	ref->flare_loo_kept = ref->flare_loo_removed = NAN;
+	if (!kg_json_find(root, "flare"))
+		return 0; /* files of earlier versions */
+	int ret = get_flare(file, root, "flare.training", &ref->flare, err);
+	if (!ret)
+		ret = get_flare(file, root, "flare.field", &ref->field_flare, err);
+	const json_t *rm = kg_json_find(root, "flare.removed");
+	if (!ret && !json_is_boolean(rm))
+		ret = kg_fail(err, KG_EINVAL, "%s: key 'flare.removed': expected true or false", file);
+	if (!ret)
+		ref->flare_removed = json_is_true(rm);
+	if (!ret)
+		ret = get_num_or_null(file, root, "flare.loo_de00_kept", &ref->flare_loo_kept, err);
+	if (!ret)
+		ret = get_num_or_null(file, root, "flare.loo_de00_removed", &ref->flare_loo_removed,
+		                      err);
+	return ret;
+}
+
 static int get_pairing(const char *file, const json_t *root, const char *path,
                        const char *first, const char *second, kg_pairing_record *rec,
                        char *alias, size_t alias_size, kg_err *err)
@@ -917,6 +1011,8 @@ static int load_reference(const char *file, const json_t *root, kg_reference *re
 	if (!ret)
 		ret = get_pairing(file, root, "pairing", "spectra", "rgb", &ref->pairing, ref->id_rule,
 		                  sizeof(ref->id_rule), err);
+	if (!ret)
+		ret = get_flare_record(file, root, ref, err);
 	calib_reference_derive(ref);
 	return ret;
 }
@@ -1063,6 +1159,10 @@ static int load_camera(const char *file, const json_t *root, kg_camera_calib *ca
 	if (!ret)
 		ret = get_pairing(file, root, "site.pairing", "reference", "rgb", &cam->pairing,
 		                  cam->id_rule, sizeof(cam->id_rule), err);
+	if (!ret)
+		ret = get_flare(file, root, "site.flare", &cam->flare, err);
+	if (!ret)
+		cam->flare_removed = json_is_true(kg_json_find(root, "site.flare_removed"));
 	if (!ret)
 		ret = get_identity(file, root, &cam->identity, err);
 	if (!ret)

@@ -229,7 +229,43 @@ typedef struct kg_reference_options {
 	kg_id_pairing id_pairing; /* how the spectra's and RGB's patches pair (NAMES) */
 	const char *id_pairing_option; /* the option stating it ("--id-pairing"), named
 	                                * in refusals; NULL: the caller has none */
+	double max_flare; /* the largest flare (fraction of white, any channel) a chart may
+	                   * carry; above it the fit is refused (calib/flare.c); 0: the
+	                   * default KG_CALIB_MAX_FLARE; INFINITY: no limit */
+	int no_flare;     /* 1: never remove flare (it is still measured and reported) */
 } kg_reference_options;
+
+/* The default flare limit: 8 % of white. Daylight and booth frames of real charts
+ * carry 1.4-3.7 % (their neutral rows meet zero there); a chart facing the sky 10 %,
+ * where the best fit still misses by 5 dE00 held out. */
+#define KG_CALIB_MAX_FLARE 0.08
+
+/* Flare (veiling glare) of a chart's frame, from its neutral patches (chroma C*ab < 5
+ * under D65 of their spectra): per channel, the straight line camera value = offset +
+ * slope Y through them (Y the luminance factor, 0..1). found: at least three neutrals
+ * from dark to light (the lightest at least 4x the darkest) with a rising line. */
+#define KG_FLARE_MAX_NEUTRALS 32
+typedef struct kg_flare {
+	int found;
+	int n;                                  /* neutrals used */
+	char ids[KG_FLARE_MAX_NEUTRALS][64];
+	double offset[3];                       /* camera values at Y = 0 */
+	double slope[3];                        /* camera value of the perfect diffuser */
+	double white_fraction[3];               /* offset / slope */
+	double residual[3];                     /* rms scatter about the line, / slope */
+} kg_flare;
+
+/* The flare of the camera values of `field` (NULL: train's own) at train's neutral
+ * patches (train holds the spectra; field is paired to it by id), but the excluded ids
+ * and the patches chart detection flagged (a FLAGS column != 0: a clipped white would
+ * bend the line). Not found (f->found
+ * 0, no error) without spectra or enough neutrals. */
+int kg_flare_estimate(const kg_patchset *train, const kg_patchset *field,
+                      const char *const *exclude, int nexclude, kg_flare *f, kg_err *err);
+/* The largest white_fraction of the three channels (0 when not found). */
+double kg_flare_max_fraction(const kg_flare *f);
+/* A copy of ps with the flare's offset subtracted from its camera values (at least 0). */
+int kg_flare_remove(const kg_patchset *ps, const kg_flare *f, kg_patchset **out, kg_err *err);
 
 /* K = 3, uncentred, ridge 0, noise_sigma 0.01, method pca, max_cond
  * KG_CALIB_MAX_COND. */
@@ -301,6 +337,12 @@ typedef struct kg_reference {
 	char **flagged_ids;
 	unsigned *flagged_flags;   /* their FLAGS (KG_CHART_FLAG_*) */
 	kg_pairing_record pairing; /* first: the spectra, second: the RGB file */
+	kg_flare flare;            /* the training chart's flare, measured */
+	kg_flare field_flare;      /* the field chart's (== flare when it is the same) */
+	int flare_removed;         /* subtracted from the training RGB and rho0 before the
+	                            * fit, because that validated better */
+	double flare_loo_kept;     /* the chosen method's mean LOO dE00 with flare kept */
+	double flare_loo_removed;  /* ... with it removed (NAN when not tried) */
 } kg_reference;
 
 /* Pair spectra and RGB by SAMPLE_ID into one patch set (spectra + rgb), in the order
@@ -381,6 +423,7 @@ typedef struct kg_camera_options {
 	int nexclude;
 	kg_id_pairing id_pairing;   /* how the site file's patches pair with rho0's (NAMES) */
 	const char *id_pairing_option; /* as in kg_reference_options */
+	double max_flare; /* as in kg_reference_options (0: KG_CALIB_MAX_FLARE) */
 } kg_camera_options;
 
 void kg_camera_options_default(kg_camera_options *o);
@@ -466,6 +509,14 @@ typedef struct kg_camera_calib {
 	                       * when not as written (kg_patch_ids_match), else "" */
 	kg_pairing_record pairing;   /* first: the reference's rho0, second: the site file */
 	kg_response response;        /* the reference camera's (from the reference) */
+
+	/* The site chart's flare, when the reference's values are flare-free (the reference
+	 * removed its own): the straight line site value = offset + a rho0 through the
+	 * neutral patches, per channel; slope = a times the reference's value of the
+	 * perfect diffuser. Removed: the offset was subtracted from rho_r before M2 was
+	 * fitted (kogei process then subtracts it from the objects' values too). */
+	kg_flare flare;
+	int flare_removed;
 
 	int nsources;
 	kg_calib_source *sources; /* "reference", "site_rgb" */

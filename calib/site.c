@@ -589,6 +589,71 @@ static int check_residual(const kg_camera_calib *cam, const kg_camera_options *o
 	               what, 100 * cam->residual_relative, cam->k, 100 * opt->max_residual, list);
 }
 
+/* The site chart's flare against the reference's flare-free rho0 (kg_camera_calib.flare),
+ * over the reference's neutral patches; subtracted from rho_r when found. Refused above
+ * the limit, naming the values. */
+static int site_flare(const kg_reference *ref, kg_camera_calib *cam,
+                      const kg_camera_options *opt, const char *what, kg_err *err)
+{
+	kg_flare *f = &cam->flare;
+	memset(f, 0, sizeof(*f));
+	if (!ref->flare_removed)
+		return 0;
+	int idx[KG_FLARE_MAX_NEUTRALS];
+	for (int n = 0; n < ref->field_flare.n; n++) {
+		int i = find_id(cam->ids, cam->k, ref->field_flare.ids[n]);
+		if (i >= 0 && f->n < KG_FLARE_MAX_NEUTRALS) {
+			idx[f->n] = i;
+			snprintf(f->ids[f->n++], sizeof(f->ids[0]), "%s", cam->ids[i]);
+		}
+	}
+	if (f->n < 3)
+		return 0;
+	f->found = 1;
+	for (int ch = 0; ch < 3; ch++) {
+		double mx = 0, my = 0, sxx = 0, sxy = 0, rss = 0;
+		for (int n = 0; n < f->n; n++) {
+			mx += cam->rho0[idx[n]][ch];
+			my += cam->rho_r[idx[n]][ch];
+		}
+		mx /= f->n;
+		my /= f->n;
+		for (int n = 0; n < f->n; n++) {
+			double dx = cam->rho0[idx[n]][ch] - mx;
+			sxx += dx * dx;
+			sxy += dx * (cam->rho_r[idx[n]][ch] - my);
+		}
+		double a = sxx > 0 ? sxy / sxx : NAN, b = my - a * mx;
+		for (int n = 0; n < f->n; n++) {
+			double r = cam->rho_r[idx[n]][ch] - (b + a * cam->rho0[idx[n]][ch]);
+			rss += r * r;
+		}
+		f->offset[ch] = b;
+		f->slope[ch] = a * ref->field_flare.slope[ch];
+		f->white_fraction[ch] = f->slope[ch] > 0 ? b / f->slope[ch] : NAN;
+		f->residual[ch] = f->slope[ch] > 0 && f->n > 2 ? sqrt(rss / (f->n - 2)) / f->slope[ch]
+		                                               : NAN;
+		if (!(f->slope[ch] > 0))
+			f->found = 0;
+	}
+	if (!f->found)
+		return 0;
+	double limit = opt->max_flare > 0 ? opt->max_flare : KG_CALIB_MAX_FLARE;
+	if (kg_flare_max_fraction(f) > limit)
+		return kg_fail(err, KG_EINVAL,
+		               "%s: flare: the chart's %d neutral patches (%s .. %s) meet zero at "
+		               "%.1f %% (R), %.1f %% (G), %.1f %% (B) of white, above the %.1f %% a "
+		               "calibration can trust (light scattered in the lens: shade the lens "
+		               "and the chart from the light source and the sky)",
+		               what, f->n, f->ids[0], f->ids[f->n - 1], 100 * f->white_fraction[0],
+		               100 * f->white_fraction[1], 100 * f->white_fraction[2], 100 * limit);
+	for (int i = 0; i < cam->k; i++)
+		for (int ch = 0; ch < 3; ch++)
+			cam->rho_r[i][ch] = fmax(cam->rho_r[i][ch] - f->offset[ch], 0);
+	cam->flare_removed = 1;
+	return 0;
+}
+
 int kg_camera_fit(const kg_reference *ref, const kg_patchset *site,
                   const kg_camera_options *opt, kg_camera_calib **out, kg_err *err)
 {
@@ -652,6 +717,8 @@ int kg_camera_fit(const kg_reference *ref, const kg_patchset *site,
 	}
 	ret = calib_check_patch_values(what, cam->ids, (const double (*)[3])cam->rho_r, clipped,
 	                               k, opt->clip_level, opt->black_level, err);
+	if (!ret)
+		ret = site_flare(ref, cam, opt, what, err);
 	if (ret)
 		goto error;
 	ret = calib_check_collinear(what, cam->ids, (const double (*)[3])cam->rho_r, k,

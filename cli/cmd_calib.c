@@ -155,6 +155,28 @@ static void print_pairing(FILE *fp, const kg_pairing_record *rec, const char *fi
 		        rec->checked, 100 * KG_CALIB_PAIR_MAX_MISFIT);
 }
 
+/* The training chart's flare and whether removing it validated better. */
+static void print_flare(FILE *fp, const kg_reference *ref)
+{
+	const kg_flare *f = &ref->flare;
+	if (!f->found) {
+		fprintf(fp, "flare: not measured (%d neutral patches with spectra, from dark to "
+		        "light, needed: 3)\n", f->n);
+		return;
+	}
+	fprintf(fp, "flare: the %d neutral patches meet zero at %.2f %% (R), %.2f %% (G), "
+	        "%.2f %% (B) of white; ", f->n, 100 * f->white_fraction[0],
+	        100 * f->white_fraction[1], 100 * f->white_fraction[2]);
+	if (ref->flare_removed)
+		fprintf(fp, "removed (leave-one-out dE00 %.3f, kept: %.3f)\n", ref->flare_loo_removed,
+		        ref->flare_loo_kept);
+	else if (isfinite(ref->flare_loo_removed))
+		fprintf(fp, "kept (leave-one-out dE00 %.3f, removed: %.3f, not better)\n",
+		        ref->flare_loo_kept, ref->flare_loo_removed);
+	else
+		fprintf(fp, "kept\n");
+}
+
 static void print_reference(FILE *fp, const kg_reference *ref, const char *out)
 {
 	fprintf(fp, "reference calibration: %d training patches, %d field patches\n", ref->m,
@@ -190,6 +212,7 @@ static void print_reference(FILE *fp, const kg_reference *ref, const char *out)
 	        kg_method_name(ref->method), rm / ref->m, de / ref->m, demax);
 	if (ref->pairing.pairs)
 		print_pairing(fp, &ref->pairing, "spectra", "rgb");
+	print_flare(fp, ref);
 	if (ref->response.available)
 		fprintf(fp, "camera response (camera-space labels): from the %s, leave-one-out error "
 		        "%.4f relative\n", strcmp(ref->response.source, "camera") ? "chart"

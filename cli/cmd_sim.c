@@ -12,7 +12,7 @@
 static const char patches_usage[] =
     "kogei sim patches --spectra S.cgats|S.csv --camera CSS.csv --illuminant NAME|FILE\n"
     "                  [--noise none|FULLWELL:READ:BITS] [--white-level 0.9] [--seed N]\n"
-    "                  [--extrapolate] -o P.cgats";
+    "                  [--flare F] [--extrapolate] -o P.cgats";
 
 static const char image_usage[] =
     "kogei sim image [--spectra S.cgats|S.csv] --materials LIB.json [--only a,b,c]\n"
@@ -47,6 +47,9 @@ static void patches_help(void)
 	       "(0..1 scale) with keywords CAMERA, ILLUMINANT, NOISE, SEED, WHITE_LEVEL.\n\n"
 	       "  --spectra FILE        CGATS with SPEC_<nm> fields, or CSV patch,name,<nm>...\n"
 	       "%s"
+	       "  --flare F             veiling glare: F (0..1) of each channel's reading of the\n"
+	       "                        perfect diffuser added to every reading, before the noise\n"
+	       "                        (default 0; recorded as keyword FLARE)\n"
 	       "  -o P.cgats            output ('-' for standard output)\n",
 	       patches_usage, common_help);
 }
@@ -175,16 +178,27 @@ int kg_cmd_sim_patches(int argc, char **argv)
 	}
 	sim_args a;
 	sim_args_init(&a);
+	const char *flare_text = "0";
 	for (int i = 1; i < argc; i++) {
-		int status;
+		int status, missing = 0;
+		const char *v;
 		if (shared_option(argc, argv, &i, patches_usage, &a, &status)) {
 			if (status)
 				return status;
 			continue;
 		}
+		if ((v = option_value(argc, argv, &i, "--flare", &missing))) {
+			flare_text = v;
+			continue;
+		}
+		if (missing)
+			return kg_cli_usage_error(patches_usage, "%s: expected a value", argv[i]);
 		return kg_cli_usage_error(patches_usage, "unexpected argument '%s'", argv[i]);
 	}
 	int status = finish_args(patches_usage, &a, 1);
+	double flare = 0;
+	if (!status)
+		status = kg_cli_number_option(patches_usage, "--flare", flare_text, 0, 1, &flare);
 	if (status)
 		return status;
 
@@ -198,6 +212,7 @@ int kg_cmd_sim_patches(int argc, char **argv)
 	                          a.flags, &err);
 	if (ret)
 		return kg_cli_error(&err, ret);
+	capture.flare = flare;
 	kg_patchset *spectra = NULL;
 	ret = kg_sim_read_spectra(a.spectra, a.flags, &spectra, &err);
 	if (ret)
@@ -215,6 +230,7 @@ int kg_cmd_sim_patches(int argc, char **argv)
 	    "SEED", seed_text,
 	    "WHITE_LEVEL", a.white_text,
 	    "SPECTRA", a.spectra,
+	    "FLARE", flare_text,
 	    NULL,
 	};
 	ret = kg_sim_write_patches(a.out, spectra, &capture, a.seed, keywords, &err);

@@ -31,6 +31,8 @@ typedef struct plane {
 	int demosaic;               /* a mosaic made RGB */
 	double lo, hi;              /* the corrected mosaic's range */
 	double scale, frames;       /* exposure normalisation; the variance's frames */
+	double flare[3];            /* subtracted from the RGB after scaling: the site
+	                             * chart's flare, for objects (0: none) */
 	long invalid;               /* samples where the flat is not valid */
 } plane;
 
@@ -333,6 +335,10 @@ static int pass_read(void *user, int y0, int rows, float *out, kg_err *err)
 	else if (pl->scale != 1.0)
 		for (size_t i = 0; i < n; i++)
 			out[i] = (float)(out[i] * pl->scale);
+	if (!pl->variance && (pl->demosaic || pl->channels == 3) &&
+	    (pl->flare[0] != 0 || pl->flare[1] != 0 || pl->flare[2] != 0))
+		for (size_t i = 0; i < n; i++)
+			out[i] = (float)(out[i] - pl->flare[i % 3]);
 	return 0;
 }
 
@@ -474,6 +480,11 @@ int proc_source_open(proc *p, const proc_capture *c, double scale, int keep_mosa
 	}
 	if (!ret) {
 		im->scale = scale;
+		/* the flare measured on the site chart (and removed from it for M2) is taken
+		 * out of an object's values too: the same lens and light (docs/process.md) */
+		if (c->kind == KG_CAPTURE_OBJECT && p->cam && p->cam->flare_removed)
+			for (int ch = 0; ch < 3; ch++)
+				im->flare[ch] = p->cam->flare.offset[ch];
 		if (im->channels == 1 && im->cfa[0]) {
 			im->demosaic = kg_demosaic_algorithm() != NULL;
 			if (!im->demosaic && !keep_mosaic)

@@ -361,6 +361,41 @@ static void note_unpaired(proc *p, const kg_pairing_record *rec, const char *spe
 	}
 }
 
+/* A flare measurement (calib/flare.c) as process.json records it, or null. */
+static json_t *flare_one(const kg_flare *f)
+{
+	if (!f->found)
+		return json_null();
+	json_t *ids = json_array();
+	for (int i = 0; i < f->n; i++)
+		json_array_append_new(ids, json_string(f->ids[i]));
+	return json_pack("{s:o, s:[fff], s:[fff], s:[fff]}", "neutrals", ids, "white_fraction",
+	                 f->white_fraction[0], f->white_fraction[1], f->white_fraction[2],
+	                 "offset", f->offset[0], f->offset[1], f->offset[2], "residual",
+	                 isfinite(f->residual[0]) ? f->residual[0] : 0.0,
+	                 isfinite(f->residual[1]) ? f->residual[1] : 0.0,
+	                 isfinite(f->residual[2]) ? f->residual[2] : 0.0);
+}
+
+/* calibration.flare: the reference chart's (and whether the reference fit removed it,
+ * with the leave-one-out that decided) and the site chart's (removed from the site
+ * values and from every object's). */
+static json_t *flare_json(const kg_reference *ref, const kg_camera_calib *cam)
+{
+	json_t *o = json_object();
+	json_object_set_new(o, "reference", flare_one(&ref->flare));
+	json_object_set_new(o, "reference_removed", json_boolean(ref->flare_removed));
+	json_object_set_new(o, "loo_de00_kept", isfinite(ref->flare_loo_kept)
+	                                            ? json_real(ref->flare_loo_kept)
+	                                            : json_null());
+	json_object_set_new(o, "loo_de00_removed", isfinite(ref->flare_loo_removed)
+	                                               ? json_real(ref->flare_loo_removed)
+	                                               : json_null());
+	json_object_set_new(o, "site", flare_one(&cam->flare));
+	json_object_set_new(o, "site_removed", json_boolean(cam->flare_removed));
+	return o;
+}
+
 static json_t *light_field_json(const kg_chart_light *f)
 {
 	if (!f->fitted)
@@ -627,6 +662,7 @@ int proc_calibrate(proc *p)
 		json_array_append_new(fl, json_string(flagged[i]));
 	json_object_set_new(p->calibration, "patches_flagged", fl);
 	json_object_set_new(p->calibration, "decimate", json_integer(res->decimate));
+	json_object_set_new(p->calibration, "flare", flare_json(p->ref, p->cam));
 	json_object_set_new(p->calibration, "light_field", light_field_json(&res->light));
 	json_object_set_new(p->calibration, "flat_illuminance_nonuniformity",
 	                    flat_nonuniformity(p, img.flat));

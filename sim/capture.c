@@ -66,8 +66,15 @@ void kg_sim_capture_sample(const kg_sim_capture *c, const kg_spectrum *reflectan
                            kg_rng *rng, double rgb[3])
 {
 	kg_sim_capture_mean(c, reflectance, rgb);
-	for (int ch = 0; ch < 3; ch++)
+	for (int ch = 0; ch < 3; ch++) {
+		if (c->flare != 0) {
+			double white = 0;
+			for (int i = 0; i < KG_NBANDS; i++)
+				white += c->weight[ch].v[i];
+			rgb[ch] += c->flare * white;
+		}
 		rgb[ch] = kg_sim_noise_apply(&c->noise, rgb[ch], rng);
+	}
 }
 
 void kg_sim_patches(const kg_sim_capture *c, const kg_spectrum *spectra, int n,

@@ -100,6 +100,8 @@ typedef struct kg_sim_capture {
 	double exposure;       /* k */
 	double white_level;
 	kg_sim_noise noise;
+	double flare; /* veiling glare: a fraction of each channel's reading of the perfect
+	               * diffuser added to every reading before the noise (0: none) */
 } kg_sim_capture;
 
 /* white_level in (0, 1] is usual; larger values are allowed and clip under noise.
