@@ -14,7 +14,7 @@ static const char usage_reference[] =
 	"                      [--ridge L] [--noise SIGMA] [--method NAME|auto]\n"
 	"                      [--max-cond C] [--exclude ID[,ID...]]\n"
 	"                      [--camera CSS.csv --illuminant NAME|FILE]\n"
-	"                      [--id-pairing PAIRING]\n"
+	"                      [--id-pairing PAIRING] [--max-flare PCT|none] [--keep-flare]\n"
 	"  Reference calibration (docs/architecture.md, step 1). The chart's spectra S\n"
 	"  (CGATS SPEC_* fields, or a patch,name,<nm>... CSV table) and the reference\n"
 	"  camera's linear RGB rho (RGB_R RGB_G RGB_B) are matched by SAMPLE_ID and\n"
@@ -42,6 +42,11 @@ static const char usage_reference[] =
 	"  from --field-rgb, else from --rgb. --exclude leaves patches out of both, and so\n"
 	"  are the patches chart detection flagged (the field file's FLAGS column: clipped,\n"
 	"  glare, a colour that is not the layout's, ...), listed in a note.\n"
+	"  Flare (light scattered in the lens): the line through the chart's neutral\n"
+	"  patches (chroma under 5) meets zero above the origin; it is measured per\n"
+	"  channel as a fraction of white, refused above --max-flare (default 8 %; none:\n"
+	"  no limit), and removed from the values before the fit when the chosen\n"
+	"  method's leave-one-out dE00 is lower without it (--keep-flare: never).\n"
 	"  Refused: clipped (a channel >= 0.98) or non-finite patches, near-black field\n"
 	"  patches (< 0.01), nearly collinear RGB (as in calib camera; limit C, default\n"
 	"  100). Writes kogei-reference/1 JSON and prints the leave-one-out table.\n"
@@ -277,6 +282,8 @@ int kg_cmd_calib_reference(int argc, char **argv)
 		{"camera", required_argument, NULL, 'S'},
 		{"illuminant", required_argument, NULL, 'I'},
 		{"id-pairing", required_argument, NULL, 'P'},
+		{"max-flare", required_argument, NULL, 'F'},
+		{"keep-flare", no_argument, NULL, 'k'},
 		{"output", required_argument, NULL, 'o'},
 		{"help", no_argument, NULL, 'h'},
 		{0, 0, 0, 0},
@@ -304,6 +311,16 @@ int kg_cmd_calib_reference(int argc, char **argv)
 		case 'r': rgb = optarg; break;
 		case 'f': field = optarg; break;
 		case 'c': opt.centred = 1; break;
+		case 'k': opt.no_flare = 1; break;
+		case 'F':
+			if (strcmp(optarg, "none") == 0)
+				opt.max_flare = INFINITY;
+			else if (kg_cli_number(optarg, &v) || !(v > 0) || !(v <= 100))
+				return kg_cli_usage_error(u, "--max-flare %s: expected a percentage of white "
+				                          "above 0 and at most 100, or none", optarg);
+			else
+				opt.max_flare = v / 100;
+			break;
 		case 'K':
 			if (strcmp(optarg, "auto") == 0)
 				opt.basis = 0;
