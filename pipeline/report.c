@@ -605,6 +605,50 @@ static void section_summary(report *r)
 	section_end(r);
 }
 
+/* calibration.flare (files of earlier versions lack it): the reference chart's, whether
+ * removing it validated better, and the site chart's. */
+static void put_flare(report *r)
+{
+	if (!has(r, "calibration.flare"))
+		return;
+	static const char *const sides[2] = {"reference", "site"};
+	static const char *const labels[2] = {"Flare, reference chart", "Flare, site chart"};
+	for (int s = 0; s < 2 && !r->ret; s++) {
+		const json_t *f = kg_json_find(r->root, "calibration.flare");
+		f = json_object_get(f, sides[s]);
+		if (s == 1 && !json_is_object(f))
+			continue; /* the site's is only measured against a flare-free reference */
+		html(r, "<tr><th scope=\"row\">%s</th><td>", labels[s]);
+		if (!json_is_object(f)) {
+			html(r, "not measured (no three neutral patches from dark to light with spectra)");
+		} else {
+			textf(r, "the %zu neutral patches meet zero at %.2f %% (R), %.2f %% (G), "
+			      "%.2f %% (B) of white",
+			      json_array_size(json_object_get(f, "neutrals")),
+			      100 * num(r, "calibration.flare.%s.white_fraction[0]", sides[s]),
+			      100 * num(r, "calibration.flare.%s.white_fraction[1]", sides[s]),
+			      100 * num(r, "calibration.flare.%s.white_fraction[2]", sides[s]));
+			if (s == 0) {
+				double kept = opt_num(r, "calibration.flare.loo_de00_kept");
+				double rem = opt_num(r, "calibration.flare.loo_de00_removed");
+				if (flag(r, "calibration.flare.reference_removed"))
+					textf(r, "; removed before the fit (leave-one-out ΔE00 %.2f, %.2f with "
+					      "it kept)", rem, kept);
+				else if (isfinite(rem))
+					textf(r, "; kept (leave-one-out ΔE00 %.2f, %.2f with it removed)", kept,
+					      rem);
+				else
+					text(r, "; kept");
+			} else {
+				text(r, flag(r, "calibration.flare.site_removed")
+				            ? "; removed from the site chart before M2 and from every object"
+				            : "; kept");
+			}
+		}
+		html(r, "</td></tr>\n");
+	}
+}
+
 static void section_calibration(report *r)
 {
 	section_begin(r, "calibration", "Calibration");
@@ -672,6 +716,7 @@ static void section_calibration(report *r)
 	html(r, "</td></tr>\n");
 	num_row(r, "Homography RMS", num(r, "calibration.homography_rms_px"), 2, " px");
 	row(r, "Chart spectra", opt_str(r, "calibration.spectra_source"));
+	put_flare(r);
 	/* the light over the chart: removed from the patch values, and the flat's */
 	html(r, "<tr><th scope=\"row\">Light over the chart</th><td>");
 	if (has(r, "calibration.light_field") && flag(r, "calibration.light_field.fitted")) {

@@ -279,9 +279,26 @@ def cmd_loo(name, log, limit):
           f"{m.group(1)} {v:.3f} (<= {float(limit):g})")
 
 
+def cmd_flare(name, log, lo, hi):
+    """The flare calib reference measured on a real frame lies within [lo, hi] of white
+    in every channel, was removed, and removing it lowered the leave-one-out dE00."""
+    text = open(log).read()
+    m = re.search(r"^flare: the (\d+) neutral patches meet zero at ([-0-9.]+) % \(R\), "
+                  r"([-0-9.]+) % \(G\), ([-0-9.]+) % \(B\) of white; (removed|kept)"
+                  r"(?: \(leave-one-out dE00 ([0-9.]+), (?:kept|removed): ([0-9.]+))?", text, re.M)
+    check(m is not None, f"{name}: kogei calib reference reported the flare")
+    if not m:
+        return
+    w = [float(m.group(i)) for i in (2, 3, 4)]
+    check(all(float(lo) <= x <= float(hi) for x in w),
+          f"{name}: flare {w} % of white (within {lo}-{hi} %) from {m.group(1)} neutral patches")
+    check(m.group(5) == "removed" and m.group(6) and float(m.group(6)) < float(m.group(7)),
+          f"{name}: flare removed, leave-one-out dE00 {m.group(6)} (kept: {m.group(7)})")
+
+
 def main(argv):
     cmds = {"alias": cmd_alias, "detect": cmd_detect, "linearity": None,
-            "saturation": cmd_saturation, "m2": cmd_m2, "loo": cmd_loo}
+            "saturation": cmd_saturation, "m2": cmd_m2, "loo": cmd_loo, "flare": cmd_flare}
     if len(argv) < 2 or argv[1] not in cmds:
         print(__doc__, file=sys.stderr)
         return 2
