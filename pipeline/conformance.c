@@ -151,7 +151,36 @@ static json_t *record(const char *id, const char *unit, double value, double aim
 	                 "measured", measured, "note", note);
 }
 
-/* The worst of a per-patch key over the neutral patches with a value (absolute). */
+/* A patch chart detection flagged (clipped, glare, covered, ...: "flags" != 0) or the
+ * calibration left out ("used": false) grades nothing: a clipped white would grade the
+ * tone and the white balance from what the sensor did not record. */
+static int left_out(const json_t *e)
+{
+	const json_t *f = json_object_get(e, "flags"), *u = json_object_get(e, "used");
+	return (json_is_integer(f) && json_integer_value(f) != 0) || json_is_false(u);
+}
+
+/* The patches of `which` (the neutrals, or every patch with key) left out, with why. */
+static json_t *left_out_list(const json_t *patches, const char *key, int neutral)
+{
+	json_t *list = json_array();
+	size_t i;
+	const json_t *e;
+	json_array_foreach(patches, i, e) {
+		if ((neutral && !json_is_true(json_object_get(e, "neutral"))) ||
+		    !json_is_number(json_object_get(e, key)) || !left_out(e))
+			continue;
+		const json_t *w = json_object_get(e, "warning");
+		json_array_append_new(list, json_pack("{s:O, s:s}", "id", json_object_get(e, "id"),
+		                                      "why", json_is_string(w) ? json_string_value(w)
+		                                                               : "flagged by chart "
+		                                                                 "detection"));
+	}
+	return list;
+}
+
+/* The worst of a per-patch key over the neutral patches with a value (absolute), those
+ * left out (left_out) excepted. */
 static double neutral_max(const json_t *patches, const char *key, json_t *used)
 {
 	double m = NAN;
@@ -159,7 +188,7 @@ static double neutral_max(const json_t *patches, const char *key, json_t *used)
 	const json_t *e;
 	json_array_foreach(patches, i, e) {
 		const json_t *v = json_object_get(e, key);
-		if (!json_is_true(json_object_get(e, "neutral")) || !json_is_number(v))
+		if (!json_is_true(json_object_get(e, "neutral")) || !json_is_number(v) || left_out(e))
 			continue;
 		double x = fabs(json_number_value(v));
 		if (isnan(m) || x > m)
@@ -190,6 +219,8 @@ static void summarise_key(const json_t *patches, const char *key, kg_de_summary 
 		return;
 	json_array_foreach(patches, i, e) {
 		const json_t *x = json_object_get(e, key);
+		if (left_out(e))
+			x = NULL;
 		v[i] = json_is_number(x) ? json_number_value(x) : NAN;
 		if (used && json_is_number(x))
 			json_array_append_new(used, json_copy(json_object_get(e, "id")));
@@ -252,6 +283,7 @@ static json_t *colour_record(const json_t *patches)
 	json_object_set_new(r, "in_sample", summary_json(&in));
 	json_object_set_new(r, "held_out", summary_json(&out));
 	json_object_set_new(r, "verify", summary_json(&ver));
+	json_object_set_new(r, "left_out", left_out_list(patches, "de00_d50", 0));
 	json_object_set_new(r, "cielab",
 	                    json_pack("{s:s, s:s, s:s}", "illuminant", "CIE D50", "observer",
 	                              "CIE 1931 2°", "white", "the perfect reflecting diffuser "
@@ -290,6 +322,7 @@ json_t *kg_conformance(const json_t *patches, double flat_nonuniformity)
 	                          "over the neutral patches of the chart capture",
 	                    "no neutral patch with a measured spectrum: not measured");
 	json_object_set_new(r0, "graded_on", json_string(ver ? "verify" : "chart capture"));
+	json_object_set_new(r0, "left_out", left_out_list(patches, ver ? "dL_verify" : "dL", 1));
 	json_array_append_new(list, r0);
 	json_t *r1 = graded("white_balance", "ΔE(a*b*)", &wb_lim, dab, u2,
 	                    ver ? "largest ΔE(a*b*) over the neutral patches (D50) of the "
@@ -298,6 +331,7 @@ json_t *kg_conformance(const json_t *patches, double flat_nonuniformity)
 	                          "capture",
 	                    "no neutral patch with a measured spectrum: not measured");
 	json_object_set_new(r1, "graded_on", json_string(ver ? "verify" : "chart capture"));
+	json_object_set_new(r1, "left_out", left_out_list(patches, ver ? "dab_verify" : "dab", 1));
 	json_array_append_new(list, r1);
 	double nu = 100 * flat_nonuniformity;
 	json_t *r = graded("illuminance_non_uniformity", "%", &nu_lim, nu, NULL,
@@ -313,6 +347,8 @@ json_t *kg_conformance(const json_t *patches, double flat_nonuniformity)
 	                    "patches' pixel spread through the calibration (D50)",
 	                    "no neutral patch with a pixel spread: not measured");
 	json_object_set_new(r3, "graded_on", json_string(ver ? "verify" : "chart capture"));
+	json_object_set_new(r3, "left_out",
+	                    left_out_list(patches, ver ? "noise_L_verify" : "noise_L", 1));
 	json_array_append_new(list, r3);
 	json_array_append_new(list, colour_record(patches));
 	json_array_append_new(list, record("sfr", "cycles/pixel", NAN, NAN, NULL, NULL, 0, NULL, 0,

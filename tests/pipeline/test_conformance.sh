@@ -260,6 +260,35 @@ for rid in ("sfr", "colour_misregistration"):
     assert r["note"].startswith("not measured") and "square to the sensor" in r["note"], r
 print("square chart: sfr %s" % recs["sfr"]["note"])
 PY
+# An over-exposed chart (x 1.6: the white patch clipped on the sensor): no
+# characteristic is graded from a patch chart detection flagged; each such patch is
+# listed as left out, with why.
+SIM_CAMERA="format=bayer_rggb12&fullwell=20000&read=5&serial=site-1"
+S=$T/SOVER
+sim_acquire "$S" dark "$T/chart.tif" 16000 '&light=0' 2>/dev/null || fail=1
+sim_acquire "$S" flat "$T/chart.tif" 16000 '&uniform=0.6' 2>/dev/null || fail=1
+sim_acquire "$S" chart "$T/chart.tif" 16000 '' --layout colorchecker24-frame 2>/dev/null ||
+	fail=1
+if "$KOGEI" process "$S" --spectra "$T/chart.csv" -o "$T/OOVER" >"$T/out" 2>"$T/err"; then
+	"$PY" - "$T/OOVER" <<'PY' || fail=1
+import json, sys
+pj = json.load(open(sys.argv[1] + "/process.json"))
+flagged = {p["id"] for p in pj["calibration"]["patches"] if p.get("flags")}
+assert "D01" in flagged, ("the over-exposed white is not flagged", pj["calibration"]["patches"][18])
+c = json.load(open(sys.argv[1] + "/conformance.json"))
+recs = {x["id"]: x for x in c["characteristics"]}
+for rid in ("oecf", "white_balance", "noise", "colour_accuracy"):
+    r = recs[rid]
+    used = set(r["used"])
+    assert not used & flagged, (rid, "graded from flagged patches", used & flagged)
+    out = {x["id"] for x in r["left_out"]}
+    assert "D01" in out and all(x["why"] for x in r["left_out"]), (rid, r["left_out"])
+print("over-exposed chart: %s flagged, left out of every grade; oecf %.3f on %s"
+      % (sorted(flagged), recs["oecf"]["value"], recs["oecf"]["used"]))
+PY
+else
+	echo "FAIL: process (over-exposed chart)"; cat "$T/err"; fail=1
+fi
 # the report: both figures, the verdicts on the held-out ones, the caveat
 R=$T/O20000/report.html
 for pat in 'id="heldout"' 'held-out (leave-one-out)' 'FADGI 4-star (held-out)' \
