@@ -219,6 +219,60 @@ static void xmp_number(FILE *f, const char *tag, const json_t *v, const char *fm
 	xmp_simple(f, tag, buf);
 }
 
+/* n digits at *s, advanced past them; -1 when they are not there. */
+static int digits(const char **s, int n)
+{
+	int v = 0;
+	for (int i = 0; i < n; i++, (*s)++) {
+		if (**s < '0' || **s > '9')
+			return -1;
+		v = 10 * v + (**s - '0');
+	}
+	return v;
+}
+
+/* 1 when s is an XMP Date (XMP Part 1, 8.2.1.1; ISO 8601 as W3C profiles it): YYYY,
+ * YYYY-MM, YYYY-MM-DD, and those with Thh:mm, Thh:mm:ss or Thh:mm:ss.s... and a zone
+ * (Z, +hh:mm, -hh:mm). */
+static int xmp_date_ok(const char *s)
+{
+	if (!s || digits(&s, 4) < 0)
+		return 0;
+	if (!*s)
+		return 1;
+	int v;
+	if (*s++ != '-' || (v = digits(&s, 2)) < 1 || v > 12)
+		return 0;
+	if (!*s)
+		return 1;
+	if (*s++ != '-' || (v = digits(&s, 2)) < 1 || v > 31)
+		return 0;
+	if (!*s)
+		return 1;
+	if (*s++ != 'T' || (v = digits(&s, 2)) < 0 || v > 23 || *s++ != ':' ||
+	    (v = digits(&s, 2)) < 0 || v > 59)
+		return 0;
+	if (*s == ':') {
+		s++;
+		if ((v = digits(&s, 2)) < 0 || v > 60)
+			return 0;
+		if (*s == '.') {
+			s++;
+			if (*s < '0' || *s > '9')
+				return 0;
+			while (*s >= '0' && *s <= '9')
+				s++;
+		}
+	}
+	if (*s == 'Z')
+		return s[1] == 0;
+	if (*s != '+' && *s != '-')
+		return 0;
+	s++;
+	return (v = digits(&s, 2)) >= 0 && v <= 23 && *s++ == ':' && (v = digits(&s, 2)) >= 0 &&
+	       v <= 59 && !*s;
+}
+
 const char *proc_identity_description(const json_t *id)
 {
 	return rec(id, "description") ? rec(id, "description") : rec(id, "title");
@@ -240,7 +294,9 @@ int proc_identity_xmp(const json_t *id, char **out, size_t *len, kg_err *err)
 	xmp_simple(f, "dc:identifier", rec(id, "accession"));
 	xmp_one(f, "dc:title", "Alt", rec(id, "title"));
 	xmp_one(f, "dc:creator", "Seq", rec(id, "operator"));
-	xmp_one(f, "dc:date", "Seq", rec(id, "date"));
+	/* dc:date is an XMP Date: a date in other words ("c. 1650") is in kogei:Record */
+	if (xmp_date_ok(rec(id, "date")))
+		xmp_one(f, "dc:date", "Seq", rec(id, "date"));
 	xmp_one(f, "dc:rights", "Alt", rec(id, "rights"));
 	xmp_one(f, "dc:description", "Alt", proc_identity_description(id));
 	xmp_simple(f, "dc:format", "image/tiff");
