@@ -28,7 +28,7 @@ sim_acquire S flat chart.tif 10000 '&uniform=0.6' &&
 sim_acquire S chart chart.tif 10000 '' --layout cie-tcs-frame &&
 sim_acquire S object object.tif 10000 '' --meta accession=1987.12.3 \
 	--meta 'title=<b>Bowl</b> & "lid" – 漆' --meta 'operator=Aiko Sato' \
-	--meta 'date=c. 1650 (Edo)' --meta 'rights=© Museum A 2026' &&
+	--meta 'date=c. 1650 (Edo)' --meta 'rights=© Museum A 2026 ?> ]]>' &&
 sim_acquire S object object.tif 10000 '' --meta accession=2001.5.77 \
 	--meta 'title=Jar {restored} \ 壺' --meta "operator=Ben O'Ito" \
 	--meta date=2001-05-07 --meta 'rights=CC BY 4.0 Ito' &&
@@ -51,7 +51,7 @@ def check(cond, msg):
 own = {
     "object-0001": {"accession": "1987.12.3", "title": '<b>Bowl</b> & "lid" – 漆',
                     "operator": "Aiko Sato", "date": "c. 1650 (Edo)",
-                    "rights": "© Museum A 2026"},
+                    "rights": "© Museum A 2026 ?> ]]>"},
     "object-0002": {"accession": "2001.5.77", "title": "Jar {restored} \\ 壺",
                     "operator": "Ben O'Ito", "date": "2001-05-07",
                     "rights": "CC BY 4.0 Ito"},
