@@ -22,7 +22,7 @@ cd "$T" || exit 1
 EXIFTOOL=$(command -v exiftool || true)
 
 # Records that differ in every field; characters XML, ENVI and JSON must escape.
-sim_scenes . &&
+sim_scenes . chart_truth.cgats &&
 sim_acquire S dark chart.tif 10000 '&light=0' &&
 sim_acquire S flat chart.tif 10000 '&uniform=0.6' &&
 sim_acquire S chart chart.tif 10000 '' --layout cie-tcs-frame &&
@@ -42,7 +42,7 @@ sim_measure chart.cgats || { echo "FAIL: setting up the session"; exit 1; }
 cat >check.py <<'PYEOF'
 import json, os, struct, subprocess, sys
 import xml.etree.ElementTree as ET
-out, notes, exiftool, validator = sys.argv[1:5]
+out, notes, exiftool, validator, layout_file = sys.argv[1:6]
 ok = True
 def check(cond, msg):
     global ok
@@ -91,6 +91,24 @@ def tiff_tags(path):
             tags[tag] = raw
     return tags, d
 
+def cgats_rows(path):
+    lines = open(path).read().splitlines()
+    fields = lines[lines.index("BEGIN_DATA_FORMAT") + 1].split()
+    start, end = lines.index("BEGIN_DATA"), lines.index("END_DATA")
+    return [dict(zip(fields, l.split())) for l in lines[start + 1:end]]
+layout = json.load(open(layout_file))
+at_mm = {p["id"]: tuple(p["center_mm"]) for p in layout["patches"]}
+at_px = {r["SAMPLE_ID"].strip('"'): (float(r["PIXEL_X"]), float(r["PIXEL_Y"]))
+         for r in cgats_rows("chart_truth.cgats")}
+a = layout["chart_area_mm"]
+cx, cy = a[0] + a[2] / 2, a[1] + a[3] / 2
+by_mm = {v: k for k, v in at_mm.items()}
+px = lambda x, y: at_px[by_mm[(x, y)]]
+pitch = 45.0
+(x0, y0), (x1, y1) = px(cx - pitch, cy), px(cx + pitch, cy)
+(u0, v0), (u1, v1) = px(cx, cy - pitch), px(cx, cy + pitch)
+truth_ppmm = abs((x1 - x0) * (v1 - v0) - (u1 - u0) * (y1 - y0)) ** 0.5 / (2 * pitch)
+
 NS = {"x": "adobe:ns:meta/", "rdf": "http://www.w3.org/1999/02/22-rdf-syntax-ns#",
       "dc": "http://purl.org/dc/elements/1.1/", "xmp": "http://ns.adobe.com/xap/1.0/",
       "kogei": "urn:kogei:xmp:1.0:"}
@@ -108,9 +126,13 @@ for name, rec in own.items():
     check(col.get("basis") == "leave-one-out" and col.get("patches", 0) > 3 and
           0 < col.get("de00_mean", -1) <= col.get("de00_max", -1),
           "%s: held-out colour accuracy %r" % (name, col))
+    # pixels per mm against the simulation's truth: the patch centres about the
+    # chart's centre (45 mm apart in the layout) where the simulation put them
     ppmm = ident.get("pixels_per_mm")
-    check(isinstance(ppmm, float) and 0.3 < ppmm < 30,
-          "%s: pixels_per_mm %r (%s)" % (name, ppmm, ident.get("pixels_per_mm_source")))
+    check(isinstance(ppmm, float) and abs(ppmm - truth_ppmm) < 0.01 * truth_ppmm,
+          "%s: pixels_per_mm %r, the simulation's %.4f (%s)" %
+          (name, ppmm, truth_ppmm, ident.get("pixels_per_mm_source")))
+    print("ok: %s: %.4f pixels per mm, the simulation's %.4f" % (name, ppmm or 0, truth_ppmm))
     d = os.path.join(out, name)
 
     # cube.hdr: the description's "key: value" lines, values JSON
@@ -250,6 +272,7 @@ for name, rec in own.items():
 sys.exit(0 if ok else 1)
 PYEOF
 
+LAYOUT=$FIX/demo/cie-tcs-frame.json
 VALIDATOR=
 if command -v node >/dev/null 2>&1 &&
 	[ -f "$ROOT/.tools/gltf-validator/node_modules/gltf-validator/package.json" ]; then
@@ -257,7 +280,7 @@ if command -v node >/dev/null 2>&1 &&
 else
 	echo "note: no node or gltf-validator (scripts/setup.sh): object.glb checked by its JSON only"
 fi
-"$PY" check.py out 'run note -->' "$EXIFTOOL" "$VALIDATOR" || fail=1
+"$PY" check.py out 'run note -->' "$EXIFTOOL" "$VALIDATOR" "$LAYOUT" || fail=1
 
 # An unchanged run keeps the objects; a changed run --meta re-writes their files.
 "$KOGEI" process S --spectra chart.cgats -o out --no-render --meta 'notes=run note -->' \
@@ -270,7 +293,7 @@ grep -q "2 unchanged" process2.log ||
 	{ cat process3.log; echo "FAIL: process with another --meta"; exit 1; }
 grep -q "2 processed, 0 unchanged" process3.log ||
 	{ echo "FAIL: a changed --meta kept the objects' files:"; tail -1 process3.log; fail=1; }
-"$PY" check.py out 'second note' "$EXIFTOOL" "" || fail=1
+"$PY" check.py out 'second note' "$EXIFTOOL" "" "$LAYOUT" || fail=1
 
 [ $fail = 0 ] || exit 1
 [ -n "$EXIFTOOL" ] || kg_skip "exiftool missing (package libimage-exiftool-perl): every other file was checked"
