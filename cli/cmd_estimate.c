@@ -700,7 +700,7 @@ int kg_cmd_classify(int argc, char **argv)
 		ccam.composition_hdr = composition;
 	}
 	if (!rc && camera) {
-		kg_classify_info info = {calib, library, "camera", image, variance, mask};
+		kg_classify_info info = {calib, library, "camera", image, variance, mask, NULL};
 		opt.progress = quiet ? NULL : stderr;
 		ccam.response = &cam->response.F[0][0];
 		snprintf(ccam.response_source, sizeof(ccam.response_source), "%s",
@@ -710,7 +710,8 @@ int kg_cmd_classify(int argc, char **argv)
 		ccam.reference_sha256 = kg_camera_reference_sha256(cam);
 		rc = kg_classify_camera_rows(k, set, &ccam, &src, &opt, &copt, &info, out, &res, &err);
 	} else if (!rc) {
-		kg_classify_info info = {calib, library, kg_method_name(m), image, variance, mask};
+		kg_classify_info info = {calib, library, kg_method_name(m), image, variance, mask,
+		                         NULL};
 		opt.progress = quiet ? NULL : stderr;
 		copt.residual_relative = isinf(copt.unknown_threshold) ? 0 : cam->residual_relative;
 		if (!(copt.residual_relative >= 0 && isfinite(copt.residual_relative)))

@@ -268,3 +268,31 @@ int kg_envi_check(const char *what, const char *s, int list, kg_err *err)
 	return kg_fail(err, KG_EINVAL, "%s: byte %zu (0x%02X): ENVI header: %s", what, at + 1,
 	               (unsigned)(unsigned char)s[at], why);
 }
+
+static const char *envi_json_entity(const char *s, size_t i, size_t n, uint32_t cp)
+{
+	static _Thread_local char buf[8];
+	(void)s, (void)i, (void)n;
+	switch (cp) {
+	case '"': return "\\\"";
+	case '\\': return "\\\\";
+	case '{': return "\\u007b";
+	case '}': return "\\u007d";
+	case '\n': return "\\n";
+	case '\r': return "\\r";
+	case '\t': return "\\t";
+	default:
+		if (cp < 0x20 || cp == 0x7F) {
+			snprintf(buf, sizeof(buf), "\\u%04x", (unsigned)cp);
+			return buf;
+		}
+		return NULL;
+	}
+}
+
+void kg_envi_put_quoted(FILE *fp, const char *s)
+{
+	fputc('"', fp);
+	put_escaped(fp, s ? s : "", envi_json_entity);
+	fputc('"', fp);
+}

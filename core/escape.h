@@ -13,10 +13,14 @@
  *   CGATS                  kg_cgats_put writes a cell or a keyword's value;
  *                          kg_cgats_check refuses what CGATS cannot quote.
  *   ENVI header            kg_envi_check: the format has no escapes, so a value
- *                          that would read back otherwise is refused.
+ *                          that would read back otherwise is refused; free text
+ *                          (an object's record in a description) goes through
+ *                          kg_envi_put_quoted, a JSON string without braces.
  *   CSV (tables of names)  kg_csv_put (RFC 4180 quoting).
- *   TIFF                   kogei's TIFF files carry no text from input: only
- *                          Software, "kogei VERSION".
+ *   TIFF                   Software, "kogei VERSION"; the master's identity
+ *                          (ImageDescription, Artist, Copyright: a record's values,
+ *                          which hold no control character) and its XMP packet,
+ *                          written with kg_xml_put.
  *
  * The checks take `what`, the file and field for the message ("out.xml: material
  * 'gold': name"); messages show an offending character as U+XXXX or a byte as 0xXX,
@@ -95,5 +99,11 @@ void kg_csv_put(FILE *fp, const char *s);
  * brace or a carriage return, or begin or end with white space (readers trim it).
  * Else KG_EINVAL naming the character. */
 int kg_envi_check(const char *what, const char *s, int list, kg_err *err);
+/* s as a JSON string literal that an ENVI description in braces can hold: between
+ * double quotes, '"' and '\\' escaped with a backslash, '{' and '}' as \u007b and
+ * \u007d, control characters as \uXXXX (\n, \r, \t as such), every other character
+ * (UTF-8) as it is; a byte that is not UTF-8 as U+FFFD. Holds no brace, carriage return
+ * or line feed, so kg_envi_check accepts it, and any JSON parser reads s back. */
+void kg_envi_put_quoted(FILE *fp, const char *s);
 
 #endif

@@ -1,6 +1,7 @@
 /* Colour-managed outputs with LittleCMS: working-space profiles and the master TIFF. */
 #include "icc.h"
 
+#include <ctype.h>
 #include <errno.h>
 #include <math.h>
 #include <stdint.h>
@@ -10,6 +11,7 @@
 #include <unistd.h>
 
 #include "envi.h"
+#include "escape.h"
 #include "fsutil.h"
 #include "kg_config.h"
 
@@ -197,9 +199,59 @@ static float half_to_float(float stored)
 	return sign ? -v : v;
 }
 
+/* "YYYY:MM:DD HH:MM:SS", the form TIFF 6.0 gives DateTime. */
+static int tiff_datetime_ok(const char *s)
+{
+	static const char form[] = "dddd:dd:dd dd:dd:dd";
+	if (strlen(s) != sizeof(form) - 1)
+		return 0;
+	for (size_t i = 0; form[i]; i++)
+		if (form[i] == 'd' ? !isdigit((unsigned char)s[i]) : s[i] != form[i])
+			return 0;
+	return 1;
+}
+
+/* The tags of kg_tiff_identity (icc.h); the resolution tags always (TIFF 6.0 baseline
+ * requires them). */
+static int identity_tags(TIFF *tif, const kg_tiff_identity *id, const char *path,
+                         kg_err *err)
+{
+	const struct { uint32_t tag; const char *name, *value; } text[] = {
+		{TIFFTAG_IMAGEDESCRIPTION, "ImageDescription", id ? id->description : NULL},
+		{TIFFTAG_ARTIST, "Artist", id ? id->artist : NULL},
+		{TIFFTAG_COPYRIGHT, "Copyright", id ? id->copyright : NULL},
+		{TIFFTAG_DATETIME, "DateTime", id ? id->datetime : NULL},
+	};
+	for (size_t i = 0; i < sizeof(text) / sizeof(text[0]); i++) {
+		if (!text[i].value)
+			continue;
+		char what[300];
+		snprintf(what, sizeof(what), "%s: TIFF %s", path, text[i].name);
+		int ret = kg_text_check_controls(what, text[i].value, err);
+		if (!ret && text[i].tag == TIFFTAG_DATETIME && !tiff_datetime_ok(text[i].value))
+			ret = kg_fail(err, KG_EINVAL, "%s: '%s': expected YYYY:MM:DD HH:MM:SS", what,
+			              text[i].value);
+		if (ret)
+			return ret;
+		if (!TIFFSetField(tif, text[i].tag, text[i].value))
+			return kg_fail(err, KG_EIO, "%s: cannot set it", what);
+	}
+	double ppmm = id && id->pixels_per_mm > 0 && isfinite(id->pixels_per_mm)
+	                  ? id->pixels_per_mm : 0;
+	float res = ppmm > 0 ? (float)(ppmm * 25.4) : 1.0f;
+	if (!TIFFSetField(tif, TIFFTAG_XRESOLUTION, res) ||
+	    !TIFFSetField(tif, TIFFTAG_YRESOLUTION, res) ||
+	    !TIFFSetField(tif, TIFFTAG_RESOLUTIONUNIT, ppmm > 0 ? RESUNIT_INCH : RESUNIT_NONE))
+		return kg_fail(err, KG_EIO, "%s: cannot set the TIFF resolution tags", path);
+	if (id && id->xmp && id->xmp_len &&
+	    !TIFFSetField(tif, TIFFTAG_XMLPACKET, (uint32_t)id->xmp_len, id->xmp))
+		return kg_fail(err, KG_EIO, "%s: cannot set the TIFF XMP packet (tag 700)", path);
+	return 0;
+}
+
 int kg_master_write(const char *cube, const kg_illuminant *ill, kg_icc_space space,
                     kg_icc_version ver, const char *path, const unsigned char *lit,
-                    long *clipped, kg_err *err)
+                    const kg_tiff_identity *id, long *clipped, kg_err *err)
 {
 	kg_envi *e = NULL;
 	cmsHPROFILE xyz = NULL, rgb = NULL;
@@ -270,12 +322,18 @@ int kg_master_write(const char *cube, const kg_illuminant *ill, kg_icc_space spa
 	              TIFFSetField(tif, TIFFTAG_SAMPLEFORMAT, SAMPLEFORMAT_UINT) &&
 	              TIFFSetField(tif, TIFFTAG_PHOTOMETRIC, PHOTOMETRIC_RGB) &&
 	              TIFFSetField(tif, TIFFTAG_PLANARCONFIG, PLANARCONFIG_CONTIG) &&
-	              TIFFSetField(tif, TIFFTAG_COMPRESSION, COMPRESSION_ADOBE_DEFLATE) &&
+	              /* LZW, which TIFF 6.0 itself defines (Deflate is an extension that
+	               * validators flag and archives' guidelines do not list), in strips
+	               * of about 64 KiB: the codec restarts at every strip */
+	              TIFFSetField(tif, TIFFTAG_COMPRESSION, COMPRESSION_LZW) &&
 	              TIFFSetField(tif, TIFFTAG_PREDICTOR, PREDICTOR_HORIZONTAL) &&
-	              TIFFSetField(tif, TIFFTAG_ROWSPERSTRIP, TIFFDefaultStripSize(tif, 0)) &&
+	              TIFFSetField(tif, TIFFTAG_ROWSPERSTRIP,
+	                           TIFFDefaultStripSize(tif, (uint32_t)(65536 / (6 * (size_t)W) + 1))) &&
 	              TIFFSetField(tif, TIFFTAG_SOFTWARE, "kogei " KG_VERSION) &&
 	              TIFFSetField(tif, TIFFTAG_ICCPROFILE, (uint32_t)icc_len, icc)))
 		ret = kg_fail(err, KG_EIO, "%s: cannot set the TIFF tags", path);
+	if (!ret)
+		ret = identity_tags(tif, id, path, err);
 	kg_xyz_weights wts;
 	/* the ICC D50 (ICC.1:2010, 0.9642, 1, 0.8249): what the profile connection space
 	 * calls white; the illuminant's own white (on kogei's grid) is adapted to it */
@@ -443,7 +501,7 @@ int kg_icc_profile_bytes(kg_icc_space s, kg_icc_version v, unsigned char **buf, 
 
 int kg_master_write(const char *cube, const kg_illuminant *ill, kg_icc_space space,
                     kg_icc_version ver, const char *path, const unsigned char *lit,
-                    long *clipped, kg_err *err)
+                    const kg_tiff_identity *id, long *clipped, kg_err *err)
 {
 	if (clipped)
 		*clipped = 0;

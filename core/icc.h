@@ -53,9 +53,24 @@ int kg_icc_profile_bytes(kg_icc_space s, kg_icc_version v, unsigned char **buf, 
  * the space are clipped. Written to a temporary file and renamed. *clipped (may be
  * NULL) counts the pixels with a channel clipped among those set in lit (a bitmap,
  * pixel i = y * width + x at bit i % 8 of byte i / 8; NULL: every pixel counts). */
+typedef struct kg_tiff_identity {
+	/* ASCII tags (UTF-8 text without control characters), each written when not NULL:
+	 * ImageDescription (270), Artist (315), Copyright (33432); DateTime (306) as TIFF
+	 * writes it, "YYYY:MM:DD HH:MM:SS" (checked). */
+	const char *description, *artist, *copyright, *datetime;
+	/* The XMP packet (TIFF tag 700, XMLPacket, BYTE), xmp_len bytes, or NULL. */
+	const char *xmp;
+	size_t xmp_len;
+	/* > 0: XResolution = YResolution = pixels_per_mm x 25.4, ResolutionUnit inch (2);
+	 * else 1 and 1 with ResolutionUnit none (1): square pixels of no stated size. */
+	double pixels_per_mm;
+} kg_tiff_identity;
+
+/* id (may be NULL: no identity, resolution unit none) gives the tags that tie the
+ * master to its object. */
 int kg_master_write(const char *cube, const kg_illuminant *ill, kg_icc_space space,
                     kg_icc_version v, const char *path, const unsigned char *lit,
-                    long *clipped, kg_err *err);
+                    const kg_tiff_identity *id, long *clipped, kg_err *err);
 
 /* A camera input profile (ICC version v, class input, matrix/shaper with linear curves) from
  * n >= 3 chart patches: rgb their camera values (linear, 0..1) and xyz their XYZ

@@ -23,6 +23,8 @@ void ap_labels_json_inputs(json_t *root, const kg_classify_info *info, const cha
 	                       info ? info->materials : NULL, method};
 	for (int i = 0; i < 4; i++)
 		json_object_set_new(root, keys[i], vals[i] ? json_string(vals[i]) : json_null());
+	if (info && info->identity)
+		json_object_set_new(root, "identity", json_deep_copy(info->identity));
 }
 
 /* LABELS.json's clip levels and the image's size and pixel count. */

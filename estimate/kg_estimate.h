@@ -555,6 +555,8 @@ typedef struct kg_classify_info {
 	const char *image;     /* the input image */
 	const char *variance;  /* the variance image, if one was given */
 	const char *mask;      /* the mask, if one was given */
+	const json_t *identity; /* the object's identity (kogei process), copied into
+	                         * LABELS.json as "identity", or NULL */
 } kg_classify_info;
 
 /* How a label map refuses pixels instead of naming a wrong material.

@@ -57,7 +57,7 @@ int proc_master_check(proc *p)
 }
 
 int proc_master(proc *p, const proc_capture *c, const char *dir, const char *cube,
-                const unsigned char *lit, json_t *object)
+                const unsigned char *lit, const json_t *identity, json_t *object)
 {
 	kg_icc_space s;
 	json_t *warnings = json_object_get(object, "warnings");
@@ -82,11 +82,20 @@ int proc_master(proc *p, const proc_capture *c, const char *dir, const char *cub
 	if (!ret && !path)
 		ret = kg_fail(p->err, KG_ENOMEM, "out of memory");
 	long clipped = 0;
+	/* its identity: the TIFF tags and the XMP packet (identity.c) */
+	char *xmp = NULL, datetime[20];
+	size_t xmp_len = 0;
+	kg_tiff_identity tid;
+	if (!ret && identity)
+		ret = proc_identity_xmp(identity, &xmp, &xmp_len, p->err);
+	if (!ret)
+		proc_identity_tiff(identity, xmp, xmp_len, datetime, &tid);
 	if (!ret) {
 		proc_progress(p, "%s: master.tif (%s, %s)", c->name, kg_icc_space_description(s),
 		              ill->name);
-		ret = kg_master_write(cube, ill, s, icc_version(p), path, lit, &clipped, p->err);
+		ret = kg_master_write(cube, ill, s, icc_version(p), path, lit, &tid, &clipped, p->err);
 	}
+	free(xmp);
 	if (!ret) {
 		char rel[300];
 		snprintf(rel, sizeof(rel), "%s/master.tif", c->name);

@@ -165,7 +165,28 @@ int proc_cube_format(const proc *p, kg_est_format *format);
  * (NULL: no lit count was made, every pixel counts). */
 int proc_master_check(proc *p);
 int proc_master(proc *p, const proc_capture *c, const char *dir, const char *cube,
-                const unsigned char *lit, json_t *object);
+                const unsigned char *lit, const json_t *identity, json_t *object);
+/* An object's identity (identity.c), written into its files and process.json:
+ * {"object", "session" (the session folder's name), "session_id" (the manifest's id
+ * or null), "captured" (the capture's start or null), "record" (the run's --meta,
+ * the capture's "meta" over it, in display order), "colour_accuracy" ({"de00_mean",
+ * "de00_p90", "de00_max", "patches", "basis", "illuminant"} of the held-out patches,
+ * or null), "pixels_per_mm" (the chart's plane, or null), "pixels_per_mm_source"}.
+ * NULL when out of memory. */
+json_t *proc_identity(const proc *p, const proc_capture *c);
+/* cube.hdr's description: first, then a line "key: value" per field of the identity
+ * (text as kg_envi_put_quoted writes it). *out: caller frees. */
+int proc_identity_envi(const json_t *id, const char *first, char **out, kg_err *err);
+/* master.tif's XMP packet (Dublin Core, xmp: and the kogei namespace), wrapped and
+ * padded; *out: caller frees. */
+int proc_identity_xmp(const json_t *id, char **out, size_t *len, kg_err *err);
+/* The record's description, else its title (ImageDescription, dc:description), or
+ * NULL. */
+const char *proc_identity_description(const json_t *id);
+/* master.tif's TIFF tags from the identity and its XMP packet; datetime: the buffer
+ * DateTime is written in. */
+void proc_identity_tiff(const json_t *id, const char *xmp, size_t xmp_len, char datetime[20],
+                        kg_tiff_identity *t);
 /* OUTDIR/camera.icc (ICC input profile, matrix/shaper fitted to the chart's camera
  * values and measured spectra under D50) and camera.ti3 (ArgyllCMS colprof input),
  * recorded as calibration.camera_icc (null with a warning when not made). */

@@ -167,6 +167,8 @@ static json_t *object_key(proc *p, const proc_capture *c)
 	                 "session", json_string_value(json_object_get(p->manifest, "created"))
 	                                ? json_string_value(json_object_get(p->manifest, "created"))
 	                                : "");
+	if (key) /* what the files say of the object (identity.c) */
+		json_object_set_new(key, "identity", proc_identity(p, c));
 	if (key) /* the master's space and illuminant (master.c) */
 		json_object_set_new(json_object_get(key, "parameters"), "master",
 		                    json_pack("[ss]", p->o->master_space ? p->o->master_space : "ecirgb-v2",
@@ -756,7 +758,7 @@ static int estimate_pass(proc *p, const proc_capture *c, proc_source *src,
 static int classify_pass(proc *p, const proc_capture *c, proc_source *src, double scale,
                          const proc_image_info *info, const kg_apply_options *opt,
                          const kg_est_material_set *set, const char *labels,
-                         const char *photo, json_t *object)
+                         const char *photo, const json_t *identity, json_t *object)
 {
 	kg_err *err = p->err;
 	kg_est_kernel *kclass = NULL;
@@ -832,7 +834,7 @@ static int classify_pass(proc *p, const proc_capture *c, proc_source *src, doubl
 		kg_classify_info cinfo = {.calib = "camera.json", .materials = p->library_path,
 		                          .method = "pca", .image = c->name,
 		                          .variance = info->has_variance ? "the capture's variance" : NULL,
-		                          .mask = p->object_mask};
+		                          .mask = p->object_mask, .identity = identity};
 		o.pre = pre_needed ? pre : NULL;
 		proc_progress(p, "%s: classifying among %d materials (%s)", c->name, set->n,
 		              info->has_variance ? "noise from the capture's variance" : "noise model");
@@ -972,9 +974,13 @@ static int process_into(proc *p, const proc_capture *c, const char *dir, double 
 	char *glb = kg_path_join(dir, "object.glb");
 	char *mitsuba = kg_path_join(dir, "object_mitsuba.xml");
 	json_t *class_map = json_object();
+	/* the object's identity, into each file that carries metadata (identity.c) */
+	json_t *identity = proc_identity(p, c);
 	int ret = cube && labels && ljson && photo && conf && confpng && scene && render && glb &&
-	                  mitsuba && class_map
+	                  mitsuba && class_map && identity
 	              ? 0 : kg_fail(err, KG_ENOMEM, "out of memory");
+	if (!ret)
+		json_object_set(object, "identity", identity);
 	if (!ret)
 		ret = proc_source_open(p, c, scale, 0, &src, &info);
 	/* the mask: --mask, else the difference from a background capture */
@@ -998,8 +1004,10 @@ static int process_into(proc *p, const proc_capture *c, const char *dir, double 
 	opt.progress = p->o->progress;
 	/* full scale moves with the exposure normalisation */
 	opt.clip_level = (float)(0.999 * scale);
-	char desc[256];
-	snprintf(desc, sizeof(desc), "kogei process: reflectance of capture %s", c->name);
+	char first[256], *desc = NULL;
+	snprintf(first, sizeof(first), "kogei process: reflectance of capture %s", c->name);
+	if (!ret)
+		ret = proc_identity_envi(identity, first, &desc, err);
 	opt.description = desc;
 	kg_est_format format;
 	unsigned char *lit_bits = NULL;
@@ -1007,10 +1015,11 @@ static int process_into(proc *p, const proc_capture *c, const char *dir, double 
 		ret = estimate_pass(p, c, src, &info, &opt, format, cube, &lit_bits, object);
 	if (!ret)
 		ret = proc_master(p, c, dir, proc_cube_format(p, &format) ? cube : NULL, lit_bits,
-		                  object);
+		                  identity, object);
 	free(lit_bits);
 	if (!ret)
-		ret = classify_pass(p, c, src, scale, &info, &opt, set, labels, photo, object);
+		ret = classify_pass(p, c, src, scale, &info, &opt, set, labels, photo, identity,
+		                    object);
 	/* unknown, background, unclassified and unseen pixels are no library material:
 	 * the render shows them as a neutral grey diffuser */
 	const char *fallback = KG_SCENE_NEUTRAL_GREY;
@@ -1035,7 +1044,7 @@ static int process_into(proc *p, const proc_capture *c, const char *dir, double 
 		kg_err_prefix(err, "%s: reading %s: ", c->name, scene);
 	if (!ret) {
 		kg_gltf_options go = {.photo_png = photo, .source = c->name,
-		                      .record_dir = p->stage};
+		                      .record_dir = p->stage, .identity = identity};
 		proc_progress(p, "%s: writing object.glb", c->name);
 		if ((ret = kg_gltf_write(ks, &go, glb, err)))
 			kg_err_prefix(err, "%s: writing %s: ", c->name, glb);
@@ -1058,6 +1067,8 @@ static int process_into(proc *p, const proc_capture *c, const char *dir, double 
 		kg_err_prefix(err, "capture %s: ", c->name);
 	proc_source_free(&src);
 	json_decref(class_map);
+	json_decref(identity);
+	free(desc);
 	p->object_mask = NULL;
 	free(bgmask);
 	free(cube);

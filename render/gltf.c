@@ -572,6 +572,8 @@ static int asset_extras_new(const kg_scene *s, const kg_gltf_options *opt, const
 		json_decref(k);
 		return ret;
 	}
+	if (opt->identity)
+		json_object_set_new(k, "identity", json_deep_copy(opt->identity));
 	*out = json_pack("{s:o}", "kogei", k);
 	return *out ? 0 : kg_fail(err, KG_ENOMEM, "out of memory");
 }
@@ -736,6 +738,14 @@ int kg_gltf_write(const kg_scene *s, const kg_gltf_options *opt, const char *pat
 	json_object_set_new(g.root, "asset",
 	                    json_pack("{s:s, s:s, s:o}", "version", "2.0", "generator",
 	                              "kogei " KG_VERSION, "extras", asset_extras));
+	{ /* the record's rights, as glTF's own field for them */
+		const json_t *rights = opt && opt->identity
+		                           ? json_object_get(json_object_get(opt->identity, "record"),
+		                                             "rights")
+		                           : NULL;
+		if (json_is_string(rights))
+			json_object_set(json_object_get(g.root, "asset"), "copyright", (json_t *)rights);
+	}
 	if (json_array_size(g.ext_used))
 		json_object_set(g.root, "extensionsUsed", g.ext_used);
 	json_object_set_new(g.root, "scene", json_integer(0));

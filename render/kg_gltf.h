@@ -54,6 +54,10 @@ typedef struct kg_gltf_options {
 	 * below it (kogei process: its staging folder, so the path is the final one), or
 	 * NULL: as loaded. */
 	const char *record_dir;
+	/* The object's identity (a JSON object, kogei process's), or NULL: copied into
+	 * asset.extras.kogei.identity; its record's "rights" (identity.record.rights), when
+	 * a string, is also asset.copyright. */
+	const json_t *identity;
 } kg_gltf_options;
 
 /* Write the scene as a binary glTF 2.0 file (atomic). opt may be NULL. */

@@ -15,7 +15,7 @@ libembree-dev assimp-testmodels iproute2 util-linux strace
 chromium python3-websocket
 libraw-dev libgphoto2-dev libmicrohttpd-dev
 liblcms2-dev liblcms2-utils imagemagick
-libxml2-utils
+libxml2-utils libimage-exiftool-perl
 blender
 "
 # Node.js and npm (for the glTF validator below) from Debian unless a node and npm are

@@ -19,8 +19,8 @@ sim_session_needs() { # FLAG [MODULE]
 	kg_python "${2:-}"
 }
 
-sim_scenes() { # DIR
-	"$KOGEI" sim chart --layout cie-tcs-frame --spectra "$TCS" \
+sim_scenes() { # DIR [CHART_TRUTH.cgats: each patch's pixel position, PIXEL_X PIXEL_Y]
+	"$KOGEI" sim chart --layout cie-tcs-frame --spectra "$TCS" ${2:+--truth "$2"} \
 		--camera "$FIX/demo/site_camera.csv" --illuminant A --tilt 25 --tilt-axis 120 \
 		--rotate 5 --blur 1 --vignetting 0.1 --seed 2 --width 800 --height 600 --fov 40 \
 		--fill 0.85 --paper 0.85 --ink 0.03 --background 0.2 --white-level 0.9 \

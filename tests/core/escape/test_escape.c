@@ -245,6 +245,23 @@ static void test_envi(const char *dir)
 	      "description read back as '%s'", e && e->meta.description ? e->meta.description : "");
 	kg_envi_close(&e);
 
+	/* free text in a description: a JSON string without braces or line breaks, which
+	 * the header takes and a JSON parser reads back */
+	check_put(kg_envi_put_quoted, "ENVI quoted '%s': '%s', expected '%s'", "{a}\"\\\n\x01",
+	          "\"\\u007ba\\u007d\\\"\\\\\\n\\u0001\"");
+	for (int i = 0; i < NHOSTILE; i++) {
+		char *q = put_to_string(kg_envi_put_quoted, hostile[i]);
+		json_error_t je;
+		json_t *back = json_loads(q, JSON_DECODE_ANY, &je);
+		CHECK(kg_envi_check("d", q, 0, &err) == 0 && !strpbrk(q, "{}\r\n"), "'%s' as '%s': %s",
+		      hostile[i], q, err.msg);
+		CHECK(json_is_string(back) && !strcmp(json_string_value(back), hostile[i]),
+		      "'%s' quoted '%s' read back as '%s'", hostile[i], q,
+		      json_is_string(back) ? json_string_value(back) : je.text);
+		json_decref(back);
+		free(q);
+	}
+
 	const char *bad[2] = {"gold", "copper}"};
 	CHECK(kg_envi_write_label_map(path, 2, 2, labels, 2, bad, NULL, &err) == KG_EINVAL &&
 	          strstr(err.msg, "class name 2 'copper}': byte 7 (0x7D)"),

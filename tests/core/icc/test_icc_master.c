@@ -79,7 +79,8 @@ int main(int argc, char **argv)
 		snprintf(tif, sizeof(tif), "%s/icc_master_%s_v%d.tif", dir, kg_icc_space_name(s),
 		         (int)v);
 		long clipped = -1;
-		CHECK(kg_master_write(cube, d50, s, v, tif, NULL, &clipped, &err) == 0, "%s", err.msg);
+		CHECK(kg_master_write(cube, d50, s, v, tif, NULL, NULL, &clipped, &err) == 0, "%s",
+		      err.msg);
 		CHECK(clipped == 0, "%s: %ld pixels clipped", tif, clipped);
 		TIFF *t = TIFFOpen(tif, "r");
 		CHECK(t != NULL, "%s: cannot open", tif);
@@ -160,7 +161,7 @@ int main(int argc, char **argv)
 	wl[3] = 416;
 	snprintf(cube, sizeof(cube), "%s/icc_master_cube_off.hdr", dir);
 	CHECK(kg_envi_write(cube, &m, KG_LAYOUT_BIP, data, &err) == 0, "%s", err.msg);
-	CHECK(kg_master_write(cube, d50, KG_ICC_ECIRGB_V2, KG_ICC_V2, tif, NULL, NULL, &err) ==
+	CHECK(kg_master_write(cube, d50, KG_ICC_ECIRGB_V2, KG_ICC_V2, tif, NULL, NULL, NULL, &err) ==
 	          KG_EINVAL,
 	      "off-grid cube accepted");
 	CHECK(strstr(err.msg, "icc_master_cube") && strstr(err.msg, "expected"), "message: %s",
