@@ -261,28 +261,6 @@ static int submesh(const kg_mesh *mesh, const uint16_t *tri_mat, int mi, kg_mesh
 	return ret;
 }
 
-/* The mean radiance of an image environment over the sphere (texels weighted by
- * their solid angle), per band: what the constant emitter stands for. */
-static void env_mean(const kg_scene *s, float *out)
-{
-	double c[3] = {0, 0, 0}, wsum = 0;
-	for (int y = 0; y < s->env_height; y++) {
-		double w = sin(M_PI * (y + 0.5) / s->env_height);
-		for (int x = 0; x < s->env_width; x++) {
-			const float *t = s->env_coef + 3 * ((size_t)y * (size_t)s->env_width + (size_t)x);
-			for (int i = 0; i < 3; i++)
-				c[i] += w * t[i];
-			wsum += w;
-		}
-	}
-	for (int b = 0; b < KG_NBANDS; b++) {
-		double r = 0;
-		for (int i = 0; i < 3; i++)
-			r += c[i] / wsum * s->env_up.basis[i][b];
-		out[b] = r > 0 ? (float)(r * s->env_radiance[b]) : 0.0f;
-	}
-}
-
 static char *stem_dir(const char *xml_path)
 {
 	size_t n = strlen(xml_path);
@@ -467,7 +445,7 @@ int kg_scene_write_mitsuba(const kg_scene *s, const char *xml_path, int threads,
 		if (s->has_env) {
 			float rad[KG_NBANDS];
 			if (s->env_coef)
-				env_mean(s, rad);
+				rd_env_mean(s, rad);
 			else
 				memcpy(rad, s->env_radiance, sizeof(rad));
 			indent(fp, 1);
