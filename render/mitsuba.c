@@ -282,6 +282,14 @@ static const char *base_name(const char *p)
 
 /* The text the XML takes from input (file names, material names, in comments and
  * attributes) is text XML 1.0 can hold: refused before anything is written. */
+/* 1 when label-map class c renders as a library material of another name (a compound
+ * class "a|b" as a): its triangles join that material's shape, a comment names it. */
+static int class_renamed(const kg_scene *s, int c)
+{
+	int m = s->label.class_mat[c];
+	return m >= 0 && s->mat[m] != &s->neutral && strcmp(s->label.class_names[c], s->mat[m]->name);
+}
+
 static int check_texts(const kg_scene *s, const char *xml_path, const char *dir, kg_err *err)
 {
 	const char *names[3][2] = {{"the scene's file name", base_name(s->path)},
@@ -303,6 +311,11 @@ static int check_texts(const kg_scene *s, const char *xml_path, const char *dir,
 			ret = kg_xml_check(what, m->component[c].name, err);
 		}
 	}
+	for (int c = 0; !ret && s->assign == RD_ASSIGN_LABEL_MAP && c < s->label.nclasses; c++)
+		if (class_renamed(s, c)) {
+			snprintf(what, sizeof(what), "%s: label-map class %d: name", xml_path, c);
+			ret = kg_xml_check(what, s->label.class_names[c], err);
+		}
 	return ret;
 }
 
@@ -461,6 +474,18 @@ int kg_scene_write_mitsuba(const kg_scene *s, const char *xml_path, int threads,
 		for (int i = 0; i < s->nmat; i++)
 			if (count[i])
 				material_bsdf(fp, s->mat[i], ids[i]);
+		for (int c = 0; s->assign == RD_ASSIGN_LABEL_MAP && c < s->label.nclasses; c++) {
+			if (!class_renamed(s, c) || !count[s->label.class_mat[c]])
+				continue;
+			indent(fp, 1);
+			fputs("<!-- label-map class ", fp);
+			kg_xml_put(fp, s->label.class_names[c]);
+			fputs(strchr(s->label.class_names[c], '|')
+			          ? " (compound: the data did not tell its members apart)" : "", fp);
+			fputs(" renders as ", fp);
+			kg_xml_put(fp, s->mat[s->label.class_mat[c]]->name);
+			fputs(", in its shape -->\n", fp);
+		}
 		for (int i = 0; i < s->nmat; i++) {
 			if (!count[i])
 				continue;

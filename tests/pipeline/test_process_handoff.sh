@@ -16,7 +16,8 @@
 #     the material map and the glb, not their pixels' metal.
 # Then a compound class left unresolved: `kogei export` of a scene whose label map
 # holds "copper|shakudo" mapped to copper writes a glb material named
-# "copper|shakudo" (extras: kogei_material copper, compound true) apart from copper.
+# "copper|shakudo" (extras: kogei_material copper, compound true) apart from copper,
+# and the Mitsuba XML names the class beside copper's shape.
 # usage: test_process_handoff.sh KOGEI SOURCE_ROOT HAVE_TAGS_AND_DEMOSAIC
 set -u
 . "$(dirname "$0")/../lib.sh"
@@ -191,6 +192,17 @@ sys.exit(0 if ok else 1)
 PYEOF
 else
 	echo "FAIL: kogei export of the compound scene"
+	cat "$T/out"
+	fail=1
+fi
+# and the Mitsuba XML names it beside the material it renders as (needs Embree)
+if "$KOGEI" export --scene "$T/cscene.json" -o "$T/c.xml" >"$T/out" 2>&1; then
+	grep -q 'label-map class copper|shakudo (compound.*renders as copper' "$T/c.xml" ||
+		{ echo "FAIL: the Mitsuba XML does not name the compound class copper|shakudo"; fail=1; }
+elif grep -q "needs Embree" "$T/out"; then
+	echo "note: built without Embree: no Mitsuba XML of a label map"
+else
+	echo "FAIL: kogei export of the compound scene's Mitsuba XML"
 	cat "$T/out"
 	fail=1
 fi
