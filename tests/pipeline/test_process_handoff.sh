@@ -17,7 +17,8 @@
 # Then a compound class left unresolved: `kogei export` of a scene whose label map
 # holds "copper|shakudo" mapped to copper writes a glb material named
 # "copper|shakudo" (extras: kogei_material copper, compound true) apart from copper,
-# and the Mitsuba XML names the class beside copper's shape.
+# and the Mitsuba XML names the class beside copper's shape. The glbs pass the Khronos
+# glTF-Validator (when scripts/setup.sh installed it).
 # usage: test_process_handoff.sh KOGEI SOURCE_ROOT HAVE_TAGS_AND_DEMOSAIC
 set -u
 . "$(dirname "$0")/../lib.sh"
@@ -194,6 +195,15 @@ else
 	echo "FAIL: kogei export of the compound scene"
 	cat "$T/out"
 	fail=1
+fi
+# the glbs against the Khronos glTF-Validator, where scripts/setup.sh installed it
+if command -v node >/dev/null 2>&1 && [ -d "$ROOT/.tools/gltf-validator" ]; then
+	node "$ROOT/tests/gltf_validate.mjs" "$ROOT/.tools/gltf-validator" "$d"/out/*/object.glb \
+		"$T/c.glb"
+	rc=$?
+	[ "$rc" = 0 ] || [ "$rc" = 77 ] || { echo "FAIL: glTF-Validator (exit $rc)"; fail=1; }
+else
+	echo "note: no node or gltf-validator (scripts/setup.sh): the glbs are not validated"
 fi
 # and the Mitsuba XML names it beside the material it renders as (needs Embree)
 if "$KOGEI" export --scene "$T/cscene.json" -o "$T/c.xml" >"$T/out" 2>&1; then

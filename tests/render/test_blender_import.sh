@@ -35,6 +35,11 @@ EOT
 
 "$KOGEI" export --scene "$scene" -o "$T/object.glb" >"$T/log" 2>&1 ||
 	{ echo "FAIL: kogei export"; cat "$T/log"; exit 1; }
+if command -v node >/dev/null 2>&1 && [ -d "$SRC/.tools/gltf-validator" ]; then
+	node "$SRC/tests/gltf_validate.mjs" "$SRC/.tools/gltf-validator" "$T/object.glb"
+	rc=$?
+	[ "$rc" = 0 ] || [ "$rc" = 77 ] || { echo "FAIL: glTF-Validator (exit $rc)"; exit 1; }
+fi
 "$KOGEI" render --scene "$scene" --spp $SPP --wavelengths all --threads 2 --seed 1 --quiet \
 	-o "$T/kogei.png" --linear "$T/kogei_xyz.tif" --truth-labels "$T/kogei_labels.hdr" \
 	>"$T/log" 2>&1 || { echo "FAIL: kogei render"; cat "$T/log"; exit 1; }
