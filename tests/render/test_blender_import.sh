@@ -28,7 +28,7 @@ else
 	kg_temp
 fi
 scene=$SRC/tests/render/blender_scene.json
-SPP=32
+SPP=64
 read -r W H <<EOT
 $("$PY" -c 'import json, sys; c = json.load(open(sys.argv[1]))["camera"]; print(c["width"], c["height"])' "$scene")
 EOT
