@@ -20,7 +20,13 @@
  * A label map is projected onto the triangles as the renderer does it (each
  * triangle takes the class under its centroid seen from the map's camera, the
  * fallback where it is hidden or out of view), and the triangles are split into one
- * primitive per material. */
+ * primitive per material; a class rendered as a material of another name (a
+ * compound class "a|b" mapped to a) keeps a material of its own named after the
+ * class (extras kogei_class, compound, kogei_material).
+ * Besides the mesh: the scene's camera, its directional light (KHR_lights_punctual,
+ * in lux: KG_GLTF_LUMENS_PER_WATT) and its environment as an emissive backdrop
+ * sphere (node "kogei environment"), so that an importer that knows nothing of
+ * kogei lights the object as kogei does. */
 #ifndef KG_GLTF_H
 #define KG_GLTF_H
 
