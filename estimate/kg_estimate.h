@@ -658,6 +658,11 @@ int kg_classify_image(const kg_est_kernel *k, const kg_est_material_set *set,
  *   <stem>_regions.hdr     uint32 region number per pixel (0: none), connected
  *                          components of the classes (not written with a user map)
  *   <stem>_regions.csv     region,pixels,class,label,posterior,mean_d2: every region
+ *   <stem>_materials.hdr   ENVI Classification, uint8: per pixel the label its region
+ *                          was decided (the table's: a material, a compound class left
+ *                          unresolved, or "unknown"); pixels in no region keep their
+ *                          class. Classes: OUT's, then the materials regions resolved
+ *                          to within a compound class (not written with a user map)
  *   <stem>.json            as for classify, plus camera_space (the model, the noise
  *                          survey, the unknown bound), separability (the pairs' table),
  *                          merges, each class's members, regions (those of 100 pixels

@@ -202,18 +202,20 @@ static int write_results(cam_call *c, kg_err *err)
 	int rc, have_regions = reg->on && !reg->overflow;
 	if (have_regions) {
 		if ((rc = lc_regions_resolve(reg, err)) ||
-		    (!reg->user && (rc = lc_write_region_map(reg, &c->classes, c->out_hdr, c->reg_path,
+		    (!reg->user && (rc = lc_write_region_map(reg, c->set, &c->classes, c->run.group,
+		                                             c->out_hdr, c->reg_path, c->mat_path,
 		                                             &f->done, err))) ||
 		    (rc = lc_write_region_table(reg, c->set, &c->classes, c->run.group,
 		                                c->run.gold_range, c->csv_path, &f->done, err)))
 			return rc;
 		f->local.nregions = (int)reg->nfinal;
 	}
-	const char *files[6] = {c->out_hdr, f->conf_path, f->mask_path, f->png_path,
+	const char *files[7] = {c->out_hdr, f->conf_path, f->mask_path, f->png_path,
 	                        have_regions && !reg->user ? c->reg_path
 	                        : reg->user                ? cam->region_map_name
 	                                                   : NULL,
-	                        have_regions ? c->csv_path : NULL};
+	                        have_regions ? c->csv_path : NULL,
+	                        have_regions && !reg->user ? c->mat_path : NULL};
 	if ((rc = lc_write_json(f->json_path, c->set, &c->classes, c->run.group, cam, c->copt,
 	                        c->model, &c->sv, c->sep, c->merge_d, c->src, c->opt, c->info,
 	                        files, reg, &f->local, c->run.threshold, &c->run, err)))
@@ -238,6 +240,7 @@ static void cam_call_free(cam_call *c, int rc, kg_classify_result *res)
 	free(c->sep);
 	free(c->reg_path);
 	free(c->csv_path);
+	free(c->mat_path);
 }
 
 int kg_classify_camera_rows(const kg_est_kernel *k, const kg_est_material_set *set,
@@ -280,6 +283,7 @@ int kg_classify_camera_rows(const kg_est_kernel *k, const kg_est_material_set *s
 	if ((rc = ap_call_paths(&c->files, out_hdr, err)) ||
 	    (rc = kg_apply_side_path(out_hdr, "_regions.hdr", &c->reg_path, err)) ||
 	    (rc = kg_apply_side_path(out_hdr, "_regions.csv", &c->csv_path, err)) ||
+	    (rc = kg_apply_side_path(out_hdr, "_materials.hdr", &c->mat_path, err)) ||
 	    (rc = kg_inputs_check_output(c->csv_path, err)) || (rc = sink_alloc(c, err)) ||
 	    (rc = open_outputs(c, err)) || (rc = run_blocks(c, err)))
 		goto out;

@@ -21,7 +21,7 @@ int lc_write_json(const char *path, const kg_est_material_set *set,
                       const kg_classify_camera *cam, const kg_classify_options *copt,
                       const kg_cs_model *m, const survey_result *sv, const double *sep,
                       double merge_d, const kg_row_source *img, const kg_apply_options *opt,
-                      const kg_classify_info *info, const char *const files[6],
+                      const kg_classify_info *info, const char *const files[7],
                       const regions *reg, const kg_classify_result *res, double threshold,
                       const cam_run *run, kg_err *err)
 {
@@ -145,9 +145,9 @@ int lc_write_json(const char *path, const kg_est_material_set *set,
 	json_object_set_new(root, "merges", merges);
 
 	json_t *fs = json_object();
-	const char *fkeys[6] = {"labels", "confidence", "mask", "preview", "regions",
-	                        "regions_csv"};
-	for (int i = 0; i < 6; i++)
+	const char *fkeys[7] = {"labels", "confidence", "mask", "preview", "regions",
+	                        "regions_csv", "materials"};
+	for (int i = 0; i < 7; i++)
 		json_object_set_new(fs, fkeys[i],
 		                    files[i] ? json_string(kg_path_below(files[i], copt->record_dir))
 		                             : json_null());

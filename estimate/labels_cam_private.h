@@ -141,6 +141,7 @@ typedef struct cam_call {
 	cam_sink sink;
 	classify_call files;
 	char *reg_path, *csv_path;   /* the region map and table */
+	char *mat_path;              /* the material map (regions' decisions) */
 } cam_call;
 
 /* Stages of the call before the run (labels_cam_setup.c). */
@@ -222,15 +223,17 @@ int lc_write_json(const char *path, const kg_est_material_set *set,
                   const kg_classify_camera *cam, const kg_classify_options *copt,
                   const kg_cs_model *m, const survey_result *sv, const double *sep,
                   double merge_d, const kg_row_source *img, const kg_apply_options *opt,
-                  const kg_classify_info *info, const char *const files[6],
+                  const kg_classify_info *info, const char *const files[7],
                   const regions *reg, const kg_classify_result *res, double threshold,
                   const cam_run *run, kg_err *err);
 
 /* The region map of connected components: pass 1's runs found again in the written
- * labels, in the same order, so each gets its provisional id and its root's number. */
-int lc_write_region_map(regions *g, const kg_est_material_set *classes,
-                        const char *labels_hdr, const char *reg_hdr, written *done,
-                        kg_err *err);
+ * labels, in the same order, so each gets its provisional id and its root's number;
+ * beside it the material map (mat_hdr): each region's pixels its decided label. */
+int lc_write_region_map(regions *g, const kg_est_material_set *set,
+                        const kg_est_material_set *classes, const int *group,
+                        const char *labels_hdr, const char *reg_hdr, const char *mat_hdr,
+                        written *done, kg_err *err);
 
 /* The table of every region (CSV). */
 int lc_write_region_table(const regions *g, const kg_est_material_set *set,

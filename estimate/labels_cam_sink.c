@@ -79,9 +79,55 @@ int lc_cam_sink_fn(void *user, const kg_est_block *b, kg_err *err)
 
 /* The region map of connected components: pass 1's runs found again in the written
  * labels, in the same order, so each gets its provisional id and its root's number. */
-int lc_write_region_map(regions *g, const kg_est_material_set *classes,
-                            const char *labels_hdr, const char *reg_hdr, written *done,
-                            kg_err *err)
+/* The material map's classes: the label map's (0 unclassified, the classes, unknown,
+ * background), then the materials regions resolved to that are no class of their own
+ * (a member of a compound class). *mat_of[f]: region f's label in that list. */
+typedef struct mat_classes {
+	int n;
+	const char *names[256];
+	unsigned char lookup[3 * 256];
+	uint16_t *of; /* [nfinal + 1] */
+} mat_classes;
+
+static int material_classes(regions *g, const kg_est_material_set *set,
+                            const kg_est_material_set *classes, const int *group,
+                            const char *mat_hdr, mat_classes *mc, kg_err *err)
+{
+	const int nlab = classes->n + 3;
+	mc->n = nlab;
+	for (int l = 0; l < nlab; l++) {
+		mc->names[l] = ap_label_name(classes, l);
+		ap_label_colour(classes, l, mc->lookup + 3 * l);
+	}
+	if (!(mc->of = calloc((size_t)g->nfinal + 1, sizeof(uint16_t))))
+		return kg_fail(err, KG_ENOMEM, "out of memory");
+	for (uint32_t id = 0; id < g->n; id++) {
+		uint32_t f = g->final[id];
+		if (!f)
+			continue;
+		region_decision d = lc_decide(g, id, group, classes->n);
+		const char *name = lc_region_label(&d, set, classes);
+		int l = -1;
+		for (int k = 0; k < mc->n && l < 0; k++)
+			if (!strcmp(mc->names[k], name))
+				l = k;
+		if (l < 0) {
+			if (mc->n >= 256)
+				return kg_fail(err, KG_EINVAL, "%s: the regions resolve to more materials "
+				               "than a label map holds (256 classes)", mat_hdr);
+			l = mc->n++;
+			mc->names[l] = name;
+			ap_class_colour(d.material >= 0 ? d.material : l, mc->lookup + 3 * l);
+		}
+		mc->of[f] = (uint16_t)l;
+	}
+	return 0;
+}
+
+int lc_write_region_map(regions *g, const kg_est_material_set *set,
+                        const kg_est_material_set *classes, const int *group,
+                        const char *labels_hdr, const char *reg_hdr, const char *mat_hdr,
+                        written *done, kg_err *err)
 {
 	const int W = g->width;
 	kg_envi *el = NULL;
@@ -94,13 +140,28 @@ int lc_write_region_map(regions *g, const kg_est_material_set *classes,
 	                              "kogei classify regions: region number per pixel (0: "
 	                              "none), as in the regions table");
 	float *lab = malloc(sizeof(float) * W), *out = malloc(sizeof(float) * W);
+	float *mout = malloc(sizeof(float) * W);
 	uint8_t *lab8 = malloc((size_t)W);
 	run_seg *a = malloc(sizeof(run_seg) * ((size_t)W + 1));
 	run_seg *b = malloc(sizeof(run_seg) * ((size_t)W + 1));
-	if (!lab || !out || !lab8 || !a || !b)
+	mat_classes mc = {0};
+	kg_envi_writer *mw = NULL;
+	if (!lab || !out || !mout || !lab8 || !a || !b)
 		rc = kg_fail(err, KG_ENOMEM, "out of memory");
 	if (!rc)
+		rc = material_classes(g, set, classes, group, mat_hdr, &mc, err);
+	if (!rc)
 		rc = kg_envi_writer_open(reg_hdr, &m, &w, err);
+	if (!rc) {
+		kg_envi_meta mm = ap_envi_meta(W, H, 1, KG_ENVI_U8, KG_ENVI_BSQ,
+		                               "kogei classify materials: per pixel the material its "
+		                               "region was decided (the regions table's label); "
+		                               "pixels in no region keep their class");
+		mm.classes = mc.n;
+		mm.class_names = mc.names;
+		mm.class_lookup = mc.lookup;
+		rc = kg_envi_writer_open(mat_hdr, &mm, &mw, err);
+	}
 	uint32_t saved_n = g->n;
 	g->n = 0;
 	int na = 0;
@@ -113,12 +174,16 @@ int lc_write_region_map(regions *g, const kg_est_material_set *classes,
 		{
 			int nb = lc_row_runs(lab8, W, classes->n, b);
 			lc_link_rows(g, b, nb, a, na, 0);
-			for (int x = 0; x < W; x++)
+			for (int x = 0; x < W; x++) {
 				out[x] = 0;
+				mout[x] = lab[x];
+			}
 			for (int i = 0; i < nb; i++) {
-				float f = (float)g->final[lc_find_root(g->parent, b[i].id)];
-				for (int x = b[i].x0; x <= b[i].x1; x++)
-					out[x] = f;
+				uint32_t f = g->final[lc_find_root(g->parent, b[i].id)];
+				for (int x = b[i].x0; x <= b[i].x1; x++) {
+					out[x] = (float)f;
+					mout[x] = (float)mc.of[f];
+				}
 			}
 			run_seg *t = a;
 			a = b;
@@ -126,21 +191,32 @@ int lc_write_region_map(regions *g, const kg_est_material_set *classes,
 			na = nb;
 		}
 		rc = kg_envi_writer_put(w, y, y + 1, KG_LAYOUT_BIP, out, err);
+		if (!rc)
+			rc = kg_envi_writer_put(mw, y, y + 1, KG_LAYOUT_BIP, mout, err);
 	}
 	g->n = saved_n;
 	kg_envi_close(&el);
 	free(lab);
 	free(out);
+	free(mout);
 	free(lab8);
 	free(a);
 	free(b);
+	free(mc.of);
 	if (!rc) {
 		rc = kg_envi_writer_finish(&w, err);
 		if (!rc)
 			ap_written_add_envi(done, reg_hdr);
-	} else if (w) {
-		kg_envi_writer_abort(&w);
 	}
+	if (!rc) {
+		rc = kg_envi_writer_finish(&mw, err);
+		if (!rc)
+			ap_written_add_envi(done, mat_hdr);
+	}
+	if (w)
+		kg_envi_writer_abort(&w);
+	if (mw)
+		kg_envi_writer_abort(&mw);
 	return rc;
 }
 

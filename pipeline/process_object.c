@@ -1035,8 +1035,20 @@ static int process_into(proc *p, const proc_capture *c, const char *dir, double 
 	}
 	if (!ret)
 		ret = confidence_png(conf, confpng, 1200, err);
+	/* the handoff's materials: each region's decision (classify's material map, written
+	 * where regions were formed), else the pixels' classes */
+	const char *mapfile = "labels.hdr";
+	if (!ret) {
+		char *mm = kg_path_join(dir, "labels_materials.hdr");
+		struct stat st;
+		if (!mm)
+			ret = kg_fail(err, KG_ENOMEM, "out of memory");
+		else if (stat(mm, &st) == 0)
+			mapfile = "labels_materials.hdr";
+		free(mm);
+	}
 	if (!ret)
-		ret = proc_scene_write(p, scene, "labels.hdr", info.width, info.height, class_map,
+		ret = proc_scene_write(p, scene, mapfile, info.width, info.height, class_map,
 		                       fallback, object);
 	/* the scene as binary glTF 2.0 (render/kg_gltf.h), the photograph beside it */
 	kg_scene *ks = NULL;

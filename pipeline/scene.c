@@ -181,15 +181,20 @@ int proc_scene_write(proc *p, const char *path, const char *labels_file, int wid
 	json_t *render_camera = json_deep_copy(camera);
 	json_object_set_new(render_camera, "width", json_integer(rw));
 	json_object_set_new(render_camera, "height", json_integer(rh));
-	char note[1024];
+	char note[2048];
+	int regions = strcmp(labels_file, "labels.hdr") != 0;
 	snprintf(note, sizeof(note),
-	         "kogei process: %s's label map projected from the chart capture %s's camera pose "
+	         "kogei process: %s's %s projected from the chart capture %s's camera pose "
 	         "(%s focal length %.0f px); the object is taken to lie in the chart's plane "
-	         "(%s). Pixels labelled unknown or background, unclassified pixels and what "
-	         "the map does not see are no library material: they render as %s, a "
-	         "Lambertian grey of reflectance %.2f. Units: metres, the chart's frame.",
-	         json_string_value(json_object_get(object, "capture")), p->chart->name,
-	         ps.f_measured ? "measured" : "assumed", ps.f,
+	         "(%s). A compound class (a|b) renders as its first member. Pixels labelled "
+	         "unknown or background, unclassified pixels and what the map does not see are "
+	         "no library material: they render as %s, a Lambertian grey of reflectance "
+	         "%.2f. Units: metres, the chart's frame.",
+	         json_string_value(json_object_get(object, "capture")),
+	         regions ? "material map (each label-map region's decided material; the pixels' "
+	                   "classes are labels.hdr)"
+	                 : "label map (the pixels' classes: no regions were formed)",
+	         p->chart->name, ps.f_measured ? "measured" : "assumed", ps.f,
 	         p->o->mesh ? "the mesh given, in that frame" : "a plane", fallback,
 	         KG_SCENE_NEUTRAL_GREY_LEVEL);
 	json_t *classes = json_deep_copy(class_map);

@@ -161,23 +161,38 @@ static const char *kind_name(kg_material_kind k)
 	return k == KG_MATERIAL_METAL ? "metal" : k == KG_MATERIAL_ALLOY ? "alloy" : "dielectric";
 }
 
-/* A library material as a glTF material. */
-static int add_library_material(doc *g, const kg_material *m, kg_err *err)
+/* A library material as a glTF material, named after the material, or after the
+ * label-map class `cls` it stands for (a compound class "a|b" rendered as a): then
+ * extras.kogei_material names the material rendered and extras.kogei_class the class. */
+static int add_library_material(doc *g, const kg_material *m, const char *cls, kg_err *err)
 {
 	kg_gltf_pbr pbr;
 	int ret = kg_gltf_material_pbr(m, &pbr, err);
 	if (ret)
 		return ret;
-	char what[KG_MATERIAL_NAME_MAX + 64];
+	char what[2 * KG_MATERIAL_NAME_MAX + 64];
 	snprintf(what, sizeof(what), "material '%s': name", m->name);
-	json_t *name = kg_json_text(what, m->name, err);
-	if (!name)
+	json_t *mname = kg_json_text(what, m->name, err);
+	if (!mname)
 		return KG_EINVAL;
+	json_t *name = mname;
+	if (cls) {
+		snprintf(what, sizeof(what), "label-map class '%s': name", cls);
+		if (!(name = kg_json_text(what, cls, err))) {
+			json_decref(mname);
+			return KG_EINVAL;
+		}
+	}
 	json_t *extras = json_pack("{s:O, s:s, s:f, s:f, s:f, s:f, s:f, s:b}", "kogei_material",
-	                           name, "kind", kind_name(m->kind), "gloss", m->gloss,
+	                           mname, "kind", kind_name(m->kind), "gloss", m->gloss,
 	                           "mirror", m->mirror, "beckmann_slope", m->roughness,
 	                           "mirror_width_rad", m->mirror_width, "alpha", pbr.alpha,
 	                           "base_color_clipped", pbr.clipped);
+	if (cls) {
+		json_object_set(extras, "kogei_class", name);
+		json_object_set_new(extras, "compound", json_boolean(strchr(cls, '|') != NULL));
+		json_decref(mname);
+	}
 	json_t *mat = json_pack("{s:o, s:{s:o, s:f, s:f}, s:o}", "name", name,
 	                        "pbrMetallicRoughness", "baseColorFactor", rgba(pbr.base_color),
 	                        "metallicFactor", pbr.metallic, "roughnessFactor", pbr.roughness,
@@ -254,6 +269,27 @@ static int label_slot(const kg_scene *s, int mat, const char *name)
 	return s->nmat + NEUTRAL_UNKNOWN;
 }
 
+/* A label-map class mapped to a library material of another name (a compound class
+ * "a|b" rendered as a) keeps its own glTF material, named after the class: slot
+ * s->nmat + NEUTRAL_COUNT + class. */
+static int class_named_apart(const kg_scene *s, int c)
+{
+	const rd_label_map *lm = &s->label;
+	int m = lm->class_mat[c];
+	return m >= 0 && s->mat[m] != &s->neutral && strcmp(lm->class_names[c], s->mat[m]->name);
+}
+
+/* The slot of label-map class c. */
+static int class_slot(const kg_scene *s, int c)
+{
+	const rd_label_map *lm = &s->label;
+	if (class_named_apart(s, c))
+		return s->nmat + NEUTRAL_COUNT + c;
+	/* a class mapped to the neutral grey keeps its name (unknown, background) */
+	return label_slot(s, lm->class_mat[c] >= 0 ? lm->class_mat[c] : lm->fallback,
+	                  c ? lm->class_names[c] : NULL);
+}
+
 /* Per triangle, its slot (0 .. s->nmat + NEUTRAL_COUNT - 1). */
 static int triangle_slots(const kg_scene *s, int *slot, kg_err *err)
 {
@@ -280,9 +316,7 @@ static int triangle_slots(const kg_scene *s, int *slot, kg_err *err)
 			if (project(&lm->view, &f, p, &px, &py) && px >= 0.0 && px < lm->width &&
 			    py >= 0.0 && py < lm->height) {
 				int label = lm->labels[(size_t)py * (size_t)lm->width + (size_t)px];
-				sl = label_slot(s, lm->class_mat[label] >= 0 ? lm->class_mat[label]
-				                                             : lm->fallback,
-				                lm->class_mat[label] >= 0 ? NULL : lm->class_names[label]);
+				sl = class_slot(s, label);
 			}
 			slot[t] = sl;
 			break;
@@ -445,9 +479,12 @@ static void add_camera(doc *g, const kg_scene *s)
 }
 
 /* The directional light (KHR_lights_punctual, shining down its local -z): its colour the
- * illuminant's in linear sRGB (D65 white = 1, 1, 1), its intensity such that a white
- * diffuser it lights head-on has the luminance kogei gives it (Y = intensity), with
- * glTF's Lambertian BRDF 1 / pi: intensity = pi x kogei's intensity / Y(colour). */
+ * illuminant's in linear sRGB (D65 white = 1, 1, 1), its intensity in lux (glTF's unit
+ * for directional lights) such that a white diffuser it lights head-on has the
+ * luminance kogei gives it, Y = kogei's intensity, with kogei's image scale Y = 1 taken
+ * as KG_GLTF_LUMENS_PER_WATT cd/m^2 (scene-linear 1 in Blender and in its glTF
+ * importer's standard lighting mode) and glTF's Lambertian BRDF 1 / pi:
+ * intensity = 683 x pi x kogei's intensity / Y(colour) lux. */
 static void add_light(doc *g, const kg_scene *s, kg_err *err)
 {
 	kg_illuminant *d65 = NULL;
@@ -476,11 +513,136 @@ static void add_light(doc *g, const kg_scene *s, kg_err *err)
 	                    json_pack("{s:{s:[{s:s, s:s, s:[fff], s:f}]}}", "KHR_lights_punctual",
 	                              "lights", "name", "kogei light", "type", "directional", "color",
 	                              col[0], col[1], col[2], "intensity",
-	                              M_PI * s->sun_intensity / lum));
+	                              KG_GLTF_LUMENS_PER_WATT * M_PI * s->sun_intensity / lum));
 	json_array_append_new(g->nodes, json_pack("{s:s, s:[ffff], s:{s:{s:i}}}", "name",
 	                                          "kogei light", "rotation", q[0], q[1], q[2], q[3],
 	                                          "extensions", "KHR_lights_punctual", "light", 0));
 	use_extension(g, "KHR_lights_punctual");
+}
+
+/* The environment as an emissive backdrop (node and mesh "kogei environment"): a
+ * sphere about the object, the photograph and the camera (4 times the farthest of them
+ * from the object's centre), facing in, that emits the environment's radiance and lets
+ * light through. glTF has no environment light; an importer that knows none of kogei's
+ * extras (Blender's File > Import) still lights the object with it. Its material:
+ * black base colour, no specular reflection, alphaMode BLEND with coverage
+ * KG_GLTF_BACKDROP_ALPHA, emissiveFactor the colour (linear sRGB, brightest channel 1)
+ * and KHR_materials_emissive_strength such that coverage x emission = the radiance on
+ * the light's scale (scene-linear 1 = Y 1 on kogei's image scale): a renderer that
+ * treats alpha as coverage (glTF's meaning; Cycles' transparent shadows) sees the
+ * environment's radiance from every direction and the directional light through it at
+ * 1 - KG_GLTF_BACKDROP_ALPHA of its intensity. An image environment is replaced by its
+ * mean radiance. */
+static int add_environment(doc *g, const kg_scene *s, const float lo[3], const float hi[3],
+                           double photo_dx, kg_err *err)
+{
+	if (!s->has_env)
+		return 0;
+	float rad[KG_NBANDS];
+	if (s->env_coef)
+		rd_env_mean(s, rad);
+	else
+		memcpy(rad, s->env_radiance, sizeof(rad));
+	double xyz[3] = {0, 0, 0};
+	for (int c = 0; c < 3; c++)
+		for (int b = 0; b < KG_NBANDS; b++)
+			xyz[c] += (double)s->xyz_w[c][b] * rad[b];
+	kg_illuminant *d65 = NULL;
+	int ret = kg_illuminant_by_name("D65", &d65, err);
+	if (ret)
+		return ret;
+	kg_rgb c = kg_xyz_to_linear_srgb((kg_xyz){100.0 * xyz[0], 100.0 * xyz[1], 100.0 * xyz[2]},
+	                                 kg_illuminant_white(d65));
+	kg_illuminant_free(&d65);
+	double rgb[3] = {fmax(0, c.r), fmax(0, c.g), fmax(0, c.b)};
+	double mx = fmax(rgb[0], fmax(rgb[1], rgb[2]));
+	if (!(mx > 0) || !isfinite(mx))
+		return 0; /* a black environment: nothing to carry */
+	/* the centre and radius, in glTF's frame */
+	double ctr[3], r2 = 0, cam[3];
+	for (int i = 0; i < 3; i++)
+		ctr[i] = 0.5 * ((double)lo[i] + (double)hi[i]);
+	vec_gltf(s->view.pos, cam);
+	for (int k = 0; k < 17; k++) {
+		double p[3];
+		for (int i = 0; i < 3; i++)
+			p[i] = k == 16 ? cam[i] : (k >> i & 1) ? hi[i] : lo[i];
+		if (k >= 8 && k < 16)
+			p[0] += photo_dx;
+		double d2 = 0;
+		for (int i = 0; i < 3; i++)
+			d2 += (p[i] - ctr[i]) * (p[i] - ctr[i]);
+		r2 = fmax(r2, d2);
+	}
+	double R = 4.0 * sqrt(r2);
+	if (!(R > 0) || !isfinite(R))
+		return 0;
+	/* a UV sphere, its triangles wound to face the centre */
+	enum { RINGS = 16, SEGS = 32 };
+	float pos[(RINGS + 1) * (SEGS + 1) * 3], nrm[(RINGS + 1) * (SEGS + 1) * 3];
+	uint32_t idx[RINGS * SEGS * 6];
+	float plo[3] = {INFINITY, INFINITY, INFINITY}, phi[3] = {-INFINITY, -INFINITY, -INFINITY};
+	int nv = 0, ni = 0;
+	for (int r = 0; r <= RINGS; r++)
+		for (int k = 0; k <= SEGS; k++, nv++) {
+			double th = M_PI * r / RINGS, ph = 2 * M_PI * k / SEGS;
+			double u[3] = {sin(th) * cos(ph), cos(th), -sin(th) * sin(ph)};
+			for (int i = 0; i < 3; i++) {
+				pos[3 * nv + i] = (float)(ctr[i] + R * u[i]);
+				nrm[3 * nv + i] = (float)-u[i];
+				plo[i] = fminf(plo[i], pos[3 * nv + i]);
+				phi[i] = fmaxf(phi[i], pos[3 * nv + i]);
+			}
+		}
+	for (int r = 0; r < RINGS; r++)
+		for (int k = 0; k < SEGS; k++) {
+			uint32_t a = (uint32_t)(r * (SEGS + 1) + k), b = a + SEGS + 1;
+			/* seen from inside: a, a+1, b counter-clockwise */
+			if (r > 0) {
+				idx[ni++] = a, idx[ni++] = a + 1, idx[ni++] = b;
+			}
+			if (r < RINGS - 1) {
+				idx[ni++] = a + 1, idx[ni++] = b + 1, idx[ni++] = b;
+			}
+		}
+	int v_pos = add_view(g, pos, sizeof(float) * 3 * (size_t)nv, GL_ARRAY_BUFFER);
+	int v_nrm = add_view(g, nrm, sizeof(float) * 3 * (size_t)nv, GL_ARRAY_BUFFER);
+	int v_idx = add_view(g, idx, sizeof(uint32_t) * (size_t)ni, GL_ELEMENT_ARRAY_BUFFER);
+	int a_pos = add_accessor(g, v_pos, 0, GL_FLOAT, (size_t)nv, "VEC3");
+	json_object_set_new(json_array_get(g->accessors, (size_t)a_pos), "min",
+	                    json_pack("[fff]", (double)plo[0], (double)plo[1], (double)plo[2]));
+	json_object_set_new(json_array_get(g->accessors, (size_t)a_pos), "max",
+	                    json_pack("[fff]", (double)phi[0], (double)phi[1], (double)phi[2]));
+	int a_nrm = add_accessor(g, v_nrm, 0, GL_FLOAT, (size_t)nv, "VEC3");
+	int a_idx = add_accessor(g, v_idx, 0, GL_UNSIGNED_INT, (size_t)ni, "SCALAR");
+	double black[3] = {0, 0, 0};
+	json_t *base = rgba(black);
+	json_array_set_new(base, 3, json_real(KG_GLTF_BACKDROP_ALPHA));
+	int m = (int)json_array_size(g->materials);
+	json_array_append_new(
+		g->materials,
+		json_pack("{s:s, s:{s:o, s:f, s:f}, s:[fff], s:s, s:b, s:{s:{s:f}, s:{s:f}}, "
+		          "s:{s:s, s:f, s:f, s:[fff]}}",
+		          "name", "kogei environment", "pbrMetallicRoughness", "baseColorFactor", base,
+		          "metallicFactor", 0.0, "roughnessFactor", 1.0, "emissiveFactor",
+		          rgb[0] / mx, rgb[1] / mx, rgb[2] / mx, "alphaMode", "BLEND", "doubleSided", 1,
+		          "extensions", "KHR_materials_emissive_strength", "emissiveStrength",
+		          mx / KG_GLTF_BACKDROP_ALPHA, "KHR_materials_specular", "specularFactor", 0.0,
+		          "extras", "kogei_material",
+		          "none: the environment as an emissive backdrop (radiance = coverage x "
+		          "emission)", "coverage", KG_GLTF_BACKDROP_ALPHA, "luminance", xyz[1],
+		          "linear_srgb", rgb[0], rgb[1], rgb[2]));
+	use_extension(g, "KHR_materials_emissive_strength");
+	use_extension(g, "KHR_materials_specular");
+	json_array_append_new(g->meshes,
+	                      json_pack("{s:s, s:[{s:{s:i, s:i}, s:i, s:i, s:i}]}", "name",
+	                                "kogei environment", "primitives", "attributes", "POSITION",
+	                                a_pos, "NORMAL", a_nrm, "indices", a_idx, "material", m,
+	                                "mode", 4));
+	json_array_append_new(g->nodes,
+	                      json_pack("{s:s, s:i}", "name", "kogei environment", "mesh",
+	                                (int)json_array_size(g->meshes) - 1));
+	return 0;
 }
 
 /* ---- the file ---------------------------------------------------------------------- */
@@ -592,7 +754,8 @@ int kg_gltf_write(const kg_scene *s, const kg_gltf_options *opt, const char *pat
 	if (mesh->nverts > UINT32_MAX)
 		return kg_fail(err, KG_EINVAL, "%s: %zu vertices: glTF indices hold at most %u",
 		               s->path, mesh->nverts, UINT32_MAX);
-	int nslots = s->nmat + NEUTRAL_COUNT;
+	int nslots = s->nmat + NEUTRAL_COUNT +
+	             (s->assign == RD_ASSIGN_LABEL_MAP ? s->label.nclasses : 0);
 	doc g = {0};
 	int *slot = malloc(sizeof(int) * mesh->ntris);
 	size_t *count = calloc((size_t)nslots, sizeof(size_t));
@@ -671,9 +834,14 @@ int kg_gltf_write(const kg_scene *s, const kg_gltf_options *opt, const char *pat
 		                         3 * count[k], "SCALAR");
 		int m = (int)json_array_size(g.materials);
 		if (k < s->nmat)
-			ret = add_library_material(&g, s->mat[k], err);
-		else
+			ret = add_library_material(&g, s->mat[k], NULL, err);
+		else if (k < s->nmat + NEUTRAL_COUNT)
 			add_neutral_material(&g, neutral_names[k - s->nmat]);
+		else {
+			int c = k - s->nmat - NEUTRAL_COUNT;
+			ret = add_library_material(&g, s->mat[s->label.class_mat[c]],
+			                           s->label.class_names[c], err);
+		}
 		json_array_append_new(prims, json_pack("{s:{s:i, s:i}, s:i, s:i, s:i}", "attributes",
 		                                       "POSITION", a_pos, "NORMAL", a_nrm, "indices",
 		                                       a_idx, "material", m, "mode", 4));
@@ -723,6 +891,8 @@ int kg_gltf_write(const kg_scene *s, const kg_gltf_options *opt, const char *pat
 	if (!ret) {
 		add_camera(&g, s);
 		add_light(&g, s, err);
+		ret = add_environment(&g, s, lo, hi, png ? 1.1 * ((double)hi[0] - (double)lo[0]) : 0.0,
+		                      err);
 	}
 	if (!ret && g.bin.oom)
 		ret = kg_fail(err, KG_ENOMEM, "out of memory");

@@ -20,7 +20,13 @@
  * A label map is projected onto the triangles as the renderer does it (each
  * triangle takes the class under its centroid seen from the map's camera, the
  * fallback where it is hidden or out of view), and the triangles are split into one
- * primitive per material. */
+ * primitive per material; a class rendered as a material of another name (a
+ * compound class "a|b" mapped to a) keeps a material of its own named after the
+ * class (extras kogei_class, compound, kogei_material).
+ * Besides the mesh: the scene's camera, its directional light (KHR_lights_punctual,
+ * in lux: KG_GLTF_LUMENS_PER_WATT) and its environment as an emissive backdrop
+ * sphere (node "kogei environment"), so that an importer that knows nothing of
+ * kogei lights the object as kogei does. */
 #ifndef KG_GLTF_H
 #define KG_GLTF_H
 
@@ -39,6 +45,16 @@ typedef struct kg_gltf_pbr {
 } kg_gltf_pbr;
 
 int kg_gltf_material_pbr(const kg_material *m, kg_gltf_pbr *out, kg_err *err);
+
+/* Photometric scale of the lights: kogei's image scale Y = 1 (a white diffuser lit
+ * by a light of intensity 1) is taken as this many cd/m^2, the luminous efficacy
+ * (lm/W) by which Blender's glTF importer and exporter convert lux to W/m^2 in their
+ * standard lighting mode, so scene-linear 1 there is Y = 1 here. The directional
+ * light's intensity is in lux: 683 pi x kogei's intensity / Y(colour). */
+#define KG_GLTF_LUMENS_PER_WATT 683.0
+/* The environment's backdrop sphere: its coverage (alpha); the directional light passes
+ * it at 1 - this. */
+#define KG_GLTF_BACKDROP_ALPHA 0.001
 
 /* The neutral grey's linear reflectance (the "unknown" and "background" materials). */
 #define KG_GLTF_NEUTRAL_LEVEL KG_SCENE_NEUTRAL_GREY_LEVEL

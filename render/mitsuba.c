@@ -261,28 +261,6 @@ static int submesh(const kg_mesh *mesh, const uint16_t *tri_mat, int mi, kg_mesh
 	return ret;
 }
 
-/* The mean radiance of an image environment over the sphere (texels weighted by
- * their solid angle), per band: what the constant emitter stands for. */
-static void env_mean(const kg_scene *s, float *out)
-{
-	double c[3] = {0, 0, 0}, wsum = 0;
-	for (int y = 0; y < s->env_height; y++) {
-		double w = sin(M_PI * (y + 0.5) / s->env_height);
-		for (int x = 0; x < s->env_width; x++) {
-			const float *t = s->env_coef + 3 * ((size_t)y * (size_t)s->env_width + (size_t)x);
-			for (int i = 0; i < 3; i++)
-				c[i] += w * t[i];
-			wsum += w;
-		}
-	}
-	for (int b = 0; b < KG_NBANDS; b++) {
-		double r = 0;
-		for (int i = 0; i < 3; i++)
-			r += c[i] / wsum * s->env_up.basis[i][b];
-		out[b] = r > 0 ? (float)(r * s->env_radiance[b]) : 0.0f;
-	}
-}
-
 static char *stem_dir(const char *xml_path)
 {
 	size_t n = strlen(xml_path);
@@ -304,6 +282,14 @@ static const char *base_name(const char *p)
 
 /* The text the XML takes from input (file names, material names, in comments and
  * attributes) is text XML 1.0 can hold: refused before anything is written. */
+/* 1 when label-map class c renders as a library material of another name (a compound
+ * class "a|b" as a): its triangles join that material's shape, a comment names it. */
+static int class_renamed(const kg_scene *s, int c)
+{
+	int m = s->label.class_mat[c];
+	return m >= 0 && s->mat[m] != &s->neutral && strcmp(s->label.class_names[c], s->mat[m]->name);
+}
+
 static int check_texts(const kg_scene *s, const char *xml_path, const char *dir, kg_err *err)
 {
 	const char *names[3][2] = {{"the scene's file name", base_name(s->path)},
@@ -325,6 +311,11 @@ static int check_texts(const kg_scene *s, const char *xml_path, const char *dir,
 			ret = kg_xml_check(what, m->component[c].name, err);
 		}
 	}
+	for (int c = 0; !ret && s->assign == RD_ASSIGN_LABEL_MAP && c < s->label.nclasses; c++)
+		if (class_renamed(s, c)) {
+			snprintf(what, sizeof(what), "%s: label-map class %d: name", xml_path, c);
+			ret = kg_xml_check(what, s->label.class_names[c], err);
+		}
 	return ret;
 }
 
@@ -467,7 +458,7 @@ int kg_scene_write_mitsuba(const kg_scene *s, const char *xml_path, int threads,
 		if (s->has_env) {
 			float rad[KG_NBANDS];
 			if (s->env_coef)
-				env_mean(s, rad);
+				rd_env_mean(s, rad);
 			else
 				memcpy(rad, s->env_radiance, sizeof(rad));
 			indent(fp, 1);
@@ -483,6 +474,18 @@ int kg_scene_write_mitsuba(const kg_scene *s, const char *xml_path, int threads,
 		for (int i = 0; i < s->nmat; i++)
 			if (count[i])
 				material_bsdf(fp, s->mat[i], ids[i]);
+		for (int c = 0; s->assign == RD_ASSIGN_LABEL_MAP && c < s->label.nclasses; c++) {
+			if (!class_renamed(s, c) || !count[s->label.class_mat[c]])
+				continue;
+			indent(fp, 1);
+			fputs("<!-- label-map class ", fp);
+			kg_xml_put(fp, s->label.class_names[c]);
+			fputs(strchr(s->label.class_names[c], '|')
+			          ? " (compound: the data did not tell its members apart)" : "", fp);
+			fputs(" renders as ", fp);
+			kg_xml_put(fp, s->mat[s->label.class_mat[c]]->name);
+			fputs(", in its shape -->\n", fp);
+		}
 		for (int i = 0; i < s->nmat; i++) {
 			if (!count[i])
 				continue;

@@ -146,6 +146,10 @@ int rd_scene_material_index(kg_scene *s, const char *name, const char *field,
  * the renderer projects it (this needs Embree: without it a label-map scene fails with
  * KG_ENOTSUP). *out: ntris entries, newly allocated (NULL for an empty mesh). */
 int rd_scene_triangle_materials(const kg_scene *s, int threads, uint16_t **out, kg_err *err);
+/* The mean radiance of the scene's image environment over the sphere (texels weighted
+ * by their solid angle), per band (KG_NBANDS): what a uniform stand-in emits (the
+ * Mitsuba scene's constant emitter, the glTF backdrop). */
+void rd_env_mean(const kg_scene *s, float *out);
 /* The same without a label map (render.c's and render_none.c's common part). */
 int rd_scene_triangle_materials_plain(const kg_scene *s, uint16_t **out, kg_err *err);
 

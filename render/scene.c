@@ -1017,3 +1017,25 @@ int rd_scene_triangle_materials_plain(const kg_scene *s, uint16_t **out, kg_err 
 		memset(*out, 0, sizeof(uint16_t) * n);
 	return 0;
 }
+
+/* The mean radiance of an image environment over the sphere (texels weighted by
+ * their solid angle), per band: what the constant emitter stands for. */
+void rd_env_mean(const kg_scene *s, float *out)
+{
+	double c[3] = {0, 0, 0}, wsum = 0;
+	for (int y = 0; y < s->env_height; y++) {
+		double w = sin(M_PI * (y + 0.5) / s->env_height);
+		for (int x = 0; x < s->env_width; x++) {
+			const float *t = s->env_coef + 3 * ((size_t)y * (size_t)s->env_width + (size_t)x);
+			for (int i = 0; i < 3; i++)
+				c[i] += w * t[i];
+			wsum += w;
+		}
+	}
+	for (int b = 0; b < KG_NBANDS; b++) {
+		double r = 0;
+		for (int i = 0; i < 3; i++)
+			r += c[i] / wsum * s->env_up.basis[i][b];
+		out[b] = r > 0 ? (float)(r * s->env_radiance[b]) : 0.0f;
+	}
+}

@@ -17,7 +17,8 @@ Units are kogei's image scale (Y = 1 for a white diffuser lit at intensity 1):
     (a point-like sun, as kogei's directional light);
   - Cycles: box pixel filter 1 px (kogei jitters uniformly in the pixel), 4 bounces
     (kogei's default), no denoising, no clamping.
-The glb's own camera and lights are removed. The scene must be in kogei's frame
+The glb's own camera, light and environment backdrop (the node "kogei environment")
+are removed (tests/render/blender_import.py renders with them instead). The scene must be in kogei's frame
 (+z up): the glTF importer turns glTF's +y up back into Blender's +z up.
 
 --raw: the render in linear scene-referred Rec. 709 RGB and alpha, float32, rows from
@@ -80,7 +81,7 @@ def main():
     bpy.ops.object.delete()
     bpy.ops.import_scene.gltf(filepath=opt["glb"])
     for ob in list(bpy.data.objects):
-        if ob.type in ("CAMERA", "LIGHT"):
+        if ob.type in ("CAMERA", "LIGHT") or ob.name.startswith("kogei environment"):
             bpy.data.objects.remove(ob, do_unlink=True)
     sc = bpy.context.scene
 
