@@ -126,6 +126,7 @@ int kg_csv_parse(const char *buf, size_t len, const char *name, kg_csv **out, kg
 		if (!t->names) {
 			t->names = cells;
 			t->ncols = ncells;
+			t->header_line = lineno;
 			for (int i = 0; i < ncells && r == 0; i++)
 				if (!*cells[i])
 					r = kg_fail(err, KG_EINVAL, "%s: line %d: header column %d is empty: "

@@ -19,6 +19,7 @@ typedef struct kg_csv {
 	int nrows;
 	char **cells;   /* nrows x ncols, row-major */
 	int *row_lines; /* source line of each row */
+	int header_line; /* source line of the header row */
 } kg_csv;
 
 int kg_csv_read(const char *path, kg_csv **out, kg_err *err);
