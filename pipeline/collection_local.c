@@ -130,6 +130,7 @@ int coll_run_local(const kg_collection_options *o, const char *out, const json_t
 	c->ran = finished;
 	int sig = coll_signal();
 	int fret = kg_collection_finish(out, c, ret ? NULL : err);
+	c->ran = finished;
 	if (!ret)
 		ret = fret;
 	if (!ret && sig) {

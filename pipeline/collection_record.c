@@ -349,7 +349,8 @@ static json_t *grade_of(const char *outdir)
 }
 
 /* A done entry's objects from OUT/NAME/process.json. */
-static json_t *objects_of(const char *out, const char *name, json_t **de, json_t **grade)
+static json_t *objects_of(const char *out, const char *name, const json_t *given, json_t **de,
+                          json_t **grade)
 {
 	char *outdir = kg_path_join(out, name);
 	char *pj_path = outdir ? kg_path_join(outdir, "process.json") : NULL;
@@ -368,7 +369,14 @@ static json_t *objects_of(const char *out, const char *name, json_t **de, json_t
 		{
 			if (json_is_true(json_object_get(obj, "skipped")))
 				continue;
-			const json_t *meta = json_object_get(obj, "meta");
+			/* the object's record, the list's meta.KEY columns over it (as kogei
+			 * process puts its --meta over the captures' records) */
+			json_t *meta = json_object();
+			const json_t *own = json_object_get(obj, "meta");
+			if (meta && json_is_object(own))
+				json_object_update(meta, (json_t *)own);
+			if (meta && json_is_object(given))
+				json_object_update(meta, (json_t *)given);
 			const json_t *acc = json_object_get(meta, "accession");
 			const json_t *w = json_object_get(obj, "warnings");
 			json_t *o = json_pack("{s:O?, s:O?, s:O?, s:o, s:O, s:O, s:s, s:O?}", "name",
@@ -378,6 +386,9 @@ static json_t *objects_of(const char *out, const char *name, json_t **de, json_t
 			                      json_is_array(w) ? json_incref((json_t *)w) : json_array(),
 			                      "de00_heldout", *de, "grade", *grade, "report",
 			                      "report.html", "photo", json_object_get(obj, "photo"));
+			if (o && json_object_size(meta))
+				json_object_set(o, "meta", meta);
+			json_decref(meta);
 			if (o)
 				json_array_append_new(list, o);
 		}
@@ -406,7 +417,7 @@ static json_t *make_record(const char *out, const json_t *plan, kg_collection_co
 		c->failed += s == COLL_FAILED;
 		c->pending += s == COLL_PENDING;
 		json_t *de = json_null(), *grade = json_null();
-		json_t *objects = s == COLL_DONE && name ? objects_of(out, name, &de, &grade) : json_array();
+		json_t *objects = s == COLL_DONE && name ? objects_of(out, name, json_object_get(e, "meta"), &de, &grade) : json_array();
 		json_t *time = state ? json_pack("{s:O?, s:O?, s:O?}", "started",
 		                                 json_object_get(state, "started"), "finished",
 		                                 json_object_get(state, "finished"), "seconds",
