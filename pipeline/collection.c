@@ -599,15 +599,40 @@ int kg_collection_run(const kg_collection_options *o, kg_collection_counts *c,
 	if (stat(o->list, &st) != 0)
 		return kg_fail(err, KG_EINVAL, "%s: %s: expected the collection's CSV list", o->list,
 		               strerror(errno));
-	if (kg_mkdir_p(o->out, err))
-		return KG_EINVAL;
-	char *out = realpath(o->out, NULL);
-	if (!out)
-		return kg_fail(err, KG_EINVAL, "%s: %s", o->out, strerror(errno));
-	int lock = -1, ret = lock_out(out, &lock, err);
+	/* the list first: a bad one leaves nothing behind, not even OUT */
 	json_t *plan = NULL;
-	int *run = NULL, nrun = 0;
-	if (ret)
+	int *run = NULL, nrun = 0, lock = -1, ret;
+	char *out = realpath(o->out, NULL);
+	if (!out) {
+		char cwd[PATH_MAX];
+		if (o->out[0] != '/' && !getcwd(cwd, sizeof(cwd)))
+			return kg_fail(err, KG_EIO, "cannot read the current folder: %s", strerror(errno));
+		if (asprintf(&out, "%s%s%s", o->out[0] == '/' ? "" : cwd, o->out[0] == '/' ? "" : "/",
+		             o->out) < 0)
+			return kg_fail(err, KG_ENOMEM, "out of memory");
+	}
+	if ((ret = coll_plan_make(o, out, &plan, err)))
+		goto out;
+	if (kg_mkdir_p(o->out, err)) {
+		ret = KG_EINVAL;
+		goto out;
+	}
+	char *real = realpath(o->out, NULL);
+	if (!real) {
+		ret = kg_fail(err, KG_EINVAL, "%s: %s", o->out, strerror(errno));
+		goto out;
+	}
+	if (strcmp(real, out)) { /* OUT's path as the kernel resolves it, in every argument */
+		free(out);
+		out = real;
+		json_decref(plan);
+		plan = NULL;
+		if ((ret = coll_plan_make(o, out, &plan, err)))
+			goto out;
+	} else {
+		free(real);
+	}
+	if ((ret = lock_out(out, &lock, err)))
 		goto out;
 	char job[64];
 	int tasks = 0;
@@ -617,8 +642,6 @@ int kg_collection_run(const kg_collection_options *o, kg_collection_counts *c,
 		              "scancel it", o->out, job, tasks, o->out);
 		goto out;
 	}
-	if ((ret = coll_plan_make(o, out, &plan, err)))
-		goto out;
 	char *plan_path = coll_path(out, "plan.json");
 	ret = plan_path ? kg_json_write(plan, plan_path, err) : kg_fail(err, KG_ENOMEM, "out of memory");
 	free(plan_path);

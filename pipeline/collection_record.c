@@ -367,8 +367,6 @@ static json_t *objects_of(const char *out, const char *name, const json_t *given
 		const json_t *obj;
 		json_array_foreach(json_object_get(pj, "objects"), i, obj)
 		{
-			if (json_is_true(json_object_get(obj, "skipped")))
-				continue;
 			/* the object's record, the list's meta.KEY columns over it (as kogei
 			 * process puts its --meta over the captures' records) */
 			json_t *meta = json_object();
