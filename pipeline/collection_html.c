@@ -118,14 +118,17 @@ static void row(FILE *fp, const char *out, const json_t *entry, const json_t *ob
 	cell(fp, NULL, name, name);
 	const char *capture = obj ? json_string_value(json_object_get(obj, "name")) : NULL;
 	cell(fp, NULL, capture ? capture : "", capture ? capture : "-");
-	const char *acc = obj ? json_string_value(json_object_get(obj, "accession")) : NULL;
+	/* an entry without objects: the accession its row of the list gives */
+	const char *acc = json_string_value(
+		obj ? json_object_get(obj, "accession")
+		    : json_object_get(json_object_get(entry, "meta"), "accession"));
 	cell(fp, NULL, acc ? acc : "", acc ? acc : "-");
 	/* status, with the reason of a failure */
 	fprintf(fp, "<td data-v=\"%s\" class=\"%s\">", status, status);
 	kg_html_put(fp, status);
 	const char *reason = json_string_value(json_object_get(entry, "reason"));
 	if (reason && !strcmp(status, "failed")) {
-		fputs("<div class=\"reason\">", fp);
+		fputs("\n<div class=\"reason\">", fp);
 		kg_html_put(fp, reason);
 		fputs("</div>", fp);
 	}

@@ -422,9 +422,10 @@ static json_t *make_record(const char *out, const json_t *plan, kg_collection_co
 		                                 json_object_get(state, "seconds"))
 		                     : json_null();
 		json_t *entry = json_pack(
-			"{s:O, s:O, s:{s:O, s:O}, s:s, s:O?, s:O?, s:o, s:s, s:O?, s:o, s:o, s:o}", "name",
-			json_object_get(e, "name"), "line", json_object_get(e, "line"), "session", "given",
-			json_object_get(e, "session"), "path", json_object_get(e, "session_path"), "status",
+			"{s:O, s:O, s:{s:O, s:O}, s:O, s:s, s:O?, s:O?, s:o, s:s, s:O?, s:o, s:o, s:o}",
+			"name", json_object_get(e, "name"), "line", json_object_get(e, "line"), "session",
+			"given", json_object_get(e, "session"), "path", json_object_get(e, "session_path"),
+			"meta", json_object_get(e, "meta"), "status",
 			s == COLL_DONE ? "done" : s == COLL_FAILED ? "failed" : "pending", "reason",
 			state ? json_object_get(state, "reason") : NULL, "job",
 			state ? json_object_get(state, "job") : NULL, "time", time ? time : json_null(),

@@ -159,7 +159,7 @@ expect_exit 2 "$KOGEI" collection run "$C/list.csv" -o x --partition p
 expect_exit 2 "$KOGEI" collection run "$C/list.csv" -o x --engine cloud
 
 # ---- interrupted: SIGTERM to the runner -----------------------------------------------
-sed 's/,A-/,B-/' "$C/list.csv" >"$C/list3.csv"
+sed 's/,A-1,/,B-1,/; s/,A-3,/,B-3,/' "$C/list.csv" >"$C/list3.csv"
 "$KOGEI" collection run "$C/list3.csv" -o res --jobs 2 >term.out 2>term.err &
 runner=$!
 i=0
