@@ -37,7 +37,7 @@ static int cmd_run(int argc, char **argv)
 		signal(sig, SIG_DFL);
 		raise(sig);
 	}
-	if (ret == KG_EINVAL) {
+	if (ret == KG_EINVAL || ret == KG_EBUSY) { /* nothing run: a bad list, OUT in use */
 		fprintf(stderr, "kogei: %s\n", err.msg);
 		return KG_EXIT_USAGE;
 	}
