@@ -66,7 +66,8 @@ out=$(grep -n -e '\.\./shared' -e 'DESIGN\.md' -e 'NOTES\.md' -e 'STYLE\.md' \
 [ -z "$out" ] || fail "a page points outside the repository: $out"
 for c in "" demo acquire measure console process report "chart print" "chart detect" \
 	"calib reference" "calib camera" estimate classify "materials learn" render export \
-	"spectra xyz" model "sim patches" "sim image" "sim chart" devices bench; do
+	"spectra xyz" model "sim patches" "sim image" "sim chart" devices bench \
+	"collection run" "collection status"; do
 	# shellcheck disable=SC2086
 	"$KOGEI" $c --help > "$T/help" 2>&1 || true
 	[ -s "$T/help" ] || fail "kogei $c --help printed nothing"
@@ -109,3 +110,19 @@ for v in ("2026.1.1", "Alloy coupons", "tungsten, 45 degrees"):
         sys.exit(f"FAIL: process.json lacks the record {v!r} the README's session gives")
 PY
 echo "the README's first session: ok ($(grep -c '' "$T/session.sh") lines)"
+
+# "## A collection": its CSV block as list.csv in the first session's folder and its
+# shell block run there: the session processed again into collection/S, the same cube
+s_csv=$(awk '/^## A collection/{s=1} s&&/^```$/{b=!b;if(!b)exit;next} s&&b{print}' "$SRC/README.md")
+awk '/^## A collection/{s=1} s&&/^```sh/{b=1;next} b&&/^```/{exit} b{print}' \
+	"$SRC/README.md" > "$T/collection.sh"
+grep -q "kogei collection run" "$T/collection.sh" || fail "README: no shell block with kogei collection run under '## A collection'"
+[ -n "$s_csv" ] || fail "README: no CSV block under '## A collection'"
+cd "$T/first-session"
+printf '%s\n' "$s_csv" > list.csv
+PATH="$(dirname "$KOGEI"):$PATH" sh -eu "$T/collection.sh" > "$T/log" 2>&1 ||
+	{ tail -20 "$T/log"; fail "the README's collection failed"; }
+grep -q '"done": 1' collection/collection.json || fail "the README's collection: not done"
+cmp -s results/object-0001/cube.img collection/S/object-0001/cube.img ||
+	fail "the README's collection: its cube differs from the first session's"
+echo "the README's collection: ok"
