@@ -27,7 +27,7 @@ static const kg_opt_spec collection_specs[] = {
 	 "OUT/collection.json, OUT/index.html; made when missing"},
 	{"engine", 0, "local|slurm", KG_OPT_STRING, OPT(engine), 0,
 	 "local (the default): worker processes on this machine; slurm: one job array on a "
-	 "Slurm cluster through sbatch, squeue and scontrol, plus a dependent job that writes "
+	 "Slurm cluster through sbatch and squeue, plus a dependent job that writes "
 	 "the record"},
 	{"jobs", 'j', "N", KG_OPT_STRING, OPT(jobs), 0,
 	 "local: N worker processes (default: the cores this process may use); slurm: at most "
