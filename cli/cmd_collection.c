@@ -58,6 +58,9 @@ static int cmd_run(int argc, char **argv)
 		kg_collection_print_failures(o.out, stderr);
 		return KG_EXIT_INPUT;
 	}
+	if (c.pending)
+		fprintf(stderr, "kogei collection: %d entries not run (their logs are in "
+		        "%s/.collection/logs/): run the same command again\n", c.pending, o.out);
 	return c.pending ? KG_EXIT_INPUT : KG_EXIT_OK;
 }
 

@@ -191,11 +191,9 @@ void coll_progress(FILE *fp, const kg_collection_counts *c, int remaining, doubl
 		return;
 	char left[64] = "";
 	if (ran_done > 0 && remaining > 0) {
-		/* the mean time of a run so far, over the runs that go on at once */
-		double per = elapsed / ran_done;
-		int at_once = jobs > 0 && jobs < remaining ? jobs : remaining;
-		(void)at_once;
-		double s = per * remaining;
+		/* the wall time per entry so far (the workers in parallel) times what is left */
+		(void)jobs;
+		double s = elapsed / ran_done * remaining;
 		if (s < 90)
 			snprintf(left, sizeof(left), ", about %.0f s left", s);
 		else if (s < 5400)
