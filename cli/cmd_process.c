@@ -125,7 +125,8 @@ static int split_names(char *text, const char ***out, int *n)
 	return 0;
 }
 
-/* The run's warnings, as process.json records them, one a line after the summary. */
+/* The run's warnings, as process.json records them (the session's, then each object's,
+ * an unchanged object's included), one a line after the summary. */
 static void print_warnings(const char *outdir)
 {
 	char *path = kg_path_join(outdir, "process.json");
@@ -137,6 +138,12 @@ static void print_warnings(const char *outdir)
 		json_array_foreach(json_object_get(pj, "warnings"), i, w)
 			if (json_is_string(w))
 				printf("kogei process: warning: %s\n", json_string_value(w));
+		const json_t *obj;
+		size_t k;
+		json_array_foreach(json_object_get(pj, "objects"), k, obj)
+			json_array_foreach(json_object_get(obj, "warnings"), i, w)
+				if (json_is_string(w))
+					printf("kogei process: warning: %s\n", json_string_value(w));
 	}
 	json_decref(pj);
 	free(path);

@@ -580,6 +580,21 @@ char *kg_path_join(const char *dir, const char *name)
 	return s;
 }
 
+const char *kg_path_below(const char *path, const char *dir)
+{
+	if (!path || !dir || !*dir)
+		return path;
+	size_t n = strlen(dir);
+	while (n > 1 && dir[n - 1] == '/')
+		n--;
+	if (strncmp(path, dir, n) || path[n] != '/')
+		return path;
+	path += n;
+	while (*path == '/')
+		path++;
+	return path;
+}
+
 char *kg_data_path(const char *name)
 {
 	const char *dirs[3] = {getenv("KOGEI_DATA_DIR"), KG_DATA_DIR, KG_SOURCE_ROOT "/fixtures"};

@@ -147,6 +147,10 @@ char *kg_path_dir(const char *path);
 /* Join dir and name into a newly allocated path. */
 char *kg_path_join(const char *dir, const char *name);
 
+/* path relative to dir when it lies below it ("dir/a/b" -> "a/b", compared as written,
+ * no file system access), else path itself; dir NULL or empty: path. Points into path. */
+const char *kg_path_below(const char *path, const char *dir);
+
 /* CPUs this process may run on (its affinity mask: taskset, cgroups' cpusets), at
  * least 1 and at most max: the default thread count of every parallel loop. */
 int kg_cpu_count(int max);

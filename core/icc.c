@@ -63,6 +63,43 @@ const char *kg_icc_space_description(kg_icc_space s)
 	return "none";
 }
 
+int kg_icc_camera_matrix(const double (*rgb)[3], const double (*xyz)[3], int n, int skip,
+                         double M[9], kg_err *err)
+{
+	if (n - (skip >= 0 && skip < n) < 3)
+		return kg_fail(err, KG_EINVAL, "camera profile: %d patches, expected at least 3",
+		               n - (skip >= 0 && skip < n));
+	/* normal equations: (R^T R) M^T = R^T X */
+	double A[9] = {0}, Bm[9] = {0};
+	for (int i = 0; i < n; i++)
+		for (int r = 0; i != skip && r < 3; r++)
+			for (int c = 0; c < 3; c++) {
+				A[3 * r + c] += rgb[i][r] * rgb[i][c];
+				Bm[3 * r + c] += rgb[i][r] * xyz[i][c];
+			}
+	double det = A[0] * (A[4] * A[8] - A[5] * A[7]) - A[1] * (A[3] * A[8] - A[5] * A[6]) +
+	             A[2] * (A[3] * A[7] - A[4] * A[6]);
+	if (!(fabs(det) > 1e-14))
+		return kg_fail(err, KG_EINVAL, "camera profile: the patches' camera values are "
+		               "collinear: expected three independent colours");
+	double inv[9] = {
+		(A[4] * A[8] - A[5] * A[7]) / det, (A[2] * A[7] - A[1] * A[8]) / det,
+		(A[1] * A[5] - A[2] * A[4]) / det, (A[5] * A[6] - A[3] * A[8]) / det,
+		(A[0] * A[8] - A[2] * A[6]) / det, (A[2] * A[3] - A[0] * A[5]) / det,
+		(A[3] * A[7] - A[4] * A[6]) / det, (A[1] * A[6] - A[0] * A[7]) / det,
+		(A[0] * A[4] - A[1] * A[3]) / det,
+	};
+	/* xyz = M rgb: M[3 * out + in] = (inv Bm)[3 * in + out] */
+	for (int in = 0; in < 3; in++)
+		for (int out = 0; out < 3; out++) {
+			double v = 0;
+			for (int k = 0; k < 3; k++)
+				v += inv[3 * in + k] * Bm[3 * k + out];
+			M[3 * out + in] = v;
+		}
+	return 0;
+}
+
 #if HAVE_LCMS
 #include <lcms2.h>
 #include <tiffio.h>
@@ -331,36 +368,10 @@ int kg_icc_camera_profile(const double (*rgb)[3], const double (*xyz)[3], int n,
 {
 	*buf = NULL;
 	*len = 0;
-	if (n < 3)
-		return kg_fail(err, KG_EINVAL, "camera profile: %d patches, expected at least 3", n);
-	/* normal equations: (R^T R) M^T = R^T X */
-	double A[9] = {0}, Bm[9] = {0};
-	for (int i = 0; i < n; i++)
-		for (int r = 0; r < 3; r++)
-			for (int c = 0; c < 3; c++) {
-				A[3 * r + c] += rgb[i][r] * rgb[i][c];
-				Bm[3 * r + c] += rgb[i][r] * xyz[i][c];
-			}
-	double det = A[0] * (A[4] * A[8] - A[5] * A[7]) - A[1] * (A[3] * A[8] - A[5] * A[6]) +
-	             A[2] * (A[3] * A[7] - A[4] * A[6]);
-	if (!(fabs(det) > 1e-14))
-		return kg_fail(err, KG_EINVAL, "camera profile: the patches' camera values are "
-		               "collinear: expected three independent colours");
-	double inv[9] = {
-		(A[4] * A[8] - A[5] * A[7]) / det, (A[2] * A[7] - A[1] * A[8]) / det,
-		(A[1] * A[5] - A[2] * A[4]) / det, (A[5] * A[6] - A[3] * A[8]) / det,
-		(A[0] * A[8] - A[2] * A[6]) / det, (A[2] * A[3] - A[0] * A[5]) / det,
-		(A[3] * A[7] - A[4] * A[6]) / det, (A[1] * A[6] - A[0] * A[7]) / det,
-		(A[0] * A[4] - A[1] * A[3]) / det,
-	};
-	double M[9]; /* xyz = M rgb: M[3 * out + in] = (inv Bm)[3 * in + out] */
-	for (int in = 0; in < 3; in++)
-		for (int out = 0; out < 3; out++) {
-			double v = 0;
-			for (int k = 0; k < 3; k++)
-				v += inv[3 * in + k] * Bm[3 * k + out];
-			M[3 * out + in] = v;
-		}
+	double M[9];
+	int ret = kg_icc_camera_matrix(rgb, xyz, n, -1, M, err);
+	if (ret)
+		return ret;
 	if (m)
 		memcpy(m, M, sizeof(M));
 	cmsHPROFILE h = cmsCreateProfilePlaceholder(NULL);

@@ -65,5 +65,9 @@ int kg_master_write(const char *cube, const kg_illuminant *ill, kg_icc_space spa
 int kg_icc_camera_profile(const double (*rgb)[3], const double (*xyz)[3], int n,
                           const char *description, kg_icc_version v, double m[9],
                           unsigned char **buf, size_t *len, kg_err *err);
+/* The profile's matrix alone (no LittleCMS needed): the least-squares xyz = M rgb over
+ * the n patches but patch skip (-1: none), for the profile and its leave-one-out. */
+int kg_icc_camera_matrix(const double (*rgb)[3], const double (*xyz)[3], int n, int skip,
+                         double M[9], kg_err *err);
 
 #endif

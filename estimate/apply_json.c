@@ -137,7 +137,7 @@ int ap_write_labels_json(const char *path, const kg_est_material_set *set,
 	json_t *fs = json_object();
 	const char *fkeys[4] = {"labels", "confidence", "mask", "preview"};
 	for (int i = 0; i < 4; i++)
-		json_object_set_new(fs, fkeys[i], json_string(files[i]));
+		json_object_set_new(fs, fkeys[i], json_string(kg_path_below(files[i], copt->record_dir)));
 	json_object_set_new(root, "files", fs);
 	json_object_set_new(root, "confidence",
 	                    json_string("margin: distance to the runner-up minus distance to the "

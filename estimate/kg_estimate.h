@@ -596,6 +596,10 @@ typedef struct kg_classify_options {
 	int preview_no_legend;    /* 1: the preview PNG is the map alone (a page that shows
 	                             it carries the legend itself, e.g. kogei process's
 	                             report) */
+	const char *record_dir;   /* the labels .json records its files relative to this
+	                             folder when they lie below it (kogei process: its staging
+	                             folder, so the paths name the files in the final OUTDIR);
+	                             NULL: as written */
 } kg_classify_options;
 
 /* Defaults: distance plain, no variance (the noise model: noise_relative 0.01 and

@@ -148,7 +148,9 @@ int lc_write_json(const char *path, const kg_est_material_set *set,
 	const char *fkeys[6] = {"labels", "confidence", "mask", "preview", "regions",
 	                        "regions_csv"};
 	for (int i = 0; i < 6; i++)
-		json_object_set_new(fs, fkeys[i], files[i] ? json_string(files[i]) : json_null());
+		json_object_set_new(fs, fkeys[i],
+		                    files[i] ? json_string(kg_path_below(files[i], copt->record_dir))
+		                             : json_null());
 	json_object_set_new(root, "files", fs);
 	json_object_set_new(root, "confidence",
 	                    json_string("bands: margin (d2 of the runner-up class minus the "
@@ -201,7 +203,8 @@ int lc_write_json(const char *path, const kg_est_material_set *set,
 		                                              cam->metals[1]->name,
 		                                              cam->metals[2]->name));
 		json_object_set_new(comp, "file", cam->composition_hdr
-		                                      ? json_string(cam->composition_hdr)
+		                                      ? json_string(kg_path_below(cam->composition_hdr,
+		                                                                copt->record_dir))
 		                                      : json_null());
 		json_object_set_new(comp, "gold_range", json_real(run->gold_range));
 		json_object_set_new(comp, "description",

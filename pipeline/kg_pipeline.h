@@ -109,6 +109,12 @@ typedef struct kg_process_summary {
 
 int kg_process_run(const kg_process_options *o, kg_process_summary *summary, kg_err *err);
 
+/* The warnings of a process.json (pj may be NULL: 0): each is recorded once, in its
+ * scope's list, the session's ("warnings") or an object's ("objects[].warnings", kept
+ * with an unchanged object); the count is of both, the number the command line, the
+ * report and the console say. */
+int kg_process_warning_count(const json_t *pj);
+
 /* For a program that runs kg_process_run as its one job (kogei process): SIGINT,
  * SIGTERM and SIGHUP (those not ignored) are blocked in the calling thread and taken
  * by a thread of their own, which prints what OUTDIR keeps, removes the run's staging

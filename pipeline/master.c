@@ -2,6 +2,7 @@
  * --master-illuminant) into --master-space as OUTDIR/<object>/master.tif, a 16-bit
  * RGB TIFF with the space's ICC profile embedded (core/icc.c, LittleCMS). */
 #include <errno.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -156,6 +157,17 @@ static int write_ti3(const char *path, char **ids, const double (*rgb)[3],
 	return ret;
 }
 
+/* CIEDE2000 (D50) of a patch through the camera profile's matrix against its XYZ. */
+static double matrix_de00(const double M[9], const double rgb[3], const double xyz[3],
+                          kg_xyz d50)
+{
+	kg_xyz f, r = {100 * xyz[0], 100 * xyz[1], 100 * xyz[2]};
+	f.X = 100 * (M[0] * rgb[0] + M[1] * rgb[1] + M[2] * rgb[2]);
+	f.Y = 100 * (M[3] * rgb[0] + M[4] * rgb[1] + M[5] * rgb[2]);
+	f.Z = 100 * (M[6] * rgb[0] + M[7] * rgb[1] + M[8] * rgb[2]);
+	return kg_ciede2000(kg_xyz_to_lab(f, d50), kg_xyz_to_lab(r, d50));
+}
+
 int proc_camera_icc(proc *p, const kg_patchset *measured)
 {
 	json_t *cal = p->calibration;
@@ -226,25 +238,36 @@ int proc_camera_icc(proc *p, const kg_patchset *measured)
 		ret = write_ti3(ti3_path, ids, (const double (*)[3])rgb, (const double (*)[3])xyz, n,
 		                scale, p->err);
 	if (!ret) {
-		/* the fit, in sample: CIEDE2000 of M rgb against the reference, D50 */
-		double sum = 0, mx = 0;
+		/* the fit, in sample: CIEDE2000 of M rgb against the reference, D50; and held
+		 * out: each patch through the matrix fitted on the others */
+		double sum = 0, mx = 0, lsum = 0, lmx = 0;
+		int nloo = 0;
 		for (int i = 0; i < n; i++) {
-			kg_xyz f = {0, 0, 0}, r = {100 * xyz[i][0], 100 * xyz[i][1], 100 * xyz[i][2]};
-			f.X = 100 * (M[0] * rgb[i][0] + M[1] * rgb[i][1] + M[2] * rgb[i][2]);
-			f.Y = 100 * (M[3] * rgb[i][0] + M[4] * rgb[i][1] + M[5] * rgb[i][2]);
-			f.Z = 100 * (M[6] * rgb[i][0] + M[7] * rgb[i][1] + M[8] * rgb[i][2]);
-			double de = kg_ciede2000(kg_xyz_to_lab(f, icc_d50), kg_xyz_to_lab(r, icc_d50));
+			double de = matrix_de00(M, rgb[i], xyz[i], icc_d50), Ml[9];
 			sum += de;
 			mx = de > mx ? de : mx;
+			kg_err le;
+			if (n > 3 && !kg_icc_camera_matrix((const double (*)[3])rgb,
+			                                   (const double (*)[3])xyz, n, i, Ml, &le)) {
+				de = matrix_de00(Ml, rgb[i], xyz[i], icc_d50);
+				lsum += de;
+				lmx = de > lmx ? de : lmx;
+				nloo++;
+			}
 		}
 		json_object_set_new(cal, "camera_icc",
-		                    json_pack("{s:s, s:s, s:i, s:f, s:[fffffffff], s:f, s:f}", "path",
-		                              "camera.icc", "ti3", "camera.ti3", "patches", n,
+		                    json_pack("{s:s, s:i, s:s, s:i, s:f, s:[fffffffff], s:f, s:f}",
+		                              "path", "camera.icc", "icc_version", (int)icc_version(p),
+		                              "ti3", "camera.ti3", "patches", n,
 		                              "rgb_scale", scale, "matrix", M[0], M[1], M[2], M[3], M[4],
 		                              M[5], M[6], M[7], M[8], "fit_de00_mean", sum / n,
 		                              "fit_de00_max", mx));
+		json_t *ci = json_object_get(cal, "camera_icc");
+		json_object_set_new(ci, "loo_de00_mean", nloo == n ? json_real(lsum / n) : json_null());
+		json_object_set_new(ci, "loo_de00_max", nloo == n ? json_real(lmx) : json_null());
 		proc_progress(p, "camera input profile: %s/camera.icc (%d patches, in-sample dE00 "
-		              "mean %.2f, max %.2f)", p->o->outdir, n, sum / n, mx);
+		              "mean %.2f, max %.2f; leave-one-out mean %.2f, max %.2f)", p->o->outdir,
+		              n, sum / n, mx, nloo ? lsum / nloo : NAN, lmx);
 	}
 done:
 	kg_illuminant_free(&d50);

@@ -49,9 +49,8 @@ void proc_warn(proc *p, json_t *list, const char *fmt, ...)
 	va_start(ap, fmt);
 	vsnprintf(msg, sizeof(msg), fmt, ap);
 	va_end(ap);
+	/* each warning once, in its scope's list: the session's or its object's */
 	json_array_append_new(list ? list : p->warnings, kg_json_message(msg));
-	if (list && list != p->warnings)
-		json_array_append_new(p->warnings, kg_json_message(msg));
 	if (p->o->progress)
 		fprintf(p->o->progress, "kogei process: warning: %s\n", msg);
 }
@@ -75,18 +74,24 @@ int proc_input(proc *p, const char *role, const char *path, const char *expected
 	return 0;
 }
 
-/* Object records (docs/process.md): each object gets its capture's "meta"; the run's is
- * the captures' records merged in manifest order, the command's --meta over them. */
+int kg_process_warning_count(const json_t *pj)
+{
+	size_t n = json_array_size(json_object_get(pj, "warnings")), i;
+	const json_t *obj;
+	json_array_foreach(json_object_get(pj, "objects"), i, obj)
+		n += json_array_size(json_object_get(obj, "warnings"));
+	return (int)n;
+}
+
+/* Records (docs/process.md): each object gets its own capture's "meta", the chart's
+ * capture its own (calibration.meta); the run's "meta" is only what the command was
+ * given (--meta), never a merge of the objects' (two objects' records are two). */
 static json_t *meta_records(const proc *p, json_t *objects)
 {
-	json_t *all = json_object(), *obj;
-	for (int i = 0; i < p->ncaps; i++) {
-		json_t *m = json_object_get(p->caps[i].j, "meta");
-		if (json_is_object(m))
-			json_object_update(all, m);
-	}
-	if (p->o->meta)
-		json_object_update(all, (json_t *)p->o->meta);
+	json_t *all = p->o->meta ? json_deep_copy(p->o->meta) : json_object(), *obj;
+	const json_t *cm = p->chart ? json_object_get(p->chart->j, "meta") : NULL;
+	if (json_is_object(cm) && json_object_size(cm) && p->calibration)
+		json_object_set_new(p->calibration, "meta", json_deep_copy(cm));
 	size_t k;
 	json_array_foreach(objects, k, obj)
 	{
@@ -572,6 +577,9 @@ int kg_process_run(const kg_process_options *o, kg_process_summary *summary, kg_
 			json_object_set(root, "skipped_captures", p.skipped);
 		if (!ret)
 			json_object_set_new(root, "meta", meta_records(&p, objects));
+		if (!ret)
+			json_object_set_new(root, "warning_count",
+			                    json_integer(kg_process_warning_count(root)));
 	}
 	if (!ret)
 		ret = proc_outdir_commit(&p, root);
@@ -580,7 +588,7 @@ int kg_process_run(const kg_process_options *o, kg_process_summary *summary, kg_
 	proc_outdir_close(&p, ret != 0);
 	clock_gettime(CLOCK_MONOTONIC, &t1);
 	sum.seconds = (double)(t1.tv_sec - t0.tv_sec) + 1e-9 * (double)(t1.tv_nsec - t0.tv_nsec);
-	sum.warnings = p.warnings ? (int)json_array_size(p.warnings) : 0;
+	sum.warnings = kg_process_warning_count(root);
 	sum.residual = p.cam ? p.cam->residual_relative : NAN;
 	if (summary)
 		*summary = sum;

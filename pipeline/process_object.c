@@ -772,6 +772,7 @@ static int classify_pass(proc *p, const proc_capture *c, proc_source *src, doubl
 	/* the report shows labels.png beside its own legend (HTML, full names, readable at
 	 * any scale): the map alone */
 	copt.preview_no_legend = 1;
+	copt.record_dir = p->stage; /* labels.json names the files where they end up */
 	copt.residual_relative = p->cam->residual_relative;
 	kg_apply_options o = *opt;
 	o.description = NULL;
@@ -1033,7 +1034,8 @@ static int process_into(proc *p, const proc_capture *c, const char *dir, double 
 	if (!ret && (ret = kg_scene_load(scene, &ks, err)))
 		kg_err_prefix(err, "%s: reading %s: ", c->name, scene);
 	if (!ret) {
-		kg_gltf_options go = {.photo_png = photo, .source = c->name};
+		kg_gltf_options go = {.photo_png = photo, .source = c->name,
+		                      .record_dir = p->stage};
 		proc_progress(p, "%s: writing object.glb", c->name);
 		if ((ret = kg_gltf_write(ks, &go, glb, err)))
 			kg_err_prefix(err, "%s: writing %s: ", c->name, glb);

@@ -270,6 +270,34 @@ static void rowf(report *r, const char *key, const char *fmt, ...)
 	free(buf);
 }
 
+/* A record (--meta) at process.json's key "where" as a table, known keys first; 0 when
+ * there is none (absent or empty). */
+static int put_record(report *r, const char *where, const char *caption)
+{
+	const json_t *meta = kg_json_find(r->root, where);
+	if (!meta || r->ret)
+		return 0;
+	if (kg_meta_validate(r->file, where, meta, r->err)) {
+		r->ret = KG_EINVAL;
+		return 0;
+	}
+	if (!json_object_size(meta))
+		return 0;
+	html(r, "<table class=\"record\">");
+	if (caption) {
+		html(r, "<caption>");
+		text(r, caption);
+		html(r, "</caption>");
+	}
+	html(r, "\n");
+	const char *keys[KG_META_MAX_KEYS];
+	int n = kg_meta_ordered_keys(meta, keys, KG_META_MAX_KEYS);
+	for (int i = 0; i < n; i++)
+		row(r, keys[i], json_string_value(json_object_get(meta, keys[i])));
+	html(r, "</table>\n");
+	return 1;
+}
+
 /* A path process.json names is read only inside OUTDIR: relative, no "..", no
  * absolute path, no symbolic link on the way (kg_read_below); anything else would let
  * a process.json put any file of the machine into the page. */
@@ -509,12 +537,10 @@ static int summarise(report *r)
 
 	int nobj, nw;
 	arr(r, &nw, "warnings");
-	r->warnings = nw;
 	arr(r, &nobj, "objects");
-	for (int i = 0; i < nobj; i++) {
-		arr(r, &nw, "objects[%d].warnings", i);
-		r->warnings += nw;
-	}
+	for (int i = 0; i < nobj; i++)
+		arr(r, &nw, "objects[%d].warnings", i); /* each checked to be an array */
+	r->warnings = kg_process_warning_count(r->root);
 	return r->ret;
 }
 
@@ -591,6 +617,7 @@ static void section_calibration(report *r)
 	html(r, "<figcaption>The site chart as detected: patch sampling areas and tags "
 	        "drawn over the chart photograph.</figcaption></figure>\n");
 
+	put_record(r, "calibration.meta", "Record of the chart capture");
 	int ntags, npatches;
 	json_t *tags = arr(r, &ntags, "calibration.tags_used");
 	json_t *patches = arr(r, &npatches, "calibration.patches");
@@ -606,12 +633,26 @@ static void section_calibration(report *r)
 			        "spectra)</span>");
 		} else {
 			put_link(r, icc);
-			html(r, " (ICC v4 input profile, matrix/shaper, camera RGB to the D50 "
-			        "profile connection space; ");
+			const json_t *iv = kg_json_find(r->root, "calibration.camera_icc.icc_version");
+			if (json_is_integer(iv))
+				html(r, " (ICC v%d input profile, matrix/shaper, camera RGB to the D50 "
+				        "profile connection space; ",
+				     (int)json_integer_value(iv));
+			else
+				html(r, " (ICC input profile, matrix/shaper, camera RGB to the D50 "
+				        "profile connection space; ");
 			textf(r, "fitted on %.0f patches, ΔE00 mean %.2f, max %.2f",
 			      num(r, "calibration.camera_icc.patches"),
 			      num(r, "calibration.camera_icc.fit_de00_mean"),
 			      num(r, "calibration.camera_icc.fit_de00_max"));
+			/* held out: each patch through the matrix fitted on the others (files of
+			 * earlier versions lack it) */
+			double lm = has(r, "calibration.camera_icc.loo_de00_mean")
+			                    ? opt_num(r, "calibration.camera_icc.loo_de00_mean")
+			                    : NAN;
+			if (isfinite(lm))
+				textf(r, "; held out (leave-one-out) mean %.2f, max %.2f", lm,
+				      opt_num(r, "calibration.camera_icc.loo_de00_max"));
 			html(r, "); ");
 			put_link(r, str(r, "calibration.camera_icc.ti3"));
 			html(r, " (ArgyllCMS colprof input, CGATS XYZ_RGB)");
@@ -1057,7 +1098,21 @@ static void put_object(report *r, int i)
 	const char *capture = str(r, "objects[%d].capture", i);
 	html(r, "<article class=\"object\" id=\"object-%d\">\n<h3>", i + 1);
 	text(r, capture);
+	/* the object's identity in its heading: its own accession and title */
+	const char *acc = has(r, "objects[%d].meta.accession", i)
+	                          ? opt_str(r, "objects[%d].meta.accession", i)
+	                          : NULL;
+	const char *title =
+		has(r, "objects[%d].meta.title", i) ? opt_str(r, "objects[%d].meta.title", i) : NULL;
+	if (acc || title) {
+		html(r, " <small>");
+		textf(r, "%s%s%s", acc ? acc : "", acc && title ? ", " : "", title ? title : "");
+		html(r, "</small>");
+	}
 	html(r, "</h3>\n");
+	char where[64];
+	snprintf(where, sizeof(where), "objects[%d].meta", i);
+	put_record(r, where, "Record of this object");
 	if (flag(r, "objects[%d].skipped", i))
 		html(r, "<p class=\"note\">Unchanged since the last run: not processed again; shown "
 		        "from the files that run wrote.</p>\n");
@@ -1391,25 +1446,63 @@ static const char style[] =
 	"section,article.object{break-before:page}section#summary{break-before:auto}"
 	"figure,table,tr{break-inside:avoid}.pass,.fail{border:1px solid #000}}";
 
-/* The object record (process.json "meta"), at the top: known keys first. */
-static void section_record(report *r)
+/* The records at the top: one row per object with its own record (its capture's
+ * --meta), in the session's order, linked to its section; then what the run itself was
+ * given (process --meta), which applies to every object. Never merged: two objects are
+ * two records. */
+static void section_records(report *r)
 {
-	const json_t *meta = json_object_get(r->root, "meta");
-	if (!meta || r->ret)
-		return;
-	if (kg_meta_validate(r->file, "meta", meta, r->err)) {
-		r->ret = KG_EINVAL;
+	json_t *objects = json_object_get(r->root, "objects");
+	int n;
+	arr(r, &n, "objects");
+	json_t *keys_all = json_object(); /* the union of the objects' keys */
+	for (int i = 0; i < n && !r->ret; i++) {
+		char where[64];
+		snprintf(where, sizeof(where), "objects[%d].meta", i);
+		const json_t *m = kg_json_find(r->root, where);
+		if (m && kg_meta_validate(r->file, where, m, r->err))
+			r->ret = KG_EINVAL;
+		else if (json_is_object(m))
+			json_object_update(keys_all, (json_t *)m);
+	}
+	const json_t *run = json_object_get(r->root, "meta");
+	if (r->ret ||
+	    (!json_object_size(keys_all) && !(json_is_object(run) && json_object_size(run)))) {
+		json_decref(keys_all);
 		return;
 	}
-	if (!json_object_size(meta))
-		return;
-	section_begin(r, "record", "Object record");
-	html(r, "<table class=\"record\">\n");
+	section_begin(r, "record", n == 1 ? "Object record" : "Object records");
 	const char *keys[KG_META_MAX_KEYS];
-	int n = kg_meta_ordered_keys(meta, keys, KG_META_MAX_KEYS);
-	for (int i = 0; i < n; i++)
-		row(r, keys[i], json_string_value(json_object_get(meta, keys[i])));
-	html(r, "</table>\n");
+	int nk = kg_meta_ordered_keys(keys_all, keys, KG_META_MAX_KEYS);
+	if (nk) {
+		html(r, "<table class=\"records\">\n<tr><th scope=\"col\">object</th>");
+		for (int k = 0; k < nk; k++) {
+			html(r, "<th scope=\"col\">");
+			text(r, keys[k]);
+			html(r, "</th>");
+		}
+		html(r, "</tr>\n");
+		for (int i = 0; i < n; i++) {
+			const json_t *m = json_object_get(json_array_get(objects, (size_t)i), "meta");
+			html(r, "<tr id=\"record-%d\"><th scope=\"row\"><a href=\"#object-%d\">",
+			     i + 1, i + 1);
+			text(r, str(r, "objects[%d].capture", i));
+			html(r, "</a></th>");
+			for (int k = 0; k < nk; k++) {
+				const char *v = json_string_value(json_object_get(m, keys[k]));
+				html(r, "<td>");
+				if (v)
+					text(r, v);
+				else
+					html(r, "<span class=\"none\">not given</span>");
+				html(r, "</td>");
+			}
+			html(r, "</tr>\n");
+		}
+		html(r, "</table>\n");
+	}
+	json_decref(keys_all);
+	put_record(r, "meta", "Given to this run (kogei process --meta), for every object");
 	section_end(r);
 }
 
@@ -1429,7 +1522,7 @@ static void write_page(report *r)
 	        "Calibration</a><a href=\"#color-accuracy\">Colour accuracy</a>"
 	        "<a href=\"#objects\">Objects</a><a href=\"#provenance\">Provenance</a>"
 	        "<a href=\"#warnings\">Warnings</a></nav>\n</header>\n");
-	section_record(r);
+	section_records(r);
 	section_summary(r);
 	section_calibration(r);
 	section_color_accuracy(r);

@@ -549,7 +549,8 @@ static int asset_extras_new(const kg_scene *s, const kg_gltf_options *opt, const
                             json_t **out, kg_err *err)
 {
 	const char *keys[5] = {"scene", "library", "white", "source", "illuminant"};
-	const char *vals[5] = {s->path, s->library_path, s->white_name,
+	const char *vals[5] = {kg_path_below(s->path, opt->record_dir), s->library_path,
+	                       s->white_name,
 	                       opt->source ? opt->source : "", s->env_illuminant};
 	json_t *k = json_object(), *text[5] = {NULL};
 	int ret = k ? 0 : kg_fail(err, KG_ENOMEM, "out of memory");

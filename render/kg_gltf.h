@@ -50,6 +50,10 @@ typedef struct kg_gltf_options {
 	const char *photo_png;
 	/* Free text for asset.extras.kogei.source (e.g. the capture's name), or NULL. */
 	const char *source;
+	/* asset.extras.kogei.scene names the scene relative to this folder when it lies
+	 * below it (kogei process: its staging folder, so the path is the final one), or
+	 * NULL: as loaded. */
+	const char *record_dir;
 } kg_gltf_options;
 
 /* Write the scene as a binary glTF 2.0 file (atomic). opt may be NULL. */

@@ -66,7 +66,7 @@ out=$(grep -n -e '\.\./shared' -e 'DESIGN\.md' -e 'NOTES\.md' -e 'STYLE\.md' \
 [ -z "$out" ] || fail "a page points outside the repository: $out"
 for c in "" demo acquire measure console process report "chart print" "chart detect" \
 	"calib reference" "calib camera" estimate classify "materials learn" render export \
-	"spectra xyz" model "sim patches" "sim image" "sim chart" devices bench \
+	"spectra xyz" model "sim patches" "sim image" "sim chart" devices bench deposit \
 	"collection run" "collection status"; do
 	# shellcheck disable=SC2086
 	"$KOGEI" $c --help > "$T/help" 2>&1 || true
@@ -105,10 +105,18 @@ python3 - "$R/process.json" <<'PY' || exit 1
 import json, sys
 p = json.load(open(sys.argv[1]))
 text = json.dumps(p)
-for v in ("2026.1.1", "Alloy coupons", "tungsten, 45 degrees"):
+for v in ("2026.1.1", "2026.1.2", "Alloy coupons", "tungsten, 45 degrees"):
     if v not in text:
         sys.exit(f"FAIL: process.json lacks the record {v!r} the README's session gives")
+accs = [o.get("meta", {}).get("accession") for o in p["objects"]]
+if accs != ["2026.1.1", "2026.1.2"]:
+    sys.exit(f"FAIL: the README's two objects carry accessions {accs}")
 PY
+B="$T/first-session/bag"
+[ -s "$B/bagit.txt" ] && [ -s "$B/manifest-sha512.txt" ] || fail "the README's session wrote no bag"
+for a in 2026.1.1 2026.1.2; do
+	grep -q "^External-Identifier: $a\$" "$B/bag-info.txt" || fail "bag-info.txt lacks External-Identifier $a"
+done
 echo "the README's first session: ok ($(grep -c '' "$T/session.sh") lines)"
 
 # "## A collection": its CSV block as list.csv in the first session's folder and its
@@ -122,7 +130,15 @@ cd "$T/first-session"
 printf '%s\n' "$s_csv" > list.csv
 PATH="$(dirname "$KOGEI"):$PATH" sh -eu "$T/collection.sh" > "$T/log" 2>&1 ||
 	{ tail -20 "$T/log"; fail "the README's collection failed"; }
-grep -q '"done": 1' collection/collection.json || fail "the README's collection: not done"
+python3 - collection/collection.json <<'PY' || exit 1
+import json, sys
+r = json.load(open(sys.argv[1]))
+objs = [o for e in r["entries"] for o in e["objects"]]
+if r["counts"]["done"] != 1 or [o["accession"] for o in objs] != ["2026.1.1", "2026.1.2"]:
+    sys.exit(f"FAIL: the README's collection: counts {r['counts']}, objects {objs}")
+if not all(o["meta"].get("lighting") == "tungsten at 45 degrees" for o in objs):
+    sys.exit("FAIL: the README's collection: the list's meta.lighting is not on every object")
+PY
 cmp -s results/object-0001/cube.img collection/S/object-0001/cube.img ||
 	fail "the README's collection: its cube differs from the first session's"
 echo "the README's collection: ok"

@@ -195,8 +195,8 @@ static int fixture_write(const char *outdir)
 	json_object_set_new(calib, "patches", fixture_patches());
 	json_object_set_new(calib, "spectra_source", json_string("chart.cgats"));
 	json_object_set_new(calib, "camera_icc",
-	                    json_pack("{s:s, s:s, s:i, s:f, s:f, s:f}", "path", "camera.icc", "ti3",
-	                              "camera.ti3", "patches", 18, "rgb_scale", 0.65,
+	                    json_pack("{s:s, s:i, s:s, s:i, s:f, s:f, s:f}", "path", "camera.icc",
+	                              "icc_version", 2, "ti3", "camera.ti3", "patches", 18, "rgb_scale", 0.65,
 	                              "fit_de00_mean", 1.93, "fit_de00_max", 4.41));
 
 	json_t *root = json_pack(

@@ -52,7 +52,7 @@ d = json.load(open(sys.argv[1]))
 o = {x["capture"]: x for x in d["objects"]}
 assert abs(o["object-half"]["exposure_scale"] - 2) < 1e-9, o["object-half"]["exposure_scale"]
 assert o["object-half"]["dark"] == "dark-0002", o["object-half"]["dark"]
-w = d["warnings"]
+w = d["warnings"] + [x for ob in d["objects"] for x in ob["warnings"]]  # each once, in its scope
 out = open(sys.argv[2]).read()
 assert not [x for x in w if "no matching dark" in x or "applied by kogei process" in x], w
 # object-half reaches about 43 % of full scale, object-full about 85 %
@@ -144,7 +144,7 @@ o = {x["capture"]: x for x in d["objects"]}
 assert "object-foreign" not in o, list(o)
 assert [x["capture"] for x in d["skipped_captures"]] == ["object-foreign"], d["skipped_captures"]
 assert d["parameters"]["skip"] == ["object-foreign"], d["parameters"]["skip"]
-w = d["warnings"]
+w = d["warnings"] + [x for ob in d["objects"] for x in ob["warnings"]]  # each once, in its scope
 def warned(capture, text):
     hits = [x for x in w if x.startswith("capture %s:" % capture) and text in x]
     assert hits, (capture, text, w)
@@ -234,7 +234,7 @@ import json, sys
 t = sys.argv[1]
 def run(m):
     d = json.load(open("%s/G-%s/process.json" % (t, m)))
-    return {x["capture"]: x for x in d["objects"]}, d["warnings"], open("%s/out-G-%s" % (t, m)).read()
+    return {x["capture"]: x for x in d["objects"]}, d["warnings"] + [x for ob in d["objects"] for x in ob["warnings"]], open("%s/out-G-%s" % (t, m)).read()
 o, w, out = run("none")
 g, f = o["object-green"]["estimate"], o["object-full"]["estimate"]
 print("object-green: %d lit, %d of them clamped; object-full: %d lit, %d clamped"

@@ -136,6 +136,14 @@ assert n == c["patches"] and n >= 9, (n, c)
 assert abs(mean - c["fit_de00_mean"]) < 0.01 and abs(mx - c["fit_de00_max"]) < 0.01, (f, c)
 assert mean < 3 and mx < 6, ("camera.icc against the reference", mean, mx)
 PY
+# camera.icc held out: process.json's leave-one-out recomputed from camera.ti3, and
+# ArgyllCMS's shaper/matrix profile held out the same way beside it
+if command -v colprof >/dev/null 2>&1 && command -v xicclu >/dev/null 2>&1; then
+	mkdir -p "$T/loo"
+	"$PY" "$(dirname "$0")/icc_loo.py" "$A/process.json" "$A/camera.ti3" --argyll "$T/loo" || fail=1
+else
+	"$PY" "$(dirname "$0")/icc_loo.py" "$A/process.json" "$A/camera.ti3" || fail=1
+fi
 if command -v colprof >/dev/null 2>&1; then
 	cp "$A/camera.ti3" "$T/argyll.ti3"
 	(cd "$T" && timeout 60 colprof -v -am -O argyll.icc argyll) >"$T/colprof" 2>&1 && [ -s "$T/argyll.icc" ] ||

@@ -1,9 +1,10 @@
 #!/bin/sh
 # Object records (--meta) and provenance: kogei acquire stores a capture's --meta as its
 # "meta" in session.json and refuses a malformed one naming it (exit 2, the session
-# unchanged); kogei process merges its own --meta over the captures' into process.json
-# "meta", gives each object its capture's, and report.html shows the record at the top
-# with HTML-special characters escaped; process.json's inputs carry absolute paths
+# unchanged); kogei process records its own --meta as process.json "meta" (the run's,
+# never merged with the captures'), gives each object its capture's and the chart's
+# record to calibration.meta, and report.html shows the records at the top with
+# HTML-special characters escaped; process.json's inputs carry absolute paths
 # (the command run with relative ones) and their sha256.
 # usage: test_process_meta.sh KOGEI SOURCE_ROOT HAVE_TAGS_AND_DEMOSAIC
 set -u
@@ -110,9 +111,10 @@ def check(cond, msg):
     if not cond:
         print("FAIL:", msg); ok = False
 m = pj.get("meta")
-check(m == {"accession": "1987.12.3", "title": '<b>Bowl</b> & "lid" – 漆',
-            "x.custom_1": "yes", "lighting": "overridden", "operator": "K. Sato"},
-      "process.json meta %r" % m)
+check(m == {"lighting": "overridden", "operator": "K. Sato"},
+      "process.json meta (the run's own) %r" % m)
+check(pj["calibration"].get("meta") == {"lighting": "2 x LED 5000 K, 45/0"},
+      "calibration.meta (the chart capture's) %r" % pj["calibration"].get("meta"))
 objs = pj["objects"]
 check(len(objs) == 1 and objs[0].get("meta", {}).get("accession") == "1987.12.3"
       and "operator" not in objs[0].get("meta", {}),
@@ -135,8 +137,8 @@ check("&lt;b&gt;Bowl&lt;/b&gt; &amp; " in page and "<b>Bowl" not in page,
 check("1987.12.3" in page and "K. Sato" in page and "x.custom_1" in page,
       "record values shown")
 sec = page[rec:summ]
-check(sec.find("accession") < sec.find("title") < sec.find("operator") < sec.find("x.custom_1"),
-      "known keys first, in order")
+check(sec.find("accession") < sec.find("title") < sec.find("x.custom_1") < sec.find("operator"),
+      "known keys first, in order, the run's record after the object's")
 sys.exit(0 if ok else 1)
 PYEOF
 # A stored record that is not one (edited by hand): the manifest is refused, naming it.

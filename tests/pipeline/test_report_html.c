@@ -131,7 +131,7 @@ static void check_content(const char *page)
 	                     "colorimetric; 7 lit pixels outside the space, clipped)"),
 	      "object-0001's master not listed with its space");
 	CHECK(contains(page, ", no master (see the warnings)."), "object-0002: no master not said");
-	CHECK(contains(page, "<a href=\"camera.icc\"><code>camera.icc</code></a> (ICC v4 input "
+	CHECK(contains(page, "<a href=\"camera.icc\"><code>camera.icc</code></a> (ICC v2 input "
 	                     "profile") && contains(page, "fitted on 18 patches, ΔE00 mean 1.93, "
 	                                                   "max 4.41") &&
 	      contains(page, "<a href=\"camera.ti3\">"), "camera.icc and camera.ti3 not listed");
