@@ -126,6 +126,8 @@ def main():
     got = [(r[col["Entry"]], r[col["Object"]], r[col["Accession"]],
             r[col["Status"]].split()[0] if r[col["Status"]] else "", r[col["Warnings"]])
            for r in rows]
+    if 'Z-9, lot "b"' not in [x[2] for x in expect]:
+        fail("the quoted accession did not reach collection.json: %r" % [x[2] for x in expect])
     if got != expect:
         fail("rows %r, expected %r" % (got, expect))
     for e in rec["entries"]:

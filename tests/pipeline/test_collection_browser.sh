@@ -20,10 +20,11 @@ T=$(mktemp -d) || exit 1
 trap 'chromium_cleanup; [ -n "${KEEP:-}" ] || rm -rf "$T"' EXIT
 C=$T/col
 coll_sessions "$C" 2 && coll_broken "$C" broken || { echo "FAIL: setting up the sessions"; exit 1; }
-# accessions out of the list's order, one with HTML-special characters
+# accessions out of the list's order, one with HTML-special characters, one quoted
+# (a comma and a quote inside)
 cat >"$C/list.csv" <<'LIST'
 session,spectra,meta.accession
-s1,chart.cgats,Z-9
+s1,chart.cgats,"Z-9, lot ""b"""
 s2,chart.cgats,A-1<i>x</i>&amp;
 broken,chart.cgats,M-5
 LIST
