@@ -97,5 +97,6 @@ int kg_cmd_export(int argc, char **argv);
 int kg_cmd_process(int argc, char **argv);
 int kg_cmd_report(int argc, char **argv);
 int kg_cmd_deposit(int argc, char **argv);
+int kg_cmd_collection(int argc, char **argv);
 
 #endif

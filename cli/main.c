@@ -27,6 +27,7 @@ static const kg_command commands[] = {
 	{"process", kg_cmd_process, "a recorded session to calibration, material maps, scenes and report"},
 	{"report", kg_cmd_report, "write a processed session's report.html again from its process.json"},
 	{"deposit", kg_cmd_deposit, "a BagIt bag of a processed session for a repository; --verify re-checks one"},
+	{"collection", kg_cmd_collection, "every session of a collection (CSV) here or on Slurm; run, status"},
 	{"bench", kg_cmd_bench, "speed against error of every estimation method"},
 	{"demo", kg_cmd_demo, "run the whole pipeline on the bundled default"},
 	{"devices", kg_cmd_devices, "camera and spectrometer backends built, spectrometers attached"},

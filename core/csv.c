@@ -29,32 +29,84 @@ void kg_csv_free(kg_csv **t)
 	*t = NULL;
 }
 
-/* Split a line at commas into freshly allocated, blank-trimmed cells. */
-static int split_line(const char *line, size_t len, char ***cells, int *n)
+/* Split a line at commas into freshly allocated cells, blanks around each removed. A
+ * cell that starts with a double quote (RFC 4180, as kg_csv_put writes) runs to its
+ * closing quote, keeping commas and blanks, with "" read as one quote; it must close on
+ * its line and only blanks may follow it. KG_EINVAL with *badcol (1-based) otherwise. */
+static int split_line(const char *line, size_t len, char ***cells, int *n, int *badcol)
 {
-	int count = 1;
-	for (size_t i = 0; i < len; i++)
-		count += line[i] == ',';
-	char **c = calloc((size_t)count, sizeof(*c));
+	int count = 0, cap = 8, ret = 0;
+	char **c = malloc(sizeof(*c) * (size_t)cap);
+	size_t pos = 0;
+	while (c) {
+		size_t a = pos;
+		while (a < len && line[a] != ',' && isspace((unsigned char)line[a]))
+			a++;
+		char *cell;
+		size_t next;
+		if (a < len && line[a] == '"') {
+			cell = malloc(len - a + 1);
+			size_t m = 0, i = a + 1;
+			int closed = 0;
+			while (cell && i < len) {
+				if (line[i] == '"' && i + 1 < len && line[i + 1] == '"') {
+					cell[m++] = '"';
+					i += 2;
+				} else if (line[i] == '"') {
+					closed = 1;
+					i++;
+					break;
+				} else {
+					cell[m++] = line[i++];
+				}
+			}
+			while (i < len && line[i] != ',' && isspace((unsigned char)line[i]))
+				i++;
+			if (cell && (!closed || (i < len && line[i] != ','))) {
+				free(cell);
+				*badcol = count + 1;
+				ret = KG_EINVAL;
+				break;
+			}
+			if (cell)
+				cell[m] = 0;
+			next = i;
+		} else {
+			size_t end = a;
+			while (end < len && line[end] != ',')
+				end++;
+			size_t b = end;
+			while (b > a && isspace((unsigned char)line[b - 1]))
+				b--;
+			cell = strndup(line + a, b - a);
+			next = end;
+		}
+		if (!cell) {
+			ret = KG_ENOMEM;
+			break;
+		}
+		if (count == cap) {
+			char **g = cap < (1 << 20) ? realloc(c, sizeof(*c) * (size_t)cap * 2) : NULL;
+			if (!g) {
+				free(cell);
+				ret = KG_ENOMEM;
+				break;
+			}
+			c = g;
+			cap *= 2;
+		}
+		c[count++] = cell;
+		if (next >= len)
+			break;
+		pos = next + 1;
+	}
 	if (!c)
 		return KG_ENOMEM;
-	size_t start = 0;
-	for (int k = 0; k < count; k++) {
-		size_t end = start;
-		while (end < len && line[end] != ',')
-			end++;
-		size_t a = start, b = end;
-		while (a < b && isspace((unsigned char)line[a]))
-			a++;
-		while (b > a && isspace((unsigned char)line[b - 1]))
-			b--;
-		if (!(c[k] = strndup(line + a, b - a))) {
-			for (int j = 0; j < k; j++)
-				free(c[j]);
-			free(c);
-			return KG_ENOMEM;
-		}
-		start = end + 1;
+	if (ret) {
+		for (int j = 0; j < count; j++)
+			free(c[j]);
+		free(c);
+		return ret;
 	}
 	*cells = c;
 	*n = count;
@@ -118,14 +170,22 @@ int kg_csv_parse(const char *buf, size_t len, const char *name, kg_csv **out, kg
 		if (a == n || line[a] == '#')
 			continue;
 		char **cells;
-		int ncells;
-		if (split_line(line, n, &cells, &ncells) != 0) {
+		int ncells, badcol = 0;
+		int sr = split_line(line, n, &cells, &ncells, &badcol);
+		if (sr == KG_EINVAL) {
+			r = kg_fail(err, KG_EINVAL, "%s: line %d, column %d: a quoted value not closed on "
+			            "its line, or text after its closing quote: expected \"...\" (with "
+			            "\"\" for a quote inside) between commas", t->path, lineno, badcol);
+			break;
+		}
+		if (sr != 0) {
 			r = kg_fail(err, KG_ENOMEM, "%s: out of memory", t->path);
 			break;
 		}
 		if (!t->names) {
 			t->names = cells;
 			t->ncols = ncells;
+			t->header_line = lineno;
 			for (int i = 0; i < ncells && r == 0; i++)
 				if (!*cells[i])
 					r = kg_fail(err, KG_EINVAL, "%s: line %d: header column %d is empty: "

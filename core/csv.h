@@ -1,8 +1,10 @@
 /* Numeric CSV tables as used by the reference data (../shared/reference) and by
- * `kogei model`: UTF-8 text (or Windows-1252, converted: text.h), one header row of
- * column names, comma-separated, no quoting, one record per line. Blank lines and lines starting with '#' are ignored. Cells are
- * kept as text; kg_csv_number() converts one with an error naming the file, the line
- * and the column. */
+ * `kogei model`, and lists such as `kogei collection`'s: UTF-8 text (or Windows-1252,
+ * converted: text.h), one header row of column names, comma-separated, one record per
+ * line; a value may be quoted as RFC 4180 (and kg_csv_put) writes it, on one line
+ * ("a, ""b""" reads as a, "b"); blanks around a value are removed. Blank lines and lines
+ * starting with '#' are ignored. Cells are kept as text; kg_csv_number() converts one
+ * with an error naming the file, the line and the column. */
 #ifndef KG_CSV_H
 #define KG_CSV_H
 
@@ -19,6 +21,7 @@ typedef struct kg_csv {
 	int nrows;
 	char **cells;   /* nrows x ncols, row-major */
 	int *row_lines; /* source line of each row */
+	int header_line; /* source line of the header row */
 } kg_csv;
 
 int kg_csv_read(const char *path, kg_csv **out, kg_err *err);

@@ -275,6 +275,78 @@ int kg_deposit_signal(void);
 int kg_bag_verify(const char *bag, FILE *problems, FILE *progress, kg_deposit_summary *sum,
                   kg_err *err);
 
+/* ==== A collection (collection*.c, docs/collection.md) ===============================
+ * kogei collection run LIST.csv -o OUT: every session of a list, each by `kogei
+ * process` into OUT/<name>/, on this machine (N worker processes) or as one Slurm job
+ * array, resumable; then the collection's record:
+ *
+ *   OUT/<name>/                  what kogei process writes for that session
+ *   OUT/collection.json          the record (kogei-collection/1): engine, per entry its
+ *                                session, status, reason, job, time and objects
+ *   OUT/index.html               the whole collection as one sortable table
+ *   OUT/.collection/plan.json    the list as checked by the last run (absolute paths,
+ *                                each entry's process arguments and key)
+ *   OUT/.collection/entries/NAME.json  one entry's last result (done or failed), written
+ *                                atomically by the task that ran it
+ *   OUT/.collection/logs/NAME.log      that run's output (kogei process's stderr)
+ *   OUT/.collection/thumbs/NAME/CAPTURE.png  thumbnails for index.html
+ *   OUT/.slurm/                  the sbatch script, job.json (the job ids) and logs/
+ *
+ * An entry is done when its state says done and records the key the list gives it now
+ * (the process arguments and the sha256 of session.json, the reference, the spectra and
+ * a materials file); else failed (its state says failed with that key) or pending. A
+ * run runs the failed and pending entries only. */
+
+typedef struct kg_collection_options {
+	const char *list;         /* LIST.csv */
+	const char *out;          /* -o OUT */
+	const char *engine;       /* "local" (NULL: local) or "slurm" */
+	const char *jobs;         /* --jobs N: workers, or the array's throttle (NULL: cores) */
+	const char *partition;    /* slurm: --partition */
+	const char *sbatch_args;  /* slurm: more sbatch options, split at blanks */
+	int no_wait;              /* slurm: submit and return */
+	int show_progress;        /* --progress: the progress line off a terminal too */
+	/* set by kg_collection_check */
+	int njobs;
+	FILE *progress;           /* the progress line, or NULL */
+	FILE *problems;           /* bad rows of the list, one a line (NULL: stderr) */
+	const char *self;         /* the kogei executable (NULL: /proc/self/exe) */
+} kg_collection_options;
+
+extern const kg_opt_table kg_collection_table;
+
+void kg_collection_options_default(kg_collection_options *o);
+/* The options' values and combination (engine, jobs, slurm options with the local
+ * engine): KG_EINVAL naming the option. Sets njobs. */
+int kg_collection_check(kg_collection_options *o, kg_err *err);
+
+typedef struct kg_collection_counts {
+	int entries, done, failed, pending;
+	int ran;                  /* entries run by this call */
+	char array_job[32], finish_job[32]; /* slurm: the submitted jobs ("" none) */
+} kg_collection_counts;
+
+/* Read and check LIST (every bad row written to o->problems naming file, line and
+ * column; then KG_EINVAL, nothing run), write the plan, run the failed and pending
+ * entries on the engine and write the record. 0 when the run ended (entries may have
+ * failed: counts); KG_EINVAL for a bad list or OUT; KG_EBUSY while another run or a
+ * queued Slurm job holds OUT; KG_ENODEV when the engine fails (sbatch refused, squeue
+ * unreachable), with its message; -EINTR when a signal stopped it (*signal_out). */
+int kg_collection_run(const kg_collection_options *o, kg_collection_counts *c,
+                      int *signal_out, kg_err *err);
+/* Run entry index of OUT's plan (kogei process with its arguments, threads > 0 passed
+ * as --threads) and write its state, job naming the run. *done is 1 when it is done.
+ * A run stopped by a signal writes no state. */
+int kg_collection_task(const char *out, int index, const char *job, int threads,
+                       const char *self, int *done, kg_err *err);
+/* OUT/collection.json and OUT/index.html from the plan and the entries' states. */
+int kg_collection_finish(const char *out, kg_collection_counts *c, kg_err *err);
+/* The counts and each failure (and, with a submitted Slurm job, how many of its tasks
+ * are queued or running) on fp. */
+int kg_collection_status(const char *out, FILE *fp, kg_collection_counts *c, kg_err *err);
+/* The failed entries, one "NAME (LIST line N): reason" line each, on fp. */
+void kg_collection_print_failures(const char *out, FILE *fp);
+
 /* ==== Report ====================================================================== */
 
 /* The operator's report (docs/report.md): one self-contained HTML file that a

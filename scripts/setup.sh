@@ -16,6 +16,7 @@ chromium python3-websocket
 libraw-dev libgphoto2-dev libmicrohttpd-dev
 liblcms2-dev liblcms2-utils imagemagick
 libxml2-utils libimage-exiftool-perl
+slurmctld slurmd slurm-client munge
 blender
 "
 # Node.js and npm (for the glTF validator below) from Debian unless a node and npm are

@@ -66,7 +66,8 @@ out=$(grep -n -e '\.\./shared' -e 'DESIGN\.md' -e 'NOTES\.md' -e 'STYLE\.md' \
 [ -z "$out" ] || fail "a page points outside the repository: $out"
 for c in "" demo acquire measure console process report "chart print" "chart detect" \
 	"calib reference" "calib camera" estimate classify "materials learn" render export \
-	"spectra xyz" model "sim patches" "sim image" "sim chart" devices bench deposit; do
+	"spectra xyz" model "sim patches" "sim image" "sim chart" devices bench deposit \
+	"collection run" "collection status"; do
 	# shellcheck disable=SC2086
 	"$KOGEI" $c --help > "$T/help" 2>&1 || true
 	[ -s "$T/help" ] || fail "kogei $c --help printed nothing"
@@ -117,3 +118,27 @@ for a in 2026.1.1 2026.1.2; do
 	grep -q "^External-Identifier: $a\$" "$B/bag-info.txt" || fail "bag-info.txt lacks External-Identifier $a"
 done
 echo "the README's first session: ok ($(grep -c '' "$T/session.sh") lines)"
+
+# "## A collection": its CSV block as list.csv in the first session's folder and its
+# shell block run there: the session processed again into collection/S, the same cube
+s_csv=$(awk '/^## A collection/{s=1} s&&/^```$/{b=!b;if(!b)exit;next} s&&b{print}' "$SRC/README.md")
+awk '/^## A collection/{s=1} s&&/^```sh/{b=1;next} b&&/^```/{exit} b{print}' \
+	"$SRC/README.md" > "$T/collection.sh"
+grep -q "kogei collection run" "$T/collection.sh" || fail "README: no shell block with kogei collection run under '## A collection'"
+[ -n "$s_csv" ] || fail "README: no CSV block under '## A collection'"
+cd "$T/first-session"
+printf '%s\n' "$s_csv" > list.csv
+PATH="$(dirname "$KOGEI"):$PATH" sh -eu "$T/collection.sh" > "$T/log" 2>&1 ||
+	{ tail -20 "$T/log"; fail "the README's collection failed"; }
+python3 - collection/collection.json <<'PY' || exit 1
+import json, sys
+r = json.load(open(sys.argv[1]))
+objs = [o for e in r["entries"] for o in e["objects"]]
+if r["counts"]["done"] != 1 or [o["accession"] for o in objs] != ["2026.1.1", "2026.1.2"]:
+    sys.exit(f"FAIL: the README's collection: counts {r['counts']}, objects {objs}")
+if not all(o["meta"].get("lighting") == "tungsten at 45 degrees" for o in objs):
+    sys.exit("FAIL: the README's collection: the list's meta.lighting is not on every object")
+PY
+cmp -s results/object-0001/cube.img collection/S/object-0001/cube.img ||
+	fail "the README's collection: its cube differs from the first session's"
+echo "the README's collection: ok"

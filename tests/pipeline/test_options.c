@@ -258,11 +258,65 @@ static void test_deposit_fronts(void)
 	CHECK(kg_deposit_check(&c, &err) == 0, "--verify alone: %s", err.msg);
 }
 
+/* kogei collection run's table: argv and JSON give the same options; the paths (-o,
+ * --sbatch-args) are the command line's only; kg_collection_check's refusals name the
+ * option. */
+static void test_collection_fronts(void)
+{
+	kg_collection_options a, b;
+	kg_collection_options_default(&a);
+	kg_collection_options_default(&b);
+	kg_err err = {{0}};
+	char *argv[] = {"run", "L.csv", "-o", "OUT", "--engine", "slurm", "-j", "4",
+	                "--partition", "short", "--no-wait"};
+	int ret = kg_opt_parse_argv(&kg_collection_table, 11, argv, &a, &err);
+	CHECK(ret == 0 && kg_collection_check(&a, &err) == 0, "collection argv: %s", err.msg);
+	json_t *j = json("{\"engine\": \"slurm\", \"jobs\": \"4\", \"partition\": "
+	                 "\"short\", \"no_wait\": true}");
+	b.list = "L.csv";
+	b.out = "OUT";
+	ret = kg_opt_from_json(&kg_collection_table, j, &b, &err);
+	CHECK(ret == 0 && kg_collection_check(&b, &err) == 0, "collection JSON: %s", err.msg);
+	CHECK(a.njobs == 4 && b.njobs == 4 && a.no_wait && b.no_wait &&
+	      !strcmp(a.engine, b.engine) && !strcmp(a.partition, b.partition) &&
+	      !strcmp(a.list, "L.csv") && !strcmp(a.out, "OUT"), "the same options from both");
+	json_decref(j);
+	static const char *const cli_only[] = {"{\"output\": \"/x\"}",
+	                                       "{\"sbatch_args\": \"--x\"}"};
+	for (int i = 0; i < 2; i++) {
+		kg_collection_options_default(&b);
+		j = json(cli_only[i]);
+		CHECK(kg_opt_from_json(&kg_collection_table, j, &b, &err) == KG_EINVAL &&
+		      strstr(err.msg, "unknown option"), "%s: %s", cli_only[i], err.msg);
+		json_decref(j);
+	}
+	struct {
+		const char *engine, *jobs, *partition;
+		int no_wait;
+		const char *says;
+	} bad[] = {{"cloud", NULL, NULL, 0, "--engine"},  {NULL, "0", NULL, 0, "--jobs"},
+	           {NULL, "2x", NULL, 0, "--jobs"},       {NULL, NULL, "p", 0, "--partition"},
+	           {NULL, NULL, NULL, 1, "--no-wait"},    {"slurm", NULL, "a b", 0, "--partition"}};
+	for (size_t i = 0; i < sizeof(bad) / sizeof(bad[0]); i++) {
+		kg_collection_options c;
+		kg_collection_options_default(&c);
+		c.list = "L.csv";
+		c.out = "OUT";
+		c.engine = bad[i].engine;
+		c.jobs = bad[i].jobs;
+		c.partition = bad[i].partition;
+		c.no_wait = bad[i].no_wait;
+		CHECK(kg_collection_check(&c, &err) == KG_EINVAL && strstr(err.msg, bad[i].says),
+		      "refusal %zu: %s", i, err.msg);
+	}
+}
+
 int main(void)
 {
 	test_argv();
 	test_json();
 	test_help();
 	test_deposit_fronts();
+	test_collection_fronts();
 	return kg_test_done("options");
 }

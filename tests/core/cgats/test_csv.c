@@ -161,10 +161,40 @@ static void test_malformed(void)
 	rmdir(dir);
 }
 
+/* Quoted values (RFC 4180, as kg_csv_put writes them): commas, blanks and "" inside;
+ * an unclosed quote or text after the closing one refused naming line and column. */
+static void test_quoted(void)
+{
+	kg_err err = { { 0 } };
+	kg_csv *t = NULL;
+	const char *ok = "a, \"b,c\" ,d\r\n\"x \"\"y\"\"\",2, \" 3 \"\n\"\",,\"\"\"\"\n";
+	CHECK(kg_csv_parse(ok, strlen(ok), "q.csv", &t, &err) == 0, "%s", err.msg);
+	if (t) {
+		CHECK(t->ncols == 3 && t->nrows == 2 && t->header_line == 1, "shape %d x %d", t->nrows,
+		      t->ncols);
+		CHECK(!strcmp(t->names[1], "b,c") && !strcmp(t->names[2], "d"), "header '%s' '%s'",
+		      t->names[1], t->names[2]);
+		CHECK(!strcmp(kg_csv_cell(t, 0, 0), "x \"y\"") && !strcmp(kg_csv_cell(t, 0, 2), " 3 "),
+		      "row 1: '%s' '%s'", kg_csv_cell(t, 0, 0), kg_csv_cell(t, 0, 2));
+		CHECK(!*kg_csv_cell(t, 1, 0) && !*kg_csv_cell(t, 1, 1) &&
+		      !strcmp(kg_csv_cell(t, 1, 2), "\""), "row 2");
+	}
+	kg_csv_free(&t);
+	static const char *const bad[] = {"a,b\n1,\"2\n", "a,b\n1,\"2\"x\n", "\"a,b\n"};
+	static const char *const where[] = {"line 2, column 2", "line 2, column 2",
+	                                    "line 1, column 1"};
+	for (int i = 0; i < 3; i++) {
+		CHECK(kg_csv_parse(bad[i], strlen(bad[i]), "q.csv", &t, &err) == KG_EINVAL && !t &&
+		      strstr(err.msg, where[i]) && strstr(err.msg, "quoted"), "bad %d: %s", i, err.msg);
+		kg_csv_free(&t);
+	}
+}
+
 int main(void)
 {
 	kg_test_reference_dir();
 	test_malformed();
+	test_quoted();
 	test_camera();
 	test_spectra_rows();
 	return kg_test_done("csv");
