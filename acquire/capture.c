@@ -579,6 +579,12 @@ static int load_corrections(cap_ctx *c, kg_image **dark, kg_image **flat, kg_err
 	if (fcap) {
 		if ((ret = load_mean(c, fcap, flat, err)))
 			return ret;
+		/* a clipped or too uneven flat is refused before any frame is taken */
+		const json_t *cf = kg_json_find(fcap, "statistics.clipped_fraction");
+		if ((ret = kg_flat_check_image(*flat, json_is_number(cf) ? json_number_value(cf) : NAN,
+		                               json_string_value(json_object_get(fcap, "name")), NULL,
+		                               err)))
+			return ret;
 		snprintf(r->flat, sizeof(r->flat), "%s",
 		         json_string_value(json_object_get(fcap, "name")));
 		if (latest)
@@ -995,6 +1001,9 @@ int kg_capture_run(kg_session *s, kg_camera *camera, const kg_capture_options *o
 		note(&c, "%s: the light over the frame departs from its mean by up to %.1f %% "
 		         "(illuminance non-uniformity, %d x %d blocks)",
 		     res->name, 100 * res->illuminance_nonuniformity, KG_FLAT_BLOCKS, KG_FLAT_BLOCKS);
+		kg_err why = {{0}};
+		if (kg_flat_check_image(res->mean, res->clipped_fraction, res->name, NULL, &why))
+			note(&c, "warning: %s; it will be refused as a flat", why.msg);
 	}
 	if (res->clipped_fraction > 0 && o->kind != KG_CAPTURE_DARK) {
 		char where[256] = "";

@@ -67,16 +67,69 @@ void kg_frame_accum_free(kg_frame_accum **a);
 
 /* mean -= dark (same size and channels). */
 int kg_correct_dark(kg_image *mean, const kg_image *dark, kg_err *err);
-/* Flat-field: flat is an already dark-subtracted flat capture of the same size. Each
- * colour (channel for RGB, CFA colour for a Bayer mosaic, the one channel for mono) is
- * normalised to its mean over the valid flat samples (finite and above 5 % of that
- * mean), and mean /= normalised flat, variance /= its square (variance may be NULL).
- * Samples where the flat is not valid become NaN; *invalid (may be NULL) counts them. */
+/* Flat-field: flat is an already dark-subtracted flat capture of the same size. It is
+ * low-passed first (kg_flat_smooth: the board's texture and the flat's own noise are
+ * not the light's). Each colour (channel for RGB, CFA colour for a Bayer mosaic, the
+ * one channel for mono) is normalised to its mean over the valid flat samples (finite
+ * and above 5 % of that mean), and mean /= normalised smoothed flat, variance /= its
+ * square (variance may be NULL). Samples where the smoothed flat is not valid become
+ * NaN; *invalid (may be NULL) counts them. */
 int kg_correct_flat(kg_image *mean, kg_image *variance, const kg_image *flat, long *invalid,
                     kg_err *err);
 /* A flat sample below this fraction of its colour's mean is not usable (dust, a dead
  * pixel, the edge of the illumination). */
 #define KG_FLAT_VALID_FRACTION 0.05
+
+/* The flat low-passed: per colour class (kg_colour_class), the mean of its valid
+ * samples (finite, above 0) over blocks of block x block pixels, block =
+ * max(KG_FLAT_BLOCK_MIN, the image's short side / KG_FLAT_BLOCK_DIVISOR, rounded; a
+ * multiple of a mosaic's CFA tile),
+ * read between block centres bilinearly (linearly extrapolated from the two outermost
+ * centres in the border half-blocks, so a fall-off towards the edge is followed). A
+ * box filter of that size and a linear interpolation: it keeps the light's slow
+ * variation (lamp fall-off, vignetting) and removes what varies within a few pixels
+ * (the board's texture, dust on it, the flat's noise). Built row by row
+ * (kg_flat_smooth_add, rows in order), so a flat need not be held whole. */
+#define KG_FLAT_BLOCK_DIVISOR 32
+#define KG_FLAT_BLOCK_MIN 4
+typedef struct kg_flat_smooth {
+	int width, height, channels, block, gw, gh;
+	char cfa[17];
+	int cfa_rows, cfa_cols;
+	double *sum[4];  /* gw x gh per colour class; after kg_flat_smooth_finish, means
+	                  * (NaN where a block has no valid sample) */
+	long *count[4];
+	double lo[4], hi[4]; /* the smallest and largest block mean per class (NaN: none) */
+	double ox[4], oy[4]; /* a mosaic colour's mean place in its CFA tile, from the
+	                      * tile's centre: its block means sit there, not at the centres */
+	int finished;
+} kg_flat_smooth;
+int kg_flat_smooth_init(kg_flat_smooth *s, int width, int height, int channels,
+                        const char *cfa, int cfa_rows, int cfa_cols, kg_err *err);
+/* nrows rows from row y0 (width x channels samples each). */
+void kg_flat_smooth_add(kg_flat_smooth *s, const float *rows, int y0, int nrows);
+void kg_flat_smooth_finish(kg_flat_smooth *s);
+/* The smoothed flat at sample `channel` of pixel (x, y) (NaN where no block near it
+ * has a valid sample). */
+double kg_flat_smooth_at(const kg_flat_smooth *s, int channel, int x, int y);
+void kg_flat_smooth_free(kg_flat_smooth *s);
+/* A flat is refused when more than this share of its samples reached the sensor's
+ * saturation when it was taken (its statistics.clipped_fraction: judged on the codes,
+ * the level found from the data): where it clipped, it does not measure the light. */
+#define KG_FLAT_MAX_CLIPPED 0.001
+/* ... and when the smoothed flat's smallest block mean is below this fraction of its
+ * largest, in any colour: the dimmest part of the frame gets less than 40 % of the
+ * brightest part's light (its noise is raised 2.5 x by the division, and light that
+ * uneven is rarely smooth; light the object evenly, centre the lamp, stop down). */
+#define KG_FLAT_MIN_RATIO 0.4
+/* Refuse a flat (name: the capture's, for the message) that is clipped or too uneven,
+ * naming which and by how much; clipped_fraction NaN when not recorded. *ratio (may be
+ * NULL) gets the smallest min/max ratio of its colours. */
+int kg_flat_check(const kg_flat_smooth *s, double clipped_fraction, const char *name,
+                  double *ratio, kg_err *err);
+/* The same for a flat in memory. */
+int kg_flat_check_image(const kg_image *flat, double clipped_fraction, const char *name,
+                        double *ratio, kg_err *err);
 /* The illuminance non-uniformity of a flat capture (FADGI's "illuminance
  * non-uniformity", docs/acquire.md): each colour normalised to its mean over the
  * valid samples, the frame cut into KG_FLAT_BLOCKS x KG_FLAT_BLOCKS blocks, and the

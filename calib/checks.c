@@ -150,8 +150,9 @@ int calib_check_patch_values(const char *what, char *const *ids, const double (*
 			size_t u = strlen(msg);
 			if (clipped_fraction)
 				snprintf(msg + u, sizeof(msg) - u,
-				         "%d clipped patch%s (clipped-fraction column above 0): ", nclip,
-				         nclip == 1 ? "" : "es");
+				         "%d clipped patch%s (pixels at the sensor's saturation: "
+				         "clipped-fraction column above 0): ",
+				         nclip, nclip == 1 ? "" : "es");
 			else
 				snprintf(msg + u, sizeof(msg) - u,
 				         "%d clipped patch%s (a channel at or above %.2f of full scale): ",

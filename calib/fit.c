@@ -465,8 +465,19 @@ static int check_training(const kg_patchset *train, const kg_patchset *field,
 		if (!kg_spectrum_isfinite(&train->spectra[i]))
 			return kg_fail(err, KG_EINVAL, "%s: patch %s: spectrum holds NaN or infinity",
 			               tname, train->ids[i]);
+	int stride = 0;
+	const double *clip = calib_clipped_column(train, &stride);
+	double *clipped = NULL;
+	if (clip) {
+		if (!(clipped = malloc((size_t)train->n * sizeof(double))))
+			return kg_fail(err, KG_ENOMEM, "out of memory");
+		for (int i = 0; i < train->n; i++)
+			clipped[i] = clip[(size_t)i * stride];
+	}
 	int ret = calib_check_patch_values(tname, train->ids, (const double (*)[3])train->rgb,
-	                                   NULL, train->n, KG_CALIB_CLIP_LEVEL, 0, err);
+	                                   clipped, train->n, KG_CALIB_CLIP_LEVEL, 0, err);
+	free(clipped);
+	clipped = NULL;
 	if (ret)
 		return ret;
 	double cond_eq, sv[3];
@@ -482,9 +493,7 @@ static int check_training(const kg_patchset *train, const kg_patchset *field,
 			if (strcmp(field->ids[i], field->ids[j]) == 0)
 				return kg_fail(err, KG_EINVAL, "%s: SAMPLE_ID %s appears twice", fname,
 				               field->ids[i]);
-	int stride = 0;
-	const double *clip = calib_clipped_column(field, &stride);
-	double *clipped = NULL;
+	clip = calib_clipped_column(field, &stride);
 	if (clip) {
 		clipped = malloc((size_t)field->n * sizeof(double));
 		if (!clipped)

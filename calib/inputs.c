@@ -259,6 +259,16 @@ static int paired_set(const kg_patchset *spectra, const kg_patchset *rgb,
 		memcpy(ps->rgb[j], rgb->rgb[r->match[i]], sizeof(ps->rgb[j]));
 		j++;
 	}
+	/* the clipped-fraction column (clipping judged on the sensor's codes) goes with the
+	 * values, so that the training chart is judged by it and not by its values */
+	int stride = 0;
+	const double *clip = calib_clipped_column(rgb, &stride);
+	if (ret == 0 && clip) {
+		ret = kg_patchset_add_extra(ps, "CLIPPED_FRACTION", err);
+		for (int i = 0, j = 0; ret == 0 && i < spectra->n; i++)
+			if (r->match[i] >= 0)
+				ps->extra[(size_t)j++ * ps->nextra] = clip[(size_t)r->match[i] * stride];
+	}
 	if (ret == 0 && !(ps->source = strdup(rgb->source ? rgb->source : "RGB patch file")))
 		ret = kg_fail(err, KG_ENOMEM, "out of memory");
 	if (ret)

@@ -90,13 +90,20 @@ void calib_pair_side_skip(calib_pair_side *s, const char *const *exclude, int ne
                           const kg_patchset *camera, double clip)
 {
 	int flags = camera ? kg_patchset_extra_index(camera, "FLAGS") : -1;
+	int stride = 0;
+	const double *clipped = camera ? calib_clipped_column(camera, &stride) : NULL;
 	for (int i = 0; i < s->n; i++) {
 		for (int e = 0; e < nexclude; e++)
 			s->skip[i] |= strcmp(exclude[e], s->ids[i]) == 0;
 		if (flags >= 0)
 			s->skip[i] |= camera->extra[(size_t)i * camera->nextra + flags] != 0;
+		/* clipping judged on the sensor's codes when the file says (a value above
+		 * clip after a light-field or flat correction is not clipped), else on the
+		 * values */
+		if (clipped)
+			s->skip[i] |= clipped[(size_t)i * stride] > 0;
 		for (int c = 0; camera && c < 3; c++)
-			s->skip[i] |= camera->rgb[i][c] >= clip || camera->rgb[i][c] <= 0;
+			s->skip[i] |= (!clipped && camera->rgb[i][c] >= clip) || camera->rgb[i][c] <= 0;
 	}
 }
 

@@ -6,7 +6,8 @@
  *
  *   electrons = Poisson(fullwell * scene * exposure / ref_exposure) + Normal(0, read)
  *   DN        = round(electrons * (2^bits - 1) / fullwell * 10^(gain_dB / 20) * wb)
- *               clipped to 0 .. 2^bits - 1
+ *               clipped to 0 .. 2^bits - 1 (or to saturation=N: a sensor that stops
+ *               short of full scale, as a 12-bit one at 4092)
  *
  * where scene is the CFA colour's channel for Bayer formats, each channel for RGB,
  * the Rec. 709 luminance of an RGB scene for mono, and wb the white-balance gain of red
@@ -44,6 +45,7 @@ typedef struct sim_cam {
 	int realtime;
 	double light;   /* scale of the scene (0: the lens capped, for darks) */
 	double uniform; /* >= 0: every scene value this (flats); the image sets the size */
+	double saturation; /* > 0: the DN the sensor's output stops at, below 2^bits - 1 */
 	/* features */
 	double exposure_us, gain_db, fps, wb_red, wb_blue;
 	int auto_exposure, auto_wb;
@@ -309,7 +311,8 @@ static void sim_close(void *state)
 }
 
 static const char sim_keys[] = "width, height, format, bits, fullwell, read, seed, "
-                               "serial, ref_exposure_us, fps, drop, stall, realtime, light, uniform";
+                               "serial, ref_exposure_us, fps, drop, stall, realtime, light, uniform, "
+                               "saturation";
 
 /* A number filling all of text within [min, max]; integral when asked. */
 static int parse_value(const char *key, const char *text, double min, double max,
@@ -389,6 +392,8 @@ static int parse_keys(sim_cam *s, char *q, int have_image, int *w, int *h, kg_er
 				                              "(none) or 2 and more");
 		} else if (!strcmp(kv, "light")) {
 			ret = parse_value(kv, val, 0, 1e6, 0, &s->light, err);
+		} else if (!strcmp(kv, "saturation")) {
+			ret = parse_value(kv, val, 1, 65535, 1, &s->saturation, err);
 		} else if (!strcmp(kv, "uniform")) {
 			ret = parse_value(kv, val, 0, 1e6, 0, &s->uniform, err);
 		} else if (!strcmp(kv, "realtime")) {
@@ -534,6 +539,7 @@ static void render(const sim_cam *s, uint64_t seq, double exposure_us, uint8_t *
 	kg_rng_seed(&rng, s->seed * 0x9e3779b97f4a7c15ULL + seq);
 	double maxdn = (double)((1u << f->bits) - 1u);
 	double k = maxdn / s->fullwell * gain_linear(s);
+	double top = s->saturation > 0 && s->saturation < maxdn ? s->saturation : maxdn;
 	double wb[3] = {wb_in_force(s, 0), 1, wb_in_force(s, 1)};
 	double scale = s->fullwell * exposure_us / s->ref_exposure_us;
 	int ch = kg_pixfmt_channels(f->pixfmt);
@@ -565,7 +571,7 @@ static void render(const sim_cam *s, uint64_t seq, double exposure_us, uint8_t *
 				if (s->read_e > 0)
 					e += s->read_e * kg_rng_normal(&rng);
 				double dn = floor(e * k * (colour >= 0 ? wb[colour] : 1) + 0.5);
-				dn = dn < 0 ? 0 : dn > maxdn ? maxdn : dn;
+				dn = dn < 0 ? 0 : dn > top ? top : dn;
 				size_t i = (size_t)x * (size_t)ch + (size_t)c;
 				if (wide) {
 					uint16_t u = (uint16_t)dn;
@@ -724,6 +730,8 @@ static int sim_preview(void *state, int timeout_ms, kg_frame *frame, kg_err *err
 	int ch = kg_pixfmt_channels(f->pixfmt);
 	int wide = kg_pixfmt_bytes_per_pixel(f->pixfmt) / ch == 2;
 	float maxdn = (float)((1u << f->bits) - 1u);
+	if (s->saturation > 0 && s->saturation < maxdn)
+		maxdn = (float)s->saturation;
 	size_t rowlen = (size_t)f->width * (size_t)ch;
 	kg_rng rng;
 	kg_rng_seed(&rng, s->seed * 0x9e3779b97f4a7c15ULL + 0xbeefULL + s->pv_seq);

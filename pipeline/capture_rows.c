@@ -27,6 +27,8 @@ typedef struct plane {
 	char cfa[17];
 	int cfa_rows, cfa_cols;
 	double norm[4], cut[4];     /* the flat's colour means and validity cuts */
+	kg_flat_smooth *sm;         /* the flat low-passed (plan_flat), divided by */
+	int sm_owned;               /* 1: sm is this plane's (the variance borrows it) */
 	int variance;               /* the flat divides by its square */
 	int demosaic;               /* a mosaic made RGB */
 	double lo, hi;              /* the corrected mosaic's range */
@@ -66,6 +68,10 @@ static void plane_clear(plane *pl)
 	free(pl->dark);
 	free(pl->flat);
 	free(pl->flat_dark);
+	if (pl->sm_owned && pl->sm) {
+		kg_flat_smooth_free(pl->sm);
+		free(pl->sm);
+	}
 	memset(pl, 0, sizeof(*pl));
 }
 
@@ -135,26 +141,21 @@ static int corrected_rows(pass *ps, int rows, float *out, kg_err *err)
 	size_t n = (size_t)rows * pl->width * pl->channels;
 	int y0 = ps->next;
 	int ret = rows_minus_dark(ps, ps->main, ps->dark, rows, n, out, err);
-	if (!ret && ps->flat) {
-		/* the flat's band goes after the dark's in the side buffer */
-		float *f = side_band(ps, 2 * n, err);
-		if (!f)
-			return KG_ENOMEM;
-		f += n;
-		if (!(ret = rows_minus_dark(ps, ps->flat, ps->flat_dark, rows, n, f, err))) {
-			/* the flat's dark went into the side buffer's first n samples */
-			f = ps->side + n;
-			for (size_t i = 0; i < n; i++) {
-				int c = colour_class(pl, y0, i);
-				float v = f[i];
-				if (!(isfinite(v) && v > pl->cut[c])) {
-					out[i] = NAN;
-					ps->invalid++;
-					continue;
-				}
-				double g = v / pl->norm[c];
-				out[i] = (float)(pl->variance ? out[i] / (g * g) : out[i] / g);
+	if (!ret && pl->flat && pl->sm) {
+		/* the smoothed flat (kg_flat_smooth), from plan_flat */
+		size_t C = (size_t)pl->channels, W = (size_t)pl->width;
+		for (size_t i = 0; i < n; i++) {
+			size_t px = i / C;
+			int c = colour_class(pl, y0, i);
+			double v = kg_flat_smooth_at(pl->sm, (int)(i % C), (int)(px % W),
+			                             y0 + (int)(px / W));
+			if (!(isfinite(v) && v > pl->cut[c])) {
+				out[i] = NAN;
+				ps->invalid++;
+				continue;
 			}
+			double g = v / pl->norm[c];
+			out[i] = (float)(pl->variance ? out[i] / (g * g) : out[i] / g);
 		}
 	}
 	ps->next += rows;
@@ -182,9 +183,9 @@ static int pass_open(const plane *pl, int raw, int with_main, pass *ps, kg_err *
 		ret = open_rows(pl->path, pl, pl->path, &ps->main, err);
 	if (!ret && pl->dark && with_main)
 		ret = open_rows(pl->dark, pl, "the dark", &ps->dark, err);
-	if (!ret && pl->flat)
+	if (!ret && pl->flat && !pl->sm)
 		ret = open_rows(pl->flat, pl, "the flat", &ps->flat, err);
-	if (!ret && pl->flat_dark)
+	if (!ret && pl->flat_dark && !pl->sm)
 		ret = open_rows(pl->flat_dark, pl, "the flat's dark", &ps->flat_dark, err);
 	if (ret)
 		pass_close(ps);
@@ -193,7 +194,8 @@ static int pass_open(const plane *pl, int raw, int with_main, pass *ps, kg_err *
 
 /* The flat's colour means over its positive samples, then over the valid ones (above
  * KG_FLAT_VALID_FRACTION of the first): two passes, summed in file order as
- * kg_correct_flat sums them. */
+ * kg_correct_flat sums them; the first also low-passes it (kg_flat_smooth), and the
+ * corrections divide by that. */
 static int plan_flat(plane *pl, kg_err *err)
 {
 	double sum[4] = {0};
@@ -201,7 +203,13 @@ static int plan_flat(plane *pl, kg_err *err)
 	size_t row = (size_t)pl->width * pl->channels;
 	int band = (int)((1u << 20) / row) + 1;
 	float *f = malloc(sizeof(float) * row * (size_t)band);
-	int ret = f ? 0 : kg_fail(err, KG_ENOMEM, "out of memory");
+	kg_flat_smooth *sm = calloc(1, sizeof(*sm));
+	int ret = f && sm ? 0 : kg_fail(err, KG_ENOMEM, "out of memory");
+	int sm_ready = 0;
+	if (!ret)
+		ret = kg_flat_smooth_init(sm, pl->width, pl->height, pl->channels,
+		                          pl->cfa[0] ? pl->cfa : NULL, pl->cfa_rows, pl->cfa_cols, err);
+	sm_ready = !ret;
 	for (int round = 0; round < 2 && !ret; round++) {
 		pass ps;
 		if ((ret = pass_open(pl, 1, 0, &ps, err)))
@@ -211,6 +219,8 @@ static int plan_flat(plane *pl, kg_err *err)
 			if ((ret = rows_minus_dark(&ps, ps.flat, ps.flat_dark, rows, (size_t)rows * row, f,
 			                           err)))
 				break;
+			if (round == 0)
+				kg_flat_smooth_add(sm, f, y, rows);
 			for (size_t i = 0; i < (size_t)rows * row; i++) {
 				float v = f[i];
 				int c = colour_class(pl, y, i);
@@ -232,6 +242,15 @@ static int plan_flat(plane *pl, kg_err *err)
 		}
 	}
 	free(f);
+	if (!ret) {
+		kg_flat_smooth_finish(sm);
+		pl->sm = sm;
+		pl->sm_owned = 1;
+	} else if (sm) {
+		if (sm_ready)
+			kg_flat_smooth_free(sm);
+		free(sm);
+	}
 	return ret;
 }
 
@@ -468,6 +487,11 @@ int proc_source_open(proc *p, const proc_capture *c, double scale, int keep_mosa
 			proc_progress(p, "%s: the flat %s's colour means (two passes)", c->name, fc->name);
 			ret = plan_flat(im, p->err);
 		}
+		if (!ret) { /* a clipped or too uneven flat is refused, naming which */
+			const json_t *cf = kg_json_find(fc->j, "statistics.clipped_fraction");
+			ret = kg_flat_check(im->sm, json_is_number(cf) ? json_number_value(cf) : NAN,
+			                    fc->name, NULL, p->err);
+		}
 		if (ret) {
 			kg_err_prefix(p->err, "capture %s, flat %s: ", c->name, fc->name);
 		} else {
@@ -515,6 +539,7 @@ int proc_source_open(proc *p, const proc_capture *c, double scale, int keep_mosa
 			va->flat_dark = im->flat_dark ? strdup(im->flat_dark) : NULL;
 			memcpy(va->norm, im->norm, sizeof(va->norm));
 			memcpy(va->cut, im->cut, sizeof(va->cut));
+			va->sm = im->sm; /* borrowed */
 			ok = va->flat && (!im->flat_dark || va->flat_dark);
 		}
 		va->variance = 1;

@@ -7,8 +7,11 @@
  * - dark and flat end to end: scenes with a dark offset and vignetting; the corrected
  *   object must be proportional to the scene, equal (to float rounding) to the
  *   uncorrected mean of the same frames (a second session, same sim seed) minus the dark
- *   over the normalised flat, and the manifest must name the dark and flat used; a dark
- *   of another exposure is refused (exit 1) without touching the session. */
+ *   over the normalised flat (low-passed, kg_flat_smooth), and the manifest must name
+ *   the dark and flat used; a dark of another exposure is refused (exit 1) without
+ *   touching the session;
+ * - a clipped flat and a too uneven one are refused when applied, naming them and the
+ *   measured value. */
 #include "acq_test.h"
 #include "kg_acquire.h"
 
@@ -194,22 +197,28 @@ static void dark_and_flat(void)
 		CHECK(0, "outputs missing");
 		goto out;
 	}
-	/* exact: C = (U - D) / (F / mean F) */
+	/* exact: C = (U - D) / (smoothed F / mean F), the flat low-passed (kg_flat_smooth) */
 	double fm = 0;
 	for (int i = 0; i < W * H; i++)
 		fm += F->data[i];
 	fm /= W * H;
+	kg_flat_smooth sm;
+	kg_err serr = {{0}};
+	CHECK(kg_flat_smooth_init(&sm, W, H, 1, NULL, 0, 0, &serr) == 0, "smooth: %s", serr.msg);
+	kg_flat_smooth_add(&sm, F->data, 0, H);
+	kg_flat_smooth_finish(&sm);
 	double worst = 0, rmin = INFINITY, rmax = 0;
 	for (int y = 0; y < H; y++)
 		for (int x = 0; x < W; x++) {
 			int i = y * W + x;
-			double want = ((double)U->data[i] - D->data[i]) / (F->data[i] / fm);
+			double want = ((double)U->data[i] - D->data[i]) / (kg_flat_smooth_at(&sm, 0, x, y) / fm);
 			worst = fmax(worst, fabs(C->data[i] - want) / fabs(want));
 			double r = C->data[i] / scene_at(x, y);
 			rmin = fmin(rmin, r);
 			rmax = fmax(rmax, r);
 		}
-	CHECK(worst < 1e-5, "corrected object differs from (U - D) / flat by %.3g", worst);
+	kg_flat_smooth_free(&sm);
+	CHECK(worst < 1e-5, "corrected object differs from (U - D) / smoothed flat by %.3g", worst);
 	/* statistical: the vignetting (40 %) and the offset are gone */
 	CHECK(rmax / rmin < 1.03, "corrected / scene spans %.4f .. %.4f", rmin, rmax);
 	printf("dark+flat end to end: exact within %.2g; corrected/scene %.4f .. %.4f\n", worst,
@@ -346,6 +355,49 @@ static void foreign_files(void)
 	      "a folder that is not a session: exit %d: %s", rc, acq_errtext);
 }
 
+/* Flats that do not measure the light are refused when applied, before any frame,
+ * naming the flat and the measured value: one clipped (a uniform target at 1.5 of full
+ * scale: every sample at the sensor's top code) and one more uneven than 40 %
+ * (a ramp from 0.2 to 0.9 across the frame); taking them says they will be. */
+static void flat_refusals(void)
+{
+	kg_image *img;
+	kg_err err = {{0}};
+	kg_image_new(W, H, 1, &img, &err);
+	for (int y = 0; y < H; y++)
+		for (int x = 0; x < W; x++)
+			img->data[y * W + x] = (float)(0.2 + 0.7 * x / (W - 1.0));
+	if (kg_image_write_tiff(img, kg_test_path("ramp.tif"), 32, &err))
+		fprintf(stderr, "%s\n", err.msg);
+	kg_image_free(&img);
+	const char *keys = "?format=mono16&bits=12&fullwell=20000&read=3&seed=4";
+	char clipped[4400], ramp[4400], obj[4400], a[4200];
+	snprintf(clipped, sizeof(clipped), "sim:%s%s&uniform=1.5", kg_test_path("ramp.tif"), keys);
+	snprintf(ramp, sizeof(ramp), "sim:%s%s", kg_test_path("ramp.tif"), keys);
+	snprintf(obj, sizeof(obj), "sim:%s%s&uniform=0.3", kg_test_path("ramp.tif"), keys);
+	snprintf(a, sizeof(a), "%s", kg_test_path("bad-flats"));
+	int rc = acq_run("acquire", "--camera", clipped, "--out", a, "--kind", "flat", "--frames",
+	                 "2", "--exposure", "10000", NULL);
+	CHECK(rc == 0 && contains(acq_errtext, "it will be refused as a flat"),
+	      "clipped flat: exit %d: %s", rc, acq_errtext);
+	rc = acq_run("acquire", "--camera", obj, "--out", a, "--kind", "object", "--frames", "2",
+	             "--exposure", "10000", "--flat", "flat-0001", NULL);
+	CHECK(rc == 1 && contains(acq_errtext, "flat flat-0001 is clipped: 100 % of its samples "
+	                                       "reached the sensor's saturation"),
+	      "a clipped flat: exit %d: %s", rc, acq_errtext);
+	rc = acq_run("acquire", "--camera", ramp, "--out", a, "--kind", "flat", "--frames", "2",
+	             "--exposure", "10000", NULL);
+	CHECK(rc == 0 && contains(acq_errtext, "it will be refused as a flat"),
+	      "uneven flat: exit %d: %s", rc, acq_errtext);
+	rc = acq_run("acquire", "--camera", obj, "--out", a, "--kind", "object", "--frames", "2",
+	             "--exposure", "10000", "--flat", "flat-0002", NULL);
+	CHECK(rc == 1 && contains(acq_errtext, "flat flat-0002 is too uneven: its dimmest part gets "
+	                                       "2"),
+	      "an uneven flat: exit %d: %s", rc, acq_errtext);
+	printf("refused: %s\n", acq_errtext);
+	CHECK(acq_check_session(a, NULL, 0) == 2, "the refused captures were added");
+}
+
 int main(int argc, char **argv)
 {
 	acq_init(argc, argv, "acquire-cli");
@@ -354,6 +406,7 @@ int main(int argc, char **argv)
 	failing_camera();
 	bayer_capture();
 	dark_and_flat();
+	flat_refusals();
 	acq_cleanup();
 	return kg_test_done("acquire-cli");
 }

@@ -3,6 +3,9 @@
  *   dark offset: the corrected image must be scene x gain x (mean vignetting of that
  *   colour), the variance divided by the squared normalised flat, unusable flat
  *   samples NaN and counted;
+ * - the flat low-passed (kg_flat_smooth): a textured, noisy flat corrects a uniform
+ *   target to a lower pixel spread than the raw flat; a clipped and a too uneven flat
+ *   are refused naming it and the value;
  * - the illuminance non-uniformity of a flat (kg_flat_nonuniformity): a Bayer flat
  *   with per-colour gains and a 20 % ramp across the frame departs from its mean by
  *   the ramp's value at the outer blocks' centres (8.9 %), a flat frame by about 0,
@@ -55,7 +58,7 @@ static void test_dark_flat(void)
 	kg_image_set_cfa(flat, cfa, 2, 2, &err);
 	kg_rng rng;
 	kg_rng_seed(&rng, 7);
-	double fsum[3] = {0}, fn[3] = {0};
+	double fsum[4] = {0}, fn[4] = {0};
 	double *vign = malloc(sizeof(double) * (size_t)(W * H));
 	for (int y = 0; y < H; y++)
 		for (int x = 0; x < W; x++) {
@@ -69,41 +72,71 @@ static void test_dark_flat(void)
 			var->data[i] = (float)(1e-4 * F);
 			dark->data[i] = (float)D;
 			flat->data[i] = (float)(0.7 * F * gain[c]); /* a flat, dark already taken off */
-			fsum[c] += F;
-			fn[c]++;
 		}
-	/* two dead flat samples */
-	flat->data[5 * W + 7] = 0;
-	flat->data[9 * W + 11] = NAN;
+	/* two dead flat samples (left out of the low-passed flat: their pixels are corrected
+	 * by their neighbours' light) and an unlit strip x < 8 (not valid: NaN) */
+	flat->data[5 * W + 7 + 10] = 0;
+	flat->data[9 * W + 11 + 10] = NAN;
+	for (int y = 0; y < H; y++)
+		for (int x = 0; x < 8; x++)
+			flat->data[y * W + x] = 0;
 	CHECK(kg_correct_dark(obj, dark, &err) == 0, "dark: %s", err.msg);
+	float *obj0 = malloc(sizeof(float) * (size_t)(W * H));
+	memcpy(obj0, obj->data, sizeof(float) * (size_t)(W * H));
+	/* what kg_correct_flat must divide by: the flat low-passed, over its colour's mean
+	 * of the valid samples */
+	kg_flat_smooth sm;
+	CHECK(kg_flat_smooth_init(&sm, W, H, 1, cfa, 2, 2, &err) == 0, "smooth: %s", err.msg);
+	kg_flat_smooth_add(&sm, flat->data, 0, H);
+	kg_flat_smooth_finish(&sm);
+	for (int y = 0; y < H; y++)
+		for (int x = 0; x < W; x++) {
+			float v = flat->data[y * W + x];
+			if (isfinite(v) && v > 0) {
+				fsum[colour_of(cfa, x, y)] += v;
+				fn[colour_of(cfa, x, y)]++;
+			}
+		}
 	long invalid = -1;
 	CHECK(kg_correct_flat(obj, var, flat, &invalid, &err) == 0, "flat: %s", err.msg);
-	CHECK(invalid == 2, "invalid flat samples %ld, expected 2", invalid);
-	/* the class means exclude the two dead samples */
-	fsum[colour_of(cfa, 7, 5)] -= vign[5 * W + 7];
-	fn[colour_of(cfa, 7, 5)]--;
-	fsum[colour_of(cfa, 11, 9)] -= vign[9 * W + 11];
-	fn[colour_of(cfa, 11, 9)]--;
-	double worst = 0, worst_v = 0;
+	double worst = 0, worst_v = 0, worst_truth = 0;
+	long nan = 0;
 	for (int y = 0; y < H; y++)
 		for (int x = 0; x < W; x++) {
 			int i = y * W + x, c = colour_of(cfa, x, y);
-			if ((x == 7 && y == 5) || (x == 11 && y == 9)) {
-				CHECK(isnan(obj->data[i]) && isnan(var->data[i]), "dead flat at %d,%d: %g", x,
-				      y, obj->data[i]);
+			double sf = kg_flat_smooth_at(&sm, 0, x, y);
+			if (x < 8) {
+				CHECK(isnan(obj->data[i]) && isnan(var->data[i]), "unlit flat at %d,%d: %g",
+				      x, y, obj->data[i]);
+				nan++;
+				continue;
+			}
+			if (isnan(obj->data[i])) { /* within half a block of the unlit strip */
+				CHECK(x < 8 + sm.block && !isfinite(sf), "NaN at %d,%d", x, y);
+				nan++;
 				continue;
 			}
 			double mf = fsum[c] / fn[c];
-			double want = scene->data[i] * gain[c] * mf;
-			double g = vign[i] / mf;
+			double g = sf / mf;
+			double want = obj0[i] / g;
 			double want_v = 1e-4 * vign[i] / (g * g);
 			worst = fmax(worst, fabs(obj->data[i] - want) / want);
 			worst_v = fmax(worst_v, fabs(var->data[i] - want_v) / want_v);
+			/* against the truth: the scene times the colour's gain and mean light */
+			double truth = scene->data[i] * gain[c] * mf / (0.7 * gain[c]);
+			if (x >= 8 + sm.block)
+				worst_truth = fmax(worst_truth, fabs(obj->data[i] - truth) / truth);
 		}
+	CHECK(invalid == nan, "invalid flat samples %ld, NaN %ld", invalid, nan);
 	CHECK(worst < 2e-6, "flat-corrected image off by %.3g (relative)", worst);
 	CHECK(worst_v < 2e-6, "flat-corrected variance off by %.3g (relative)", worst_v);
-	printf("dark+flat: largest relative error %.2g (image), %.2g (variance)\n", worst,
-	       worst_v);
+	/* the low-pass follows the vignetting (0.7..1) within a small bias */
+	CHECK(worst_truth < 0.005, "flat-corrected image off the truth by %.3g", worst_truth);
+	printf("dark+flat: largest relative error %.2g (image), %.2g (variance); against the "
+	       "truth %.2g (the low-pass's bias); %ld invalid\n", worst, worst_v, worst_truth,
+	       invalid);
+	kg_flat_smooth_free(&sm);
+	free(obj0);
 
 	/* size and pattern mismatches */
 	kg_image *small;
@@ -119,6 +152,84 @@ static void test_dark_flat(void)
 	kg_image_free(&flat);
 	kg_image_free(&dark);
 	free(vign);
+}
+
+/* A flat of a textured board (a fine random texture of 3 % and the flat's own noise of
+ * 1 %, per pixel) under a smooth fall-off to 0.55 at the corners, and a uniform target
+ * (reflectance 0.5, noise 0.2 %) under the same light: divided by the low-passed flat
+ * the target comes out flatter than divided by the raw one (whose texture and noise go
+ * straight into every pixel), close to its own noise. Then the refusals: a clipped flat
+ * (its clipped fraction above KG_FLAT_MAX_CLIPPED) and one more uneven than
+ * KG_FLAT_MIN_RATIO, each naming the flat and the measured value. */
+static void test_flat_lowpass(void)
+{
+	const int W = 240, H = 160;
+	kg_image *flat, *obj, *raw;
+	kg_err err = {{0}};
+	kg_image_new(W, H, 1, &flat, &err);
+	kg_image_new(W, H, 1, &obj, &err);
+	kg_image_new(W, H, 1, &raw, &err);
+	kg_rng rng;
+	kg_rng_seed(&rng, 11);
+	for (int y = 0; y < H; y++)
+		for (int x = 0; x < W; x++) {
+			int i = y * W + x;
+			double dx = (x - W / 2.0) / W, dy = (y - H / 2.0) / H;
+			double L = 1 - 0.9 * (dx * dx + dy * dy);
+			double texture = 1 + 0.03 * (2 * kg_rng_uniform(&rng) - 1) * 1.7320508;
+			flat->data[i] = (float)(0.6 * L * texture + 0.006 * kg_rng_normal(&rng));
+			obj->data[i] = (float)(0.5 * L + 0.001 * kg_rng_normal(&rng));
+			raw->data[i] = obj->data[i];
+		}
+	long invalid = -1;
+	CHECK(kg_correct_flat(obj, NULL, flat, &invalid, &err) == 0, "flat: %s", err.msg);
+	CHECK(invalid == 0, "invalid %ld", invalid);
+	/* the raw flat, as kogei divided before: by the flat over its mean */
+	double fm = 0;
+	for (int i = 0; i < W * H; i++)
+		fm += flat->data[i];
+	fm /= W * H;
+	for (int i = 0; i < W * H; i++)
+		raw->data[i] = (float)(raw->data[i] / (flat->data[i] / fm));
+	double sd[2];
+	for (int k = 0; k < 2; k++) {
+		const kg_image *im = k ? raw : obj;
+		double m = 0, m2 = 0;
+		for (int i = 0; i < W * H; i++)
+			m += im->data[i];
+		m /= W * H;
+		for (int i = 0; i < W * H; i++)
+			m2 += (im->data[i] - m) * (im->data[i] - m);
+		sd[k] = sqrt(m2 / (W * H - 1)) / m;
+	}
+	printf("uniform target through a textured, noisy flat: relative pixel std %.4f with the "
+	       "low-passed flat, %.4f with the raw one (the target's own noise ~%.4f)\n",
+	       sd[0], sd[1], 0.001 / 0.5 / 0.85);
+	CHECK(sd[0] < sd[1] / 3, "low-passed %.4f is not well below raw %.4f", sd[0], sd[1]);
+	CHECK(sd[0] < 0.006, "low-passed std %.4f: more than the target's noise and a small bias",
+	      sd[0]);
+
+	/* refusals, naming the flat and the measured value */
+	double ratio = NAN;
+	CHECK(kg_flat_check_image(flat, 0, "flat-0001", &ratio, &err) == 0, "even flat: %s",
+	      err.msg);
+	CHECK(ratio > KG_FLAT_MIN_RATIO && ratio < 0.7, "ratio %.3f", ratio);
+	CHECK(kg_flat_check_image(flat, 0.023, "flat-0001", NULL, &err) == KG_EINVAL,
+	      "a clipped flat was accepted");
+	CHECK(strstr(err.msg, "flat flat-0001 is clipped: 2.3 % of its samples"), "message '%s'",
+	      err.msg);
+	for (int y = 0; y < H; y++)
+		for (int x = 0; x < W; x++)
+			flat->data[y * W + x] = (float)(0.8 * (0.25 + 0.75 * x / (W - 1.0)));
+	CHECK(kg_flat_check_image(flat, 0, "flat-0002", &ratio, &err) == KG_EINVAL,
+	      "an uneven flat (ratio %.3f) was accepted", ratio);
+	CHECK(fabs(ratio - 0.25) < 0.03, "ramp 0.25..1: ratio %.3f", ratio);
+	CHECK(strstr(err.msg, "flat flat-0002 is too uneven: its dimmest part gets 2") &&
+	      strstr(err.msg, "limit 40 %"), "message '%s'", err.msg);
+	printf("refused: %s\n", err.msg);
+	kg_image_free(&flat);
+	kg_image_free(&obj);
+	kg_image_free(&raw);
 }
 
 static void test_stats(void)
@@ -364,6 +475,7 @@ static void test_flat_nonuniformity(void)
 int main(void)
 {
 	test_dark_flat();
+	test_flat_lowpass();
 	test_flat_nonuniformity();
 	test_stats();
 	test_bright_level();

@@ -137,12 +137,14 @@ PYEOF
 }
 S=$T/site
 warnings "site camera, A" "$S/out" "decided unknown|region.*decided otherwise" 0
-# the pooled test without the model's error (model_rsd removed): unknown regions, warned.
+# the pooled test without the model's error (model_rsd removed).
 # On captures flat-corrected by kogei process (acquired with --flat none), whose
 # demosaicing leaves the colour errors the model's error has to cover.
 ACQUIRE_FLAT="--flat none" session "$T/pflat" "$FIX/demo/site_camera.csv" A ||
 	{ echo "FAIL: the session flat-corrected by process"; exit 1; }
 S=$T/pflat
+# the flat divided by process (low-passed, as acquire does): every region still right
+check_regions "$T/pflat" "flat by process"
 "$PY" -c 'import json, sys
 d = json.load(open(sys.argv[1]))
 for m in d["materials"]: m.pop("model_rsd", None)
@@ -151,11 +153,16 @@ json.dump(d, open(sys.argv[2], "w"))' "$FIX/materials/default.json" "$T/norsd.js
 	>"$T/norsd.log" 2>&1 || { cat "$T/norsd.log"; fail=1; }
 n=$(grep -c ',unknown,' "$T"/norsd/*/labels_regions.csv)
 echo "without model_rsd: $n of the 10 tile regions unknown"
-check_n() { [ "$n" -ge 1 ] || { echo "FAIL: expected unknown regions without model_rsd"; fail=1; }; }
-check_n
-warnings "without model_rsd" "$T/norsd" "$n regions? of 100 pixels or more decided unknown" 1
-grep -q "warning: .*decided unknown" "$T/norsd.log" ||
-	{ echo "FAIL: the summary does not print the unknown regions"; fail=1; }
+# Before the flat was low-passed (issue 47 item 9b) some regions came out unknown
+# here: the raw flat's pixel noise, which the variance does not carry, pushed their
+# pooled test over the threshold; with it low-passed none does on this data, so the
+# unknown-region warning is checked when there are any (its wording is checked by
+# tests/pipeline label-warnings).
+if [ "$n" -ge 1 ]; then
+	warnings "without model_rsd" "$T/norsd" "$n regions? of 100 pixels or more decided unknown" 1
+	grep -q "warning: .*decided unknown" "$T/norsd.log" ||
+		{ echo "FAIL: the summary does not print the unknown regions"; fail=1; }
+fi
 S=$T/site
 # copper and shakudo not declared: their pixels unknown, a large share of the object's
 "$KOGEI" process "$S/S" --spectra "$S/chart.cgats" -o "$T/only" \
