@@ -264,11 +264,15 @@ static double method_lambda(kg_method m, const kg_reference_options *opt, int n)
  * basis and M are refitted on the others (moments without it) and it is predicted. */
 static int pca_leave_one_out(const moments *all, const kg_patchset *train,
                              const kg_reference_options *opt, const calib_d65 *d65,
-                             double *rmse_K, double *de_K, int *nK_out, kg_err *err)
+                             double *rmse_K, double *de_K, double (*band_K)[NB],
+                             int *nK_out, kg_err *err)
 {
 	int m = train->n;
 	int nK = m - 1 < KMAX ? m - 1 : KMAX;
 	double sum_r[KMAX] = {0}, sum_d[KMAX] = {0};
+	for (int K = 0; K < KMAX; K++)
+		for (int l = 0; l < NB; l++)
+			band_K[K][l] = 0;
 	moments *mo = malloc(sizeof(*mo));
 	kg_spectral_map *map = malloc(sizeof(*map));
 	int ok = mo && map && nK >= 1;
@@ -293,16 +297,46 @@ static int pca_leave_one_out(const moments *all, const kg_patchset *train,
 			kg_spectral_map_apply(map, train->rgb[i], &est);
 			sum_r[K - 1] += kg_spectrum_rmse(&est, s);
 			sum_d[K - 1] += calib_de00(d65, &est, s);
+			for (int l = 0; l < NB; l++)
+				band_K[K - 1][l] += (est.v[l] - s->v[l]) * (est.v[l] - s->v[l]);
 		}
 	}
 	*nK_out = ok ? nK : 0;
 	for (int K = 0; K < KMAX; K++) {
 		rmse_K[K] = K < *nK_out ? sum_r[K] / m : NAN;
 		de_K[K] = K < *nK_out ? sum_d[K] / m : NAN;
+		for (int l = 0; l < NB; l++)
+			band_K[K][l] = K < *nK_out ? sqrt(band_K[K][l] / m) : NAN;
 	}
 	free(mo);
 	free(map);
 	return 0;
+}
+
+double kg_spectral_map_neutral_tilt(const kg_spectral_map *map, const kg_response *r)
+{
+	if (!map || !map->available || !r || !r->available)
+		return NAN;
+	double flat[NB], worst = 0;
+	const double levels[2] = {0.2, 0.8};
+	for (int k = 0; k < 2; k++) {
+		double rgb[3];
+		for (int l = 0; l < NB; l++)
+			flat[l] = levels[k];
+		kg_response_apply(r, flat, rgb);
+		if (!(rgb[0] > 0 && rgb[1] > 0 && rgb[2] > 0))
+			return NAN;
+		kg_spectrum est;
+		kg_spectral_map_apply(map, rgb, &est);
+		double mean = 0;
+		for (int l = 0; l < NB; l++)
+			mean += est.v[l] / NB;
+		if (!(mean > 0))
+			return NAN;
+		for (int l = 0; l < NB; l++)
+			worst = fmax(worst, fabs(est.v[l] / mean - 1));
+	}
+	return worst;
 }
 
 /* Fit a regression method and validate it: in-sample RMSE, and leave-one-out in
@@ -317,6 +351,8 @@ static int fit_regression(const kg_patchset *train, kg_method j,
 	map->nterms = kg_method_nterms(j);
 	map->lambda = method_lambda(j, opt, m);
 	map->loo_rmse = map->loo_de00 = NAN;
+	for (int l = 0; l < NB; l++)
+		map->loo_band[l] = NAN;
 	if (m < map->nterms && map->lambda == 0) {
 		snprintf(map->note, sizeof(map->note),
 		         "needs at least %d patches without a ridge (the chart has %d)", map->nterms, m);
@@ -337,7 +373,7 @@ static int fit_regression(const kg_patchset *train, kg_method j,
 		return 0;
 	}
 	map->available = 1;
-	double fit = 0, loo = 0, de = 0;
+	double fit = 0, loo = 0, de = 0, band[NB] = {0};
 	int loo_ok = 1;
 	for (int i = 0; i < m; i++) {
 		const kg_spectrum *s = &train->spectra[i];
@@ -349,8 +385,10 @@ static int fit_regression(const kg_patchset *train, kg_method j,
 			loo_ok = 0;
 			continue;
 		}
-		for (int l = 0; l < NB; l++)
+		for (int l = 0; l < NB; l++) {
 			held.v[l] = s->v[l] - (s->v[l] - est.v[l]) / d;
+			band[l] += (held.v[l] - s->v[l]) * (held.v[l] - s->v[l]);
+		}
 		loo += kg_spectrum_rmse(&held, s);
 		de += calib_de00(d65, &held, s);
 	}
@@ -358,6 +396,8 @@ static int fit_regression(const kg_patchset *train, kg_method j,
 	if (loo_ok) {
 		map->loo_rmse = loo / m;
 		map->loo_de00 = de / m;
+		for (int l = 0; l < NB; l++)
+			map->loo_band[l] = sqrt(band[l] / m);
 	}
 	free(h);
 	return 0;
@@ -618,7 +658,7 @@ static int fit_reference(const kg_patchset *train, const kg_patchset *field,
 	kg_reference *ref = calloc(1, sizeof(*ref));
 	moments *mo = calloc(1, sizeof(*mo));
 	calib_d65 *d65 = malloc(sizeof(*d65));
-	double de_K[KMAX];
+	double de_K[KMAX], band_K[KMAX][NB];
 	if (!ref || !mo || !d65) {
 		ret = kg_fail(err, KG_ENOMEM, "reference calibration: out of memory");
 		goto error;
@@ -643,7 +683,7 @@ static int fit_reference(const kg_patchset *train, const kg_patchset *field,
 	/* PCA: leave-one-out for every K, then the K and the model. */
 	for (int i = 0; i < train->n; i++)
 		moments_add(mo, &train->spectra[i], train->rgb[i], 1.0);
-	ret = pca_leave_one_out(mo, train, opt, d65, ref->loo_by_K, de_K, &ref->nK, err);
+	ret = pca_leave_one_out(mo, train, opt, d65, ref->loo_by_K, de_K, band_K, &ref->nK, err);
 	if (ret)
 		goto error;
 	if (opt->basis == 0) {
@@ -665,6 +705,8 @@ static int fit_reference(const kg_patchset *train, const kg_patchset *field,
 		goto error;
 	ref->maps[KG_METHOD_PCA].loo_rmse = ref->K <= ref->nK ? ref->loo_by_K[ref->K - 1] : NAN;
 	ref->maps[KG_METHOD_PCA].loo_de00 = ref->K <= ref->nK ? de_K[ref->K - 1] : NAN;
+	for (int l = 0; l < NB; l++)
+		ref->maps[KG_METHOD_PCA].loo_band[l] = ref->K <= ref->nK ? band_K[ref->K - 1][l] : NAN;
 	calib_reference_derive(ref);
 
 	if (opt->method == KG_METHOD_AUTO) {
@@ -700,6 +742,8 @@ static int fit_reference(const kg_patchset *train, const kg_patchset *field,
 		kg_err_prefix(err, "%s: ", set_name(train, "training chart"));
 	if (ret)
 		goto error;
+	for (int j = 0; j < KG_METHOD_COUNT; j++)
+		ref->maps[j].neutral_tilt = kg_spectral_map_neutral_tilt(&ref->maps[j], &ref->response);
 	patch_diagnostics(ref, train, d65);
 	free(mo);
 	free(d65);

@@ -389,9 +389,14 @@ int kg_reference_save(const kg_reference *ref, const char *path, kg_err *err)
 	json_t *methods = json_object();
 	for (int j = 0; j < KG_METHOD_COUNT; j++) {
 		const kg_spectral_map *mp = &ref->maps[j];
-		put(&w, methods, kg_method_name((kg_method)j),
-		    jmap(&w, (kg_method)j, mp->available, mp->note, mp->nterms, mp->A, mp->offset,
-		         NULL, mp->lambda, mp->cond, mp->fit_rmse, mp->loo_rmse, mp->loo_de00));
+		json_t *jm = jmap(&w, (kg_method)j, mp->available, mp->note, mp->nterms, mp->A,
+		                  mp->offset, NULL, mp->lambda, mp->cond, mp->fit_rmse, mp->loo_rmse,
+		                  mp->loo_de00);
+		if (mp->available && isfinite(mp->loo_band[0]))
+			put(&w, jm, "loo_band_rmse", jrow(&w, mp->loo_band, NB, 1));
+		if (mp->available && isfinite(mp->neutral_tilt))
+			put(&w, jm, "neutral_tilt", json_real(mp->neutral_tilt));
+		put(&w, methods, kg_method_name((kg_method)j), jm);
 	}
 	put(&w, root, "methods", methods);
 
@@ -927,6 +932,8 @@ static int load_reference(const char *file, const json_t *root, kg_reference *re
 		mp->method = (kg_method)j;
 		mp->nterms = kg_method_nterms((kg_method)j);
 		mp->cond = mp->fit_rmse = mp->loo_rmse = mp->loo_de00 = NAN;
+		for (int l = 0; l < NB; l++)
+			mp->loo_band[l] = NAN;
 		ret = get_map(file, root, (kg_method)j, &mp->available, mp->note, sizeof(mp->note),
 		              mp->A, mp->offset, NULL, &mp->lambda, &mp->loo_rmse, err);
 		if (ret || !mp->available)
@@ -940,6 +947,9 @@ static int load_reference(const char *file, const json_t *root, kg_reference *re
 		snprintf(key, sizeof(key), "methods.%s.loo_de00", kg_method_name(mp->method));
 		if (!ret && kg_json_find(root, key))
 			ret = get_num_or_null(file, root, key, &mp->loo_de00, err);
+		snprintf(key, sizeof(key), "methods.%s.loo_band_rmse", kg_method_name(mp->method));
+		if (!ret && kg_json_find(root, key)) /* files of earlier versions lack it */
+			ret = kg_json_get_numbers(file, root, key, NB, mp->loo_band, err);
 	}
 	if (!ret && !ref->maps[ref->method].available)
 		ret = kg_fail(err, KG_EINVAL, "%s: method: %s is marked unavailable in methods", file,
@@ -1014,6 +1024,8 @@ static int load_reference(const char *file, const json_t *root, kg_reference *re
 	if (!ret)
 		ret = get_flare_record(file, root, ref, err);
 	calib_reference_derive(ref);
+	for (int j = 0; j < KG_METHOD_COUNT; j++) /* derived, as when it was fitted */
+		ref->maps[j].neutral_tilt = kg_spectral_map_neutral_tilt(&ref->maps[j], &ref->response);
 	return ret;
 }
 

@@ -87,7 +87,18 @@ typedef struct kg_spectral_map {
 	double fit_rmse;    /* mean spectral RMSE over the chart, in sample */
 	double loo_rmse;    /* mean leave-one-out spectral RMSE (NAN if not run) */
 	double loo_de00;    /* mean leave-one-out CIEDE2000 under D65 (NAN if not run) */
+	double loo_band[KG_NBANDS]; /* per band, the RMS over the chart of the held-out
+	                             * estimate's error: the method's spectral uncertainty
+	                             * (NAN if not run) */
+	double neutral_tilt; /* the spectral shape the map gives a flat neutral: the largest
+	                      * relative departure from its own mean of the estimate of a
+	                      * flat 0.2 and a flat 0.8 reflectance, whose readings come from
+	                      * the reference camera's response (NAN if not known) */
 } kg_spectral_map;
+
+/* Above this neutral tilt, estimated spectra carry shape the chart cannot support
+ * (kogei process warns). */
+#define KG_CALIB_MAX_NEUTRAL_TILT 0.05
 
 /* Spectrum of one RGB through a map (no clamping). */
 void kg_spectral_map_apply(const kg_spectral_map *map, const double rgb[3],
@@ -120,6 +131,9 @@ int kg_response_from_camera(const kg_spectrum weight[3], const kg_patchset *trai
                             kg_response *out, kg_err *err);
 /* A reflectance's reading (61 values in, 3 out). */
 void kg_response_apply(const kg_response *r, const double *spectrum, double rgb[3]);
+/* The neutral tilt of a map (kg_spectral_map) through a response (NAN when the
+ * response is not available or reads a neutral as black). */
+double kg_spectral_map_neutral_tilt(const kg_spectral_map *map, const kg_response *r);
 
 /* ---- pairing two patch files by SAMPLE_ID (pairing.c) ---------------------------- */
 

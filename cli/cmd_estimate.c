@@ -702,7 +702,7 @@ int kg_cmd_classify(int argc, char **argv)
 		ccam.composition_hdr = composition;
 	}
 	if (!rc && camera) {
-		kg_classify_info info = {calib, library, "camera", image, variance, mask, NULL};
+		kg_classify_info info = {calib, library, "camera", image, variance, mask, NULL, NULL};
 		opt.progress = quiet ? NULL : stderr;
 		ccam.response = &cam->response.F[0][0];
 		snprintf(ccam.response_source, sizeof(ccam.response_source), "%s",
@@ -713,7 +713,7 @@ int kg_cmd_classify(int argc, char **argv)
 		rc = kg_classify_camera_rows(k, set, &ccam, &src, &opt, &copt, &info, out, &res, &err);
 	} else if (!rc) {
 		kg_classify_info info = {calib, library, kg_method_name(m), image, variance, mask,
-		                         NULL};
+		                         NULL, NULL};
 		opt.progress = quiet ? NULL : stderr;
 		copt.residual_relative = isinf(copt.unknown_threshold) ? 0 : cam->residual_relative;
 		if (!(copt.residual_relative >= 0 && isfinite(copt.residual_relative)))

@@ -267,6 +267,30 @@ static void begin_clip(kg_plot *p, const kg_axes *ax)
 	cairo_clip(p->cr);
 }
 
+void kg_plot_band(kg_plot *p, const kg_axes *ax, const double *xs, const double *lo,
+                  const double *hi, int n, const double rgb[3], double alpha)
+{
+	begin_clip(p, ax);
+	cairo_set_source_rgba(p->cr, rgb[0], rgb[1], rgb[2], alpha);
+	for (int i = 0; i < n;) {
+		while (i < n && !(isfinite(xs[i]) && isfinite(lo[i]) && isfinite(hi[i])))
+			i++;
+		int a = i;
+		while (i < n && isfinite(xs[i]) && isfinite(lo[i]) && isfinite(hi[i]))
+			i++;
+		if (i - a < 2)
+			continue;
+		cairo_move_to(p->cr, map_x(ax, xs[a]), map_y(ax, hi[a]));
+		for (int k = a + 1; k < i; k++)
+			cairo_line_to(p->cr, map_x(ax, xs[k]), map_y(ax, hi[k]));
+		for (int k = i - 1; k >= a; k--)
+			cairo_line_to(p->cr, map_x(ax, xs[k]), map_y(ax, lo[k]));
+		cairo_close_path(p->cr);
+		cairo_fill(p->cr);
+	}
+	cairo_restore(p->cr);
+}
+
 void kg_plot_line(kg_plot *p, const kg_axes *ax, const double *xs, const double *ys, int n,
                   const double rgb[3], double width, int dashed)
 {

@@ -38,6 +38,10 @@ void kg_plot_text_vertical(kg_plot *p, double x, double y, double size, const ch
 kg_axes kg_plot_axes(kg_plot *p, double x, double y, double w, double h, double xmin,
                      double xmax, double ymin, double ymax, const char *xlabel,
                      const char *ylabel, const char *title);
+/* The area between lo and hi (n points at xs, non-finite ones end a segment), in rgb at
+ * opacity alpha. */
+void kg_plot_band(kg_plot *p, const kg_axes *ax, const double *xs, const double *lo,
+                  const double *hi, int n, const double rgb[3], double alpha);
 void kg_plot_line(kg_plot *p, const kg_axes *ax, const double *xs, const double *ys, int n,
                   const double rgb[3], double width, int dashed);
 void kg_plot_points(kg_plot *p, const kg_axes *ax, const double *xs, const double *ys, int n,

@@ -25,6 +25,9 @@ void ap_labels_json_inputs(json_t *root, const kg_classify_info *info, const cha
 		json_object_set_new(root, keys[i], vals[i] ? json_string(vals[i]) : json_null());
 	if (info && info->identity)
 		json_object_set_new(root, "identity", json_deep_copy(info->identity));
+	if (info && info->spectral_uncertainty)
+		json_object_set_new(root, "spectral_uncertainty",
+		                    json_deep_copy(info->spectral_uncertainty));
 }
 
 /* LABELS.json's clip levels and the image's size and pixel count. */

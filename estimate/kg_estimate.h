@@ -557,6 +557,9 @@ typedef struct kg_classify_info {
 	const char *mask;      /* the mask, if one was given */
 	const json_t *identity; /* the object's identity (kogei process), copied into
 	                         * LABELS.json as "identity", or NULL */
+	const json_t *spectral_uncertainty; /* the calibration's per-band uncertainty of an
+	                                     * estimate (kogei process), copied into
+	                                     * LABELS.json as "spectral_uncertainty", or NULL */
 } kg_classify_info;
 
 /* How a label map refuses pixels instead of naming a wrong material.

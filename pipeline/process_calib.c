@@ -361,6 +361,30 @@ static void note_unpaired(proc *p, const kg_pairing_record *rec, const char *spe
 	}
 }
 
+/* calibration.spectral_uncertainty: per band, the RMS error of the default method's
+ * leave-one-out estimates over the reference chart (each patch estimated by the
+ * calibration refitted without it), the uncertainty of an estimated spectrum; null
+ * when the reference holds none (files of earlier versions). */
+static json_t *uncertainty_json(const proc *p)
+{
+	const kg_spectral_map *m = p->ref ? &p->ref->maps[p->cam->method] : NULL;
+	if (!m || !m->available || !isfinite(m->loo_band[0]))
+		return json_null();
+	json_t *band = json_array();
+	for (int l = 0; l < KG_NBANDS; l++)
+		json_array_append_new(band, json_real(m->loo_band[l]));
+	return json_pack("{s:s, s:o, s:o, s:s}", "method", kg_method_name(m->method),
+	                 "loo_band_rmse", band, "neutral_tilt",
+	                 isfinite(m->neutral_tilt) ? json_real(m->neutral_tilt) : json_null(),
+	                 "description",
+	                 "per band (400-700 nm, 5 nm), the RMS error over the reference chart of "
+	                 "the method's leave-one-out estimates: the spectral uncertainty of an "
+	                 "estimate; the report draws it as a band of +- this around each "
+	                 "material's mean spectrum. neutral_tilt: the largest relative "
+	                 "departure from flat of the method's estimate of a flat grey (0.2 and "
+	                 "0.8), the spectral shape it adds that the chart cannot support");
+}
+
 /* A flare measurement (calib/flare.c) as process.json records it, or null. */
 static json_t *flare_one(const kg_flare *f)
 {
@@ -663,6 +687,17 @@ int proc_calibrate(proc *p)
 	json_object_set_new(p->calibration, "patches_flagged", fl);
 	json_object_set_new(p->calibration, "decimate", json_integer(res->decimate));
 	json_object_set_new(p->calibration, "flare", flare_json(p->ref, p->cam));
+	json_object_set_new(p->calibration, "spectral_uncertainty", uncertainty_json(p));
+	{ /* a flat grey estimated with shape: say so, the cube's spectra carry it */
+		const kg_spectral_map *m = p->ref ? &p->ref->maps[p->cam->method] : NULL;
+		if (m && m->available && m->neutral_tilt > KG_CALIB_MAX_NEUTRAL_TILT)
+			proc_warn(p, NULL, "calibration: method %s estimates a flat grey with %.0f %% "
+			          "of spectral shape (limit %.0f %%): a slope or bump of that size in "
+			          "an estimated spectrum is not supported by the chart (a chart with "
+			          "neutral patches, or more patches, narrows it)",
+			          kg_method_name(m->method), 100 * m->neutral_tilt,
+			          100 * KG_CALIB_MAX_NEUTRAL_TILT);
+	}
 	json_object_set_new(p->calibration, "light_field", light_field_json(&res->light));
 	json_object_set_new(p->calibration, "flat_illuminance_nonuniformity",
 	                    flat_nonuniformity(p, img.flat));

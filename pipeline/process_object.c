@@ -831,10 +831,12 @@ static int classify_pass(proc *p, const proc_capture *c, proc_source *src, doubl
 			ccam.survey_variance = &survey_var_src;
 	}
 	if (!ret) {
+		const json_t *su = json_object_get(p->calibration, "spectral_uncertainty");
 		kg_classify_info cinfo = {.calib = "camera.json", .materials = p->library_path,
 		                          .method = "pca", .image = c->name,
 		                          .variance = info->has_variance ? "the capture's variance" : NULL,
-		                          .mask = p->object_mask, .identity = identity};
+		                          .mask = p->object_mask, .identity = identity,
+		                          .spectral_uncertainty = json_is_object(su) ? su : NULL};
 		o.pre = pre_needed ? pre : NULL;
 		proc_progress(p, "%s: classifying among %d materials (%s)", c->name, set->n,
 		              info->has_variance ? "noise from the capture's variance" : "noise model");

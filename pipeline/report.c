@@ -1248,6 +1248,11 @@ static void put_object(report *r, int i)
 
 	report_panel *panels = calloc(nclasses > 0 ? nclasses : 1, sizeof(*panels));
 	double (*spectra)[2][KG_NBANDS] = calloc(nclasses > 0 ? nclasses : 1, sizeof(*spectra));
+	/* the calibration's spectral uncertainty (leave-one-out, per band), when recorded */
+	double band_v[KG_NBANDS];
+	const double *band = NULL;
+	if (has(r, "calibration.spectral_uncertainty.loo_band_rmse"))
+		band = spectrum(r, band_v, "calibration.spectral_uncertainty.loo_band_rmse");
 	if (!panels || !spectra) {
 		failed(r, KG_ENOMEM, "%s: out of memory", r->file);
 	} else if (nclasses == 0) {
@@ -1259,6 +1264,7 @@ static void put_object(report *r, int i)
 			                           "objects[%d].classes[%d].model_spectrum", i, c);
 			panels[c].dashed = spectrum(r, spectra[c][1],
 			                            "objects[%d].classes[%d].mean_spectrum", i, c);
+			panels[c].band = panels[c].dashed ? band : NULL;
 			panels[c].note = !panels[c].solid && !panels[c].dashed ? "no spectra"
 			                 : !panels[c].solid ? "no library model"
 			                 : !panels[c].dashed ? "no estimate" : NULL;
@@ -1268,7 +1274,9 @@ static void put_object(report *r, int i)
 			           "library model per material", "library model", "estimated, mean",
 			           "Reflectance (0..1) against wavelength (400-700 nm) of each "
 			           "material's pixels (mean of the estimates) and of its library model "
-			           "(cf. the paper's Figs. 11-12); each panel has its own scale.");
+			           "(cf. the paper's Figs. 11-12); each panel has its own scale; the "
+			           "shaded band is the calibration's spectral uncertainty, the RMS "
+			           "error per band of its leave-one-out estimates over the chart.");
 	}
 	free(panels);
 	free(spectra);

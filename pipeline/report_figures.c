@@ -33,8 +33,9 @@ static void panel_range(const report_panel *p, double *ymin, double *ymax)
 			hi = fmax(hi, p->solid[b]);
 		}
 		if (p->dashed && isfinite(p->dashed[b])) {
-			lo = fmin(lo, p->dashed[b]);
-			hi = fmax(hi, p->dashed[b]);
+			double u = p->band && isfinite(p->band[b]) ? p->band[b] : 0;
+			lo = fmin(lo, p->dashed[b] - u);
+			hi = fmax(hi, p->dashed[b] + u);
 		}
 	}
 	*ymin = lo < 0 ? floor(lo * 1.05 * 10) / 10 : 0;
@@ -76,6 +77,14 @@ int report_figure_spectra(const report_panel *panels, int n, int cols, const cha
 		                          i + cols >= n ? "wavelength (nm)" : NULL,
 		                          i % cols == 0 ? "reflectance" : NULL, NULL);
 		kg_plot_text(p, x, y - 10, 13, KG_ALIGN_LEFT, NULL, "%s", q->title ? q->title : "");
+		if (q->dashed && q->band) {
+			double blo[KG_NBANDS], bhi[KG_NBANDS];
+			for (int b = 0; b < KG_NBANDS; b++) {
+				blo[b] = q->dashed[b] - q->band[b];
+				bhi[b] = q->dashed[b] + q->band[b];
+			}
+			kg_plot_band(p, &ax, wl, blo, bhi, KG_NBANDS, dashed_colour, 0.18);
+		}
 		if (q->solid)
 			kg_plot_line(p, &ax, wl, q->solid, KG_NBANDS, solid_colour, 1.8, 0);
 		if (q->dashed)

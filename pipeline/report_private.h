@@ -23,6 +23,8 @@ typedef struct report_panel {
 	const char *title;
 	const double *solid;  /* KG_NBANDS values or NULL: the measured or model spectrum */
 	const double *dashed; /* KG_NBANDS values or NULL: the estimate */
+	const double *band;   /* KG_NBANDS values or NULL: the estimate's uncertainty, drawn
+	                       * as a band of +-band around it */
 	const char *note;     /* said inside the panel (e.g. what is missing), or NULL */
 } report_panel;
 
