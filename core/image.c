@@ -3,6 +3,7 @@
 #include <math.h>
 #include <png.h>
 #include <pthread.h>
+#include <stdatomic.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -1097,28 +1098,71 @@ void kg_image_rows_free(kg_image_rows **pr)
 	*pr = NULL;
 }
 
-/* A whole TIFF image of many bands read by two readers at once, each on its own
- * handle of the file, bands straight into the image: the conversion and the first
- * touch of the image's pages (about half the time of the read of a 72 MB 16-bit
- * TIFF) on two cores. */
-struct band_job {
-	kg_image_rows *r;
+/* A whole TIFF image of many bands read by several readers at once, each on its own
+ * handle of the file (a libtiff handle is not for two threads), bands straight into
+ * the image. Uncompressed, the conversion and the first touch of the image's pages
+ * (about half the time of the read of a 72 MB 16-bit TIFF) run on several cores;
+ * compressed (LZW, Deflate), the decoding too: a strip or tile is decoded on its own,
+ * whichever reader takes it. The readers take the bands in order, one at a time, from
+ * a shared counter; a band is decoded whole by one reader, by the function the row
+ * reader uses, so the samples are the same whatever the number of readers. A reader
+ * stops at its first bad band, and no reader starts a band after the first bad band
+ * found so far: every band before the first bad one is decoded, and the error is
+ * that of the first bad band in the file's order, as one reader would report it. */
+#define READ_THREADS_MAX 16
+
+static _Atomic int read_threads; /* 0: the CPUs this process may use, up to 8 */
+
+int kg_image_set_read_threads(int n)
+{
+	return atomic_exchange(&read_threads, n < 0 ? 0 : n > READ_THREADS_MAX ? READ_THREADS_MAX : n);
+}
+
+struct band_pool {
 	float *data;
-	uint32_t b0, b1; /* bands [b0, b1) */
+	uint32_t bands, th;
+	size_t row_floats;
+	_Atomic uint32_t next;      /* the next band to take */
+	_Atomic uint32_t first_bad; /* the first bad band found so far; bands: none */
+};
+
+struct band_job {
+	struct band_pool *pool;
+	kg_image_rows *r;
 	int ret;
+	uint32_t bad; /* the band of ret */
 	kg_err err;
 };
 
 static void *band_job_main(void *arg)
 {
 	struct band_job *j = arg;
-	const kg_image *h = j->r->head;
-	size_t row_floats = (size_t)h->width * (size_t)h->channels;
-	for (uint32_t b = j->b0; b < j->b1 && !j->ret; b++) {
-		uint32_t cy = b * j->r->th;
-		j->ret = tiff_band(j->r, cy, j->data + (size_t)cy * row_floats, &j->err);
+	struct band_pool *p = j->pool;
+	for (;;) {
+		uint32_t b = atomic_fetch_add(&p->next, 1);
+		if (b >= p->bands || b > atomic_load(&p->first_bad))
+			break;
+		uint32_t cy = b * p->th;
+		int ret = tiff_band(j->r, cy, p->data + (size_t)cy * p->row_floats, &j->err);
+		if (ret) {
+			j->ret = ret;
+			j->bad = b;
+			uint32_t seen = atomic_load(&p->first_bad);
+			while (b < seen && !atomic_compare_exchange_weak(&p->first_bad, &seen, b))
+				;
+			break;
+		}
 	}
 	return NULL;
+}
+
+static int same_layout(const kg_image_rows *a, const kg_image_rows *b)
+{
+	const kg_image *ha = a->head, *hb = b->head;
+	return ha->width == hb->width && ha->height == hb->height &&
+	       ha->channels == hb->channels && ha->bits == hb->bits &&
+	       ha->is_float == hb->is_float && a->spp == b->spp && a->separate == b->separate &&
+	       a->invert == b->invert && a->tiled == b->tiled && a->tw == b->tw && a->th == b->th;
 }
 
 static int tiff_read_split(kg_image_rows *r, const char *path, float *data, int *done,
@@ -1126,40 +1170,68 @@ static int tiff_read_split(kg_image_rows *r, const char *path, float *data, int 
 {
 	const kg_image *h = r->head;
 	uint32_t bands = ((uint32_t)h->height + r->th - 1) / r->th;
+	size_t pixels = (size_t)h->width * (size_t)h->height;
+	uint16_t compression = COMPRESSION_NONE;
+	TIFFGetFieldDefaulted(r->tif, TIFFTAG_COMPRESSION, &compression);
 	*done = 0;
-	if (bands < 8 || (size_t)h->width * (size_t)h->height < ((size_t)1 << 22))
+	/* Uncompressed, a band is converted, not decoded: worth a second reader from
+	 * 4 Mpix. Compressed, its decoding costs more than opening another handle from
+	 * 1 Mpix. */
+	if (compression == COMPRESSION_NONE ? bands < 8 || pixels < ((size_t)1 << 22)
+	                                    : bands < 2 || pixels < ((size_t)1 << 20))
 		return 0;
-	kg_image_rows *r2 = NULL;
-	kg_err e2 = {{0}};
-	if (rows_open_kind(path, KIND_TIFF, NULL, &r2, &e2))
-		return 0; /* read by one reader, which reports what is wrong */
-	const kg_image *h2 = r2->head;
-	if (h2->width != h->width || h2->height != h->height || h2->channels != h->channels ||
-	    h2->bits != h->bits || h2->is_float != h->is_float || r2->spp != r->spp ||
-	    r2->separate != r->separate || r2->invert != r->invert || r2->tiled != r->tiled ||
-	    r2->tw != r->tw || r2->th != r->th) {
-		/* the file changed between the two opens: never decode the second handle's
-		 * bands into a buffer sized by the first */
-		kg_image_rows_free(&r2);
+	int want = atomic_load(&read_threads);
+	if (want == 0)
+		want = kg_cpu_count(8);
+	if ((uint32_t)want > bands)
+		want = (int)bands;
+	if (want < 2)
 		return 0;
+	struct band_pool pool = {data, bands, r->th, (size_t)h->width * (size_t)h->channels,
+	                         0, bands};
+	struct band_job jobs[READ_THREADS_MAX];
+	pthread_t tid[READ_THREADS_MAX];
+	int started[READ_THREADS_MAX] = {0};
+	memset(jobs, 0, sizeof(jobs));
+	int n = 1;
+	jobs[0].pool = &pool;
+	jobs[0].r = r;
+	for (; n < want; n++) {
+		kg_image_rows *rn = NULL;
+		kg_err en = {{0}};
+		if (rows_open_kind(path, KIND_TIFF, NULL, &rn, &en))
+			break; /* fewer readers; the first reports what is wrong */
+		if (!same_layout(r, rn)) {
+			/* the file changed between the opens: never decode another handle's
+			 * bands into a buffer sized by the first */
+			kg_image_rows_free(&rn);
+			break;
+		}
+		jobs[n].pool = &pool;
+		jobs[n].r = rn;
 	}
-	struct band_job jobs[2] = {{r, data, 0, bands / 2, 0, {{0}}},
-	                           {r2, data, bands / 2, bands, 0, {{0}}}};
-	pthread_t tid;
-	int threaded = pthread_create(&tid, NULL, band_job_main, &jobs[1]) == 0;
+	if (n < 2)
+		return 0;
+	for (int k = 1; k < n; k++)
+		started[k] = pthread_create(&tid[k], NULL, band_job_main, &jobs[k]) == 0;
 	band_job_main(&jobs[0]);
-	if (threaded)
-		pthread_join(tid, NULL);
-	else
-		band_job_main(&jobs[1]);
-	kg_image_rows_free(&r2);
+	for (int k = 1; k < n; k++) {
+		if (started[k])
+			pthread_join(tid[k], NULL);
+		else
+			band_job_main(&jobs[k]);
+		kg_image_rows_free(&jobs[k].r);
+	}
 	*done = 1;
 	r->y = h->height;
-	for (int k = 0; k < 2; k++)
-		if (jobs[k].ret) {
-			*err = jobs[k].err;
-			return jobs[k].ret;
-		}
+	int first = -1;
+	for (int k = 0; k < n; k++)
+		if (jobs[k].ret && (first < 0 || jobs[k].bad < jobs[first].bad))
+			first = k;
+	if (first >= 0) {
+		*err = jobs[first].err;
+		return jobs[first].ret;
+	}
 	return 0;
 }
 

@@ -87,6 +87,11 @@ int kg_image_is_jpeg(const char *path);
  * as alpha are dropped with a note), strips or tiles, contiguous or separate planes.
  * The first image of a multi-page file. CFA pattern tags (33421/33422) are read. */
 int kg_image_read_tiff(const char *path, kg_image **out, kg_err *err);
+/* How many threads kg_image_read decodes a TIFF of many strips or tiles with, each on
+ * its own handle of the file: 0 (the default) as many as the CPUs this process may use,
+ * up to 8; 1 one; at most 16. The samples are the same whatever the number. Returns
+ * the previous setting (for benches and tests). */
+int kg_image_set_read_threads(int n);
 /* PNG: 1..16-bit grey or RGB, palettes expanded, alpha dropped with a note. */
 int kg_image_read_png(const char *path, kg_image **out, kg_err *err);
 
