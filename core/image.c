@@ -230,6 +230,7 @@ struct kg_image_rows {
 	TIFF *tif;
 	struct tiff_msg msg;
 	int spp, separate, invert, tiled;
+	int codes; /* tiff_band writes 16-bit codes (kg_image_map), not floats */
 	uint32_t tw, th;
 	tmsize_t chunk_size;
 	unsigned char *chunk; /* one encoded strip or tile, decoded by libtiff */
@@ -333,9 +334,12 @@ static void tiff_row_any(const kg_image_rows *r, const unsigned char *src, uint3
 }
 
 /* Decode the band of TIFF rows that starts at row cy (a multiple of th) into band
- * (rows of the image's width, channels interleaved). */
-static int tiff_band(kg_image_rows *r, uint32_t cy, float *band, kg_err *err)
+ * (rows of the image's width, channels interleaved): floats, or with r->codes (a
+ * 16-bit file of one plane, nothing extra, not inverted) its codes as they are. */
+static int tiff_band(kg_image_rows *r, uint32_t cy, void *band_out, kg_err *err)
 {
+	float *band = band_out;
+	uint16_t *codes = band_out;
 	const kg_image *img = r->head;
 	uint32_t w = (uint32_t)img->width, h = (uint32_t)img->height, tw = r->tw, th = r->th;
 	int C = img->channels, bits = img->bits, is_float = img->is_float;
@@ -365,8 +369,12 @@ static int tiff_band(kg_image_rows *r, uint32_t cy, float *band, kg_err *err)
 			int plain = !r->separate && spc == C && !r->invert;
 			for (uint32_t y = 0; y < rows; y++) {
 				const unsigned char *src = r->chunk + (size_t)y * tw * spc * bps;
-				float *dst = band + ((size_t)y * w + cx) * C;
 				size_t n = (size_t)cols * C;
+				if (r->codes) {
+					memcpy(codes + ((size_t)y * w + cx) * C, src, n * sizeof(uint16_t));
+					continue;
+				}
+				float *dst = band + ((size_t)y * w + cx) * C;
 				if (plain && is_float)
 					memcpy(dst, src, n * sizeof(float));
 				else if (plain && bits == 8)
@@ -1119,9 +1127,9 @@ int kg_image_set_read_threads(int n)
 }
 
 struct band_pool {
-	float *data;
+	void *data;            /* floats, or codes (16-bit) */
 	uint32_t bands, th;
-	size_t row_floats;
+	size_t row_bytes;
 	_Atomic uint32_t next;      /* the next band to take */
 	_Atomic uint32_t first_bad; /* the first bad band found so far; bands: none */
 };
@@ -1143,7 +1151,8 @@ static void *band_job_main(void *arg)
 		if (b >= p->bands || b > atomic_load(&p->first_bad))
 			break;
 		uint32_t cy = b * p->th;
-		int ret = tiff_band(j->r, cy, p->data + (size_t)cy * p->row_floats, &j->err);
+		int ret = tiff_band(j->r, cy, (unsigned char *)p->data + (size_t)cy * p->row_bytes,
+		                    &j->err);
 		if (ret) {
 			j->ret = ret;
 			j->bad = b;
@@ -1165,7 +1174,7 @@ static int same_layout(const kg_image_rows *a, const kg_image_rows *b)
 	       a->invert == b->invert && a->tiled == b->tiled && a->tw == b->tw && a->th == b->th;
 }
 
-static int tiff_read_split(kg_image_rows *r, const char *path, float *data, int *done,
+static int tiff_read_split(kg_image_rows *r, const char *path, void *data, int *done,
                            kg_err *err)
 {
 	const kg_image *h = r->head;
@@ -1187,7 +1196,9 @@ static int tiff_read_split(kg_image_rows *r, const char *path, float *data, int 
 		want = (int)bands;
 	if (want < 2)
 		return 0;
-	struct band_pool pool = {data, bands, r->th, (size_t)h->width * (size_t)h->channels,
+	struct band_pool pool = {data, bands, r->th,
+	                         (size_t)h->width * (size_t)h->channels *
+	                             (r->codes ? sizeof(uint16_t) : sizeof(float)),
 	                         0, bands};
 	struct band_job jobs[READ_THREADS_MAX];
 	pthread_t tid[READ_THREADS_MAX];
@@ -1207,6 +1218,7 @@ static int tiff_read_split(kg_image_rows *r, const char *path, float *data, int 
 			kg_image_rows_free(&rn);
 			break;
 		}
+		rn->codes = r->codes;
 		jobs[n].pool = &pool;
 		jobs[n].r = rn;
 	}
@@ -1305,6 +1317,42 @@ const float *kg_image_u16_lut(void)
 	return u16_lut;
 }
 
+/* A compressed 16-bit TIFF of kg_image_map's layout: its codes decoded into memory (by
+ * several readers at once when it has many strips or tiles), in the image's block as
+ * kg_image_new's floats; frees r. */
+static int map_decode_codes(kg_image_rows *r, kg_image **out, kg_err *err)
+{
+	const kg_image *h = r->head;
+	size_t n = (size_t)h->width * (size_t)h->height * (size_t)h->channels;
+	kg_image *img = malloc(sizeof(*img) + n * sizeof(uint16_t));
+	if (!img) {
+		kg_image_rows_free(&r);
+		return kg_fail(err, KG_ENOMEM, "%s: out of memory for %zu 16-bit samples", r->path,
+		               n);
+	}
+	memset(img, 0, sizeof(*img));
+	huge_pages(img, sizeof(*img) + n * sizeof(uint16_t));
+	r->codes = 1;
+	int done = 0;
+	int ret = tiff_read_split(r, r->path, img + 1, &done, err);
+	for (uint32_t cy = 0; !ret && !done && cy < (uint32_t)h->height; cy += r->th)
+		ret = tiff_band(r, cy, (uint16_t *)(void *)(img + 1) + (size_t)cy * h->width * h->channels,
+		                err);
+	if (!ret) {
+		img->width = h->width;
+		img->height = h->height;
+		img->channels = h->channels;
+		img->bits = 16;
+		img->encoding = h->encoding;
+		memcpy(img->note, h->note, sizeof(img->note));
+		img->u16 = (const uint16_t *)(const void *)(img + 1);
+		*out = img;
+	} else
+		free(img);
+	kg_image_rows_free(&r);
+	return ret;
+}
+
 int kg_image_map(const char *path, kg_image **out, kg_err *err)
 {
 	kg_check_arg(path && out, err);
@@ -1335,6 +1383,9 @@ int kg_image_map(const char *path, kg_image **out, kg_err *err)
 	int fd = TIFFFileno(tif);
 	plain = plain && off0 % 2 == 0 && fstat(fd, &st) == 0 &&
 	        off0 + (uint64_t)row_bytes * (uint64_t)h->height <= (uint64_t)st.st_size;
+	if (!plain && compression != COMPRESSION_NONE && !r->separate && !r->invert &&
+	    h->bits == 16 && !h->is_float && !h->cfa && r->spp == h->channels)
+		return map_decode_codes(r, out, err);
 	if (!plain) {
 		kg_image_rows_free(&r);
 		return kg_fail(err, KG_ENOTSUP, "%s: not an uncompressed 16-bit TIFF in one run: "

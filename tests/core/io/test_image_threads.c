@@ -5,7 +5,9 @@
  * threads, gives exactly the samples of the uncompressed file read on one thread and
  * of the row reader. A compressed file cut short, or with the data of a strip or tile
  * overwritten, is refused with a message that names the file and the first bad strip
- * or tile, the same message whatever the number of threads. */
+ * or tile, the same message whatever the number of threads. kg_image_map decodes the
+ * compressed 16-bit ones into the uncompressed file's codes, and refuses the damaged
+ * ones with the same message. */
 #include <stdint.h>
 #include <string.h>
 #include <tiffio.h>
@@ -287,10 +289,72 @@ static void test_damaged(void)
 	expect_same_error(cut.name, "not a readable TIFF file", NULL);
 }
 
+static kg_image *map_on(const char *name, int threads, int *code, kg_err *err)
+{
+	kg_image *img = NULL;
+	int old = kg_image_set_read_threads(threads);
+	*code = kg_image_map(kg_test_path(name), &img, err);
+	kg_image_set_read_threads(old);
+	return *code ? NULL : img;
+}
+
+/* kg_image_map (the chart check's reader): a compressed 16-bit file of one plane is
+ * decoded into its codes, the uncompressed file's codes exactly, on any number of
+ * threads; a damaged one is refused with kg_image_read's message; other layouts are
+ * left to kg_image_read (KG_ENOTSUP). Uses the files test_layouts and test_damaged
+ * wrote. */
+static void test_map_codes(void)
+{
+	kg_err err = {{0}};
+	int code;
+	kg_image *ref = map_on("rgb16_none.tif", 1, &code, &err);
+	CHECK(ref && ref->u16 && ref->map, "rgb16_none.tif: mapped: %s", err.msg);
+	if (!ref)
+		return;
+	const char *coded[] = {"rgb16_lzw_pred.tif", "rgb16_lzw.tif", "rgb16_lzw_row.tif",
+	                       "rgb16_lzw_one.tif", "rgb16_zip.tif", "rgb16_lzw_tile.tif"};
+	const int threads[] = {1, 2, 7};
+	size_t n = (size_t)W * H * 3;
+	for (size_t i = 0; i < sizeof(coded) / sizeof(coded[0]); i++)
+		for (size_t k = 0; k < 3; k++) {
+			kg_image *img = map_on(coded[i], threads[k], &code, &err);
+			CHECK(img && img->u16 && !img->data && img->width == W && img->height == H &&
+			          img->channels == 3 && img->bits == 16,
+			      "%s: %d threads: decoded into codes: %s", coded[i], threads[k], err.msg);
+			CHECK(img && memcmp(img->u16, ref->u16, n * sizeof(uint16_t)) == 0,
+			      "%s: %d threads: the uncompressed file's codes", coded[i], threads[k]);
+			CHECK(img && kg_image_map_check(img, &err) == 0, "%s: map check", coded[i]);
+			kg_image_free(&img);
+		}
+	kg_image_free(&ref);
+	const char *other[] = {"grey8_zip.tif", "rgbf_lzw_fp.tif", "rgb16_lzw_sep.tif",
+	                       "rgb16_zip_tile_sep.tif"};
+	for (size_t i = 0; i < sizeof(other) / sizeof(other[0]); i++) {
+		kg_image *img = map_on(other[i], 0, &code, &err);
+		CHECK(code == KG_ENOTSUP && !img, "%s: left to kg_image_read (%d: %s)", other[i], code,
+		      err.msg);
+		kg_image_free(&img);
+	}
+	const char *bad[] = {"bad_lzw.tif", "bad_zip.tif", "bad_tiles.tif"};
+	for (size_t i = 0; i < sizeof(bad) / sizeof(bad[0]); i++) {
+		char want[1024];
+		CHECK(read_error(bad[i], 1, want, sizeof(want)) == 0, "%s: read refused", bad[i]);
+		for (size_t k = 0; k < 3; k++) {
+			kg_err e = {{0}};
+			kg_image *img = map_on(bad[i], threads[k], &code, &e);
+			CHECK(!img && code < 0 && code != KG_ENOTSUP && strcmp(e.msg, want) == 0,
+			      "%s: %d threads: map refused with '%s', read with '%s'", bad[i], threads[k],
+			      e.msg, want);
+			kg_image_free(&img);
+		}
+	}
+}
+
 int main(void)
 {
 	io_tmpdir("image_threads");
 	test_layouts();
 	test_damaged();
+	test_map_codes();
 	return kg_test_done("image-threads");
 }
