@@ -8,7 +8,8 @@
  * same codes again in each layout with libtiff. Per layout: the file size, the time of
  * kg_image_read with kg_image_set_read_threads(1) and with the default (the CPUs this
  * process may use), whether both give exactly the samples of the uncompressed file,
- * and the wall time and peak resident memory of the whole `kogei chart detect`
+ * the time of kg_image_map (chart detect's reader: the file's 16-bit codes, mapped when
+ * uncompressed, decoded when compressed), and the wall time and peak resident memory of the whole `kogei chart detect`
  * (a subprocess, default threads), also of a second kogei (--kogei-before, e.g. a
  * build of the previous commit) when given. Times are medians of --reps runs
  * (CLOCK_MONOTONIC, the page cache warm). Markdown goes to stdout.
@@ -70,9 +71,23 @@ static double median(double *v, int n)
 	return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
-/* Run argv quietly: wall seconds and peak resident KiB (wait4); -1 when it failed. */
-static double run_timed(char *const *argv, long *maxrss_kb)
+/* Run argv quietly: wall seconds and peak resident KiB; -1 when it failed. The peak
+ * comes from /usr/bin/time -f %M when it is there: Linux charges a child exec'd from a
+ * vfork (posix_spawn) with its parent's peak, and this process holds the image. */
+static double run_timed(char *const *argv, long *maxrss_kb, const char *rss_file)
 {
+	char *av[32];
+	int n = 0, timed = access("/usr/bin/time", X_OK) == 0;
+	if (timed) {
+		av[n++] = "/usr/bin/time";
+		av[n++] = "-f";
+		av[n++] = "%M";
+		av[n++] = "-o";
+		av[n++] = (char *)rss_file;
+	}
+	for (int i = 0; argv[i] && n < 31; i++)
+		av[n++] = argv[i];
+	av[n] = NULL;
 	posix_spawn_file_actions_t fa;
 	if (posix_spawn_file_actions_init(&fa) != 0)
 		return -1;
@@ -80,14 +95,21 @@ static double run_timed(char *const *argv, long *maxrss_kb)
 	posix_spawn_file_actions_addopen(&fa, 2, "/dev/null", O_WRONLY, 0);
 	double t0 = kg_bench_now();
 	pid_t pid;
-	int rc = posix_spawn(&pid, argv[0], &fa, NULL, argv, environ);
+	int rc = posix_spawn(&pid, av[0], &fa, NULL, av, environ);
 	posix_spawn_file_actions_destroy(&fa);
 	int st = 0;
 	struct rusage ru;
 	if (rc != 0 || wait4(pid, &st, 0, &ru) < 0)
 		return -1;
 	double t = kg_bench_now() - t0;
-	*maxrss_kb = ru.ru_maxrss;
+	*maxrss_kb = 0;
+	FILE *fp = timed ? fopen(rss_file, "r") : NULL;
+	if (fp) {
+		if (fscanf(fp, "%ld", maxrss_kb) != 1)
+			*maxrss_kb = 0;
+		fclose(fp);
+		remove(rss_file);
+	}
 	return WIFEXITED(st) && WEXITSTATUS(st) == 0 ? t : -1;
 }
 
@@ -187,6 +209,32 @@ static double time_read(const char *path, int threads, int reps, const kg_image 
 	return median(t, reps);
 }
 
+/* Median seconds of kg_image_map (the chart check's reader: the codes of a 16-bit
+ * file, mapped or decoded) on the default threads, and whether every code reads as
+ * ref's float; NAN when the file is not for it. */
+static double time_map(const char *path, int reps, const kg_image *ref, int *same)
+{
+	double t[MAX_REPS];
+	const float *lut = kg_image_u16_lut();
+	*same = 1;
+	for (int k = 0; k < reps; k++) {
+		kg_image *img = NULL;
+		kg_err err = {{0}};
+		double t0 = kg_bench_now();
+		int ret = kg_image_map(path, &img, &err);
+		t[k] = kg_bench_now() - t0;
+		if (ret) {
+			*same = 0;
+			return NAN;
+		}
+		size_t n = (size_t)img->width * img->height * img->channels;
+		for (size_t i = 0; *same && i < n; i++)
+			*same = lut[img->u16[i]] == ref->data[i];
+		kg_image_free(&img);
+	}
+	return median(t, reps);
+}
+
 int main(int argc, char **argv)
 {
 	char kogei_built[4096];
@@ -272,18 +320,20 @@ int main(int argc, char **argv)
 	       "thread and on the default %d (the CPUs this process may use), and the whole "
 	       "`kogei chart detect --layout colorchecker24-frame` (a subprocess, wall time, "
 	       "peak RSS); median of %d runs, page cache warm. Identical: both reads give "
-	       "exactly the samples of the uncompressed file.\n\n",
+	       "exactly the samples of the uncompressed file, and the codes (kg_image_map, "
+	       "what chart detect reads) read as them.\n\n",
 	       width, height, width * (double)height / 1e6, cpus,
 	       reps);
 	printf("| layout | file (MB) | read, 1 thread (ms) | read, %d threads (ms) | speed-up | "
-	       "identical | chart detect (ms) | peak RSS (MiB) |%s\n",
-	       cpus, before ? " chart detect, --kogei-before (ms) |" : "");
-	printf("|---|--:|--:|--:|--:|---|--:|--:|%s\n", before ? "--:|" : "");
+	       "identical | codes, %d threads (ms) | chart detect (ms) | peak RSS (MiB) |%s\n",
+	       cpus, cpus, before ? " chart detect, --kogei-before (ms) | peak RSS, before (MiB) |" : "");
+	printf("|---|--:|--:|--:|--:|---|--:|--:|--:|%s\n", before ? "--:|--:|" : "");
 	for (int i = 0; i < NLAYOUTS; i++) {
 		const layout *l = &layouts[i];
-		char path[4300], cgats[4300], why[1100] = "";
+		char path[4300], cgats[4300], rss_file[4300], why[1100] = "";
 		snprintf(path, sizeof(path), "%s/%s", dir, l->file);
 		snprintf(cgats, sizeof(cgats), "%s/%s.cgats", dir, l->file);
+		snprintf(rss_file, sizeof(rss_file), "%s/%s.rss", dir, l->file);
 		if (access(path, R_OK) != 0 && write_layout(path, ref, l) != 0) {
 			fprintf(stderr, "kogei-bench-tiff: cannot write %s\n", path);
 			return 1;
@@ -293,13 +343,15 @@ int main(int argc, char **argv)
 		int same1 = 0, sameN = 0;
 		double t1 = time_read(path, 1, reps, ref, &same1, why, sizeof(why));
 		double tN = time_read(path, 0, reps, ref, &sameN, why, sizeof(why));
+		int same_codes = 0;
+		double tm = time_map(path, reps, ref, &same_codes);
 		double whole[MAX_REPS], whole_b[MAX_REPS], wm = NAN, wbm = NAN;
-		long rss = 0, rss_max = 0;
+		long rss = 0, rss_max = 0, rss_before = 0;
 		char *cmd[] = {(char *)kogei, "chart", "detect", "--layout", "colorchecker24-frame",
 		               "--quiet", path, "-o", cgats, NULL};
 		int ok = 1;
 		for (int k = 0; k < reps && ok; k++) {
-			whole[k] = run_timed(cmd, &rss);
+			whole[k] = run_timed(cmd, &rss, rss_file);
 			ok = whole[k] >= 0;
 			if (rss > rss_max)
 				rss_max = rss;
@@ -310,8 +362,10 @@ int main(int argc, char **argv)
 			cmd[0] = (char *)before;
 			ok = 1;
 			for (int k = 0; k < reps && ok; k++) {
-				whole_b[k] = run_timed(cmd, &rss);
+				whole_b[k] = run_timed(cmd, &rss, rss_file);
 				ok = whole_b[k] >= 0;
+				if (rss > rss_before)
+					rss_before = rss;
 			}
 			if (ok)
 				wbm = median(whole_b, reps);
@@ -319,15 +373,23 @@ int main(int argc, char **argv)
 		fprintf(stderr, "kogei-bench-tiff: %s: read %.3f s / %.3f s, chart detect %.3f s%s\n",
 		        l->name, t1, tN, wm, why[0] ? why : "");
 		printf("| %s | %.1f | %.1f | %.1f | %.2f x | %s | ", l->name, mb, 1e3 * t1, 1e3 * tN,
-		       t1 / tN, same1 && sameN ? "yes" : "NO");
-		if (isfinite(wm))
+		       t1 / tN, same1 && sameN && (same_codes || !isfinite(tm)) ? "yes" : "NO");
+		if (isfinite(tm))
+			printf("%.1f%s | ", 1e3 * tm, l->compression == COMPRESSION_NONE ? " (mapped)" : "");
+		else
+			printf("- | ");
+		if (isfinite(wm) && rss_max > 0)
 			printf("%.1f | %.0f |", 1e3 * wm, rss_max / 1024.0);
+		else if (isfinite(wm))
+			printf("%.1f | - |", 1e3 * wm);
 		else
 			printf("failed | - |");
-		if (before && isfinite(wbm))
-			printf(" %.1f |", 1e3 * wbm);
+		if (before && isfinite(wbm) && rss_before > 0)
+			printf(" %.1f | %.0f |", 1e3 * wbm, rss_before / 1024.0);
+		else if (before && isfinite(wbm))
+			printf(" %.1f | - |", 1e3 * wbm);
 		else if (before)
-			printf(" failed |");
+			printf(" failed | - |");
 		printf("\n");
 	}
 	kg_image_free(&ref);

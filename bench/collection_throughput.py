@@ -223,7 +223,7 @@ def collection_run(kogei, listfile, out, engine, jobs, slurm_wrapper=None):
             p = subprocess.Popen(argv, stdout=lf, stderr=subprocess.STDOUT)
             _, status, ru = os.wait4(p.pid, 0)
         res = {"wall": time.monotonic() - t0, "exit": os.waitstatus_to_exitcode(status),
-               "maxrss_mib": ru.ru_maxrss / 1024.0}
+               "maxrss_mib": ru.ru_maxrss / 1024.0, "cpu": ru.ru_utime + ru.ru_stime}
     try:
         with open(os.path.join(out, "collection.json")) as f:
             rec = json.load(f)
@@ -278,20 +278,26 @@ def report(args, load0, load1, st, runs, started):
         o.append("%d copies of the session (hard links), one object each, in one list; "
                  "`kogei collection run LIST -o OUT --engine E --jobs N`. Wall: the "
                  "collection command (Slurm: from sbatch to the record written; the "
-                 "cluster's start and stop not counted).\n" % args.sessions)
+                 "cluster's start and stop not counted). CPU per object: user + system "
+                 "time of the whole run (wait4: every worker and `kogei process`) over the "
+                 "objects; on a machine shared with other work the wall time grows with "
+                 "the load, the CPU time much less.\n" % args.sessions)
         o.append("| engine | jobs | sessions done | objects | wall (s) | objects per hour | "
-                 "per session (s, median of the record's times) | peak RSS of a worker (MiB) |")
-        o.append("|---|--:|--:|--:|--:|--:|--:|--:|")
+                 "per session (s, median of the record's times) | CPU per object (s) | "
+                 "peak RSS of a worker (MiB) |")
+        o.append("|---|--:|--:|--:|--:|--:|--:|--:|--:|")
         for name, jobs, r in runs:
             if "skipped" in r:
-                o.append("| %s | %d | - | - | - | not run: %s | - | - |" % (name, jobs,
-                                                                        r["skipped"][:120]))
+                o.append("| %s | %d | - | - | - | not run: %s | - | - | - |" % (
+                    name, jobs, r["skipped"][:120]))
                 continue
             secs = sorted(r["entry_seconds"])
             med = secs[len(secs) // 2] if secs else float("nan")
             oph = r["objects"] / r["wall"] * 3600 if r["wall"] > 0 else float("nan")
-            o.append("| %s | %d | %d | %d | %.1f | %.0f | %.1f | %s |" % (
+            cpu = r.get("cpu")
+            o.append("| %s | %d | %d | %d | %.1f | %.0f | %.1f | %s | %s |" % (
                 name, jobs, r["done"], r["objects"], r["wall"], oph, med,
+                "%.1f" % (cpu / r["objects"]) if cpu and r["objects"] else "(slurmd's tasks)",
                 "%.0f" % r["maxrss_mib"] if r["maxrss_mib"] else "(slurmd's tasks)"))
         o.append("")
     return "\n".join(o) + "\n"
