@@ -9,7 +9,7 @@
 # the camera benchmark's private network namespace (unshare -rn works unprivileged
 # too where user namespaces are allowed) and for dropping the page cache in the
 # whole-command runs (without it the cold rows say so). Progress goes to standard
-# error; each benchmark's report is written to OUTDIR. Takes about 20 minutes on two
+# error; each benchmark's report is written to OUTDIR. Takes about 35 minutes on two
 # cores; run it on an otherwise idle machine.
 set -eu
 cd "$(dirname "$0")/.."
