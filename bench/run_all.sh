@@ -9,7 +9,7 @@
 # the camera benchmark's private network namespace (unshare -rn works unprivileged
 # too where user namespaces are allowed) and for dropping the page cache in the
 # whole-command runs (without it the cold rows say so). Progress goes to standard
-# error; each benchmark's report is written to OUTDIR. Takes about 20 minutes on two
+# error; each benchmark's report is written to OUTDIR. Takes about 35 minutes on two
 # cores; run it on an otherwise idle machine.
 set -eu
 cd "$(dirname "$0")/.."
@@ -42,6 +42,8 @@ step "labels (whole kogei classify)"
 "$BUILD/bench/kogei-bench-labels" --kogei "$KOGEI" -o "$OUT/labels.md" >/dev/null
 step "chart detection"
 "$BUILD/bench/kogei-bench-chart" --kogei "$KOGEI" --json "$OUT/chart.json" > "$OUT/chart.md"
+step "TIFF reading (compressed layouts, one thread and several)"
+"$BUILD/bench/kogei-bench-tiff" --kogei "$KOGEI" > "$OUT/tiff.md"
 step "renderer"
 "$BUILD/bench/render/kogei-bench-render" -o "$OUT/render.md" >/dev/null
 "$BUILD/bench/render/kogei-bench-ply" > "$OUT/ply.md"
@@ -55,5 +57,8 @@ unshare -rn sh -c 'ip link set lo up; sh bench/console_live.sh "$0" "$1" 20' "$K
 	"$OUT/console-live.md" || echo "run_all: console live view benchmark failed" >&2
 step "whole commands"
 python3 bench/whole_commands.py --kogei "$KOGEI" -o "$OUT/whole.md" >/dev/null
+step "a collection: one kogei process by stage, objects per hour (local, single-node Slurm)"
+python3 bench/collection_throughput.py --kogei "$KOGEI" -o "$OUT/collection.md" >/dev/null ||
+	echo "run_all: collection benchmark failed (see above)" >&2
 step "done: $OUT"
 echo "finished $(date -u '+%H:%M UTC'), load average $(cut -d' ' -f1-3 /proc/loadavg)" >> "$OUT/run.md"

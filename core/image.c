@@ -3,6 +3,7 @@
 #include <math.h>
 #include <png.h>
 #include <pthread.h>
+#include <stdatomic.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -229,6 +230,7 @@ struct kg_image_rows {
 	TIFF *tif;
 	struct tiff_msg msg;
 	int spp, separate, invert, tiled;
+	int codes; /* tiff_band writes 16-bit codes (kg_image_map), not floats */
 	uint32_t tw, th;
 	tmsize_t chunk_size;
 	unsigned char *chunk; /* one encoded strip or tile, decoded by libtiff */
@@ -332,9 +334,12 @@ static void tiff_row_any(const kg_image_rows *r, const unsigned char *src, uint3
 }
 
 /* Decode the band of TIFF rows that starts at row cy (a multiple of th) into band
- * (rows of the image's width, channels interleaved). */
-static int tiff_band(kg_image_rows *r, uint32_t cy, float *band, kg_err *err)
+ * (rows of the image's width, channels interleaved): floats, or with r->codes (a
+ * 16-bit file of one plane, nothing extra, not inverted) its codes as they are. */
+static int tiff_band(kg_image_rows *r, uint32_t cy, void *band_out, kg_err *err)
 {
+	float *band = band_out;
+	uint16_t *codes = band_out;
 	const kg_image *img = r->head;
 	uint32_t w = (uint32_t)img->width, h = (uint32_t)img->height, tw = r->tw, th = r->th;
 	int C = img->channels, bits = img->bits, is_float = img->is_float;
@@ -364,8 +369,12 @@ static int tiff_band(kg_image_rows *r, uint32_t cy, float *band, kg_err *err)
 			int plain = !r->separate && spc == C && !r->invert;
 			for (uint32_t y = 0; y < rows; y++) {
 				const unsigned char *src = r->chunk + (size_t)y * tw * spc * bps;
-				float *dst = band + ((size_t)y * w + cx) * C;
 				size_t n = (size_t)cols * C;
+				if (r->codes) {
+					memcpy(codes + ((size_t)y * w + cx) * C, src, n * sizeof(uint16_t));
+					continue;
+				}
+				float *dst = band + ((size_t)y * w + cx) * C;
 				if (plain && is_float)
 					memcpy(dst, src, n * sizeof(float));
 				else if (plain && bits == 8)
@@ -1097,69 +1106,144 @@ void kg_image_rows_free(kg_image_rows **pr)
 	*pr = NULL;
 }
 
-/* A whole TIFF image of many bands read by two readers at once, each on its own
- * handle of the file, bands straight into the image: the conversion and the first
- * touch of the image's pages (about half the time of the read of a 72 MB 16-bit
- * TIFF) on two cores. */
+/* A whole TIFF image of many bands read by several readers at once, each on its own
+ * handle of the file (a libtiff handle is not for two threads), bands straight into
+ * the image. Uncompressed, the conversion and the first touch of the image's pages
+ * (about half the time of the read of a 72 MB 16-bit TIFF) run on several cores;
+ * compressed (LZW, Deflate), the decoding too: a strip or tile is decoded on its own,
+ * whichever reader takes it. The readers take the bands in order, one at a time, from
+ * a shared counter; a band is decoded whole by one reader, by the function the row
+ * reader uses, so the samples are the same whatever the number of readers. A reader
+ * stops at its first bad band, and no reader starts a band after the first bad band
+ * found so far: every band before the first bad one is decoded, and the error is
+ * that of the first bad band in the file's order, as one reader would report it. */
+#define READ_THREADS_MAX 16
+
+static _Atomic int read_threads; /* 0: the CPUs this process may use, up to 8 */
+
+int kg_image_set_read_threads(int n)
+{
+	return atomic_exchange(&read_threads, n < 0 ? 0 : n > READ_THREADS_MAX ? READ_THREADS_MAX : n);
+}
+
+struct band_pool {
+	void *data;            /* floats, or codes (16-bit) */
+	uint32_t bands, th;
+	size_t row_bytes;
+	_Atomic uint32_t next;      /* the next band to take */
+	_Atomic uint32_t first_bad; /* the first bad band found so far; bands: none */
+};
+
 struct band_job {
+	struct band_pool *pool;
 	kg_image_rows *r;
-	float *data;
-	uint32_t b0, b1; /* bands [b0, b1) */
 	int ret;
+	uint32_t bad; /* the band of ret */
 	kg_err err;
 };
 
 static void *band_job_main(void *arg)
 {
 	struct band_job *j = arg;
-	const kg_image *h = j->r->head;
-	size_t row_floats = (size_t)h->width * (size_t)h->channels;
-	for (uint32_t b = j->b0; b < j->b1 && !j->ret; b++) {
-		uint32_t cy = b * j->r->th;
-		j->ret = tiff_band(j->r, cy, j->data + (size_t)cy * row_floats, &j->err);
+	struct band_pool *p = j->pool;
+	for (;;) {
+		uint32_t b = atomic_fetch_add(&p->next, 1);
+		if (b >= p->bands || b > atomic_load(&p->first_bad))
+			break;
+		uint32_t cy = b * p->th;
+		int ret = tiff_band(j->r, cy, (unsigned char *)p->data + (size_t)cy * p->row_bytes,
+		                    &j->err);
+		if (ret) {
+			j->ret = ret;
+			j->bad = b;
+			uint32_t seen = atomic_load(&p->first_bad);
+			while (b < seen && !atomic_compare_exchange_weak(&p->first_bad, &seen, b))
+				;
+			break;
+		}
 	}
 	return NULL;
 }
 
-static int tiff_read_split(kg_image_rows *r, const char *path, float *data, int *done,
+static int same_layout(const kg_image_rows *a, const kg_image_rows *b)
+{
+	const kg_image *ha = a->head, *hb = b->head;
+	return ha->width == hb->width && ha->height == hb->height &&
+	       ha->channels == hb->channels && ha->bits == hb->bits &&
+	       ha->is_float == hb->is_float && a->spp == b->spp && a->separate == b->separate &&
+	       a->invert == b->invert && a->tiled == b->tiled && a->tw == b->tw && a->th == b->th;
+}
+
+static int tiff_read_split(kg_image_rows *r, const char *path, void *data, int *done,
                            kg_err *err)
 {
 	const kg_image *h = r->head;
 	uint32_t bands = ((uint32_t)h->height + r->th - 1) / r->th;
+	size_t pixels = (size_t)h->width * (size_t)h->height;
+	uint16_t compression = COMPRESSION_NONE;
+	TIFFGetFieldDefaulted(r->tif, TIFFTAG_COMPRESSION, &compression);
 	*done = 0;
-	if (bands < 8 || (size_t)h->width * (size_t)h->height < ((size_t)1 << 22))
+	/* Uncompressed, a band is converted, not decoded: worth a second reader from
+	 * 4 Mpix. Compressed, its decoding costs more than opening another handle from
+	 * 1 Mpix. */
+	if (compression == COMPRESSION_NONE ? bands < 8 || pixels < ((size_t)1 << 22)
+	                                    : bands < 2 || pixels < ((size_t)1 << 20))
 		return 0;
-	kg_image_rows *r2 = NULL;
-	kg_err e2 = {{0}};
-	if (rows_open_kind(path, KIND_TIFF, NULL, &r2, &e2))
-		return 0; /* read by one reader, which reports what is wrong */
-	const kg_image *h2 = r2->head;
-	if (h2->width != h->width || h2->height != h->height || h2->channels != h->channels ||
-	    h2->bits != h->bits || h2->is_float != h->is_float || r2->spp != r->spp ||
-	    r2->separate != r->separate || r2->invert != r->invert || r2->tiled != r->tiled ||
-	    r2->tw != r->tw || r2->th != r->th) {
-		/* the file changed between the two opens: never decode the second handle's
-		 * bands into a buffer sized by the first */
-		kg_image_rows_free(&r2);
+	int want = atomic_load(&read_threads);
+	if (want == 0)
+		want = kg_cpu_count(8);
+	if ((uint32_t)want > bands)
+		want = (int)bands;
+	if (want < 2)
 		return 0;
+	struct band_pool pool = {data, bands, r->th,
+	                         (size_t)h->width * (size_t)h->channels *
+	                             (r->codes ? sizeof(uint16_t) : sizeof(float)),
+	                         0, bands};
+	struct band_job jobs[READ_THREADS_MAX];
+	pthread_t tid[READ_THREADS_MAX];
+	int started[READ_THREADS_MAX] = {0};
+	memset(jobs, 0, sizeof(jobs));
+	int n = 1;
+	jobs[0].pool = &pool;
+	jobs[0].r = r;
+	for (; n < want; n++) {
+		kg_image_rows *rn = NULL;
+		kg_err en = {{0}};
+		if (rows_open_kind(path, KIND_TIFF, NULL, &rn, &en))
+			break; /* fewer readers; the first reports what is wrong */
+		if (!same_layout(r, rn)) {
+			/* the file changed between the opens: never decode another handle's
+			 * bands into a buffer sized by the first */
+			kg_image_rows_free(&rn);
+			break;
+		}
+		rn->codes = r->codes;
+		jobs[n].pool = &pool;
+		jobs[n].r = rn;
 	}
-	struct band_job jobs[2] = {{r, data, 0, bands / 2, 0, {{0}}},
-	                           {r2, data, bands / 2, bands, 0, {{0}}}};
-	pthread_t tid;
-	int threaded = pthread_create(&tid, NULL, band_job_main, &jobs[1]) == 0;
+	if (n < 2)
+		return 0;
+	for (int k = 1; k < n; k++)
+		started[k] = pthread_create(&tid[k], NULL, band_job_main, &jobs[k]) == 0;
 	band_job_main(&jobs[0]);
-	if (threaded)
-		pthread_join(tid, NULL);
-	else
-		band_job_main(&jobs[1]);
-	kg_image_rows_free(&r2);
+	for (int k = 1; k < n; k++) {
+		if (started[k])
+			pthread_join(tid[k], NULL);
+		else
+			band_job_main(&jobs[k]);
+		kg_image_rows_free(&jobs[k].r);
+	}
 	*done = 1;
 	r->y = h->height;
-	for (int k = 0; k < 2; k++)
-		if (jobs[k].ret) {
-			*err = jobs[k].err;
-			return jobs[k].ret;
-		}
+	int first = -1;
+	for (int k = 0; k < n; k++)
+		if (jobs[k].ret && (first < 0 || jobs[k].bad < jobs[first].bad))
+			first = k;
+	if (first >= 0) {
+		*err = jobs[first].err;
+		return jobs[first].ret;
+	}
 	return 0;
 }
 
@@ -1233,6 +1317,42 @@ const float *kg_image_u16_lut(void)
 	return u16_lut;
 }
 
+/* A compressed 16-bit TIFF of kg_image_map's layout: its codes decoded into memory (by
+ * several readers at once when it has many strips or tiles), in the image's block as
+ * kg_image_new's floats; frees r. */
+static int map_decode_codes(kg_image_rows *r, kg_image **out, kg_err *err)
+{
+	const kg_image *h = r->head;
+	size_t n = (size_t)h->width * (size_t)h->height * (size_t)h->channels;
+	kg_image *img = malloc(sizeof(*img) + n * sizeof(uint16_t));
+	if (!img) {
+		kg_image_rows_free(&r);
+		return kg_fail(err, KG_ENOMEM, "%s: out of memory for %zu 16-bit samples", r->path,
+		               n);
+	}
+	memset(img, 0, sizeof(*img));
+	huge_pages(img, sizeof(*img) + n * sizeof(uint16_t));
+	r->codes = 1;
+	int done = 0;
+	int ret = tiff_read_split(r, r->path, img + 1, &done, err);
+	for (uint32_t cy = 0; !ret && !done && cy < (uint32_t)h->height; cy += r->th)
+		ret = tiff_band(r, cy, (uint16_t *)(void *)(img + 1) + (size_t)cy * h->width * h->channels,
+		                err);
+	if (!ret) {
+		img->width = h->width;
+		img->height = h->height;
+		img->channels = h->channels;
+		img->bits = 16;
+		img->encoding = h->encoding;
+		memcpy(img->note, h->note, sizeof(img->note));
+		img->u16 = (const uint16_t *)(const void *)(img + 1);
+		*out = img;
+	} else
+		free(img);
+	kg_image_rows_free(&r);
+	return ret;
+}
+
 int kg_image_map(const char *path, kg_image **out, kg_err *err)
 {
 	kg_check_arg(path && out, err);
@@ -1263,6 +1383,9 @@ int kg_image_map(const char *path, kg_image **out, kg_err *err)
 	int fd = TIFFFileno(tif);
 	plain = plain && off0 % 2 == 0 && fstat(fd, &st) == 0 &&
 	        off0 + (uint64_t)row_bytes * (uint64_t)h->height <= (uint64_t)st.st_size;
+	if (!plain && compression != COMPRESSION_NONE && !r->separate && !r->invert &&
+	    h->bits == 16 && !h->is_float && !h->cfa && r->spp == h->channels)
+		return map_decode_codes(r, out, err);
 	if (!plain) {
 		kg_image_rows_free(&r);
 		return kg_fail(err, KG_ENOTSUP, "%s: not an uncompressed 16-bit TIFF in one run: "

@@ -61,7 +61,10 @@ int kg_image_read(const char *path, kg_image **out, kg_err *err);
  * needs a build with libjpeg (KG_ENOTSUP without). */
 /* An uncompressed 16-bit grey or RGB TIFF (strips in order, the machine's byte order,
  * no extra samples) mapped rather than decoded: no copy of its pixels is made (u16
- * above). KG_ENOTSUP for any other file, which kg_image_read then reads. For a
+ * above). A compressed one (LZW, Deflate, ...; strips or tiles) of the same layout is
+ * decoded into its 16-bit codes (u16, in memory; half the bytes of the floats), on
+ * several threads as kg_image_read decodes it; its errors are kg_image_read's.
+ * KG_ENOTSUP for any other file, which kg_image_read then reads. For a
  * one-pass reader of a large file (chart detection): a 12 Mpix RGB image otherwise
  * costs 144 MB of floats that the kernel must first zero. The pages are the file's
  * (mapfile.h): a file cut short by another program while it is mapped reads as zeros
@@ -87,6 +90,11 @@ int kg_image_is_jpeg(const char *path);
  * as alpha are dropped with a note), strips or tiles, contiguous or separate planes.
  * The first image of a multi-page file. CFA pattern tags (33421/33422) are read. */
 int kg_image_read_tiff(const char *path, kg_image **out, kg_err *err);
+/* How many threads kg_image_read decodes a TIFF of many strips or tiles with, each on
+ * its own handle of the file: 0 (the default) as many as the CPUs this process may use,
+ * up to 8; 1 one; at most 16. The samples are the same whatever the number. Returns
+ * the previous setting (for benches and tests). */
+int kg_image_set_read_threads(int n);
 /* PNG: 1..16-bit grey or RGB, palettes expanded, alpha dropped with a note. */
 int kg_image_read_png(const char *path, kg_image **out, kg_err *err);
 
