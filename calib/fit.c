@@ -262,12 +262,11 @@ static double method_lambda(kg_method m, const kg_reference_options *opt, int n)
 
 /* Mean leave-one-out errors of the PCA model for K = 1..nK: for each patch, the
  * basis and M are refitted on the others (moments without it) and it is predicted. */
-static int pca_leave_one_out(const moments *all, const kg_patchset *train,
+static int pca_leave_one_out(const moments *all, const kg_patchset *train, int m,
                              const kg_reference_options *opt, const calib_d65 *d65,
                              double *rmse_K, double *de_K, double (*band_K)[NB],
                              int *nK_out, kg_err *err)
 {
-	int m = train->n;
 	int nK = m - 1 < KMAX ? m - 1 : KMAX;
 	double sum_r[KMAX] = {0}, sum_d[KMAX] = {0};
 	for (int K = 0; K < KMAX; K++)
@@ -313,19 +312,14 @@ static int pca_leave_one_out(const moments *all, const kg_patchset *train,
 	return 0;
 }
 
-double kg_spectral_map_neutral_tilt(const kg_spectral_map *map, const kg_response *r)
+double kg_spectral_map_neutral_tilt(const kg_spectral_map *map, const double white[3])
 {
-	if (!map || !map->available || !r || !r->available)
+	if (!map || !map->available || !(white[0] > 0 && white[1] > 0 && white[2] > 0))
 		return NAN;
-	double flat[NB], worst = 0;
+	double worst = 0;
 	const double levels[2] = {0.2, 0.8};
 	for (int k = 0; k < 2; k++) {
-		double rgb[3];
-		for (int l = 0; l < NB; l++)
-			flat[l] = levels[k];
-		kg_response_apply(r, flat, rgb);
-		if (!(rgb[0] > 0 && rgb[1] > 0 && rgb[2] > 0))
-			return NAN;
+		double rgb[3] = {levels[k] * white[0], levels[k] * white[1], levels[k] * white[2]};
 		kg_spectrum est;
 		kg_spectral_map_apply(map, rgb, &est);
 		double mean = 0;
@@ -339,14 +333,39 @@ double kg_spectral_map_neutral_tilt(const kg_spectral_map *map, const kg_respons
 	return worst;
 }
 
+/* The camera's value of the perfect diffuser for the neutral tilt: from the chart's
+ * neutral patches when it has enough (calib/flare.c's line at Y = 1), else the
+ * response's reading of a flat 1. */
+static int neutral_white(kg_reference *ref, const kg_patchset *train, kg_err *err)
+{
+	kg_flare f;
+	int ret = kg_flare_estimate(train, NULL, NULL, 0, &f, err);
+	if (ret)
+		return ret;
+	if (f.found) {
+		memcpy(ref->neutral_white, f.slope, sizeof(f.slope));
+		snprintf(ref->neutral_white_source, sizeof(ref->neutral_white_source), "neutrals");
+		return 0;
+	}
+	double one[NB];
+	for (int l = 0; l < NB; l++)
+		one[l] = 1;
+	if (ref->response.available)
+		kg_response_apply(&ref->response, one, ref->neutral_white);
+	else
+		ref->neutral_white[0] = ref->neutral_white[1] = ref->neutral_white[2] = NAN;
+	snprintf(ref->neutral_white_source, sizeof(ref->neutral_white_source), "response");
+	return 0;
+}
+
 /* Fit a regression method and validate it: in-sample RMSE, and leave-one-out in
  * closed form, s_i - (s_i - est_i) / (1 - h_i), which is the refit without patch i
  * for a fixed ridge. A method the chart cannot support is marked unavailable. */
-static int fit_regression(const kg_patchset *train, kg_method j,
+static int fit_regression(const kg_patchset *train, int m, kg_method j,
                           const kg_reference_options *opt, const calib_d65 *d65,
                           kg_spectral_map *map, kg_err *err)
 {
-	int m = train->n;
+	int rows = train->n; /* m of the chart's, then any flat greys of the neutral prior */
 	map->method = j;
 	map->nterms = kg_method_nterms(j);
 	map->lambda = method_lambda(j, opt, m);
@@ -358,7 +377,7 @@ static int fit_regression(const kg_patchset *train, kg_method j,
 		         "needs at least %d patches without a ridge (the chart has %d)", map->nterms, m);
 		return 0;
 	}
-	double *h = malloc((size_t)m * sizeof(double));
+	double *h = malloc((size_t)rows * sizeof(double));
 	if (!h)
 		return kg_fail(err, KG_ENOMEM, "out of memory");
 	kg_err e = {{0}};
@@ -554,11 +573,10 @@ static int check_training(const kg_patchset *train, const kg_patchset *field,
 
 /* The PCA model with the chosen K: basis (and up to 8 singular values for the
  * record), M, its map and in-sample error. */
-static int fit_pca(kg_reference *ref, const moments *mo, const kg_patchset *train,
+static int fit_pca(kg_reference *ref, const moments *mo, const kg_patchset *train, int m,
                    const kg_reference_options *opt, kg_err *err)
 {
-	int m = train->n;
-	int nrec = m < KMAX ? m : KMAX;
+	int nrec = train->n < KMAX ? train->n : KMAX;
 	if (nrec < ref->K)
 		nrec = ref->K;
 	double Ball[NB * KMAX], Alin[NB * 3];
@@ -651,58 +669,46 @@ static int record_charts(kg_reference *ref, const kg_patchset *train,
 	return 0;
 }
 
-static int fit_reference(const kg_patchset *train, const kg_patchset *field,
-                         const kg_reference_options *opt, kg_reference **out, kg_err *err)
+/* Every method fitted to set and validated by leave-one-out over its first m patches
+ * (the chart's; any further ones are the neutral prior's flat greys, always fitted),
+ * K and the default method chosen as the options say. */
+static int fit_methods(kg_reference *ref, const kg_patchset *set, int m,
+                       const kg_reference_options *opt, const calib_d65 *d65, const char *tname,
+                       kg_err *err)
 {
-	int ret;
-	kg_reference *ref = calloc(1, sizeof(*ref));
-	moments *mo = calloc(1, sizeof(*mo));
-	calib_d65 *d65 = malloc(sizeof(*d65));
 	double de_K[KMAX], band_K[KMAX][NB];
-	if (!ref || !mo || !d65) {
-		ret = kg_fail(err, KG_ENOMEM, "reference calibration: out of memory");
-		goto error;
-	}
-	const char *tname = set_name(train, "training chart");
-	ret = check_training(train, field, opt, ref, err);
-	if (!ret)
-		ret = calib_d65_init(d65, err);
-	if (ret)
-		goto error;
-	ref->centred = opt->centred;
-	ref->ridge = opt->ridge;
-	ref->noise_sigma = opt->noise_sigma;
-
+	moments *mo = calloc(1, sizeof(*mo));
+	if (!mo)
+		return kg_fail(err, KG_ENOMEM, "reference calibration: out of memory");
+	memset(ref->maps, 0, sizeof(ref->maps));
+	int ret = 0;
 	/* The regression methods, validated in closed form. */
-	for (int j = KG_METHOD_LINEAR; j < KG_METHOD_COUNT; j++) {
-		ret = fit_regression(train, (kg_method)j, opt, d65, &ref->maps[j], err);
-		if (ret)
-			goto error;
-	}
+	for (int j = KG_METHOD_LINEAR; j < KG_METHOD_COUNT && !ret; j++)
+		ret = fit_regression(set, m, (kg_method)j, opt, d65, &ref->maps[j], err);
 
 	/* PCA: leave-one-out for every K, then the K and the model. */
-	for (int i = 0; i < train->n; i++)
-		moments_add(mo, &train->spectra[i], train->rgb[i], 1.0);
-	ret = pca_leave_one_out(mo, train, opt, d65, ref->loo_by_K, de_K, band_K, &ref->nK, err);
-	if (ret)
-		goto error;
-	if (opt->basis == 0) {
+	for (int i = 0; i < set->n && !ret; i++)
+		moments_add(mo, &set->spectra[i], set->rgb[i], 1.0);
+	if (!ret)
+		ret = pca_leave_one_out(mo, set, m, opt, d65, ref->loo_by_K, de_K, band_K, &ref->nK,
+		                        err);
+	if (!ret && opt->basis == 0) {
 		int best = choose_simplest(ref->loo_by_K, ref->nK, KG_CALIB_K_TOLERANCE);
-		if (best < 0) {
+		if (best < 0)
 			ret = kg_fail(err, KG_EINVAL,
 			              "%s: --basis auto: leave-one-out validation failed for every K "
 			              "(the chart's RGB is singular without one of its patches)",
 			              tname);
-			goto error;
-		}
 		ref->K = best + 1;
 		ref->basis_auto = 1;
-	} else {
+	} else if (!ret) {
 		ref->K = opt->basis;
 	}
-	ret = fit_pca(ref, mo, train, opt, err);
+	if (!ret)
+		ret = fit_pca(ref, mo, set, m, opt, err);
+	free(mo);
 	if (ret)
-		goto error;
+		return ret;
 	ref->maps[KG_METHOD_PCA].loo_rmse = ref->K <= ref->nK ? ref->loo_by_K[ref->K - 1] : NAN;
 	ref->maps[KG_METHOD_PCA].loo_de00 = ref->K <= ref->nK ? de_K[ref->K - 1] : NAN;
 	for (int l = 0; l < NB; l++)
@@ -717,41 +723,117 @@ static int fit_reference(const kg_patchset *train, const kg_patchset *field,
 		for (int j = 0; j < KG_METHOD_COUNT; j++)
 			errs[j] = ref->maps[j].available ? ref->maps[j].loo_de00 : NAN;
 		int best = choose_simplest(errs, KG_METHOD_COUNT, KG_CALIB_K_TOLERANCE);
-		if (best < 0) {
-			ret = kg_fail(err, KG_EINVAL,
-			              "%s: --method auto: no method could be validated by leave-one-out",
-			              tname);
-			goto error;
-		}
+		if (best < 0)
+			return kg_fail(err, KG_EINVAL,
+			               "%s: --method auto: no method could be validated by leave-one-out",
+			               tname);
 		ref->method = (kg_method)best;
 		ref->method_auto = 1;
 	} else {
 		ref->method = opt->method;
-		if (!ref->maps[ref->method].available) {
-			ret = kg_fail(err, KG_EINVAL, "%s: method %s: %s", tname,
-			              kg_method_name(ref->method), ref->maps[ref->method].note);
-			goto error;
-		}
+		if (!ref->maps[ref->method].available)
+			return kg_fail(err, KG_EINVAL, "%s: method %s: %s", tname,
+			               kg_method_name(ref->method), ref->maps[ref->method].note);
 	}
+	for (int j = 0; j < KG_METHOD_COUNT; j++)
+		ref->maps[j].neutral_tilt = kg_spectral_map_neutral_tilt(&ref->maps[j],
+		                                                         ref->neutral_white);
+	return 0;
+}
 
-	ret = record_charts(ref, train, field, err);
-	if (!ret && (ret = opt->camera_weights
-	                       ? kg_response_from_camera(opt->camera_weights, train, &ref->response,
-	                                                 err)
-	                       : kg_response_fit(train, &ref->response, err)))
-		kg_err_prefix(err, "%s: ", set_name(train, "training chart"));
+/* The neutral prior: when the chosen method gives a flat grey more shape than
+ * KG_CALIB_MAX_NEUTRAL_TILT, the chart cannot say that a grey is flat (the CIE test
+ * colours hold no neutral): flat greys at KG_CALIB_NEUTRAL_LEVELS levels, read through
+ * the response learned from the same chart, are added to the fit, each counted 4, 16
+ * or 64 times, the least that brings the tilt within the limit. The chart's own
+ * patches still validate every method. */
+static int neutral_prior(kg_reference *ref, const kg_patchset *train,
+                         const kg_reference_options *opt, const calib_d65 *d65,
+                         const char *tname, kg_err *err)
+{
+	static const double levels[KG_CALIB_NEUTRAL_LEVELS] = {0.05, 0.2, 0.5, 0.9};
+	static const int weights[3] = {4, 16, 64};
+	double tilt = ref->maps[ref->method].neutral_tilt;
+	ref->neutral_tilt_before = tilt;
+	ref->neutral_loo_before = NAN;
+	ref->neutral_method_before = ref->method;
+	/* a chart with neutral patches says itself what a grey reads */
+	if (opt->no_neutral_prior || strcmp(ref->neutral_white_source, "response") != 0 ||
+	    !(tilt > KG_CALIB_MAX_NEUTRAL_TILT))
+		return 0;
+	double grey[KG_CALIB_NEUTRAL_LEVELS][3];
+	for (int k = 0; k < KG_CALIB_NEUTRAL_LEVELS; k++)
+		for (int c = 0; c < 3; c++)
+			grey[k][c] = levels[k] * ref->neutral_white[c];
+	ref->neutral_loo_before = ref->maps[ref->method].loo_de00;
+	int m = train->n, cap = m + KG_CALIB_NEUTRAL_LEVELS * weights[2];
+	kg_patchset aug = {.n = m, .source = train->source};
+	aug.spectra = malloc((size_t)cap * sizeof(*aug.spectra));
+	aug.rgb = malloc((size_t)cap * sizeof(*aug.rgb));
+	int ret = aug.spectra && aug.rgb ? 0 : kg_fail(err, KG_ENOMEM, "out of memory");
+	if (!ret) {
+		memcpy(aug.spectra, train->spectra, (size_t)m * sizeof(*aug.spectra));
+		memcpy(aug.rgb, train->rgb, (size_t)m * sizeof(*aug.rgb));
+	}
+	for (int w = 0; w < 3 && !ret; w++) {
+		aug.n = m + KG_CALIB_NEUTRAL_LEVELS * weights[w];
+		for (int i = m; i < aug.n; i++) {
+			int k = (i - m) % KG_CALIB_NEUTRAL_LEVELS;
+			for (int l = 0; l < NB; l++)
+				aug.spectra[i].v[l] = levels[k];
+			memcpy(aug.rgb[i], grey[k], sizeof(grey[k]));
+		}
+		ret = fit_methods(ref, &aug, m, opt, d65, tname, err);
+		ref->neutral_prior = 1;
+		ref->neutral_weight = weights[w];
+		if (!ret && ref->maps[ref->method].neutral_tilt <= KG_CALIB_MAX_NEUTRAL_TILT)
+			break;
+	}
+	free(aug.spectra);
+	free(aug.rgb);
+	return ret;
+}
+
+static int fit_reference(const kg_patchset *train, const kg_patchset *field,
+                         const kg_reference_options *opt, kg_reference **out, kg_err *err)
+{
+	int ret;
+	kg_reference *ref = calloc(1, sizeof(*ref));
+	calib_d65 *d65 = malloc(sizeof(*d65));
+	if (!ref || !d65) {
+		ret = kg_fail(err, KG_ENOMEM, "reference calibration: out of memory");
+		goto error;
+	}
+	const char *tname = set_name(train, "training chart");
+	ret = check_training(train, field, opt, ref, err);
+	if (!ret)
+		ret = calib_d65_init(d65, err);
 	if (ret)
 		goto error;
-	for (int j = 0; j < KG_METHOD_COUNT; j++)
-		ref->maps[j].neutral_tilt = kg_spectral_map_neutral_tilt(&ref->maps[j], &ref->response);
+	ref->centred = opt->centred;
+	ref->ridge = opt->ridge;
+	ref->noise_sigma = opt->noise_sigma;
+	/* the response first: the neutral prior reads its greys through it */
+	if ((ret = opt->camera_weights
+	               ? kg_response_from_camera(opt->camera_weights, train, &ref->response, err)
+	               : kg_response_fit(train, &ref->response, err)))
+		kg_err_prefix(err, "%s: ", tname);
+	if (!ret)
+		ret = neutral_white(ref, train, err);
+	if (!ret)
+		ret = fit_methods(ref, train, train->n, opt, d65, tname, err);
+	if (!ret)
+		ret = neutral_prior(ref, train, opt, d65, tname, err);
+	if (!ret)
+		ret = record_charts(ref, train, field, err);
+	if (ret)
+		goto error;
 	patch_diagnostics(ref, train, d65);
-	free(mo);
 	free(d65);
 	*out = ref;
 	return 0;
 
 error:
-	free(mo);
 	free(d65);
 	kg_reference_free(&ref);
 	return ret;

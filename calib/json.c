@@ -278,6 +278,32 @@ static json_t *jflare_record(jw *w, const kg_reference *ref)
 	return o;
 }
 
+/* The neutral prior (kg_reference's neutral_*), or null when no tilt was measured. */
+static json_t *jneutral(jw *w, const kg_reference *ref)
+{
+	if (!isfinite(ref->neutral_white[0]))
+		return json_null();
+	json_t *o = json_object();
+	put(w, o, "white", jrow(w, ref->neutral_white, 3, 1));
+	put(w, o, "white_source", json_string(ref->neutral_white_source));
+	put(w, o, "added", json_boolean(ref->neutral_prior));
+	put(w, o, "weight", json_integer(ref->neutral_weight));
+	put(w, o, "tilt_before", jnum(ref->neutral_tilt_before));
+	put(w, o, "method_before", json_string(kg_method_name(ref->neutral_method_before)));
+	put(w, o, "loo_de00_before", jnum(ref->neutral_loo_before));
+	put(w, o, "tilt", jnum(ref->maps[ref->method].neutral_tilt));
+	put(w, o, "description",
+	    json_string("white: the camera's value of the perfect diffuser (white_source "
+	                "neutrals: the line through the chart's neutral patches at Y = 1; "
+	                "response: the learned response's reading of a flat 1), a flat grey t "
+	                "reading t white; tilt: the chosen method's largest relative departure "
+	                "from flat for such greys. added: without neutral patches and with a "
+	                "tilt above 5 % (tilt_before), flat greys (0.05, 0.2, 0.5, 0.9) each "
+	                "counted weight times joined the fit; the chart's own patches validate "
+	                "every method"));
+	return o;
+}
+
 static int finish(jw *w, json_t *root, const char *path, kg_err *err)
 {
 	int ret;
@@ -434,6 +460,7 @@ int kg_reference_save(const kg_reference *ref, const char *path, kg_err *err)
 	if (ref->pairing.pairs)
 		put(&w, root, "pairing", jpairing(&w, &ref->pairing, ref->id_rule, "spectra", "rgb"));
 	put(&w, root, "flare", jflare_record(&w, ref));
+	put(&w, root, "neutral_prior", jneutral(&w, ref));
 
 	put(&w, root, "devices", jdevices(&w, ref->sources, ref->nsources));
 	const char *ill = source_keyword(ref->sources, ref->nsources, NULL, illuminant_keywords);
@@ -857,6 +884,51 @@ static int get_flare_record(const char *file, const json_t *root, kg_reference *
 	return ret;
 }
 
+/* The neutral prior's record (absent or null: none). */
+static int get_neutral(const char *file, const json_t *root, kg_reference *ref, kg_err *err)
+{
+	ref->neutral_tilt_before = ref->neutral_loo_before = NAN;
+	ref->neutral_white[0] = ref->neutral_white[1] = ref->neutral_white[2] = NAN;
+	ref->neutral_method_before = ref->method;
+	const json_t *np = kg_json_find(root, "neutral_prior");
+	if (!np || json_is_null(np))
+		return 0;
+	int r0 = kg_json_get_numbers(file, root, "neutral_prior.white", 3, ref->neutral_white, err);
+	if (r0)
+		return r0;
+	const json_t *src = kg_json_find(root, "neutral_prior.white_source");
+	if (!json_is_string(src) || (strcmp(json_string_value(src), "neutrals") &&
+	                             strcmp(json_string_value(src), "response")))
+		return kg_fail(err, KG_EINVAL, "%s: key 'neutral_prior.white_source': expected "
+		               "\"neutrals\" or \"response\"", file);
+	snprintf(ref->neutral_white_source, sizeof(ref->neutral_white_source), "%s",
+	         json_string_value(src));
+	const json_t *added = kg_json_find(root, "neutral_prior.added");
+	if (!json_is_boolean(added))
+		return kg_fail(err, KG_EINVAL, "%s: key 'neutral_prior.added': expected true or false",
+		               file);
+	ref->neutral_prior = json_is_true(added);
+	double wt = 0;
+	int ret = get_num_or_null(file, root, "neutral_prior.weight", &wt, err);
+	if (!ret && !(wt >= 0 && wt <= 1e6))
+		ret = kg_fail(err, KG_EINVAL, "%s: key 'neutral_prior.weight': expected 0 to 1000000",
+		              file);
+	ref->neutral_weight = ret ? 0 : (int)wt;
+	if (!ret)
+		ret = get_num_or_null(file, root, "neutral_prior.tilt_before", &ref->neutral_tilt_before,
+		                      err);
+	if (!ret)
+		ret = get_num_or_null(file, root, "neutral_prior.loo_de00_before",
+		                      &ref->neutral_loo_before, err);
+	const json_t *mb = kg_json_find(root, "neutral_prior.method_before");
+	kg_err bad = {{0}};
+	if (!ret && (!json_is_string(mb) ||
+	             kg_method_parse(json_string_value(mb), &ref->neutral_method_before, &bad)))
+		ret = kg_fail(err, KG_EINVAL, "%s: key 'neutral_prior.method_before': expected a "
+		              "method name", file);
+	return ret;
+}
+
 static int get_pairing(const char *file, const json_t *root, const char *path,
                        const char *first, const char *second, kg_pairing_record *rec,
                        char *alias, size_t alias_size, kg_err *err)
@@ -1023,9 +1095,20 @@ static int load_reference(const char *file, const json_t *root, kg_reference *re
 		                  sizeof(ref->id_rule), err);
 	if (!ret)
 		ret = get_flare_record(file, root, ref, err);
+	if (!ret)
+		ret = get_neutral(file, root, ref, err);
 	calib_reference_derive(ref);
+	if (!ret && !isfinite(ref->neutral_white[0]) && ref->response.available) {
+		/* files of earlier versions: the response's reading of a flat 1 */
+		double one[NB];
+		for (int l = 0; l < NB; l++)
+			one[l] = 1;
+		kg_response_apply(&ref->response, one, ref->neutral_white);
+		snprintf(ref->neutral_white_source, sizeof(ref->neutral_white_source), "response");
+	}
 	for (int j = 0; j < KG_METHOD_COUNT; j++) /* derived, as when it was fitted */
-		ref->maps[j].neutral_tilt = kg_spectral_map_neutral_tilt(&ref->maps[j], &ref->response);
+		ref->maps[j].neutral_tilt = kg_spectral_map_neutral_tilt(&ref->maps[j],
+		                                                         ref->neutral_white);
 	return ret;
 }
 

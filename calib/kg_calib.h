@@ -99,6 +99,8 @@ typedef struct kg_spectral_map {
 /* Above this neutral tilt, estimated spectra carry shape the chart cannot support
  * (kogei process warns). */
 #define KG_CALIB_MAX_NEUTRAL_TILT 0.05
+/* The flat greys of the neutral prior: reflectances 0.05, 0.2, 0.5 and 0.9. */
+#define KG_CALIB_NEUTRAL_LEVELS 4
 
 /* Spectrum of one RGB through a map (no clamping). */
 void kg_spectral_map_apply(const kg_spectral_map *map, const double rgb[3],
@@ -131,9 +133,10 @@ int kg_response_from_camera(const kg_spectrum weight[3], const kg_patchset *trai
                             kg_response *out, kg_err *err);
 /* A reflectance's reading (61 values in, 3 out). */
 void kg_response_apply(const kg_response *r, const double *spectrum, double rgb[3]);
-/* The neutral tilt of a map (kg_spectral_map) through a response (NAN when the
- * response is not available or reads a neutral as black). */
-double kg_spectral_map_neutral_tilt(const kg_spectral_map *map, const kg_response *r);
+/* The neutral tilt of a map (kg_spectral_map): white is the camera's value of the
+ * perfect diffuser (a flat grey t reads t white); NAN when a channel of white is not
+ * above 0. */
+double kg_spectral_map_neutral_tilt(const kg_spectral_map *map, const double white[3]);
 
 /* ---- pairing two patch files by SAMPLE_ID (pairing.c) ---------------------------- */
 
@@ -247,6 +250,8 @@ typedef struct kg_reference_options {
 	                   * carry; above it the fit is refused (calib/flare.c); 0: the
 	                   * default KG_CALIB_MAX_FLARE; INFINITY: no limit */
 	int no_flare;     /* 1: never remove flare (it is still measured and reported) */
+	int no_neutral_prior; /* 1: never add flat greys to the fit (kg_reference's
+	                       * neutral_prior) */
 } kg_reference_options;
 
 /* The default flare limit: 8 % of white. Daylight and booth frames of real charts
@@ -357,6 +362,21 @@ typedef struct kg_reference {
 	                            * fit, because that validated better */
 	double flare_loo_kept;     /* the chosen method's mean LOO dE00 with flare kept */
 	double flare_loo_removed;  /* ... with it removed (NAN when not tried) */
+	/* Flat greys added to the fit when the chosen method gave a flat grey more shape
+	 * than KG_CALIB_MAX_NEUTRAL_TILT (the chart holds too few neutrals to say a grey
+	 * is flat): each of KG_CALIB_NEUTRAL_LEVELS levels, its reading through the
+	 * response, counted `neutral_weight` times; validation stays on the chart's own
+	 * patches. */
+	double neutral_white[3];   /* the camera's value of the perfect diffuser, for the
+	                            * neutral tilt: the line through the chart's neutral
+	                            * patches at Y = 1 when it has three or more from dark
+	                            * to light, else the response's reading of a flat 1 */
+	char neutral_white_source[16]; /* "neutrals" or "response" */
+	int neutral_prior;         /* 1: added (only without neutral patches) */
+	int neutral_weight;        /* times each level counts (0: not added) */
+	double neutral_tilt_before; /* the chosen method's tilt without them (NAN: none) */
+	double neutral_loo_before; /* its mean LOO dE00 without them (NAN: not tried) */
+	kg_method neutral_method_before; /* the method chosen without them */
 } kg_reference;
 
 /* Pair spectra and RGB by SAMPLE_ID into one patch set (spectra + rgb), in the order

@@ -15,6 +15,7 @@ static const char usage_reference[] =
 	"                      [--max-cond C] [--exclude ID[,ID...]]\n"
 	"                      [--camera CSS.csv --illuminant NAME|FILE]\n"
 	"                      [--id-pairing PAIRING] [--max-flare PCT|none] [--keep-flare]\n"
+	"                      [--no-neutral-prior]\n"
 	"  Reference calibration (docs/architecture.md, step 1). The chart's spectra S\n"
 	"  (CGATS SPEC_* fields, or a patch,name,<nm>... CSV table) and the reference\n"
 	"  camera's linear RGB rho (RGB_R RGB_G RGB_B) are matched by SAMPLE_ID and\n"
@@ -47,6 +48,10 @@ static const char usage_reference[] =
 	"  channel as a fraction of white, refused above --max-flare (default 8 %; none:\n"
 	"  no limit), and removed from the values before the fit when the chosen\n"
 	"  method's leave-one-out dE00 is lower without it (--keep-flare: never).\n"
+	"  Neutral prior: when the chosen method estimates a flat grey with more than 5 %\n"
+	"  of shape (its neutral tilt) and the chart holds fewer than three neutral\n"
+	"  patches, flat greys read through the learned response join the fit\n"
+	"  (--no-neutral-prior: never); the chart's patches still validate it.\n"
 	"  Refused: clipped (CLIPPED_FRACTION > 0, judged on the sensor's codes, so a value\n"
 	"  above 1 after the light field is not clipped; in a file without that column, a\n"
 	"  channel >= 0.98) or non-finite patches, near-black field patches (< 0.01),\n"
@@ -286,6 +291,7 @@ int kg_cmd_calib_reference(int argc, char **argv)
 		{"id-pairing", required_argument, NULL, 'P'},
 		{"max-flare", required_argument, NULL, 'F'},
 		{"keep-flare", no_argument, NULL, 'k'},
+		{"no-neutral-prior", no_argument, NULL, 'N'},
 		{"output", required_argument, NULL, 'o'},
 		{"help", no_argument, NULL, 'h'},
 		{0, 0, 0, 0},
@@ -314,6 +320,7 @@ int kg_cmd_calib_reference(int argc, char **argv)
 		case 'f': field = optarg; break;
 		case 'c': opt.centred = 1; break;
 		case 'k': opt.no_flare = 1; break;
+		case 'N': opt.no_neutral_prior = 1; break;
 		case 'F':
 			if (strcmp(optarg, "none") == 0)
 				opt.max_flare = INFINITY;

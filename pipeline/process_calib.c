@@ -373,16 +373,23 @@ static json_t *uncertainty_json(const proc *p)
 	json_t *band = json_array();
 	for (int l = 0; l < KG_NBANDS; l++)
 		json_array_append_new(band, json_real(m->loo_band[l]));
-	return json_pack("{s:s, s:o, s:o, s:s}", "method", kg_method_name(m->method),
+	const kg_reference *r = p->ref;
+	json_t *prior = json_pack("{s:s, s:b, s:i, s:o}", "white_source", r->neutral_white_source,
+	                          "added", r->neutral_prior, "weight", r->neutral_weight,
+	                          "tilt_before", isfinite(r->neutral_tilt_before)
+	                                             ? json_real(r->neutral_tilt_before)
+	                                             : json_null());
+	return json_pack("{s:s, s:o, s:o, s:o, s:s}", "method", kg_method_name(m->method),
 	                 "loo_band_rmse", band, "neutral_tilt",
 	                 isfinite(m->neutral_tilt) ? json_real(m->neutral_tilt) : json_null(),
-	                 "description",
+	                 "neutral_prior", prior ? prior : json_null(), "description",
 	                 "per band (400-700 nm, 5 nm), the RMS error over the reference chart of "
 	                 "the method's leave-one-out estimates: the spectral uncertainty of an "
 	                 "estimate; the report draws it as a band of +- this around each "
 	                 "material's mean spectrum. neutral_tilt: the largest relative "
 	                 "departure from flat of the method's estimate of a flat grey (0.2 and "
-	                 "0.8), the spectral shape it adds that the chart cannot support");
+	                 "0.8); neutral_prior: whether flat greys joined the fit because the "
+	                 "chart holds no neutral patches (reference.json's neutral_prior)");
 }
 
 /* A flare measurement (calib/flare.c) as process.json records it, or null. */
@@ -688,13 +695,16 @@ int proc_calibrate(proc *p)
 	json_object_set_new(p->calibration, "decimate", json_integer(res->decimate));
 	json_object_set_new(p->calibration, "flare", flare_json(p->ref, p->cam));
 	json_object_set_new(p->calibration, "spectral_uncertainty", uncertainty_json(p));
-	{ /* a flat grey estimated with shape: say so, the cube's spectra carry it */
+	{ /* a flat grey estimated with shape the chart does not hold (a chart with neutral
+	   * patches says itself what its greys are, shape included): say so, the cube's
+	   * spectra carry it */
 		const kg_spectral_map *m = p->ref ? &p->ref->maps[p->cam->method] : NULL;
-		if (m && m->available && m->neutral_tilt > KG_CALIB_MAX_NEUTRAL_TILT)
+		if (m && m->available && m->neutral_tilt > KG_CALIB_MAX_NEUTRAL_TILT &&
+		    strcmp(p->ref->neutral_white_source, "neutrals") != 0)
 			proc_warn(p, NULL, "calibration: method %s estimates a flat grey with %.0f %% "
-			          "of spectral shape (limit %.0f %%): a slope or bump of that size in "
-			          "an estimated spectrum is not supported by the chart (a chart with "
-			          "neutral patches, or more patches, narrows it)",
+			          "of spectral shape (limit %.0f %%) even with flat greys in its fit: a "
+			          "slope or bump of that size in an estimated spectrum is not supported "
+			          "by the chart (a chart with neutral patches narrows it)",
 			          kg_method_name(m->method), 100 * m->neutral_tilt,
 			          100 * KG_CALIB_MAX_NEUTRAL_TILT);
 	}

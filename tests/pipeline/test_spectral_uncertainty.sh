@@ -62,10 +62,19 @@ S = np.array([spec[i] for i in ids])
 rho = np.array(ref['training']['rho'], float)
 lin = ref['methods']['linear']
 check(lin.get('ridge') in (None, 0, 0.0), 'linear has no ridge (the recomputation has none)')
+# the neutral prior (the CIE test colours hold no neutral): flat greys read through the
+# recorded white join every refit, counted `weight` times
+npr = ref['neutral_prior']
+check(npr['white_source'] == 'response' and npr['added'] and npr['tilt_before'] > 0.05,
+      'the neutral prior added for a chart without neutrals: %s' % npr)
+white = np.array(npr['white'], float)
+levels = np.repeat([[0.05, 0.2, 0.5, 0.9]], npr['weight'], axis=0).ravel()
+Vrgb = np.outer(levels, white)
+Vs = np.outer(levels, np.ones(61))
 err2 = np.zeros(61)
 for i in range(len(S)):
     k = np.arange(len(S)) != i
-    X, *_ = np.linalg.lstsq(rho[k], S[k], rcond=None)
+    X, *_ = np.linalg.lstsq(np.vstack([rho[k], Vrgb]), np.vstack([S[k], Vs]), rcond=None)
     err2 += (rho[i] @ X - S[i]) ** 2
 mine = np.sqrt(err2 / len(S))
 got = np.array(lin['loo_band_rmse'], float)
@@ -91,6 +100,9 @@ for sel, level in ((xs < mid, 0.2), (xs >= mid, 0.5)):
 tilt = su['neutral_tilt']
 check(tilt is not None and all(abs(t - tilt) < 0.03 for t in tilts),
       'neutral_tilt %s is the cube greys\' shape %s (within 3 points)' % (tilt, tilts))
+check(all(t <= 0.05 for t in tilts), 'the flat greys come out flat within 5 %%: %s' % tilts)
+check(su['neutral_prior']['added'] and su['neutral_prior']['tilt_before'] == npr['tilt_before'],
+      'process.json records the prior: %s' % su['neutral_prior'])
 w = [m for m in p['warnings'] if 'flat grey' in m]
 if tilt is not None and tilt > 0.05:
     check(len(w) == 1 and ('%.0f %%' % (100 * tilt)) in w[0],
@@ -105,4 +117,24 @@ PY
 
 grep -q 'spectral uncertainty' results/report.html ||
 	{ echo "FAIL: the report does not say what its band is"; fail=1; }
+
+# calib reference on the same chart's readings: the prior brings the tilt within 5 %;
+# without it (--no-neutral-prior) the fit keeps the tilt recorded as tilt_before
+"$KOGEI" sim patches --spectra "$TCS" --camera "$FIX/demo/site_camera.csv" --illuminant A \
+	-o tcs_rgb.cgats >/dev/null 2>&1 || { echo "FAIL: sim patches"; exit 1; }
+run_or_exit "$KOGEI" calib reference --spectra "$TCS" --rgb tcs_rgb.cgats -o prior.json
+run_or_exit "$KOGEI" calib reference --spectra "$TCS" --rgb tcs_rgb.cgats --no-neutral-prior \
+	-o plain.json
+"$PY" - prior.json plain.json <<'PY' || fail=1
+import json, sys
+prior, plain = (json.load(open(f))['neutral_prior'] for f in sys.argv[1:3])
+bad = []
+if not (prior['added'] and prior['tilt'] <= 0.05 < prior['tilt_before']):
+    bad.append('the prior brings the tilt within 5 %%: %s' % prior)
+if plain['added'] or abs(plain['tilt'] - prior['tilt_before']) > 1e-9:
+    bad.append('--no-neutral-prior keeps the tilt of the fit without it: %s against %s'
+               % (plain['tilt'], prior['tilt_before']))
+print('\n'.join('FAIL: ' + b for b in bad))
+sys.exit(1 if bad else 0)
+PY
 exit $fail
