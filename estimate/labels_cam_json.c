@@ -46,17 +46,18 @@ static json_t *small_json(const regions *reg, const kg_est_material_set *set,
 		                    ap_json_num(lc_small_min_pixels(reg, group, c, -1)));
 		json_object_set_new(row, "isolated",
 		                    ap_json_num(lc_small_min_pixels(reg, group, c, -2)));
-		for (int h = 0; h < classes->n; h++)
+		for (int h = 0; h < classes->n; h++) {
+			double n = lc_small_min_pixels(reg, group, c, h);
 			if (h != c)
-				json_object_set_new(row, classes->names[h],
-				                    ap_json_num(lc_small_min_pixels(reg, group, c, h)));
+				json_object_set_new(row, classes->names[h], ap_json_num(n));
+		}
 		for (int j = 0; j < set->n; j++) {
 			int members = 0;
 			for (int i = 0; i < set->n; i++)
 				members += group[i] == group[j];
+			double n = lc_small_min_pixels(reg, group, c, -3 - j);
 			if (members > 1 && group[j] != c)
-				json_object_set_new(row, set->names[j],
-				                    ap_json_num(lc_small_min_pixels(reg, group, c, -3 - j)));
+				json_object_set_new(row, set->names[j], ap_json_num(n));
 		}
 		json_object_set_new(need, classes->names[c], row);
 	}
@@ -308,10 +309,10 @@ int lc_write_json(const char *path, const kg_est_material_set *set,
 			                        classes->names[d.cls], "label", label, "posterior",
 			                        merged ? json_null() : ap_json_num(d.posterior),
 			                        "composition", cj);
-			json_object_set_new(row, "min_pixels",
-			                    reg->min_px ? ap_json_num(reg->min_px[f]) : json_null());
+			double need = reg->min_px ? reg->min_px[f] : NAN;
+			json_object_set_new(row, "min_pixels", ap_json_num(need));
 			json_object_set_new(row, "merged", json_boolean(merged != NULL));
-			lc_region_why(row, reg, id, &d, label, merged ? reg->min_px[f] : 0, classes);
+			lc_region_why(row, reg, id, &d, label, merged ? need : 0, classes);
 			if (!json_object_get(row, "pixel_class")) /* user regions: none */
 				json_object_set_new(row, "pixel_class", json_null());
 			json_array_append_new(table, row);

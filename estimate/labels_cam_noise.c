@@ -228,6 +228,11 @@ int lc_separability(const cam_run *r, const kg_cs_model *m, const survey_result 
  * of whose readings lies within the unknown bound of a flat one (the per-pixel step then
  * keeps its pixels the metal's: a near-neutral metal and a grey surface as bright are
  * not told apart by colour). */
+static double dot3(const double *a, const double *b)
+{
+	return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
+
 int lc_flat_separability(const cam_run *r, const kg_cs_model *m, const survey_result *sv,
                          double *d, kg_err *err)
 {
@@ -243,17 +248,18 @@ int lc_flat_separability(const cam_run *r, const kg_cs_model *m, const survey_re
 			for (int a = 0; a < 3; a++)
 				x[a] = sv->level * mu[a];
 			for (int a = 0; a < 3; a++)
-				rho[a] = Mi[3 * a] * x[0] + Mi[3 * a + 1] * x[1] + Mi[3 * a + 2] * x[2];
+				rho[a] = dot3(Mi + 3 * a, x);
 			for (int c = 0; c < 3; c++) {
 				double p = rho[c] > 0 ? rho[c] : 0;
 				v[c] = sv->va[c] + sv->vb[c] * p + sv->vc[c] * p * p;
 			}
-			double l2 = (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]) / 3.0;
+			double l2 = dot3(x, x) / 3.0;
+			const double *M2 = r->nz.M2;
 			for (int a = 0; a < 3; a++)
 				for (int b = 0; b < 3; b++) {
 					double s = 0;
 					for (int c = 0; c < 3; c++)
-						s += r->nz.M2[3 * a + c] * r->nz.M2[3 * b + c] * v[c];
+						s += M2[3 * a + c] * M2[3 * b + c] * v[c];
 					C[3 * a + b] = s + l2 * r->nz.R[3 * a + b];
 				}
 			if (kg_mat3_inverse(C, Ci))
@@ -261,15 +267,13 @@ int lc_flat_separability(const cam_run *r, const kg_cs_model *m, const survey_re
 			const double *w = r->white;
 			double Cw[3], Cx[3];
 			for (int a = 0; a < 3; a++) {
-				Cw[a] = Ci[3 * a] * w[0] + Ci[3 * a + 1] * w[1] + Ci[3 * a + 2] * w[2];
-				Cx[a] = Ci[3 * a] * x[0] + Ci[3 * a + 1] * x[1] + Ci[3 * a + 2] * x[2];
+				Cw[a] = dot3(Ci + 3 * a, w);
+				Cx[a] = dot3(Ci + 3 * a, x);
 			}
-			double ww = w[0] * Cw[0] + w[1] * Cw[1] + w[2] * Cw[2];
-			double wx = x[0] * Cw[0] + x[1] * Cw[1] + x[2] * Cw[2];
-			double xx = x[0] * Cx[0] + x[1] * Cx[1] + x[2] * Cx[2];
+			double ww = dot3(w, Cw), wx = dot3(x, Cw), xx = dot3(x, Cx);
 			if (!(ww > 0))
 				continue;
-			/* the best level is positive: the flat reading nearest x; else the origin */
+			/* a positive best level: the flat reading nearest x; else the origin */
 			double d2 = wx > 0 ? xx - wx * wx / ww : xx;
 			d2 = d2 > 0 ? d2 : 0;
 			if (r->metal[i] && d2 <= r->threshold) {

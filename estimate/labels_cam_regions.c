@@ -286,9 +286,11 @@ double lc_small_min_pixels(const regions *g, const int *group, int c, int host)
 			continue;
 		if ((host == -1 || host == -2) && g->flat_sep)
 			d = fmin(d, g->flat_sep[i]);
-		for (int j = 0; j < g->nm && g->sep; j++)
-			if (group[j] != c && (host == -2 || (host >= 0 && group[j] == host) || host == -3 - j))
+		for (int j = 0; j < g->nm && g->sep; j++) {
+			int alt = host == -2 || (host >= 0 && group[j] == host) || host == -3 - j;
+			if (group[j] != c && alt)
 				d = fmin(d, g->sep[(size_t)i * g->nm + j]);
+		}
 	}
 	return kg_cs_pixels_for(d); /* 0 for +Inf: no alternative */
 }
@@ -329,15 +331,15 @@ void lc_region_why(json_t *row, const regions *g, uint32_t id, const region_deci
 	if (!differs)
 		why[0] = 0;
 	else if (merged_min > 0 && !strcmp(label, "unknown"))
-		snprintf(why, sizeof(why), "too small for the noise: %llu pixels, fewer than the %.0f "
-		         "a pooled decision for %s needs against its nearest alternative (1 %% "
-		         "error), amid nothing decided: unknown", (unsigned long long)g->count[id],
-		         merged_min, px);
+		snprintf(why, sizeof(why), "too small for the noise: %llu pixels, fewer than the "
+		         "%.0f a pooled decision for %s needs against its nearest alternative "
+		         "(1 %% error), amid nothing decided: unknown",
+		         (unsigned long long)g->count[id], merged_min, px);
 	else if (merged_min > 0)
-		snprintf(why, sizeof(why), "too small for the noise: %llu pixels, fewer than the %.0f "
-		         "a pooled decision between %s and %s needs (1 %% error), so it takes %s from "
-		         "its surroundings", (unsigned long long)g->count[id], merged_min, px, label,
-		         label);
+		snprintf(why, sizeof(why), "too small for the noise: %llu pixels, fewer than the "
+		         "%.0f a pooled decision between %s and %s needs (1 %% error), so it takes "
+		         "%s from its surroundings", (unsigned long long)g->count[id], merged_min,
+		         px, label, label);
 	else if (d->unknown)
 		snprintf(why, sizeof(why), "refused as unknown on the pooled test: its pixels' mean "
 		         "d2 against the nearest material is %.2f (%d expected), a misfit that, "

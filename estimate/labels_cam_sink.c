@@ -264,10 +264,10 @@ static int small_regions(regions *g, const int *group, int nc, const char *label
 	const int H = rr.H;
 	for (int y = 0; !rc && ncand && y <= H; y++) {
 		/* row y into slot y % 3: cur is row y - 1, prev row y - 2 */
-		uint8_t *nextl = lab + (size_t)(y % 3) * W, *curl = lab + (size_t)((y + 2) % 3) * W,
-		        *prevl = lab + (size_t)((y + 1) % 3) * W;
-		uint32_t *nexti = ids + (size_t)(y % 3) * W, *curi = ids + (size_t)((y + 2) % 3) * W,
-		         *previ = ids + (size_t)((y + 1) % 3) * W;
+		size_t on = (size_t)(y % 3) * W, oc = (size_t)((y + 2) % 3) * W,
+		       op = (size_t)((y + 1) % 3) * W;
+		uint8_t *nextl = lab + on, *curl = lab + oc, *prevl = lab + op;
+		uint32_t *nexti = ids + on, *curi = ids + oc, *previ = ids + op;
 		if (y < H && (rc = id_rows_next(&rr, nextl, nexti, err)))
 			break;
 		if (y == 0)
@@ -277,7 +277,8 @@ static int small_regions(regions *g, const int *group, int nc, const char *label
 			if (!f || !cand[f])
 				continue;
 			int nx[4] = {x - 1, x + 1, x, x};
-			const uint8_t *nl[4] = {curl, curl, y >= 2 ? prevl : NULL, y < H ? nextl : NULL};
+			const uint8_t *nl[4] = {curl, curl, y >= 2 ? prevl : NULL,
+			                        y < H ? nextl : NULL};
 			const uint32_t *ni[4] = {curi, curi, previ, nexti};
 			for (int q = 0; q < 4; q++) {
 				if (nx[q] < 0 || nx[q] >= W || !nl[q])
@@ -304,8 +305,10 @@ static int small_regions(regions *g, const int *group, int nc, const char *label
 			if (cnt[o + s] && (best < 0 || cnt[o + s] > cnt[o + best]))
 				best = s;
 		int l = best < 0 ? nc + 1 : key[o + best];
-		int host = l >= 1 && l <= nc ? l - 1 : l == nc + 2 ? -1 : l == nc + 1 ? -2
-		                                                                       : -3 - mc->mat[l];
+		int host = l >= 1 && l <= nc ? l - 1
+		           : l == nc + 2     ? -1
+		           : l == nc + 1     ? -2
+		                             : -3 - mc->mat[l];
 		g->min_px[f] = lc_small_min_pixels(g, group, cls[f], host);
 		if (!((double)npx[f] < g->min_px[f])) {
 			st->one_pixel_kept += npx[f] == 1;
@@ -435,7 +438,10 @@ int lc_write_region_table(const regions *g, const kg_est_material_set *set,
 		else {
 			fprintf(of.fp, ",%.6g,%.6g", d.posterior, d.d2_mean);
 			for (int q = 0; q < 6; q++)
-				isfinite(c[q]) ? fprintf(of.fp, ",%.4f", c[q]) : fprintf(of.fp, ",");
+				if (isfinite(c[q]))
+					fprintf(of.fp, ",%.4f", c[q]);
+				else
+					fprintf(of.fp, ",");
 		}
 		if (g->min_px && isfinite(g->min_px[f]))
 			fprintf(of.fp, ",%.0f", g->min_px[f]);

@@ -1082,10 +1082,10 @@ static void put_regions(report *r, int i)
 	if (json_is_object(small)) {
 		html(r, "<p class=\"small-regions\">");
 		textf(r, "Too small for the noise: %.0f regions (%.0f pixels; %.0f of the %.0f "
-		      "one-pixel regions) hold fewer pixels than a pooled decision against their "
-		      "surroundings needs for a 1 %% error, and take their surroundings' label in the "
-		      "material map the render uses (%.0f regions, %.0f pixels, unknown: amid nothing "
-		      "decided); the label map keeps each pixel's class.",
+		      "one-pixel regions) hold fewer pixels than a pooled decision against "
+		      "their surroundings needs for a 1 %% error, and take their surroundings' "
+		      "label in the material map the render uses (%.0f regions, %.0f pixels, "
+		      "unknown: amid nothing decided); the label map keeps each pixel's class.",
 		      jnum(small, "merged_regions"), jnum(small, "merged_pixels"),
 		      jnum(small, "one_pixel_regions") - jnum(small, "one_pixel_regions_kept"),
 		      jnum(small, "one_pixel_regions"), jnum(small, "unknown_regions"),
