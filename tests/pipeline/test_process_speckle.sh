@@ -143,6 +143,9 @@ check(speckle.sum() >= 100,
 held = np.isin(mat, [mnames.index(n) for n in ("unclassified", "unknown", "background")])
 check(held.all(), "card: no pixel of the material map holds a material (%d do)" % (~held).sum())
 check(small["one_pixel_regions_kept"] == 0, "card: no region of one pixel is kept")
+scene = json.load(open(d + "/scene.json"))
+check(scene["materials"]["label_map"]["file"] == "labels_materials.hdr",
+      "card: the handoff (scene.json, and the render) uses the material map")
 # the merged pixels recorded are those the maps show changed, region by region
 reg, _ = envi(d + "/labels_regions.hdr")
 rows = list(csv.DictReader(open(d + "/labels_regions.csv")))
