@@ -238,6 +238,7 @@ static void cam_call_free(cam_call *c, int rc, kg_classify_result *res)
 	kg_cs_model_free(&c->model);
 	kg_cs_model_free(&c->metals);
 	free(c->sep);
+	free(c->flat_sep);
 	free(c->reg_path);
 	free(c->csv_path);
 	free(c->mat_path);
@@ -280,6 +281,16 @@ int kg_classify_camera_rows(const kg_est_kernel *k, const kg_est_material_set *s
 	if ((rc = lc_classes_new(c, err)))
 		goto out;
 	decision_setup(c);
+	if (!(c->flat_sep = malloc(sizeof(double) * (size_t)set->n))) {
+		rc = kg_fail(err, KG_ENOMEM, "out of memory");
+		goto out;
+	}
+	if ((rc = lc_flat_separability(&c->run, c->model, &c->sv, c->flat_sep, err))) {
+		kg_err_prefix(err, "%s: ", out_hdr);
+		goto out;
+	}
+	c->sink.reg.sep = c->sep;
+	c->sink.reg.flat_sep = c->flat_sep;
 	if ((rc = ap_call_paths(&c->files, out_hdr, err)) ||
 	    (rc = kg_apply_side_path(out_hdr, "_regions.hdr", &c->reg_path, err)) ||
 	    (rc = kg_apply_side_path(out_hdr, "_regions.csv", &c->csv_path, err)) ||

@@ -16,6 +16,55 @@ static json_t *mat3(const double *m)
 	return a;
 }
 
+/* The rule for regions too small for the noise: what it did, and the pixels a region
+ * of each class needs against each alternative. */
+static json_t *small_json(const regions *reg, const kg_est_material_set *set,
+                          const kg_est_material_set *classes, const int *group)
+{
+	const small_stats *st = &reg->small;
+	json_t *o = json_object(), *need = json_object();
+	json_object_set_new(o, "description",
+	                    json_string("a region decided on its pooled distances errs 1 % of "
+	                                "the time or less against an alternative at "
+	                                "separability d only from (2 z_99 / d)^2 pixels on; a "
+	                                "region smaller than that against its surroundings (the "
+	                                "label most of its border holds, regions too small "
+	                                "themselves and unclassified pixels not counted) takes "
+	                                "their label in the material map, or unknown when its "
+	                                "border holds no label or unknown; the label map keeps "
+	                                "each pixel's class"));
+	json_object_set_new(o, "merged_regions", json_integer((json_int_t)st->regions));
+	json_object_set_new(o, "merged_pixels", json_integer((json_int_t)st->pixels));
+	json_object_set_new(o, "unknown_regions", json_integer((json_int_t)st->unknown_regions));
+	json_object_set_new(o, "unknown_pixels", json_integer((json_int_t)st->unknown_pixels));
+	json_object_set_new(o, "one_pixel_regions", json_integer((json_int_t)st->one_pixel));
+	json_object_set_new(o, "one_pixel_regions_kept",
+	                    json_integer((json_int_t)st->one_pixel_kept));
+	for (int c = 0; c < classes->n; c++) {
+		json_t *row = json_object();
+		json_object_set_new(row, "background",
+		                    ap_json_num(lc_small_min_pixels(reg, group, c, -1)));
+		json_object_set_new(row, "isolated",
+		                    ap_json_num(lc_small_min_pixels(reg, group, c, -2)));
+		for (int h = 0; h < classes->n; h++) {
+			double n = lc_small_min_pixels(reg, group, c, h);
+			if (h != c)
+				json_object_set_new(row, classes->names[h], ap_json_num(n));
+		}
+		for (int j = 0; j < set->n; j++) {
+			int members = 0;
+			for (int i = 0; i < set->n; i++)
+				members += group[i] == group[j];
+			double n = lc_small_min_pixels(reg, group, c, -3 - j);
+			if (members > 1 && group[j] != c)
+				json_object_set_new(row, set->names[j], ap_json_num(n));
+		}
+		json_object_set_new(need, classes->names[c], row);
+	}
+	json_object_set_new(o, "min_pixels", need);
+	return o;
+}
+
 int lc_write_json(const char *path, const kg_est_material_set *set,
                       const kg_est_material_set *classes, const int *group,
                       const kg_classify_camera *cam, const kg_classify_options *copt,
@@ -245,20 +294,25 @@ int lc_write_json(const char *path, const kg_est_material_set *set,
 			if (!f || reg->count[id] < TABLE_MIN_PIXELS)
 				continue;
 			region_decision d = lc_decide(reg, id, group, nc);
+			const char *merged = reg->merged ? reg->merged[f] : NULL;
+			const char *label = merged ? merged : lc_region_label(&d, set, classes);
 			double c[6];
 			lc_region_composition(reg, id, run->gold_range, c);
 			json_t *cj = json_null();
-			if (run->metals && (isfinite(c[0]) || isfinite(c[1])))
+			if (run->metals && !merged && (isfinite(c[0]) || isfinite(c[1])))
 				cj = json_pack("{s:o,s:o,s:o,s:o,s:o,s:o}", "ag", ap_json_num(c[0]), "cu",
 				               ap_json_num(c[1]), "au", ap_json_num(c[2]), "sd_ag",
 				               ap_json_num(c[3]), "sd_cu", ap_json_num(c[4]), "sd_au",
 				               ap_json_num(c[5]));
 			json_t *row = json_pack("{s:I,s:I,s:s,s:s,s:o,s:o}", "region", (json_int_t)f,
 			                        "pixels", (json_int_t)reg->count[id], "class",
-			                        classes->names[d.cls], "label",
-			                        lc_region_label(&d, set, classes), "posterior",
-			                        ap_json_num(d.posterior), "composition", cj);
-			lc_region_why(row, reg, id, &d, lc_region_label(&d, set, classes), classes);
+			                        classes->names[d.cls], "label", label, "posterior",
+			                        merged ? json_null() : ap_json_num(d.posterior),
+			                        "composition", cj);
+			double need = reg->min_px ? reg->min_px[f] : NAN;
+			json_object_set_new(row, "min_pixels", ap_json_num(need));
+			json_object_set_new(row, "merged", json_boolean(merged != NULL));
+			lc_region_why(row, reg, id, &d, label, merged ? need : 0, classes);
 			if (!json_object_get(row, "pixel_class")) /* user regions: none */
 				json_object_set_new(row, "pixel_class", json_null());
 			json_array_append_new(table, row);
@@ -266,6 +320,8 @@ int lc_write_json(const char *path, const kg_est_material_set *set,
 		}
 	}
 	json_object_set_new(rj, "min_pixels_listed", json_integer(TABLE_MIN_PIXELS));
+	if (reg->small.done)
+		json_object_set_new(rj, "small", small_json(reg, set, classes, group));
 	json_object_set_new(rj, "table", table);
 	json_object_set_new(root, "regions", rj);
 	int rc = kg_json_write(root, path, err);

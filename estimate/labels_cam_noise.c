@@ -219,3 +219,70 @@ int lc_separability(const cam_run *r, const kg_cs_model *m, const survey_result 
 	free(covs);
 	return rc;
 }
+
+/* Each material's separability from the neutral-diffuse alternative (a flat
+ * reflectance at any level, run->white times a positive scale): over the material's
+ * angles, its reading at the survey's level with that reading's own covariance (as in
+ * lc_separability), the least whitened distance to the flat ray. +Inf where the
+ * alternative is not offered: without it (--no-neutral), and for a metal or alloy one
+ * of whose readings lies within the unknown bound of a flat one (the per-pixel step then
+ * keeps its pixels the metal's: a near-neutral metal and a grey surface as bright are
+ * not told apart by colour). */
+static double dot3(const double *a, const double *b)
+{
+	return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
+
+int lc_flat_separability(const cam_run *r, const kg_cs_model *m, const survey_result *sv,
+                         double *d, kg_err *err)
+{
+	double Mi[9];
+	if (kg_mat3_inverse(r->nz.M2, Mi))
+		return kg_fail(err, KG_EINVAL, "M2: expected an invertible 3 x 3 matrix (the site "
+		               "calibration's), got a singular one");
+	for (int i = 0; i < m->n; i++) {
+		double best = INFINITY;
+		for (int k = 0; r->neutral && k < m->nangles; k++) {
+			const double *mu = m->mu + 3 * ((size_t)i * m->nangles + k);
+			double x[3], rho[3], v[3], C[9], Ci[9];
+			for (int a = 0; a < 3; a++)
+				x[a] = sv->level * mu[a];
+			for (int a = 0; a < 3; a++)
+				rho[a] = dot3(Mi + 3 * a, x);
+			for (int c = 0; c < 3; c++) {
+				double p = rho[c] > 0 ? rho[c] : 0;
+				v[c] = sv->va[c] + sv->vb[c] * p + sv->vc[c] * p * p;
+			}
+			double l2 = dot3(x, x) / 3.0;
+			const double *M2 = r->nz.M2;
+			for (int a = 0; a < 3; a++)
+				for (int b = 0; b < 3; b++) {
+					double s = 0;
+					for (int c = 0; c < 3; c++)
+						s += M2[3 * a + c] * M2[3 * b + c] * v[c];
+					C[3 * a + b] = s + l2 * r->nz.R[3 * a + b];
+				}
+			if (kg_mat3_inverse(C, Ci))
+				continue;
+			const double *w = r->white;
+			double Cw[3], Cx[3];
+			for (int a = 0; a < 3; a++) {
+				Cw[a] = dot3(Ci + 3 * a, w);
+				Cx[a] = dot3(Ci + 3 * a, x);
+			}
+			double ww = dot3(w, Cw), wx = dot3(x, Cw), xx = dot3(x, Cx);
+			if (!(ww > 0))
+				continue;
+			/* a positive best level: the flat reading nearest x; else the origin */
+			double d2 = wx > 0 ? xx - wx * wx / ww : xx;
+			d2 = d2 > 0 ? d2 : 0;
+			if (r->metal[i] && d2 <= r->threshold) {
+				best = INFINITY;
+				break;
+			}
+			best = fmin(best, sqrt(d2));
+		}
+		d[i] = best;
+	}
+	return 0;
+}

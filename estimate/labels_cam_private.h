@@ -60,6 +60,14 @@ typedef struct run_seg {
 	uint8_t label;
 } run_seg;
 
+/* What the rule for regions too small for the noise did. */
+typedef struct small_stats {
+	int done;                  /* the rule was applied (connected components) */
+	uint64_t regions, pixels;  /* merged into their surroundings (unknown included) */
+	uint64_t unknown_regions, unknown_pixels; /* of those, made unknown */
+	uint64_t one_pixel, one_pixel_kept;       /* regions of one pixel; of them kept */
+} small_stats;
+
 typedef struct regions {
 	int on, overflow, user;
 	double user_scale; /* a user map's values to region numbers */
@@ -83,6 +91,14 @@ typedef struct regions {
 	uint32_t nfinal;
 	double *q999;      /* 1001: chi-square's 99.9 % point by degrees of freedom; 0: not
 	                      yet computed */
+	/* regions too small for the noise (lc_write_region_map): the materials'
+	 * separabilities (nm x nm) and each one's from the neutral-diffuse alternative */
+	const double *sep, *flat_sep;
+	double *min_px;       /* [nfinal + 1]: the pixels it needed against its surroundings
+	                         (a region never too small: against its nearest alternative) */
+	const char **merged;  /* [nfinal + 1]: the label it took from its surroundings (or
+	                         "unknown"), NULL: kept */
+	small_stats small;
 } regions;
 
 /* A region's decision (see the top of the file). */
@@ -137,6 +153,7 @@ typedef struct cam_call {
 	kg_cs_model *model, *metals; /* metals: NULL without composition */
 	survey_result sv;
 	double *sep;                 /* nm x nm separabilities at the survey's noise */
+	double *flat_sep;            /* nm: each material's from the neutral alternative */
 	kg_est_material_set classes; /* the label map's classes */
 	cam_sink sink;
 	classify_call files;
@@ -202,11 +219,13 @@ void lc_region_composition(const regions *g, uint32_t id, double gold_range, dou
 const char *lc_region_label(const region_decision *d, const kg_est_material_set *set,
                             const kg_est_material_set *classes);
 
-/* A connected region's pixels' class beside its decision, and why they differ:
+/* A connected region's pixels' class beside its decision, and why they differ
+ * (merged_min > 0: the region took its label from its surroundings, too small for the
+ * noise, needing that many pixels):
  * "pixel_class", "differs", "why" (null when they agree). The label map shows the
  * pixels' classes; the decision is the table's. */
 void lc_region_why(json_t *row, const regions *g, uint32_t id, const region_decision *d,
-                   const char *label, const kg_est_material_set *classes);
+                   const char *label, double merged_min, const kg_est_material_set *classes);
 
 int lc_cam_sink_fn(void *user, const kg_est_block *b, kg_err *err);
 int lc_survey(const cam_run *r, const kg_classify_camera *cam, const kg_cs_model *m,
@@ -217,6 +236,17 @@ int lc_survey(const cam_run *r, const kg_classify_camera *cam, const kg_cs_model
  * from the survey's noise model through M2, and the calibration's l^2 R. */
 int lc_separability(const cam_run *r, const kg_cs_model *m, const survey_result *sv,
                     double *d, kg_err *err);
+
+/* Each material's separability from the neutral-diffuse alternative (+Inf where it is
+ * not offered), at the survey's noise. */
+int lc_flat_separability(const cam_run *r, const kg_cs_model *m, const survey_result *sv,
+                         double *d, kg_err *err);
+
+/* The pixels a region of class c must hold for its pooled decision against an
+ * alternative to err at most 1 % (kg_cs_pixels_for of their least separability): host
+ * a class index (>= 0), or -1 the neutral-diffuse alternative (background), or -2 the
+ * nearest of every alternative (a region in nothing decided), or -3 - j material j. */
+double lc_small_min_pixels(const regions *g, const int *group, int c, int host);
 
 int lc_write_json(const char *path, const kg_est_material_set *set,
                   const kg_est_material_set *classes, const int *group,

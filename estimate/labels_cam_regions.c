@@ -21,6 +21,8 @@ void lc_regions_free(regions *g)
 	free(g->cur);
 	free(g->final);
 	free(g->q999);
+	free(g->min_px);
+	free(g->merged);
 	memset(g, 0, sizeof(*g));
 }
 
@@ -276,6 +278,23 @@ region_decision lc_decide(const regions *g, uint32_t id, const int *group, int n
 	return r;
 }
 
+double lc_small_min_pixels(const regions *g, const int *group, int c, int host)
+{
+	double d = INFINITY;
+	for (int i = 0; i < g->nm; i++) {
+		if (group[i] != c)
+			continue;
+		if ((host == -1 || host == -2) && g->flat_sep)
+			d = fmin(d, g->flat_sep[i]);
+		for (int j = 0; j < g->nm && g->sep; j++) {
+			int alt = host == -2 || (host >= 0 && group[j] == host) || host == -3 - j;
+			if (group[j] != c && alt)
+				d = fmin(d, g->sep[(size_t)i * g->nm + j]);
+		}
+	}
+	return kg_cs_pixels_for(d); /* 0 for +Inf: no alternative */
+}
+
 /* A region's composition: inverse-variance means of its pixels' fractions, their sds
  * widened by sqrt(1 + N f) (the calibration's error does not average out). out: 3
  * fractions, 3 sds, NaN without data; gold NaN where its sd is not below gold_range. */
@@ -302,7 +321,7 @@ const char *lc_region_label(const region_decision *d, const kg_est_material_set 
  * "pixel_class", "differs", "why" (null when they agree). The label map shows the
  * pixels' classes; the decision is the table's. */
 void lc_region_why(json_t *row, const regions *g, uint32_t id, const region_decision *d,
-                       const char *label, const kg_est_material_set *classes)
+                   const char *label, double merged_min, const kg_est_material_set *classes)
 {
 	if (g->user || g->label[id] == 0 || g->label[id] > classes->n)
 		return;
@@ -311,6 +330,16 @@ void lc_region_why(json_t *row, const regions *g, uint32_t id, const region_deci
 	char why[320];
 	if (!differs)
 		why[0] = 0;
+	else if (merged_min > 0 && !strcmp(label, "unknown"))
+		snprintf(why, sizeof(why), "too small for the noise: %llu pixels, fewer than the "
+		         "%.0f a pooled decision for %s needs against its nearest alternative "
+		         "(1 %% error), amid nothing decided: unknown",
+		         (unsigned long long)g->count[id], merged_min, px);
+	else if (merged_min > 0)
+		snprintf(why, sizeof(why), "too small for the noise: %llu pixels, fewer than the "
+		         "%.0f a pooled decision between %s and %s needs (1 %% error), so it takes "
+		         "%s from its surroundings", (unsigned long long)g->count[id], merged_min,
+		         px, label, label);
 	else if (d->unknown)
 		snprintf(why, sizeof(why), "refused as unknown on the pooled test: its pixels' mean "
 		         "d2 against the nearest material is %.2f (%d expected), a misfit that, "

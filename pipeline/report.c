@@ -1078,6 +1078,20 @@ static void put_regions(report *r, int i)
 	      "each decided on its pixels' pooled likelihood (which can resolve a merged class "
 	      "or refuse the region as unknown):", jnum(reg, "count"));
 	html(r, "</p>\n");
+	json_t *small = json_object_get(reg, "small");
+	if (json_is_object(small)) {
+		html(r, "<p class=\"small-regions\">");
+		textf(r, "Too small for the noise: %.0f regions (%.0f pixels; %.0f of the %.0f "
+		      "one-pixel regions) hold fewer pixels than a pooled decision against "
+		      "their surroundings needs for a 1 %% error, and take their surroundings' "
+		      "label in the material map the render uses (%.0f regions, %.0f pixels, "
+		      "unknown: amid nothing decided); the label map keeps each pixel's class.",
+		      jnum(small, "merged_regions"), jnum(small, "merged_pixels"),
+		      jnum(small, "one_pixel_regions") - jnum(small, "one_pixel_regions_kept"),
+		      jnum(small, "one_pixel_regions"), jnum(small, "unknown_regions"),
+		      jnum(small, "unknown_pixels"));
+		html(r, "</p>\n");
+	}
 	if (json_array_size(table) == 0) {
 		html(r, "<p class=\"missing\">No region of 100 pixels or more.</p>\n");
 		return;
