@@ -14,7 +14,9 @@
  *       kg_sfr_result r;
  *       if (kg_sfr_measure(img, &edges[i].roi, &r, &err) == 0)
  *           ... r.mtf50, r.mtf10, r.efficiency, r.misregistration ...
- *       // else err.msg says why this edge is not usable (skip it, report it)
+ *           // (unless r.peak[c] reaches the image's clip level: a clipped edge)
+ *       // else err.msg says why this edge is not usable (skip it, report it);
+ *       // r.too_blurred: a wider band (kg_sfr_edge_band) may hold it
  *   }
  *   free(edges);
  */
