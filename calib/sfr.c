@@ -256,6 +256,7 @@ int kg_sfr_measure(const kg_image *img, const kg_sfr_roi *roi, kg_sfr_result *ou
 			npix++;
 		}
 	}
+	out->pixels = npix;
 	int empty = 0;
 	for (int k = 0; k < nb; k++)
 		empty += cnt[k] == 0;
@@ -265,7 +266,6 @@ int kg_sfr_measure(const kg_image *img, const kg_sfr_roi *roi, kg_sfr_result *ou
 		             roi->y, roi->w, roi->h, empty, nb, KG_SFR_OVERSAMPLE);
 		goto done;
 	}
-	out->pixels = npix;
 	out->length = used / cs;
 	double tc = L / 2.0, uc = a + b * tc;
 	out->centre[0] = v.vertical ? roi->x + uc : roi->x + tc;

@@ -104,7 +104,8 @@ typedef struct kg_sfr_result {
 	int too_blurred;
 	/* per channel, the largest value among the pixels projected (the band): the
 	 * caller compares it with the image's clip level (an edge whose band reaches it
-	 * is shaped by the clipping, not the optics) */
+	 * is shaped by the clipping, not the optics); set with pixels, also on a refusal
+	 * after the projection */
 	double peak[3];
 } kg_sfr_result;
 

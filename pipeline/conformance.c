@@ -397,15 +397,14 @@ static void replace_record(json_t *list, const char *id, json_t *rec)
  * 10-90 % rise more than the band / KG_SFR_BAND_RISE), again with the widest band the
  * tag's cells allow (one cell to the next printed edge, less KG_SFR_NEIGHBOUR_RISE
  * rises for that edge's own spread), as long as it holds KG_SFR_BAND_RISE rises; else
- * refused with why. *hw gets the band's half-width used (px along the image axis). */
+ * refused with why. */
 static int measure_edge(const kg_sfr_edge *e, const kg_image *img, kg_sfr_result *s,
-                        double *hw, kg_err *err)
+                        kg_err *err)
 {
 	kg_sfr_roi roi = e->roi;
 	double cs = cos(e->angle_deg * M_PI / 180);
 	int rc = 0;
 	for (int it = 0; it < 4; it++) {
-		*hw = roi.half_width;
 		rc = kg_sfr_measure(img, &roi, s, err);
 		if (rc && !s->too_blurred)
 			return rc;
@@ -446,7 +445,6 @@ static void clipped_why(const kg_sfr_result *s, const double clip[3], char *why,
 		}
 }
 
-
 void kg_conformance_edges(json_t *list, const kg_chart_layout *l, const kg_chart_result *r,
                           const kg_image *img, int bin)
 {
@@ -474,19 +472,19 @@ void kg_conformance_edges(json_t *list, const kg_chart_layout *l, const kg_chart
 	int k = 0, refused = 0, nclipped = 0, nblur = 0, tried = 0;
 	for (int i = 0; !why && eff && m50 && m10 && i < n && i < MAX_SFR_EDGES; i++) {
 		kg_sfr_result s;
-		char name[48], cw[300];
-		double hw = 0;
+		char name[48], cw[300] = "";
 		tried++;
 		snprintf(name, sizeof(name), "tag%d.side%d", edges[i].tag_id, edges[i].side);
-		int rc = measure_edge(&edges[i], img, &s, &hw, &err);
-		if (!rc) {
+		int rc = measure_edge(&edges[i], img, &s, &err);
+		/* clipping first, whatever else the measurement found (peak is set once the
+		 * band's pixels were read) */
+		if (s.pixels > 0)
 			clipped_why(&s, r->clip, cw, sizeof(cw));
-			if (cw[0]) {
-				rc = KG_EINVAL;
-				snprintf(err.msg, sizeof(err.msg), "%s", cw);
-				nclipped++;
-			}
-		} else if (s.too_blurred || strstr(err.msg, "too blurred")) {
+		if (cw[0]) {
+			rc = KG_EINVAL;
+			snprintf(err.msg, sizeof(err.msg), "%s", cw);
+			nclipped++;
+		} else if (rc && (s.too_blurred || strstr(err.msg, "too blurred"))) {
 			nblur++;
 		}
 		if (rc) {
