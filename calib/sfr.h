@@ -16,7 +16,7 @@
  *           ... r.mtf50, r.mtf10, r.efficiency, r.misregistration ...
  *           // (unless r.peak[c] reaches the image's clip level: a clipped edge)
  *       // else err.msg says why this edge is not usable (skip it, report it);
- *       // r.too_blurred: a wider band (kg_sfr_edge_band) may hold it
+ *       // r.too_blurred: the band is too narrow for its blur (r.rise, r.band)
  *   }
  *   free(edges);
  */
@@ -39,11 +39,11 @@
  * sigma has a rise of 2.563 sigma: the band then reaches 4.1 sigma, where the tails
  * left out are 4e-5 of the line spread function). */
 #define KG_SFR_BAND_RISE 1.6
-/* On a chart's tag side: how close (in 10-90 % rises) a band widened for a blurred
- * edge may come to the next printed edge (one tag cell away: the tag's data bits
- * inside, beyond its white ring outside). Half a rise is what the 0.8-cell band leaves
- * at the largest blur it holds (a rise of 0.5 cell), where simulated tags measure
- * within 1 % of their analytic MTF50. */
+/* On a chart's tag side: how close (in 10-90 % rises) a band may come to the next
+ * printed edge (one tag cell away: the tag's data bits inside, beyond its white ring
+ * outside), which bounds any band on a tag at a cell less this many rises. Half a rise
+ * is what the 0.8-cell band leaves at the largest blur it holds (a rise of 0.5 cell),
+ * where simulated tags measure within 1 % of their analytic MTF50. */
 #define KG_SFR_NEIGHBOUR_RISE 0.5
 /* The MTF curve kept in the result: at k / (KG_SFR_CURVE - 1) cycles/px, k = 0 ..
  * KG_SFR_CURVE - 1 (0 .. 1 cycle/px, twice Nyquist). */
@@ -143,9 +143,9 @@ typedef struct kg_sfr_edge {
 } kg_sfr_edge;
 
 /* The region of edge e with a band of half_width px (along the image axis across the
- * edge) either side of the edge's line, into *roi. -1 when that region leaves img or
- * half_width is under 4 px. The band may widen up to one cell less the next edge's
- * spread: cell_px - KG_SFR_NEIGHBOUR_RISE x rise (the caller's, from a measurement). */
+ * edge) either side of the edge's line (e->roi.p0, p1), into *roi; the region holds
+ * the whole band. -1 when that region leaves img or half_width is under 4 px. On a
+ * tag no band reaches further than cell_px - KG_SFR_NEIGHBOUR_RISE x the edge's rise. */
 int kg_sfr_edge_band(const kg_sfr_edge *e, double half_width, const kg_image *img,
                      kg_sfr_roi *roi);
 

@@ -392,39 +392,27 @@ static void replace_record(json_t *list, const char *id, json_t *rec)
  * three stands one stray edge. */
 #define MIN_SFR_EDGES 3
 
-/* Measure tag side e (sfr.h) with its band fitted to its blur: first the band
- * kg_sfr_find_edges chose (0.8 of a tag cell); when the edge is too blurred for it (its
- * 10-90 % rise more than the band / KG_SFR_BAND_RISE), again with the widest band the
- * tag's cells allow (one cell to the next printed edge, less KG_SFR_NEIGHBOUR_RISE
- * rises for that edge's own spread), as long as it holds KG_SFR_BAND_RISE rises; else
- * refused with why. */
+/* Measure tag side e (sfr.h) in the band kg_sfr_find_edges chose (0.8 of a tag cell
+ * either side). An edge too blurred for it (its 10-90 % rise more than the band /
+ * KG_SFR_BAND_RISE) is refused, the reason saying what band it needs and the widest
+ * the tag's cells allow: one cell to the next printed edge less KG_SFR_NEIGHBOUR_RISE
+ * rises for that edge's own spread. That widest band holds KG_SFR_BAND_RISE rises only
+ * up to a rise of cell / (KG_SFR_BAND_RISE + KG_SFR_NEIGHBOUR_RISE) = 0.48 cell, where
+ * the 0.8-cell band already holds them up to 0.5 cell: widening it would recover no
+ * edge, so the band is not widened. */
 static int measure_edge(const kg_sfr_edge *e, const kg_image *img, kg_sfr_result *s,
                         kg_err *err)
 {
-	kg_sfr_roi roi = e->roi;
-	double cs = cos(e->angle_deg * M_PI / 180);
-	int rc = 0;
-	for (int it = 0; it < 4; it++) {
-		rc = kg_sfr_measure(img, &roi, s, err);
-		if (rc && !s->too_blurred)
-			return rc;
+	int rc = kg_sfr_measure(img, &e->roi, s, err);
+	if (rc && s->too_blurred) {
 		double allowed = e->cell_px - KG_SFR_NEIGHBOUR_RISE * s->rise;
-		double need = KG_SFR_BAND_RISE * s->rise;
-		if (rc == 0)
-			return 0;
-		if (need > allowed)
-			return kg_fail(err, KG_EINVAL, "too blurred for the tag's cells: the edge's "
-			               "10-90 %% rise of %.2f px needs a band of %.2f px either side "
-			               "(%g rises); the tag's cell of %.2f px allows at most %.2f px "
-			               "(the next printed edge is a cell away, %g rise kept clear of "
-			               "it)", s->rise, need, KG_SFR_BAND_RISE, e->cell_px,
-			               allowed < 0 ? 0 : allowed, KG_SFR_NEIGHBOUR_RISE);
-		double w = allowed / cs;
-		if (fabs(w - roi.half_width) < 0.1)
-			return rc;
-		if (kg_sfr_edge_band(e, w, img, &roi))
-			return kg_fail(err, KG_EINVAL, "the band of %.2f px either side its blur "
-			               "needs leaves the image or is under 4 px", w);
+		return kg_fail(err, KG_EINVAL, "too blurred for the tag's cells: the edge's 10-90 "
+		               "%% rise of %.2f px needs a band of %.2f px either side (%g rises), "
+		               "the band is %.2f px, and the tag's cell of %.2f px allows at most "
+		               "%.2f px (the next printed edge is a cell away, %g rise kept clear of "
+		               "it)", s->rise, KG_SFR_BAND_RISE * s->rise, KG_SFR_BAND_RISE,
+		               s->band, e->cell_px, allowed < 0 ? 0 : allowed,
+		               KG_SFR_NEIGHBOUR_RISE);
 	}
 	return rc;
 }
