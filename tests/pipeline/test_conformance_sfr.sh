@@ -10,21 +10,20 @@
 # Gaussian of variance sigma^2 + 1/12 (the pixel's box), 2.563 sqrt(sigma^2 + 1/12).
 #  - every edge used reads its MTF50 within 5 % of the analytic one (calib-sfr's ideal
 #    edges agree within 2 %, 3 % with noise; the chart adds the tags' perspective and
-#    the sensor's shot noise), and its rise fits its band (1.6 rises);
-#  - an edge whose known rise cannot fit the widest band the tag's cells allow (1.6
-#    rises with half a rise to the next printed edge, one cell away: 2.1 rises > the
-#    cell, 5 % margin) is not used; at 800x600 the cells are about 7 px, and sigma 1.5
-#    and 2.0 (rises 3.9 and 5.2 px) do not fit: too few edges remain and sfr is "not
-#    measured" with the reason, where the old band read their MTF50 7 % and 21 % too
-#    high; an edge whose rise fits easily (1.6 rises < half a cell) is not refused as
-#    too blurred;
+#    the sensor's shot noise), its measured rise fits its band (1.6 rises) and so does
+#    its known rise (5 % margin: a rise measured in a band that barely holds it reads
+#    a few % low); at 800x600 the tag cells are about 7 px, and sigma 1.5 and 2.0
+#    (rises 3.9 and 5.2 px) do not fit the 0.8-cell band: too few edges remain and
+#    sfr is "not measured" with the reason, where the band without the check read
+#    their MTF50 7 % and 22 % too high; when no edge's known rise fits the widest band
+#    a cell allows (2.1 rises > the cell), the edges left out say "too blurred"; an
+#    edge whose rise fits easily (1.6 rises < half a cell) is not refused as too
+#    blurred;
 #  - when fewer than 3 edges remain the sfr record is "not measured" with the reason;
 #  - the misregistration, truly 0, stays below 0.05 px;
-#  - the sigma 0.8 chart over-exposed x1.6 (the paper clips on the sensor): no edge
-#    whose band reaches the clip level is used; every tag side (its white ring
-#    clipped) is left out as clipped, with why, and the sfr and misregistration are
-#    not measured, or measured on unclipped edges near the truth (MTF50 within 5 %,
-#    misregistration below 0.05 px).
+#  - the sigma 0.8 chart over-exposed x1.6 (the paper, 0.85 x 0.9 of the white
+#    level, clips on the sensor): every tag side (its white ring clipped) is left out
+#    as clipped, with why, and the sfr and misregistration are not measured.
 # usage: test_conformance_sfr.sh KOGEI SOURCE_ROOT HAVE_TAGS_AND_DEMOSAIC BLUR_IMAGE
 set -u
 . "$(dirname "$0")/../lib.sh"
@@ -151,16 +150,9 @@ assert edges, s
 clipped = [x for x in s["left_out"] if x["why"].startswith("clipped")]
 print("over-exposed x1.6: %d of %d tag sides left out as clipped, e.g. %s"
       % (len(clipped), len(edges), clipped[0]["why"] if clipped else "-"))
-assert clipped, ("no clipped edge left out", s["left_out"])
-for e in edges:
-    if "mtf50" in e:
-        want = f50(0.8, math.radians(abs(e["angle_deg"])))
-        assert abs(e["mtf50"] / want - 1) < 0.05, ("clipped edge used?", e, want)
-if s["measured"]:
-    assert m["value"] < 0.05, m
-else:
-    assert s["note"].startswith("not measured") and "clipped" in s["note"], s
-    assert not m["measured"] and m["value"] is None, m
+assert len(clipped) == len(edges) and not s["used"], ("a clipped side used", s)
+assert not s["measured"] and s["note"].startswith("not measured") and "clipped" in s["note"], s
+assert not m["measured"] and m["value"] is None and m["left_out"] == s["left_out"], m
 print("over-exposed: sfr %s; misregistration %s" % (
       "%.1f %%" % s["value"] if s["measured"] else s["note"],
       "%.3f px" % m["value"] if m["measured"] else "not measured"))
