@@ -338,6 +338,7 @@ int kg_chart_detect(const kg_chart_layout *l, const kg_image *img,
 	}
 	if ((ret = chart_image_levels(&wi, err)) || (ret = saturation_warning(r, &wi, err)))
 		goto fail;
+	memcpy(r->clip, wi.clip_ch, sizeof(r->clip));
 	if (opt.light_field && (ret = calib_light_field_apply(r, &opt, err)))
 		goto fail;
 	if ((ret = chart_check_colours(l, r, err)))
@@ -406,6 +407,8 @@ int calib_chart_sample(const kg_chart_layout *l, const kg_image *img, const doub
 		snprintf(r->layout, sizeof(r->layout), "%s", l->name);
 		memcpy(r->H, H, sizeof(r->H));
 		ret = chart_image_levels(&wi, err);
+		if (!ret)
+			memcpy(r->clip, wi.clip_ch, sizeof(r->clip));
 		if (!ret)
 			ret = chart_sample_all_with(&L, &wi, &opt, !reference, 1, r, err);
 		chart_image_free(&wi);

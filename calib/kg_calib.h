@@ -918,6 +918,11 @@ typedef struct kg_chart_result {
 	double total_seconds;
 	kg_chart_light light;     /* the light field removed from the patch values */
 	kg_chart_colour_check colours; /* the patches against the layout's colours */
+	double clip[3];           /* per colour (R, G, B; grey: all three alike): the level
+	                           * at or above which a value of the image detected is
+	                           * clipped, as KG_CHART_FLAG_CLIPPED judges the patches
+	                           * (clip_level, or the saturation found below it); 0 when
+	                           * not known (a refusal before the image was read) */
 	/* a refusal (options.keep_refused): patches, when present, are the regions of the
 	 * best reading tried, not a chart found */
 	int refused;

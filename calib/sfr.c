@@ -249,11 +249,14 @@ int kg_sfr_measure(const kg_image *img, const kg_sfr_roi *roi, kg_sfr_result *ou
 				double val = px(&v, u, t, ch < nch ? ch : -1);
 				sum[(size_t)ch * nb_max + k] += val;
 				sq[(size_t)ch * nb_max + k] += val * val;
+				if (ch < nch && (npix == 0 || val > out->peak[ch]))
+					out->peak[ch] = val;
 			}
 			cnt[k]++;
 			npix++;
 		}
 	}
+	out->pixels = npix;
 	int empty = 0;
 	for (int k = 0; k < nb; k++)
 		empty += cnt[k] == 0;
@@ -263,7 +266,6 @@ int kg_sfr_measure(const kg_image *img, const kg_sfr_roi *roi, kg_sfr_result *ou
 		             roi->y, roi->w, roi->h, empty, nb, KG_SFR_OVERSAMPLE);
 		goto done;
 	}
-	out->pixels = npix;
 	out->length = used / cs;
 	double tc = L / 2.0, uc = a + b * tc;
 	out->centre[0] = v.vertical ? roi->x + uc : roi->x + tc;
@@ -295,8 +297,16 @@ int kg_sfr_measure(const kg_image *img, const kg_sfr_roi *roi, kg_sfr_result *ou
 			k10--;
 		while (k90 < nb - 1 && !(ESFN(k90) >= 0.9))
 			k90++;
+		/* the 10-90 % rise, the crossings interpolated between bins */
+		double x10 = k10, x90 = k90;
+		if (k10 + 1 < nb && ESFN(k10) <= 0.1 && ESFN(k10 + 1) > ESFN(k10))
+			x10 = k10 + (0.1 - ESFN(k10)) / (ESFN(k10 + 1) - ESFN(k10));
+		if (k90 > 0 && ESFN(k90) >= 0.9 && ESFN(k90) > ESFN(k90 - 1))
+			x90 = k90 - (ESFN(k90) - 0.9) / (ESFN(k90) - ESFN(k90 - 1));
 #undef ESFN
 		wpos = fmax(3.0 * (k90 - k10), 4.0 * KG_SFR_OVERSAMPLE);
+		out->rise = (x90 - x10) * BIN;
+		out->band = R;
 	}
 	for (int ch = 0; ch < nch; ch++) {
 		double *s = sum + (size_t)ch * nb_max, *q = sq + (size_t)ch * nb_max;
@@ -398,6 +408,17 @@ int kg_sfr_measure(const kg_image *img, const kg_sfr_roi *roi, kg_sfr_result *ou
 		o->mtf10_reached = crossing(m, nf, 0.1, &o->mtf10);
 		o->efficiency = fmin(o->mtf10 / 0.5, 1.0);
 	}
+	/* the blur against the band: a band too narrow for the edge's spread cuts off the
+	 * LSF's tails (the MTF reads too high) */
+	if (!(out->band >= KG_SFR_BAND_RISE * out->rise)) {
+		out->too_blurred = 1;
+		rc = kg_fail(err, KG_EINVAL, "%s: region %d,%d,%d,%d: too blurred for the band: the "
+		             "edge's 10-90 %% rise of %.2f px needs a band of %.2f px either side "
+		             "(%g times the rise), the band is %.2f px", ctx, roi->x, roi->y, roi->w,
+		             roi->h, out->rise, KG_SFR_BAND_RISE * out->rise, KG_SFR_BAND_RISE,
+		             out->band);
+		goto done;
+	}
 	out->mtf10_reached = 1;
 	for (int ch = 0; ch < nch; ch++) {
 		out->mtf50 += out->ch[ch].mtf50 / nch;
@@ -418,6 +439,44 @@ done:
 	free(lsf);
 	free(m);
 	return rc;
+}
+
+int kg_sfr_edge_band(const kg_sfr_edge *e, double half_width, const kg_image *img,
+                     kg_sfr_roi *roi)
+{
+	if (!e || !img || !roi || !(half_width >= 4))
+		return -1;
+	double a0[2] = {e->roi.p0[0], e->roi.p0[1]}, a1[2] = {e->roi.p1[0], e->roi.p1[1]};
+	double hw = half_width;
+	int vert = fabs(a1[1] - a0[1]) >= fabs(a1[0] - a0[0]);
+	double x0, x1, y0, y1;
+	if (vert) {
+		x0 = fmin(a0[0], a1[0]) - hw;
+		x1 = fmax(a0[0], a1[0]) + hw;
+		y0 = fmin(a0[1], a1[1]);
+		y1 = fmax(a0[1], a1[1]);
+	} else {
+		y0 = fmin(a0[1], a1[1]) - hw;
+		y1 = fmax(a0[1], a1[1]) + hw;
+		x0 = fmin(a0[0], a1[0]);
+		x1 = fmax(a0[0], a1[0]);
+	}
+	kg_sfr_roi ro;
+	memset(&ro, 0, sizeof ro);
+	/* the whole band inside the region (pixels beyond it are not used) */
+	ro.x = (int)floor(x0);
+	ro.y = (int)floor(y0);
+	ro.w = (int)ceil(x1) - ro.x;
+	ro.h = (int)ceil(y1) - ro.y;
+	if (ro.x < 0 || ro.y < 0 || ro.x + ro.w > img->width || ro.y + ro.h > img->height ||
+	    ro.w < 8 || ro.h < 8)
+		return -1;
+	ro.has_line = 1;
+	memcpy(ro.p0, a0, sizeof a0);
+	memcpy(ro.p1, a1, sizeof a1);
+	ro.half_width = hw;
+	*roi = ro;
+	return 0;
 }
 
 int kg_sfr_find_edges(const kg_chart_layout *l, const kg_chart_result *r,
@@ -468,38 +527,19 @@ int kg_sfr_find_edges(const kg_chart_layout *l, const kg_chart_result *r,
 			double hw = 0.8 * cell;
 			if (use < min_length_px || hw < 4)
 				continue;
-			double a0[2] = {p[0] + dx / len * trim, p[1] + dy / len * trim};
-			double a1[2] = {q[0] - dx / len * trim, q[1] - dy / len * trim};
-			int vert = fabs(dy) >= fabs(dx);
-			double x0, x1, y0, y1;
-			if (vert) {
-				x0 = fmin(a0[0], a1[0]) - hw;
-				x1 = fmax(a0[0], a1[0]) + hw;
-				y0 = fmin(a0[1], a1[1]);
-				y1 = fmax(a0[1], a1[1]);
-			} else {
-				y0 = fmin(a0[1], a1[1]) - hw;
-				y1 = fmax(a0[1], a1[1]) + hw;
-				x0 = fmin(a0[0], a1[0]);
-				x1 = fmax(a0[0], a1[0]);
-			}
-			kg_sfr_roi *ro = &e[m].roi;
-			ro->x = (int)ceil(x0);
-			ro->y = (int)ceil(y0);
-			ro->w = (int)floor(x1) - ro->x;
-			ro->h = (int)floor(y1) - ro->y;
-			if (ro->x < 0 || ro->y < 0 || ro->x + ro->w > img->width ||
-			    ro->y + ro->h > img->height || ro->w < 8 || ro->h < 8)
-				continue;
-			ro->has_line = 1;
-			memcpy(ro->p0, a0, sizeof a0);
-			memcpy(ro->p1, a1, sizeof a1);
-			ro->half_width = hw;
-			e[m].tag_id = tg->id;
-			e[m].side = s;
-			e[m].angle_deg = ang;
-			e[m].length_px = use;
-			m++;
+			kg_sfr_edge *ed = &e[m];
+			memset(ed, 0, sizeof *ed);
+			ed->roi.p0[0] = p[0] + dx / len * trim;
+			ed->roi.p0[1] = p[1] + dy / len * trim;
+			ed->roi.p1[0] = q[0] - dx / len * trim;
+			ed->roi.p1[1] = q[1] - dy / len * trim;
+			ed->tag_id = tg->id;
+			ed->side = s;
+			ed->angle_deg = ang;
+			ed->length_px = use;
+			ed->cell_px = cell;
+			if (kg_sfr_edge_band(ed, hw, img, &ed->roi) == 0)
+				m++;
 		}
 	}
 	*edges = e;

@@ -14,7 +14,9 @@
  *       kg_sfr_result r;
  *       if (kg_sfr_measure(img, &edges[i].roi, &r, &err) == 0)
  *           ... r.mtf50, r.mtf10, r.efficiency, r.misregistration ...
- *       // else err.msg says why this edge is not usable (skip it, report it)
+ *           // (unless r.peak[c] reaches the image's clip level: a clipped edge)
+ *       // else err.msg says why this edge is not usable (skip it, report it);
+ *       // r.too_blurred: the band is too narrow for its blur (r.rise, r.band)
  *   }
  *   free(edges);
  */
@@ -31,6 +33,18 @@
  * aperture is no longer the axis's. */
 #define KG_SFR_MIN_ANGLE 1.0
 #define KG_SFR_MAX_ANGLE 20.0
+/* The band must hold the edge's blur: its half-width across the edge at least
+ * KG_SFR_BAND_RISE times the edge spread function's 10-90 % rise. A narrower band cuts
+ * off the line spread function's tails and reads the MTF too high (a Gaussian blur of
+ * sigma has a rise of 2.563 sigma: the band then reaches 4.1 sigma, where the tails
+ * left out are 4e-5 of the line spread function). */
+#define KG_SFR_BAND_RISE 1.6
+/* On a chart's tag side: how close (in 10-90 % rises) a band may come to the next
+ * printed edge (one tag cell away: the tag's data bits inside, beyond its white ring
+ * outside), which bounds any band on a tag at a cell less this many rises. Half a rise
+ * is what the 0.8-cell band leaves at the largest blur it holds (a rise of 0.5 cell),
+ * where simulated tags measure within 1 % of their analytic MTF50. */
+#define KG_SFR_NEIGHBOUR_RISE 0.5
 /* The MTF curve kept in the result: at k / (KG_SFR_CURVE - 1) cycles/px, k = 0 ..
  * KG_SFR_CURVE - 1 (0 .. 1 cycle/px, twice Nyquist). */
 #define KG_SFR_CURVE 65
@@ -82,6 +96,17 @@ typedef struct kg_sfr_result {
 	/* colour channel misregistration: the largest difference between the R, G and B
 	 * edge positions, px (0 for one channel) */
 	double misregistration;
+	/* the blur against the band: the 10-90 % rise of the mean channel's edge spread
+	 * function and the band's half-width, both px perpendicular to the edge; set
+	 * when the edge was found (also on a refusal after that, 0 before);
+	 * too_blurred = 1 when band < KG_SFR_BAND_RISE x rise (the edge is refused) */
+	double rise, band;
+	int too_blurred;
+	/* per channel, the largest value among the pixels projected (the band): the
+	 * caller compares it with the image's clip level (an edge whose band reaches it
+	 * is shaped by the clipping, not the optics); set with pixels, also on a refusal
+	 * after the projection */
+	double peak[3];
 } kg_sfr_result;
 
 /* Measure the edge in roi of img (1 or 3 channels, linear): per line across the
@@ -96,7 +121,9 @@ typedef struct kg_sfr_result {
  * KG_EINVAL (err says which) for a region outside the image or too small, and for a
  * region that holds no usable edge: no step above the noise, positions that do not
  * lie on a straight line, a slant outside [KG_SFR_MIN_ANGLE, KG_SFR_MAX_ANGLE], an
- * edge too close to the region's sides. */
+ * edge too close to the region's sides, an edge too blurred for the band (its 10-90 %
+ * rise more than 1 / KG_SFR_BAND_RISE of the band's half-width: too_blurred, rise and
+ * band say by how much). */
 int kg_sfr_measure(const kg_image *img, const kg_sfr_roi *roi, kg_sfr_result *out,
                    kg_err *err);
 
@@ -110,7 +137,17 @@ typedef struct kg_sfr_edge {
 	                      * 0 bottom, 1 right, 2 top, 3 left on the page) */
 	double angle_deg;    /* slant from the nearest image axis, unsigned */
 	double length_px;    /* of the part used */
+	double cell_px;      /* the tag's cell (its side / 8 for tag36h11, / 5 for
+	                      * tagStandard41h12): the next printed edge is one cell away
+	                      * either side, which bounds the band */
 } kg_sfr_edge;
+
+/* The region of edge e with a band of half_width px (along the image axis across the
+ * edge) either side of the edge's line (e->roi.p0, p1), into *roi; the region holds
+ * the whole band. -1 when that region leaves img or half_width is under 4 px. On a
+ * tag no band reaches further than cell_px - KG_SFR_NEIGHBOUR_RISE x the edge's rise. */
+int kg_sfr_edge_band(const kg_sfr_edge *e, double half_width, const kg_image *img,
+                     kg_sfr_roi *roi);
 
 /* The sides of the detected tags of layout l in r (tags of the layout only) that are
  * slanted 2 to 10 degrees from the image axes and whose middle part (the side less

@@ -388,6 +388,50 @@ static void replace_record(json_t *list, const char *id, json_t *rec)
 }
 
 #define MAX_SFR_EDGES 64
+/* Fewest edges the sfr and colour_misregistration records are graded on: a median of
+ * three stands one stray edge. */
+#define MIN_SFR_EDGES 3
+
+/* Measure tag side e (sfr.h) in the band kg_sfr_find_edges chose (0.8 of a tag cell
+ * either side). An edge too blurred for it (its 10-90 % rise more than the band /
+ * KG_SFR_BAND_RISE) is refused, the reason saying what band it needs and the widest
+ * the tag's cells allow: one cell to the next printed edge less KG_SFR_NEIGHBOUR_RISE
+ * rises for that edge's own spread. That widest band holds KG_SFR_BAND_RISE rises only
+ * up to a rise of cell / (KG_SFR_BAND_RISE + KG_SFR_NEIGHBOUR_RISE) = 0.48 cell, where
+ * the 0.8-cell band already holds them up to 0.5 cell: widening it would recover no
+ * edge, so the band is not widened. */
+static int measure_edge(const kg_sfr_edge *e, const kg_image *img, kg_sfr_result *s,
+                        kg_err *err)
+{
+	int rc = kg_sfr_measure(img, &e->roi, s, err);
+	if (rc && s->too_blurred) {
+		double allowed = e->cell_px - KG_SFR_NEIGHBOUR_RISE * s->rise;
+		return kg_fail(err, KG_EINVAL, "too blurred for the tag's cells: the edge's 10-90 "
+		               "%% rise of %.2f px needs a band of %.2f px either side (%g rises), "
+		               "the band is %.2f px, and the tag's cell of %.2f px allows at most "
+		               "%.2f px (the next printed edge is a cell away, %g rise kept clear of "
+		               "it)", s->rise, KG_SFR_BAND_RISE * s->rise, KG_SFR_BAND_RISE,
+		               s->band, e->cell_px, allowed < 0 ? 0 : allowed,
+		               KG_SFR_NEIGHBOUR_RISE);
+	}
+	return rc;
+}
+
+/* Why the edge measured in s is shaped by clipping ("" when not): a channel of its band
+ * reaches the image's clip level (clip; 0: not known). */
+static void clipped_why(const kg_sfr_result *s, const double clip[3], char *why, size_t n)
+{
+	static const char *const name[3] = {"R", "G", "B"};
+	why[0] = 0;
+	for (int c = 0; c < s->channels; c++)
+		if (clip[c] > 0 && s->peak[c] >= clip[c]) {
+			snprintf(why, n, "clipped: %s%s reaches %.4g in the band around the edge, at or "
+			         "above the clip level %.4g (the edge is shaped by the clipping, not by "
+			         "the optics)", s->channels == 1 ? "the image" : "channel ",
+			         s->channels == 1 ? "" : name[c], s->peak[c], clip[c]);
+			return;
+		}
+}
 
 void kg_conformance_edges(json_t *list, const kg_chart_layout *l, const kg_chart_result *r,
                           const kg_image *img, int bin)
@@ -408,20 +452,36 @@ void kg_conformance_edges(json_t *list, const kg_chart_layout *l, const kg_chart
 		why = "not measured on this target: no tag side is slanted 2 to 10 degrees from the "
 		      "image axes (the chart sits square to the sensor) or long enough";
 	}
-	json_t *used = json_array(), *per = json_array();
+	json_t *used = json_array(), *per = json_array(), *left = json_array();
 	double *eff = malloc(sizeof(double) * (size_t)(n ? n : 1));
 	double *m50 = malloc(sizeof(double) * (size_t)(n ? n : 1));
 	double *m10 = malloc(sizeof(double) * (size_t)(n ? n : 1));
 	double misreg = NAN;
-	int k = 0, refused = 0;
+	int k = 0, refused = 0, nclipped = 0, nblur = 0, tried = 0;
 	for (int i = 0; !why && eff && m50 && m10 && i < n && i < MAX_SFR_EDGES; i++) {
 		kg_sfr_result s;
-		char name[48];
+		char name[48], cw[300] = "";
+		tried++;
 		snprintf(name, sizeof(name), "tag%d.side%d", edges[i].tag_id, edges[i].side);
-		if (kg_sfr_measure(img, &edges[i].roi, &s, &err)) {
+		int rc = measure_edge(&edges[i], img, &s, &err);
+		/* clipping first, whatever else the measurement found (peak is set once the
+		 * band's pixels were read) */
+		if (s.pixels > 0)
+			clipped_why(&s, r->clip, cw, sizeof(cw));
+		if (cw[0]) {
+			rc = KG_EINVAL;
+			snprintf(err.msg, sizeof(err.msg), "%s", cw);
+			nclipped++;
+		} else if (rc && (s.too_blurred || strstr(err.msg, "too blurred"))) {
+			nblur++;
+		}
+		if (rc) {
 			refused++;
-			json_array_append_new(per, json_pack("{s:s, s:s}", "edge", name, "refused",
-			                                     err.msg));
+			json_array_append_new(per, json_pack("{s:s, s:s, s:f}", "edge", name,
+			                                     "refused", err.msg, "cell_px",
+			                                     edges[i].cell_px));
+			json_array_append_new(left, json_pack("{s:s, s:s}", "id", name, "why",
+			                                      err.msg));
 			continue;
 		}
 		eff[k] = s.efficiency;
@@ -432,31 +492,45 @@ void kg_conformance_edges(json_t *list, const kg_chart_layout *l, const kg_chart
 			misreg = s.misregistration;
 		json_array_append_new(used, json_string(name));
 		json_array_append_new(
-			per, json_pack("{s:s, s:f, s:f, s:f, s:b, s:f, s:f, s:f}", "edge", name,
-			               "angle_deg", s.angle_deg, "mtf50", s.mtf50, "mtf10", s.mtf10,
-			               "mtf10_reached", s.mtf10_reached, "efficiency", s.efficiency,
-			               "misregistration", s.channels == 3 ? s.misregistration : 0.0,
-			               "length_px", s.length));
+			per, json_pack("{s:s, s:f, s:f, s:f, s:b, s:f, s:f, s:f, s:f, s:f, s:f}", "edge",
+			               name, "angle_deg", s.angle_deg, "mtf50", s.mtf50, "mtf10",
+			               s.mtf10, "mtf10_reached", s.mtf10_reached, "efficiency",
+			               s.efficiency, "misregistration",
+			               s.channels == 3 ? s.misregistration : 0.0, "length_px", s.length,
+			               "rise_px", s.rise, "band_px", s.band, "cell_px",
+			               edges[i].cell_px));
 	}
-	if (!why && k == 0) {
-		snprintf(msg, sizeof(msg), "not measured: none of the %d slanted tag sides holds a "
-		         "usable edge", n);
+	if (!why && k < MIN_SFR_EDGES) {
+		snprintf(msg, sizeof(msg), "not measured: %d of the %d slanted tag sides tried hold "
+		         "a usable edge (at least %d are needed); left out: %d clipped, %d too "
+		         "blurred for the tag's cells, %d for other reasons (left_out says why)",
+		         k, tried, MIN_SFR_EDGES, nclipped, nblur, refused - nclipped - nblur);
 		why = msg;
 	}
+	char out_note[400] = "";
+	if (refused)
+		snprintf(out_note, sizeof(out_note), "; %d of the %d tag sides left out (%d clipped, "
+		         "%d too blurred for the tag's cells, %d for other reasons: left_out says "
+		         "why)", refused, tried, nclipped, nblur, refused - nclipped - nblur);
 	json_t *sfr, *mis;
+	char note[1200];
 	if (why) {
 		sfr = record("sfr", "%", NAN, NAN, NULL, NULL, 0, NULL, 0, why);
 		mis = record("colour_misregistration", "pixels", NAN, NAN, NULL, NULL, 0, NULL, 0, why);
 		json_decref(used);
+		if (tried) {
+			json_object_set_new(sfr, "edges", json_incref(per));
+			json_object_set_new(sfr, "refused", json_integer(refused));
+		}
 	} else {
 		double e = 100 * median(eff, k), f50 = median(m50, k), f10 = median(m10, k);
 		int st = 0, lv = kg_conformance_grade("sfr", e, &st);
+		snprintf(note, sizeof(note), "slanted-edge SFR (ISO 12233) on the chart's tag "
+		         "sides; value is the median sampling efficiency (MTF10 / Nyquist, capped "
+		         "at 100 %%), graded on ISO 19264-1's and FADGI 2023's sampling-efficiency "
+		         "limits; MTF50 and MTF10 recorded beside it%s", out_note);
 		sfr = record("sfr", "%", e, 100, tolerance_json(&sfr_lim), level_json(lv), st,
-		             json_copy(used), 1,
-		             "slanted-edge SFR (ISO 12233) on the chart's tag sides; value is the "
-		             "median sampling efficiency (MTF10 / Nyquist, capped at 100 %), graded "
-		             "on ISO 19264-1's and FADGI 2023's sampling-efficiency limits; MTF50 "
-		             "and MTF10 recorded beside it");
+		             json_copy(used), 1, note);
 		json_object_set_new(sfr, "mtf50", json_real(f50));
 		json_object_set_new(sfr, "mtf10", json_real(f10));
 		json_object_set_new(sfr, "efficiency", json_real(e / 100));
@@ -470,16 +544,22 @@ void kg_conformance_edges(json_t *list, const kg_chart_layout *l, const kg_chart
 			json_decref(used);
 		} else {
 			int mst = 0, mlv = kg_conformance_grade("colour_misregistration", misreg, &mst);
+			snprintf(note, sizeof(note), "largest difference between the R, G and B edge "
+			         "positions over the tag sides measured; FADGI stars on the tolerances "
+			         "of its 2010 guidelines (the 2023 values not found); ISO 19264-1: "
+			         NOT_FOUND " (no level)%s", out_note);
 			mis = record("colour_misregistration", "pixels", misreg, 0,
-			             tolerance_json(&misreg_lim), level_json(mlv), mst, used, 1,
-			             "largest difference between the R, G and B edge positions over "
-			             "the tag sides measured; FADGI stars on the tolerances of its 2010 "
-			             "guidelines (the 2023 values not found); ISO 19264-1: " NOT_FOUND
-			             " (no level)");
+			             tolerance_json(&misreg_lim), level_json(mlv), mst, used, 1, note);
 			json_object_set_new(mis, "binned", json_integer(bin));
 		}
 	}
 	json_decref(per);
+	/* the tag sides left out, with why, as the patches' left_out */
+	if (sfr)
+		json_object_set_new(sfr, "left_out", json_copy(left));
+	if (mis)
+		json_object_set_new(mis, "left_out", json_copy(left));
+	json_decref(left);
 	if (sfr)
 		replace_record(list, "sfr", sfr);
 	if (mis)

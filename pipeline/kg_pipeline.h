@@ -398,8 +398,9 @@ int kg_grade_iso19264_a(const kg_de_summary *s);
 json_t *kg_conformance(const json_t *patches, double flat_nonuniformity);
 /* Fill the sfr and colour_misregistration records of list (from kg_conformance) by the
  * slanted-edge method on the sides of the detected tags of l in r, in img (the chart
- * capture as detected, binned bin x bin); "not measured" with the reason when no side
- * suits. */
+ * capture as detected, binned bin x bin). A side whose band reaches r->clip, or whose
+ * blur does not fit the band its tag's cells allow, is left out ("left_out": id, why);
+ * "not measured" with the reason when fewer than 3 sides remain. */
 void kg_conformance_edges(json_t *list, const kg_chart_layout *l, const kg_chart_result *r,
                           const kg_image *img, int bin);
 /* The grade of value v of characteristic id (oecf, white_balance,

@@ -10,6 +10,10 @@
  *  - sampling efficiency min(MTF10 / 0.5, 1);
  *  - refusals: a flat region, pure noise, an edge square to the axis, an edge too
  *    close to the region's side, a region outside the image;
+ *  - the blur against the band: a sigma 2 edge refused as too blurred in a band of
+ *    6 px (under 1.6 times its 5.18 px rise), measured in one of 11 px (MTF50 within
+ *    2 %, rise within 5 % of 2.563 sqrt(sigma^2 + 1/12)); the band's peak value, the
+ *    clip level of an edge clipped at 0.6;
  *  - the chart edge finder: the sides of a tag slanted 5 degrees are offered with
  *    their slant, and measure to the blur they were drawn with (MTF50 within 2 %);
  *    tags square to the sensor or slanted 20 degrees give none; a layout without
@@ -172,6 +176,55 @@ static void check_refused(kg_image *img, kg_sfr_roi roi, const char *expect, con
 	      expect);
 	if (rc == KG_EINVAL)
 		fprintf(stderr, "refused (%s): %s\n", what, err.msg);
+}
+
+/* The blur against the band and the band's peak, with known truth: a Gaussian edge of
+ * sigma 2 (10-90 % rise 2.563 sqrt(sigma^2 + 1/12) = 5.18 px with the pixel's box)
+ * in a band of 6 px either side (under 1.6 rises = 8.3 px) is refused as too blurred,
+ * with its rise measured; in a band of 11 px it is measured, its MTF50 within 2 % of
+ * the analytic one. An edge clipped at 0.6 reports a peak of 0.6 (a value the caller
+ * compares with the clip level), the unclipped one its bright level 0.8. */
+static void check_band(void)
+{
+	double zero[3] = {0, 0, 0};
+	double sigma = 2.0, deg = 5, rise = 2.563 * sqrt(sigma * sigma + 1.0 / 12);
+	kg_image *img = edge_image(96, 96, 1, deg, 0, sigma, zero, 0.1, 0.8, 0);
+	CHECK(img != NULL, "image");
+	if (!img)
+		return;
+	/* the edge through the centre at deg from the vertical: x = 48 + (y - 48) tan a */
+	double ta = tan(deg * M_PI / 180);
+	kg_sfr_roi roi = {0, 8, 96, 80, 1, {48 + (8 - 48) * ta, 8}, {48 + (88 - 48) * ta, 88}, 6};
+	kg_sfr_result r;
+	kg_err err = {{0}};
+	int rc = kg_sfr_measure(img, &roi, &r, &err);
+	CHECK(rc == KG_EINVAL && r.too_blurred, "sigma 2 in a band of 6 px: rc %d too_blurred "
+	      "%d (%s)", rc, r.too_blurred, err.msg);
+	CHECK(strstr(err.msg, "too blurred") != NULL, "message: %s", err.msg);
+	CHECK_NEAR(r.band, 6 * cos(deg * M_PI / 180), 0.3, "band");
+	fprintf(stderr, "band 6: refused: %s (known rise %.2f)\n", err.msg, rise);
+	/* measured inside a band too narrow the rise reads low, never high */
+	CHECK(r.rise > 0.6 * rise && r.rise < 1.02 * rise, "rise %g, known %g", r.rise, rise);
+	roi.half_width = 11;
+	rc = kg_sfr_measure(img, &roi, &r, &err);
+	CHECK(rc == 0, "sigma 2 in a band of 11 px: %s", err.msg);
+	if (rc == 0) {
+		double f50 = model_crossing(0.5, sigma, deg * M_PI / 180);
+		fprintf(stderr, "band 11: rise %.3f (known %.3f) MTF50 %.4f (model %.4f) peak %.4f\n",
+		        r.rise, rise, r.mtf50, f50, r.peak[0]);
+		CHECK(!r.too_blurred && r.band >= KG_SFR_BAND_RISE * r.rise, "band %g rise %g",
+		      r.band, r.rise);
+		CHECK_NEAR(r.rise, rise, 0.05 * rise, "rise");
+		CHECK_NEAR(r.mtf50, f50, 0.02 * f50, "MTF50 in the band");
+		CHECK_NEAR(r.peak[0], 0.8, 0.01, "peak of the unclipped edge");
+	}
+	/* the same edge clipped at 0.6 */
+	for (int i = 0; i < 96 * 96; i++)
+		img->data[i] = fminf(img->data[i], 0.6f);
+	rc = kg_sfr_measure(img, &roi, &r, &err);
+	CHECK(rc == 0, "clipped edge: %s", err.msg);
+	CHECK(r.peak[0] == 0.6f, "peak of the clipped edge %.9g, expected 0.6", r.peak[0]);
+	kg_image_free(&img);
 }
 
 /* A tag's black border ring (outer side `side` px, one cell of side / 8 wide), centred,
@@ -340,6 +393,7 @@ int main(void)
 	check_refused(side, near, "side", "edge at the region's side");
 	kg_image_free(&side);
 
+	check_band();
 	check_finder();
 	return kg_test_done("calib-sfr");
 }

@@ -262,7 +262,8 @@ print("square chart: sfr %s" % recs["sfr"]["note"])
 PY
 # An over-exposed chart (x 1.6: the white patch clipped on the sensor): no
 # characteristic is graded from a patch chart detection flagged; each such patch is
-# listed as left out, with why.
+# listed as left out, with why; nor from a clipped tag edge (the sfr and the
+# misregistration not measured, every tag side left out as clipped).
 SIM_CAMERA="format=bayer_rggb12&fullwell=20000&read=5&serial=site-1"
 S=$T/SOVER
 sim_acquire "$S" dark "$T/chart.tif" 16000 '&light=0' 2>/dev/null || fail=1
@@ -285,6 +286,14 @@ for rid in ("oecf", "white_balance", "noise", "colour_accuracy"):
     assert "D01" in out and all(x["why"] for x in r["left_out"]), (rid, r["left_out"])
 print("over-exposed chart: %s flagged, left out of every grade; oecf %.3f on %s"
       % (sorted(flagged), recs["oecf"]["value"], recs["oecf"]["used"]))
+# the paper (0.85 x the white level 0.9, x 1.6) clips too: every tag side's white ring
+# is clipped, so no edge grades the sfr or the misregistration (the old code read
+# 76.6 % and 0.32 px from the clipped edges); each is left out as clipped, with why
+s, m = recs["sfr"], recs["colour_misregistration"]
+assert not s["measured"] and not m["measured"] and m["value"] is None, (s, m)
+assert s["left_out"] and all(x["why"].startswith("clipped") for x in s["left_out"]), s
+assert m["left_out"] == s["left_out"] and "clipped" in s["note"], (s["note"], m)
+print("over-exposed chart: sfr %s" % s["note"])
 PY
 else
 	echo "FAIL: process (over-exposed chart)"; cat "$T/err"; fail=1
