@@ -159,14 +159,7 @@ static int write_pyramid(proc *p, const char *master, const char *path, const ch
 		ret = vips_failed(p->err, master);
 	if (!ret) {
 		/* the identity, as the master carries it; no other metadata of the master */
-		char *copy = g_malloc(xmp_len ? xmp_len : 1);
-		if (!copy)
-			ret = kg_fail(p->err, KG_ENOMEM, "out of memory");
-		else {
-			memcpy(copy, xmp, xmp_len);
-			vips_image_set_blob(srgb, VIPS_META_XMP_NAME, (VipsCallbackFn)g_free, copy,
-			                    xmp_len);
-		}
+		vips_image_set_blob_copy(srgb, VIPS_META_XMP_NAME, xmp, xmp_len);
 		if (vips_image_get_typeof(srgb, VIPS_META_EXIF_NAME))
 			vips_image_remove(srgb, VIPS_META_EXIF_NAME);
 		if (vips_image_get_typeof(srgb, VIPS_META_IPTC_NAME))

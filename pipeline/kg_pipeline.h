@@ -306,6 +306,8 @@ int kg_bag_verify(const char *bag, FILE *problems, FILE *progress, kg_deposit_su
  *   OUT/collection.json          the record (kogei-collection/1): engine, per entry its
  *                                session, status, reason, job, time and objects
  *   OUT/index.html               the whole collection as one sortable table
+ *   OUT/collection-manifest.json a IIIF Presentation 3 Collection of the objects'
+ *                                manifests (collection_iiif.c)
  *   OUT/.collection/plan.json    the list as checked by the last run (absolute paths,
  *                                each entry's process arguments and key)
  *   OUT/.collection/entries/NAME.json  one entry's last result (done or failed), written
@@ -328,6 +330,10 @@ typedef struct kg_collection_options {
 	const char *sbatch_args;  /* slurm: more sbatch options, split at blanks */
 	int no_wait;              /* slurm: submit and return */
 	int show_progress;        /* --progress: the progress line off a terminal too */
+	const char *iiif_base;    /* kogei process --iiif-base of each entry: URL/<name> */
+	const char *iiif_image_api; /* kogei process --iiif-image-api of each entry */
+	const char *files_base;   /* OUT's files' URL: each entry's --files-base URL/<name>,
+	                           * the ids of OUT/collection-manifest.json */
 	/* set by kg_collection_check */
 	int njobs;
 	FILE *progress;           /* the progress line, or NULL */
