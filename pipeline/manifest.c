@@ -45,19 +45,51 @@ static const char *record(const json_t *identity, const char *key)
 	return json_string_value(json_object_get(json_object_get(identity, "record"), key));
 }
 
-/* The width and height of a PNG from its header (0 when it is not one). */
-static int png_size(const char *path, int *w, int *h)
+/* The label layer: dir/labels.hdr (the pixels' classes) in its classes' colours, at
+ * the canvas's size or reduced by a whole factor to at most LAYER_MAX pixels on the
+ * long side (nearest pixel), no margin, no legend, as dir/labels_layer.png: an image
+ * that lies on the canvas pixel for pixel (labels.png is a figure with a margin). */
+#define LAYER_MAX 4096
+static int label_layer(proc *p, const char *dir, int *lw, int *lh)
 {
-	unsigned char b[24];
-	FILE *f = fopen(path, "rb");
-	size_t n = f ? fread(b, 1, sizeof(b), f) : 0;
-	if (f)
-		fclose(f);
-	if (n != sizeof(b) || memcmp(b, "\x89PNG\r\n\x1a\n", 8) || memcmp(b + 12, "IHDR", 4))
-		return -1;
-	*w = (int)((unsigned)b[16] << 24 | (unsigned)b[17] << 16 | (unsigned)b[18] << 8 | b[19]);
-	*h = (int)((unsigned)b[20] << 24 | (unsigned)b[21] << 16 | (unsigned)b[22] << 8 | b[23]);
-	return *w > 0 && *h > 0 ? 0 : -1;
+	char *hdr = kg_path_join(dir, "labels.hdr"), *png = kg_path_join(dir, "labels_layer.png");
+	kg_envi *e = NULL;
+	float *row = NULL;
+	unsigned char *rgb = NULL;
+	int ret = hdr && png ? kg_envi_open(hdr, &e, p->err) : kg_fail(p->err, KG_ENOMEM,
+	                                                                "out of memory");
+	if (!ret && (e->meta.bands != 1 || e->meta.classes < 1 || !e->meta.class_lookup))
+		ret = kg_fail(p->err, KG_EINVAL, "%s: expected a classification with its colours",
+		              hdr);
+	int W = ret ? 0 : e->meta.samples, H = ret ? 0 : e->meta.lines;
+	int step = 1;
+	while ((W + step - 1) / step > LAYER_MAX || (H + step - 1) / step > LAYER_MAX)
+		step++;
+	int w = (W + step - 1) / step, h = (H + step - 1) / step;
+	if (!ret && (!(row = malloc((size_t)W * sizeof(float))) ||
+	             !(rgb = malloc((size_t)w * (size_t)h * 3))))
+		ret = kg_fail(p->err, KG_ENOMEM, "out of memory");
+	for (int y = 0; y < h && !ret; y++) {
+		ret = kg_envi_read(e, 0, y * step, W, 1, KG_LAYOUT_BIP, row, p->err);
+		for (int x = 0; x < w && !ret; x++) {
+			float v = row[x * step];
+			int c = v >= 0 && v < (float)e->meta.classes ? (int)v : 0;
+			memcpy(rgb + ((size_t)y * (size_t)w + (size_t)x) * 3, e->meta.class_lookup + 3 * c,
+			       3);
+		}
+	}
+	if (!ret)
+		ret = kg_png_write_rgb8(png, rgb, w, h, p->err);
+	if (!ret) {
+		*lw = w;
+		*lh = h;
+	}
+	kg_envi_close(&e);
+	free(row);
+	free(rgb);
+	free(hdr);
+	free(png);
+	return ret;
 }
 
 /* The materials found, largest share first, as "copper: 41.2 %"; the legend of the
@@ -145,17 +177,22 @@ int proc_manifest(proc *p, const proc_capture *c, const char *dir, const json_t 
 	if (!json_is_object(access))
 		return 0; /* no image to show: access.c said why */
 	const kg_process_options *o = p->o;
-	char *labels = kg_path_join(dir, "labels.png"), *path = kg_path_join(dir, "manifest.json");
+	char *path = kg_path_join(dir, "manifest.json");
 	char rel[512];
 	int lw = 0, lh = 0;
-	int has_labels = labels && png_size(labels, &lw, &lh) == 0;
+	int ret = label_layer(p, dir, &lw, &lh);
+	if (ret) {
+		kg_err_prefix(p->err, "%s: labels_layer.png: ", c->name);
+		free(path);
+		return ret;
+	}
 	/* ids: absolute under the bases, else relative to the manifest (in <object>/) */
 	snprintf(rel, sizeof(rel), "%s/manifest.json", c->name);
 	char *id = o->files_base ? url_join(o->files_base, rel) : strdup("manifest.json");
 	snprintf(rel, sizeof(rel), "%s/access.tif", c->name);
 	char *service = o->iiif_base ? url_join(o->iiif_base, rel) : strdup("access.tif");
-	snprintf(rel, sizeof(rel), "%s/labels.png", c->name);
-	char *lurl = o->files_base ? url_join(o->files_base, rel) : strdup("labels.png");
+	snprintf(rel, sizeof(rel), "%s/labels_layer.png", c->name);
+	char *lurl = o->files_base ? url_join(o->files_base, rel) : strdup("labels_layer.png");
 	int v2 = o->iiif_image_api && !strcmp(o->iiif_image_api, "2");
 	char *full = service ? url_join(service, v2 ? "full/full/0/default.jpg"
 	                                            : "full/max/0/default.jpg") : NULL;
@@ -164,7 +201,7 @@ int proc_manifest(proc *p, const proc_capture *c, const char *dir, const json_t 
 	char *page = canvas ? url_join(canvas, "page/1") : NULL;
 	char *a_image = canvas ? url_join(canvas, "annotation/image") : NULL;
 	char *a_labels = canvas ? url_join(canvas, "annotation/labels") : NULL;
-	int ret = (objurl || !o->files_base) && labels && path && id && service && lurl && full && canvas && page && a_image &&
+	ret = (objurl || !o->files_base) && path && id && service && lurl && full && canvas && page && a_image &&
 	                  a_labels
 	              ? 0 : kg_fail(p->err, KG_ENOMEM, "out of memory");
 	json_t *m = NULL;
@@ -202,14 +239,13 @@ int proc_manifest(proc *p, const proc_capture *c, const char *dir, const json_t 
 			             : json_pack("{s:s, s:s, s:s}", "id", service, "type",
 			                         "ImageService3", "profile", "level1"),
 			          "target", canvas));
-		if (has_labels)
-			json_array_append_new(
-				annos, json_pack("{s:s, s:s, s:s, s:o, s:{s:s, s:s, s:s, s:i, s:i}, s:s}",
-				                 "id", a_labels, "type", "Annotation", "motivation",
-				                 "painting", "label",
-				                 lang("en", "Material labels (legend in the metadata)"),
-				                 "body", "id", lurl, "type", "Image", "format", "image/png",
-				                 "width", lw, "height", lh, "target", canvas));
+		/* the label map, a layer a viewer can show or hide */
+		json_array_append_new(
+			annos, json_pack("{s:s, s:s, s:s, s:o, s:{s:s, s:s, s:s, s:i, s:i}, s:s}", "id",
+			                 a_labels, "type", "Annotation", "motivation", "painting",
+			                 "label", lang("en", "Material labels (legend in the metadata)"),
+			                 "body", "id", lurl, "type", "Image", "format", "image/png",
+			                 "width", lw, "height", lh, "target", canvas));
 		m = json_pack("{s:s, s:s, s:s, s:o, s:o, s:o, s:[{s:s, s:s, s:o, s:i, s:i, "
 		              "s:[{s:s, s:s, s:o}]}]}",
 		              "@context", IIIF_CONTEXT, "id", id, "type", "Manifest", "label",
@@ -223,19 +259,20 @@ int proc_manifest(proc *p, const proc_capture *c, const char *dir, const json_t 
 	if (!ret && (ret = kg_json_write(m, path, p->err)))
 		kg_err_prefix(p->err, "%s: ", c->name);
 	if (!ret) {
+		char layer[300];
+		snprintf(layer, sizeof(layer), "%s/labels_layer.png", c->name);
 		snprintf(rel, sizeof(rel), "%s/manifest.json", c->name);
 		json_object_set_new(object, "manifest",
-		                    json_pack("{s:s, s:s, s:s, s:s, s:b, s:s*}", "path", rel, "id", id,
+		                    json_pack("{s:s, s:s, s:s, s:s, s:s, s:s*}", "path", rel, "id", id,
 		                              "image_service", service, "service_type",
 		                              v2 ? "ImageService2" : "ImageService3", "label_layer",
-		                              has_labels,
+		                              layer,
 		                              "note", o->iiif_base && o->files_base ? NULL : note));
 		if (!o->iiif_base || !o->files_base)
 			proc_progress(p, "%s: manifest.json with relative ids (no %s): see its summary",
 			              c->name, !o->iiif_base ? "--iiif-base" : "--files-base");
 	}
 	json_decref(m);
-	free(labels);
 	free(path);
 	free(id);
 	free(service);

@@ -143,14 +143,14 @@ def main():
             loaded: !!(window.kg && window.kg.ready && window.kg.base.getFullyLoaded()
                        && window.kg.overlay.getFullyLoaded()),
             service: window.kg && window.kg.service, label: window.kg && window.kg.label})"""))
-        if state["error"] or state["loaded"]:
+        if state.get("error") or state.get("loaded"):
             break
         time.sleep(0.2)
     print("viewer: %r" % state)
-    if state["error"]:
+    if state.get("error"):
         fail("the viewer: %s" % state["error"])
         return
-    if not state["loaded"] or state["layers"] != 2:
+    if not state.get("loaded") or state.get("layers") != 2:
         fail("the viewer did not load both layers in 60 s: %r" % state)
         return
     time.sleep(0.5)

@@ -42,7 +42,7 @@ fastcgi.server = ("/iiif/" => (("host" => "127.0.0.1", "port" => $fport,
 EOF
 	set +m
 	FILESYSTEM_PREFIX="$1/" URI_MAP="iiif=>IIIF" LOGFILE="$T/iipsrv.log" VERBOSITY=1 \
-		MAX_CVT=5000 setsid "$IIPSRV" --bind "127.0.0.1:$fport" >"$T/iipsrv.out" 2>&1 &
+		MAX_CVT=5000 JPEG_QUALITY=${IIIF_JPEG_QUALITY:-95} setsid "$IIPSRV" --bind "127.0.0.1:$fport" >"$T/iipsrv.out" 2>&1 &
 	iip_pid=$!
 	setsid "$LIGHTTPD" -D -f "$T/lighttpd.conf" >"$T/lighttpd.out" 2>&1 &
 	lt_pid=$!

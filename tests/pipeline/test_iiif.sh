@@ -76,7 +76,7 @@ expect_exit 0 "$KOGEI" process "$S" --spectra "$T/chart.cgats" -o "$A" --no-rend
 
 if [ "$MODE" = server ]; then
 	# the reference: the master through its own profile to sRGB (LittleCMS, not libvips)
-	tificc -t1 -o'*sRGB' "$A/obj/master.tif" "$T/master_srgb.tif" ||
+	tificc -t1 -w16 -o'*sRGB' "$A/obj/master.tif" "$T/master_srgb.tif" ||
 		{ echo "FAIL: tificc"; exit 1; }
 	vips rawsave "$T/master_srgb.tif" "$T/master_srgb.raw" || { echo "FAIL: vips rawsave"; exit 1; }
 fi
