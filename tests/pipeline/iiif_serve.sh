@@ -47,8 +47,12 @@ EOF
 	setsid "$LIGHTTPD" -D -f "$T/lighttpd.conf" >"$T/lighttpd.out" 2>&1 &
 	lt_pid=$!
 	i=0
-	until "$PY" -c "import urllib.request, sys
-urllib.request.urlopen('http://127.0.0.1:$2/files/process.json', timeout=2)" 2>/dev/null; do
+	# up when lighttpd answers anything (a 404 too)
+	until "$PY" -c "import urllib.request, urllib.error
+try:
+    urllib.request.urlopen('http://127.0.0.1:$2/files/', timeout=2)
+except urllib.error.HTTPError:
+    pass" 2>/dev/null; do
 		i=$((i + 1))
 		if [ $i -ge 100 ] || ! kill -0 "$lt_pid" 2>/dev/null || ! kill -0 "$iip_pid" 2>/dev/null
 		then

@@ -16,6 +16,9 @@
 #    tiles 256 with the scale factors of the pyramid's levels; a region at half size,
 #    decoded, against the master rendered to sRGB by LittleCMS's tificc through its
 #    own profile and averaged 2 x 2: mean CIEDE2000 <= 1;
+#  - kogei collection run --iiif-base --files-base on two sessions: each entry's
+#    manifest under URL/<name>, OUT/collection-manifest.json a IIIF Collection of them,
+#    and iipsrv serving OUT answers each entry's image service;
 #  - without --iiif-base the manifest's ids are relative and its summary and
 #    process.json say so; --access-compression deflate writes deflate tiles; bad
 #    values are refused naming the option;
@@ -35,6 +38,7 @@ case $ROOT in /*) ;; *) ROOT=$(pwd)/$ROOT ;; esac
 FIX=$ROOT/fixtures
 . "$here/sim_session.sh"
 . "$here/iiif_serve.sh"
+. "$here/collection_sessions.sh"
 sim_session_needs "${3:-1}" numpy
 kg_need "$4" "built without LittleCMS (-Dlcms): no master, so no access copy"
 kg_need "$5" "built without libvips (-Dvips): no access copy (Debian package libvips-dev)"
@@ -122,6 +126,39 @@ PY
 		grep -q -- "$opt" "$T/err" || { echo "FAIL: '$bad': the error does not name $opt"; cat "$T/err"; fail=1; }
 		[ ! -e "$T/C" ] || { echo "FAIL: '$bad' wrote $T/C"; fail=1; }
 	done
+
+	# a collection: each entry under URL/<name>, OUT/collection-manifest.json
+	C=$T/col
+	coll_sessions "$C" 2 || { echo "FAIL: collection sessions"; exit 1; }
+	printf 'session,spectra,meta.title\ns1,chart.cgats,First\ns2,chart.cgats,Second\n' >"$C/list.csv"
+	PORT=$(iiif_free_port)
+	expect_exit 0 "$KOGEI" collection run "$C/list.csv" -o "$T/res" --jobs 1 \
+		--iiif-base "http://127.0.0.1:$PORT/iiif" --iiif-image-api 2 \
+		--files-base "http://127.0.0.1:$PORT/files"
+	iiif_start "$T/res" "$PORT" || exit 1
+	"$PY" - "$T/res" "$PORT" <<'PY' || fail=1
+import json, os, sys, urllib.request
+out, port = sys.argv[1:3]
+base = "http://127.0.0.1:%s" % port
+c = json.load(open(out + "/collection-manifest.json"))
+assert c["@context"] == "http://iiif.io/api/presentation/3/context.json", c["@context"]
+assert c["type"] == "Collection" and c["id"] == base + "/files/collection-manifest.json", c
+ids = [(i["type"], i["id"], i["label"]["none"][0]) for i in c["items"]]
+want = [("Manifest", base + "/files/%s/object-0001/manifest.json" % n, t)
+        for n, t in (("s1", "First"), ("s2", "Second"))]
+assert ids == want, (ids, want)
+for n in ("s1", "s2"):
+    m = json.load(open("%s/%s/object-0001/manifest.json" % (out, n)))
+    svc = m["items"][0]["items"][0]["items"][0]["body"]["service"][0]
+    assert svc["@id"] == base + "/iiif/%s/object-0001/access.tif" % n, svc
+    info = json.load(urllib.request.urlopen(svc["@id"] + "/info.json", timeout=30))
+    assert (info["width"], info["height"]) == (m["items"][0]["width"], m["items"][0]["height"]), info
+    # the manifest is where its id says
+    got = json.load(urllib.request.urlopen(m["id"], timeout=30))
+    assert got["id"] == m["id"], got["id"]
+print("collection-manifest.json: %d manifests, each served: ok" % len(ids))
+PY
+	iiif_stop
 else
 	chromium_start
 	cp "$here/iiif_viewer.html" "$A/viewer.html"
