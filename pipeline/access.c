@@ -182,13 +182,14 @@ static int write_pyramid(proc *p, const char *master, const char *path, const ch
 	if (!ret) {
 		*w = vips_image_get_width(srgb);
 		*h = vips_image_get_height(srgb);
-		/* libvips halves each level until it fits in one tile */
-		int n = 1;
-		for (int lw = *w, lh = *h; lw > 256 || lh > 256; n++) {
-			lw = (lw + 1) / 2;
-			lh = (lh + 1) / 2;
+		/* the levels as written: the file's pages */
+		VipsImage *back = vips_image_new_from_file(path, NULL);
+		if (!back)
+			ret = vips_failed(p->err, path);
+		else {
+			*levels = vips_image_get_n_pages(back);
+			g_object_unref(back);
 		}
-		*levels = n;
 	}
 	if (srgb)
 		g_object_unref(srgb);
