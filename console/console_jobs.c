@@ -593,7 +593,8 @@ static FILE *job_progress(console *c)
  * is the console's own. */
 static int process_access_options(const json_t *req, kg_process_options *o, kg_err *err)
 {
-	json_t *rest = json_deep_copy(req);
+	/* a shallow copy: its strings are req's, which outlive it */
+	json_t *rest = json_copy((json_t *)req);
 	if (!rest)
 		return kg_fail(err, KG_ENOMEM, "out of memory");
 	json_object_del(rest, "render");
