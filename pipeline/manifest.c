@@ -201,9 +201,9 @@ int proc_manifest(proc *p, const proc_capture *c, const char *dir, const json_t 
 	char *page = canvas ? url_join(canvas, "page/1") : NULL;
 	char *a_image = canvas ? url_join(canvas, "annotation/image") : NULL;
 	char *a_labels = canvas ? url_join(canvas, "annotation/labels") : NULL;
-	ret = (objurl || !o->files_base) && path && id && service && lurl && full && canvas && page && a_image &&
-	                  a_labels
-	              ? 0 : kg_fail(p->err, KG_ENOMEM, "out of memory");
+	ret = (objurl || !o->files_base) && path && id && service && lurl && full && canvas &&
+	              page && a_image && a_labels
+	          ? 0 : kg_fail(p->err, KG_ENOMEM, "out of memory");
 	json_t *m = NULL;
 	const char *title = record(identity, "title");
 	int w = (int)json_integer_value(json_object_get(access, "width"));

@@ -7,7 +7,9 @@
 #   /osd/...    -> OpenSeadragon's build, when given
 # iiif_free_port prints a free TCP port of 127.0.0.1; iiif_start DIR PORT [OSD_DIR]
 # starts both in the foreground of their own process groups (setsid) and waits until
-# lighttpd answers; iiif_stop stops them by their ids. Needs T and PY set.
+# lighttpd answers; iiif_stop stops them by their ids. Needs T and PY set. iipsrv
+# encodes its answers at JPEG_QUALITY 95 (its default 75 costs colour: docs/iiif.md);
+# IIIF_JPEG_QUALITY overrides it.
 IIPSRV=${IIPSRV:-/usr/lib/iipimage-server/iipsrv.fcgi}
 LIGHTTPD=${LIGHTTPD:-$(command -v lighttpd || echo /usr/sbin/lighttpd)}
 iip_pid=
