@@ -22,7 +22,7 @@ static const char usage_process[] =
 	"              [--master-space ecirgb-v2|adobe-rgb|prophoto|none]\n"
 	"              [--master-illuminant NAME|FILE]\n"
 	"              [--access-compression jpeg|deflate] [--access-quality Q]\n"
-	"              [--iiif-base URL] [--files-base URL]\n"
+	"              [--iiif-base URL] [--iiif-image-api 3|2] [--files-base URL]\n"
 	"              [--meta KEY=VALUE]... [--threads N] [--quiet]";
 
 static const char help_process[] =
