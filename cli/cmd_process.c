@@ -21,6 +21,8 @@ static const char usage_process[] =
 	"              [--cube f32|f16|weights|none]\n"
 	"              [--master-space ecirgb-v2|adobe-rgb|prophoto|none]\n"
 	"              [--master-illuminant NAME|FILE]\n"
+	"              [--access-compression jpeg|deflate] [--access-quality Q]\n"
+	"              [--iiif-base URL] [--iiif-image-api 3|2] [--files-base URL]\n"
 	"              [--meta KEY=VALUE]... [--threads N] [--quiet]";
 
 static const char help_process[] =
@@ -35,7 +37,8 @@ static const char help_process[] =
 	"  conformance.json, camera.icc + camera.ti3, report.html, and per object capture\n"
 	"  <capture>/cube.hdr, labels.hdr (+ .json, .png, _confidence), master.tif,\n"
 	"  photo.png, confidence.png, scene.json (renders with `kogei render --scene`),\n"
-	"  render.png, object.glb and object_mitsuba.xml (+ PLYs).\n"
+	"  render.png, object.glb and object_mitsuba.xml (+ PLYs), access.tif (the IIIF\n"
+	"  access copy, with libvips) and manifest.json (IIIF Presentation 3).\n"
 	"Running it again keeps the objects whose inputs and parameters are unchanged.\n"
 	"OUTDIR must be new, empty or this session's earlier output (its process.json), and\n"
 	"not inside the session; nothing there that kogei process did not write is replaced,\n"
@@ -98,7 +101,10 @@ static const char help_process[] =
 	"  --icc-version 2|4     the ICC version of the master's profile and camera.icc:\n"
 	"                        2 (default: ArgyllCMS and older software read it) or 4\n"
 	"  --threads N           worker threads (default: all)\n"
-	"  --quiet               no progress on standard error\n"
+	"  --quiet               no progress on standard error\n";
+
+/* after the access table's options */
+static const char help_process_end[] =
 	"\n"
 	"Exit status 1 when the session cannot give a trustworthy result (no chart, too few\n"
 	"usable patches, M2 residual above the limit, another camera, unknown exposure); the\n"
@@ -154,13 +160,15 @@ static void decref_p(json_t **p) { json_decref(*p); }
 int kg_cmd_process(int argc, char **argv)
 {
 	if (kg_cli_wants_help(argc, argv)) {
-		printf("usage: %s\n%s\n", usage_process, help_process);
+		printf("usage: %s\n%s", usage_process, help_process);
+		kg_opt_print_options(stdout, &kg_process_access_table);
+		printf("%s\n", help_process_end);
 		return KG_EXIT_OK;
 	}
 	enum { O_REF = 256, O_SPECTRA, O_MAT, O_ONLY, O_LAYOUT, O_CHART, O_VERIFY, O_MESH, O_ANGLE,
 	       O_MINTAGS, O_MAXRES, O_FORCE, O_SAME, O_NORENDER, O_THREADS, O_QUIET, O_MASK, O_CUBE,
 	       O_METHOD, O_ANGLES, O_INTENSITY, O_SKIP, O_META, O_MSPACE, O_MILL, O_ICCV };
-	static const struct option longopts[] = {
+	static const struct option baseopts[] = {
 		{"reference", required_argument, NULL, O_REF},
 		{"spectra", required_argument, NULL, O_SPECTRA},
 		{"materials", required_argument, NULL, O_MAT},
@@ -188,8 +196,21 @@ int kg_cmd_process(int argc, char **argv)
 		{"skip", required_argument, NULL, O_SKIP},
 		{"meta", required_argument, NULL, O_META},
 		{"output", required_argument, NULL, 'o'},
-		{NULL, 0, NULL, 0},
 	};
+	/* the access copy's and the manifests' options: pipeline/'s table */
+	enum { O_TABLE = 1024 };
+	const kg_opt_table *at = &kg_process_access_table;
+	size_t nbase = sizeof(baseopts) / sizeof(baseopts[0]);
+	struct option longopts[sizeof(baseopts) / sizeof(baseopts[0]) + 16];
+	if (at->nspecs > 15)
+		return kg_cli_usage_error(usage_process, "too many options");
+	memcpy(longopts, baseopts, sizeof(baseopts));
+	for (int i = 0; i < at->nspecs; i++)
+		longopts[nbase + (size_t)i] = (struct option){
+			at->specs[i].name,
+			at->specs[i].type == KG_OPT_FLAG ? no_argument : required_argument, NULL,
+			O_TABLE + i};
+	longopts[nbase + (size_t)at->nspecs] = (struct option){NULL, 0, NULL, 0};
 	kg_process_options o;
 	kg_process_options_default(&o);
 	o.progress = stderr;
@@ -295,7 +316,12 @@ int kg_cmd_process(int argc, char **argv)
 				                          "names, NAME[,NAME...]", optarg);
 			skip = optarg;
 			break;
-		default: return kg_cli_usage_error(usage_process, "bad option");
+		default:
+			if (ch >= O_TABLE && ch < O_TABLE + at->nspecs) {
+				kg_opt_set(&at->specs[ch - O_TABLE], &o, optarg);
+				break;
+			}
+			return kg_cli_usage_error(usage_process, "bad option");
 		}
 	}
 	if (optind != argc - 1)
@@ -307,6 +333,9 @@ int kg_cmd_process(int argc, char **argv)
 	if (!o.reference && !o.spectra)
 		return kg_cli_usage_error(usage_process, "--reference REF.json (a site session) or "
 		                          "--spectra CHART.cgats (a lab session) is required");
+	kg_err aerr = {{0}};
+	if (kg_process_access_check(&o, &aerr))
+		return kg_cli_usage_error(usage_process, "%s", aerr.msg);
 	if (quiet)
 		o.progress = NULL;
 	if (only && split_names(only, &names, &o.nonly))

@@ -588,6 +588,21 @@ static FILE *job_progress(console *c)
 	return progress;
 }
 
+/* The request's options of the access copy and the manifests (kg_process_access_table:
+ * access_compression, access_quality, iiif_base, files_base) into o, checked; "render"
+ * is the console's own. */
+static int process_access_options(const json_t *req, kg_process_options *o, kg_err *err)
+{
+	/* a shallow copy: its strings are req's, which outlive it */
+	json_t *rest = json_copy((json_t *)req);
+	if (!rest)
+		return kg_fail(err, KG_ENOMEM, "out of memory");
+	json_object_del(rest, "render");
+	int ret = kg_opt_from_json(&kg_process_access_table, rest, o, err);
+	json_decref(rest);
+	return ret ? ret : kg_process_access_check(o, err);
+}
+
 static void *process_main(void *arg)
 {
 	job *jb = arg;
@@ -605,10 +620,15 @@ static void *process_main(void *arg)
 	o.render = !json_is_false(json_object_get(jb->req, "render"));
 	kg_err err = {{0}};
 	kg_process_summary sum;
-	int ret = o.reference || o.spectra
-	              ? kg_process_run(&o, &sum, &err)
-	              : kg_fail(&err, KG_EINVAL, "process: no chart spectra (%s) and no --reference: "
-	                        "measure the chart with the spectrometer first", c->spectra_out);
+	/* checked when the job was started: the strings are the request's, kept until the
+	 * end of the job */
+	int ret = process_access_options(jb->req, &o, &err);
+	if (!ret)
+		ret = o.reference || o.spectra
+		          ? kg_process_run(&o, &sum, &err)
+		          : kg_fail(&err, KG_EINVAL, "process: no chart spectra (%s) and no "
+		                    "--reference: measure the chart with the spectrometer first",
+		                    c->spectra_out);
 	if (progress)
 		fclose(progress);
 	json_t *result = ret ? NULL
@@ -627,6 +647,13 @@ int console_job_process(console *c, const json_t *req, char *why, size_t n)
 {
 	if (bool_field(req, "process", "render", why, n))
 		return 400;
+	kg_process_options scratch;
+	kg_process_options_default(&scratch);
+	kg_err err = {{0}};
+	if (process_access_options(req, &scratch, &err)) {
+		snprintf(why, n, "process: %s", err.msg);
+		return 400;
+	}
 	return job_start(c, "process", "kogei process", process_main, req, why, n);
 }
 

@@ -39,6 +39,14 @@ static const kg_opt_spec collection_specs[] = {
 	 "--mem=4G --account=lab\")"},
 	{"no-wait", 0, NULL, KG_OPT_FLAG, OPT(no_wait), 0,
 	 "slurm: submit and return (kogei collection status OUT then reads the state)"},
+	{"iiif-base", 0, "URL", KG_OPT_STRING, OPT(iiif_base), 0,
+	 "the IIIF Image API base under which an image server serves OUT: each session is "
+	 "processed with --iiif-base URL/<name> (kogei process --help, docs/iiif.md)"},
+	{"iiif-image-api", 0, "3|2", KG_OPT_STRING, OPT(iiif_image_api), 0,
+	 "that image server's IIIF Image API version (kogei process --iiif-image-api)"},
+	{"files-base", 0, "URL", KG_OPT_STRING, OPT(files_base), 0,
+	 "the URL at which OUT's files are published: each session's --files-base "
+	 "URL/<name>, and the ids of OUT/collection-manifest.json (default: relative)"},
 	{"progress", 0, NULL, KG_OPT_FLAG, OPT(show_progress), KG_OPT_CLI_ONLY,
 	 "the progress line (done, failed, remaining, time left) also when standard error is "
 	 "not a terminal, one line per change"},
@@ -48,6 +56,8 @@ const kg_opt_table kg_collection_table = {
 	.synopsis = "kogei collection run LIST.csv -o OUT [--engine local|slurm] [--jobs N]\n"
 	            "                             [--partition P] [--sbatch-args \"...\"] "
 	            "[--no-wait]\n"
+	            "                             [--iiif-base URL] [--iiif-image-api 3|2] "
+	            "[--files-base URL]\n"
 	            "       kogei collection status OUT",
 	.description =
 		"Every session of a collection. LIST.csv has a header row; columns: session (the\n"
@@ -59,7 +69,8 @@ const kg_opt_table kg_collection_table = {
 		"column. Each session is run by kogei process into OUT/<name>/; a failure of one\n"
 		"does not stop the others. Running the same command again runs only the entries\n"
 		"that failed, are pending, or changed (the session, its inputs or its options).\n"
-		"Writes OUT/collection.json and OUT/index.html. Exit status 0 when every entry is\n"
+		"Writes OUT/collection.json, OUT/index.html and OUT/collection-manifest.json (a\n"
+		"IIIF Collection of every object's manifest.json). Exit status 0 when every entry is\n"
 		"done, 1 when any failed (each named on standard error), 2 for bad usage or a bad\n"
 		"list, 3 when the engine fails (sbatch refused, Slurm unreachable).",
 	.positional = "LIST.csv",
@@ -106,6 +117,14 @@ int kg_collection_check(kg_collection_options *o, kg_err *err)
 		if (vals[i] && kg_text_check_controls(names[i], vals[i], &e))
 			return kg_fail(err, KG_EINVAL, "%s", e.msg);
 	}
+	/* the IIIF options: kogei process's check (its names are the same) */
+	kg_process_options po;
+	kg_process_options_default(&po);
+	po.iiif_base = o->iiif_base;
+	po.iiif_image_api = o->iiif_image_api;
+	po.files_base = o->files_base;
+	if (kg_process_access_check(&po, err))
+		return KG_EINVAL;
 	if (o->partition && (!*o->partition || strpbrk(o->partition, " '\"\\")))
 		return kg_fail(err, KG_EINVAL, "--partition '%.64s': expected a partition name",
 		               o->partition);
@@ -469,6 +488,21 @@ static json_t *row_entry(listck *l, int r, const int *col, const int *meta_cols,
 		}
 		free(kv);
 	}
+	/* where the entry's folder is published (collection_iiif.c) */
+	const char *bases[3][2] = {{"--iiif-base", l->o->iiif_base},
+	                           {"--iiif-image-api", NULL},
+	                           {"--files-base", l->o->files_base}};
+	for (int b = 0; b < 3; b++) {
+		char *url = NULL;
+		if (b == 1 && l->o->iiif_image_api) {
+			append_str(args, bases[b][0]);
+			append_str(args, l->o->iiif_image_api);
+		} else if (bases[b][1] && coll_url_join(bases[b][1], name, &url) == 0) {
+			append_str(args, bases[b][0]);
+			append_str(args, url);
+		}
+		free(url);
+	}
 	add_sha(sums, "session.json", sj);
 	if (ref)
 		add_sha(sums, "reference", ref);
@@ -547,9 +581,10 @@ int coll_plan_make(const kg_collection_options *o, const char *out_abs, json_t *
 	} else {
 		char *list_real = realpath(o->list, NULL), when[32];
 		coll_now(when);
-		*plan = json_pack("{s:s, s:s, s:s?, s:s, s:s, s:o}", "format", COLL_PLAN_FORMAT,
-		                  "list", o->list, "list_path", list_real, "engine", o->engine,
-		                  "written", when, "entries", entries);
+		*plan = json_pack("{s:s, s:s, s:s?, s:s, s:s, s:o, s:s?}", "format",
+		                  COLL_PLAN_FORMAT, "list", o->list, "list_path", list_real, "engine",
+		                  o->engine, "written", when, "entries", entries, "files_base",
+		                  o->files_base);
 		entries = NULL;
 		free(list_real);
 		if (!*plan)

@@ -40,6 +40,12 @@ void coll_now(char buf[32]);
 /* A JSON string of s (UTF-8 checked), NULL on failure with err set. */
 json_t *coll_text(const char *what, const char *s, kg_err *err);
 
+/* OUT/collection-manifest.json from the record (collection_iiif.c): a IIIF Collection
+ * of the done entries' object manifests, ids under the plan's files_base or relative. */
+int coll_iiif_write(const char *out, const json_t *plan, const json_t *record, kg_err *err);
+/* base + "/" + name (base's trailing '/' dropped) into *url: 0, or -1 out of memory. */
+int coll_url_join(const char *base, const char *name, char **url);
+
 /* index.html (collection_html.c). */
 int coll_html_write(const char *out, const json_t *record, kg_err *err);
 /* Thumbnails of a done entry's objects (best effort). */

@@ -384,6 +384,10 @@ static json_t *objects_of(const char *out, const char *name, const json_t *given
 			                      json_is_array(w) ? json_incref((json_t *)w) : json_array(),
 			                      "de00_heldout", *de, "grade", *grade, "report",
 			                      "report.html", "photo", json_object_get(obj, "photo"));
+			/* its IIIF manifest, where one was written (OUTDIR-relative) */
+			const json_t *man = json_object_get(json_object_get(obj, "manifest"), "path");
+			if (o && json_is_string(man))
+				json_object_set(o, "manifest", (json_t *)man);
 			if (o && json_object_size(meta))
 				json_object_set(o, "meta", meta);
 			json_decref(meta);
@@ -457,6 +461,8 @@ int kg_collection_finish(const char *out, kg_collection_counts *c, kg_err *err)
 		ret = kg_json_write(record, path, err);
 	if (!ret)
 		ret = coll_html_write(out, record, err);
+	if (!ret)
+		ret = coll_iiif_write(out, plan, record, err);
 	free(path);
 	json_decref(record);
 	json_decref(plan);

@@ -85,6 +85,13 @@ typedef struct kg_process_options {
 	const char *master_illuminant; /* its illuminant, NAME|FILE (NULL: D50) */
 	const char *icc_version;   /* "2" (NULL: the default) or "4": the ICC version of
 	                            * the master's profile and camera.icc */
+	/* the IIIF access copy and manifest (access.c, manifest.c; kg_process_access_table) */
+	const char *access_compression; /* access.tif's tiles: "jpeg" (NULL) or "deflate" */
+	const char *access_quality;     /* their JPEG quality, "1".."100" (NULL: 90) */
+	const char *iiif_base;     /* the IIIF Image API base OUTDIR is served under, or NULL:
+	                            * manifest ids relative */
+	const char *iiif_image_api; /* "3" (NULL) or "2": that server's IIIF Image API */
+	const char *files_base;    /* the URL of OUTDIR's files, or NULL: relative */
 	int threads;               /* 0: all */
 	FILE *progress;            /* progress lines, or NULL */
 	const char *command;       /* how it was invoked, for process.json (may be NULL) */
@@ -194,6 +201,21 @@ int kg_opt_parse_argv(const kg_opt_table *t, int argc, char **argv, void *opts, 
 int kg_opt_from_json(const kg_opt_table *t, const json_t *obj, void *opts, kg_err *err);
 /* "usage: SYNOPSIS", the description and every option with its help. */
 void kg_opt_print_help(FILE *fp, const kg_opt_table *t);
+/* One option of a table set from its value (a flag from NULL): for a front end that
+ * parses its command line itself and takes some options from a table. */
+void kg_opt_set(const kg_opt_spec *s, void *opts, const char *value);
+/* The table's options with their help, as kg_opt_print_help prints them. */
+void kg_opt_print_options(FILE *fp, const kg_opt_table *t);
+
+/* The options of the access copy and the manifests (access.c), declared once for the
+ * command line (kogei process) and JSON requests (the console's process job): fields
+ * of kg_process_options. kg_process_access_check checks their values (kg_process_run
+ * calls it too). */
+extern const kg_opt_table kg_process_access_table;
+int kg_process_access_check(const kg_process_options *o, kg_err *err);
+/* 1 when kogei was built with libvips, which makes the access copy. */
+int kg_access_available(void);
+
 
 /* ==== A BagIt deposit (deposit.c, docs/deposit.md) ===================================
  * kogei deposit RESULTS -o BAG: a BagIt 1.0 bag (RFC 8493) of one processed OUTDIR,
@@ -284,6 +306,8 @@ int kg_bag_verify(const char *bag, FILE *problems, FILE *progress, kg_deposit_su
  *   OUT/collection.json          the record (kogei-collection/1): engine, per entry its
  *                                session, status, reason, job, time and objects
  *   OUT/index.html               the whole collection as one sortable table
+ *   OUT/collection-manifest.json a IIIF Presentation 3 Collection of the objects'
+ *                                manifests (collection_iiif.c)
  *   OUT/.collection/plan.json    the list as checked by the last run (absolute paths,
  *                                each entry's process arguments and key)
  *   OUT/.collection/entries/NAME.json  one entry's last result (done or failed), written
@@ -306,6 +330,10 @@ typedef struct kg_collection_options {
 	const char *sbatch_args;  /* slurm: more sbatch options, split at blanks */
 	int no_wait;              /* slurm: submit and return */
 	int show_progress;        /* --progress: the progress line off a terminal too */
+	const char *iiif_base;    /* kogei process --iiif-base of each entry: URL/<name> */
+	const char *iiif_image_api; /* kogei process --iiif-image-api of each entry */
+	const char *files_base;   /* OUT's files' URL: each entry's --files-base URL/<name>,
+	                           * the ids of OUT/collection-manifest.json */
 	/* set by kg_collection_check */
 	int njobs;
 	FILE *progress;           /* the progress line, or NULL */

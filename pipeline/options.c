@@ -171,9 +171,22 @@ static void print_wrapped(FILE *fp, const char *text)
 	fputc('\n', fp);
 }
 
+void kg_opt_set(const kg_opt_spec *s, void *opts, const char *value)
+{
+	if (s->type == KG_OPT_FLAG)
+		set_flag(opts, s, 1);
+	else
+		set_string(opts, s, value);
+}
+
 void kg_opt_print_help(FILE *fp, const kg_opt_table *t)
 {
 	fprintf(fp, "usage: %s\n\n%s\n\nOptions:\n", t->synopsis, t->description);
+	kg_opt_print_options(fp, t);
+}
+
+void kg_opt_print_options(FILE *fp, const kg_opt_table *t)
+{
 	for (int i = 0; i < t->nspecs; i++) {
 		const kg_opt_spec *s = &t->specs[i];
 		char head[128];

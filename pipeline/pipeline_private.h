@@ -191,6 +191,16 @@ void proc_identity_tiff(const json_t *id, const char *xmp, size_t xmp_len, char 
  * values and measured spectra under D50) and camera.ti3 (ArgyllCMS colprof input),
  * recorded as calibration.camera_icc (null with a warning when not made). */
 int proc_camera_icc(proc *p, const kg_patchset *measured);
+/* The access copy (access.c): OUTDIR/<object>/access.tif from the master in dir, or a
+ * warning saying why there is none; object's "access" (null without one). */
+int proc_access(proc *p, const proc_capture *c, const char *dir, const json_t *identity,
+                json_t *object);
+int proc_access_quality(const proc *p);
+const char *proc_access_compression(const proc *p);
+/* The IIIF manifest (manifest.c): dir/manifest.json of an object with an access copy;
+ * object's "manifest" (null without one). */
+int proc_manifest(proc *p, const proc_capture *c, const char *dir, const json_t *identity,
+                  json_t *object);
 /* Every object capture (process_object.c); objects is the process.json list. */
 int proc_objects(proc *p, json_t *objects, kg_process_summary *sum);
 

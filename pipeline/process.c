@@ -476,7 +476,7 @@ static json_t *jstr_or_null(const char *s)
 	return s ? json_string(s) : json_null();
 }
 
-static json_t *parameters_json(const kg_process_options *o, const char *materials)
+static json_t *parameters_base(const kg_process_options *o, const char *materials)
 {
 	json_t *only = json_null();
 	if (o->nonly > 0) {
@@ -500,6 +500,20 @@ static json_t *parameters_json(const kg_process_options *o, const char *material
 	                 "skip", skip);
 }
 
+static json_t *parameters_json(const kg_process_options *o, const char *materials)
+{
+	json_t *p = parameters_base(o, materials);
+	if (p) /* the access copy and the manifests (access.c) */
+		json_object_set_new(p, "access",
+		                    json_pack("{s:s, s:o, s:o, s:s, s:o}", "compression",
+		                              o->access_compression ? o->access_compression : "jpeg",
+		                              "quality", jstr_or_null(o->access_quality), "iiif_base",
+		                              jstr_or_null(o->iiif_base), "iiif_image_api",
+		                              o->iiif_image_api ? o->iiif_image_api : "3",
+		                              "files_base", jstr_or_null(o->files_base)));
+	return p;
+}
+
 static void iso_time(char *buf, size_t n)
 {
 	time_t t = time(NULL);
@@ -515,6 +529,9 @@ int kg_process_run(const kg_process_options *o, kg_process_summary *summary, kg_
 	    strcmp(o->cube, "weights") && strcmp(o->cube, "none"))
 		return kg_fail(err, KG_EINVAL, "cube format '%s': expected f32, f16, weights or none",
 		               o->cube);
+	int bad = kg_process_access_check(o, err);
+	if (bad)
+		return bad;
 	struct timespec t0, t1;
 	clock_gettime(CLOCK_MONOTONIC, &t0);
 	kg_process_summary sum = {0};

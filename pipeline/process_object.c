@@ -173,6 +173,11 @@ static json_t *object_key(proc *p, const proc_capture *c)
 		json_object_set_new(json_object_get(key, "parameters"), "master",
 		                    json_pack("[ss]", p->o->master_space ? p->o->master_space : "ecirgb-v2",
 		                              p->o->master_illuminant ? p->o->master_illuminant : "D50"));
+	if (key) /* the access copy and the manifest's ids (access.c, manifest.c) */
+		json_object_set_new(json_object_get(key, "parameters"), "access",
+		                    json_pack("[s, i, s*, s*, s*]", proc_access_compression(p),
+		                              proc_access_quality(p), p->o->iiif_base,
+		                              p->o->iiif_image_api, p->o->files_base));
 	/* captures left out change the darks and flats at hand */
 	if (key && p->o->nskip > 0) {
 		json_t *skip = json_array();
@@ -1035,6 +1040,11 @@ static int process_into(proc *p, const proc_capture *c, const char *dir, double 
 			proc_warn(p, json_object_get(object, "warnings"), "%s", json_string_value(w));
 		json_decref(lw);
 	}
+	/* the IIIF access copy and manifest (access.c, manifest.c) */
+	if (!ret)
+		ret = proc_access(p, c, dir, identity, object);
+	if (!ret)
+		ret = proc_manifest(p, c, dir, identity, object);
 	if (!ret)
 		ret = confidence_png(conf, confpng, 1200, err);
 	/* the handoff's materials: each region's decision (classify's material map, written

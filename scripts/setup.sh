@@ -18,6 +18,7 @@ liblcms2-dev liblcms2-utils imagemagick
 libxml2-utils libimage-exiftool-perl
 slurmctld slurmd slurm-client munge
 blender
+libvips-dev libvips-tools iipimage-server lighttpd
 "
 # Node.js and npm (for the glTF validator below) from Debian unless a node and npm are
 # already on the machine (a nodejs package that brings its own npm conflicts with
@@ -59,4 +60,17 @@ elif command -v npm >/dev/null 2>&1; then
 	npm install --silent --no-audit --no-fund --prefix "$VALIDATOR" gltf-validator@2.0.0-dev.3.10
 else
 	echo "setup: npm not found: gltf-validator not installed (the gltf-validator test skips)" >&2
+fi
+
+# OpenSeadragon (npm package openseadragon), the viewer the IIIF test opens the
+# manifests in: into .tools/openseadragon, only when it is not there yet.
+OSD="$ROOT/.tools/openseadragon"
+if [ -f "$OSD/node_modules/openseadragon/package.json" ]; then
+	echo "setup: openseadragon present"
+elif command -v npm >/dev/null 2>&1; then
+	echo "setup: installing openseadragon into $OSD"
+	mkdir -p "$OSD"
+	npm install --silent --no-audit --no-fund --prefix "$OSD" openseadragon@4.1.1
+else
+	echo "setup: npm not found: openseadragon not installed (the IIIF viewer test skips)" >&2
 fi

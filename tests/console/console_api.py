@@ -169,6 +169,15 @@ def view_and_ranges(c):
         st, j = c.json("POST", path, body)
         check(st == 400 and "'%s'" % word in j.get("error", ""),
               "%s %s: expected 400 naming '%s', got %d %s" % (path, body, word, st, j))
+    # kogei process's access copy and manifest options (one table with the command
+    # line's): a bad value names the option, a wrong type or an unknown key the key
+    for body, word in (({"access_quality": "0"}, "--access-quality"),
+                       ({"iiif_base": "ftp://x"}, "--iiif-base"),
+                       ({"access_quality": 90}, "'access_quality'"),
+                       ({"iiif_bas": "http://x"}, "'iiif_bas'")):
+        st, j = c.json("POST", "/api/process", body)
+        check(st == 400 and word in j.get("error", ""),
+              "/api/process %s: expected 400 naming %s, got %d %s" % (body, word, st, j))
     for q in ("-1", "x", "1.5"):
         st, j = c.json("GET", "/api/live?after=" + q)
         check(st == 400 and "'after'" in j.get("error", ""),

@@ -311,6 +311,73 @@ static void test_collection_fronts(void)
 	}
 }
 
+/* kogei process's access copy and manifest options (kg_process_access_table): the same
+ * struct from kg_opt_set (how kogei process's own parser takes them) and from JSON (the
+ * console's process job), checked alike; bad values refused naming the option. */
+static void test_access_fronts(void)
+{
+	const kg_opt_table *t = &kg_process_access_table;
+	kg_process_options a, b;
+	kg_process_options_default(&a);
+	kg_process_options_default(&b);
+	kg_err err = {{0}};
+	const char *values[][2] = {{"access-compression", "deflate"},
+	                           {"access-quality", "80"},
+	                           {"iiif-base", "https://img.example.org/iiif"},
+	                           {"iiif-image-api", "2"},
+	                           {"files-base", "https://img.example.org/files/"}};
+	int n = (int)(sizeof(values) / sizeof(values[0]));
+	CHECK(t->nspecs == n, "access table: %d options, expected %d", t->nspecs, n);
+	json_t *j = json_object();
+	for (int i = 0; i < n; i++) {
+		const kg_opt_spec *s = NULL;
+		for (int k = 0; k < t->nspecs; k++)
+			if (!strcmp(t->specs[k].name, values[i][0]))
+				s = &t->specs[k];
+		CHECK(s != NULL, "no option %s", values[i][0]);
+		if (s)
+			kg_opt_set(s, &a, values[i][1]);
+		char key[64];
+		snprintf(key, sizeof(key), "%s", values[i][0]);
+		for (char *c = key; *c; c++)
+			*c = *c == '-' ? '_' : *c;
+		json_object_set_new(j, key, json_string(values[i][1]));
+	}
+	int ret = kg_opt_from_json(t, j, &b, &err);
+	CHECK(ret == 0 && kg_process_access_check(&b, &err) == 0, "access JSON: %s", err.msg);
+	CHECK(kg_process_access_check(&a, &err) == 0, "access argv: %s", err.msg);
+	CHECK(a.access_compression && b.access_compression &&
+	      !strcmp(a.access_compression, b.access_compression) &&
+	      !strcmp(a.access_quality, b.access_quality) && !strcmp(a.iiif_base, b.iiif_base) &&
+	      !strcmp(a.iiif_image_api, b.iiif_image_api) && !strcmp(a.files_base, b.files_base),
+	      "the same access options from both");
+	json_decref(j);
+	struct {
+		const char *key, *value, *says;
+	} bad[] = {{"access_quality", "0", "--access-quality"},
+	           {"access_quality", "101", "--access-quality"},
+	           {"access_quality", "9x", "--access-quality"},
+	           {"access_compression", "lzw", "--access-compression"},
+	           {"iiif_base", "ftp://x/iiif", "--iiif-base"},
+	           {"iiif_base", "http:///x", "--iiif-base"},
+	           {"files_base", "http://x/a b", "--files-base"},
+	           {"files_base", "http://x/?q", "--files-base"},
+	           {"iiif_image_api", "4", "--iiif-image-api"}};
+	for (size_t i = 0; i < sizeof(bad) / sizeof(bad[0]); i++) {
+		kg_process_options c;
+		kg_process_options_default(&c);
+		j = json_pack("{s:s}", bad[i].key, bad[i].value);
+		ret = kg_opt_from_json(t, j, &c, &err);
+		CHECK(ret == 0 && kg_process_access_check(&c, &err) == KG_EINVAL &&
+		      strstr(err.msg, bad[i].says), "refusal %zu: %s", i, err.msg);
+		json_decref(j);
+	}
+	j = json("{\"render\": false}");
+	CHECK(kg_opt_from_json(t, j, &b, &err) == KG_EINVAL && strstr(err.msg, "unknown option"),
+	      "the console's own key is not the table's: %s", err.msg);
+	json_decref(j);
+}
+
 int main(void)
 {
 	test_argv();
@@ -318,5 +385,6 @@ int main(void)
 	test_help();
 	test_deposit_fronts();
 	test_collection_fronts();
+	test_access_fronts();
 	return kg_test_done("options");
 }
