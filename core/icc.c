@@ -381,10 +381,11 @@ static int linear_matrix(const unsigned char *icc, size_t len, double inv[9])
 }
 
 /* The highlight map, a row of blocks at a time: each block's mean Y and worst case. */
-enum { MAP_NONE, MAP_GAMUT, MAP_ABOVE, MAP_ABOVE_CLIPPED };
+enum { MAP_NONE, MAP_LOW, MAP_TOP, MAP_ABOVE };
 
 typedef struct map_acc {
 	int step, ow, oh, W;
+	int box[4]; /* the counted pixels' blocks: x0, y0, x1, y1 */
 	unsigned char *out, *worst;
 	double *sum;
 	int *n;
@@ -402,12 +403,20 @@ static int map_open(map_acc *m, int W, int H, int max_side)
 	m->worst = calloc((size_t)m->ow, 1);
 	m->sum = calloc((size_t)m->ow, sizeof(double));
 	m->n = calloc((size_t)m->ow, sizeof(int));
+	m->box[0] = m->ow;
+	m->box[1] = m->oh;
 	return m->out && m->worst && m->sum && m->n ? 0 : -1;
 }
 
-static void map_pixel(map_acc *m, int x, double y, int cat)
+static void map_pixel(map_acc *m, int x, int row, double y, int counted, int cat)
 {
-	int b = x / m->step;
+	int b = x / m->step, r = row / m->step;
+	if (counted) {
+		m->box[0] = b < m->box[0] ? b : m->box[0];
+		m->box[1] = r < m->box[1] ? r : m->box[1];
+		m->box[2] = b + 1 > m->box[2] ? b + 1 : m->box[2];
+		m->box[3] = r + 1 > m->box[3] ? r + 1 : m->box[3];
+	}
 	m->sum[b] += isfinite(y) ? y : 0;
 	m->n[b]++;
 	if (cat > m->worst[b])
@@ -417,7 +426,7 @@ static void map_pixel(map_acc *m, int x, double y, int cat)
 static void map_flush(map_acc *m, int row)
 {
 	static const unsigned char colour[4][3] = {
-		{0, 0, 0}, {KG_MASTER_MAP_GAMUT}, {KG_MASTER_MAP_ABOVE}, {KG_MASTER_MAP_ABOVE_CLIPPED}};
+		{0, 0, 0}, {KG_MASTER_MAP_LOW}, {KG_MASTER_MAP_TOP}, {KG_MASTER_MAP_ABOVE}};
 	unsigned char *o = m->out + 3 * (size_t)row * (size_t)m->ow;
 	for (int b = 0; b < m->ow; b++) {
 		if (m->worst[b]) {
@@ -463,6 +472,7 @@ int kg_master_write(const char *cube, const kg_illuminant *ill, kg_icc_space spa
 	if (x) {
 		x->map = NULL;
 		x->map_w = x->map_h = 0;
+		memset(x->box, 0, sizeof(x->box));
 		x->stats = st;
 	}
 	int ret = kg_envi_open(cube, &e, err);
@@ -592,17 +602,16 @@ int kg_master_write(const char *cube, const kg_illuminant *ill, kg_icc_space spa
 					st.counted++;
 					st.clipped += cl;
 					st.clipped_top += top;
-					st.clipped_gamut += cl && !above;
+					st.clipped_low += cl && !top;
 					st.above_white += above;
 					st.above_clipped += above && top;
 					st.band_above_one += bmax[xx] > 1;
 					st.max_y = fmax(st.max_y, yrow[xx]);
 					st.max_reflectance = fmax(st.max_reflectance, bmax[xx]);
-					cat = above ? (top ? MAP_ABOVE_CLIPPED : MAP_ABOVE)
-					      : cl ? MAP_GAMUT : MAP_NONE;
+					cat = above ? MAP_ABOVE : top ? MAP_TOP : cl ? MAP_LOW : MAP_NONE;
 				}
 				if (want_map)
-					map_pixel(&map, xx, yrow[xx], cat);
+					map_pixel(&map, xx, y, yrow[xx], counted, cat);
 			}
 			if (want_map && ((y + 1) % map.step == 0 || y == H - 1))
 				map_flush(&map, y / map.step);
@@ -622,6 +631,8 @@ int kg_master_write(const char *cube, const kg_illuminant *ill, kg_icc_space spa
 			x->map = map.out;
 			x->map_w = map.ow;
 			x->map_h = map.oh;
+			if (st.counted)
+				memcpy(x->box, map.box, sizeof(x->box));
 			map.out = NULL;
 		}
 	}

@@ -72,20 +72,23 @@ typedef struct kg_tiff_identity {
 typedef struct kg_master_stats {
 	long counted;
 	long clipped;        /* a channel outside 0..1 in the 16-bit master, either end */
-	long clipped_top;    /* a channel above 1: written as 65535 */
-	long clipped_gamut;  /* clipped with Y <= 1: a colour outside the space, not brightness */
+	long clipped_top;    /* a channel above 1 (above the space's white): written as 65535 */
+	long clipped_low;    /* clipped, but no channel above 1: one below 0, a chromaticity
+	                      * outside the space's primaries */
 	long above_white;    /* Y > 1: brighter than the diffuse white */
-	long above_clipped;  /* of those, clipped at the top in the 16-bit master */
+	long above_clipped;  /* of those, clipped at the top in the 16-bit master (all of
+	                      * them but for rounding: the white is 1, 1, 1, so Y > 1 puts a
+	                      * channel above 1) */
 	long band_above_one; /* a band's reflectance estimate above 1 */
 	double max_y;           /* the largest Y (0 when none counted) */
 	double max_reflectance; /* the largest band value */
 } kg_master_stats;
 
-/* The highlight map's pixel colours (display sRGB, 0..255): the master's Y in grey
- * elsewhere. */
-#define KG_MASTER_MAP_ABOVE_CLIPPED 0xe0, 0x10, 0x10 /* above white, clipped in master.tif */
-#define KG_MASTER_MAP_ABOVE 0xff, 0xb0, 0x00         /* above white, kept in master.tif */
-#define KG_MASTER_MAP_GAMUT 0x20, 0x90, 0xff         /* clipped, Y <= 1: outside the space */
+/* The highlight map's pixel colours (display sRGB, 0..255), worst first; the master's
+ * Y in grey elsewhere. */
+#define KG_MASTER_MAP_ABOVE 0xe0, 0x10, 0x10  /* above white (at full scale in master.tif) */
+#define KG_MASTER_MAP_TOP 0xff, 0xb0, 0x00    /* a channel at full scale, Y <= 1 */
+#define KG_MASTER_MAP_LOW 0x20, 0x90, 0xff    /* clipped below 0 only: outside the primaries */
 
 typedef struct kg_master_extra {
 	/* in: not NULL: also the linear float master there (32-bit IEEE float RGB, LZW with
@@ -100,6 +103,9 @@ typedef struct kg_master_extra {
 	int map_max_side;
 	unsigned char *map; /* out: map_w x map_h 8-bit RGB (caller frees), or NULL */
 	int map_w, map_h;
+	/* out: the smallest box of the map holding every counted pixel (the object):
+	 * x0 <= x < x1, y0 <= y < y1; all 0 when none was counted */
+	int box[4];
 	kg_master_stats stats; /* out */
 } kg_master_extra;
 

@@ -60,42 +60,63 @@ int proc_master_check(proc *p)
 	return ret;
 }
 
-/* The highlight map as a figure (core/plot): the map, a title with the share and a
- * legend of its colours. */
+/* The highlight map as a figure (core/plot): the object's part of the map (the box of
+ * its lit pixels, enlarged when small), a title with the share and a legend of the
+ * colours with their counts. */
 static int highlight_figure(const kg_master_extra *x, const char *space, const char *path,
                             const char *counted, kg_err *err)
 {
-	static const unsigned char colours[3][3] = {{KG_MASTER_MAP_ABOVE_CLIPPED},
-	                                            {KG_MASTER_MAP_ABOVE},
-	                                            {KG_MASTER_MAP_GAMUT}};
+	static const unsigned char colours[3][3] = {{KG_MASTER_MAP_ABOVE}, {KG_MASTER_MAP_TOP},
+	                                            {KG_MASTER_MAP_LOW}};
 	const kg_master_stats *s = &x->stats;
 	double n = s->counted > 0 ? (double)s->counted : 1;
+	/* the box, 8 map pixels around it, and a whole zoom that brings it to about 600 */
+	int x0 = x->box[0] - 8 > 0 ? x->box[0] - 8 : 0, y0 = x->box[1] - 8 > 0 ? x->box[1] - 8 : 0;
+	int x1 = x->box[2] + 8 < x->map_w ? x->box[2] + 8 : x->map_w;
+	int y1 = x->box[3] + 8 < x->map_h ? x->box[3] + 8 : x->map_h;
+	if (x->box[2] <= x->box[0] || x->box[3] <= x->box[1]) {
+		x0 = y0 = 0;
+		x1 = x->map_w;
+		y1 = x->map_h;
+	}
+	int bw = x1 - x0, bh = y1 - y0, zoom = 1;
+	while ((zoom + 1) * bw <= 600 && (zoom + 1) * bh <= 600 && zoom < 8)
+		zoom++;
+	int iw = zoom * bw, ih = zoom * bh;
+	unsigned char *img = malloc(3 * (size_t)iw * (size_t)ih);
+	if (!img)
+		return kg_fail(err, KG_ENOMEM, "out of memory");
+	for (int yy = 0; yy < ih; yy++)
+		for (int xx = 0; xx < iw; xx++)
+			memcpy(img + 3 * ((size_t)yy * iw + xx),
+			       x->map + 3 * ((size_t)(y0 + yy / zoom) * x->map_w + x0 + xx / zoom), 3);
 	enum { margin = 20, head = 64, line = 22 };
-	int width = x->map_w + 2 * margin < 620 ? 620 : x->map_w + 2 * margin;
-	int height = head + x->map_h + 16 + 4 * line + margin;
+	int width = iw + 2 * margin < 640 ? 640 : iw + 2 * margin;
+	int height = head + ih + 16 + 3 * line + margin;
 	kg_plot *p = NULL;
 	int ret = kg_plot_new(width, height, &p, err);
-	if (ret)
+	if (ret) {
+		free(img);
 		return ret;
+	}
 	kg_plot_text(p, width / 2.0, 28, 16, KG_ALIGN_CENTER, NULL,
-	             "Highlights above the diffuse white: %.1f %% of the %s", 100 * s->above_white / n,
-	             counted);
+	             "Highlights above the diffuse white: %.1f %% of the %s",
+	             100 * s->above_white / n, counted);
 	kg_plot_text(p, width / 2.0, 50, 12, KG_ALIGN_CENTER, NULL,
-	             "Y up to %.2f (1 = the perfect diffuser); grey: the master's Y, 0..1", s->max_y);
-	kg_plot_image(p, (width - x->map_w) / 2.0, head, x->map, x->map_w, x->map_h);
+	             "Y up to %.2f (1: the perfect diffuser); grey: the master's Y, 0..1%s", s->max_y,
+	             zoom > 1 ? "; enlarged" : "");
+	kg_plot_image(p, (width - iw) / 2.0, head, img, iw, ih);
+	free(img);
 	char label[3][200];
-	snprintf(label[0], sizeof(label[0]), "above white, clipped in master.tif: %ld (%.1f %%)",
-	         s->above_clipped, 100 * s->above_clipped / n);
-	snprintf(label[1], sizeof(label[1]), "above white, within master.tif: %ld (%.1f %%)",
-	         s->above_white - s->above_clipped, 100 * (s->above_white - s->above_clipped) / n);
-	snprintf(label[2], sizeof(label[2]), "not above white, outside %s, clipped: %ld (%.1f %%)",
-	         space, s->clipped_gamut, 100 * s->clipped_gamut / n);
-	/* Y > 1 puts a channel above 1 (the white is 1, 1, 1), so the second is rare:
-	 * listed when there is one */
-	for (int k = 0, row = 0; k < 3; k++) {
-		if (k == 1 && s->above_white == s->above_clipped)
-			continue;
-		double y = head + x->map_h + 16 + row++ * line, rgb[3];
+	snprintf(label[0], sizeof(label[0]), "above the diffuse white (Y > 1), at full scale in "
+	         "master.tif: %ld (%.1f %%)", s->above_white, 100 * s->above_white / n);
+	snprintf(label[1], sizeof(label[1]), "a channel at full scale in master.tif, Y <= 1 "
+	         "(bright, saturated): %ld (%.1f %%)", s->clipped_top - s->above_clipped,
+	         100 * (s->clipped_top - s->above_clipped) / n);
+	snprintf(label[2], sizeof(label[2]), "a channel below 0: outside %s's primaries, clipped: "
+	         "%ld (%.1f %%)", space, s->clipped_low, 100 * s->clipped_low / n);
+	for (int k = 0; k < 3; k++) {
+		double y = head + ih + 16 + k * line, rgb[3];
 		for (int c = 0; c < 3; c++)
 			rgb[c] = colours[k][c] / 255.0;
 		kg_plot_fill_rect(p, margin, y, 16, 14, rgb);
@@ -114,10 +135,10 @@ static json_t *highlights_json(const kg_master_stats *s, const char *counted, co
 	json_t *h = json_pack("{s:I, s:s, s:I, s:I, s:I, s:I, s:I}", "counted",
 	                      (json_int_t)s->counted, "counted_what", counted, "above_white",
 	                      (json_int_t)s->above_white, "clipped_in_master",
-	                      (json_int_t)s->clipped_top, "above_white_clipped",
-	                      (json_int_t)s->above_clipped, "band_above_one",
-	                      (json_int_t)s->band_above_one, "outside_space",
-	                      (json_int_t)s->clipped_gamut);
+	                      (json_int_t)s->clipped_top, "clipped_not_above_white",
+	                      (json_int_t)(s->clipped_top - s->above_clipped), "outside_primaries",
+	                      (json_int_t)s->clipped_low, "band_above_one",
+	                      (json_int_t)s->band_above_one);
 	if (!h)
 		return NULL;
 	struct { const char *key; double v; } num[] = {
@@ -209,23 +230,27 @@ int proc_master(proc *p, const proc_capture *c, const char *dir, const char *cub
 		json_object_set_new(object, "highlights",
 		                    highlights_json(st, counted, mapped ? mrel : NULL));
 		double n = st->counted > 0 ? (double)st->counted : 1;
+		long top_only = st->clipped_top - st->above_clipped;
 		if (st->above_white > 0)
 			proc_warn(p, warnings, "%s: highlights above the diffuse white: %.1f %% of the "
 			          "%s (%ld of %ld) are brighter than the perfect diffuser under %s "
-			          "(Y up to %.2f; %.1f %% have a band's reflectance above 1, up to %.2f): "
-			          "specular reflection (polished metal, glaze) or more light on the "
-			          "object than on the chart, not a colour error; master.tif clips %.1f %% "
-			          "of the %s at full scale, master_linear.tif keeps them (float, diffuse "
-			          "white 1.0)", c->name, 100 * st->above_white / n, counted,
-			          st->above_white, st->counted, ill_arg(p), st->max_y,
-			          100 * st->band_above_one / n, st->max_reflectance,
-			          100 * st->clipped_top / n, counted);
-		if (st->clipped_gamut > 0)
-			proc_warn(p, warnings, "%s: master.tif: %ld %s outside %s, clipped%s", c->name,
-			          st->clipped_gamut, counted, kg_icc_space_description(s),
-			          st->above_white > 0 ? " (colours the space does not hold, not "
-			                                "counting those brighter than the diffuse white)"
-			                              : "");
+			          "(Y up to %.2f): specular reflection (polished metal, glaze) or more "
+			          "light on the object than on the chart, not a colour error; master.tif "
+			          "holds them at full scale, master_linear.tif keeps their values (float, "
+			          "diffuse white 1.0)", c->name, 100 * st->above_white / n, counted,
+			          st->above_white, st->counted, ill_arg(p), st->max_y);
+		if (top_only > 0)
+			proc_warn(p, warnings, "%s: master.tif: %ld %s (%.1f %%) at full scale in a "
+			          "channel though no brighter than the diffuse white: bright saturated "
+			          "colours, above %s's white in that channel (a band's reflectance "
+			          "estimate is above 1 in %.1f %% of the %s, up to %.2f); "
+			          "master_linear.tif keeps them", c->name, top_only, counted,
+			          100 * top_only / n, kg_icc_space_description(s),
+			          100 * st->band_above_one / n, counted, st->max_reflectance);
+		if (st->clipped_low > 0)
+			proc_warn(p, warnings, "%s: master.tif: %ld %s outside %s (a channel below 0: "
+			          "outside its primaries), clipped; master_linear.tif keeps them",
+			          c->name, st->clipped_low, counted, kg_icc_space_description(s));
 	}
 	free(x.map);
 	kg_illuminant_free(&ill);

@@ -93,17 +93,17 @@ static void linear_master(const char *dir, const kg_illuminant *d50, cmsHPROFILE
 		      err.msg);
 		const kg_master_stats *st = &x.stats;
 		CHECK(st->counted == 6 && st->above_white == 2 && st->above_clipped == 2 &&
-		      st->band_above_one == 3 && st->clipped_top == 2 && st->clipped_gamut == 0,
+		      st->band_above_one == 3 && st->clipped_top == 2 && st->clipped_low == 0,
 		      "%s: counted %ld, above white %ld (clipped %ld), a band above 1 %ld, clipped "
 		      "at the top %ld, outside the space %ld: expected 6, 2 (2), 3, 2, 0",
 		      kg_icc_space_name(s), st->counted, st->above_white, st->above_clipped,
-		      st->band_above_one, st->clipped_top, st->clipped_gamut);
+		      st->band_above_one, st->clipped_top, st->clipped_low);
 		CHECK_NEAR(st->max_y, 1.5, 1e-6, "largest Y of the lit pixels");
 		CHECK_NEAR(st->max_reflectance, 1.5, 1e-6, "largest band of the lit pixels");
 		/* the map: 1:1, the bright pixels red, the others grey (Y, sRGB-encoded) */
 		CHECK(x.map && x.map_w == W2 && x.map_h == H2, "map %dx%d", x.map_w, x.map_h);
 		if (x.map) {
-			const unsigned char red[3] = {KG_MASTER_MAP_ABOVE_CLIPPED};
+			const unsigned char red[3] = {KG_MASTER_MAP_ABOVE};
 			CHECK(!memcmp(x.map, red, 3) && !memcmp(x.map + 6, red, 3), "bright pixels "
 			      "not red in the map");
 			int g = (int)lround(255 * (1.055 * pow(0.9, 1 / 2.4) - 0.055));
@@ -112,6 +112,9 @@ static void linear_master(const char *dir, const kg_illuminant *d50, cmsHPROFILE
 			      x.map[5], g);
 			CHECK(x.map[9] == 255 && x.map[10] == 255, "the unlit bright pixel is grey "
 			      "(white) in the map, not marked");
+			/* the counted pixels: all but 3 (unlit) and 4 (NaN): the whole map */
+			CHECK(x.box[0] == 0 && x.box[1] == 0 && x.box[2] == W2 && x.box[3] == H2,
+			      "box %d %d %d %d", x.box[0], x.box[1], x.box[2], x.box[3]);
 		}
 		free(x.map);
 		/* the float master read back with libtiff */
