@@ -426,7 +426,7 @@ static void put_highlights(report *r, int i)
 		return;
 	double n = jnum(h, "counted"), above = jnum(h, "above_white");
 	double fa = jnum(h, "above_white_fraction"), fc = jnum(h, "clipped_in_master_fraction");
-	double fb = jnum(h, "band_above_one_fraction"), outside = jnum(h, "outside_space");
+	double fb = jnum(h, "band_above_one_fraction"), outside = jnum(h, "outside_primaries");
 	const char *what = json_string_value(json_object_get(h, "counted_what"));
 	const char *map = json_string_value(json_object_get(h, "map"));
 	const char *ill = opt_str(r, "objects[%d].master.illuminant", i);
@@ -438,24 +438,27 @@ static void put_highlights(report *r, int i)
 		      jnum(h, "max_y"), jnum(h, "max_reflectance"));
 	} else {
 		textf(r, "%.1f %% of the %s (%.0f of %.0f) are brighter than the diffuse white (the "
-		      "perfect diffuser under %s), Y up to %.2f; %.1f %% have a band's reflectance "
-		      "estimate above 1 (up to %.2f). That is specular reflection (polished metal, "
-		      "glaze) or more light on the object than on the chart, not a colour error. "
-		      "master.tif holds them at full scale (%.1f %% of the %s clipped at its top); "
-		      "master_linear.tif keeps their values.", 100 * fa, what, above, n,
-		      ill ? ill : "", jnum(h, "max_y"), 100 * fb, jnum(h, "max_reflectance"),
-		      100 * fc, what);
+		      "perfect diffuser under %s), Y up to %.2f: specular reflection (polished "
+		      "metal, glaze) or more light on the object than on the chart, not a colour "
+		      "error. master.tif holds them at full scale (with bright saturated colours, "
+		      "%.1f %% of the %s are at full scale in a channel there); master_linear.tif "
+		      "keeps their values.", 100 * fa, what, above, n, ill ? ill : "",
+		      jnum(h, "max_y"), 100 * fc, what);
 	}
+	textf(r, " A band's reflectance estimate is above 1 in %.1f %% of the %s (up to %.2f).",
+	      100 * fb, what, jnum(h, "max_reflectance"));
 	html(r, "</p>\n");
 	if (map) {
 		html(r, "<figure>");
 		put_image_file(r, map, "highlight map", "photo");
 		html(r, "<figcaption>");
 		textf(r, "Highlight map: red, the %s above the diffuse white (%.1f %%), at full "
-		      "scale in master.tif; blue, the %.0f not above it but outside the master's "
-		      "space, clipped; grey, the master's Y (0..1) elsewhere. A map pixel is a block "
-		      "of the image when the image is larger than 800 pixels a side, coloured when "
-		      "any of its pixels is.", what, 100 * fa, outside);
+		      "scale in master.tif; orange, the %.0f at full scale in a channel though no "
+		      "brighter than the diffuse white; blue, the %.0f outside the master's "
+		      "primaries, clipped; grey, the master's Y (0..1) elsewhere. Cropped to the "
+		      "lit part of the image; a map pixel is a block of the image when the image is "
+		      "larger than 800 pixels a side, coloured when any of its pixels is.", what,
+		      100 * fa, jnum(h, "clipped_not_above_white"), outside);
 		html(r, "</figcaption></figure>\n");
 	}
 }
