@@ -36,6 +36,7 @@ static const char help_process[] =
 	"  camera.json, reference.json (lab session), chart_overlay.png, process.json,\n"
 	"  conformance.json, camera.icc + camera.ti3, report.html, and per object capture\n"
 	"  <capture>/cube.hdr, labels.hdr (+ .json, .png, _confidence), master.tif,\n"
+	"  master_linear.tif (float, linear, diffuse white 1.0), highlights.png,\n"
 	"  photo.png, confidence.png, scene.json (renders with `kogei render --scene`),\n"
 	"  render.png, object.glb and object_mitsuba.xml (+ PLYs), access.tif (the IIIF\n"
 	"  access copy, with libvips) and manifest.json (IIIF Presentation 3).\n"

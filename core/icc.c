@@ -5,6 +5,7 @@
 #include <errno.h>
 #include <math.h>
 #include <stdint.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
@@ -111,8 +112,9 @@ int kg_icc_available(void)
 	return 1;
 }
 
-/* The space's profile (NULL for none or when LittleCMS fails). */
-static cmsHPROFILE space_profile(kg_icc_space s, kg_icc_version v)
+/* The space's profile (NULL for none or when LittleCMS fails); linear: with linear
+ * curves, for the float master. */
+static cmsHPROFILE space_profile(kg_icc_space s, kg_icc_version v, int linear)
 {
 	cmsCIExyY white;
 	cmsCIExyYTRIPLE prim;
@@ -140,6 +142,10 @@ static cmsHPROFILE space_profile(kg_icc_space s, kg_icc_version v)
 	default:
 		return NULL;
 	}
+	if (curve && linear) {
+		cmsFreeToneCurve(curve);
+		curve = cmsBuildGamma(NULL, 1.0);
+	}
 	if (!curve)
 		return NULL;
 	cmsToneCurve *curves[3] = {curve, curve, curve};
@@ -148,8 +154,11 @@ static cmsHPROFILE space_profile(kg_icc_space s, kg_icc_version v)
 	if (!h)
 		return NULL;
 	cmsSetProfileVersion(h, v == KG_ICC_V4 ? 4.3 : 2.4);
+	char text[160];
+	snprintf(text, sizeof(text), "%s%s", kg_icc_space_description(s),
+	         linear ? " linear (scene-referred, diffuse white 1.0)" : "");
 	cmsMLU *desc = cmsMLUalloc(NULL, 1), *cprt = cmsMLUalloc(NULL, 1);
-	int ok = desc && cprt && cmsMLUsetASCII(desc, "en", "US", kg_icc_space_description(s)) &&
+	int ok = desc && cprt && cmsMLUsetASCII(desc, "en", "US", text) &&
 	         cmsMLUsetASCII(cprt, "en", "US", "No copyright, use freely") &&
 	         cmsWriteTag(h, cmsSigProfileDescriptionTag, desc) &&
 	         cmsWriteTag(h, cmsSigCopyrightTag, cprt);
@@ -162,12 +171,12 @@ static cmsHPROFILE space_profile(kg_icc_space s, kg_icc_version v)
 	return h;
 }
 
-int kg_icc_profile_bytes(kg_icc_space s, kg_icc_version v, unsigned char **buf, size_t *len,
-                         kg_err *err)
+static int profile_bytes(kg_icc_space s, kg_icc_version v, int linear, unsigned char **buf,
+                         size_t *len, kg_err *err)
 {
 	*buf = NULL;
 	*len = 0;
-	cmsHPROFILE h = space_profile(s, v);
+	cmsHPROFILE h = space_profile(s, v, linear);
 	cmsUInt32Number n = 0;
 	if (!h || !cmsSaveProfileToMem(h, NULL, &n) || n == 0 || !(*buf = malloc(n)) ||
 	    !cmsSaveProfileToMem(h, *buf, &n)) {
@@ -175,12 +184,24 @@ int kg_icc_profile_bytes(kg_icc_space s, kg_icc_version v, unsigned char **buf, 
 			cmsCloseProfile(h);
 		free(*buf);
 		*buf = NULL;
-		return kg_fail(err, KG_EIO, "LittleCMS: cannot build the %s profile",
-		               kg_icc_space_description(s));
+		return kg_fail(err, KG_EIO, "LittleCMS: cannot build the %s%s profile",
+		               kg_icc_space_description(s), linear ? " linear" : "");
 	}
 	cmsCloseProfile(h);
 	*len = n;
 	return 0;
+}
+
+int kg_icc_profile_bytes(kg_icc_space s, kg_icc_version v, unsigned char **buf, size_t *len,
+                         kg_err *err)
+{
+	return profile_bytes(s, v, 0, buf, len, err);
+}
+
+int kg_icc_linear_profile_bytes(kg_icc_space s, kg_icc_version v, unsigned char **buf,
+                                size_t *len, kg_err *err)
+{
+	return profile_bytes(s, v, 1, buf, len, err);
 }
 
 /* IEEE binary16 bits to a float (kogei's f16 cubes: "kogei sample format = ieee-half",
@@ -249,22 +270,211 @@ static int identity_tags(TIFF *tif, const kg_tiff_identity *id, const char *path
 	return 0;
 }
 
+/* A TIFF written through a temporary file (kg_outfile): started, and closed with it
+ * committed or, after an error, removed. */
+typedef struct tiff_out {
+	kg_outfile o;
+	int have_out;
+	TIFF *tif;
+} tiff_out;
+
+static int tiff_start(tiff_out *t, const char *path, kg_err *err)
+{
+	int ret = kg_outfile_open(&t->o, path, 0, err);
+	if (ret)
+		return ret;
+	t->have_out = 1;
+	int fd = dup(fileno(t->o.fp));
+	t->tif = fd < 0 ? NULL : TIFFFdOpen(fd, path, "w");
+	if (!t->tif) {
+		if (fd >= 0)
+			close(fd);
+		return kg_fail(err, KG_EIO, "%s: cannot start TIFF", path);
+	}
+	return 0;
+}
+
+static int tiff_finish(tiff_out *t, const char *path, int ret, kg_err *err)
+{
+	if (t->tif) {
+		if (!ret && !TIFFFlush(t->tif))
+			ret = kg_fail(err, KG_EIO, "%s: cannot write TIFF", path);
+		TIFFClose(t->tif);
+		t->tif = NULL;
+	}
+	if (t->have_out) {
+		t->have_out = 0;
+		if (ret)
+			kg_outfile_abort(&t->o);
+		else
+			ret = kg_outfile_commit(&t->o, err);
+	}
+	return ret;
+}
+
+/* The tags of a master: W x H RGB of `bits` bits (16-bit unsigned or 32-bit IEEE
+ * float), LZW, which TIFF 6.0 itself defines (Deflate is an extension that validators
+ * flag and archives' guidelines do not list), with the horizontal predictor (the
+ * floating-point one, TIFF Technical Note 3, for float), in strips of about 64 KiB:
+ * the codec restarts at every strip; the profile and the identity. */
+static int master_tags(TIFF *tif, int W, int H, int bits, const unsigned char *icc,
+                       size_t icc_len, const kg_tiff_identity *id, const char *path,
+                       kg_err *err)
+{
+	int fl = bits == 32;
+	size_t px = (size_t)bits / 8 * 3;
+	if (!(TIFFSetField(tif, TIFFTAG_IMAGEWIDTH, (uint32_t)W) &&
+	      TIFFSetField(tif, TIFFTAG_IMAGELENGTH, (uint32_t)H) &&
+	      TIFFSetField(tif, TIFFTAG_SAMPLESPERPIXEL, (uint16_t)3) &&
+	      TIFFSetField(tif, TIFFTAG_BITSPERSAMPLE, (uint16_t)bits) &&
+	      TIFFSetField(tif, TIFFTAG_SAMPLEFORMAT, fl ? SAMPLEFORMAT_IEEEFP : SAMPLEFORMAT_UINT) &&
+	      TIFFSetField(tif, TIFFTAG_PHOTOMETRIC, PHOTOMETRIC_RGB) &&
+	      TIFFSetField(tif, TIFFTAG_PLANARCONFIG, PLANARCONFIG_CONTIG) &&
+	      TIFFSetField(tif, TIFFTAG_COMPRESSION, COMPRESSION_LZW) &&
+	      TIFFSetField(tif, TIFFTAG_PREDICTOR, fl ? PREDICTOR_FLOATINGPOINT
+	                                              : PREDICTOR_HORIZONTAL) &&
+	      TIFFSetField(tif, TIFFTAG_ROWSPERSTRIP,
+	                   TIFFDefaultStripSize(tif, (uint32_t)(65536 / (px * (size_t)W) + 1))) &&
+	      TIFFSetField(tif, TIFFTAG_SOFTWARE, "kogei " KG_VERSION) &&
+	      TIFFSetField(tif, TIFFTAG_ICCPROFILE, (uint32_t)icc_len, icc)))
+		return kg_fail(err, KG_EIO, "%s: cannot set the TIFF tags", path);
+	return identity_tags(tif, id, path, err);
+}
+
+/* XYZ (D50, white Y = 1) to the linear profile's RGB: the inverse of the matrix of its
+ * colorant tags, as a reader of the file applies them. */
+static int linear_matrix(const unsigned char *icc, size_t len, double inv[9])
+{
+	cmsHPROFILE h = cmsOpenProfileFromMem(icc, (cmsUInt32Number)len);
+	if (!h)
+		return -1;
+	const cmsTagSignature tags[3] = {cmsSigRedColorantTag, cmsSigGreenColorantTag,
+	                                 cmsSigBlueColorantTag};
+	double M[9];
+	int ok = 1;
+	for (int c = 0; c < 3 && ok; c++) {
+		const cmsCIEXYZ *v = cmsReadTag(h, tags[c]);
+		if (!v) {
+			ok = 0;
+			break;
+		}
+		M[c] = v->X;
+		M[3 + c] = v->Y;
+		M[6 + c] = v->Z;
+	}
+	cmsCloseProfile(h);
+	double det = ok ? M[0] * (M[4] * M[8] - M[5] * M[7]) - M[1] * (M[3] * M[8] - M[5] * M[6]) +
+	                  M[2] * (M[3] * M[7] - M[4] * M[6])
+	                : 0;
+	if (!(fabs(det) > 1e-12))
+		return -1;
+	inv[0] = (M[4] * M[8] - M[5] * M[7]) / det;
+	inv[1] = (M[2] * M[7] - M[1] * M[8]) / det;
+	inv[2] = (M[1] * M[5] - M[2] * M[4]) / det;
+	inv[3] = (M[5] * M[6] - M[3] * M[8]) / det;
+	inv[4] = (M[0] * M[8] - M[2] * M[6]) / det;
+	inv[5] = (M[2] * M[3] - M[0] * M[5]) / det;
+	inv[6] = (M[3] * M[7] - M[4] * M[6]) / det;
+	inv[7] = (M[1] * M[6] - M[0] * M[7]) / det;
+	inv[8] = (M[0] * M[4] - M[1] * M[3]) / det;
+	return 0;
+}
+
+/* The highlight map, a row of blocks at a time: each block's mean Y and worst case. */
+enum { MAP_NONE, MAP_LOW, MAP_TOP, MAP_ABOVE };
+
+typedef struct map_acc {
+	int step, ow, oh, W;
+	int box[4]; /* the counted pixels' blocks: x0, y0, x1, y1 */
+	unsigned char *out, *worst;
+	double *sum;
+	int *n;
+} map_acc;
+
+static int map_open(map_acc *m, int W, int H, int max_side)
+{
+	m->W = W;
+	m->step = 1;
+	while ((W + m->step - 1) / m->step > max_side || (H + m->step - 1) / m->step > max_side)
+		m->step++;
+	m->ow = (W + m->step - 1) / m->step;
+	m->oh = (H + m->step - 1) / m->step;
+	m->out = malloc(3 * (size_t)m->ow * (size_t)m->oh);
+	m->worst = calloc((size_t)m->ow, 1);
+	m->sum = calloc((size_t)m->ow, sizeof(double));
+	m->n = calloc((size_t)m->ow, sizeof(int));
+	m->box[0] = m->ow;
+	m->box[1] = m->oh;
+	return m->out && m->worst && m->sum && m->n ? 0 : -1;
+}
+
+static void map_pixel(map_acc *m, int x, int row, double y, int counted, int cat)
+{
+	int b = x / m->step, r = row / m->step;
+	if (counted) {
+		m->box[0] = b < m->box[0] ? b : m->box[0];
+		m->box[1] = r < m->box[1] ? r : m->box[1];
+		m->box[2] = b + 1 > m->box[2] ? b + 1 : m->box[2];
+		m->box[3] = r + 1 > m->box[3] ? r + 1 : m->box[3];
+	}
+	m->sum[b] += isfinite(y) ? y : 0;
+	m->n[b]++;
+	if (cat > m->worst[b])
+		m->worst[b] = (unsigned char)cat;
+}
+
+static void map_flush(map_acc *m, int row)
+{
+	static const unsigned char colour[4][3] = {
+		{0, 0, 0}, {KG_MASTER_MAP_LOW}, {KG_MASTER_MAP_TOP}, {KG_MASTER_MAP_ABOVE}};
+	unsigned char *o = m->out + 3 * (size_t)row * (size_t)m->ow;
+	for (int b = 0; b < m->ow; b++) {
+		if (m->worst[b]) {
+			memcpy(o + 3 * b, colour[m->worst[b]], 3);
+		} else {
+			/* the grey: Y (0..1) encoded for the display (sRGB) */
+			double y = m->n[b] ? fmin(fmax(m->sum[b] / m->n[b], 0), 1) : 0;
+			y = y <= 0.0031308 ? 12.92 * y : 1.055 * pow(y, 1 / 2.4) - 0.055;
+			o[3 * b] = o[3 * b + 1] = o[3 * b + 2] = (unsigned char)lround(255 * y);
+		}
+		m->worst[b] = 0;
+		m->sum[b] = 0;
+		m->n[b] = 0;
+	}
+}
+
+static void map_close(map_acc *m)
+{
+	free(m->out);
+	free(m->worst);
+	free(m->sum);
+	free(m->n);
+}
+
 int kg_master_write(const char *cube, const kg_illuminant *ill, kg_icc_space space,
                     kg_icc_version ver, const char *path, const unsigned char *lit,
-                    const kg_tiff_identity *id, long *clipped, kg_err *err)
+                    const kg_tiff_identity *id, kg_master_extra *x, kg_err *err)
 {
 	kg_envi *e = NULL;
 	cmsHPROFILE xyz = NULL, rgb = NULL;
 	cmsHTRANSFORM t = NULL;
-	unsigned char *icc = NULL;
-	size_t icc_len = 0;
-	float *band = NULL;
-	double *xyzrow = NULL, *out = NULL;
+	unsigned char *icc = NULL, *licc = NULL;
+	size_t icc_len = 0, licc_len = 0;
+	float *band = NULL, *frow = NULL;
+	double *xyzrow = NULL, *out = NULL, inv[9];
+	double *yrow = NULL, *bmax = NULL;
 	uint16_t *row = NULL;
-	TIFF *tif = NULL;
-	kg_outfile o;
-	int have_out = 0;
-	long nclip = 0;
+	tiff_out o = {0}, lo = {0};
+	map_acc map = {0};
+	kg_master_stats st = {0};
+	const char *lpath = x ? x->linear_path : NULL;
+	int want_map = x && x->map_max_side > 0;
+	if (x) {
+		x->map = NULL;
+		x->map_w = x->map_h = 0;
+		memset(x->box, 0, sizeof(x->box));
+		x->stats = st;
+	}
 	int ret = kg_envi_open(cube, &e, err);
 	if (ret)
 		return ret;
@@ -280,6 +490,12 @@ int kg_master_write(const char *cube, const kg_illuminant *ill, kg_icc_space spa
 			              b + 1, m->wavelength[b], 400.0 + 5.0 * b);
 	if (!ret)
 		ret = kg_icc_profile_bytes(space, ver, &icc, &icc_len, err);
+	/* the linear values: the float master's, and what says a channel is above 1 (the
+	 * transform below clamps at the top without saying so) */
+	if (!ret && !(ret = kg_icc_linear_profile_bytes(space, ver, &licc, &licc_len, err)) &&
+	    linear_matrix(licc, licc_len, inv))
+		ret = kg_fail(err, KG_EIO, "LittleCMS: cannot read the %s linear profile's matrix",
+		              kg_icc_space_description(space));
 	if (!ret) {
 		/* encoded through the profile it embeds, so a reader decodes what was meant
 		 * within that profile's precision: a v2 profile holds eciRGB v2's L* curve as
@@ -302,38 +518,19 @@ int kg_master_write(const char *cube, const kg_illuminant *ill, kg_icc_space spa
 		xyzrow = malloc(sizeof(double) * 3 * (size_t)W);
 		row = malloc(sizeof(uint16_t) * 3 * (size_t)W);
 		out = malloc(sizeof(double) * 3 * (size_t)W);
-		if (!band || !xyzrow || !row || !out)
+		frow = malloc(sizeof(float) * 3 * (size_t)W);
+		yrow = malloc(sizeof(double) * (size_t)W);
+		bmax = malloc(sizeof(double) * (size_t)W);
+		if (!band || !xyzrow || !row || !out || !frow || !yrow || !bmax ||
+		    (want_map && map_open(&map, W, H, x->map_max_side)))
 			ret = kg_fail(err, KG_ENOMEM, "out of memory");
 	}
-	if (!ret && !(ret = kg_outfile_open(&o, path, 0, err))) {
-		have_out = 1;
-		int fd = dup(fileno(o.fp));
-		tif = fd < 0 ? NULL : TIFFFdOpen(fd, path, "w");
-		if (!tif) {
-			if (fd >= 0)
-				close(fd);
-			ret = kg_fail(err, KG_EIO, "%s: cannot start TIFF", path);
-		}
-	}
-	if (!ret && !(TIFFSetField(tif, TIFFTAG_IMAGEWIDTH, (uint32_t)W) &&
-	              TIFFSetField(tif, TIFFTAG_IMAGELENGTH, (uint32_t)H) &&
-	              TIFFSetField(tif, TIFFTAG_SAMPLESPERPIXEL, (uint16_t)3) &&
-	              TIFFSetField(tif, TIFFTAG_BITSPERSAMPLE, (uint16_t)16) &&
-	              TIFFSetField(tif, TIFFTAG_SAMPLEFORMAT, SAMPLEFORMAT_UINT) &&
-	              TIFFSetField(tif, TIFFTAG_PHOTOMETRIC, PHOTOMETRIC_RGB) &&
-	              TIFFSetField(tif, TIFFTAG_PLANARCONFIG, PLANARCONFIG_CONTIG) &&
-	              /* LZW, which TIFF 6.0 itself defines (Deflate is an extension that
-	               * validators flag and archives' guidelines do not list), in strips
-	               * of about 64 KiB: the codec restarts at every strip */
-	              TIFFSetField(tif, TIFFTAG_COMPRESSION, COMPRESSION_LZW) &&
-	              TIFFSetField(tif, TIFFTAG_PREDICTOR, PREDICTOR_HORIZONTAL) &&
-	              TIFFSetField(tif, TIFFTAG_ROWSPERSTRIP,
-	                           TIFFDefaultStripSize(tif, (uint32_t)(65536 / (6 * (size_t)W) + 1))) &&
-	              TIFFSetField(tif, TIFFTAG_SOFTWARE, "kogei " KG_VERSION) &&
-	              TIFFSetField(tif, TIFFTAG_ICCPROFILE, (uint32_t)icc_len, icc)))
-		ret = kg_fail(err, KG_EIO, "%s: cannot set the TIFF tags", path);
 	if (!ret)
-		ret = identity_tags(tif, id, path, err);
+		ret = tiff_start(&o, path, err);
+	if (!ret)
+		ret = master_tags(o.tif, W, H, 16, icc, icc_len, id, path, err);
+	if (!ret && lpath && !(ret = tiff_start(&lo, lpath, err)))
+		ret = master_tags(lo.tif, W, H, 32, licc, licc_len, id, lpath, err);
 	kg_xyz_weights wts;
 	/* the ICC D50 (ICC.1:2010, 0.9642, 1, 0.8249): what the profile connection space
 	 * calls white; the illuminant's own white (on kogei's grid) is adapted to it */
@@ -348,10 +545,11 @@ int kg_master_write(const char *cube, const kg_illuminant *ill, kg_icc_space spa
 		for (size_t i = 0; half && !ret && i < (size_t)W * h * KG_NBANDS; i++)
 			band[i] = half_to_float(band[i]);
 		for (int yr = 0; !ret && yr < h; yr++) {
-			for (int x = 0; x < W; x++) {
-				const float *s = band + ((size_t)yr * W + x) * KG_NBANDS;
+			for (int xx = 0; xx < W; xx++) {
+				const float *s = band + ((size_t)yr * W + xx) * KG_NBANDS;
 				kg_xyz c = {0, 0, 0};
 				int finite = 1;
+				double mx = -INFINITY;
 				for (int b = 0; b < KG_NBANDS; b++) {
 					if (!isfinite(s[b])) {
 						finite = 0;
@@ -360,21 +558,33 @@ int kg_master_write(const char *cube, const kg_illuminant *ill, kg_icc_space spa
 					c.X += wts.w[0][b] * s[b];
 					c.Y += wts.w[1][b] * s[b];
 					c.Z += wts.w[2][b] * s[b];
+					mx = s[b] > mx ? s[b] : mx;
 				}
+				/* Y relative to the diffuse white under the illuminant (NaN: none) */
+				yrow[xx] = finite ? c.Y / 100.0 : NAN;
+				bmax[xx] = mx;
 				if (!finite)
 					c = (kg_xyz){0, 0, 0};
 				else
 					c = kg_bradford_adapt(c, white, d50);
 				/* the ICC connection space: the white at Y = 1, D50 */
-				xyzrow[3 * x] = c.X / 100.0;
-				xyzrow[3 * x + 1] = c.Y / 100.0;
-				xyzrow[3 * x + 2] = c.Z / 100.0;
+				xyzrow[3 * xx] = c.X / 100.0;
+				xyzrow[3 * xx + 1] = c.Y / 100.0;
+				xyzrow[3 * xx + 2] = c.Z / 100.0;
 			}
 			cmsDoTransform(t, xyzrow, out, (cmsUInt32Number)W);
-			for (int x = 0; x < W; x++) {
-				int cl = 0;
+			int y = y0 + yr;
+			for (int xx = 0; xx < W; xx++) {
+				int cl = 0, top = 0;
+				const double *q = xyzrow + 3 * xx;
 				for (int ch = 0; ch < 3; ch++) {
-					double v = out[3 * x + ch];
+					double lin = inv[3 * ch] * q[0] + inv[3 * ch + 1] * q[1] +
+					             inv[3 * ch + 2] * q[2];
+					frow[3 * xx + ch] = (float)lin;
+					/* above the space's white in that channel: at full scale in the
+					 * master (a part in 10^5 above: the profile's own rounding) */
+					top |= lin > 1 + 1e-5;
+					double v = out[3 * xx + ch];
 					if (!(v >= 0)) {
 						cl |= v < 0;
 						v = 0;
@@ -382,41 +592,69 @@ int kg_master_write(const char *cube, const kg_illuminant *ill, kg_icc_space spa
 						cl = 1;
 						v = 1;
 					}
-					row[3 * x + ch] = (uint16_t)lround(v * 65535.0);
+					row[3 * xx + ch] = (uint16_t)lround(v * 65535.0);
 				}
-				size_t i = (size_t)(y0 + yr) * (size_t)W + (size_t)x;
-				if (cl && (!lit || (lit[i / 8] >> (i % 8) & 1)))
-					nclip++;
+				cl |= top;
+				size_t i = (size_t)y * (size_t)W + (size_t)xx;
+				int counted = isfinite(yrow[xx]) && (!lit || (lit[i / 8] >> (i % 8) & 1));
+				int above = counted && yrow[xx] > 1, cat = MAP_NONE;
+				if (counted) {
+					st.counted++;
+					st.clipped += cl;
+					st.clipped_top += top;
+					st.clipped_low += cl && !top;
+					st.above_white += above;
+					st.above_clipped += above && top;
+					st.band_above_one += bmax[xx] > 1;
+					st.max_y = fmax(st.max_y, yrow[xx]);
+					st.max_reflectance = fmax(st.max_reflectance, bmax[xx]);
+					cat = above ? MAP_ABOVE : top ? MAP_TOP : cl ? MAP_LOW : MAP_NONE;
+				}
+				if (want_map)
+					map_pixel(&map, xx, y, yrow[xx], counted, cat);
 			}
-			if (TIFFWriteScanline(tif, row, (uint32_t)(y0 + yr), 0) != 1)
+			if (want_map && ((y + 1) % map.step == 0 || y == H - 1))
+				map_flush(&map, y / map.step);
+			if (TIFFWriteScanline(o.tif, row, (uint32_t)y, 0) != 1)
 				ret = kg_fail(err, KG_EIO, "%s: cannot write TIFF", path);
+			if (!ret && lpath && TIFFWriteScanline(lo.tif, frow, (uint32_t)y, 0) != 1)
+				ret = kg_fail(err, KG_EIO, "%s: cannot write TIFF", lpath);
 		}
 	}
-	if (tif) {
-		if (!ret && !TIFFFlush(tif))
-			ret = kg_fail(err, KG_EIO, "%s: cannot write TIFF", path);
-		TIFFClose(tif);
+	/* the float master first: a failure there leaves neither file */
+	if (lpath)
+		ret = tiff_finish(&lo, lpath, ret, err);
+	ret = tiff_finish(&o, path, ret, err);
+	if (!ret && x) {
+		x->stats = st;
+		if (want_map) {
+			x->map = map.out;
+			x->map_w = map.ow;
+			x->map_h = map.oh;
+			if (st.counted)
+				memcpy(x->box, map.box, sizeof(x->box));
+			map.out = NULL;
+		}
 	}
-	if (have_out) {
-		if (ret)
-			kg_outfile_abort(&o);
-		else
-			ret = kg_outfile_commit(&o, err);
-	}
+	if (ret && lpath)
+		remove(lpath);
 	if (t)
 		cmsDeleteTransform(t);
 	if (xyz)
 		cmsCloseProfile(xyz);
 	if (rgb)
 		cmsCloseProfile(rgb);
+	map_close(&map);
 	free(icc);
+	free(licc);
 	free(band);
 	free(xyzrow);
 	free(out);
 	free(row);
+	free(frow);
+	free(yrow);
+	free(bmax);
 	kg_envi_close(&e);
-	if (clipped)
-		*clipped = nclip;
 	return ret;
 }
 
@@ -499,12 +737,21 @@ int kg_icc_profile_bytes(kg_icc_space s, kg_icc_version v, unsigned char **buf, 
 	               kg_icc_space_description(s));
 }
 
+int kg_icc_linear_profile_bytes(kg_icc_space s, kg_icc_version v, unsigned char **buf,
+                                size_t *len, kg_err *err)
+{
+	return kg_icc_profile_bytes(s, v, buf, len, err);
+}
+
 int kg_master_write(const char *cube, const kg_illuminant *ill, kg_icc_space space,
                     kg_icc_version ver, const char *path, const unsigned char *lit,
-                    const kg_tiff_identity *id, long *clipped, kg_err *err)
+                    const kg_tiff_identity *id, kg_master_extra *x, kg_err *err)
 {
-	if (clipped)
-		*clipped = 0;
+	if (x) {
+		x->map = NULL;
+		x->map_w = x->map_h = 0;
+		x->stats = (kg_master_stats){0};
+	}
 	return kg_fail(err, KG_ENOTSUP, "%s: kogei was built without LittleCMS", path);
 }
 

@@ -50,9 +50,7 @@ int kg_icc_profile_bytes(kg_icc_space s, kg_icc_version v, unsigned char **buf, 
  * to D50 with Bradford when ill's white is not D50 (the ICC connection space) and
  * converted, relative colorimetric, into `space`: 16-bit RGB, the profile embedded
  * (TIFFTAG_ICCPROFILE). Non-finite estimates are written as black; colours outside
- * the space are clipped. Written to a temporary file and renamed. *clipped (may be
- * NULL) counts the pixels with a channel clipped among those set in lit (a bitmap,
- * pixel i = y * width + x at bit i % 8 of byte i / 8; NULL: every pixel counts). */
+ * the space are clipped. Written to a temporary file and renamed. */
 typedef struct kg_tiff_identity {
 	/* ASCII tags (UTF-8 text without control characters), each written when not NULL:
 	 * ImageDescription (270), Artist (315), Copyright (33432); DateTime (306) as TIFF
@@ -66,11 +64,61 @@ typedef struct kg_tiff_identity {
 	double pixels_per_mm;
 } kg_tiff_identity;
 
+/* What the master shows of the counted pixels: those set in lit (a bitmap, pixel
+ * i = y * width + x at bit i % 8 of byte i / 8; NULL: every pixel) that have a finite
+ * estimate. Y is relative to the perfect diffuser under the illuminant (1 = the
+ * diffuse white); a surface that reflects more than it toward the camera (a specular
+ * highlight on polished metal) or that is lit more than the chart was is above it. */
+typedef struct kg_master_stats {
+	long counted;
+	long clipped;        /* a channel outside 0..1 in the 16-bit master, either end */
+	long clipped_top;    /* a channel above 1 (above the space's white): written as 65535 */
+	long clipped_low;    /* clipped, but no channel above 1: one below 0, a chromaticity
+	                      * outside the space's primaries */
+	long above_white;    /* Y > 1: brighter than the diffuse white */
+	long above_clipped;  /* of those, clipped at the top in the 16-bit master (all of
+	                      * them but for rounding: the white is 1, 1, 1, so Y > 1 puts a
+	                      * channel above 1) */
+	long band_above_one; /* a band's reflectance estimate above 1 */
+	double max_y;           /* the largest Y (0 when none counted) */
+	double max_reflectance; /* the largest band value */
+} kg_master_stats;
+
+/* The highlight map's pixel colours (display sRGB, 0..255), worst first; the master's
+ * Y in grey elsewhere. */
+#define KG_MASTER_MAP_ABOVE 0xe0, 0x10, 0x10  /* above white (at full scale in master.tif) */
+#define KG_MASTER_MAP_TOP 0xff, 0xb0, 0x00    /* a channel at full scale, Y <= 1 */
+#define KG_MASTER_MAP_LOW 0x20, 0x90, 0xff    /* clipped below 0 only: outside the primaries */
+
+typedef struct kg_master_extra {
+	/* in: not NULL: also the linear float master there (32-bit IEEE float RGB, LZW with
+	 * the floating-point predictor): the same colours in the space's primaries and
+	 * white, linear, scene-referred with the diffuse white at 1.0, unclipped (above 1
+	 * and below 0 kept), with a linear-curve ICC profile of those primaries embedded
+	 * (kg_icc_linear_profile_bytes), the same identity tags */
+	const char *linear_path;
+	/* in: > 0: *map gets the highlight map, at most this many pixels a side (each map
+	 * pixel a block of the image: its colour the block's worst case, above white and
+	 * clipped first, its grey the block's mean Y) */
+	int map_max_side;
+	unsigned char *map; /* out: map_w x map_h 8-bit RGB (caller frees), or NULL */
+	int map_w, map_h;
+	/* out: the smallest box of the map holding every counted pixel (the object):
+	 * x0 <= x < x1, y0 <= y < y1; all 0 when none was counted */
+	int box[4];
+	kg_master_stats stats; /* out */
+} kg_master_extra;
+
 /* id (may be NULL: no identity, resolution unit none) gives the tags that tie the
- * master to its object. */
+ * master to its object; x (may be NULL) the linear master, the map and the counts. */
 int kg_master_write(const char *cube, const kg_illuminant *ill, kg_icc_space space,
                     kg_icc_version v, const char *path, const unsigned char *lit,
-                    const kg_tiff_identity *id, long *clipped, kg_err *err);
+                    const kg_tiff_identity *id, kg_master_extra *x, kg_err *err);
+
+/* The linear profile of a space: its white and primaries with linear curves (gamma 1),
+ * described "<space's description> linear (scene-referred, diffuse white 1.0)". */
+int kg_icc_linear_profile_bytes(kg_icc_space s, kg_icc_version v, unsigned char **buf,
+                                size_t *len, kg_err *err);
 
 /* A camera input profile (ICC version v, class input, matrix/shaper with linear curves) from
  * n >= 3 chart patches: rgb their camera values (linear, 0..1) and xyz their XYZ

@@ -12,7 +12,8 @@
  *   OUTDIR/report.html            the operator's report (self-contained)
  *   OUTDIR/<capture>/             per object capture: cube.hdr (+ _mask), labels.hdr
  *                                 (+ .json, .png, _confidence, _mask), photo.png,
- *                                 confidence.png, scene.json (kogei-scene/1), render.png
+ *                                 confidence.png, scene.json (kogei-scene/1), render.png,
+ *                                 master.tif, master_linear.tif, highlights.png
  *
  * Steps: the chart capture's image, dark- and flat-corrected where acquire did not
  * already; the chart found and sampled (calib/); flagged patches left out of M2; M2

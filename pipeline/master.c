@@ -1,6 +1,9 @@
 /* kogei process, the master: each object's reflectance cube rendered under D50 (or
  * --master-illuminant) into --master-space as OUTDIR/<object>/master.tif, a 16-bit
- * RGB TIFF with the space's ICC profile embedded (core/icc.c, LittleCMS). */
+ * RGB TIFF with the space's ICC profile embedded (core/icc.c, LittleCMS), and beside
+ * it master_linear.tif, the same colours linear in 32-bit float, unclipped; the
+ * highlights above the diffuse white counted (objects[].highlights), warned and
+ * mapped (highlights.png). */
 #include <errno.h>
 #include <math.h>
 #include <stdio.h>
@@ -8,6 +11,7 @@
 #include <string.h>
 
 #include "icc.h"
+#include "plot.h"
 #include "kg_config.h"
 #include "pipeline_private.h"
 
@@ -56,12 +60,109 @@ int proc_master_check(proc *p)
 	return ret;
 }
 
+/* The highlight map as a figure (core/plot): the object's part of the map (the box of
+ * its lit pixels, enlarged when small), a title with the share and a legend of the
+ * colours with their counts. */
+static int highlight_figure(const kg_master_extra *x, const char *space, const char *path,
+                            const char *counted, kg_err *err)
+{
+	static const unsigned char colours[3][3] = {{KG_MASTER_MAP_ABOVE}, {KG_MASTER_MAP_TOP},
+	                                            {KG_MASTER_MAP_LOW}};
+	const kg_master_stats *s = &x->stats;
+	double n = s->counted > 0 ? (double)s->counted : 1;
+	/* the box, 8 map pixels around it, and a whole zoom that brings it to about 600 */
+	int x0 = x->box[0] - 8 > 0 ? x->box[0] - 8 : 0, y0 = x->box[1] - 8 > 0 ? x->box[1] - 8 : 0;
+	int x1 = x->box[2] + 8 < x->map_w ? x->box[2] + 8 : x->map_w;
+	int y1 = x->box[3] + 8 < x->map_h ? x->box[3] + 8 : x->map_h;
+	if (x->box[2] <= x->box[0] || x->box[3] <= x->box[1]) {
+		x0 = y0 = 0;
+		x1 = x->map_w;
+		y1 = x->map_h;
+	}
+	int bw = x1 - x0, bh = y1 - y0, zoom = 1;
+	while ((zoom + 1) * bw <= 600 && (zoom + 1) * bh <= 600 && zoom < 8)
+		zoom++;
+	int iw = zoom * bw, ih = zoom * bh;
+	unsigned char *img = malloc(3 * (size_t)iw * (size_t)ih);
+	if (!img)
+		return kg_fail(err, KG_ENOMEM, "out of memory");
+	for (int yy = 0; yy < ih; yy++)
+		for (int xx = 0; xx < iw; xx++)
+			memcpy(img + 3 * ((size_t)yy * iw + xx),
+			       x->map + 3 * ((size_t)(y0 + yy / zoom) * x->map_w + x0 + xx / zoom), 3);
+	enum { margin = 20, head = 64, line = 22 };
+	int width = iw + 2 * margin < 640 ? 640 : iw + 2 * margin;
+	int height = head + ih + 16 + 3 * line + margin;
+	kg_plot *p = NULL;
+	int ret = kg_plot_new(width, height, &p, err);
+	if (ret) {
+		free(img);
+		return ret;
+	}
+	kg_plot_text(p, width / 2.0, 28, 16, KG_ALIGN_CENTER, NULL,
+	             "Highlights above the diffuse white: %.1f %% of the %s",
+	             100 * s->above_white / n, counted);
+	kg_plot_text(p, width / 2.0, 50, 12, KG_ALIGN_CENTER, NULL,
+	             "Y up to %.2f (1: the perfect diffuser); grey: the master's Y, 0..1%s", s->max_y,
+	             zoom > 1 ? "; enlarged" : "");
+	kg_plot_image(p, (width - iw) / 2.0, head, img, iw, ih);
+	free(img);
+	char label[3][200];
+	snprintf(label[0], sizeof(label[0]), "above the diffuse white (Y > 1), at full scale in "
+	         "master.tif: %ld (%.1f %%)", s->above_white, 100 * s->above_white / n);
+	snprintf(label[1], sizeof(label[1]), "a channel at full scale in master.tif, Y <= 1 "
+	         "(bright, saturated): %ld (%.1f %%)", s->clipped_top - s->above_clipped,
+	         100 * (s->clipped_top - s->above_clipped) / n);
+	snprintf(label[2], sizeof(label[2]), "a channel below 0: outside %s's primaries, clipped: "
+	         "%ld (%.1f %%)", space, s->clipped_low, 100 * s->clipped_low / n);
+	for (int k = 0; k < 3; k++) {
+		double y = head + ih + 16 + k * line, rgb[3];
+		for (int c = 0; c < 3; c++)
+			rgb[c] = colours[k][c] / 255.0;
+		kg_plot_fill_rect(p, margin, y, 16, 14, rgb);
+		kg_plot_text(p, margin + 24, y + 12, 12, KG_ALIGN_LEFT, NULL, "%s", label[k]);
+	}
+	ret = kg_plot_save_png(p, path, err);
+	kg_plot_free(&p);
+	return ret;
+}
+
+/* objects[].highlights: the counts of kg_master_write, as fractions of the counted
+ * (lit) pixels, and the map. */
+static json_t *highlights_json(const kg_master_stats *s, const char *counted, const char *map)
+{
+	double n = s->counted > 0 ? (double)s->counted : NAN;
+	json_t *h = json_pack("{s:I, s:s, s:I, s:I, s:I, s:I, s:I}", "counted",
+	                      (json_int_t)s->counted, "counted_what", counted, "above_white",
+	                      (json_int_t)s->above_white, "clipped_in_master",
+	                      (json_int_t)s->clipped_top, "clipped_not_above_white",
+	                      (json_int_t)(s->clipped_top - s->above_clipped), "outside_primaries",
+	                      (json_int_t)s->clipped_low, "band_above_one",
+	                      (json_int_t)s->band_above_one);
+	if (!h)
+		return NULL;
+	struct { const char *key; double v; } num[] = {
+		{"above_white_fraction", s->above_white / n},
+		{"clipped_in_master_fraction", s->clipped_top / n},
+		{"band_above_one_fraction", s->band_above_one / n},
+		{"max_y", s->counted ? s->max_y : NAN},
+		{"max_reflectance", s->counted ? s->max_reflectance : NAN},
+	};
+	for (size_t i = 0; i < sizeof(num) / sizeof(num[0]); i++)
+		json_object_set_new(h, num[i].key, isfinite(num[i].v) ? json_real(num[i].v)
+		                                                      : json_null());
+	json_object_set_new(h, "map", map ? json_string(map) : json_null());
+	return h;
+}
+
 int proc_master(proc *p, const proc_capture *c, const char *dir, const char *cube,
                 const unsigned char *lit, const json_t *identity, json_t *object)
 {
 	kg_icc_space s;
 	json_t *warnings = json_object_get(object, "warnings");
 	json_object_set_new(object, "master", json_null());
+	json_object_set_new(object, "master_linear", json_null());
+	json_object_set_new(object, "highlights", json_null());
 	if (kg_icc_space_parse(space_arg(p), &s, p->err))
 		return KG_EINVAL; /* checked before: not reached */
 	if (s == KG_ICC_NONE)
@@ -79,9 +180,11 @@ int proc_master(proc *p, const proc_capture *c, const char *dir, const char *cub
 	kg_illuminant *ill = NULL;
 	int ret = kg_illuminant_lookup(ill_arg(p), &ill, p->err);
 	char *path = ret ? NULL : kg_path_join(dir, "master.tif");
-	if (!ret && !path)
+	char *lpath = ret ? NULL : kg_path_join(dir, "master_linear.tif");
+	char *mpath = ret ? NULL : kg_path_join(dir, "highlights.png");
+	if (!ret && (!path || !lpath || !mpath))
 		ret = kg_fail(p->err, KG_ENOMEM, "out of memory");
-	long clipped = 0;
+	kg_master_extra x = {.linear_path = lpath, .map_max_side = 800};
 	/* its identity: the TIFF tags and the XMP packet (identity.c) */
 	char *xmp = NULL, datetime[20];
 	size_t xmp_len = 0;
@@ -91,27 +194,69 @@ int proc_master(proc *p, const proc_capture *c, const char *dir, const char *cub
 	if (!ret)
 		proc_identity_tiff(identity, xmp, xmp_len, datetime, &tid);
 	if (!ret) {
-		proc_progress(p, "%s: master.tif (%s, %s)", c->name, kg_icc_space_description(s),
-		              ill->name);
-		ret = kg_master_write(cube, ill, s, icc_version(p), path, lit, &tid, &clipped, p->err);
+		proc_progress(p, "%s: master.tif and master_linear.tif (%s, %s)", c->name,
+		              kg_icc_space_description(s), ill->name);
+		ret = kg_master_write(cube, ill, s, icc_version(p), path, lit, &tid, &x, p->err);
 	}
 	free(xmp);
+	const kg_master_stats *st = &x.stats;
+	const char *counted = lit ? "lit pixels" : "pixels";
+	/* the map, when there is something to show */
+	int mapped = !ret && x.map && (st->above_white > 0 || st->clipped > 0);
+	if (mapped)
+		ret = highlight_figure(&x, kg_icc_space_description(s), mpath, counted, p->err);
 	if (!ret) {
-		char rel[300];
+		char rel[300], lrel[300], mrel[300];
 		snprintf(rel, sizeof(rel), "%s/master.tif", c->name);
+		snprintf(lrel, sizeof(lrel), "%s/master_linear.tif", c->name);
+		snprintf(mrel, sizeof(mrel), "%s/highlights.png", c->name);
 		json_object_set_new(object, "master",
 		                    json_pack("{s:s, s:s, s:s, s:s, s:s, s:I, s:s}", "path", rel,
 		                              "space", kg_icc_space_name(s), "profile",
 		                              kg_icc_space_description(s), "illuminant", ill_arg(p),
 		                              "intent", "relative colorimetric", "clipped_pixels",
-		                              (json_int_t)clipped, "clipped_counted",
-		                              lit ? "lit pixels" : "all pixels"));
-		if (clipped > 0)
-			proc_warn(p, warnings, "%s: master.tif: %ld %spixels outside %s, clipped",
-			          c->name, clipped, lit ? "lit " : "", kg_icc_space_description(s));
+		                              (json_int_t)st->clipped, "clipped_counted", counted));
+		char lprof[200];
+		snprintf(lprof, sizeof(lprof), "%s linear (scene-referred, diffuse white 1.0)",
+		         kg_icc_space_description(s));
+		json_object_set_new(object, "master_linear",
+		                    json_pack("{s:s, s:s, s:s, s:s, s:s, s:s, s:f}", "path", lrel,
+		                              "space", kg_icc_space_name(s), "profile", lprof,
+		                              "illuminant", ill_arg(p), "sample_format",
+		                              "32-bit IEEE float", "encoding",
+		                              "linear, scene-referred: the diffuse white (the perfect "
+		                              "diffuser under the illuminant) at 1.0, unclipped",
+		                              "white", 1.0));
+		json_object_set_new(object, "highlights",
+		                    highlights_json(st, counted, mapped ? mrel : NULL));
+		double n = st->counted > 0 ? (double)st->counted : 1;
+		long top_only = st->clipped_top - st->above_clipped;
+		if (st->above_white > 0)
+			proc_warn(p, warnings, "%s: highlights above the diffuse white: %.1f %% of the "
+			          "%s (%ld of %ld) are brighter than the perfect diffuser under %s "
+			          "(Y up to %.2f): specular reflection (polished metal, glaze) or more "
+			          "light on the object than on the chart, not a colour error; master.tif "
+			          "holds them at full scale, master_linear.tif keeps their values (float, "
+			          "diffuse white 1.0)", c->name, 100 * st->above_white / n, counted,
+			          st->above_white, st->counted, ill_arg(p), st->max_y);
+		if (top_only > 0)
+			proc_warn(p, warnings, "%s: master.tif: %ld %s (%.1f %%) at full scale in a "
+			          "channel though no brighter than the diffuse white: bright saturated "
+			          "colours, above %s's white in that channel (a band's reflectance "
+			          "estimate is above 1 in %.1f %% of the %s, up to %.2f); "
+			          "master_linear.tif keeps them", c->name, top_only, counted,
+			          100 * top_only / n, kg_icc_space_description(s),
+			          100 * st->band_above_one / n, counted, st->max_reflectance);
+		if (st->clipped_low > 0)
+			proc_warn(p, warnings, "%s: master.tif: %ld %s outside %s (a channel below 0: "
+			          "outside its primaries), clipped; master_linear.tif keeps them",
+			          c->name, st->clipped_low, counted, kg_icc_space_description(s));
 	}
+	free(x.map);
 	kg_illuminant_free(&ill);
 	free(path);
+	free(lpath);
+	free(mpath);
 	return ret;
 }
 

@@ -169,10 +169,12 @@ static json_t *object_key(proc *p, const proc_capture *c)
 	                                : "");
 	if (key) /* what the files say of the object (identity.c) */
 		json_object_set_new(key, "identity", proc_identity(p, c));
-	if (key) /* the master's space and illuminant (master.c) */
+	if (key) /* the master's space and illuminant (master.c); the third: what it writes
+	          * (an object of a run that wrote no master_linear.tif is processed again) */
 		json_object_set_new(json_object_get(key, "parameters"), "master",
-		                    json_pack("[ss]", p->o->master_space ? p->o->master_space : "ecirgb-v2",
-		                              p->o->master_illuminant ? p->o->master_illuminant : "D50"));
+		                    json_pack("[sss]", p->o->master_space ? p->o->master_space : "ecirgb-v2",
+		                              p->o->master_illuminant ? p->o->master_illuminant : "D50",
+		                              "master.tif master_linear.tif highlights"));
 	if (key) /* the access copy and the manifest's ids (access.c, manifest.c) */
 		json_object_set_new(json_object_get(key, "parameters"), "access",
 		                    json_pack("[s, i, s*, s*, s*]", proc_access_compression(p),

@@ -365,6 +365,19 @@ static void put_link(report *r, const char *rel)
 		html(r, " <span class=\"fail\">missing</span>");
 }
 
+/* An object's key, or NULL when absent (optional sections: camera-space labels, the
+ * linear master, the highlights). */
+static json_t *object_key(report *r, int i, const char *key)
+{
+	return json_object_get(json_array_get(json_object_get(r->root, "objects"), (size_t)i), key);
+}
+
+static double jnum(const json_t *o, const char *key)
+{
+	const json_t *v = json_object_get(o, key);
+	return json_is_number(v) ? json_number_value(v) : NAN;
+}
+
 /* The object's master (objects[i].master): a link, its colour space and illuminant. */
 static void put_master(report *r, int i)
 {
@@ -389,10 +402,65 @@ static void put_master(report *r, int i)
 	double clipped = opt_num(r, "objects[%d].master.clipped_pixels", i);
 	if (isfinite(clipped) && clipped > 0) {
 		const char *counted = opt_str(r, "objects[%d].master.clipped_counted", i);
-		textf(r, "; %.0f %s outside the space, clipped", clipped,
+		textf(r, "; %.0f %s clipped: outside the space or brighter than its white", clipped,
 		      counted && !strcmp(counted, "lit pixels") ? "lit pixels" : "pixels");
 	}
 	html(r, ")");
+	/* the linear float master beside it (absent in files of earlier versions) */
+	json_t *lin = object_key(r, i, "master_linear");
+	const char *lrel = json_string_value(json_object_get(lin, "path"));
+	if (lrel) {
+		html(r, ", linear master ");
+		put_link(r, lrel);
+		html(r, " (32-bit float, the same primaries and white, linear, the diffuse white at "
+		        "1.0, unclipped)");
+	}
+}
+
+/* The highlights above the diffuse white (objects[i].highlights, absent in files of
+ * earlier versions): their share of the lit pixels, and where they are. */
+static void put_highlights(report *r, int i)
+{
+	json_t *h = object_key(r, i, "highlights");
+	if (!json_is_object(h))
+		return;
+	double n = jnum(h, "counted"), above = jnum(h, "above_white");
+	double fa = jnum(h, "above_white_fraction"), fc = jnum(h, "clipped_in_master_fraction");
+	double fb = jnum(h, "band_above_one_fraction"), outside = jnum(h, "outside_primaries");
+	const char *what = json_string_value(json_object_get(h, "counted_what"));
+	const char *map = json_string_value(json_object_get(h, "map"));
+	const char *ill = opt_str(r, "objects[%d].master.illuminant", i);
+	what = what ? what : "lit pixels";
+	html(r, "<h4>Highlights above the diffuse white</h4>\n<p>");
+	if (!(above > 0)) {
+		textf(r, "None: no %s brighter than the diffuse white (the perfect diffuser under "
+		      "%s; Y up to %.2f, a band's reflectance up to %.2f).", what, ill ? ill : "",
+		      jnum(h, "max_y"), jnum(h, "max_reflectance"));
+	} else {
+		textf(r, "%.1f %% of the %s (%.0f of %.0f) are brighter than the diffuse white (the "
+		      "perfect diffuser under %s), Y up to %.2f: specular reflection (polished "
+		      "metal, glaze) or more light on the object than on the chart, not a colour "
+		      "error. master.tif holds them at full scale (with bright saturated colours, "
+		      "%.1f %% of the %s are at full scale in a channel there); master_linear.tif "
+		      "keeps their values.", 100 * fa, what, above, n, ill ? ill : "",
+		      jnum(h, "max_y"), 100 * fc, what);
+	}
+	textf(r, " A band's reflectance estimate is above 1 in %.1f %% of the %s (up to %.2f).",
+	      100 * fb, what, jnum(h, "max_reflectance"));
+	html(r, "</p>\n");
+	if (map) {
+		html(r, "<figure>");
+		put_image_file(r, map, "highlight map", "photo");
+		html(r, "<figcaption>");
+		textf(r, "Highlight map: red, the %s above the diffuse white (%.1f %%), at full "
+		      "scale in master.tif; orange, the %.0f at full scale in a channel though no "
+		      "brighter than the diffuse white; blue, the %.0f outside the master's "
+		      "primaries, clipped; grey, the master's Y (0..1) elsewhere. Cropped to the "
+		      "lit part of the image; a map pixel is a block of the image when the image is "
+		      "larger than 800 pixels a side, coloured when any of its pixels is.", what,
+		      100 * fa, jnum(h, "clipped_not_above_white"), outside);
+		html(r, "</figcaption></figure>\n");
+	}
 }
 
 /* The files of an object capture the page does not show (cube, label map, scene, the
@@ -989,18 +1057,6 @@ static void section_color_accuracy(report *r)
 	section_end(r);
 }
 
-/* An object's key, or NULL when absent (optional sections of camera-space labels). */
-static json_t *object_key(report *r, int i, const char *key)
-{
-	return json_object_get(json_array_get(json_object_get(r->root, "objects"), (size_t)i), key);
-}
-
-static double jnum(const json_t *o, const char *key)
-{
-	const json_t *v = json_object_get(o, key);
-	return json_is_number(v) ? json_number_value(v) : NAN;
-}
-
 /* Camera-space labels: the pairs of materials a pixel cannot tell apart at the
  * capture's noise, and the classes merged for it. */
 static void put_separability(report *r, int i)
@@ -1259,6 +1315,7 @@ static void put_object(report *r, int i)
 	html(r, "</tbody></table>\n");
 	put_separability(r, i);
 	put_regions(r, i);
+	put_highlights(r, i);
 
 	report_panel *panels = calloc(nclasses > 0 ? nclasses : 1, sizeof(*panels));
 	double (*spectra)[2][KG_NBANDS] = calloc(nclasses > 0 ? nclasses : 1, sizeof(*spectra));

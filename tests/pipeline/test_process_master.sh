@@ -70,7 +70,13 @@ assert 0 < e["lit"] < e["pixels"], e
 assert m["clipped_pixels"] <= e["lit"], (m, e)
 w = [x for x in o["warnings"] if "master.tif" in x]
 assert bool(w) == (m["clipped_pixels"] > 0), w
-assert all("lit pixels outside" in x for x in w), w
+# each clipped pixel is warned once, by its cause: brighter than the diffuse white, a
+# channel above the space's white, or outside its primaries (highlights: their counts)
+h = o["highlights"]
+assert h["clipped_in_master"] + h["outside_primaries"] == m["clipped_pixels"], (h, m)
+assert all("lit pixels" in x for x in w), w
+assert bool([x for x in w if "lit pixels outside" in x]) == (h["outside_primaries"] > 0), w
+assert bool([x for x in w if "highlights above" in x]) == (h["above_white"] > 0), w
 PY
 # decoded through its own profile: within 0.05 of the cube under D50
 check_decode() { # master cube illuminant label [limit]

@@ -128,7 +128,8 @@ static void check_content(const char *page)
 	CHECK(contains(page, "master <a href=\"object-0001/master.tif\"><code>object-0001/"
 	                     "master.tif</code></a> (16-bit RGB in Adobe RGB (1998) compatible, "
 	                     "its ICC profile embedded; rendered under D65, relative "
-	                     "colorimetric; 7 lit pixels outside the space, clipped)"),
+	                     "colorimetric; 7 lit pixels clipped: outside the space or brighter "
+	                     "than its white)"),
 	      "object-0001's master not listed with its space");
 	CHECK(contains(page, ", no master (see the warnings)."), "object-0002: no master not said");
 	CHECK(contains(page, "<a href=\"camera.icc\"><code>camera.icc</code></a> (ICC v2 input "
